@@ -1,0 +1,33 @@
+#!/usr/bin/env bash
+# Set-up + build, then the headless simulator with simulated hardware for a bounded time, recording the session's
+# inputs to a bag, then a summary of what was recorded.
+# Usage: scripts/run.sh [--duration SECONDS] [--scene NAME] [--bag PATH] [roslaunch args...]
+set -euo pipefail
+ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+duration=20
+scene=membrane_peeling
+bag=""
+extra=()
+while (($#)); do
+  case $1 in
+    --duration) duration=$2; shift 2 ;;
+    --scene) scene=$2; shift 2 ;;
+    --bag) bag=$2; shift 2 ;;
+    -h | --help) sed -n '2,4p' "$0"; exit 0 ;;
+    *) extra+=("$1"); shift ;;
+  esac
+done
+[[ $duration =~ ^[0-9]+([.][0-9]+)?$ ]] && [[ $duration != 0 ]] || { echo "run.sh: --duration must be a positive number" >&2; exit 2; }
+
+"$ROOT/scripts/setup.sh"
+source "$ROOT/scripts/common.sh"
+
+mkdir -p "$ROOT/build/sessions"
+[[ -n $bag ]] || bag="$ROOT/build/sessions/session_$(date +%Y%m%d_%H%M%S).bag"
+echo "run.sh: headless simulator, simulated hardware, scene '$scene', ${duration} s, recording to $bag"
+# The recorder is a required node with --duration, so roslaunch ends by itself; timeout is only a safety net.
+timeout --signal=INT --kill-after=15 "$(awk "BEGIN{print int($duration) + 60}")" \
+  roslaunch --screen "$ROOT/launch/simulator.launch" sim:=true headless:=true record:=true \
+  "duration:=$duration" "bag:=$bag" "scene:=$scene" "${extra[@]}" >"$ROOT/build/sessions/last_run.log" 2>&1 || true
+tail -n 5 "$ROOT/build/sessions/last_run.log"
+/usr/bin/python3 "$ROOT/scripts/bag_summary.py" "$bag"

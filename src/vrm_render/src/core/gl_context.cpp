@@ -1,0 +1,61 @@
+#include "vrm_render/gl_context.h"
+
+#define GL_GLEXT_PROTOTYPES
+#include <GL/gl.h>
+#include <GL/osmesa.h>
+
+namespace vrm_render {
+
+struct GlContext::Impl {
+  OSMesaContext context = nullptr;
+};
+
+GlContext::GlContext(const GlContextOptions& options) : impl_(std::make_unique<Impl>()) {
+  if (options.width <= 0 || options.height <= 0) {
+    throw GlContextError("GlContext: size must be positive, got " + std::to_string(options.width) + "x" +
+                         std::to_string(options.height));
+  }
+  const int attributes[] = {OSMESA_FORMAT,
+                            OSMESA_RGBA,
+                            OSMESA_DEPTH_BITS,
+                            options.depth_bits,
+                            OSMESA_STENCIL_BITS,
+                            options.stencil_bits,
+                            OSMESA_ACCUM_BITS,
+                            0,
+                            OSMESA_PROFILE,
+                            OSMESA_CORE_PROFILE,
+                            OSMESA_CONTEXT_MAJOR_VERSION,
+                            options.gl_major,
+                            OSMESA_CONTEXT_MINOR_VERSION,
+                            options.gl_minor,
+                            0};
+  impl_->context = OSMesaCreateContextAttribs(attributes, nullptr);
+  if (!impl_->context) {
+    throw GlContextError("OSMesaCreateContextAttribs failed for an OpenGL " + std::to_string(options.gl_major) + "." +
+                         std::to_string(options.gl_minor) + " core profile context");
+  }
+  resize(options.width, options.height);
+  version_ = reinterpret_cast<const char*>(glGetString(GL_VERSION));
+  renderer_ = reinterpret_cast<const char*>(glGetString(GL_RENDERER));
+}
+
+GlContext::~GlContext() {
+  if (impl_ && impl_->context) OSMesaDestroyContext(impl_->context);
+}
+
+void GlContext::makeCurrent() {
+  if (!OSMesaMakeCurrent(impl_->context, color_.data(), GL_UNSIGNED_BYTE, width_, height_)) {
+    throw GlContextError("OSMesaMakeCurrent failed");
+  }
+}
+
+void GlContext::resize(int width, int height) {
+  if (width <= 0 || height <= 0) throw GlContextError("GlContext::resize: size must be positive");
+  width_ = width;
+  height_ = height;
+  color_.assign(static_cast<std::size_t>(width) * height * 4, 0);
+  makeCurrent();
+}
+
+}  // namespace vrm_render

@@ -1,0 +1,89 @@
+// Diagnostics nodelet: load it into a nodelet manager to see whether the graph's messages really travel as shared
+// pointers. For each input topic it counts the messages received and how many of them are the very objects a
+// publisher handed to vrm_msgs::publishShared() in this process (PublishLedger). A copy anywhere on the way
+// (publish(*msg), or a subscriber in another process) shows up as received > zero_copy.
+#include <diagnostic_msgs/DiagnosticArray.h>
+#include <nodelet/nodelet.h>
+#include <pluginlib/class_list_macros.hpp>
+#include <ros/ros.h>
+
+#include <atomic>
+#include <boost/make_shared.hpp>
+#include <map>
+#include <mutex>
+#include <string>
+
+#include "vrm_msgs/EyeState.h"
+#include "vrm_msgs/InstrumentState.h"
+#include "vrm_msgs/MicroscopeSettings.h"
+#include "vrm_msgs/PedalState.h"
+#include "vrm_msgs/TissueMesh.h"
+#include "vrm_msgs/publish.h"
+
+namespace vrm_sim {
+
+class ZeroCopyProbe : public nodelet::Nodelet {
+ public:
+  void onInit() override {
+    ros::NodeHandle& nh = getNodeHandle();
+    subscribeTo<vrm_msgs::EyeState>(nh, "eye_state");
+    subscribeTo<vrm_msgs::InstrumentState>(nh, "instrument_state");
+    subscribeTo<vrm_msgs::PedalState>(nh, "pedals");
+    subscribeTo<vrm_msgs::MicroscopeSettings>(nh, "microscope");
+    subscribeTo<vrm_msgs::TissueMesh>(nh, "tissue_mesh");
+    report_publisher_ = nh.advertise<diagnostic_msgs::DiagnosticArray>("diagnostics", 10);
+    const double period = getPrivateNodeHandle().param("report_period", 0.5);
+    report_timer_ = nh.createWallTimer(ros::WallDuration(period), [this](const ros::WallTimerEvent&) { report(); });
+  }
+
+ private:
+  struct Counts {
+    std::uint64_t received = 0;
+    std::uint64_t zero_copy = 0;
+  };
+
+  template <class M>
+  void subscribeTo(ros::NodeHandle& nh, const std::string& topic) {
+    const std::string resolved = nh.resolveName(topic);
+    subscribers_.push_back(nh.subscribe<M>(topic, 100, [this, resolved](const boost::shared_ptr<const M>& message) {
+      const bool same_object = vrm_msgs::PublishLedger::instance().contains(message.get());
+      std::lock_guard<std::mutex> lock(mutex_);
+      Counts& counts = counts_[resolved];
+      ++counts.received;
+      counts.zero_copy += same_object ? 1 : 0;
+    }));
+  }
+
+  void report() {
+    auto array = boost::make_shared<diagnostic_msgs::DiagnosticArray>();
+    array->header.stamp = ros::Time::now();  // diagnostics only, not part of the simulation pipeline
+    diagnostic_msgs::DiagnosticStatus status;
+    status.name = getName();
+    status.hardware_id = "nodelet_manager";
+    bool all_zero_copy = true;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      for (const auto& [topic, counts] : counts_) {
+        diagnostic_msgs::KeyValue value;
+        value.key = topic;
+        value.value = std::to_string(counts.received) + " " + std::to_string(counts.zero_copy);
+        status.values.push_back(value);
+        all_zero_copy = all_zero_copy && counts.received == counts.zero_copy;
+      }
+    }
+    status.level = all_zero_copy ? diagnostic_msgs::DiagnosticStatus::OK : diagnostic_msgs::DiagnosticStatus::WARN;
+    status.message = all_zero_copy ? "every message received by pointer" : "some messages arrived as copies";
+    array->status.push_back(status);
+    vrm_msgs::publishShared(report_publisher_, array);
+  }
+
+  std::vector<ros::Subscriber> subscribers_;
+  ros::Publisher report_publisher_;
+  ros::WallTimer report_timer_;
+  std::mutex mutex_;
+  std::map<std::string, Counts> counts_;
+};
+
+}  // namespace vrm_sim
+
+PLUGINLIB_EXPORT_CLASS(vrm_sim::ZeroCopyProbe, nodelet::Nodelet)
