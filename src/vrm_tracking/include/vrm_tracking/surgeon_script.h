@@ -14,7 +14,6 @@
 //     insertion_depth = |tip - trocar|.
 
 #include <Eigen/Geometry>
-
 #include <cstdint>
 #include <memory>
 #include <stdexcept>
@@ -49,9 +48,10 @@ class ScriptError : public std::runtime_error {
 };
 
 struct EyeGeometry {
-  double radius = 0.012;                                        // m, sphere of the mechanical eye
-  double margin = 0.001;                                        // m, tips may be this far outside the sphere
-  Eigen::Vector3d rotation_center = Eigen::Vector3d::Zero();    // m, in world
+  double radius = 0.012;                                      // m, sphere of the mechanical eye
+  double margin = 0.001;                                      // m, tips may be this far outside the sphere
+  Eigen::Vector3d rotation_center = Eigen::Vector3d::Zero();  // m, in world
+  int line = 0;
 };
 
 struct PedalSample {
@@ -65,10 +65,10 @@ struct PedalSample {
 };
 
 struct MicroscopeSample {
-  double focus_distance = 0.2;  // m, objective to focal plane
-  double zoom = 1.0;            // magnification (1 = widest field)
-  double ambient_light = 0.5;   // 0..1
-  double disparity_scale = 1.0; // 0..1
+  double focus_distance = 0.2;   // m, objective to focal plane
+  double zoom = 1.0;             // magnification (1 = widest field)
+  double ambient_light = 0.5;    // 0..1
+  double disparity_scale = 1.0;  // 0..1
 };
 
 struct InstrumentSample {
@@ -88,8 +88,8 @@ struct InstrumentSample {
 };
 
 struct SurgeonSnapshot {
-  double script_time = 0.0;  // s, after loop wrap / end clamp
-  bool finished = false;     // playback once and t beyond the last keyframe
+  double script_time = 0.0;                                          // s, after loop wrap / end clamp
+  bool finished = false;                                             // playback once and t beyond the last keyframe
   Eigen::Quaterniond eye_rotation = Eigen::Quaterniond::Identity();  // world -> eye
   Eigen::Vector3d rotation_center = Eigen::Vector3d::Zero();         // world, m
   std::vector<InstrumentSample> instruments;                         // in slot order of the script
@@ -189,6 +189,9 @@ class SurgeonScript {
   // Procedural scripts so the simulator runs without a file; names: builtinNames(). Throws std::invalid_argument.
   static SurgeonScript builtin(const std::string& name);
   static std::vector<std::string> builtinNames();
+  // What the nodelets' `script` parameter means: "" -> builtin("demo"), "builtin:NAME" -> builtin(NAME),
+  // anything else -> fromFile(spec).
+  static SurgeonScript load(const std::string& spec);
 
   // t: seconds since the start of playback. Loop wraps at duration(); once holds the last keyframe afterwards.
   SurgeonSnapshot sample(double t) const;

@@ -1,0 +1,113 @@
+// Microscope knob twin (thesis §7: focus, zoom, ambient light knobs): plays the script's microscope track, and the
+// zoom/focus buttons of whatever publishes `pedals` (pedals_sim or a real pedal unit) move zoom and focus within
+// their limits.
+
+#include <nodelet/nodelet.h>
+#include <ros/ros.h>
+#include <vrm_msgs/MicroscopeSettings.h>
+#include <vrm_msgs/PedalState.h>
+#include <vrm_msgs/publish.h>
+
+#include <boost/make_shared.hpp>
+#include <memory>
+#include <mutex>
+#include <pluginlib/class_list_macros.hpp>
+#include <string>
+
+#include "vrm_tracking/conversions.h"
+#include "vrm_tracking/microscope_knobs.h"
+#include "vrm_tracking/surgeon_script.h"
+
+namespace vrm_tracking {
+
+class MicroscopeSim : public nodelet::Nodelet {
+ private:
+  void onInit() override {
+    ros::NodeHandle& nh = getNodeHandle();
+    ros::NodeHandle& pnh = getPrivateNodeHandle();
+
+    std::string spec;
+    pnh.param<std::string>("script", spec, "");
+    try {
+      script_ = std::make_unique<SurgeonScript>(SurgeonScript::load(spec));
+    } catch (const std::exception& e) {
+      NODELET_FATAL("cannot load surgeon script: %s", e.what());
+      throw;
+    }
+    bool loop = script_->playback() == Playback::kLoop;
+    pnh.param("loop", loop, loop);
+    script_->setPlayback(loop ? Playback::kLoop : Playback::kOnce);
+
+    MicroscopeLimits limits;
+    pnh.param("zoom_min", limits.zoom_min, limits.zoom_min);
+    pnh.param("zoom_max", limits.zoom_max, limits.zoom_max);
+    pnh.param("zoom_rate", limits.zoom_rate, limits.zoom_rate);
+    pnh.param("focus_min", limits.focus_min, limits.focus_min);
+    pnh.param("focus_max", limits.focus_max, limits.focus_max);
+    pnh.param("focus_rate", limits.focus_rate, limits.focus_rate);
+    double rate = 20.0;
+    pnh.param("rate", rate, rate);
+    // Buttons count as released when pedal messages stop, so a dead pedal node cannot zoom forever.
+    pnh.param("pedal_timeout", pedal_timeout_, 0.5);
+    try {
+      if (!(rate > 0.0)) throw std::invalid_argument("rate must be > 0");
+      knobs_ = std::make_unique<MicroscopeKnobs>(limits);
+    } catch (const std::exception& e) {
+      NODELET_FATAL("bad parameters: %s", e.what());
+      throw;
+    }
+
+    pub_ = nh.advertise<vrm_msgs::MicroscopeSettings>("microscope", 10);
+    pedal_sub_ = nh.subscribe("pedals", 10, &MicroscopeSim::onPedals, this);
+    timer_ = nh.createTimer(ros::Duration(1.0 / rate), &MicroscopeSim::onTick, this);
+    NODELET_INFO("microscope track of '%s' at %.1f Hz; zoom [%.2f, %.2f], focus [%.3f, %.3f] m",
+                 script_->name().c_str(), rate, limits.zoom_min, limits.zoom_max, limits.focus_min, limits.focus_max);
+  }
+
+  void onPedals(const vrm_msgs::PedalState::ConstPtr& msg) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    buttons_ = fromMsg(*msg);
+    buttons_received_ = ros::Time::now();
+  }
+
+  void onTick(const ros::TimerEvent& event) {
+    ros::Time stamp = event.current_expected;
+    if (stamp.isZero()) stamp = ros::Time::now();
+    if (stamp.isZero()) return;
+    if (start_.isZero()) start_ = stamp;
+    const double dt = last_tick_.isZero() ? 0.0 : (stamp - last_tick_).toSec();
+    last_tick_ = stamp;
+
+    PedalSample buttons;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      if (!buttons_received_.isZero() && (ros::Time::now() - buttons_received_).toSec() <= pedal_timeout_) {
+        buttons = buttons_;
+      }
+    }
+    const MicroscopeSample settings = knobs_->update(script_->sample((stamp - start_).toSec()).microscope, buttons, dt);
+
+    auto msg = boost::make_shared<vrm_msgs::MicroscopeSettings>();
+    msg->header.stamp = stamp;
+    toMsg(settings, msg.get());
+    vrm_msgs::publishShared(pub_, msg);
+    NODELET_DEBUG_THROTTLE(5.0, "zoom %.2f focus %.4f m", settings.zoom, settings.focus_distance);
+  }
+
+  std::unique_ptr<SurgeonScript> script_;
+  std::unique_ptr<MicroscopeKnobs> knobs_;
+  double pedal_timeout_ = 0.5;
+  ros::Publisher pub_;
+  ros::Subscriber pedal_sub_;
+  ros::Timer timer_;
+  ros::Time start_;
+  ros::Time last_tick_;
+
+  std::mutex mutex_;
+  PedalSample buttons_;
+  ros::Time buttons_received_;
+};
+
+}  // namespace vrm_tracking
+
+PLUGINLIB_EXPORT_CLASS(vrm_tracking::MicroscopeSim, nodelet::Nodelet)

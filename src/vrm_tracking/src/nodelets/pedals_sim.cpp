@@ -1,0 +1,102 @@
+// Foot pedal twin (thesis §7): plays the script's pedal track; a PedalState on pedals_sim/command (keyboard teleop,
+// GUI) takes over, the way the mediator swaps a real device for another input (§2.4.1).
+
+#include <nodelet/nodelet.h>
+#include <ros/ros.h>
+#include <vrm_msgs/PedalState.h>
+#include <vrm_msgs/publish.h>
+
+#include <boost/make_shared.hpp>
+#include <memory>
+#include <mutex>
+#include <pluginlib/class_list_macros.hpp>
+#include <string>
+
+#include "vrm_tracking/conversions.h"
+#include "vrm_tracking/surgeon_script.h"
+
+namespace vrm_tracking {
+
+class PedalsSim : public nodelet::Nodelet {
+ private:
+  void onInit() override {
+    ros::NodeHandle& nh = getNodeHandle();
+    ros::NodeHandle& pnh = getPrivateNodeHandle();
+
+    std::string spec;
+    pnh.param<std::string>("script", spec, "");
+    try {
+      script_ = std::make_unique<SurgeonScript>(SurgeonScript::load(spec));
+    } catch (const std::exception& e) {
+      NODELET_FATAL("cannot load surgeon script: %s", e.what());
+      throw;
+    }
+    bool loop = script_->playback() == Playback::kLoop;
+    pnh.param("loop", loop, loop);
+    script_->setPlayback(loop ? Playback::kLoop : Playback::kOnce);
+
+    double rate = 100.0;
+    pnh.param("rate", rate, rate);
+    // 0: a command holds until the next one (a foot stays where it was put); > 0: the script resumes after this
+    // many seconds without a command, for teleops that repeat while a key is held.
+    pnh.param("override_timeout", override_timeout_, 0.0);
+    if (!(rate > 0.0) || !(override_timeout_ >= 0.0)) {
+      NODELET_FATAL("need rate > 0 and override_timeout >= 0 (got %g, %g)", rate, override_timeout_);
+      throw std::invalid_argument("pedals_sim: bad parameters");
+    }
+
+    pub_ = nh.advertise<vrm_msgs::PedalState>("pedals", 10);
+    command_sub_ = nh.subscribe("pedals_sim/command", 10, &PedalsSim::onCommand, this);
+    timer_ = nh.createTimer(ros::Duration(1.0 / rate), &PedalsSim::onTick, this);
+    NODELET_INFO("pedal track of '%s' at %.1f Hz; overrides on %s", script_->name().c_str(), rate,
+                 command_sub_.getTopic().c_str());
+  }
+
+  void onCommand(const vrm_msgs::PedalState::ConstPtr& msg) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    override_ = fromMsg(*msg);
+    // Received time, not msg->header.stamp: a GUI may leave the stamp empty and the timeout is about liveness.
+    override_received_ = ros::Time::now();
+    if (!overriding_) NODELET_INFO("pedal command received; script pedal track overridden");
+    overriding_ = true;
+  }
+
+  void onTick(const ros::TimerEvent& event) {
+    ros::Time stamp = event.current_expected;
+    if (stamp.isZero()) stamp = ros::Time::now();
+    if (stamp.isZero()) return;
+    if (start_.isZero()) start_ = stamp;
+
+    PedalSample pedals;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      if (overriding_ && override_timeout_ > 0.0 &&
+          (ros::Time::now() - override_received_).toSec() > override_timeout_) {
+        overriding_ = false;
+        NODELET_INFO("no pedal command for %.2f s; back to the script", override_timeout_);
+      }
+      pedals = overriding_ ? override_ : script_->sample((stamp - start_).toSec()).pedals;
+    }
+
+    auto msg = boost::make_shared<vrm_msgs::PedalState>();
+    msg->header.stamp = stamp;
+    toMsg(pedals, msg.get());
+    vrm_msgs::publishShared(pub_, msg);
+  }
+
+  std::unique_ptr<SurgeonScript> script_;
+  double override_timeout_ = 0.0;
+  ros::Publisher pub_;
+  ros::Subscriber command_sub_;
+  ros::Timer timer_;
+  ros::Time start_;
+
+  std::mutex mutex_;  // the command callback may run on another manager thread than the timer
+  bool overriding_ = false;
+  PedalSample override_;
+  ros::Time override_received_;
+};
+
+}  // namespace vrm_tracking
+
+PLUGINLIB_EXPORT_CLASS(vrm_tracking::PedalsSim, nodelet::Nodelet)

@@ -1,0 +1,109 @@
+// Scripted surgeon: the mediator twin of the tracked eye and instruments (thesis §2.4.1). It plays a SurgeonScript
+// and publishes what the optical tracking would report, at the tracking rate, as ground truth.
+
+#include <nodelet/nodelet.h>
+#include <ros/ros.h>
+#include <vrm_msgs/EyeState.h>
+#include <vrm_msgs/InstrumentState.h>
+#include <vrm_msgs/publish.h>
+
+#include <boost/make_shared.hpp>
+#include <memory>
+#include <pluginlib/class_list_macros.hpp>
+#include <string>
+
+#include "vrm_tracking/conversions.h"
+#include "vrm_tracking/surgeon_script.h"
+
+namespace vrm_tracking {
+
+class ScriptedSurgeon : public nodelet::Nodelet {
+ private:
+  void onInit() override {
+    ros::NodeHandle& nh = getNodeHandle();
+    ros::NodeHandle& pnh = getPrivateNodeHandle();
+
+    std::string spec;
+    pnh.param<std::string>("script", spec, "");
+    try {
+      script_ = std::make_unique<SurgeonScript>(SurgeonScript::load(spec));
+    } catch (const std::exception& e) {
+      NODELET_FATAL("cannot load surgeon script: %s", e.what());
+      throw;
+    }
+    bool loop = script_->playback() == Playback::kLoop;
+    pnh.param("loop", loop, loop);
+    script_->setPlayback(loop ? Playback::kLoop : Playback::kOnce);
+
+    double tremor_um = 0.0;
+    int seed = 0;
+    pnh.param("tremor_um", tremor_um, tremor_um);
+    pnh.param("seed", seed, seed);
+    // The seed is a parameter, so a recorded session replays the same tremor (§2.4.2).
+    script_->setTremor(tremor_um * 1e-6, static_cast<std::uint32_t>(seed));
+
+    pnh.param<std::string>("eye_frame", eye_frame_, "eye");
+    pnh.param<std::string>("world_frame", world_frame_, "world");
+    double rate = 50.0;  // §7: EyeSi tracking runs at <= 50 Hz
+    pnh.param("rate", rate, rate);
+    if (!(rate > 0.0)) {
+      NODELET_FATAL("rate must be > 0 (got %g)", rate);
+      throw std::invalid_argument("scripted_surgeon: rate must be > 0");
+    }
+
+    eye_pub_ = nh.advertise<vrm_msgs::EyeState>("eye_state", 10);
+    // One message per instrument per tick; room for a few ticks of every slot.
+    instrument_pub_ = nh.advertise<vrm_msgs::InstrumentState>(
+        "instrument_state",
+        static_cast<uint32_t>(10 * std::max<std::size_t>(1, script_->definition().instruments.size())));
+    timer_ = nh.createTimer(ros::Duration(1.0 / rate), &ScriptedSurgeon::onTick, this);
+
+    NODELET_INFO("playing script '%s' (%s, %zu instruments, %.1f s, %s) at %.1f Hz, tremor %.1f um (seed %d)",
+                 script_->name().c_str(), script_->definition().source.c_str(),
+                 script_->definition().instruments.size(), script_->duration(), loop ? "loop" : "once", rate, tremor_um,
+                 seed);
+  }
+
+  void onTick(const ros::TimerEvent& event) {
+    // A device is where stamps originate: the tick's scheduled time, like a camera's exposure clock.
+    ros::Time stamp = event.current_expected;
+    if (stamp.isZero()) stamp = ros::Time::now();
+    if (stamp.isZero()) return;  // simulated time not running yet
+    if (start_.isZero()) start_ = stamp;
+
+    const SurgeonSnapshot snap = script_->sample((stamp - start_).toSec());
+    if (snap.finished && !announced_end_) {
+      announced_end_ = true;
+      NODELET_INFO("script '%s' finished after %.1f s; holding the final pose", script_->name().c_str(),
+                   script_->duration());
+    }
+
+    auto eye = boost::make_shared<vrm_msgs::EyeState>();
+    eye->header.stamp = stamp;
+    eye->header.frame_id = world_frame_;
+    toMsg(snap, eye.get());
+    vrm_msgs::publishShared(eye_pub_, eye);
+
+    for (const InstrumentSample& sample : snap.instruments) {
+      auto msg = boost::make_shared<vrm_msgs::InstrumentState>();
+      msg->header.stamp = stamp;
+      msg->header.frame_id = eye_frame_;
+      toMsg(sample, msg.get());
+      vrm_msgs::publishShared(instrument_pub_, msg);
+    }
+    NODELET_DEBUG_THROTTLE(5.0, "script time %.2f s", snap.script_time);
+  }
+
+  std::unique_ptr<SurgeonScript> script_;
+  std::string eye_frame_;
+  std::string world_frame_;
+  ros::Publisher eye_pub_;
+  ros::Publisher instrument_pub_;
+  ros::Timer timer_;
+  ros::Time start_;
+  bool announced_end_ = false;
+};
+
+}  // namespace vrm_tracking
+
+PLUGINLIB_EXPORT_CLASS(vrm_tracking::ScriptedSurgeon, nodelet::Nodelet)

@@ -1,0 +1,150 @@
+#include "vrm_tracking/conversions.h"
+
+#include <stdexcept>
+#include <string>
+
+namespace vrm_tracking {
+
+geometry_msgs::Quaternion toQuaternionMsg(const Eigen::Quaterniond& q) {
+  geometry_msgs::Quaternion msg;
+  msg.w = q.w();
+  msg.x = q.x();
+  msg.y = q.y();
+  msg.z = q.z();
+  return msg;
+}
+
+geometry_msgs::Point toPointMsg(const Eigen::Vector3d& p) {
+  geometry_msgs::Point msg;
+  msg.x = p.x();
+  msg.y = p.y();
+  msg.z = p.z();
+  return msg;
+}
+
+geometry_msgs::Vector3 toVector3Msg(const Eigen::Vector3d& v) {
+  geometry_msgs::Vector3 msg;
+  msg.x = v.x();
+  msg.y = v.y();
+  msg.z = v.z();
+  return msg;
+}
+
+Eigen::Quaterniond toEigen(const geometry_msgs::Quaternion& q) { return Eigen::Quaterniond(q.w, q.x, q.y, q.z); }
+Eigen::Vector3d toEigen(const geometry_msgs::Point& p) { return Eigen::Vector3d(p.x, p.y, p.z); }
+Eigen::Vector3d toEigen(const geometry_msgs::Vector3& v) { return Eigen::Vector3d(v.x, v.y, v.z); }
+
+std::uint8_t toMsgType(InstrumentType type) {
+  using Msg = vrm_msgs::InstrumentState;
+  switch (type) {
+    case InstrumentType::kLightPipe:
+      return Msg::LIGHT_PIPE;
+    case InstrumentType::kForceps:
+      return Msg::FORCEPS;
+    case InstrumentType::kVitrector:
+      return Msg::VITRECTOR;
+    case InstrumentType::kNeedle:
+      return Msg::NEEDLE;
+    case InstrumentType::kHook:
+      return Msg::HOOK;
+  }
+  throw std::invalid_argument("unhandled InstrumentType");
+}
+
+InstrumentType fromMsgType(std::uint8_t type) {
+  using Msg = vrm_msgs::InstrumentState;
+  switch (type) {
+    case Msg::LIGHT_PIPE:
+      return InstrumentType::kLightPipe;
+    case Msg::FORCEPS:
+      return InstrumentType::kForceps;
+    case Msg::VITRECTOR:
+      return InstrumentType::kVitrector;
+    case Msg::NEEDLE:
+      return InstrumentType::kNeedle;
+    case Msg::HOOK:
+      return InstrumentType::kHook;
+    default:
+      throw std::invalid_argument("unknown InstrumentState type " + std::to_string(type));
+  }
+}
+
+void toMsg(const SurgeonSnapshot& snapshot, vrm_msgs::EyeState* msg) {
+  msg->rotation = toQuaternionMsg(snapshot.eye_rotation);
+  msg->rotation_center = toPointMsg(snapshot.rotation_center);
+  msg->tracking_quality = 1.0f;
+  msg->valid = true;
+}
+
+void toMsg(const InstrumentSample& sample, vrm_msgs::InstrumentState* msg) {
+  msg->instrument_id = sample.slot;
+  msg->type = toMsgType(sample.type);
+  msg->tip_pose.position = toPointMsg(sample.tip);
+  msg->tip_pose.orientation = toQuaternionMsg(sample.orientation);
+  msg->shaft_axis = toVector3Msg(sample.shaft_axis);
+  msg->insertion_depth = sample.insertion_depth;
+  msg->roll = sample.roll;
+  msg->jaw_angle = sample.jaw_angle;
+  msg->suction = sample.suction;
+  msg->cut_rate = sample.cut_rate;
+  msg->injection_flow = sample.injection_flow;
+  msg->tracking_quality = 1.0f;
+  msg->valid = true;
+}
+
+void toMsg(const PedalSample& sample, vrm_msgs::PedalState* msg) {
+  msg->travel = sample.travel;
+  msg->reflux = sample.reflux;
+  msg->instrument_switch = sample.instrument_switch;
+  msg->zoom_in = sample.zoom_in;
+  msg->zoom_out = sample.zoom_out;
+  msg->focus_near = sample.focus_near;
+  msg->focus_far = sample.focus_far;
+}
+
+void toMsg(const MicroscopeSample& sample, vrm_msgs::MicroscopeSettings* msg) {
+  msg->focus_distance = sample.focus_distance;
+  msg->zoom = sample.zoom;
+  msg->ambient_light = sample.ambient_light;
+  msg->disparity_scale = sample.disparity_scale;
+}
+
+InstrumentSample fromMsg(const vrm_msgs::InstrumentState& msg) {
+  InstrumentSample sample;
+  sample.slot = msg.instrument_id;
+  sample.type = fromMsgType(msg.type);
+  sample.tip = toEigen(msg.tip_pose.position);
+  sample.orientation = toEigen(msg.tip_pose.orientation);
+  sample.shaft_axis = toEigen(msg.shaft_axis);
+  sample.insertion_depth = msg.insertion_depth;
+  sample.trocar = sample.tip - sample.insertion_depth * sample.shaft_axis;
+  sample.roll = msg.roll;
+  sample.jaw_angle = msg.jaw_angle;
+  sample.suction = msg.suction;
+  sample.cut_rate = msg.cut_rate;
+  sample.injection_flow = msg.injection_flow;
+  return sample;
+}
+
+PedalSample fromMsg(const vrm_msgs::PedalState& msg) {
+  PedalSample sample;
+  sample.travel = msg.travel;
+  sample.reflux = msg.reflux;
+  sample.instrument_switch = msg.instrument_switch;
+  sample.zoom_in = msg.zoom_in;
+  sample.zoom_out = msg.zoom_out;
+  sample.focus_near = msg.focus_near;
+  sample.focus_far = msg.focus_far;
+  return sample;
+}
+
+MicroscopeSample fromMsg(const vrm_msgs::MicroscopeSettings& msg) {
+  MicroscopeSample sample;
+  sample.focus_distance = msg.focus_distance;
+  sample.zoom = msg.zoom;
+  sample.ambient_light = msg.ambient_light;
+  sample.disparity_scale = msg.disparity_scale;
+  return sample;
+}
+
+}  // namespace vrm_tracking
