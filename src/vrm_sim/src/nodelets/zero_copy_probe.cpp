@@ -2,6 +2,8 @@
 // pointers. For each input topic it counts the messages received and how many of them are the very objects a
 // publisher handed to vrm_msgs::publishShared() in this process (PublishLedger). A copy anywhere on the way
 // (publish(*msg), or a subscriber in another process) shows up as received > zero_copy.
+// Latched topics are left out on purpose: roscpp hands a late subscriber in the same process a deserialised copy
+// of the latched message (measured by this probe), which is fine for one-off scene data but not for streams.
 #include <diagnostic_msgs/DiagnosticArray.h>
 #include <nodelet/nodelet.h>
 #include <pluginlib/class_list_macros.hpp>
@@ -17,7 +19,6 @@
 #include "vrm_msgs/InstrumentState.h"
 #include "vrm_msgs/MicroscopeSettings.h"
 #include "vrm_msgs/PedalState.h"
-#include "vrm_msgs/TissueMesh.h"
 #include "vrm_msgs/publish.h"
 
 namespace vrm_sim {
@@ -30,7 +31,6 @@ class ZeroCopyProbe : public nodelet::Nodelet {
     subscribeTo<vrm_msgs::InstrumentState>(nh, "instrument_state");
     subscribeTo<vrm_msgs::PedalState>(nh, "pedals");
     subscribeTo<vrm_msgs::MicroscopeSettings>(nh, "microscope");
-    subscribeTo<vrm_msgs::TissueMesh>(nh, "tissue_mesh");
     report_publisher_ = nh.advertise<diagnostic_msgs::DiagnosticArray>("diagnostics", 10);
     const double period = getPrivateNodeHandle().param("report_period", 0.5);
     report_timer_ = nh.createWallTimer(ros::WallDuration(period), [this](const ros::WallTimerEvent&) { report(); });

@@ -1,0 +1,88 @@
+#include "vrm_sim/conversions.h"
+
+namespace vrm_sim {
+
+Eigen::Isometry3d toEigen(const geometry_msgs::Pose& pose) {
+  Eigen::Isometry3d result = Eigen::Isometry3d::Identity();
+  result.translation() = Eigen::Vector3d(pose.position.x, pose.position.y, pose.position.z);
+  Eigen::Quaterniond rotation(pose.orientation.w, pose.orientation.x, pose.orientation.y, pose.orientation.z);
+  // An all-zero quaternion (a default-constructed message) means "no rotation", not a singular matrix.
+  if (rotation.squaredNorm() < 1e-12) rotation = Eigen::Quaterniond::Identity();
+  result.linear() = rotation.normalized().toRotationMatrix();
+  return result;
+}
+
+geometry_msgs::Pose toPoseMsg(const Eigen::Isometry3d& pose) {
+  geometry_msgs::Pose result;
+  result.position.x = pose.translation().x();
+  result.position.y = pose.translation().y();
+  result.position.z = pose.translation().z();
+  const Eigen::Quaterniond rotation(pose.rotation());
+  result.orientation.w = rotation.w();
+  result.orientation.x = rotation.x();
+  result.orientation.y = rotation.y();
+  result.orientation.z = rotation.z();
+  return result;
+}
+
+geometry_msgs::Transform toTransformMsg(const Eigen::Isometry3d& transform) {
+  const geometry_msgs::Pose pose = toPoseMsg(transform);
+  geometry_msgs::Transform result;
+  result.translation.x = pose.position.x;
+  result.translation.y = pose.position.y;
+  result.translation.z = pose.position.z;
+  result.rotation = pose.orientation;
+  return result;
+}
+
+void fillTissueMesh(const Eigen::Vector3d* positions, std::size_t vertex_count,
+                    const std::array<std::uint32_t, 3>* triangles, std::size_t triangle_count,
+                    vrm_msgs::TissueMesh& message) {
+  message.positions.resize(3 * vertex_count);
+  for (std::size_t i = 0; i < vertex_count; ++i) {
+    for (int axis = 0; axis < 3; ++axis) message.positions[3 * i + axis] = static_cast<float>(positions[i][axis]);
+  }
+  message.triangles.resize(3 * triangle_count);
+  std::vector<Eigen::Vector3d> normals(vertex_count, Eigen::Vector3d::Zero());
+  for (std::size_t t = 0; t < triangle_count; ++t) {
+    const auto& triangle = triangles[t];
+    for (int corner = 0; corner < 3; ++corner) message.triangles[3 * t + corner] = triangle[corner];
+    // The cross product's length is twice the area: larger triangles weigh more.
+    const Eigen::Vector3d area_normal =
+        (positions[triangle[1]] - positions[triangle[0]]).cross(positions[triangle[2]] - positions[triangle[0]]);
+    for (int corner = 0; corner < 3; ++corner) normals[triangle[corner]] += area_normal;
+  }
+  message.normals.resize(3 * vertex_count);
+  for (std::size_t i = 0; i < vertex_count; ++i) {
+    const double length = normals[i].norm();
+    const Eigen::Vector3d unit = length > 0 ? Eigen::Vector3d(normals[i] / length) : Eigen::Vector3d::Zero();
+    for (int axis = 0; axis < 3; ++axis) message.normals[3 * i + axis] = static_cast<float>(unit[axis]);
+  }
+}
+
+void fillTissueMesh(const TriangleMesh& mesh, vrm_msgs::TissueMesh& message) {
+  fillTissueMesh(mesh.vertices.data(), mesh.vertices.size(), mesh.triangles.data(), mesh.triangles.size(), message);
+}
+
+void fillTriangleListMarker(const vrm_msgs::TissueMesh& mesh, const std::array<float, 4>& rgba,
+                            visualization_msgs::Marker& marker) {
+  marker.header = mesh.header;
+  marker.ns = mesh.tissue_id;
+  marker.type = visualization_msgs::Marker::TRIANGLE_LIST;
+  marker.action = visualization_msgs::Marker::ADD;
+  marker.pose.orientation.w = 1.0;
+  marker.scale.x = marker.scale.y = marker.scale.z = 1.0;
+  marker.color.r = rgba[0];
+  marker.color.g = rgba[1];
+  marker.color.b = rgba[2];
+  marker.color.a = rgba[3];
+  marker.points.resize(mesh.triangles.size());
+  for (std::size_t i = 0; i < mesh.triangles.size(); ++i) {
+    const std::size_t vertex = mesh.triangles[i];
+    marker.points[i].x = mesh.positions[3 * vertex];
+    marker.points[i].y = mesh.positions[3 * vertex + 1];
+    marker.points[i].z = mesh.positions[3 * vertex + 2];
+  }
+}
+
+}  // namespace vrm_sim

@@ -1,0 +1,252 @@
+// The VR part's entry point (thesis §2.4: object manager + scenario manager). Loads the scene, builds only what
+// it needs (MGE membranes for deformable objects only), takes every input topic of the VR part, keeps the frame
+// tree on tf2 (world -> eye -> trocar_* / instrument_*) and publishes the scene's surfaces for rendering, collision
+// and RViz. Stamps come from the inputs, so a replayed bag produces the same frames.
+#include <geometry_msgs/TransformStamped.h>
+#include <nodelet/nodelet.h>
+#include <pluginlib/class_list_macros.hpp>
+#include <ros/ros.h>
+#include <tf2_ros/static_transform_broadcaster.h>
+#include <tf2_ros/transform_broadcaster.h>
+#include <visualization_msgs/MarkerArray.h>
+
+#include <boost/make_shared.hpp>
+#include <cmath>
+#include <fstream>
+#include <map>
+#include <memory>
+
+#include "vrm_msgs/EyeState.h"
+#include "vrm_msgs/InstrumentState.h"
+#include "vrm_msgs/MicroscopeSettings.h"
+#include "vrm_msgs/PedalState.h"
+#include "vrm_msgs/ScenarioCommand.h"
+#include "vrm_msgs/SessionInfo.h"
+#include "vrm_msgs/TissueMesh.h"
+#include "vrm_msgs/publish.h"
+#include "vrm_sim/conversions.h"
+#include "vrm_sim/mge/membrane.h"
+#include "vrm_sim/scene/scene_loader.h"
+
+namespace vrm_sim {
+
+namespace {
+
+bool isFinite(const geometry_msgs::Pose& pose) {
+  const double values[] = {pose.position.x,    pose.position.y,    pose.position.z,   pose.orientation.x,
+                           pose.orientation.y, pose.orientation.z, pose.orientation.w};
+  for (double value : values) {
+    if (!std::isfinite(value)) return false;
+  }
+  return true;
+}
+
+std::array<float, 4> toRgba(const std::array<double, 4>& rgba) {
+  return {static_cast<float>(rgba[0]), static_cast<float>(rgba[1]), static_cast<float>(rgba[2]),
+          static_cast<float>(rgba[3])};
+}
+
+}  // namespace
+
+class SceneManager : public nodelet::Nodelet {
+ public:
+  void onInit() override {
+    ros::NodeHandle& nh = getNodeHandle();
+    ros::NodeHandle& private_nh = getPrivateNodeHandle();
+    world_frame_ = private_nh.param<std::string>("world_frame", "world");
+    eye_frame_ = private_nh.param<std::string>("eye_frame", "eye");
+    const std::string scene_parameter = private_nh.param<std::string>("scene", "membrane_peeling");
+
+    const std::string scene_path = std::ifstream(scene_parameter).good()
+                                       ? scene_parameter
+                                       : scene::shippedScenePath(scene_parameter);
+    try {
+      scene_ = scene::loadScene(scene_path);
+      buildObjects();
+    } catch (const std::exception& error) {
+      // A broken scene ends the session with the reason, instead of a simulator running on half a scene.
+      NODELET_FATAL("cannot load scene '%s': %s", scene_parameter.c_str(), error.what());
+      ros::requestShutdown();
+      return;
+    }
+    NODELET_INFO("scene '%s' (%s): %zu objects, %zu deformable, %zu instruments", scene_.name.c_str(),
+                 scene_path.c_str(), scene_.objects.size(), membranes_.size(), scene_.instruments.size());
+
+    publishStaticFrames();
+    publishSurfaces(nh);
+
+    eye_subscriber_ = nh.subscribe("eye_state", 10, &SceneManager::onEyeState, this);
+    instrument_subscriber_ = nh.subscribe("instrument_state", 20, &SceneManager::onInstrumentState, this);
+    pedal_subscriber_ = nh.subscribe("pedals", 10, &SceneManager::onPedals, this);
+    microscope_subscriber_ = nh.subscribe("microscope", 10, &SceneManager::onMicroscope, this);
+    command_subscriber_ = nh.subscribe("scenario_command", 10, &SceneManager::onScenarioCommand, this);
+
+    session_publisher_ = nh.advertise<vrm_msgs::SessionInfo>("session_info", 1, /*latch=*/true);
+    if (private_nh.param("publish_session_info", true)) {
+      auto info = boost::make_shared<vrm_msgs::SessionInfo>();
+      info->header.stamp = ros::Time::now();  // the session's start: a source stamp, recorded with the inputs
+      info->scene = scene_.name;
+      info->scene_file = scene_path;
+      info->simulated_hardware = private_nh.param("simulated_hardware", true);
+      info->seed = static_cast<std::uint32_t>(private_nh.param("seed", 1));
+      info->software_version = "0.1.0";
+      vrm_msgs::publishShared(session_publisher_, info);
+    } else {
+      // Replay: the recorded session_info arrives from the bag.
+      session_subscriber_ = nh.subscribe("session_info", 1, &SceneManager::onSessionInfo, this);
+    }
+  }
+
+ private:
+  void buildObjects() {
+    for (const auto& object : scene_.objects) {
+      TriangleMesh mesh = scene::buildMesh(object, scene::MeshFrame::kParent);
+      // Model only what the scene needs: mass-spring state exists for deformable objects only.
+      if (object.isDeformable() && scene_.simulates(scene::Simulation::kTissue)) {
+        mge::MembraneOptions options;
+        options.total_mass = object.tissue.node_mass * static_cast<double>(mesh.vertexCount());
+        options.stretch_stiffness = object.tissue.stiffness;
+        options.bending_springs = object.tissue.bending_stiffness > 0.0;
+        options.bending_stiffness = object.tissue.bending_stiffness;
+        membranes_[object.name] = mge::buildMembrane(graph_, mesh, options);
+      }
+      meshes_.emplace(object.name, std::move(mesh));
+    }
+  }
+
+  std::string parentFrame(const scene::ObjectDescription& object) const {
+    return object.frame == scene::ObjectFrame::kEye ? eye_frame_ : world_frame_;
+  }
+
+  void publishStaticFrames() {
+    std::vector<geometry_msgs::TransformStamped> frames;
+    for (const auto& trocar : scene_.eye.trocars) {
+      geometry_msgs::TransformStamped frame;
+      frame.header.frame_id = eye_frame_;
+      frame.child_frame_id = "trocar_" + trocar.name;
+      Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+      pose.translation() = trocar.position_in_eye;
+      frame.transform = toTransformMsg(pose);
+      frames.push_back(frame);
+    }
+    static_broadcaster_.sendTransform(frames);
+  }
+
+  // One latched TissueMesh topic per object (meshes/<name>), plus one latched marker array for RViz. Deformable
+  // objects are published from their MGE arrays, which is where the tissue simulation will update them.
+  void publishSurfaces(ros::NodeHandle& nh) {
+    auto markers = boost::make_shared<visualization_msgs::MarkerArray>();
+    int marker_id = 0;
+    for (const auto& object : scene_.objects) {
+      auto mesh = boost::make_shared<vrm_msgs::TissueMesh>();
+      mesh->header.frame_id = parentFrame(object);
+      mesh->tissue_id = object.name;
+      mesh->version = 1;
+      mesh->topology_version = 1;
+      auto membrane = membranes_.find(object.name);
+      if (membrane != membranes_.end()) {
+        mge::Membrane& tissue = *membrane->second;
+        fillTissueMesh(tissue.positions(), tissue.nodeCount(), tissue.triangleNodeSlots(), tissue.triangleCount(),
+                       *mesh);
+      } else {
+        fillTissueMesh(meshes_.at(object.name), *mesh);
+      }
+      visualization_msgs::Marker marker;
+      fillTriangleListMarker(*mesh, toRgba(object.material.diffuse_rgba), marker);
+      marker.id = marker_id++;
+      markers->markers.push_back(marker);
+
+      ros::Publisher publisher = nh.advertise<vrm_msgs::TissueMesh>("meshes/" + object.name, 1, /*latch=*/true);
+      vrm_msgs::publishShared(publisher, mesh);
+      mesh_publishers_.push_back(publisher);
+    }
+    for (const auto& instrument : scene_.instruments) {
+      const std::string slot = scene::toString(instrument.slot);
+      vrm_msgs::TissueMesh mesh;
+      fillTissueMesh(scene::buildInstrumentMesh(instrument), mesh);
+      mesh.header.frame_id = "instrument_" + slot;
+      mesh.tissue_id = "instrument_" + slot;
+      visualization_msgs::Marker marker;
+      fillTriangleListMarker(mesh, toRgba(instrument.material.diffuse_rgba), marker);
+      marker.frame_locked = true;  // follows the tracked instrument frame
+      marker.id = marker_id++;
+      markers->markers.push_back(marker);
+    }
+    marker_publisher_ = nh.advertise<visualization_msgs::MarkerArray>("scene_markers", 1, /*latch=*/true);
+    vrm_msgs::publishShared(marker_publisher_, markers);
+  }
+
+  void onEyeState(const vrm_msgs::EyeState::ConstPtr& eye) {
+    geometry_msgs::Pose pose;
+    pose.position = eye->rotation_center;
+    pose.orientation = eye->rotation;
+    if (!eye->valid) return;
+    if (!isFinite(pose)) {
+      NODELET_WARN_THROTTLE(1.0, "eye_state with a non-finite pose ignored");
+      return;
+    }
+    geometry_msgs::TransformStamped frame;
+    frame.header.stamp = eye->header.stamp;
+    frame.header.frame_id = world_frame_;
+    frame.child_frame_id = eye_frame_;
+    frame.transform = toTransformMsg(toEigen(pose));
+    broadcaster_.sendTransform(frame);
+  }
+
+  void onInstrumentState(const vrm_msgs::InstrumentState::ConstPtr& instrument) {
+    if (!instrument->valid) return;
+    if (!isFinite(instrument->tip_pose) || instrument->instrument_id.empty()) {
+      NODELET_WARN_THROTTLE(1.0, "instrument_state '%s' with a non-finite pose or no id ignored",
+                            instrument->instrument_id.c_str());
+      return;
+    }
+    geometry_msgs::TransformStamped frame;
+    frame.header.stamp = instrument->header.stamp;
+    frame.header.frame_id = instrument->header.frame_id.empty() ? eye_frame_ : instrument->header.frame_id;
+    frame.child_frame_id = "instrument_" + instrument->instrument_id;
+    frame.transform = toTransformMsg(toEigen(instrument->tip_pose));
+    broadcaster_.sendTransform(frame);
+  }
+
+  // Pedals, knobs and scenario commands are consumed by the simulation, rendering and scenario layers as they
+  // arrive; the scene manager takes them so a replay's player has a subscriber for every recorded input.
+  void onPedals(const vrm_msgs::PedalState::ConstPtr& pedals) { last_pedals_ = pedals; }
+  void onMicroscope(const vrm_msgs::MicroscopeSettings::ConstPtr& settings) {
+    if (!std::isfinite(settings->focus_distance) || !std::isfinite(settings->zoom)) {
+      NODELET_WARN_THROTTLE(1.0, "microscope settings with non-finite values ignored");
+      return;
+    }
+    last_microscope_ = settings;
+  }
+  void onScenarioCommand(const vrm_msgs::ScenarioCommand::ConstPtr& command) {
+    NODELET_INFO("scenario command %u '%s' '%s' (seed %u)", command->command, command->scenario.c_str(),
+                 command->argument.c_str(), command->seed);
+  }
+  void onSessionInfo(const vrm_msgs::SessionInfo::ConstPtr& info) {
+    if (info->scene != scene_.name) {
+      NODELET_WARN("replaying a session of scene '%s' with scene '%s' loaded", info->scene.c_str(),
+                   scene_.name.c_str());
+    }
+  }
+
+  std::string world_frame_;
+  std::string eye_frame_;
+  scene::SceneDescription scene_;
+  mge::Graph graph_;
+  std::map<std::string, TriangleMesh> meshes_;
+  std::map<std::string, std::unique_ptr<mge::Membrane>> membranes_;
+
+  tf2_ros::TransformBroadcaster broadcaster_;
+  tf2_ros::StaticTransformBroadcaster static_broadcaster_;
+  std::vector<ros::Publisher> mesh_publishers_;
+  ros::Publisher marker_publisher_;
+  ros::Publisher session_publisher_;
+  ros::Subscriber eye_subscriber_, instrument_subscriber_, pedal_subscriber_, microscope_subscriber_,
+      command_subscriber_, session_subscriber_;
+  vrm_msgs::PedalState::ConstPtr last_pedals_;
+  vrm_msgs::MicroscopeSettings::ConstPtr last_microscope_;
+};
+
+}  // namespace vrm_sim
+
+PLUGINLIB_EXPORT_CLASS(vrm_sim::SceneManager, nodelet::Nodelet)
