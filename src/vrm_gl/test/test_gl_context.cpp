@@ -3,12 +3,12 @@
 #include <GL/glext.h>
 #include <gtest/gtest.h>
 
-#include "vrm_render/gl_context.h"
+#include "vrm_gl/gl_context.h"
 
 namespace {
 
 TEST(GlContext, CreatesCoreProfileWithStencil) {
-  vrm_render::GlContext context({64, 32});
+  vrm_gl::GlContext context({64, 32});
   EXPECT_EQ(context.width(), 64);
   EXPECT_EQ(context.height(), 32);
   EXPECT_NE(context.version().find("Core"), std::string::npos) << context.version();
@@ -19,7 +19,7 @@ TEST(GlContext, CreatesCoreProfileWithStencil) {
 }
 
 TEST(GlContext, ClearColourReachesTheBufferAndDepthReadsBack) {
-  vrm_render::GlContext context({16, 16});
+  vrm_gl::GlContext context({16, 16});
   glClearColor(1.0f, 0.5f, 0.0f, 1.0f);
   glClearDepth(0.25);
   glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
@@ -35,7 +35,7 @@ TEST(GlContext, ClearColourReachesTheBufferAndDepthReadsBack) {
 }
 
 TEST(GlContext, ResizeKeepsTheContextUsable) {
-  vrm_render::GlContext context({8, 8});
+  vrm_gl::GlContext context({8, 8});
   context.resize(40, 20);
   GLint viewport[4] = {};
   glViewport(0, 0, 40, 20);
@@ -49,7 +49,7 @@ TEST(GlContext, ResizeKeepsTheContextUsable) {
 }
 
 TEST(GlContext, RejectsNonPositiveSize) {
-  EXPECT_THROW(vrm_render::GlContext({0, 10}), vrm_render::GlContextError);
+  EXPECT_THROW(vrm_gl::GlContext({0, 10}), vrm_gl::GlContextError);
 }
 
 }  // namespace

@@ -1,10 +1,10 @@
-#include "vrm_render/gl_context.h"
+#include "vrm_gl/gl_context.h"
 
 #define GL_GLEXT_PROTOTYPES
 #include <GL/gl.h>
 #include <GL/osmesa.h>
 
-namespace vrm_render {
+namespace vrm_gl {
 
 struct GlContext::Impl {
   OSMesaContext context = nullptr;
@@ -58,4 +58,4 @@ void GlContext::resize(int width, int height) {
   makeCurrent();
 }
 
-}  // namespace vrm_render
+}  // namespace vrm_gl

@@ -1,0 +1,74 @@
+#pragma once
+// The stereo microscope renderer of EyeSi (thesis §6, §7.4.2), ROS-free, OpenGL 3.3 core through the shared OSMesa
+// context (vrm_gl). Per frame:
+//   pass 1  shadow map from the light pipe; only objects with casts_shadow (the interacting instrument, abstract
+//           objects) are drawn into it;
+//   pass 2  the scene per eye: Phong shading with a per-pixel spotlight cone from the light pipe tip (shadowed),
+//           procedural bump mapping on the retina, vertex colour and injury (bleeding) on the tissue; opaque objects
+//           front to back (early depth), translucent ones (membrane, ghost instruments) back to front;
+//   pass 3  depth of field: the scene is blurred at reduced resolution with a separable Gaussian and mixed with the
+//           sharp image by the distance of each pixel from the focal plane.
+// Static geometry lives in GPU buffers uploaded once; deformable meshes are streamed only when their version
+// changes. Objects outside a frustum are not drawn.
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "vrm_render/microscope_camera.h"
+#include "vrm_render/render_types.h"
+
+namespace vrm_gl {
+class GlContext;
+}
+
+namespace vrm_render {
+
+class StereoRenderer {
+ public:
+  // Creates its own OSMesa context. Throws RenderError if no context (or a too large image) can be had.
+  explicit StereoRenderer(const RenderOptions& options = {}, const MicroscopeRig& rig = {});
+  ~StereoRenderer();
+  StereoRenderer(const StereoRenderer&) = delete;
+  StereoRenderer& operator=(const StereoRenderer&) = delete;
+
+  // Adds or replaces the mesh of object `id` when `version` differs from the uploaded one (returns true if it
+  // uploaded). Throws RenderError for empty meshes, non-finite values, indices out of range or more than
+  // kMaxVertices / kMaxTriangles; the object then keeps its previous mesh.
+  bool updateMesh(const std::string& id, const MeshView& mesh, std::uint64_t version);
+  void setStyle(const std::string& id, const ObjectStyle& style);  // objects may be styled before their mesh exists
+  void setPose(const std::string& id, const Eigen::Isometry3f& world_from_object);
+  void setVisible(const std::string& id, bool visible);
+  void removeObject(const std::string& id);
+  bool hasObject(const std::string& id) const;
+  std::uint64_t version(const std::string& id) const;  // 0 when unknown
+
+  void setLightPipe(const LightPipe& light) { light_ = light; }
+  void setMicroscope(const MicroscopeState& state);  // throws RenderError for non-finite / non-positive knobs
+  // Changes size, stereo or passes; throws RenderError (state unchanged) for sizes beyond kMaxImageSide.
+  void setOptions(const RenderOptions& options);
+
+  const RenderOptions& options() const { return options_; }
+  const MicroscopeRig& rig() const { return rig_; }
+  const MicroscopeState& microscope() const { return microscope_; }
+  CameraView camera(Eye eye) const;
+  std::size_t triangleCount() const;  // of all visible objects
+
+  // Renders all passes for both eyes (or one in mono) and reads the images back into `frame` (buffers reused).
+  void render(StereoFrame* frame);
+
+  static constexpr std::size_t kMaxVertices = 4'000'000;
+  static constexpr std::size_t kMaxTriangles = 8'000'000;
+  static constexpr int kMaxImageSide = 4096;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+  RenderOptions options_;
+  MicroscopeRig rig_;
+  MicroscopeState microscope_;
+  LightPipe light_;
+};
+
+}  // namespace vrm_render
