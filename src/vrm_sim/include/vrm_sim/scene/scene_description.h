@@ -1,0 +1,196 @@
+#pragma once
+// Typed description of one training scene (thesis §2: a *scenario* configures one situation: which VR objects,
+// which simulations, which instruments). Produced by loadScene() from config/scenes/*.yaml; every field has the
+// default stated here, so code can also build a description directly.
+//
+// Units: SI (metres, kilograms, seconds, newtons); angles in degrees in fields named *_deg.
+//
+// Scene file schema (every key below is optional unless marked "required"; any other key is an error):
+//
+//   format_version: 1
+//   scene:                                   # required
+//     name: membrane_peeling                 # required
+//     description: free text
+//     kind: surgical                         # required: abstract | surgical (abstract => no deformable objects)
+//   eye:
+//     radius: 0.012                          # default for the retina and membrane generators' radius
+//     centre: [x, y, z]                      # world position of the eye's rotation centre
+//     rest_rpy_deg: [r, p, y]
+//     trocars:                               # default: left (azimuth 150) and right (azimuth 30), 45 deg off axis
+//       - {name: left, angle_from_optical_axis_deg: 45, azimuth_deg: 150}   # on the eye sphere, or
+//       - {name: right, position: [x, y, z]}                                 # explicit, eye frame
+//   objects:                                 # required, at least one
+//     - name: membrane                       # required, unique
+//       role: membrane                       # required: retina | membrane | ilm | rigid | abstract_target |
+//                                            #           decoration (rigid, abstract_target, decoration: never
+//                                            #           deformable)
+//       frame: eye                           # eye | world
+//       mesh:                                # required: exactly one of generator / file
+//         generator: membrane                # see generatorNames(); params are that generator's struct fields
+//         params: {diameter: 0.005, ring_count: 16}     # nested struct: shaft: {diameter, length, segments}
+//         # file: meshes/thing.obj           # relative to the scene file, then to the package; OBJ/PLY/STL/...
+//         # scale: 0.001                     # file only
+//       pose: {xyz: [x, y, z], rpy_deg: [r, p, y]}
+//       material: {diffuse: [r, g, b, a], specular: [r, g, b], shininess: 16}
+//       tissue:                              # absent or model: none = rigid
+//         model: mass_spring                 # required: none | mass_spring | chainmail
+//         integrator: quasi_static_euler     # knownIntegrators()
+//         stiffness: 2.0                     # and the other TissueParameters fields by name
+//       collision: {detector: zcoll_f, resolution: 64, epsilon_shell_scale: 1.05}   # knownCollisionDetectors()
+//   instruments:
+//     - slot: right                          # required: left | right, one instrument per slot
+//       type: forceps                        # required: light_pipe | forceps | vitrector | needle | hook
+//       trocar: right                        # default: the slot name; must name an eye trocar
+//       params: {jaw_angle_deg: 0}           # the instrument generator's fields
+//       alternatives: [vitrector]            # other types the trainee may switch to
+//       material: {...}
+//   simulations: [tissue, collision, grasping, cutting, bleeding]   # required (may be []); lists 'tissue' if
+//                                            # and only if some object is deformable
+
+#include <Eigen/Geometry>
+#include <array>
+#include <optional>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "vrm_sim/scene/mesh_generators.h"
+
+namespace vrm_sim {
+namespace scene {
+
+// Where a description came from, for error messages after loading (e.g. a mesh file that fails to import).
+struct SourceLocation {
+  std::string file;
+  int line = 0;  // 1-based; 0 = unknown
+  int column = 0;
+  std::string field;  // e.g. "objects[1].mesh"
+};
+
+enum class SceneKind { kAbstract, kSurgical };
+enum class ObjectRole { kRetina, kMembrane, kIlm, kRigid, kAbstractTarget, kDecoration };
+enum class ObjectFrame { kWorld, kEye };
+enum class TissueModel { kNone, kMassSpring, kChainmail };
+enum class InstrumentType { kLightPipe, kForceps, kVitrector, kNeedle, kHook };
+enum class InstrumentSlot { kLeft, kRight };
+enum class Simulation { kTissue, kCollision, kGrasping, kCutting, kBleeding };
+
+// Names as written in the scene files ("abstract", "retina", "mass_spring", "light_pipe", "left", "tissue", ...).
+const char* toString(SceneKind kind);
+const char* toString(ObjectRole role);
+const char* toString(ObjectFrame frame);
+const char* toString(TissueModel model);
+const char* toString(InstrumentType type);
+const char* toString(InstrumentSlot slot);
+const char* toString(Simulation simulation);
+
+// Integrator and collision detector names the simulation accepts (thesis §5.1, §4). Checked at load time so a typo
+// fails in the loader, not as a silently substituted default inside the simulation.
+const std::vector<std::string>& knownIntegrators();         // explicit_euler, quasi_static_euler, rk2, implicit_euler
+const std::vector<std::string>& knownCollisionDetectors();  // zcoll, zcoll_f, geometric, none
+
+struct Pose {
+  Eigen::Vector3d xyz = Eigen::Vector3d::Zero();
+  Eigen::Vector3d rpy_deg = Eigen::Vector3d::Zero();  // fixed-axis roll, pitch, yaw (R = Rz Ry Rx)
+  Eigen::Isometry3d toIsometry() const;
+};
+
+struct Material {
+  std::array<double, 4> diffuse_rgba{0.8, 0.8, 0.8, 1.0};
+  std::array<double, 3> specular_rgb{0.2, 0.2, 0.2};
+  double shininess = 16.0;
+};
+
+// Mass-spring parameters (thesis §5.1); defaults are a soft epiretinal membrane at the resolution of the default
+// membrane patch. Only meaningful when model != kNone.
+struct TissueParameters {
+  TissueModel model = TissueModel::kNone;
+  std::string integrator = "quasi_static_euler";
+  double stiffness = 2.0;           // N/m, per spring (k in eq. 5.2)
+  double damping = 0.01;            // N s/m
+  double node_mass = 1e-5;          // kg per node
+  double strain_limit = 1.1;        // tau_c of Alg. 5.1 (>= 1): springs are shortened to tau_c * rest length
+  double bending_stiffness = 0.0;   // N/m, springs across adjacent triangles
+  double adhesion_stiffness = 0.0;  // N/m, springs from the fixed (adhesion) vertices to their rest positions
+  double time_budget_ms = 2.0;      // integrate until spent (thesis §5.1; EyeSi: 2 ms for 1,500 springs)
+  double dt = 1e-3;                 // s per integration step
+  bool plastic = false;             // rest length follows the maximum length reached (thesis §5.1)
+  bool isDeformable() const { return model != TissueModel::kNone; }
+};
+
+struct CollisionParameters {
+  std::string detector = "zcoll_f";   // "none" = the object does not collide
+  int resolution = 64;                // image-space buffer edge in pixels (thesis §4.2.6)
+  double epsilon_shell_scale = 1.05;  // detection shell around instruments (thesis §5.1, Fig 5.1)
+};
+
+// Exactly one of `generator` (a procedural mesh) and `file` (an imported mesh) is set.
+struct MeshSource {
+  std::optional<GeneratorParams> generator;
+  std::string file;    // absolute path after loading (resolved against the scene file's directory, then the
+                       // package directory)
+  double scale = 1.0;  // for `file`: e.g. 0.001 for a mesh in millimetres
+};
+
+struct ObjectDescription {
+  std::string name;
+  ObjectRole role = ObjectRole::kRigid;
+  MeshSource mesh;
+  ObjectFrame frame = ObjectFrame::kEye;
+  Pose pose;  // of the object in `frame`
+  Material material;
+  TissueParameters tissue;  // model kNone = rigid
+  CollisionParameters collision;
+  SourceLocation location;
+  bool isDeformable() const { return tissue.isDeformable(); }
+};
+
+// An insertion hole, fixed in the eye frame (thesis §7: the mechanical eye has two trocars).
+struct Trocar {
+  std::string name;
+  Eigen::Vector3d position_in_eye = Eigen::Vector3d::Zero();
+};
+
+struct EyeDescription {
+  double radius = 0.012;
+  Eigen::Vector3d centre_in_world = Eigen::Vector3d::Zero();  // the rotation centre of the mechanical eye
+  Eigen::Vector3d rest_rpy_deg = Eigen::Vector3d::Zero();     // eye frame orientation in the world at rest
+  // Default: "left" and "right" on the eye sphere 45 deg from the optical axis (pars plana, ~3.5 mm behind the
+  // limbus) at azimuths 150 and 30 deg (10 and 2 o'clock as seen through the microscope).
+  std::vector<Trocar> trocars;
+};
+
+struct InstrumentDescription {
+  InstrumentSlot slot = InstrumentSlot::kLeft;
+  InstrumentType type = InstrumentType::kLightPipe;
+  std::string trocar;                          // name of an EyeDescription trocar
+  GeneratorParams params = LightPipeParams{};  // the generator matching `type`
+  std::vector<InstrumentType> alternatives;    // other instruments the trainee may switch to in this slot (GUI)
+  Material material;
+  SourceLocation location;
+};
+
+struct SceneDescription {
+  std::string name;
+  std::string description;
+  SceneKind kind = SceneKind::kSurgical;
+  EyeDescription eye;
+  std::vector<ObjectDescription> objects;
+  std::vector<InstrumentDescription> instruments;
+  std::set<Simulation> simulations;
+  std::string source_file;  // absolute path of the YAML file, empty if built in code
+
+  // The loader guarantees: hasDeformableObjects() == simulates(Simulation::kTissue).
+  bool hasDeformableObjects() const;
+  bool simulates(Simulation simulation) const { return simulations.count(simulation) > 0; }
+  const ObjectDescription* findObject(const std::string& object_name) const;
+  const Trocar* findTrocar(const std::string& trocar_name) const;
+  const InstrumentDescription* findInstrument(InstrumentSlot slot) const;
+};
+
+// The instrument generator's defaults for a type.
+GeneratorParams defaultInstrumentParams(InstrumentType type);
+std::vector<Trocar> defaultTrocars(double eye_radius);
+
+}  // namespace scene
+}  // namespace vrm_sim

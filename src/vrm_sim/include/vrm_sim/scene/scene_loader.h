@@ -1,0 +1,52 @@
+#pragma once
+// Loading scene files (config/scenes/*.yaml; the schema is documented in scene_description.h) and turning their
+// object descriptions into meshes.
+
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "vrm_sim/scene/scene_description.h"
+
+namespace vrm_sim {
+namespace scene {
+
+// Any problem with a scene file. what() reads "<file>:<line>:<column>: <field>: <problem>", e.g.
+// "membrane_peeling.yaml:14:5: objects[1].tissue.stiffness: expected a positive number, got 'abc'"
+// (line and column are omitted when unknown, e.g. for a missing file).
+class SceneError : public std::runtime_error {
+ public:
+  explicit SceneError(const SourceLocation& location, const std::string& problem);
+  const SourceLocation& location() const { return location_; }
+  const std::string& problem() const { return problem_; }
+
+ private:
+  SourceLocation location_;
+  std::string problem_;
+};
+
+// Parses and validates a scene file: unknown keys, wrong types, out-of-range values, inconsistent simulations,
+// unknown trocars and missing mesh files are all SceneErrors. Relative mesh paths are resolved against the scene
+// file's directory, then against the vrm_sim package directory.
+SceneDescription loadScene(const std::string& path);
+// Same, from text; `virtual_path` names the document in messages and anchors relative mesh paths.
+SceneDescription loadSceneFromString(const std::string& yaml_text, const std::string& virtual_path);
+
+// Path of a shipped scene, e.g. shippedScenePath("navigation") -> <package>/config/scenes/navigation.yaml.
+std::string shippedScenePath(const std::string& scene_name);
+
+enum class MeshFrame {
+  kLocal,   // vertices in the object's own frame
+  kParent,  // the object's pose applied: vertices in the frame the object names (eye or world)
+};
+
+// Generates or imports the object's mesh (named after the object). Import and generator failures are rethrown as
+// SceneError carrying the object's location in the scene file.
+TriangleMesh buildMesh(const ObjectDescription& object, MeshFrame frame = MeshFrame::kParent);
+// One mesh per scene object, in the order of scene.objects, in the objects' parent frames.
+std::vector<TriangleMesh> resolveMeshes(const SceneDescription& scene);
+// The instrument's mesh in its instrument frame (see instrument_meshes.h).
+TriangleMesh buildInstrumentMesh(const InstrumentDescription& instrument);
+
+}  // namespace scene
+}  // namespace vrm_sim

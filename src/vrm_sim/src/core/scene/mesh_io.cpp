@@ -1,0 +1,137 @@
+#include "vrm_sim/scene/mesh_io.h"
+
+#include <assimp/postprocess.h>
+#include <assimp/scene.h>
+
+#include <assimp/Importer.hpp>
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <sstream>
+
+namespace vrm_sim {
+namespace scene {
+namespace {
+
+std::string describeVertex(const aiVector3D& vertex) {
+  std::ostringstream text;
+  text << "(" << vertex.x << ", " << vertex.y << ", " << vertex.z << ")";
+  return text.str();
+}
+
+// Maps bit-for-bit equal positions (value equality, so -0 == +0) to the first vertex that had them.
+void joinIdenticalVertices(TriangleMesh& mesh) {
+  std::map<std::array<double, 3>, std::uint32_t> first_at_position;
+  std::vector<std::uint32_t> remap(mesh.vertices.size());
+  std::vector<Eigen::Vector3d> kept;
+  for (std::size_t i = 0; i < mesh.vertices.size(); ++i) {
+    const Eigen::Vector3d& vertex = mesh.vertices[i];
+    const auto inserted = first_at_position.emplace(std::array<double, 3>{vertex.x(), vertex.y(), vertex.z()},
+                                                    static_cast<std::uint32_t>(kept.size()));
+    if (inserted.second) kept.push_back(vertex);
+    remap[i] = inserted.first->second;
+  }
+  for (auto& triangle : mesh.triangles) {
+    for (auto& index : triangle) index = remap[index];
+  }
+  mesh.vertices = std::move(kept);
+}
+
+}  // namespace
+
+MeshIoError::MeshIoError(const std::string& path, const std::string& problem)
+    : std::runtime_error(path + ": " + problem), path_(path) {}
+
+TriangleMesh importMesh(const std::string& path, const MeshImportOptions& options) {
+  std::error_code error;
+  if (!std::filesystem::exists(path, error)) throw MeshIoError(path, "file not found");
+  if (!std::filesystem::is_regular_file(path, error)) throw MeshIoError(path, "not a regular file");
+  if (!(options.scale > 0.0) || !std::isfinite(options.scale)) {
+    throw MeshIoError(path, "the import scale must be a positive finite number");
+  }
+
+  Assimp::Importer importer;
+  // ValidateDataStructure turns out-of-range indices into an import error instead of a crash later on.
+  const aiScene* scene =
+      importer.ReadFile(path, aiProcess_Triangulate | aiProcess_PreTransformVertices | aiProcess_ValidateDataStructure);
+  if (scene == nullptr) throw MeshIoError(path, std::string("cannot import: ") + importer.GetErrorString());
+
+  TriangleMesh mesh;
+  mesh.name = options.name.empty() ? std::filesystem::path(path).stem().string() : options.name;
+  for (unsigned mesh_index = 0; mesh_index < scene->mNumMeshes; ++mesh_index) {
+    const aiMesh* part = scene->mMeshes[mesh_index];
+    const auto offset = static_cast<std::uint32_t>(mesh.vertices.size());
+    for (unsigned i = 0; i < part->mNumVertices; ++i) {
+      const aiVector3D& vertex = part->mVertices[i];
+      if (!std::isfinite(vertex.x) || !std::isfinite(vertex.y) || !std::isfinite(vertex.z)) {
+        throw MeshIoError(path, "vertex " + std::to_string(i) + " of mesh " + std::to_string(mesh_index) +
+                                    " has a non-finite coordinate " + describeVertex(vertex));
+      }
+      mesh.vertices.emplace_back(options.scale * static_cast<double>(vertex.x),
+                                 options.scale * static_cast<double>(vertex.y),
+                                 options.scale * static_cast<double>(vertex.z));
+    }
+    for (unsigned f = 0; f < part->mNumFaces; ++f) {
+      const aiFace& face = part->mFaces[f];
+      if (face.mNumIndices != 3) continue;  // points and lines carry no surface
+      std::array<std::uint32_t, 3> triangle;
+      for (int corner = 0; corner < 3; ++corner) {
+        if (face.mIndices[corner] >= part->mNumVertices) {
+          throw MeshIoError(path, "face " + std::to_string(f) + " refers to vertex " +
+                                      std::to_string(face.mIndices[corner]) + " but the mesh has only " +
+                                      std::to_string(part->mNumVertices));
+        }
+        triangle[corner] = offset + face.mIndices[corner];
+      }
+      mesh.triangles.push_back(triangle);
+    }
+  }
+  if (mesh.triangles.empty()) throw MeshIoError(path, "contains no triangles");
+  if (options.join_identical_vertices) joinIdenticalVertices(mesh);
+  return mesh;
+}
+
+void writeObj(const TriangleMesh& mesh, const std::string& path) {
+  std::unique_ptr<std::FILE, int (*)(std::FILE*)> file(std::fopen(path.c_str(), "w"), &std::fclose);
+  if (!file) throw MeshIoError(path, std::string("cannot open for writing: ") + std::strerror(errno));
+  const bool write_normals = !mesh.normals.empty() && mesh.normals.size() == mesh.vertices.size();
+  std::fprintf(file.get(), "# %s: %zu vertices, %zu triangles (written by vrm_sim)\n", mesh.name.c_str(),
+               mesh.vertices.size(), mesh.triangles.size());
+  if (!mesh.name.empty()) std::fprintf(file.get(), "o %s\n", mesh.name.c_str());
+  for (const auto& vertex : mesh.vertices) {
+    std::fprintf(file.get(), "v %.17g %.17g %.17g\n", vertex.x(), vertex.y(), vertex.z());
+  }
+  if (write_normals) {
+    for (const auto& normal : mesh.normals) {
+      std::fprintf(file.get(), "vn %.17g %.17g %.17g\n", normal.x(), normal.y(), normal.z());
+    }
+  }
+  if (!mesh.fixed_vertices.empty()) {
+    std::fprintf(file.get(), "# fixed_vertices");
+    for (std::uint32_t fixed : mesh.fixed_vertices) std::fprintf(file.get(), " %u", fixed + 1);
+    std::fprintf(file.get(), "\n");
+  }
+  for (const auto& triangle : mesh.triangles) {
+    for (std::uint32_t index : triangle) {
+      if (index >= mesh.vertices.size()) {
+        throw MeshIoError(
+            path, "triangle refers to vertex " + std::to_string(index) + " of " + std::to_string(mesh.vertices.size()));
+      }
+    }
+    if (write_normals) {
+      std::fprintf(file.get(), "f %u//%u %u//%u %u//%u\n", triangle[0] + 1, triangle[0] + 1, triangle[1] + 1,
+                   triangle[1] + 1, triangle[2] + 1, triangle[2] + 1);
+    } else {
+      std::fprintf(file.get(), "f %u %u %u\n", triangle[0] + 1, triangle[1] + 1, triangle[2] + 1);
+    }
+  }
+  if (std::ferror(file.get()) != 0) throw MeshIoError(path, "write failed");
+  if (std::fclose(file.release()) != 0) throw MeshIoError(path, "write failed on close");
+}
+
+}  // namespace scene
+}  // namespace vrm_sim

@@ -1,0 +1,784 @@
+#include "vrm_sim/scene/scene_loader.h"
+
+#include <yaml-cpp/yaml.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <map>
+#include <sstream>
+
+#include "vrm_sim/scene/mesh_io.h"
+#include "vrm_sim/scene/mesh_utils.h"
+
+#ifndef VRM_SIM_SOURCE_DIR
+#define VRM_SIM_SOURCE_DIR ""
+#endif
+
+namespace vrm_sim {
+namespace scene {
+namespace {
+
+namespace fs = std::filesystem;
+constexpr double kPi = 3.14159265358979323846;
+constexpr double kDegToRad = kPi / 180.0;
+
+std::string joinNames(const std::vector<std::string>& names) {
+  std::string joined;
+  for (const auto& name : names) joined += (joined.empty() ? "" : ", ") + name;
+  return joined;
+}
+
+std::size_t editDistance(const std::string& a, const std::string& b) {
+  std::vector<std::size_t> previous(b.size() + 1), current(b.size() + 1);
+  for (std::size_t j = 0; j <= b.size(); ++j) previous[j] = j;
+  for (std::size_t i = 1; i <= a.size(); ++i) {
+    current[0] = i;
+    for (std::size_t j = 1; j <= b.size(); ++j) {
+      current[j] = std::min({previous[j] + 1, current[j - 1] + 1, previous[j - 1] + (a[i - 1] == b[j - 1] ? 0 : 1)});
+    }
+    std::swap(previous, current);
+  }
+  return previous[b.size()];
+}
+
+std::string suggestion(const std::string& word, const std::vector<std::string>& candidates) {
+  std::string best;
+  std::size_t best_distance = 3;  // only near misses are typos worth pointing at
+  for (const auto& candidate : candidates) {
+    const std::size_t distance = editDistance(word, candidate);
+    if (distance < best_distance) {
+      best_distance = distance;
+      best = candidate;
+    }
+  }
+  return best.empty() ? "" : " (did you mean '" + best + "'?)";
+}
+
+// One YAML node together with its field path and file, so every check can report where it failed.
+class Field {
+ public:
+  Field(YAML::Node node, std::string path, std::string file)
+      : node_(std::move(node)), path_(std::move(path)), file_(std::move(file)) {}
+
+  const YAML::Node& node() const { return node_; }
+  const std::string& path() const { return path_; }
+  const std::string& file() const { return file_; }
+
+  SourceLocation location() const {
+    SourceLocation location;
+    location.file = file_;
+    location.field = path_;
+    const YAML::Mark mark = node_.Mark();
+    if (!mark.is_null()) {
+      location.line = mark.line + 1;
+      location.column = mark.column + 1;
+    }
+    return location;
+  }
+
+  [[noreturn]] void fail(const std::string& problem) const { throw SceneError(location(), problem); }
+
+  Field child(const YAML::Node& node, const std::string& key) const {
+    return Field(node, path_.empty() ? key : path_ + "." + key, file_);
+  }
+  Field item(const YAML::Node& node, std::size_t index) const {
+    return Field(node, path_ + "[" + std::to_string(index) + "]", file_);
+  }
+
+  // What the user wrote, for "got ..." in messages.
+  std::string shown() const {
+    if (!node_.IsDefined() || node_.IsNull()) return "nothing";
+    if (node_.IsScalar()) return "'" + node_.Scalar() + "'";
+    if (node_.IsSequence()) return "a list";
+    return "a map";
+  }
+
+  std::string text() const {
+    if (!node_.IsScalar() || node_.Scalar().empty()) fail("expected a non-empty string, got " + shown());
+    return node_.Scalar();
+  }
+
+  // `expectation` names the accepted range in messages, e.g. "a positive number".
+  double number(const std::string& expectation, double minimum, double maximum, bool minimum_inclusive = true,
+                bool maximum_inclusive = true) const {
+    double value = 0.0;
+    if (!parseNumber(&value)) fail("expected " + expectation + ", got " + shown());
+    const bool above = minimum_inclusive ? value >= minimum : value > minimum;
+    const bool below = maximum_inclusive ? value <= maximum : value < maximum;
+    if (!above || !below) fail("expected " + expectation + ", got " + shown());
+    return value;
+  }
+  double finite() const { return number("a finite number", -HUGE_VAL, HUGE_VAL, false, false); }
+  double positive() const { return number("a positive number", 0.0, HUGE_VAL, false, false); }
+  double nonNegative() const { return number("a non-negative number", 0.0, HUGE_VAL, true, false); }
+
+  int integer(int minimum, int maximum) const {
+    const std::string expectation = "an integer in [" + std::to_string(minimum) + ", " + std::to_string(maximum) + "]";
+    if (!node_.IsScalar()) fail("expected " + expectation + ", got " + shown());
+    const std::string& scalar = node_.Scalar();
+    char* end = nullptr;
+    errno = 0;
+    const long value = std::strtol(scalar.c_str(), &end, 10);
+    if (scalar.empty() || end != scalar.c_str() + scalar.size() || errno == ERANGE || value < minimum ||
+        value > maximum) {
+      fail("expected " + expectation + ", got " + shown());
+    }
+    return static_cast<int>(value);
+  }
+
+  bool boolean() const {
+    if (node_.IsScalar() && (node_.Scalar() == "true" || node_.Scalar() == "false")) return node_.Scalar() == "true";
+    fail("expected true or false, got " + shown());
+  }
+
+  template <typename Enum>
+  Enum choice(const std::vector<std::pair<std::string, Enum>>& options) const {
+    std::vector<std::string> names;
+    for (const auto& option : options) names.push_back(option.first);
+    if (node_.IsScalar()) {
+      for (const auto& option : options) {
+        if (option.first == node_.Scalar()) return option.second;
+      }
+    }
+    fail("expected one of " + joinNames(names) + ", got " + shown() +
+         (node_.IsScalar() ? suggestion(node_.Scalar(), names) : ""));
+  }
+
+  std::string name(const std::vector<std::string>& allowed) const {
+    std::vector<std::pair<std::string, std::string>> options;
+    for (const auto& name : allowed) options.emplace_back(name, name);
+    return choice(options);
+  }
+
+  std::vector<Field> items() const {
+    if (!node_.IsSequence()) fail("expected a list, got " + shown());
+    std::vector<Field> result;
+    for (std::size_t i = 0; i < node_.size(); ++i) result.push_back(item(node_[i], i));
+    return result;
+  }
+
+  std::vector<double> numbers(std::size_t count, const std::string& element_expectation, double minimum,
+                              double maximum) const {
+    if (!node_.IsSequence() || node_.size() != count) {
+      fail("expected a list of " + std::to_string(count) + " numbers, got " + shown() +
+           (node_.IsSequence() ? " of " + std::to_string(node_.size()) : ""));
+    }
+    std::vector<double> values;
+    for (const Field& element : items()) values.push_back(element.number(element_expectation, minimum, maximum));
+    return values;
+  }
+  Eigen::Vector3d vector3() const {
+    const auto values = numbers(3, "a finite number", -1e300, 1e300);
+    return {values[0], values[1], values[2]};
+  }
+
+ private:
+  bool parseNumber(double* value) const {
+    if (!node_.IsScalar() || node_.Scalar().empty()) return false;
+    const std::string& scalar = node_.Scalar();
+    char* end = nullptr;
+    *value = std::strtod(scalar.c_str(), &end);
+    return end == scalar.c_str() + scalar.size() && std::isfinite(*value);
+  }
+
+  YAML::Node node_;
+  std::string path_;
+  std::string file_;
+};
+
+// The keys of one YAML map. Every key the parser asks for is allowed; finish() rejects the rest, so a misspelt
+// key fails instead of silently leaving a default in place.
+class MapFields {
+ public:
+  explicit MapFields(const Field& field) : field_(field) {
+    if (!field.node().IsMap()) field.fail("expected a map, got " + field.shown());
+    for (const auto& entry : field.node()) {
+      const Field key_field(entry.first, field.path(), field.file());
+      if (!entry.first.IsScalar()) key_field.fail("map keys must be plain names");
+      const std::string key = entry.first.Scalar();
+      if (entries_.count(key) > 0) key_field.child(entry.first, key).fail("duplicate key");
+      entries_.emplace(key, Entry{entry.first, entry.second});
+      order_.push_back(key);
+    }
+  }
+
+  std::optional<Field> optional(const std::string& key) {
+    known_.push_back(key);
+    const auto found = entries_.find(key);
+    if (found == entries_.end()) return std::nullopt;
+    return field_.child(found->second.value, key);
+  }
+  Field required(const std::string& key) {
+    std::optional<Field> value = optional(key);
+    if (!value) field_.fail("missing required key '" + key + "'");
+    return *value;
+  }
+  bool has(const std::string& key) const { return entries_.count(key) > 0; }
+
+  void finish() const {
+    for (const auto& key : order_) {
+      if (std::find(known_.begin(), known_.end(), key) != known_.end()) continue;
+      field_.child(entries_.at(key).key, key)
+          .fail("unknown key" + suggestion(key, known_) + "; allowed keys: " + joinNames(known_));
+    }
+  }
+
+  const Field& field() const { return field_; }
+
+ private:
+  struct Entry {
+    YAML::Node key;
+    YAML::Node value;
+  };
+  Field field_;
+  std::map<std::string, Entry> entries_;
+  std::vector<std::string> order_;
+  std::vector<std::string> known_;
+};
+
+// ---- typed readers: each fills a struct whose members already hold the defaults -------------------------------
+
+void readPositive(MapFields& fields, const std::string& key, double& value) {
+  if (auto field = fields.optional(key)) value = field->positive();
+}
+void readNonNegative(MapFields& fields, const std::string& key, double& value) {
+  if (auto field = fields.optional(key)) value = field->nonNegative();
+}
+void readFinite(MapFields& fields, const std::string& key, double& value) {
+  if (auto field = fields.optional(key)) value = field->finite();
+}
+void readInteger(MapFields& fields, const std::string& key, int& value, int minimum, int maximum) {
+  if (auto field = fields.optional(key)) value = field->integer(minimum, maximum);
+}
+void readAngle(MapFields& fields, const std::string& key, double& value, double minimum, double maximum,
+               bool minimum_inclusive = true, bool maximum_inclusive = true) {
+  if (auto field = fields.optional(key)) {
+    std::ostringstream expectation;
+    expectation << "an angle in " << (minimum_inclusive ? "[" : "(") << minimum << ", " << maximum
+                << (maximum_inclusive ? "]" : ")") << " degrees";
+    value = field->number(expectation.str(), minimum, maximum, minimum_inclusive, maximum_inclusive);
+  }
+}
+void readFraction(MapFields& fields, const std::string& key, double& value) {
+  if (auto field = fields.optional(key)) value = field->number("a number in [0, 1]", 0.0, 1.0);
+}
+
+constexpr int kMaxResolution = 100000;
+
+void readShaft(MapFields& fields, ShaftParams& shaft) {
+  auto field = fields.optional("shaft");
+  if (!field) return;
+  MapFields shaft_fields(*field);
+  readPositive(shaft_fields, "diameter", shaft.diameter);
+  readPositive(shaft_fields, "length", shaft.length);
+  readInteger(shaft_fields, "segments", shaft.segments, 3, 1024);
+  shaft_fields.finish();
+}
+
+void readParams(MapFields& f, RetinaParams& p) {
+  readPositive(f, "radius", p.radius);
+  readAngle(f, "coverage_deg", p.coverage_deg, 0.0, 180.0, false, false);
+  readInteger(f, "ring_count", p.ring_count, 1, 2000);
+}
+void readParams(MapFields& f, MembraneParams& p) {
+  readPositive(f, "retina_radius", p.retina_radius);
+  readNonNegative(f, "height_above_retina", p.height_above_retina);
+  readPositive(f, "diameter", p.diameter);
+  readInteger(f, "ring_count", p.ring_count, 1, 2000);
+  readAngle(f, "centre_offset_deg", p.centre_offset_deg, 0.0, 180.0);
+  readFinite(f, "centre_azimuth_deg", p.centre_azimuth_deg);
+  readInteger(f, "adhesion_point_count", p.adhesion_point_count, 0, kMaxResolution);
+  readFraction(f, "adhesion_ring_fraction", p.adhesion_ring_fraction);
+}
+void readParams(MapFields& f, SphereParams& p) {
+  readPositive(f, "radius", p.radius);
+  readInteger(f, "ring_count", p.ring_count, 2, 2000);
+}
+void readParams(MapFields& f, BoxParams& p) {
+  if (auto field = f.optional("size")) {
+    const auto size = field->numbers(3, "a positive number", 0.0, HUGE_VAL);
+    for (int axis = 0; axis < 3; ++axis) {
+      if (!(size[axis] > 0.0)) field->fail("expected three positive edge lengths");
+      p.size[axis] = size[axis];
+    }
+  }
+}
+void readParams(MapFields& f, CylinderParams& p) {
+  readPositive(f, "radius", p.radius);
+  readPositive(f, "length", p.length);
+  readInteger(f, "segments", p.segments, 3, 4096);
+}
+void readParams(MapFields& f, CapsuleParams& p) {
+  readPositive(f, "radius", p.radius);
+  readNonNegative(f, "length", p.length);
+  readInteger(f, "segments", p.segments, 3, 4096);
+  readInteger(f, "cap_rings", p.cap_rings, 1, 1000);
+}
+void readParams(MapFields& f, ConeParams& p) {
+  readPositive(f, "radius", p.radius);
+  readPositive(f, "height", p.height);
+  readInteger(f, "segments", p.segments, 3, 4096);
+}
+void readParams(MapFields& f, TorusParams& p) {
+  readPositive(f, "major_radius", p.major_radius);
+  readPositive(f, "minor_radius", p.minor_radius);
+  readInteger(f, "major_segments", p.major_segments, 3, 4096);
+  readInteger(f, "minor_segments", p.minor_segments, 3, 4096);
+}
+void readParams(MapFields& f, DiscParams& p) {
+  readPositive(f, "radius", p.radius);
+  readInteger(f, "ring_count", p.ring_count, 1, 2000);
+}
+void readParams(MapFields& f, PlaneParams& p) {
+  readPositive(f, "size_x", p.size_x);
+  readPositive(f, "size_y", p.size_y);
+  readInteger(f, "subdivisions", p.subdivisions, 1, 4096);
+}
+void readParams(MapFields& f, LightPipeParams& p) {
+  readShaft(f, p.shaft);
+  readPositive(f, "tip_length", p.tip_length);
+  readInteger(f, "tip_rings", p.tip_rings, 1, 1000);
+}
+void readParams(MapFields& f, ForcepsParams& p) {
+  readShaft(f, p.shaft);
+  readPositive(f, "jaw_length", p.jaw_length);
+  readPositive(f, "jaw_base_width", p.jaw_base_width);
+  readPositive(f, "jaw_tip_width", p.jaw_tip_width);
+  readPositive(f, "jaw_thickness", p.jaw_thickness);
+  readAngle(f, "jaw_angle_deg", p.jaw_angle_deg, 0.0, 180.0);
+}
+void readParams(MapFields& f, VitrectorParams& p) {
+  readShaft(f, p.shaft);
+  readPositive(f, "port_distance_from_tip", p.port_distance_from_tip);
+  readPositive(f, "port_length", p.port_length);
+  readAngle(f, "port_width_deg", p.port_width_deg, 0.0, 180.0, false, false);
+  readPositive(f, "port_depth", p.port_depth);
+}
+void readParams(MapFields& f, NeedleParams& p) {
+  readShaft(f, p.shaft);
+  readAngle(f, "bevel_angle_deg", p.bevel_angle_deg, 0.0, 90.0, false, true);
+}
+void readParams(MapFields& f, HookParams& p) {
+  readShaft(f, p.shaft);
+  readPositive(f, "hook_diameter", p.hook_diameter);
+  readPositive(f, "bend_radius", p.bend_radius);
+  readAngle(f, "bend_angle_deg", p.bend_angle_deg, 0.0, 180.0, false, true);
+  readPositive(f, "hook_length", p.hook_length);
+  readPositive(f, "neck_length", p.neck_length);
+  readInteger(f, "path_samples_per_bend", p.path_samples_per_bend, 1, 1000);
+}
+
+// Parses `params` (may be absent) for the generator `params` already holds, then dry-runs the generator so that
+// combinations no single field check catches (e.g. a torus tube wider than its ring) fail here, with a position.
+void readGeneratorParams(const std::optional<Field>& params_field, const Field& anchor, GeneratorParams& params) {
+  if (params_field) {
+    MapFields fields(*params_field);
+    std::visit([&fields](auto& typed) { readParams(fields, typed); }, params);
+    fields.finish();
+  }
+  try {
+    generateMesh(params);
+  } catch (const std::invalid_argument& error) {
+    (params_field ? *params_field : anchor).fail(error.what());
+  }
+}
+
+Material readMaterial(const Field& field) {
+  Material material;
+  MapFields fields(field);
+  if (auto diffuse = fields.optional("diffuse")) {
+    const auto values = diffuse->numbers(4, "a colour component in [0, 1]", 0.0, 1.0);
+    std::copy(values.begin(), values.end(), material.diffuse_rgba.begin());
+  }
+  if (auto specular = fields.optional("specular")) {
+    const auto values = specular->numbers(3, "a colour component in [0, 1]", 0.0, 1.0);
+    std::copy(values.begin(), values.end(), material.specular_rgb.begin());
+  }
+  readNonNegative(fields, "shininess", material.shininess);
+  fields.finish();
+  return material;
+}
+
+Pose readPose(const Field& field) {
+  Pose pose;
+  MapFields fields(field);
+  if (auto xyz = fields.optional("xyz")) pose.xyz = xyz->vector3();
+  if (auto rpy = fields.optional("rpy_deg")) pose.rpy_deg = rpy->vector3();
+  fields.finish();
+  return pose;
+}
+
+TissueParameters readTissue(const Field& field) {
+  TissueParameters tissue;
+  MapFields fields(field);
+  tissue.model = fields.required("model").choice<TissueModel>({{"none", TissueModel::kNone},
+                                                               {"mass_spring", TissueModel::kMassSpring},
+                                                               {"chainmail", TissueModel::kChainmail}});
+  if (auto integrator = fields.optional("integrator")) tissue.integrator = integrator->name(knownIntegrators());
+  readPositive(fields, "stiffness", tissue.stiffness);
+  readNonNegative(fields, "damping", tissue.damping);
+  readPositive(fields, "node_mass", tissue.node_mass);
+  if (auto strain_limit = fields.optional("strain_limit")) {
+    tissue.strain_limit =
+        strain_limit->number("a number >= 1 (a multiple of the rest length)", 1.0, HUGE_VAL, true, false);
+  }
+  readNonNegative(fields, "bending_stiffness", tissue.bending_stiffness);
+  readNonNegative(fields, "adhesion_stiffness", tissue.adhesion_stiffness);
+  readPositive(fields, "time_budget_ms", tissue.time_budget_ms);
+  readPositive(fields, "dt", tissue.dt);
+  if (auto plastic = fields.optional("plastic")) tissue.plastic = plastic->boolean();
+  fields.finish();
+  return tissue;
+}
+
+CollisionParameters readCollision(const Field& field) {
+  CollisionParameters collision;
+  MapFields fields(field);
+  if (auto detector = fields.optional("detector")) collision.detector = detector->name(knownCollisionDetectors());
+  readInteger(fields, "resolution", collision.resolution, 1, 16384);
+  if (auto scale = fields.optional("epsilon_shell_scale")) {
+    collision.epsilon_shell_scale = scale->number("a scale factor in [1, 2]", 1.0, 2.0);
+  }
+  fields.finish();
+  return collision;
+}
+
+EyeDescription readEye(const Field& field) {
+  EyeDescription eye;
+  MapFields fields(field);
+  readPositive(fields, "radius", eye.radius);
+  if (auto centre = fields.optional("centre")) eye.centre_in_world = centre->vector3();
+  if (auto rpy = fields.optional("rest_rpy_deg")) eye.rest_rpy_deg = rpy->vector3();
+  if (auto trocars = fields.optional("trocars")) {
+    for (const Field& item : trocars->items()) {
+      MapFields trocar_fields(item);
+      Trocar trocar;
+      const Field name = trocar_fields.required("name");
+      trocar.name = name.text();
+      for (const auto& existing : eye.trocars) {
+        if (existing.name == trocar.name) name.fail("duplicate trocar name '" + trocar.name + "'");
+      }
+      auto position = trocar_fields.optional("position");
+      auto angle = trocar_fields.optional("angle_from_optical_axis_deg");
+      auto azimuth = trocar_fields.optional("azimuth_deg");
+      if (position && (angle || azimuth)) {
+        item.fail("give either 'position' or 'angle_from_optical_axis_deg' + 'azimuth_deg', not both");
+      }
+      if (position) {
+        trocar.position_in_eye = position->vector3();
+      } else if (angle && azimuth) {
+        const double polar = angle->number("an angle in [0, 180] degrees", 0.0, 180.0) * kDegToRad;
+        const double around = azimuth->finite() * kDegToRad;
+        trocar.position_in_eye = eye.radius * Eigen::Vector3d(std::sin(polar) * std::cos(around),
+                                                              std::sin(polar) * std::sin(around), std::cos(polar));
+      } else {
+        item.fail("a trocar needs 'position' or both 'angle_from_optical_axis_deg' and 'azimuth_deg'");
+      }
+      trocar_fields.finish();
+      eye.trocars.push_back(trocar);
+    }
+  } else {
+    eye.trocars = defaultTrocars(eye.radius);
+  }
+  fields.finish();
+  return eye;
+}
+
+// Relative to the scene file first (scene-specific assets), then to the package (shared assets).
+std::string resolveMeshPath(const Field& field, const std::string& scene_file) {
+  const fs::path written = field.text();
+  std::vector<fs::path> candidates;
+  if (written.is_absolute()) {
+    candidates.push_back(written);
+  } else {
+    candidates.push_back(fs::absolute(scene_file).parent_path() / written);
+    if (std::string(VRM_SIM_SOURCE_DIR).size() > 0) candidates.push_back(fs::path(VRM_SIM_SOURCE_DIR) / written);
+  }
+  std::string looked_in;
+  for (const auto& candidate : candidates) {
+    std::error_code error;
+    if (fs::is_regular_file(candidate, error)) return fs::weakly_canonical(candidate).string();
+    looked_in += (looked_in.empty() ? "" : ", ") + candidate.lexically_normal().string();
+  }
+  field.fail("mesh file '" + written.string() + "' not found (looked for " + looked_in + ")");
+}
+
+MeshSource readMeshSource(const Field& field, const EyeDescription& eye, const std::string& scene_file) {
+  MeshSource source;
+  MapFields fields(field);
+  auto generator = fields.optional("generator");
+  auto params = fields.optional("params");
+  auto file = fields.optional("file");
+  auto scale = fields.optional("scale");
+  if (generator && file) field.fail("give either 'generator' or 'file', not both");
+  if (!generator && !file) field.fail("missing 'generator' or 'file'");
+  if (generator) {
+    if (scale) scale->fail("'scale' applies to mesh files only; generators take their sizes in 'params'");
+    const std::string name = generator->name(generatorNames());
+    GeneratorParams typed = *defaultGeneratorParams(name);
+    // Eye assets default to the eye's radius, so changing eye.radius keeps retina and membrane consistent.
+    if (auto* retina = std::get_if<RetinaParams>(&typed)) retina->radius = eye.radius;
+    if (auto* membrane = std::get_if<MembraneParams>(&typed)) membrane->retina_radius = eye.radius;
+    readGeneratorParams(params, *generator, typed);
+    source.generator = typed;
+  } else {
+    if (params) params->fail("'params' applies to generators only");
+    source.file = resolveMeshPath(*file, scene_file);
+    if (scale) source.scale = scale->positive();
+  }
+  fields.finish();
+  return source;
+}
+
+ObjectDescription readObject(const Field& field, const EyeDescription& eye, const std::string& scene_file) {
+  ObjectDescription object;
+  object.location = field.location();
+  MapFields fields(field);
+  object.name = fields.required("name").text();
+  object.role = fields.required("role").choice<ObjectRole>({{"retina", ObjectRole::kRetina},
+                                                            {"membrane", ObjectRole::kMembrane},
+                                                            {"ilm", ObjectRole::kIlm},
+                                                            {"rigid", ObjectRole::kRigid},
+                                                            {"abstract_target", ObjectRole::kAbstractTarget},
+                                                            {"decoration", ObjectRole::kDecoration}});
+  object.mesh = readMeshSource(fields.required("mesh"), eye, scene_file);
+  if (auto frame = fields.optional("frame")) {
+    object.frame = frame->choice<ObjectFrame>({{"eye", ObjectFrame::kEye}, {"world", ObjectFrame::kWorld}});
+  }
+  if (auto pose = fields.optional("pose")) object.pose = readPose(*pose);
+  if (auto material = fields.optional("material")) object.material = readMaterial(*material);
+  if (auto tissue = fields.optional("tissue")) {
+    object.tissue = readTissue(*tissue);
+    const bool rigid_role = object.role == ObjectRole::kRigid || object.role == ObjectRole::kAbstractTarget ||
+                            object.role == ObjectRole::kDecoration;
+    if (rigid_role && object.tissue.isDeformable()) {
+      tissue->child(tissue->node()["model"], "model")
+          .fail(std::string("an object with role '") + toString(object.role) + "' cannot be deformable");
+    }
+  }
+  if (auto collision = fields.optional("collision")) object.collision = readCollision(*collision);
+  fields.finish();
+  return object;
+}
+
+const std::vector<std::pair<std::string, InstrumentType>>& instrumentTypeNames() {
+  static const std::vector<std::pair<std::string, InstrumentType>> names = {{"light_pipe", InstrumentType::kLightPipe},
+                                                                            {"forceps", InstrumentType::kForceps},
+                                                                            {"vitrector", InstrumentType::kVitrector},
+                                                                            {"needle", InstrumentType::kNeedle},
+                                                                            {"hook", InstrumentType::kHook}};
+  return names;
+}
+
+InstrumentDescription readInstrument(const Field& field, const EyeDescription& eye) {
+  InstrumentDescription instrument;
+  instrument.location = field.location();
+  MapFields fields(field);
+  instrument.slot = fields.required("slot").choice<InstrumentSlot>(
+      {{"left", InstrumentSlot::kLeft}, {"right", InstrumentSlot::kRight}});
+  const Field type = fields.required("type");
+  instrument.type = type.choice(instrumentTypeNames());
+  instrument.params = defaultInstrumentParams(instrument.type);
+  readGeneratorParams(fields.optional("params"), type, instrument.params);
+  const std::optional<Field> trocar = fields.optional("trocar");
+  instrument.trocar = trocar ? trocar->text() : toString(instrument.slot);
+  const bool trocar_exists = std::any_of(eye.trocars.begin(), eye.trocars.end(), [&instrument](const Trocar& known) {
+    return known.name == instrument.trocar;
+  });
+  if (!trocar_exists) {
+    std::vector<std::string> names;
+    for (const auto& known : eye.trocars) names.push_back(known.name);
+    (trocar ? *trocar : field)
+        .fail("unknown trocar '" + instrument.trocar + "'" + suggestion(instrument.trocar, names) +
+              "; the eye has: " + joinNames(names));
+  }
+  if (auto alternatives = fields.optional("alternatives")) {
+    for (const Field& item : alternatives->items()) {
+      const InstrumentType alternative = item.choice(instrumentTypeNames());
+      if (alternative == instrument.type || std::find(instrument.alternatives.begin(), instrument.alternatives.end(),
+                                                      alternative) != instrument.alternatives.end()) {
+        item.fail(std::string("duplicate instrument type '") + toString(alternative) + "'");
+      }
+      instrument.alternatives.push_back(alternative);
+    }
+  }
+  if (auto material = fields.optional("material")) instrument.material = readMaterial(*material);
+  fields.finish();
+  return instrument;
+}
+
+SceneDescription readScene(const YAML::Node& root, const std::string& file) {
+  const Field root_field(root, "", file);
+  if (!root.IsMap())
+    root_field.fail("a scene file must be a map with the keys scene, eye, objects, ...; got " + root_field.shown());
+  SceneDescription scene;
+  scene.source_file = file;
+  MapFields fields(root_field);
+  if (auto version = fields.optional("format_version")) version->integer(1, 1);
+
+  MapFields header(fields.required("scene"));
+  scene.name = header.required("name").text();
+  if (auto description = header.optional("description")) scene.description = description->text();
+  scene.kind = header.required("kind").choice<SceneKind>(
+      {{"abstract", SceneKind::kAbstract}, {"surgical", SceneKind::kSurgical}});
+  header.finish();
+
+  if (auto eye = fields.optional("eye")) {
+    scene.eye = readEye(*eye);
+  } else {
+    scene.eye.trocars = defaultTrocars(scene.eye.radius);
+  }
+
+  const Field objects = fields.required("objects");
+  const std::vector<Field> object_items = objects.items();
+  if (object_items.empty()) objects.fail("a scene needs at least one object");
+  std::vector<Field> tissue_model_fields;
+  for (const Field& item : object_items) {
+    ObjectDescription object = readObject(item, scene.eye, file);
+    if (scene.findObject(object.name) != nullptr) {
+      item.child(item.node()["name"], "name").fail("duplicate object name '" + object.name + "'");
+    }
+    if (object.isDeformable()) {
+      tissue_model_fields.push_back(
+          item.child(item.node()["tissue"], "tissue").child(item.node()["tissue"]["model"], "model"));
+    }
+    scene.objects.push_back(std::move(object));
+  }
+
+  if (auto instruments = fields.optional("instruments")) {
+    for (const Field& item : instruments->items()) {
+      InstrumentDescription instrument = readInstrument(item, scene.eye);
+      if (scene.findInstrument(instrument.slot) != nullptr) {
+        item.fail(std::string("slot '") + toString(instrument.slot) + "' already has an instrument");
+      }
+      scene.instruments.push_back(std::move(instrument));
+    }
+  }
+
+  const Field simulations = fields.required("simulations");
+  std::vector<std::pair<std::string, Simulation>> simulation_names;
+  for (Simulation simulation : {Simulation::kTissue, Simulation::kCollision, Simulation::kGrasping,
+                                Simulation::kCutting, Simulation::kBleeding}) {
+    simulation_names.emplace_back(toString(simulation), simulation);
+  }
+  for (const Field& item : simulations.items()) {
+    if (!scene.simulations.insert(item.choice(simulation_names)).second) item.fail("listed twice");
+  }
+  fields.finish();
+
+  // The simulation skips the mass-spring model entirely when no object is deformable, so both statements must agree.
+  if (scene.hasDeformableObjects() && !scene.simulates(Simulation::kTissue)) {
+    tissue_model_fields.front().fail("the object is deformable but 'simulations' does not list 'tissue'");
+  }
+  if (!scene.hasDeformableObjects() && scene.simulates(Simulation::kTissue)) {
+    simulations.fail("'tissue' is listed but no object has a tissue model other than 'none'");
+  }
+  if (scene.kind == SceneKind::kAbstract && scene.hasDeformableObjects()) {
+    tissue_model_fields.front().fail("abstract scenes have no deformable objects (thesis §7); use kind: surgical");
+  }
+  return scene;
+}
+
+SceneDescription parseScene(const std::function<YAML::Node()>& parse, const std::string& file) {
+  YAML::Node root;
+  try {
+    root = parse();
+  } catch (const YAML::Exception& error) {
+    SourceLocation location;
+    location.file = file;
+    if (!error.mark.is_null()) {
+      location.line = error.mark.line + 1;
+      location.column = error.mark.column + 1;
+    }
+    throw SceneError(location, "YAML syntax error: " + error.msg);
+  }
+  try {
+    return readScene(root, file);
+  } catch (const YAML::Exception& error) {  // not expected: every access above checks the node type first
+    SourceLocation location;
+    location.file = file;
+    throw SceneError(location, std::string("unexpected YAML error: ") + error.what());
+  }
+}
+
+}  // namespace
+
+SceneError::SceneError(const SourceLocation& location, const std::string& problem)
+    : std::runtime_error([&] {
+        std::string prefix = location.file;
+        if (location.line > 0) prefix += ":" + std::to_string(location.line) + ":" + std::to_string(location.column);
+        if (!location.field.empty()) prefix += ": " + location.field;
+        return prefix + ": " + problem;
+      }()),
+      location_(location),
+      problem_(problem) {}
+
+SceneDescription loadScene(const std::string& path) {
+  SourceLocation location;
+  location.file = path;
+  std::error_code error;
+  if (!fs::exists(path, error)) throw SceneError(location, "scene file not found");
+  std::ifstream stream(path);
+  if (!stream || fs::is_directory(path, error)) throw SceneError(location, "cannot read the scene file");
+  std::ostringstream text;
+  text << stream.rdbuf();
+  const std::string content = text.str();
+  return parseScene([&content] { return YAML::Load(content); }, path);
+}
+
+SceneDescription loadSceneFromString(const std::string& yaml_text, const std::string& virtual_path) {
+  return parseScene([&yaml_text] { return YAML::Load(yaml_text); }, virtual_path);
+}
+
+std::string shippedScenePath(const std::string& scene_name) {
+  return (fs::path(VRM_SIM_SOURCE_DIR) / "config" / "scenes" / (scene_name + ".yaml")).string();
+}
+
+TriangleMesh buildMesh(const ObjectDescription& object, MeshFrame frame) {
+  TriangleMesh mesh;
+  SourceLocation location = object.location;
+  location.field += location.field.empty() ? "mesh" : ".mesh";
+  if (object.mesh.generator) {
+    try {
+      mesh = generateMesh(*object.mesh.generator);
+    } catch (const std::invalid_argument& error) {
+      throw SceneError(location, error.what());
+    }
+  } else {
+    MeshImportOptions options;
+    options.scale = object.mesh.scale;
+    try {
+      mesh = importMesh(object.mesh.file, options);
+    } catch (const MeshIoError& error) {
+      throw SceneError(location, error.what());
+    }
+  }
+  mesh.name = object.name;
+  if (frame == MeshFrame::kParent) transformMesh(mesh, object.pose.toIsometry());
+  return mesh;
+}
+
+std::vector<TriangleMesh> resolveMeshes(const SceneDescription& scene) {
+  std::vector<TriangleMesh> meshes;
+  meshes.reserve(scene.objects.size());
+  for (const auto& object : scene.objects) meshes.push_back(buildMesh(object, MeshFrame::kParent));
+  return meshes;
+}
+
+TriangleMesh buildInstrumentMesh(const InstrumentDescription& instrument) {
+  try {
+    TriangleMesh mesh = generateMesh(instrument.params);
+    mesh.name = std::string(toString(instrument.slot)) + "_" + toString(instrument.type);
+    return mesh;
+  } catch (const std::invalid_argument& error) {
+    throw SceneError(instrument.location, error.what());
+  }
+}
+
+}  // namespace scene
+}  // namespace vrm_sim
