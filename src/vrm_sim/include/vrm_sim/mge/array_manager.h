@@ -1,0 +1,235 @@
+#pragma once
+// Compact attribute storage, thesis §3.3.2 (Fig. 3.4–3.6): the attributes of many MGEs live in contiguous arrays so
+// that sequential sweeps use the cache well and can be uploaded as one block (renderer, §6). An attributed element
+// holds an ArrayConnector (its slot index in the arrays); removal moves the last entry into the hole (order in the
+// array is irrelevant, all entries have the same size) and fixes the moved element's slot, so removal is O(1).
+//
+// Generalisation: ArrayManager<A, B, ...> keeps one array per attribute type (structure of arrays) with ONE shared
+// slot per element, so e.g. positions[i], velocities[i] and masses[i] of a node agree without bookkeeping.
+// ArrayManager<Attr> is the thesis' single-attribute case.
+//
+// Storage modes (§3.3.2, last paragraph):
+//   kArray: the array is the only copy; ArrayConnector::get() reads/writes the array (the thesis' bent pointer).
+//   kDual:  each connector keeps its own copy, get() works on it, and sync() copies all copies into the arrays on
+//           demand (e.g. random-access simulation on the instances, then one bulk copy for the renderer);
+//           syncFromArray() copies back after a bulk algorithm wrote the arrays.
+
+#include <algorithm>
+#include <cassert>
+#include <cstddef>
+#include <cstdint>
+#include <functional>
+#include <limits>
+#include <memory>
+#include <stdexcept>
+#include <tuple>
+#include <type_traits>
+#include <utility>
+#include <vector>
+
+namespace vrm_sim {
+namespace mge {
+
+class Element;
+
+enum class StorageMode { kArray, kDual };
+
+template <typename... Attrs>
+class ArrayConnector;
+
+template <typename... Attrs>
+class ArrayManager {
+  static_assert(sizeof...(Attrs) >= 1, "ArrayManager needs at least one attribute type");
+
+ public:
+  using Connector = ArrayConnector<Attrs...>;
+  using Values = std::tuple<Attrs...>;
+  template <std::size_t I>
+  using Attr = std::tuple_element_t<I, Values>;
+  // Called after a removal moved the last entry into `slot` (so ownerAt(slot) / connectorAt(slot) is the moved
+  // element). Structures that store slot indices of this manager (e.g. spring → node index pairs) fix them here.
+  using RelocationListener = std::function<void(std::size_t slot)>;
+
+  explicit ArrayManager(StorageMode mode = StorageMode::kArray) : mode_(mode) {}
+  ArrayManager(const ArrayManager&) = delete;
+  ArrayManager& operator=(const ArrayManager&) = delete;
+  // Connectors may outlive the manager (e.g. elements destroyed later): they are left disconnected.
+  ~ArrayManager() {
+    for (Connector* connector : connectors_) connector->manager_ = nullptr;
+  }
+
+  StorageMode mode() const { return mode_; }
+  std::size_t size() const { return connectors_.size(); }
+  bool empty() const { return connectors_.empty(); }
+  void reserve(std::size_t count) {
+    forEachColumn([count](auto& column) { column.reserve(count); });
+    connectors_.reserve(count);
+  }
+
+  // Contiguous column I (size() entries). In kDual mode it holds the values of the last sync().
+  template <std::size_t I = 0>
+  Attr<I>* data() {
+    return std::get<I>(columns_).data();
+  }
+  template <std::size_t I = 0>
+  const Attr<I>* data() const {
+    return std::get<I>(columns_).data();
+  }
+  template <std::size_t I = 0>
+  Attr<I>& at(std::size_t slot) {
+    assert(slot < size());
+    return std::get<I>(columns_)[slot];
+  }
+  template <std::size_t I = 0>
+  const Attr<I>& at(std::size_t slot) const {
+    assert(slot < size());
+    return std::get<I>(columns_)[slot];
+  }
+
+  Connector& connectorAt(std::size_t slot) const { return *connectors_[slot]; }
+  Element* ownerAt(std::size_t slot) const { return connectors_[slot]->owner_; }
+
+  void setRelocationListener(RelocationListener listener) { on_relocated_ = std::move(listener); }
+
+  // kDual: instance copies → arrays. No-op in kArray mode (the array is the only copy).
+  void sync() {
+    if (mode_ != StorageMode::kDual) return;
+    for (std::size_t slot = 0; slot < connectors_.size(); ++slot) {
+      copyToArray(slot, *connectors_[slot]->local_, std::index_sequence_for<Attrs...>{});
+    }
+  }
+  // kDual: arrays → instance copies. No-op in kArray mode.
+  void syncFromArray() {
+    if (mode_ != StorageMode::kDual) return;
+    for (std::size_t slot = 0; slot < connectors_.size(); ++slot) {
+      copyFromArray(slot, *connectors_[slot]->local_, std::index_sequence_for<Attrs...>{});
+    }
+  }
+
+ private:
+  friend Connector;
+
+  template <typename Function>
+  void forEachColumn(Function&& function) {
+    std::apply([&function](auto&... column) { (function(column), ...); }, columns_);
+  }
+
+  // The thesis' FetchNewDataPtr: a new slot at the end of every column.
+  std::uint32_t acquire(Connector& connector, const Attrs&... initial) {
+    if (connectors_.size() >= std::numeric_limits<std::uint32_t>::max()) throw std::length_error("ArrayManager full");
+    const std::size_t slot = connectors_.size();
+    connectors_.push_back(&connector);
+    try {
+      appendValues(std::index_sequence_for<Attrs...>{}, initial...);
+    } catch (...) {
+      // Roll back columns that did grow, so all columns keep size() entries.
+      forEachColumn([slot](auto& column) { column.resize(std::min(column.size(), slot)); });
+      connectors_.pop_back();
+      throw;
+    }
+    return static_cast<std::uint32_t>(slot);
+  }
+
+  template <std::size_t... I>
+  void appendValues(std::index_sequence<I...>, const Attrs&... initial) {
+    (std::get<I>(columns_).push_back(initial), ...);
+  }
+
+  // Fig. 3.6: the last entry fills the hole; only the moved element's slot changes.
+  void release(std::size_t slot) {
+    assert(slot < size());
+    const std::size_t last = connectors_.size() - 1;
+    if (slot != last) {
+      forEachColumn([slot, last](auto& column) { column[slot] = std::move(column[last]); });
+      connectors_[slot] = connectors_[last];
+      connectors_[slot]->slot_ = static_cast<std::uint32_t>(slot);
+    }
+    forEachColumn([](auto& column) { column.pop_back(); });
+    connectors_.pop_back();
+    if (slot != last && on_relocated_) on_relocated_(slot);
+  }
+
+  template <std::size_t... I>
+  void copyToArray(std::size_t slot, const Values& values, std::index_sequence<I...>) {
+    ((std::get<I>(columns_)[slot] = std::get<I>(values)), ...);
+  }
+  template <std::size_t... I>
+  void copyFromArray(std::size_t slot, Values& values, std::index_sequence<I...>) const {
+    ((std::get<I>(values) = std::get<I>(columns_)[slot]), ...);
+  }
+
+  StorageMode mode_;
+  std::tuple<std::vector<Attrs>...> columns_;
+  std::vector<Connector*> connectors_;  // slot → connector, to fix the slot of a moved entry
+  RelocationListener on_relocated_;
+};
+
+// Member of an attributed element; its link to one ArrayManager (thesis Fig. 3.4/3.5). Not copyable or movable:
+// the manager points at it. Disconnects (frees the slot) on destruction.
+template <typename... Attrs>
+class ArrayConnector {
+ public:
+  using Manager = ArrayManager<Attrs...>;
+  template <std::size_t I>
+  using Attr = typename Manager::template Attr<I>;
+
+  ArrayConnector() = default;
+  ArrayConnector(const ArrayConnector&) = delete;
+  ArrayConnector& operator=(const ArrayConnector&) = delete;
+  ~ArrayConnector() { disconnect(); }
+
+  // The thesis' ConnectToArray: takes a slot and stores the initial values there (and in the instance copy in
+  // kDual mode). `owner` is reported by ArrayManager::ownerAt(); it may be null.
+  void connect(Manager& manager, Element* owner, const Attrs&... initial) {
+    if (manager_ != nullptr) throw std::logic_error("ArrayConnector is already connected");
+    if (manager.mode() == StorageMode::kDual) local_ = std::make_unique<std::tuple<Attrs...>>(initial...);
+    try {
+      slot_ = manager.acquire(*this, initial...);
+    } catch (...) {
+      local_.reset();
+      throw;
+    }
+    manager_ = &manager;
+    owner_ = owner;
+  }
+  void connect(Manager& manager, Element* owner) { connect(manager, owner, Attrs{}...); }
+
+  void disconnect() {
+    if (manager_ == nullptr) return;
+    Manager* manager = manager_;
+    manager_ = nullptr;
+    manager->release(slot_);
+    local_.reset();
+  }
+
+  bool connected() const { return manager_ != nullptr; }
+  // Index of this element's entry in every column of the manager; changes when another element is removed.
+  std::uint32_t slot() const {
+    assert(connected());
+    return slot_;
+  }
+  Element* owner() const { return owner_; }
+  Manager* manager() const { return manager_; }
+
+  template <std::size_t I = 0>
+  Attr<I>& get() {
+    assert(connected());
+    return local_ ? std::get<I>(*local_) : manager_->template at<I>(slot_);
+  }
+  template <std::size_t I = 0>
+  const Attr<I>& get() const {
+    assert(connected());
+    return local_ ? std::get<I>(*local_) : manager_->template at<I>(slot_);
+  }
+
+ private:
+  friend Manager;
+
+  std::uint32_t slot_ = 0;  // first: the field navigation reads most
+  Manager* manager_ = nullptr;
+  Element* owner_ = nullptr;
+  std::unique_ptr<std::tuple<Attrs...>> local_;  // instance copy, kDual mode only
+};
+
+}  // namespace mge
+}  // namespace vrm_sim

@@ -1,0 +1,134 @@
+#pragma once
+// A deformable membrane as an MGE subgraph (thesis Fig. 3.1): a Transform (scene graph) → Tissue g2 → all nodes,
+// springs and triangles; springs and triangles share the node elements. Next to the graph the membrane keeps the
+// contiguous arrays that solvers and the renderer sweep over (§3.3.2): node positions / velocities / masses / fixed
+// flags, spring node-slot pairs / rest lengths / stiffnesses, triangle node-slot triples. Removal (cutting, tearing)
+// keeps graph and arrays consistent: array removal moves the last entry into the hole, and a moved node's springs
+// and triangles — found through the reference edges, no search — get its new slot.
+
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <optional>
+
+#include "vrm_sim/mge/array_manager.h"
+#include "vrm_sim/mge/elements.h"
+#include "vrm_sim/mge/graph.h"
+#include "vrm_sim/mge/list_access.h"
+#include "vrm_sim/triangle_mesh.h"
+
+namespace vrm_sim {
+namespace mge {
+
+struct MembraneOptions {
+  // Total mass [kg], lumped onto the nodes with one third of each triangle's area (uniform if the area is zero).
+  double total_mass = 1.0e-6;
+  double stretch_stiffness = 1.0;  // [N/m], springs on mesh edges
+  // Bending springs between the two opposite corners of every interior edge (an edge shared by two triangles).
+  bool bending_springs = false;
+  double bending_stiffness = 0.1;  // [N/m]
+  // kDual: Node::position() etc. work on per-node copies and NodeArrays::sync() publishes them (thesis §3.3.2).
+  StorageMode node_storage = StorageMode::kArray;
+};
+
+struct CutOptions {
+  // Remove edge springs that no longer belong to any triangle (so no invisible spring is left in a cut).
+  bool remove_orphan_springs = true;
+  // Remove corner nodes left without springs and triangles.
+  bool remove_orphan_nodes = false;
+};
+
+class Membrane {
+ public:
+  // An empty membrane in its own graph.
+  explicit Membrane(const MembraneOptions& options = {});
+  // An empty membrane in a shared graph (e.g. the scene's), which must outlive the membrane.
+  explicit Membrane(Graph& graph, const MembraneOptions& options = {});
+  Membrane(const Membrane&) = delete;
+  Membrane& operator=(const Membrane&) = delete;
+  // Destroys all of the membrane's elements (removing their edges from a shared graph).
+  ~Membrane();
+
+  Graph& graph() { return *graph_; }
+  const Graph& graph() const { return *graph_; }
+  Tissue& tissue() { return *tissue_; }
+  Transform& transform() { return *transform_; }
+  const MembraneOptions& options() const { return options_; }
+
+  // Element views in insertion order (the order in the arrays is slot order, see the accessors below).
+  ListAccess<Node> nodes() { return tissue_->nodes(); }
+  ListAccess<Spring> springs() { return tissue_->springs(); }
+  ListAccess<Triangle> triangles() { return tissue_->triangles(); }
+
+  std::size_t nodeCount() const { return node_arrays_.size(); }
+  std::size_t springCount() const { return spring_arrays_.size(); }
+  std::size_t triangleCount() const { return triangle_arrays_.size(); }
+
+  // Contiguous arrays in slot order, for solvers and the renderer.
+  NodeArrays& nodeArrays() { return node_arrays_; }
+  const NodeArrays& nodeArrays() const { return node_arrays_; }
+  const SpringArrays& springArrays() const { return spring_arrays_; }
+  const TriangleArrays& triangleArrays() const { return triangle_arrays_; }
+  Eigen::Vector3d* positions() { return node_arrays_.data<kNodePosition>(); }
+  Eigen::Vector3d* velocities() { return node_arrays_.data<kNodeVelocity>(); }
+  const double* masses() const { return node_arrays_.data<kNodeMass>(); }
+  const std::uint8_t* fixedFlags() const { return node_arrays_.data<kNodeFixed>(); }
+  const std::array<std::uint32_t, 2>* springNodeSlots() const { return spring_arrays_.data<kSpringNodeSlots>(); }
+  // Writable: plasticity lets the rest length follow the maximum length reached (§5.1).
+  double* restLengths() { return spring_arrays_.data<kSpringRestLength>(); }
+  double* stiffnesses() { return spring_arrays_.data<kSpringStiffness>(); }
+  const std::array<std::uint32_t, 3>* triangleNodeSlots() const { return triangle_arrays_.data(); }
+  Node& nodeAtSlot(std::size_t slot) const { return static_cast<Node&>(*node_arrays_.ownerAt(slot)); }
+  Spring& springAtSlot(std::size_t slot) const { return static_cast<Spring&>(*spring_arrays_.ownerAt(slot)); }
+  Triangle& triangleAtSlot(std::size_t slot) const { return static_cast<Triangle&>(*triangle_arrays_.ownerAt(slot)); }
+
+  // Construction (used by buildMembrane and by local refinement).
+  void reserve(std::size_t nodes, std::size_t springs, std::size_t triangles);
+  Node& addNode(const Eigen::Vector3d& position, double mass, bool fixed = false);
+  // rest_length defaults to the current distance of the two nodes.
+  Spring& addSpring(Node& first, Node& second, double stiffness, bool bending = false,
+                    std::optional<double> rest_length = std::nullopt);
+  // Corners in order (the order gives the normal); throws std::invalid_argument for repeated corners.
+  Triangle& addTriangle(Node& first, Node& second, Node& third);
+  void linkEdgeSpring(Triangle& triangle, Spring& spring);
+  void linkBendingSpring(Triangle& triangle, Spring& spring);
+
+  // Removal (cutting, tearing). References to removed elements become invalid.
+  void removeSpring(Spring& spring);
+  // Also removes the triangle's bending springs, and per `options` orphaned edge springs and corner nodes.
+  void removeTriangle(Triangle& triangle, const CutOptions& options = {});
+  // Removes the node with all its triangles (as removeTriangle with default options) and springs.
+  void removeNode(Node& node);
+
+  // Graph invariants plus: tissue lists and arrays describe the same elements; every array entry belongs to the
+  // element whose connector holds that slot; spring/triangle node-slot entries equal the slots of their nodes.
+  InvariantReport checkConsistency() const;
+
+ private:
+  void initialize();
+  // Throws std::invalid_argument unless `element` is in this membrane's tissue list `tissue_label`.
+  void requireOwn(const Element& element, Label tissue_label) const;
+  void onNodeRelocated(std::size_t slot);
+  void destroyAll();
+
+  MembraneOptions options_;
+  // Declared before the array managers: on destruction the managers go first and disconnect the elements, so the
+  // owned graph can then drop its elements without per-element array bookkeeping.
+  std::unique_ptr<Graph> owned_graph_;
+  Graph* graph_;
+  NodeArrays node_arrays_;
+  SpringArrays spring_arrays_;
+  TriangleArrays triangle_arrays_;
+  Transform* transform_ = nullptr;
+  Tissue* tissue_ = nullptr;
+};
+
+// Builds a membrane from a triangle mesh: one node per vertex (fixed_vertices pinned), one spring per unique edge,
+// optional bending springs across interior edges, one triangle per mesh triangle. Throws std::invalid_argument for
+// out-of-range or repeated vertex indices.
+std::unique_ptr<Membrane> buildMembrane(const TriangleMesh& mesh, const MembraneOptions& options = {});
+std::unique_ptr<Membrane> buildMembrane(Graph& graph, const TriangleMesh& mesh, const MembraneOptions& options = {});
+
+}  // namespace mge
+}  // namespace vrm_sim
