@@ -48,8 +48,6 @@ TEST(GlContext, ResizeKeepsTheContextUsable) {
   EXPECT_EQ(last_pixel[2], 255);
 }
 
-TEST(GlContext, RejectsNonPositiveSize) {
-  EXPECT_THROW(vrm_gl::GlContext({0, 10}), vrm_gl::GlContextError);
-}
+TEST(GlContext, RejectsNonPositiveSize) { EXPECT_THROW(vrm_gl::GlContext({0, 10}), vrm_gl::GlContextError); }
 
 }  // namespace

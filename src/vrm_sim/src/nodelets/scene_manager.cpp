@@ -4,7 +4,6 @@
 // and RViz. Stamps come from the inputs, so a replayed bag produces the same frames.
 #include <geometry_msgs/TransformStamped.h>
 #include <nodelet/nodelet.h>
-#include <pluginlib/class_list_macros.hpp>
 #include <ros/ros.h>
 #include <tf2_ros/static_transform_broadcaster.h>
 #include <tf2_ros/transform_broadcaster.h>
@@ -15,6 +14,7 @@
 #include <fstream>
 #include <map>
 #include <memory>
+#include <pluginlib/class_list_macros.hpp>
 
 #include "vrm_msgs/EyeState.h"
 #include "vrm_msgs/InstrumentState.h"
@@ -57,9 +57,8 @@ class SceneManager : public nodelet::Nodelet {
     eye_frame_ = private_nh.param<std::string>("eye_frame", "eye");
     const std::string scene_parameter = private_nh.param<std::string>("scene", "membrane_peeling");
 
-    const std::string scene_path = std::ifstream(scene_parameter).good()
-                                       ? scene_parameter
-                                       : scene::shippedScenePath(scene_parameter);
+    const std::string scene_path =
+        std::ifstream(scene_parameter).good() ? scene_parameter : scene::shippedScenePath(scene_parameter);
     try {
       scene_ = scene::loadScene(scene_path);
       buildObjects();

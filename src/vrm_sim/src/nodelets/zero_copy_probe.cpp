@@ -6,13 +6,13 @@
 // of the latched message (measured by this probe), which is fine for one-off scene data but not for streams.
 #include <diagnostic_msgs/DiagnosticArray.h>
 #include <nodelet/nodelet.h>
-#include <pluginlib/class_list_macros.hpp>
 #include <ros/ros.h>
 
 #include <atomic>
 #include <boost/make_shared.hpp>
 #include <map>
 #include <mutex>
+#include <pluginlib/class_list_macros.hpp>
 #include <string>
 
 #include "vrm_msgs/EyeState.h"

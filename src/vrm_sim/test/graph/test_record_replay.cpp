@@ -115,8 +115,8 @@ TEST(RecordReplay, ReplayedInputStreamEqualsTheRecordedOne) {
   const std::string replayed = (work / "replayed.bag").string();
 
   {
-    ChildProcess session({"roslaunch", launch_dir + "/simulator.launch", "sim:=true", "headless:=true",
-                          "record:=true", "duration:=" + std::to_string(record_seconds), "bag:=" + recorded});
+    ChildProcess session({"roslaunch", launch_dir + "/simulator.launch", "sim:=true", "headless:=true", "record:=true",
+                          "duration:=" + std::to_string(record_seconds), "bag:=" + recorded});
     ASSERT_TRUE(session.started());
     EXPECT_EQ(session.waitFor(record_seconds + 60.0), 0) << "the recording session did not end by itself";
   }
