@@ -16,13 +16,8 @@ summary=$(catkin_test_results "$ROOT/build/test_results" --all 2>&1)
 verdict=$?
 set -e
 echo "$summary" | grep -vE '^(Skipping|$)' | tail -n 40
-# "Summary: N tests, E errors, F failures, S skipped" -> the plain closing line CI reads.
-read -r tests errors failures skipped < <(echo "$summary" | sed -nE \
-  's/^Summary: ([0-9]+) tests, ([0-9]+) errors, ([0-9]+) failures, ([0-9]+) skipped.*/\1 \2 \3 \4/p' | tail -n 1)
-if [[ -z ${tests:-} || ${tests:-0} -eq 0 ]]; then
+if ! /usr/bin/python3 "$ROOT/scripts/test_summary.py" "$ROOT/build/test_results"; then
   echo "test.sh: no test results found" >&2
   exit 1
 fi
-failed=$((errors + failures))
-echo "$((tests - failed - skipped)) passed, $failed failed, $skipped skipped"
 exit $verdict
