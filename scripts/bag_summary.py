@@ -5,6 +5,16 @@ import sys
 import rosbag
 
 
+def print_per_instrument(bag, topic):
+    stamps = {}
+    for _, message, _ in bag.read_messages(topics=[topic]):
+        stamps.setdefault(message.instrument_id, []).append(message.header.stamp.to_sec())
+    for slot, times in sorted(stamps.items()):
+        span = times[-1] - times[0] if len(times) > 1 else 0.0
+        rate = (len(times) - 1) / span if span > 0 else 0.0
+        print(f"    {'instrument ' + slot:<26} {'':<32} {len(times):>9} {rate:>9.1f}")
+
+
 def main(path):
     try:
         bag = rosbag.Bag(path)
@@ -23,6 +33,8 @@ def main(path):
             span = stamps[-1] - stamps[0] if len(stamps) > 1 else 0.0
             rate = (len(stamps) - 1) / span if span > 0 else 0.0
             print(f"  {topic:<28} {meta.msg_type:<32} {meta.message_count:>9} {rate:>9.1f}")
+            if meta.msg_type == "vrm_msgs/InstrumentState":
+                print_per_instrument(bag, topic)
     return 0 if total else 1
 
 

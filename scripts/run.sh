@@ -29,5 +29,7 @@ echo "run.sh: headless simulator, simulated hardware, scene '$scene', ${duration
 timeout --signal=INT --kill-after=15 "$(awk "BEGIN{print int($duration) + 60}")" \
   roslaunch --screen "$ROOT/launch/simulator.launch" sim:=true headless:=true record:=true \
   "duration:=$duration" "bag:=$bag" "scene:=$scene" "${extra[@]}" >"$ROOT/build/sessions/last_run.log" 2>&1 || true
-tail -n 5 "$ROOT/build/sessions/last_run.log"
+log="$ROOT/build/sessions/last_run.log"
+grep -hE "scene '|FATAL|ERROR" "$log" | sed -E 's/\x1b\[[0-9;]*m//g' | head -n 10 || true
+echo "launch log: $log"
 /usr/bin/python3 "$ROOT/scripts/bag_summary.py" "$bag"
