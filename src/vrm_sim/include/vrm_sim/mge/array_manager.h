@@ -10,9 +10,9 @@
 //
 // Storage modes (§3.3.2, last paragraph):
 //   kArray: the array is the only copy; ArrayConnector::get() reads/writes the array (the thesis' bent pointer).
-//   kDual:  each connector keeps its own copy, get() works on it, and sync() copies all copies into the arrays on
-//           demand (e.g. random-access simulation on the instances, then one bulk copy for the renderer);
-//           syncFromArray() copies back after a bulk algorithm wrote the arrays.
+//   kDual:  each connector has its own copy (kept by the manager per slot at a stable address), get() works on it,
+//           and sync() copies all copies into the arrays on demand (e.g. random-access simulation on the instances,
+//           then one bulk copy for the renderer); syncFromArray() copies back after a bulk algorithm wrote the arrays.
 
 #include <algorithm>
 #include <cassert>
@@ -64,6 +64,8 @@ class ArrayManager {
   void reserve(std::size_t count) {
     forEachColumn([count](auto& column) { column.reserve(count); });
     connectors_.reserve(count);
+    owners_.reserve(count);
+    if (mode_ == StorageMode::kDual) locals_.reserve(count);
   }
 
   // Contiguous column I (size() entries). In kDual mode it holds the values of the last sync().
@@ -87,7 +89,7 @@ class ArrayManager {
   }
 
   Connector& connectorAt(std::size_t slot) const { return *connectors_[slot]; }
-  Element* ownerAt(std::size_t slot) const { return connectors_[slot]->owner_; }
+  Element* ownerAt(std::size_t slot) const { return owners_[slot]; }
 
   void setRelocationListener(RelocationListener listener) { on_relocated_ = std::move(listener); }
 
@@ -95,14 +97,14 @@ class ArrayManager {
   void sync() {
     if (mode_ != StorageMode::kDual) return;
     for (std::size_t slot = 0; slot < connectors_.size(); ++slot) {
-      copyToArray(slot, *connectors_[slot]->local_, std::index_sequence_for<Attrs...>{});
+      copyToArray(slot, *locals_[slot], std::index_sequence_for<Attrs...>{});
     }
   }
   // kDual: arrays → instance copies. No-op in kArray mode.
   void syncFromArray() {
     if (mode_ != StorageMode::kDual) return;
     for (std::size_t slot = 0; slot < connectors_.size(); ++slot) {
-      copyFromArray(slot, *connectors_[slot]->local_, std::index_sequence_for<Attrs...>{});
+      copyFromArray(slot, *locals_[slot], std::index_sequence_for<Attrs...>{});
     }
   }
 
@@ -115,16 +117,22 @@ class ArrayManager {
   }
 
   // The thesis' FetchNewDataPtr: a new slot at the end of every column.
-  std::uint32_t acquire(Connector& connector, const Attrs&... initial) {
+  std::uint32_t acquire(Connector& connector, Element* owner, const Attrs&... initial) {
     if (connectors_.size() >= std::numeric_limits<std::uint32_t>::max()) throw std::length_error("ArrayManager full");
     const std::size_t slot = connectors_.size();
-    connectors_.push_back(&connector);
+    std::unique_ptr<Values> local;
+    if (mode_ == StorageMode::kDual) local = std::make_unique<Values>(initial...);
     try {
+      connectors_.push_back(&connector);
+      owners_.push_back(owner);
+      if (mode_ == StorageMode::kDual) locals_.push_back(std::move(local));
       appendValues(std::index_sequence_for<Attrs...>{}, initial...);
     } catch (...) {
-      // Roll back columns that did grow, so all columns keep size() entries.
+      // Roll back the vectors that did grow, so all of them keep size() entries.
       forEachColumn([slot](auto& column) { column.resize(std::min(column.size(), slot)); });
-      connectors_.pop_back();
+      connectors_.resize(std::min(connectors_.size(), slot));
+      owners_.resize(std::min(owners_.size(), slot));
+      locals_.resize(std::min(locals_.size(), slot));
       throw;
     }
     return static_cast<std::uint32_t>(slot);
@@ -143,9 +151,13 @@ class ArrayManager {
       forEachColumn([slot, last](auto& column) { column[slot] = std::move(column[last]); });
       connectors_[slot] = connectors_[last];
       connectors_[slot]->slot_ = static_cast<std::uint32_t>(slot);
+      owners_[slot] = owners_[last];
+      if (!locals_.empty()) locals_[slot] = std::move(locals_[last]);
     }
     forEachColumn([](auto& column) { column.pop_back(); });
     connectors_.pop_back();
+    owners_.pop_back();
+    if (!locals_.empty()) locals_.pop_back();
     if (slot != last && on_relocated_) on_relocated_(slot);
   }
 
@@ -161,6 +173,8 @@ class ArrayManager {
   StorageMode mode_;
   std::tuple<std::vector<Attrs>...> columns_;
   std::vector<Connector*> connectors_;  // slot → connector, to fix the slot of a moved entry
+  std::vector<Element*> owners_;        // slot → owning element (kept here, not in the connector: smaller elements)
+  std::vector<std::unique_ptr<Values>> locals_;  // slot → instance copy (kDual mode only; stable addresses)
   RelocationListener on_relocated_;
 };
 
@@ -182,15 +196,9 @@ class ArrayConnector {
   // kDual mode). `owner` is reported by ArrayManager::ownerAt(); it may be null.
   void connect(Manager& manager, Element* owner, const Attrs&... initial) {
     if (manager_ != nullptr) throw std::logic_error("ArrayConnector is already connected");
-    if (manager.mode() == StorageMode::kDual) local_ = std::make_unique<std::tuple<Attrs...>>(initial...);
-    try {
-      slot_ = manager.acquire(*this, initial...);
-    } catch (...) {
-      local_.reset();
-      throw;
-    }
+    slot_ = manager.acquire(*this, owner, initial...);
+    dual_ = manager.mode() == StorageMode::kDual;
     manager_ = &manager;
-    owner_ = owner;
   }
   void connect(Manager& manager, Element* owner) { connect(manager, owner, Attrs{}...); }
 
@@ -199,7 +207,6 @@ class ArrayConnector {
     Manager* manager = manager_;
     manager_ = nullptr;
     manager->release(slot_);
-    local_.reset();
   }
 
   bool connected() const { return manager_ != nullptr; }
@@ -208,27 +215,28 @@ class ArrayConnector {
     assert(connected());
     return slot_;
   }
-  Element* owner() const { return owner_; }
+  // The owner given to connect(); null while disconnected.
+  Element* owner() const { return manager_ == nullptr ? nullptr : manager_->owners_[slot_]; }
   Manager* manager() const { return manager_; }
 
   template <std::size_t I = 0>
   Attr<I>& get() {
     assert(connected());
-    return local_ ? std::get<I>(*local_) : manager_->template at<I>(slot_);
+    return dual_ ? std::get<I>(*manager_->locals_[slot_]) : manager_->template at<I>(slot_);
   }
   template <std::size_t I = 0>
   const Attr<I>& get() const {
     assert(connected());
-    return local_ ? std::get<I>(*local_) : manager_->template at<I>(slot_);
+    return dual_ ? std::get<I>(*manager_->locals_[slot_]) : manager_->template at<I>(slot_);
   }
 
  private:
   friend Manager;
 
+  // 16 bytes: owner and kDual instance copy live in the manager (indexed by slot), so attributed elements stay small.
   std::uint32_t slot_ = 0;  // first: the field navigation reads most
+  bool dual_ = false;       // kDual: get() works on the manager's instance copy of this slot
   Manager* manager_ = nullptr;
-  Element* owner_ = nullptr;
-  std::unique_ptr<std::tuple<Attrs...>> local_;  // instance copy, kDual mode only
 };
 
 }  // namespace mge

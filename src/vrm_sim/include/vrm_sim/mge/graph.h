@@ -119,7 +119,8 @@ class Graph {
   void destroy(Element& element);
   // Destroys all elements without edge maintenance.
   void clear();
-  // Drops spare adjacency capacity of every element (after bulk construction).
+  // Drops spare adjacency capacity of every element (after bulk construction) and packs all adjacency blocks into one
+  // contiguous arena in element order.
   void shrinkToFit();
 
   // Inserts (from, to, label) at the end of Γ(from, label) and its reference edge (to, from, −label) at the end of
@@ -155,11 +156,15 @@ class Graph {
 
   void registerElement(Element& element, PoolBase& pool);
   void requireMember(const Element& element) const;
+  PoolBase& poolOf(const Element& element) const;
 
   // Declared before elements_ so that pools outlive the elements they hold during destruction.
   std::unordered_map<std::type_index, std::unique_ptr<PoolBase>> pools_;
   std::vector<Element*> elements_;
   std::uint64_t next_id_ = 1;
+  // Exact-size adjacency blocks of all elements, packed by shrinkToFit() in element order (see element.h). Elements
+  // are destroyed (clear() in ~Graph) before it goes.
+  std::unique_ptr<std::uint64_t[]> arena_;
 };
 
 }  // namespace mge

@@ -4,7 +4,7 @@
 // and the element type T replaces the casts from the MGE base class at every call site.
 //
 // The view stays valid while the element lives, also across insertions and removals of edges (it stores the range
-// index, which never changes, not a pointer into the vector). Iterators are invalidated by edge changes on the same
+// index, which never changes, not a pointer into the adjacency block). Iterators are invalidated by edge changes on the same
 // element, like std::vector iterators.
 
 #include <cassert>
@@ -62,16 +62,20 @@ class ListAccess {
     if (range_ == Element::kNoRange) range_ = element.findOrAddRange(label);  // rare: keep the common path inline
   }
 
-  std::size_t size() const { return element_->ranges_[range_].count; }
+  std::size_t size() const { return element_->range(range_).count; }
   bool empty() const { return size() == 0; }
   T* operator[](std::size_t index) const {
     assert(index < size());
-    return checkedCast(element_->neighbours_[element_->ranges_[range_].begin + index]);
+    return checkedCast(element_->rangeData(range_)[index]);
   }
   T* front() const { return (*this)[0]; }
   T* back() const { return (*this)[size() - 1]; }
   Iterator begin() const { return Iterator(first()); }
-  Iterator end() const { return Iterator(first() + size()); }
+  Iterator end() const {
+    // One read of the range entry for both the start and the length.
+    const Element::LabelRange& range = element_->range(range_);
+    return Iterator(element_->block_->neighbours() + range.begin + range.count);
+  }
   // Position of the first occurrence of `neighbour`, or size() if absent.
   std::size_t indexOf(const Element* neighbour) const {
     Element* const* list = first();
@@ -82,11 +86,11 @@ class ListAccess {
     return count;
   }
 
-  Label label() const { return element_->ranges_[range_].label; }
+  Label label() const { return element_->range(range_).label; }
   Element& element() const { return *element_; }
 
  private:
-  Element* const* first() const { return element_->neighbours_.data() + element_->ranges_[range_].begin; }
+  Element* const* first() const { return element_->rangeData(range_); }
 
   static T* checkedCast(Element* element) {
     // Type safety of the thesis' template parameter: a wrong T is a programming error, caught in debug builds.
