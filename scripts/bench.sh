@@ -29,6 +29,14 @@ for suite in "${suites[@]}"; do
   [[ -n $exe ]] || { echo "bench.sh: unknown suite '$suite' (have: ${!executables[*]})" >&2; status=1; continue; }
   out="$ROOT/bench/results/$suite${quick:+.quick}.json"
   echo "== $suite -> ${out#$ROOT/}"
-  (cd "$ROOT" && "$exe" "${quick[@]}" --out "$out") || { echo "bench.sh: suite $suite failed" >&2; status=1; }
+  (cd "$ROOT" && "$exe" "${quick[@]}" --out "$out") || { echo "bench.sh: suite $suite failed" >&2; status=1; continue; }
+  # A suite may ship a plot script (src/<pkg>/bench/plot_<suite>.py): PNGs beside the JSON; quick runs plot into
+  # build/ so they test the script without touching the committed figures.
+  for plot in "$ROOT"/src/*/bench/plot_"$suite".py; do
+    [[ -f $plot ]] || continue
+    plots="$ROOT/bench/results"
+    ((${#quick[@]})) && plots="$ROOT/build/bench_quick_plots" && mkdir -p "$plots"
+    /usr/bin/python3 "$plot" "$out" "$plots" || { echo "bench.sh: plot $plot failed" >&2; status=1; }
+  done
 done
 exit $status

@@ -12,6 +12,7 @@ PACKAGES=(
   libcv-bridge-dev libimage-transport-dev libopencv-dev libeigen3-dev
   libgtest-dev libbenchmark-dev libosmesa6-dev
   libassimp-dev libyaml-cpp-dev libfcl-dev libsqlite3-dev
+  python3-matplotlib
 )
 
 missing=()

@@ -85,7 +85,10 @@ const std::vector<std::string>& knownIntegrators() {
 }
 
 const std::vector<std::string>& knownCollisionDetectors() {
-  static const std::vector<std::string> names = {"zcoll", "zcoll_f", "geometric", "none"};
+  // zcoll / zcoll_f name the thesis' algorithms and use the fastest backend here (CPU); the rest pick a backend.
+  static const std::vector<std::string> names = {"zcoll",    "zcoll_f",        "zcoll_cpu", "zcoll_f_cpu", "zcoll_gl",
+                                                 "zcoll_f_gl", "myszkowski_cpu", "geometric", "fcl",         "fcl_aabb",
+                                                 "fcl_obbrss", "fcl_kios",       "none"};
   return names;
 }
 

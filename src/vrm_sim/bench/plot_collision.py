@@ -1,0 +1,77 @@
+#!/usr/bin/python3
+"""Plots of bench/results/collision.json (benchmark `collision`, thesis §4.2.6-4.2.7):
+  collision_accuracy.png  deformation error and triangle recall vs resolution (image-space methods), and the cone
+                          test's full-detection depth next to the prediction d = p / (2 tan 25°)
+  collision_time.png      time per query vs resolution, image-space methods next to FCL and the exact primitives
+Usage: plot_collision.py [collision.json] [output directory]   (defaults: bench/results/collision.json, its folder)"""
+import json
+import pathlib
+import sys
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+
+src = pathlib.Path(sys.argv[1] if len(sys.argv) > 1 else "bench/results/collision.json")
+out = pathlib.Path(sys.argv[2]) if len(sys.argv) > 2 else src.parent
+rows = json.load(open(src))["rows"]
+teapot = [r for r in rows if r["scene"] == "teapot_membrane"]
+cones = sorted((r for r in rows if r["scene"] == "cone_test"), key=lambda r: r["resolution"])
+image_methods = sorted({r["method"] for r in teapot if isinstance(r["resolution"], int)})
+styles = {"heavy": "-", "light": "--"}
+
+fig, axes = plt.subplots(1, 3, figsize=(15, 4.5))
+for method in image_methods:
+    for severity in ("heavy", "light"):
+        sel = sorted((r for r in teapot if r["method"] == method and r["severity"] == severity and r["deformed"]),
+                     key=lambda r: r["resolution"])
+        if not sel:
+            continue
+        res = [r["resolution"] for r in sel]
+        axes[0].plot(res, [r["deform_err_um"] for r in sel], styles[severity], marker="o",
+                     label=f"{method} {severity}")
+        axes[1].plot(res, [r["tris_found"] / max(1, r["tris_exact"]) for r in sel], styles[severity], marker="o",
+                     label=f"{method} {severity}")
+pixel = sorted({(r["resolution"], r["pixel_um"]) for r in teapot if r["method"] == "zcoll_f_cpu"})
+axes[0].plot([p[0] for p in pixel], [p[1] for p in pixel], "k:", label="pixel size")
+axes[0].set(xscale="log", yscale="log", xlabel="resolution r (r x r pixels)", ylabel="RMS deformation error [µm]",
+            title="deformation error vs exact (deformed membrane)")
+axes[1].set(xscale="log", xlabel="resolution r", ylabel="colliding triangles found / exact",
+            title="triangle recall (several triangles per pixel -> one)")
+for ax in axes[:2]:
+    ax.legend(fontsize=7)
+    ax.grid(True, which="both", alpha=0.3)
+if cones:
+    r = [c["resolution"] for c in cones]
+    axes[2].plot(r, [c["depth_um"] for c in cones], "o-", label="measured (all 16 cones detected)")
+    axes[2].plot(r, [c["predicted_um"] for c in cones], "k--", label="prediction p / (2 tan 25°)")
+    axes[2].plot(r, [2 ** 0.5 * c["predicted_um"] for c in cones], "k:", label="√2 x prediction")
+    axes[2].set(xscale="log", yscale="log", xlabel="resolution r", ylabel="penetration depth [µm]",
+                title="cone test (thesis §4.2.6, Fig. 4.14)")
+    axes[2].legend(fontsize=7)
+    axes[2].grid(True, which="both", alpha=0.3)
+fig.tight_layout()
+fig.savefig(out / "collision_accuracy.png", dpi=110)
+
+fig, axes = plt.subplots(1, 2, figsize=(12, 4.5))
+for ax, deformed in zip(axes, (False, True)):
+    for method in image_methods:
+        for severity in ("heavy", "light"):
+            sel = sorted((r for r in teapot if r["method"] == method and r["severity"] == severity
+                          and r["deformed"] == deformed), key=lambda r: r["resolution"])
+            if sel:
+                ax.plot([r["resolution"] for r in sel], [r["ms_total"] for r in sel], styles[severity], marker="o",
+                        label=f"{method} {severity}")
+    for r in teapot:
+        if r["deformed"] == deformed and not isinstance(r["resolution"], int) and r["severity"] == "heavy":
+            label = r["method"] + (f" ({r['bv']})" if r.get("bv") else "")
+            ax.axhline(r["ms_total"], linestyle=":", linewidth=1, color="grey")
+            ax.text(300, r["ms_total"], label, fontsize=6, va="bottom", ha="right")
+    ax.set(xscale="log", yscale="log", xlabel="resolution r", ylabel="ms per query",
+           title=("deformed" if deformed else "static") + " membrane (horizontal: FCL / primitives, heavy)")
+    ax.legend(fontsize=7)
+    ax.grid(True, which="both", alpha=0.3)
+fig.tight_layout()
+fig.savefig(out / "collision_time.png", dpi=110)
+print(f"wrote {out / 'collision_accuracy.png'} and {out / 'collision_time.png'}")

@@ -1,0 +1,144 @@
+#include "vrm_sim/collision/collision_detector.h"
+
+#include <algorithm>
+#include <stdexcept>
+
+#include "detector_internals.h"
+#include "vrm_sim/mge/membrane.h"
+
+namespace vrm_sim {
+namespace collision {
+
+SurfaceView SurfaceView::of(const TriangleMesh& mesh) {
+  SurfaceView view;
+  view.positions = mesh.vertices.data();
+  view.node_count = mesh.vertices.size();
+  view.triangles = mesh.triangles.data();
+  view.triangle_count = mesh.triangles.size();
+  return view;
+}
+
+SurfaceView SurfaceView::of(mge::Membrane& membrane) {
+  SurfaceView view;
+  view.positions = membrane.positions();
+  view.node_count = membrane.nodeCount();
+  view.triangles = membrane.triangleNodeSlots();
+  view.triangle_count = membrane.triangleCount();
+  return view;
+}
+
+const char* toString(CollisionStatus status) {
+  switch (status) {
+    case CollisionStatus::kOk:
+      return "ok";
+    case CollisionStatus::kEmptyInput:
+      return "empty input";
+    case CollisionStatus::kInvalidInput:
+      return "invalid input";
+    case CollisionStatus::kNoInstrument:
+      return "no instrument";
+    case CollisionStatus::kOutsideVolume:
+      return "outside volume";
+    case CollisionStatus::kBackendUnavailable:
+      return "backend unavailable";
+  }
+  return "unknown";
+}
+
+const std::vector<std::string>& collisionDetectorNames() {
+  static const std::vector<std::string> names = {"zcoll_f_cpu", "zcoll_cpu", "zcoll_f_gl", "zcoll_gl", "myszkowski_cpu",
+                                                 "zcoll",       "zcoll_f",   "geometric",  "fcl",      "fcl_aabb",
+                                                 "fcl_obbrss",  "fcl_kios",  "none"};
+  return names;
+}
+
+std::unique_ptr<CollisionDetector> makeCollisionDetector(const std::string& name, const CollisionOptions& options) {
+  std::unique_ptr<CollisionDetector> detector;
+  if (name == "zcoll_f_cpu" || name == "zcoll_f") {
+    detector = internal::makeZcollCpuDetector(internal::ZcollMode::kFrontOnly);
+  } else if (name == "zcoll_cpu" || name == "zcoll") {
+    detector = internal::makeZcollCpuDetector(internal::ZcollMode::kParity);
+  } else if (name == "myszkowski_cpu") {
+    detector = internal::makeZcollCpuDetector(internal::ZcollMode::kVolume);
+  } else if (name == "zcoll_f_gl") {
+    detector = internal::makeZcollGlDetector(true);
+  } else if (name == "zcoll_gl") {
+    detector = internal::makeZcollGlDetector(false);
+  } else if (name == "geometric") {
+    detector = internal::makeGeometricDetector();
+  } else if (name == "fcl" || name == "fcl_obbrss") {
+    detector = internal::makeFclDetector("obbrss");
+  } else if (name == "fcl_aabb") {
+    detector = internal::makeFclDetector("aabb");
+  } else if (name == "fcl_kios") {
+    detector = internal::makeFclDetector("kios");
+  } else if (name == "none") {
+    detector = internal::makeNoneDetector();
+  } else {
+    throw std::invalid_argument("unknown collision detector '" + name + "'");
+  }
+  detector->setOptions(options);
+  return detector;
+}
+
+namespace internal {
+
+bool isFinite(const Eigen::Isometry3d& pose) { return pose.matrix().allFinite(); }
+
+CollisionStatus validate(const Eigen::Isometry3d& pose, const SurfaceView& surface) {
+  if (!isFinite(pose)) return CollisionStatus::kInvalidInput;
+  if (surface.triangle_count == 0 || surface.node_count == 0 || !surface.positions || !surface.triangles) {
+    return CollisionStatus::kEmptyInput;
+  }
+  for (std::size_t i = 0; i < surface.node_count; ++i) {
+    if (!surface.positions[i].allFinite()) return CollisionStatus::kInvalidInput;
+  }
+  for (std::size_t t = 0; t < surface.triangle_count; ++t) {
+    for (std::uint32_t n : surface.triangles[t]) {
+      if (n >= surface.node_count) return CollisionStatus::kInvalidInput;
+    }
+  }
+  return CollisionStatus::kOk;
+}
+
+void NodeAccumulator::begin(std::size_t node_count) {
+  if (sum_.size() != node_count) {
+    sum_.assign(node_count, 0.0);
+    max_.assign(node_count, 0.0f);
+    count_.assign(node_count, 0);
+  }
+  touched_.clear();
+}
+
+void NodeAccumulator::finish(DeformationReduction reduction, const Eigen::Vector3d& direction,
+                             CollisionResult& result) {
+  std::sort(touched_.begin(), touched_.end());
+  result.nodes.reserve(result.nodes.size() + touched_.size());
+  result.deformations.reserve(result.deformations.size() + touched_.size());
+  for (std::uint32_t node : touched_) {
+    result.nodes.push_back(node);
+    const double length = reduction == DeformationReduction::kMax ? max_[node] : sum_[node] / count_[node];
+    result.deformations.push_back(length * direction);
+    sum_[node] = 0.0;
+    max_[node] = 0.0f;
+    count_[node] = 0;
+  }
+  touched_.clear();
+}
+
+namespace {
+
+class NoneDetector : public CollisionDetector {
+ public:
+  std::string name() const override { return "none"; }
+  void setInstrument(const InstrumentModel&) override {}
+  CollisionResult collide(const Eigen::Isometry3d&, const SurfaceView&) override { return {}; }
+};
+
+}  // namespace
+
+std::unique_ptr<CollisionDetector> makeNoneDetector() { return std::make_unique<NoneDetector>(); }
+
+}  // namespace internal
+}  // namespace collision
+}  // namespace vrm_sim
