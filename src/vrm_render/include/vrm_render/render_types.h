@@ -24,9 +24,9 @@ class RenderError : public std::runtime_error {
 struct MeshView {
   const float* positions = nullptr;  // 3 per vertex
   std::size_t vertex_count = 0;
-  const float* normals = nullptr;  // 3 per vertex, optional (computed from the triangles when null)
-  const float* colors = nullptr;   // 4 per vertex (rgba 0..1), optional (white)
-  const float* injury = nullptr;   // 1 per vertex (0..1 bleeding intensity), optional (0)
+  const float* normals = nullptr;            // 3 per vertex, optional (computed from the triangles when null)
+  const float* colors = nullptr;             // 4 per vertex (rgba 0..1), optional (white)
+  const float* injury = nullptr;             // 1 per vertex (0..1 bleeding intensity), optional (0)
   const std::uint32_t* triangles = nullptr;  // 3 per triangle
   std::size_t triangle_count = 0;
 };
@@ -83,7 +83,7 @@ struct LightPipe {
 struct MicroscopeState {
   double focus_distance = 0.2;  // m, objective to focal plane
   double zoom = 1.0;
-  double ambient_light = 0.3;   // 0..1
+  double ambient_light = 0.3;    // 0..1
   double disparity_scale = 1.0;  // 0..1
 };
 
@@ -112,8 +112,8 @@ struct RenderOptions {
   bool bump_mapping = true;
   bool dof_pass = true;
   int shadow_map_size = 512;
-  int dof_downsample = 2;  // blur at 1/2 (or 1/4) resolution, separable 9 taps: §7.4.2 pass 3 is the costliest
-  float dof_sigma_px = 2.0f;  // Gaussian sigma at the reduced resolution
+  int dof_downsample = 4;     // blur at 1/4 (or 1/2, 1) resolution, separable 9 taps: §7.4.2 pass 3 is the costliest
+  float dof_sigma_px = 1.5f;  // Gaussian sigma at the reduced resolution (x dof_downsample at full resolution)
   float ghost_alpha = 0.35f;
   Eigen::Vector3f background{0.02f, 0.02f, 0.02f};
   Eigen::Vector3f blood_colour{0.55f, 0.02f, 0.02f};

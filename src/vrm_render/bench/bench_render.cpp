@@ -1,0 +1,234 @@
+// Benchmark `render` (issue 6): per-pass and total frame times of the stereo microscope view on the thesis' typical
+// scene (§7: 15,000 triangles, 5,000 deformable), stereo 2x800x600 with all passes against mono, lower resolutions
+// and passes switched off; triangle throughput for static and streamed geometry; readback cost. Target: all passes
+// in stereo <= 33 ms (>= 30 Hz); EyeSi 2003: ~17 ms on a GeForce 4.
+//   bench_render [--quick] [--out FILE] [--png DIR]
+
+#include <sys/resource.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "vrm_render/image_io.h"
+#include "vrm_render/scene_setup.h"
+#include "vrm_render/stereo_renderer.h"
+
+namespace {
+
+using vrm_render::MeshData;
+using vrm_render::RenderOptions;
+using vrm_render::StereoFrame;
+using vrm_render::StereoRenderer;
+
+struct Case {
+  std::string name;
+  int width;
+  int height;
+  bool stereo;
+  bool shadow;
+  bool lighting;
+  bool dof;
+  bool stream;  // deformable membrane re-uploaded every frame (new version)
+  bool time_passes;
+  int shadow_map = 512;
+  int dof_downsample = 4;
+};
+
+struct Row {
+  Case c;
+  std::size_t triangles = 0;
+  double ms_upload = 0, ms_shadow = 0, ms_scene = 0, ms_dof = 0, ms_readback = 0, ms_total = 0, ms_total_min = 0;
+  double tris_per_s = 0, streamed_tris_per_s = 0;
+  int frames = 0;
+  double cpu_ms_per_frame = 0;
+};
+
+std::string passesOf(const Case& c) {
+  std::vector<std::string> p;
+  if (c.shadow) p.push_back("shadow");
+  p.push_back(c.lighting ? "scene" : "scene_flat");
+  if (c.dof) p.push_back("dof");
+  std::string s;
+  for (const auto& x : p) s += (s.empty() ? "" : "+") + x;
+  return s;
+}
+
+// CPU time of the whole process (the calling thread and llvmpipe's rasterizer threads), in ms. On a shared,
+// loaded machine wall-clock frame times inflate; CPU time per frame does not, and on an idle machine with N
+// rasterizer threads the frame time is bounded below by roughly cpu_ms / N.
+double processCpuMs() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  return (usage.ru_utime.tv_sec + usage.ru_stime.tv_sec) * 1e3 +
+         (usage.ru_utime.tv_usec + usage.ru_stime.tv_usec) * 1e-3;
+}
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v.empty() ? 0.0 : v[v.size() / 2];
+}
+
+Row run(const Case& c, int frames, const std::string& png_dir) {
+  RenderOptions options;
+  options.width = c.width;
+  options.height = c.height;
+  options.stereo = c.stereo;
+  options.shadow_pass = c.shadow;
+  options.lighting = c.lighting;
+  options.dof_pass = c.dof;
+  options.time_passes = c.time_passes;
+  options.shadow_map_size = c.shadow_map;
+  options.dof_downsample = c.dof_downsample;
+  StereoRenderer renderer(options);
+  vrm_render::LightPipe light;
+  std::vector<vrm_render::SceneObject> scene = vrm_render::typicalScene(&light);
+  MeshData* membrane = nullptr;
+  std::size_t streamed_triangles = 0;
+  for (auto& object : scene) {
+    renderer.setStyle(object.id, object.style);
+    renderer.setPose(object.id, object.pose);
+    renderer.updateMesh(object.id, object.mesh.view(), 1);
+    if (object.style.deformable) {
+      membrane = &object.mesh;
+      streamed_triangles = object.mesh.triangles.size() / 3;
+    }
+  }
+  renderer.setLightPipe(light);
+  vrm_render::MicroscopeState microscope;
+  microscope.focus_distance = 0.196;  // the focal plane a few mm above the posterior pole: retina slightly blurred
+  renderer.setMicroscope(microscope);
+  StereoFrame frame;
+  renderer.render(&frame);  // warm-up (shader compilation by llvmpipe happens on first use)
+  std::vector<double> upload, shadow, scene_ms, dof, readback, total;
+  std::vector<float> base = membrane ? membrane->positions : std::vector<float>();
+  const double cpu_start = processCpuMs();
+  for (int i = 0; i < frames; ++i) {
+    if (c.stream && membrane) {
+      // The tissue simulation moves the membrane every frame (§5): a small wave keeps the data changing.
+      for (std::size_t v = 0; v < base.size() / 3; ++v) {
+        membrane->positions[3 * v + 2] = base[3 * v + 2] + 5e-5f * std::sin(0.3f * i + 2000.0f * base[3 * v]);
+      }
+      renderer.updateMesh("membrane", membrane->view(), 2 + i);
+    }
+    renderer.render(&frame);
+    const auto& t = frame.timings;
+    upload.push_back(t.ms_upload);
+    shadow.push_back(t.ms_shadow);
+    scene_ms.push_back(t.ms_scene);
+    dof.push_back(t.ms_dof);
+    readback.push_back(t.ms_readback);
+    total.push_back(t.ms_total);
+  }
+  Row row;
+  row.cpu_ms_per_frame = (processCpuMs() - cpu_start) / frames;
+  row.c = c;
+  row.frames = frames;
+  row.triangles = renderer.triangleCount();
+  row.ms_upload = median(upload);
+  row.ms_shadow = median(shadow);
+  row.ms_scene = median(scene_ms);
+  row.ms_dof = median(dof);
+  row.ms_readback = median(readback);
+  row.ms_total = median(total);
+  row.ms_total_min = *std::min_element(total.begin(), total.end());
+  const double eyes = c.stereo ? 2.0 : 1.0;
+  row.tris_per_s = row.ms_total > 0 ? row.triangles * eyes / (row.ms_total * 1e-3) : 0.0;
+  row.streamed_tris_per_s = c.stream && row.ms_upload > 0 ? streamed_triangles / (row.ms_upload * 1e-3) : 0.0;
+  if (!png_dir.empty()) {
+    vrm_render::savePng(frame.images[0], png_dir + "/" + c.name + "_left.png");
+    if (c.stereo) vrm_render::savePng(frame.images[1], png_dir + "/" + c.name + "_right.png");
+  }
+  return row;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  bool quick = false;
+  std::string out;
+  std::string png_dir;
+  std::string command = "bench_render";
+  for (int i = 1; i < argc; ++i) {
+    const std::string arg = argv[i];
+    command += " " + arg;
+    if (arg == "--quick") {
+      quick = true;
+    } else if (arg == "--out" && i + 1 < argc) {
+      out = argv[++i];
+      command += " " + out;
+    } else if (arg == "--png" && i + 1 < argc) {
+      png_dir = argv[++i];
+      command += " " + png_dir;
+    } else {
+      std::fprintf(stderr, "usage: bench_render [--quick] [--out FILE] [--png DIR]\n");
+      return 2;
+    }
+  }
+  const char* threads = std::getenv("LP_NUM_THREADS");
+  const std::string lp_threads = threads ? threads : "default";
+  // name, w, h, stereo, shadow, lighting, dof, stream, time_passes
+  std::vector<Case> cases = {
+      {"stereo_800x600_all", 800, 600, true, true, true, true, true, true},
+      {"stereo_800x600_all_nobarrier", 800, 600, true, true, true, true, true, false},
+      {"stereo_800x600_all_dof_half", 800, 600, true, true, true, true, true, true, 512, 2},
+      {"stereo_800x600_all_shadow1024", 800, 600, true, true, true, true, true, true, 1024, 4},
+      {"stereo_800x600_noshadow", 800, 600, true, false, true, true, true, true},
+      {"stereo_800x600_nodof", 800, 600, true, true, true, false, true, true},
+      {"stereo_800x600_flat", 800, 600, true, false, false, false, true, true},
+      {"stereo_800x600_static", 800, 600, true, true, true, true, false, true},
+      {"mono_800x600_all", 800, 600, false, true, true, true, true, true},
+      {"stereo_640x480_all", 640, 480, true, true, true, true, true, true},
+      {"stereo_400x300_all", 400, 300, true, true, true, true, true, true},
+      {"mono_400x300_all", 400, 300, false, true, true, true, true, true},
+  };
+  int frames = 30;
+  if (quick) {
+    cases = {{"stereo_320x240_all", 320, 240, true, true, true, true, true, true}};
+    frames = 5;
+  }
+  std::vector<Row> rows;
+  std::printf("LP_NUM_THREADS=%s, %d frames per case (median)\n", lp_threads.c_str(), frames);
+  std::printf("%-30s %5s %4s %8s %7s %7s %7s %7s %7s %7s %8s %8s %10s\n", "case", "size", "eyes", "tris", "upload",
+              "shadow", "scene", "dof", "readbk", "total", "min", "cpu_ms", "Mtris/s");
+  for (const Case& c : cases) {
+    Row r = run(c, frames, png_dir);
+    std::printf("%-30s %4dx%-4d %d %8zu %7.2f %7.2f %7.2f %7.2f %7.2f %7.2f %8.2f %8.2f %10.2f\n", c.name.c_str(),
+                c.width, c.height, c.stereo ? 2 : 1, r.triangles, r.ms_upload, r.ms_shadow, r.ms_scene, r.ms_dof,
+                r.ms_readback, r.ms_total, r.ms_total_min, r.cpu_ms_per_frame, r.tris_per_s * 1e-6);
+    std::fflush(stdout);
+    rows.push_back(r);
+  }
+  if (!out.empty()) {
+    std::ofstream file(out);
+    if (!file) {
+      std::fprintf(stderr, "bench_render: cannot write %s\n", out.c_str());
+      return 1;
+    }
+    file << "{\"suite\":\"render\",\"command\":\"" << command << "\",\"lp_num_threads\":\"" << lp_threads
+         << "\",\"target_ms_total\":33.0,\"rows\":[\n";
+    for (std::size_t i = 0; i < rows.size(); ++i) {
+      const Row& r = rows[i];
+      file << "{\"suite\":\"render\",\"case\":\"" << r.c.name << "\",\"width\":" << r.c.width
+           << ",\"height\":" << r.c.height << ",\"stereo\":" << (r.c.stereo ? "true" : "false") << ",\"passes\":\""
+           << passesOf(r.c) << "\",\"triangles\":" << r.triangles << ",\"streamed\":" << (r.c.stream ? "true" : "false")
+           << ",\"pass_barriers\":" << (r.c.time_passes ? "true" : "false") << ",\"ms_upload\":" << r.ms_upload
+           << ",\"ms_shadow\":" << r.ms_shadow << ",\"ms_scene\":" << r.ms_scene << ",\"ms_dof\":" << r.ms_dof
+           << ",\"ms_readback\":" << r.ms_readback << ",\"ms_total\":" << r.ms_total
+           << ",\"ms_total_min\":" << r.ms_total_min << ",\"cpu_ms_per_frame\":" << r.cpu_ms_per_frame
+           << ",\"tris_per_s\":" << r.tris_per_s << ",\"streamed_tris_per_s\":" << r.streamed_tris_per_s
+           << ",\"frames\":" << r.frames << ",\"shadow_map_size\":" << r.c.shadow_map
+           << ",\"dof_downsample\":" << r.c.dof_downsample << ",\"lp_num_threads\":\"" << lp_threads
+           << "\",\"meets_33ms\":" << (r.ms_total <= 33.0 ? "true" : "false") << "}"
+           << (i + 1 < rows.size() ? ",\n" : "\n");
+    }
+    file << "]}\n";
+  }
+  return 0;
+}

@@ -1,0 +1,129 @@
+#include "vrm_render/scene_setup.h"
+
+#include "vrm_sim/scene/eye_meshes.h"
+#include "vrm_sim/scene/instrument_meshes.h"
+#include "vrm_sim/scene/scene_loader.h"
+
+namespace vrm_render {
+
+namespace scene = vrm_sim::scene;
+
+MeshData toMeshData(const vrm_sim::TriangleMesh& mesh) {
+  MeshData data;
+  data.positions.reserve(mesh.vertices.size() * 3);
+  for (const auto& v : mesh.vertices) {
+    for (int k = 0; k < 3; ++k) data.positions.push_back(static_cast<float>(v[k]));
+  }
+  if (mesh.normals.size() == mesh.vertices.size()) {
+    for (const auto& n : mesh.normals) {
+      for (int k = 0; k < 3; ++k) data.normals.push_back(static_cast<float>(n[k]));
+    }
+  }
+  data.triangles.reserve(mesh.triangles.size() * 3);
+  for (const auto& t : mesh.triangles) data.triangles.insert(data.triangles.end(), t.begin(), t.end());
+  return data;
+}
+
+Material toMaterial(const scene::Material& material) {
+  Material m;
+  m.diffuse = Eigen::Vector4d(material.diffuse_rgba[0], material.diffuse_rgba[1], material.diffuse_rgba[2],
+                              material.diffuse_rgba[3])
+                  .cast<float>();
+  m.specular =
+      Eigen::Vector3d(material.specular_rgb[0], material.specular_rgb[1], material.specular_rgb[2]).cast<float>();
+  m.shininess = static_cast<float>(material.shininess);
+  return m;
+}
+
+ObjectStyle objectStyle(const scene::ObjectDescription& object) {
+  ObjectStyle style;
+  style.material = toMaterial(object.material);
+  style.casts_shadow = object.role == scene::ObjectRole::kAbstractTarget || object.role == scene::ObjectRole::kRigid;
+  style.bump_mapped = object.role == scene::ObjectRole::kRetina;
+  style.deformable = object.isDeformable();
+  return style;
+}
+
+ObjectStyle instrumentStyle(const scene::InstrumentDescription& instrument, bool ghost) {
+  ObjectStyle style;
+  style.material = toMaterial(instrument.material);
+  style.casts_shadow = instrument.type != scene::InstrumentType::kLightPipe;
+  style.ghost = ghost;
+  return style;
+}
+
+std::string instrumentObjectId(const scene::InstrumentDescription& instrument) {
+  return std::string("instrument_") + scene::toString(instrument.slot);
+}
+
+LightPipe lightPipeAt(const Eigen::Isometry3f& world_from_instrument, const LightPipe& defaults) {
+  LightPipe light = defaults;
+  light.enabled = true;
+  light.tip = world_from_instrument.translation();
+  light.direction = world_from_instrument.linear().col(2).normalized();
+  return light;
+}
+
+Eigen::Isometry3f instrumentPoseThroughTrocar(const Eigen::Vector3f& trocar_in_eye,
+                                              const Eigen::Vector3f& target_in_eye, float depth) {
+  const Eigen::Vector3f z = (target_in_eye - trocar_in_eye).normalized();
+  Eigen::Vector3f x = Eigen::Vector3f::UnitY().cross(z);
+  if (x.norm() < 1e-6f) x = Eigen::Vector3f::UnitX();
+  x.normalize();
+  Eigen::Isometry3f pose = Eigen::Isometry3f::Identity();
+  pose.linear().col(0) = x;
+  pose.linear().col(1) = z.cross(x);
+  pose.linear().col(2) = z;
+  pose.translation() = trocar_in_eye + z * depth;
+  return pose;
+}
+
+std::vector<SceneObject> typicalScene(LightPipe* light) {
+  std::vector<SceneObject> objects;
+  const float radius = 0.012f;
+  SceneObject retina;
+  retina.id = "retina";
+  retina.mesh = toMeshData(scene::makeRetina({radius, 90.0, 44}));
+  retina.style.material.diffuse = {0.85f, 0.35f, 0.22f, 1.0f};
+  retina.style.material.specular = {0.3f, 0.25f, 0.2f};
+  retina.style.material.shininess = 24.0f;
+  retina.style.bump_mapped = true;
+  objects.push_back(std::move(retina));
+
+  scene::MembraneParams membrane_params;
+  membrane_params.ring_count = 29;  // 6 * 29^2 ~ 5,000 deformable triangles (thesis §7 typical scene)
+  membrane_params.centre_offset_deg = 8.0;
+  SceneObject membrane;
+  membrane.id = "membrane";
+  membrane.mesh = toMeshData(scene::makeMembrane(membrane_params));
+  membrane.style.material.diffuse = {0.92f, 0.9f, 0.85f, 0.55f};
+  membrane.style.material.specular = {0.6f, 0.6f, 0.6f};
+  membrane.style.material.shininess = 60.0f;
+  membrane.style.deformable = true;
+  objects.push_back(std::move(membrane));
+
+  const float s = std::sqrt(0.5f) * radius;  // trocars 45 deg from the optical axis
+  const Eigen::Vector3f left_trocar(s * std::cos(2.618f), s * std::sin(2.618f), s);
+  const Eigen::Vector3f right_trocar(s * std::cos(0.5236f), s * std::sin(0.5236f), s);
+  SceneObject light_pipe;
+  light_pipe.id = "instrument_left";
+  light_pipe.mesh = toMeshData(scene::makeLightPipe({}));
+  light_pipe.style.material.diffuse = {0.75f, 0.75f, 0.78f, 1.0f};
+  light_pipe.style.material.specular = {0.8f, 0.8f, 0.8f};
+  light_pipe.style.material.shininess = 40.0f;
+  light_pipe.pose = instrumentPoseThroughTrocar(left_trocar, Eigen::Vector3f(0.0015f, 0.0f, -radius), 0.014f);
+  objects.push_back(std::move(light_pipe));
+
+  SceneObject forceps;
+  forceps.id = "instrument_right";
+  forceps.mesh = toMeshData(scene::makeForceps({}));
+  forceps.style.material = objects.back().style.material;
+  forceps.style.casts_shadow = true;
+  forceps.pose = instrumentPoseThroughTrocar(right_trocar, Eigen::Vector3f(0.0017f, 0.0f, -radius + 0.0004f), 0.0185f);
+  objects.push_back(std::move(forceps));
+
+  if (light) *light = lightPipeAt(objects[2].pose);
+  return objects;
+}
+
+}  // namespace vrm_render
