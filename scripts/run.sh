@@ -22,14 +22,17 @@ done
 "$ROOT/scripts/setup.sh"
 source "$ROOT/scripts/common.sh"
 
-mkdir -p "$ROOT/build/sessions"
-[[ -n $bag ]] || bag="$ROOT/build/sessions/session_$(date +%Y%m%d_%H%M%S).bag"
+out="$ROOT/build/sessions/$(date +%Y%m%d_%H%M%S)"
+mkdir -p "$out"
+[[ -n $bag ]] || bag="$out/session.bag"
 echo "run.sh: headless simulator, simulated hardware, scene '$scene', ${duration} s, recording to $bag"
 # The recorder is a required node with --duration, so roslaunch ends by itself; timeout is only a safety net.
 timeout --signal=INT --kill-after=15 "$(awk "BEGIN{print int($duration) + 60}")" \
   roslaunch --screen "$ROOT/launch/simulator.launch" sim:=true headless:=true record:=true \
-  "duration:=$duration" "bag:=$bag" "scene:=$scene" "${extra[@]}" >"$ROOT/build/sessions/last_run.log" 2>&1 || true
-log="$ROOT/build/sessions/last_run.log"
+  "duration:=$duration" "bag:=$bag" "scene:=$scene" "snapshot_dir:=$out" snapshot_count:=3 "${extra[@]}" \
+  >"$out/launch.log" 2>&1 || true
+log="$out/launch.log"
 grep -hE "scene '|FATAL|ERROR" "$log" | sed -E 's/\x1b\[[0-9;]*m//g' | head -n 10 || true
 echo "launch log: $log"
 /usr/bin/python3 "$ROOT/scripts/bag_summary.py" "$bag"
+echo "stereo frames: $(find "$out" -name '*.png' | wc -l) PNGs in $out"

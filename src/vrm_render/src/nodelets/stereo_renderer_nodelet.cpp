@@ -202,6 +202,12 @@ class StereoRendererNodelet : public nodelet::Nodelet {
 
   void onTimer(const ros::TimerEvent&) {
     std::lock_guard<std::mutex> render_lock(render_mutex_);
+    // Render only what somebody sees: with no image or timing subscriber and no snapshot due, the frame is skipped
+    // (a headless session keeps its cores for tracking and simulation). Inputs stay queued as the latest state.
+    const bool snapshot_due = snapshot_count_ > 0 && !snapshot_dir_.empty() && snapshots_saved_ < snapshot_count_;
+    const bool watched =
+        left_pub_.getNumSubscribers() > 0 || right_pub_.getNumSubscribers() > 0 || timing_pub_.getNumSubscribers() > 0;
+    if (!snapshot_due && !watched) return;
     std::map<std::string, vrm_msgs::TissueMesh::ConstPtr> meshes;
     ros::Time stamp;
     if (!takeInputs(&meshes, &stamp)) return;
