@@ -2,7 +2,8 @@
 // instrument poses and microscope knobs, renders when an input changed (at most `rate` Hz) and publishes left/right
 // rgb8 images with CameraInfo. Stamps are the newest input stamp the frame reflects; nothing reads a clock for them.
 //
-// Subscribes (node handle namespace): meshes/<object> (vrm_msgs/TissueMesh, latched, one per scene object),
+// Subscribes (node handle namespace): meshes/<object> (vrm_msgs/TissueMesh, latched, one per scene object; for
+// deformable objects also tissue/<object> from tissue_sim),
 //   eye_state, instrument_state, microscope.
 // Publishes: stereo/left/image_raw + camera_info, stereo/right/image_raw + camera_info (image_transport),
 //   render_timing (vrm_msgs/StageTiming).
@@ -101,6 +102,12 @@ class StereoRendererNodelet : public nodelet::Nodelet {
       mesh_subscribers_.push_back(nh.subscribe<vrm_msgs::TissueMesh>(
           "meshes/" + object.name, 2,
           boost::bind(&StereoRendererNodelet::onMesh, this, object.name, boost::placeholders::_1)));
+      // Deformable objects: the scene manager's latched rest shape first, then tissue_sim's deformed versions.
+      if (object.isDeformable() && scene_.simulates(vrm_sim::scene::Simulation::kTissue)) {
+        mesh_subscribers_.push_back(nh.subscribe<vrm_msgs::TissueMesh>(
+            "tissue/" + object.name, 2,
+            boost::bind(&StereoRendererNodelet::onMesh, this, object.name, boost::placeholders::_1)));
+      }
     }
     for (const auto& instrument : scene_.instruments) {
       const std::string id = instrumentObjectId(instrument);
@@ -139,6 +146,10 @@ class StereoRendererNodelet : public nodelet::Nodelet {
 
   void onMesh(const std::string& name, const vrm_msgs::TissueMesh::ConstPtr& mesh) {
     std::lock_guard<std::mutex> lock(mutex_);
+    // A late latched rest shape must not replace a newer deformed version of the same object.
+    auto newest = newest_mesh_version_.find(name);
+    if (newest != newest_mesh_version_.end() && mesh->version < newest->second) return;
+    newest_mesh_version_[name] = mesh->version;
     pending_meshes_[name] = mesh;
     noteStamp(mesh->header.stamp);
   }
@@ -364,6 +375,7 @@ class StereoRendererNodelet : public nodelet::Nodelet {
   std::uint64_t frame_count_ = 0;
 
   std::vector<ros::Subscriber> mesh_subscribers_;
+  std::map<std::string, std::uint64_t> newest_mesh_version_;
   ros::Subscriber eye_sub_, instrument_sub_, microscope_sub_;
   image_transport::CameraPublisher left_pub_, right_pub_;
   ros::Publisher timing_pub_;

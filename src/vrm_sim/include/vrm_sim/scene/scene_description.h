@@ -86,7 +86,8 @@ const char* toString(Simulation simulation);
 
 // Integrator and collision detector names the simulation accepts (thesis §5.1, §4). Checked at load time so a typo
 // fails in the loader, not as a silently substituted default inside the simulation.
-const std::vector<std::string>& knownIntegrators();         // explicit_euler, quasi_static_euler, rk2, implicit_euler
+const std::vector<std::string>&
+knownIntegrators();  // explicit_euler, quasi_static_euler, rk2, implicit_euler, symplectic_euler, xpbd
 const std::vector<std::string>& knownCollisionDetectors();  // zcoll, zcoll_f, geometric, none
 
 struct Pose {

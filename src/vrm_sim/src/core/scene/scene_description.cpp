@@ -80,13 +80,14 @@ const char* toString(Simulation simulation) {
 }
 
 const std::vector<std::string>& knownIntegrators() {
-  static const std::vector<std::string> names = {"explicit_euler", "quasi_static_euler", "rk2", "implicit_euler"};
+  static const std::vector<std::string> names = {"explicit_euler", "quasi_static_euler", "rk2",
+                                                 "implicit_euler", "symplectic_euler",   "xpbd"};
   return names;
 }
 
 const std::vector<std::string>& knownCollisionDetectors() {
   // zcoll / zcoll_f name the thesis' algorithms and use the fastest backend here (CPU); the rest pick a backend.
-  static const std::vector<std::string> names = {"zcoll",    "zcoll_f",        "zcoll_cpu", "zcoll_f_cpu", "zcoll_gl",
+  static const std::vector<std::string> names = {"zcoll",      "zcoll_f",        "zcoll_cpu", "zcoll_f_cpu", "zcoll_gl",
                                                  "zcoll_f_gl", "myszkowski_cpu", "geometric", "fcl",         "fcl_aabb",
                                                  "fcl_obbrss", "fcl_kios",       "none"};
   return names;

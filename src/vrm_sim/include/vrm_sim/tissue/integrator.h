@@ -1,0 +1,43 @@
+#pragma once
+// Time integration of the mass-spring system (thesis §5.1): a small interface, one implementation per file, chosen
+// by name from the scene YAML (`tissue.integrator`).
+//
+// Names: explicit_euler (eq. 5.4), quasi_static_euler (eq. 5.5), rk2 (midpoint), implicit_euler (eqs. 5.7-5.10,
+// Baraff & Witkin 1998, filtered conjugate gradients), symplectic_euler (semi-implicit, modern baseline), xpbd
+// (extended position based dynamics, Macklin et al. 2016, modern baseline).
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "vrm_sim/tissue/system.h"
+
+namespace vrm_sim {
+namespace tissue {
+
+struct IntegratorOptions {
+  int cg_max_iterations = 30;  // implicit_euler
+  double cg_tolerance = 1e-8;  // relative residual |r| / |b|
+  int xpbd_iterations = 10;    // constraint sweeps per step
+};
+
+class Integrator {
+ public:
+  virtual ~Integrator() = default;
+  virtual const char* name() const = 0;
+  // Advances the free nodes of `system` by dt. Buffers are sized on the first step after a topology change only.
+  virtual void step(const SystemView& system, const ForceModel& forces, double dt) = 0;
+  // Work done in the last step, for benchmarks: CG or constraint iterations (1 for one-shot methods).
+  virtual int lastIterations() const { return 1; }
+};
+
+const std::vector<std::string>& integratorNames();
+// Throws std::invalid_argument naming the known integrators for an unknown name.
+std::unique_ptr<Integrator> makeIntegrator(const std::string& name, const IntegratorOptions& options = {});
+
+// Explicit stability bound of eq. 5.6 in its empirical form Δt ≤ 0.4π·sqrt(m0/k0) with k0 = max k_ij, m0 = min m_i
+// (thesis §5.1). Anchors count as springs.
+double explicitStabilityBound(const SystemView& system, const ForceModel& forces);
+
+}  // namespace tissue
+}  // namespace vrm_sim

@@ -1,0 +1,57 @@
+#pragma once
+// Provot's strain limit (thesis Alg. 5.1, Provot 1995) and the BFS spring sorting from the interaction points
+// (thesis Alg. 5.2) that lets one Provot pass propagate a large deformation outwards like ChainMail.
+
+#include <cstdint>
+#include <vector>
+
+#include "vrm_sim/tissue/system.h"
+
+namespace vrm_sim {
+namespace tissue {
+
+// Springs grouped by graph distance from a set of seed nodes: set S_d holds the springs whose nearer end is d
+// springs away from the nearest seed. Each spring is in exactly one set; springs not connected to a seed form a
+// final set. Sorting is O(nodes + springs): one BFS over a node→spring adjacency plus a counting sort.
+class SpringSorter {
+ public:
+  // Rebuilds the adjacency; call after every topology change (and before the first sort).
+  void rebuild(const SystemView& system);
+  void sort(const SystemView& system, const std::vector<std::uint32_t>& seeds);
+
+  // Spring indices, S_0 first. levelOffsets()[d]..levelOffsets()[d+1] is S_d; the last set is the unreachable one.
+  const std::vector<std::uint32_t>& order() const { return order_; }
+  const std::vector<std::size_t>& levelOffsets() const { return level_offsets_; }
+  // For order()[k]: 1 if the spring's second node is the one nearer to a seed.
+  const std::vector<std::uint8_t>& innerIsSecond() const { return inner_is_second_; }
+  // Graph distance of every node to the nearest seed (-1 = unreachable).
+  const std::vector<int>& nodeDistances() const { return distance_; }
+
+ private:
+  std::vector<std::uint32_t> adjacency_offsets_, adjacency_;  // CSR node -> incident springs
+  std::vector<int> distance_;
+  std::vector<std::uint32_t> queue_;
+  std::vector<std::uint32_t> order_;
+  std::vector<std::size_t> level_offsets_;
+  std::vector<std::uint8_t> inner_is_second_;
+  std::vector<int> spring_level_;
+  std::vector<std::size_t> level_fill_;
+};
+
+struct ProvotStatistics {
+  std::size_t corrected = 0;      // springs shortened in the pass
+  std::size_t skipped_fixed = 0;  // over-stretched springs between two constrained nodes (left alone)
+};
+
+// One pass of Alg. 5.1: every spring longer than tau·l is shortened to tau·l about its midpoint, towards its
+// constrained end if one end is constrained, and left unchanged if both are. With `sorter` (after sort()), springs
+// are visited in BFS order from the interaction. With `outer_only` the end nearer to the interaction is also treated
+// as fixed, so the correction flows outwards in one pass (ChainMail-like) — exact for a chain pulled at one end, but
+// with many instrument contacts it drags outer nodes into the instrument and the collision response then throws them
+// through it (measured: strain grows without bound on a 64² membrane), so the simulator uses it only on request.
+// Springs with a zero rest length are skipped (no meaningful strain).
+ProvotStatistics provotPass(const SystemView& system, double tau, const SpringSorter* sorter = nullptr,
+                            bool outer_only = false);
+
+}  // namespace tissue
+}  // namespace vrm_sim

@@ -1,0 +1,189 @@
+#pragma once
+// One deformable membrane's simulation (thesis §5): forces, a named integrator, fixed-Δt substepping inside a
+// per-frame time budget, Provot strain limiting in BFS order from the interaction points, collision response from
+// deformation vectors (ε-shell, eq. 5.12), grasping with the forceps, plasticity and a stability watchdog. It works
+// in place on the MGE membrane's contiguous arrays, so the renderer and collision see the result without copies.
+//
+// Time and clocks are inputs: advance() is told how much simulated time the frame covers and gets the clock it
+// measures its budget with, so tests with a fake clock are deterministic.
+
+#include <Eigen/Geometry>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "vrm_sim/tissue/contact.h"
+#include "vrm_sim/tissue/integrator.h"
+#include "vrm_sim/tissue/strain_limit.h"
+#include "vrm_sim/tissue/system.h"
+
+namespace vrm_sim {
+namespace mge {
+class Membrane;
+}
+
+namespace tissue {
+
+struct WatchdogConfig {
+  bool enabled = true;
+  double max_speed = 20.0;          // m/s; no node of intra-ocular tissue moves this fast (instruments: ≤ 0.1 m/s)
+  double energy_growth = 4.0;       // kinetic energy may grow at most by this factor per step ...
+  double energy_floor_speed = 1.0;  // ... above the kinetic energy of the whole membrane at this speed [m/s]
+  // Max strain after the strain limit beyond strain_factor·τ_c = unstable (springs at an instrument excepted).
+  double strain_factor = 3.0;
+  int max_halvings = 4;  // Δt/2, Δt/4, ... before falling back to implicit Euler
+  int hold_steps = 20;   // steps a fallback stays in force before the nominal Δt is tried again
+};
+
+struct TissueConfig {
+  std::string integrator = "quasi_static_euler";
+  IntegratorOptions integrator_options;
+  double dt = 1e-3;             // s per step (fixed)
+  double time_budget_ms = 2.0;  // wall time per frame
+  int max_steps_per_frame = 1000;
+  ForceParameters forces;
+  double strain_limit = 1.1;  // τ_c of Alg. 5.1; <= 0 disables
+  int strain_limit_passes = 1;
+  bool strain_limit_outer_only = false;  // see provotPass()
+  bool plastic = false;                  // rest length follows the maximum length reached (thesis §5.1)
+  // > 0: the membrane's fixed nodes are held by zero-length springs of this stiffness instead of being pinned.
+  double adhesion_stiffness = 0.0;
+  // Degenerate input: give free nodes without mass (only in zero-area triangles) the mean node mass instead of
+  // rejecting the membrane.
+  bool repair_massless_nodes = false;
+  int interaction_lifetime_steps = 50;  // interaction points are retired after this many steps (Alg. 5.2)
+  double shell_scale = 1.05;            // ε-shell (Fig. 5.1)
+  double friction = 0.3;                // f_R of eq. 5.12
+  double grasp_radius = 3e-4;           // m around the jaw centre
+  double grasp_jaw_angle = 0.15;        // rad: a forceps closing below this grasps, opening above releases
+  double projection_jaw_angle = 0.05;   // rad: below this the grasped nodes are pressed onto the jaw mid-plane
+  WatchdogConfig watchdog;
+};
+
+// One instrument as the tissue sees it, in the membrane's frame. Instrument frame: origin at the tip, +z from the
+// handle to the tip; the collision shape is a capsule of `radius` from the tip back along −z over `length` (a
+// sphere if length <= radius). Forceps jaws open towards ±y, so their mid-plane is the instrument's xz plane.
+struct InstrumentInput {
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  double radius = 3e-4;
+  double length = 0.0;
+  bool collides = true;
+  bool can_grasp = false;
+  double jaw_angle = 1.0;  // rad (forceps opening)
+  double jaw_length = 1.5e-3;
+};
+
+struct FrameReport {
+  int steps = 0;
+  double simulated_time = 0.0;  // s actually covered (< the request when the budget ran out)
+  double requested_time = 0.0;
+  double wall_time = 0.0;  // s by the given clock
+  bool budget_exhausted = false;
+  int fallbacks = 0;        // rolled-back steps in this frame
+  double max_strain = 0.0;  // after the frame
+};
+
+struct SimulatorStatistics {
+  std::uint64_t steps = 0;
+  std::uint64_t fallbacks = 0;           // rolled-back steps, all kinds
+  std::uint64_t implicit_fallbacks = 0;  // steps redone with implicit Euler after all halvings failed
+  std::uint64_t unrecovered = 0;         // steps that failed even the implicit fallback (state rolled back)
+  double max_strain = 0.0;               // largest strain seen after any step
+  // Why steps were rejected.
+  std::uint64_t non_finite = 0, too_fast = 0, energy_growth = 0, strain_growth = 0;
+};
+
+using Clock = std::function<double()>;  // seconds, monotonic
+
+class TissueSimulator {
+ public:
+  // Throws std::invalid_argument for an unknown integrator, a non-positive dt, a free node without positive mass
+  // (unless config.repair_massless_nodes) or non-finite positions.
+  TissueSimulator(mge::Membrane& membrane, const TissueConfig& config);
+  ~TissueSimulator();
+
+  // The instruments' poses at the end of the next frame; advance() interpolates from the previous ones.
+  void setInstruments(const std::vector<InstrumentInput>& instruments);
+  // Deformation vectors from the collision library, applied in the next step (and then dropped).
+  void addDeformations(const std::vector<NodeDeformation>& deformations);
+
+  // Integrates fixed steps until `frame_time` is covered or the budget (by `clock`) is spent; at least one step
+  // runs when frame_time >= dt.
+  FrameReport advance(double frame_time, const Clock& clock);
+  // One fixed step with the current instrument poses (plus watchdog); false if the watchdog could not recover.
+  bool step();
+
+  // Must be called after a topology change of the membrane (cut, tear, refinement); releases all grasps.
+  void onTopologyChanged();
+  void addInteractionPoint(std::uint32_t node);
+  void releaseAll();
+
+  const std::vector<std::uint32_t>& graspedNodes() const { return grasped_nodes_; }
+  const SimulatorStatistics& statistics() const { return statistics_; }
+  const TissueConfig& config() const { return config_; }
+  const Integrator& integrator() const { return *integrator_; }
+  ForceModel& forceModel() { return forces_; }
+  SystemView view() { return viewOf(*membrane_, constrained_.data()); }
+  double maxStrain();
+  double kineticEnergy();
+  double totalEnergy();
+  const std::vector<NodeDeformation>& lastContacts() const { return contacts_; }
+  int fallbackLevel() const { return fallback_level_; }
+
+ private:
+  void rebuildConstraints();
+  void updateInstruments(double alpha);
+  void updateGrasp(std::size_t index, const InstrumentInput& instrument, const Eigen::Isometry3d& pose,
+                   const Eigen::Isometry3d& previous_pose, double dt);
+  // Integrate + respond + limit, no watchdog.
+  void rawStep(Integrator& integrator, double dt);
+  bool unstable(double kinetic_before, double strain_before);
+  double untouchedMaxStrain();
+  void saveState();
+  void restoreState();
+  void sortSprings();
+
+  mge::Membrane* membrane_;
+  TissueConfig config_;
+  std::unique_ptr<Integrator> integrator_;
+  std::unique_ptr<Integrator> implicit_fallback_;
+  ForceModel forces_;
+  std::vector<std::uint8_t> constrained_;
+  std::vector<std::uint8_t> grasped_;
+  std::vector<std::uint8_t> anchored_;
+
+  std::vector<InstrumentInput> previous_instruments_, target_instruments_, current_instruments_;
+  std::vector<Eigen::Isometry3d> step_start_poses_;
+  struct Grasp {
+    std::vector<std::uint32_t> nodes;
+    std::vector<Eigen::Vector3d> local;  // in the instrument frame at grasp time
+    bool active = false;
+  };
+  std::vector<Grasp> grasps_;
+  std::vector<std::uint32_t> grasped_nodes_;
+
+  std::vector<NodeDeformation> contacts_, external_deformations_;
+  std::vector<std::uint32_t> interaction_points_;
+  std::vector<std::uint64_t> interaction_stamp_;  // per node: step of the last interaction + 1, 0 = none
+  std::vector<std::uint32_t> seeds_, sorted_seeds_;
+  SpringSorter sorter_;
+  bool sorted_valid_ = false;
+
+  std::vector<Eigen::Vector3d> saved_positions_, saved_velocities_;
+  std::vector<double> saved_rest_lengths_;
+  std::vector<std::uint32_t> touched_;  // per node: epoch of the last watchdog check that saw it at an instrument
+  std::uint32_t touched_epoch_ = 0;
+  double last_strain_ = -1.0;  // untouched max strain after the last accepted step (-1 = unknown)
+  int fallback_level_ = 0;
+  int hold_remaining_ = 0;
+  double pending_time_ = 0.0;
+  SimulatorStatistics statistics_;
+};
+
+// Exact step of the instrument poses between frames (linear in translation, slerp in rotation).
+Eigen::Isometry3d interpolatePose(const Eigen::Isometry3d& from, const Eigen::Isometry3d& to, double alpha);
+
+}  // namespace tissue
+}  // namespace vrm_sim

@@ -1,0 +1,94 @@
+#include <algorithm>
+#include <cmath>
+
+#include "vrm_sim/mge/membrane.h"
+#include "vrm_sim/tissue/system.h"
+
+namespace vrm_sim {
+namespace tissue {
+
+SystemView viewOf(mge::Membrane& membrane, const std::uint8_t* constrained) {
+  SystemView view;
+  view.node_count = membrane.nodeCount();
+  view.positions = membrane.positions();
+  view.velocities = membrane.velocities();
+  view.masses = membrane.masses();
+  view.constrained = constrained;
+  view.spring_count = membrane.springCount();
+  view.springs = membrane.springNodeSlots();
+  view.rest_lengths = membrane.restLengths();
+  view.stiffnesses = membrane.stiffnesses();
+  return view;
+}
+
+void ForceModel::compute(const SystemView& system, const Eigen::Vector3d* x, const Eigen::Vector3d* v,
+                         Eigen::Vector3d* forces) const {
+  const std::size_t n = system.node_count;
+  // R_i + E_i of eq. 5.1 first, then the Hooke terms H_ij (eq. 5.2) in spring order.
+  for (std::size_t i = 0; i < n; ++i) {
+    forces[i] = system.masses[i] * params.gravity - params.damping * v[i];
+  }
+  if (!external.empty()) {
+    for (std::size_t i = 0; i < n; ++i) forces[i] += external[i];
+  }
+  for (std::size_t s = 0; s < system.spring_count; ++s) {
+    const auto& ends = system.springs[s];
+    const Eigen::Vector3d d = x[ends[1]] - x[ends[0]];
+    const double length = d.norm();
+    if (length < kMinSpringLength) continue;  // a zero-length spring has no direction to push along
+    const Eigen::Vector3d f = (system.stiffnesses[s] * (length - system.rest_lengths[s]) / length) * d;
+    forces[ends[0]] += f;
+    forces[ends[1]] -= f;
+  }
+  for (const Anchor& anchor : anchors) {
+    forces[anchor.node] += anchor.stiffness * (anchor.point - x[anchor.node]);
+  }
+  if (params.pressure != 0.0 && triangles != nullptr) {
+    for (std::size_t t = 0; t < triangle_count; ++t) {
+      const auto& c = triangles[t];
+      // |cross| = 2·area, so p·cross/6 is a third of the triangle's pressure force.
+      const Eigen::Vector3d f = (params.pressure / 6.0) * (x[c[1]] - x[c[0]]).cross(x[c[2]] - x[c[0]]);
+      forces[c[0]] += f;
+      forces[c[1]] += f;
+      forces[c[2]] += f;
+    }
+  }
+}
+
+double ForceModel::potentialEnergy(const SystemView& system, const Eigen::Vector3d* x) const {
+  double energy = 0.0;
+  for (std::size_t s = 0; s < system.spring_count; ++s) {
+    const auto& ends = system.springs[s];
+    const double stretch = (x[ends[1]] - x[ends[0]]).norm() - system.rest_lengths[s];
+    energy += 0.5 * system.stiffnesses[s] * stretch * stretch;
+  }
+  for (const Anchor& anchor : anchors) {
+    energy += 0.5 * anchor.stiffness * (x[anchor.node] - anchor.point).squaredNorm();
+  }
+  for (std::size_t i = 0; i < system.node_count; ++i) {
+    if (system.isFree(i)) energy -= system.masses[i] * params.gravity.dot(x[i]);
+  }
+  return energy;
+}
+
+double kineticEnergy(const SystemView& system) {
+  double energy = 0.0;
+  for (std::size_t i = 0; i < system.node_count; ++i) {
+    if (system.isFree(i)) energy += 0.5 * system.masses[i] * system.velocities[i].squaredNorm();
+  }
+  return energy;
+}
+
+double maxStrain(const SystemView& system) {
+  double strain = 0.0;
+  for (std::size_t s = 0; s < system.spring_count; ++s) {
+    const double rest = system.rest_lengths[s];
+    if (rest < kMinSpringLength) continue;
+    const auto& ends = system.springs[s];
+    strain = std::max(strain, (system.positions[ends[1]] - system.positions[ends[0]]).norm() / rest);
+  }
+  return strain;
+}
+
+}  // namespace tissue
+}  // namespace vrm_sim

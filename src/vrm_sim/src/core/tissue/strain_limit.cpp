@@ -1,0 +1,134 @@
+#include "vrm_sim/tissue/strain_limit.h"
+
+#include <algorithm>
+
+namespace vrm_sim {
+namespace tissue {
+
+void SpringSorter::rebuild(const SystemView& system) {
+  const std::size_t n = system.node_count;
+  adjacency_offsets_.assign(n + 1, 0);
+  for (std::size_t s = 0; s < system.spring_count; ++s) {
+    ++adjacency_offsets_[system.springs[s][0] + 1];
+    ++adjacency_offsets_[system.springs[s][1] + 1];
+  }
+  for (std::size_t i = 0; i < n; ++i) adjacency_offsets_[i + 1] += adjacency_offsets_[i];
+  adjacency_.assign(adjacency_offsets_[n], 0);
+  std::vector<std::uint32_t> fill(adjacency_offsets_.begin(), adjacency_offsets_.end() - 1);
+  for (std::size_t s = 0; s < system.spring_count; ++s) {
+    adjacency_[fill[system.springs[s][0]]++] = static_cast<std::uint32_t>(s);
+    adjacency_[fill[system.springs[s][1]]++] = static_cast<std::uint32_t>(s);
+  }
+  distance_.assign(n, -1);
+  queue_.reserve(n);
+  order_.reserve(system.spring_count);
+  spring_level_.assign(system.spring_count, 0);
+  inner_is_second_.reserve(system.spring_count);
+}
+
+void SpringSorter::sort(const SystemView& system, const std::vector<std::uint32_t>& seeds) {
+  // Alg. 5.2: breadth-first search from the interaction nodes.
+  std::fill(distance_.begin(), distance_.end(), -1);
+  queue_.clear();
+  for (std::uint32_t seed : seeds) {
+    if (seed < distance_.size() && distance_[seed] < 0) {
+      distance_[seed] = 0;
+      queue_.push_back(seed);
+    }
+  }
+  int max_distance = 0;
+  for (std::size_t head = 0; head < queue_.size(); ++head) {
+    const std::uint32_t node = queue_[head];
+    for (std::uint32_t k = adjacency_offsets_[node]; k < adjacency_offsets_[node + 1]; ++k) {
+      const auto& ends = system.springs[adjacency_[k]];
+      const std::uint32_t other = ends[0] == node ? ends[1] : ends[0];
+      if (distance_[other] < 0) {
+        distance_[other] = distance_[node] + 1;
+        max_distance = std::max(max_distance, distance_[other]);
+        queue_.push_back(other);
+      }
+    }
+  }
+  // Counting sort of the springs by the distance of their nearer end; level max_distance + 1 = unreachable.
+  const int unreachable = max_distance + 1;
+  level_offsets_.assign(static_cast<std::size_t>(unreachable) + 2, 0);
+  for (std::size_t s = 0; s < system.spring_count; ++s) {
+    const int d0 = distance_[system.springs[s][0]];
+    const int d1 = distance_[system.springs[s][1]];
+    const int level = (d0 < 0 || d1 < 0) ? (d0 < 0 && d1 < 0 ? unreachable : std::max(d0, d1)) : std::min(d0, d1);
+    spring_level_[s] = level;
+    ++level_offsets_[level + 1];
+  }
+  for (std::size_t d = 1; d < level_offsets_.size(); ++d) level_offsets_[d] += level_offsets_[d - 1];
+  order_.resize(system.spring_count);
+  inner_is_second_.resize(system.spring_count);
+  std::vector<std::size_t>& fill = level_fill_;
+  fill.assign(level_offsets_.begin(), level_offsets_.end() - 1);
+  for (std::size_t s = 0; s < system.spring_count; ++s) {
+    const std::size_t k = fill[spring_level_[s]]++;
+    order_[k] = static_cast<std::uint32_t>(s);
+    const int d0 = distance_[system.springs[s][0]];
+    const int d1 = distance_[system.springs[s][1]];
+    inner_is_second_[k] = (d1 >= 0 && (d0 < 0 || d1 < d0)) ? 1 : 0;
+  }
+}
+
+namespace {
+
+// Shortens spring s to tau·l. `inner` = 0/1 names the end that stays put when known (BFS order), -1 = unknown.
+inline bool limitSpring(const SystemView& system, std::size_t s, double tau, int inner, ProvotStatistics& stats) {
+  const double rest = system.rest_lengths[s];
+  if (rest < kMinSpringLength) return false;
+  const auto& ends = system.springs[s];
+  Eigen::Vector3d& x0 = system.positions[ends[0]];
+  Eigen::Vector3d& x1 = system.positions[ends[1]];
+  const Eigen::Vector3d d = x1 - x0;
+  const double length = d.norm();
+  const double limit = tau * rest;
+  if (length <= limit * (1.0 + 1e-12)) return false;  // rounding after an earlier correction
+  const bool free0 = system.isFree(ends[0]);
+  const bool free1 = system.isFree(ends[1]);
+  if (!free0 && !free1) {
+    ++stats.skipped_fixed;
+    return false;
+  }
+  const Eigen::Vector3d excess = ((length - limit) / length) * d;
+  // Move only the outer end when the inner one is known (Alg. 5.2 order) or the other end is constrained.
+  bool move0 = free0;
+  bool move1 = free1;
+  if (free0 && free1 && inner >= 0) {
+    move0 = inner == 1;
+    move1 = inner == 0;
+  }
+  if (move0 && move1) {
+    x0 += 0.5 * excess;
+    x1 -= 0.5 * excess;
+  } else if (move0) {
+    x0 += excess;
+  } else {
+    x1 -= excess;
+  }
+  ++stats.corrected;
+  return true;
+}
+
+}  // namespace
+
+ProvotStatistics provotPass(const SystemView& system, double tau, const SpringSorter* sorter, bool outer_only) {
+  ProvotStatistics stats;
+  if (sorter != nullptr && sorter->order().size() == system.spring_count) {
+    const auto& order = sorter->order();
+    const auto& inner_second = sorter->innerIsSecond();
+    // The last set (not connected to an interaction) has no inner end.
+    const std::size_t reachable_end = sorter->levelOffsets()[sorter->levelOffsets().size() - 2];
+    for (std::size_t k = 0; k < order.size(); ++k) {
+      limitSpring(system, order[k], tau, (outer_only && k < reachable_end) ? inner_second[k] : -1, stats);
+    }
+  } else {
+    for (std::size_t s = 0; s < system.spring_count; ++s) limitSpring(system, s, tau, -1, stats);
+  }
+  return stats;
+}
+
+}  // namespace tissue
+}  // namespace vrm_sim

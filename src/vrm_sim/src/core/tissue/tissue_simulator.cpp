@@ -1,0 +1,401 @@
+#include "vrm_sim/tissue/tissue_simulator.h"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+#include "vrm_sim/mge/membrane.h"
+
+namespace vrm_sim {
+namespace tissue {
+
+Eigen::Isometry3d interpolatePose(const Eigen::Isometry3d& from, const Eigen::Isometry3d& to, double alpha) {
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  const Eigen::Quaterniond q0(from.rotation());
+  const Eigen::Quaterniond q1(to.rotation());
+  pose.linear() = q0.slerp(alpha, q1).toRotationMatrix();
+  pose.translation() = (1.0 - alpha) * from.translation() + alpha * to.translation();
+  return pose;
+}
+
+TissueSimulator::TissueSimulator(mge::Membrane& membrane, const TissueConfig& config)
+    : membrane_(&membrane), config_(config) {
+  if (!(config_.dt > 0.0) || !std::isfinite(config_.dt)) {
+    throw std::invalid_argument("tissue: dt must be positive, got " + std::to_string(config_.dt));
+  }
+  integrator_ = makeIntegrator(config_.integrator, config_.integrator_options);
+  IntegratorOptions fallback_options = config_.integrator_options;
+  fallback_options.cg_max_iterations = std::max(fallback_options.cg_max_iterations, 50);
+  implicit_fallback_ = makeIntegrator("implicit_euler", fallback_options);
+  forces_.params = config_.forces;
+  onTopologyChanged();
+  if (config_.repair_massless_nodes) {
+    // Degenerate input: a node only in zero-area triangles got no lumped mass; give it the mean node mass.
+    double total = 0.0;
+    for (std::size_t i = 0; i < membrane_->nodeCount(); ++i) total += membrane_->masses()[i];
+    const double mean = membrane_->nodeCount() > 0 ? total / static_cast<double>(membrane_->nodeCount()) : 0.0;
+    for (std::size_t i = 0; i < membrane_->nodeCount(); ++i) {
+      if (!(membrane_->masses()[i] > 0.0)) membrane_->nodeAtSlot(i).mass() = mean;
+    }
+  }
+  const SystemView system = view();
+  for (std::size_t i = 0; i < system.node_count; ++i) {
+    if (!system.positions[i].allFinite()) {
+      throw std::invalid_argument("tissue: node " + std::to_string(i) + " has a non-finite position");
+    }
+    if (system.isFree(i) && !(system.masses[i] > 0.0 && std::isfinite(system.masses[i]))) {
+      throw std::invalid_argument("tissue: free node " + std::to_string(i) +
+                                  " has no positive mass (a node only in zero-area triangles?)");
+    }
+  }
+}
+
+TissueSimulator::~TissueSimulator() = default;
+
+void TissueSimulator::onTopologyChanged() {
+  const std::size_t n = membrane_->nodeCount();
+  grasped_.assign(n, 0);
+  for (Grasp& grasp : grasps_) grasp = Grasp{};
+  grasped_nodes_.clear();
+  anchored_.assign(n, 0);
+  forces_.anchors.clear();
+  const std::uint8_t* fixed = membrane_->fixedFlags();
+  if (config_.adhesion_stiffness > 0.0) {
+    for (std::size_t i = 0; i < n; ++i) {
+      if (!fixed[i]) continue;
+      anchored_[i] = 1;
+      forces_.anchors.push_back({static_cast<std::uint32_t>(i), membrane_->positions()[i], config_.adhesion_stiffness});
+    }
+  }
+  forces_.triangles = membrane_->triangleNodeSlots();
+  forces_.triangle_count = membrane_->triangleCount();
+  if (!forces_.external.empty()) forces_.external.resize(n, Eigen::Vector3d::Zero());
+  interaction_points_.clear();
+  interaction_stamp_.assign(n, 0);
+  touched_.assign(n, 0);
+  last_strain_ = -1.0;
+  sorted_seeds_.clear();
+  sorted_valid_ = false;
+  rebuildConstraints();
+  sorter_.rebuild(view());
+}
+
+void TissueSimulator::rebuildConstraints() {
+  const std::size_t n = membrane_->nodeCount();
+  constrained_.resize(n);
+  const std::uint8_t* fixed = membrane_->fixedFlags();
+  for (std::size_t i = 0; i < n; ++i) constrained_[i] = ((fixed[i] && !anchored_[i]) || grasped_[i]) ? 1 : 0;
+  grasped_nodes_.clear();
+  for (std::size_t i = 0; i < n; ++i) {
+    if (grasped_[i]) grasped_nodes_.push_back(static_cast<std::uint32_t>(i));
+  }
+}
+
+void TissueSimulator::setInstruments(const std::vector<InstrumentInput>& instruments) {
+  if (previous_instruments_.size() != instruments.size()) {
+    // New instrument set: no motion to interpolate from.
+    previous_instruments_ = instruments;
+    current_instruments_ = instruments;
+    step_start_poses_.assign(instruments.size(), Eigen::Isometry3d::Identity());
+    for (std::size_t i = 0; i < instruments.size(); ++i) step_start_poses_[i] = instruments[i].pose;
+    releaseAll();
+    grasps_.assign(instruments.size(), Grasp{});
+  }
+  target_instruments_ = instruments;
+}
+
+void TissueSimulator::addDeformations(const std::vector<NodeDeformation>& deformations) {
+  external_deformations_.insert(external_deformations_.end(), deformations.begin(), deformations.end());
+}
+
+void TissueSimulator::addInteractionPoint(std::uint32_t node) {
+  if (node >= interaction_stamp_.size()) return;
+  if (interaction_stamp_[node] == 0) interaction_points_.push_back(node);
+  interaction_stamp_[node] = statistics_.steps + 1;
+}
+
+void TissueSimulator::releaseAll() {
+  for (Grasp& grasp : grasps_) grasp = Grasp{};
+  std::fill(grasped_.begin(), grasped_.end(), 0);
+  rebuildConstraints();
+}
+
+void TissueSimulator::updateInstruments(double alpha) {
+  for (std::size_t i = 0; i < target_instruments_.size(); ++i) {
+    step_start_poses_[i] = current_instruments_[i].pose;
+    current_instruments_[i] = target_instruments_[i];
+    current_instruments_[i].pose = interpolatePose(previous_instruments_[i].pose, target_instruments_[i].pose, alpha);
+  }
+  for (std::size_t i = 0; i < current_instruments_.size(); ++i) {
+    updateGrasp(i, current_instruments_[i], current_instruments_[i].pose, step_start_poses_[i], config_.dt);
+  }
+}
+
+void TissueSimulator::updateGrasp(std::size_t index, const InstrumentInput& instrument, const Eigen::Isometry3d& pose,
+                                  const Eigen::Isometry3d& /*previous_pose*/, double dt) {
+  Grasp& grasp = grasps_[index];
+  const bool closed = instrument.can_grasp && instrument.jaw_angle < config_.grasp_jaw_angle;
+  Eigen::Vector3d* x = membrane_->positions();
+  Eigen::Vector3d* v = membrane_->velocities();
+  if (closed && !grasp.active) {
+    // Thesis §5.1: nodes between the closing jaws are grasped and from now on follow the instrument.
+    const Eigen::Vector3d centre = pose * Eigen::Vector3d(0.0, 0.0, -0.5 * instrument.jaw_length);
+    const double reach = std::max(config_.grasp_radius, 0.5 * instrument.jaw_length);
+    const Eigen::Isometry3d inverse = pose.inverse();
+    for (std::size_t i = 0; i < constrained_.size(); ++i) {
+      if (constrained_[i] || (x[i] - centre).norm() > reach) continue;
+      // Only what lies between the jaws (within the grasp radius of the jaw axis).
+      const Eigen::Vector3d local = inverse * x[i];
+      if (local.head<2>().norm() > config_.grasp_radius) continue;
+      grasp.nodes.push_back(static_cast<std::uint32_t>(i));
+      grasp.local.push_back(local);
+      grasped_[i] = 1;
+    }
+    grasp.active = true;
+    rebuildConstraints();
+  } else if (!closed && grasp.active) {
+    last_strain_ = -1.0;
+    for (std::uint32_t node : grasp.nodes) grasped_[node] = 0;
+    grasp = Grasp{};
+    rebuildConstraints();
+  }
+  if (!grasp.active) return;
+  // Kinematic motion changes strains outside the step: the watchdog must measure its "before" afresh.
+  last_strain_ = -1.0;
+  const bool project = instrument.jaw_angle < config_.projection_jaw_angle;
+  for (std::size_t k = 0; k < grasp.nodes.size(); ++k) {
+    if (project) grasp.local[k].y() = 0.0;  // onto the jaws' mid-plane
+    const std::uint32_t node = grasp.nodes[k];
+    const Eigen::Vector3d target = pose * grasp.local[k];
+    v[node] = (target - x[node]) / dt;
+    x[node] = target;
+    addInteractionPoint(node);
+  }
+}
+
+void TissueSimulator::sortSprings() {
+  // Retire interaction points older than the lifetime (Alg. 5.2 time stamps).
+  const std::uint64_t now = statistics_.steps + 1;
+  const std::uint64_t lifetime = static_cast<std::uint64_t>(std::max(config_.interaction_lifetime_steps, 1));
+  interaction_points_.erase(std::remove_if(interaction_points_.begin(), interaction_points_.end(),
+                                           [&](std::uint32_t node) {
+                                             if (interaction_stamp_[node] + lifetime >= now) return false;
+                                             interaction_stamp_[node] = 0;
+                                             return true;
+                                           }),
+                            interaction_points_.end());
+  seeds_.assign(interaction_points_.begin(), interaction_points_.end());
+  std::sort(seeds_.begin(), seeds_.end());
+  if (seeds_.empty()) {
+    sorted_valid_ = false;
+    sorted_seeds_.clear();
+    return;
+  }
+  if (!sorted_valid_ || seeds_ != sorted_seeds_) {
+    sorter_.sort(view(), seeds_);
+    sorted_seeds_ = seeds_;
+    sorted_valid_ = true;
+  }
+}
+
+void TissueSimulator::rawStep(Integrator& integrator, double dt) {
+  const SystemView system = view();
+  integrator.step(system, forces_, dt);
+
+  // Strain limit first, then collision response: the instrument has the last word, so no node is left inside it
+  // (the few springs at the contact may then exceed τ_c slightly until the next step).
+  if (config_.strain_limit > 0.0) {
+    sortSprings();
+    for (int pass = 0; pass < config_.strain_limit_passes; ++pass) {
+      if (provotPass(system, config_.strain_limit, sorted_valid_ ? &sorter_ : nullptr, config_.strain_limit_outer_only)
+              .corrected == 0) {
+        break;
+      }
+    }
+  }
+  // Collision response (thesis §5.1): exact capsule test until the collision library's deformation vectors arrive.
+  contacts_.clear();
+  for (std::size_t i = 0; i < current_instruments_.size(); ++i) {
+    const InstrumentInput& instrument = current_instruments_[i];
+    if (!instrument.collides) continue;
+    Capsule capsule;
+    capsule.radius = instrument.radius;
+    capsule.a = instrument.pose * Eigen::Vector3d(0.0, 0.0, -instrument.radius);
+    capsule.b = instrument.pose * Eigen::Vector3d(0.0, 0.0, -std::max(instrument.length, instrument.radius));
+    const Eigen::Vector3d velocity = (instrument.pose.translation() - step_start_poses_[i].translation()) / config_.dt;
+    detectCapsuleContacts(system, capsule, velocity, config_.shell_scale, contacts_);
+  }
+  contacts_.insert(contacts_.end(), external_deformations_.begin(), external_deformations_.end());
+  external_deformations_.clear();
+  applyDeformations(system, contacts_, config_.friction);
+  for (const NodeDeformation& contact : contacts_) addInteractionPoint(contact.node);
+
+  if (config_.plastic) {
+    for (std::size_t s = 0; s < system.spring_count; ++s) {
+      const auto& ends = system.springs[s];
+      const double length = (system.positions[ends[1]] - system.positions[ends[0]]).norm();
+      membrane_->restLengths()[s] = std::max(membrane_->restLengths()[s], length);
+    }
+  }
+}
+
+void TissueSimulator::saveState() {
+  const std::size_t n = membrane_->nodeCount();
+  saved_positions_.assign(membrane_->positions(), membrane_->positions() + n);
+  saved_velocities_.assign(membrane_->velocities(), membrane_->velocities() + n);
+  if (config_.plastic) {
+    saved_rest_lengths_.assign(membrane_->restLengths(), membrane_->restLengths() + membrane_->springCount());
+  }
+}
+
+void TissueSimulator::restoreState() {
+  std::copy(saved_positions_.begin(), saved_positions_.end(), membrane_->positions());
+  std::copy(saved_velocities_.begin(), saved_velocities_.end(), membrane_->velocities());
+  if (config_.plastic) std::copy(saved_rest_lengths_.begin(), saved_rest_lengths_.end(), membrane_->restLengths());
+}
+
+double TissueSimulator::untouchedMaxStrain() {
+  const SystemView system = view();
+  // Springs at an instrument (contact or grasp) are stretched by the instrument, not by an instability.
+  ++touched_epoch_;
+  touched_.resize(system.node_count, 0);
+  for (const NodeDeformation& contact : contacts_) touched_[contact.node] = touched_epoch_;
+  for (std::uint32_t node : grasped_nodes_) touched_[node] = touched_epoch_;
+  double strain = 0.0;
+  for (std::size_t s = 0; s < system.spring_count; ++s) {
+    const auto& ends = system.springs[s];
+    const double rest = system.rest_lengths[s];
+    if (rest < kMinSpringLength || (!system.isFree(ends[0]) && !system.isFree(ends[1]))) continue;
+    if (touched_[ends[0]] == touched_epoch_ || touched_[ends[1]] == touched_epoch_) continue;
+    strain = std::max(strain, (system.positions[ends[1]] - system.positions[ends[0]]).norm() / rest);
+  }
+  return strain;
+}
+
+bool TissueSimulator::unstable(double kinetic_before, double strain_before) {
+  const SystemView system = view();
+  double total_mass = 0.0;
+  double kinetic = 0.0;
+  const double max_speed2 = config_.watchdog.max_speed * config_.watchdog.max_speed;
+  for (std::size_t i = 0; i < system.node_count; ++i) {
+    if (!system.isFree(i)) continue;
+    if (!system.positions[i].allFinite() || !system.velocities[i].allFinite()) {
+      ++statistics_.non_finite;
+      return true;
+    }
+    const double speed2 = system.velocities[i].squaredNorm();
+    if (speed2 > max_speed2) {
+      ++statistics_.too_fast;
+      return true;
+    }
+    kinetic += 0.5 * system.masses[i] * speed2;
+    total_mass += system.masses[i];
+  }
+  const double floor_speed = config_.watchdog.energy_floor_speed;
+  const double floor = 0.5 * total_mass * floor_speed * floor_speed;
+  if (kinetic > config_.watchdog.energy_growth * std::max(kinetic_before, floor)) {
+    ++statistics_.energy_growth;
+    return true;
+  }
+  // Strain far beyond the limit that jumped within this step (strain already there came from the instruments).
+  const double strain_bound = config_.watchdog.strain_factor * std::max(config_.strain_limit, 1.0);
+  const double strain = untouchedMaxStrain();
+  last_strain_ = strain;
+  statistics_.max_strain = std::max(statistics_.max_strain, strain);
+  if (strain > strain_bound && strain > 1.5 * strain_before) {
+    ++statistics_.strain_growth;
+    return true;
+  }
+  return false;
+}
+
+bool TissueSimulator::step() {
+  if (!config_.watchdog.enabled) {
+    rawStep(*integrator_, config_.dt);
+    ++statistics_.steps;
+    return true;
+  }
+  if (fallback_level_ > 0 && --hold_remaining_ <= 0) {
+    --fallback_level_;
+    hold_remaining_ = config_.watchdog.hold_steps;
+  }
+  saveState();
+  const double kinetic_before = kineticEnergy();
+  // The previous step's check measured it already (grasped and touched springs are excluded either way).
+  const double strain_before = last_strain_ >= 0.0 ? last_strain_ : untouchedMaxStrain();
+  const std::vector<NodeDeformation> pending_deformations = external_deformations_;
+  bool ok = false;
+  for (int level = fallback_level_; level <= config_.watchdog.max_halvings + 1 && !ok; ++level) {
+    if (level > fallback_level_) {
+      restoreState();
+      external_deformations_ = pending_deformations;
+      ++statistics_.fallbacks;
+    }
+    if (level <= config_.watchdog.max_halvings) {
+      const int substeps = 1 << level;
+      for (int k = 0; k < substeps; ++k) rawStep(*integrator_, config_.dt / substeps);
+    } else {
+      ++statistics_.implicit_fallbacks;
+      rawStep(*implicit_fallback_, config_.dt);
+    }
+    const std::uint64_t strain_rejections = statistics_.strain_growth;
+    ok = !unstable(kinetic_before, strain_before);
+    // Implicit Euler cannot be unstable; if only the strain criterion still objects, the strain came from a
+    // kinematic shock (e.g. grasped nodes pressed onto the jaw plane) and freezing the tissue would not help.
+    if (!ok && level > config_.watchdog.max_halvings && statistics_.strain_growth > strain_rejections) ok = true;
+    if (level > fallback_level_ && ok) {
+      fallback_level_ = std::min(level, config_.watchdog.max_halvings);
+      hold_remaining_ = config_.watchdog.hold_steps;
+    }
+  }
+  if (!ok) {
+    last_strain_ = -1.0;
+    // Nothing worked: keep the last good state (frozen) rather than letting an explosion reach the renderer.
+    restoreState();
+    for (std::size_t i = 0; i < membrane_->nodeCount(); ++i) membrane_->velocities()[i].setZero();
+    ++statistics_.unrecovered;
+  }
+  ++statistics_.steps;
+  return ok;
+}
+
+FrameReport TissueSimulator::advance(double frame_time, const Clock& clock) {
+  FrameReport report;
+  const double start = clock();
+  const std::uint64_t fallbacks_before = statistics_.fallbacks;
+  pending_time_ += std::max(frame_time, 0.0);
+  report.requested_time = pending_time_;
+  const double budget = config_.time_budget_ms * 1e-3;
+  const int planned =
+      std::min(config_.max_steps_per_frame, static_cast<int>(std::floor(pending_time_ / config_.dt + 1e-9)));
+  for (int s = 0; s < planned; ++s) {
+    if (s > 0 && clock() - start >= budget) {
+      report.budget_exhausted = true;
+      break;
+    }
+    updateInstruments(static_cast<double>(s + 1) / planned);
+    step();
+    ++report.steps;
+    report.simulated_time += config_.dt;
+  }
+  if (planned > 0) {
+    previous_instruments_ = current_instruments_;
+    // Real time: time the budget did not cover is dropped, not owed to the next frame.
+    pending_time_ = report.budget_exhausted ? 0.0 : std::max(0.0, pending_time_ - report.simulated_time);
+  }
+  report.wall_time = clock() - start;
+  report.fallbacks = static_cast<int>(statistics_.fallbacks - fallbacks_before);
+  report.max_strain = maxStrain();
+  return report;
+}
+
+double TissueSimulator::maxStrain() { return tissue::maxStrain(view()); }
+double TissueSimulator::kineticEnergy() { return tissue::kineticEnergy(view()); }
+double TissueSimulator::totalEnergy() {
+  const SystemView system = view();
+  return tissue::kineticEnergy(system) + forces_.potentialEnergy(system, system.positions);
+}
+
+}  // namespace tissue
+}  // namespace vrm_sim

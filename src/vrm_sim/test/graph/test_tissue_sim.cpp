@@ -1,0 +1,186 @@
+// tissue_sim in a manager: a scripted grasp-and-pull with the forceps must deform the membrane (published on
+// tissue/<object> with increasing versions), keep it finite, and let it return toward rest after the release.
+// Every wait is on a condition with a timeout; nothing asserts on timing.
+#include <gtest/gtest.h>
+#include <ros/ros.h>
+
+#include <Eigen/Geometry>
+#include <cmath>
+#include <functional>
+#include <mutex>
+
+#include "vrm_msgs/InstrumentState.h"
+#include "vrm_msgs/StageTiming.h"
+#include "vrm_msgs/TissueMesh.h"
+#include "vrm_sim/conversions.h"
+#include "vrm_sim/scene/scene_loader.h"
+
+namespace {
+
+class MeshWatcher {
+ public:
+  MeshWatcher(ros::NodeHandle& nh, const std::string& topic, std::vector<float> rest) : rest_(std::move(rest)) {
+    subscriber_ = nh.subscribe(topic, 10, &MeshWatcher::onMesh, this);
+    timing_subscriber_ = nh.subscribe("tissue_timing", 10, &MeshWatcher::onTiming, this);
+  }
+  double displacement() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return displacement_;
+  }
+  double peak() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return peak_;
+  }
+  bool finite() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return finite_;
+  }
+  bool versionsIncrease() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return versions_increase_;
+  }
+  int meshes() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return meshes_;
+  }
+  int timings() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return timings_;
+  }
+
+ private:
+  void onMesh(const vrm_msgs::TissueMesh::ConstPtr& mesh) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    ++meshes_;
+    if (mesh->version <= last_version_) versions_increase_ = false;
+    last_version_ = mesh->version;
+    if (mesh->positions.size() != rest_.size()) {
+      finite_ = false;
+      return;
+    }
+    double max_displacement = 0.0;
+    for (std::size_t i = 0; i + 2 < rest_.size(); i += 3) {
+      const double dx = mesh->positions[i] - rest_[i];
+      const double dy = mesh->positions[i + 1] - rest_[i + 1];
+      const double dz = mesh->positions[i + 2] - rest_[i + 2];
+      const double d = std::sqrt(dx * dx + dy * dy + dz * dz);
+      if (!std::isfinite(d)) finite_ = false;
+      max_displacement = std::max(max_displacement, d);
+    }
+    displacement_ = max_displacement;
+    peak_ = std::max(peak_, max_displacement);
+  }
+  void onTiming(const vrm_msgs::StageTiming::ConstPtr&) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    ++timings_;
+  }
+
+  std::vector<float> rest_;
+  ros::Subscriber subscriber_, timing_subscriber_;
+  std::mutex mutex_;
+  double displacement_ = 0.0, peak_ = 0.0;
+  bool finite_ = true, versions_increase_ = true;
+  std::uint64_t last_version_ = 0;
+  int meshes_ = 0, timings_ = 0;
+};
+
+// Publishes the forceps state at 100 Hz (stamps from now) until `done` or the timeout.
+bool drive(ros::Publisher& publisher, const std::function<void(double, vrm_msgs::InstrumentState&)>& script,
+           double duration, const std::function<bool()>& done = nullptr) {
+  ros::Rate rate(100.0);
+  const ros::Time start = ros::Time::now();
+  while (ros::ok()) {
+    const double t = (ros::Time::now() - start).toSec();
+    if (t > duration) return false;
+    vrm_msgs::InstrumentState state;
+    state.header.stamp = ros::Time::now();
+    state.header.frame_id = "eye";
+    state.instrument_id = "right";
+    state.type = vrm_msgs::InstrumentState::FORCEPS;
+    state.valid = true;
+    state.tracking_quality = 1.0f;
+    script(t, state);
+    publisher.publish(state);
+    if (done && done()) return true;
+    rate.sleep();
+  }
+  return false;
+}
+
+TEST(TissueSimGraph, GraspPullDeformsAndReleaseReturnsTowardRest) {
+  ros::NodeHandle nh;
+  ros::NodeHandle private_nh("~");
+  const std::string scene_name = private_nh.param<std::string>("scene", "membrane_peeling");
+  const std::string object_name = private_nh.param<std::string>("object", "membrane");
+  const auto scene = vrm_sim::scene::loadScene(vrm_sim::scene::shippedScenePath(scene_name));
+  const auto* object = scene.findObject(object_name);
+  ASSERT_NE(object, nullptr);
+  const vrm_sim::TriangleMesh mesh = vrm_sim::scene::buildMesh(*object, vrm_sim::scene::MeshFrame::kParent);
+  std::vector<float> rest;
+  Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+  for (const auto& v : mesh.vertices) {
+    rest.insert(rest.end(), {static_cast<float>(v.x()), static_cast<float>(v.y()), static_cast<float>(v.z())});
+    centroid += v / static_cast<double>(mesh.vertexCount());
+  }
+  // The vertex nearest the centroid; the membrane faces the eye centre.
+  Eigen::Vector3d target = mesh.vertices.front();
+  for (const auto& v : mesh.vertices) {
+    if ((v - centroid).norm() < (target - centroid).norm()) target = v;
+  }
+  const Eigen::Vector3d inward = -target.normalized();
+  const double jaw_length = 0.0015;
+  // Instrument +z (handle -> tip) points outward (towards the retina); the jaw centre straddles the membrane.
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  pose.linear() = Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), -inward).toRotationMatrix();
+  const Eigen::Vector3d grasp_tip = target - inward * (0.5 * jaw_length);
+
+  MeshWatcher watcher(nh, "tissue/" + object_name, rest);
+  ros::Publisher publisher = nh.advertise<vrm_msgs::InstrumentState>("instrument_state", 20);
+  const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(30.0);
+  while (ros::ok() && publisher.getNumSubscribers() == 0 && ros::WallTime::now() < deadline) {
+    ros::WallDuration(0.01).sleep();
+  }
+  ASSERT_GT(publisher.getNumSubscribers(), 0u) << "tissue_sim does not subscribe instrument_state";
+  ros::AsyncSpinner spinner(1);
+  spinner.start();
+
+  auto at = [&](const Eigen::Vector3d& tip, double jaw, vrm_msgs::InstrumentState& state) {
+    Eigen::Isometry3d p = pose;
+    p.translation() = tip;
+    state.tip_pose = vrm_sim::toPoseMsg(p);
+    state.jaw_angle = jaw;
+  };
+  // Jaws open at the membrane, then closed (grasp), then pull 1 mm inward over 0.5 s.
+  drive(
+      publisher, [&](double, vrm_msgs::InstrumentState& s) { at(grasp_tip, 0.5, s); }, 0.3);
+  drive(
+      publisher, [&](double, vrm_msgs::InstrumentState& s) { at(grasp_tip, 0.0, s); }, 0.2);
+  drive(
+      publisher,
+      [&](double t, vrm_msgs::InstrumentState& s) { at(grasp_tip + inward * 1e-3 * std::min(t / 0.5, 1.0), 0.0, s); },
+      0.7);
+  // Wait (driving the held pose) until the membrane is deformed.
+  drive(
+      publisher, [&](double, vrm_msgs::InstrumentState& s) { at(grasp_tip + inward * 1e-3, 0.0, s); }, 20.0,
+      [&] { return watcher.peak() > 4e-4; });
+  const double peak = watcher.peak();
+  EXPECT_GT(peak, 4e-4) << "the grasped membrane did not follow the forceps";
+  EXPECT_TRUE(watcher.finite());
+  // Release: open the jaws, withdraw; wait for the membrane to come back toward rest.
+  const bool returned = drive(
+      publisher, [&](double, vrm_msgs::InstrumentState& s) { at(grasp_tip + inward * 3e-3, 0.6, s); }, 30.0,
+      [&] { return watcher.displacement() < 0.7 * peak; });
+  EXPECT_TRUE(returned) << "displacement " << watcher.displacement() << " after release, peak " << peak;
+  EXPECT_TRUE(watcher.finite());
+  EXPECT_TRUE(watcher.versionsIncrease());
+  EXPECT_GT(watcher.meshes(), 10);
+  EXPECT_GT(watcher.timings(), 10);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  testing::InitGoogleTest(&argc, argv);
+  ros::init(argc, argv, "test_tissue_sim");
+  return RUN_ALL_TESTS();
+}
