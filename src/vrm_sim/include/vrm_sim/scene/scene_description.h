@@ -86,9 +86,11 @@ const char* toString(Simulation simulation);
 
 // Integrator and collision detector names the simulation accepts (thesis §5.1, §4). Checked at load time so a typo
 // fails in the loader, not as a silently substituted default inside the simulation.
-const std::vector<std::string>&
-knownIntegrators();  // explicit_euler, quasi_static_euler, rk2, implicit_euler, symplectic_euler, xpbd
-const std::vector<std::string>& knownCollisionDetectors();  // zcoll, zcoll_f, geometric, none
+// explicit_euler, quasi_static_euler, rk2, implicit_euler, symplectic_euler, xpbd
+const std::vector<std::string>& knownIntegrators();
+// zcoll, zcoll_f (the thesis' algorithms, fastest backend), zcoll[_f]_cpu, zcoll[_f]_gl, myszkowski_cpu, geometric,
+// fcl, fcl_aabb, fcl_obbrss, fcl_kios, none
+const std::vector<std::string>& knownCollisionDetectors();
 
 struct Pose {
   Eigen::Vector3d xyz = Eigen::Vector3d::Zero();
