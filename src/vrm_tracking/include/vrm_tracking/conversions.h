@@ -5,13 +5,17 @@
 #include <geometry_msgs/Point.h>
 #include <geometry_msgs/Quaternion.h>
 #include <geometry_msgs/Vector3.h>
+#include <sensor_msgs/CameraInfo.h>
 #include <vrm_msgs/EyeState.h>
 #include <vrm_msgs/InstrumentState.h>
+#include <vrm_msgs/MarkerObservations.h>
 #include <vrm_msgs/MicroscopeSettings.h>
 #include <vrm_msgs/PedalState.h>
 
 #include <cstdint>
 
+#include "vrm_tracking/camera_rig.h"
+#include "vrm_tracking/pose_tracker.h"
 #include "vrm_tracking/surgeon_script.h"
 
 namespace vrm_tracking {
@@ -37,5 +41,23 @@ void toMsg(const MicroscopeSample& sample, vrm_msgs::MicroscopeSettings* msg);
 InstrumentSample fromMsg(const vrm_msgs::InstrumentState& msg);
 PedalSample fromMsg(const vrm_msgs::PedalState& msg);
 MicroscopeSample fromMsg(const vrm_msgs::MicroscopeSettings& msg);
+
+// ---- Optical tracking (issue 5) ----
+
+// CameraInfo of a camera model (plumb_bob, no rectification); header left untouched.
+void toMsg(const CameraModel& camera, sensor_msgs::CameraInfo* msg);
+// Intrinsics from a CameraInfo (the extrinsics stay as they are in *camera). Throws std::invalid_argument for a
+// CameraInfo without a usable K (all zero: an uncalibrated driver).
+void updateIntrinsics(const sensor_msgs::CameraInfo& msg, CameraModel* camera);
+
+// Blobs of one camera frame <-> MarkerObservations (the FPGA message). camera_name/size/header: the caller's.
+void toMsg(const std::vector<Blob>& blobs, vrm_msgs::MarkerObservations* msg);
+std::vector<Blob> fromMsg(const vrm_msgs::MarkerObservations& msg);
+
+// Tracking results. The header is left untouched. Roll, jaw and the other non-optical channels come from `sensors`
+// (the instrument's own inputs; nullptr: zero / light pipe); the orientation is the shaft frame with that roll.
+void toMsg(const EyeEstimate& eye, vrm_msgs::EyeState* msg);
+void toMsg(const InstrumentEstimate& estimate, const vrm_msgs::InstrumentState* sensors,
+           vrm_msgs::InstrumentState* msg);
 
 }  // namespace vrm_tracking

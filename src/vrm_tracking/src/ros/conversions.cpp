@@ -147,4 +147,87 @@ MicroscopeSample fromMsg(const vrm_msgs::MicroscopeSettings& msg) {
   return sample;
 }
 
+void toMsg(const CameraModel& camera, sensor_msgs::CameraInfo* msg) {
+  msg->width = static_cast<std::uint32_t>(camera.width);
+  msg->height = static_cast<std::uint32_t>(camera.height);
+  msg->distortion_model = "plumb_bob";
+  msg->D = camera.distortion;
+  msg->D.resize(5, 0.0);
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) {
+      msg->K[3 * r + c] = camera.K(r, c);
+      msg->R[3 * r + c] = r == c ? 1.0 : 0.0;
+      msg->P[4 * r + c] = camera.K(r, c);
+    }
+    msg->P[4 * r + 3] = 0.0;
+  }
+}
+
+void updateIntrinsics(const sensor_msgs::CameraInfo& msg, CameraModel* camera) {
+  if (!(msg.K[0] > 0.0 && msg.K[4] > 0.0) || msg.width == 0 || msg.height == 0) {
+    throw std::invalid_argument("CameraInfo without calibration (K or size is zero)");
+  }
+  camera->width = static_cast<int>(msg.width);
+  camera->height = static_cast<int>(msg.height);
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) camera->K(r, c) = msg.K[3 * r + c];
+  }
+  camera->distortion.assign(msg.D.begin(), msg.D.end());
+  if (camera->distortion.size() > 5) camera->distortion.resize(5);
+}
+
+void toMsg(const std::vector<Blob>& blobs, vrm_msgs::MarkerObservations* msg) {
+  msg->markers.clear();
+  msg->markers.reserve(blobs.size());
+  for (const Blob& b : blobs) {
+    vrm_msgs::MarkerObservation m;
+    m.class_id = static_cast<std::uint8_t>(b.class_id);
+    m.u = b.u;
+    m.v = b.v;
+    m.area = static_cast<float>(b.area);
+    m.quality = static_cast<float>(b.quality);
+    msg->markers.push_back(m);
+  }
+}
+
+std::vector<Blob> fromMsg(const vrm_msgs::MarkerObservations& msg) {
+  std::vector<Blob> blobs;
+  blobs.reserve(msg.markers.size());
+  for (const vrm_msgs::MarkerObservation& m : msg.markers) {
+    Blob b;
+    b.class_id = m.class_id;
+    b.u = m.u;
+    b.v = m.v;
+    b.area = m.area;
+    b.quality = m.quality;
+    blobs.push_back(b);
+  }
+  return blobs;
+}
+
+void toMsg(const EyeEstimate& eye, vrm_msgs::EyeState* msg) {
+  msg->rotation = toQuaternionMsg(eye.rotation.normalized());
+  msg->rotation_center = toPointMsg(eye.rotation_center);
+  msg->tracking_quality = static_cast<float>(eye.quality);
+  msg->valid = eye.valid;
+}
+
+void toMsg(const InstrumentEstimate& est, const vrm_msgs::InstrumentState* sensors, vrm_msgs::InstrumentState* msg) {
+  msg->instrument_id = est.slot;
+  if (sensors) {
+    msg->type = sensors->type;
+    msg->roll = sensors->roll;
+    msg->jaw_angle = sensors->jaw_angle;
+    msg->suction = sensors->suction;
+    msg->cut_rate = sensors->cut_rate;
+    msg->injection_flow = sensors->injection_flow;
+  }
+  msg->tip_pose.position = toPointMsg(est.tip);
+  msg->tip_pose.orientation = toQuaternionMsg(shaftOrientation(est.trocar, est.shaft_axis, msg->roll));
+  msg->shaft_axis = toVector3Msg(est.shaft_axis);
+  msg->insertion_depth = est.insertion_depth;
+  msg->tracking_quality = static_cast<float>(est.quality);
+  msg->valid = est.valid;
+}
+
 }  // namespace vrm_tracking

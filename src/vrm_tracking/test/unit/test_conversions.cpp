@@ -75,5 +75,62 @@ TEST(Conversions, EyePedalsMicroscope) {
   EXPECT_DOUBLE_EQ(m.disparity_scale, 0.4);
 }
 
+TEST(Conversions, CameraInfoRoundTrip) {
+  CameraModel cam = makeDefaultRig().cameras[1];
+  cam.distortion = {0.1, -0.01, 0.0, 0.0, 0.002};
+  sensor_msgs::CameraInfo info;
+  toMsg(cam, &info);
+  EXPECT_EQ(info.width, 640u);
+  EXPECT_EQ(info.distortion_model, "plumb_bob");
+  CameraModel back;
+  updateIntrinsics(info, &back);
+  EXPECT_LT((back.K - cam.K).norm(), 1e-12);
+  EXPECT_EQ(back.distortion, cam.distortion);
+  sensor_msgs::CameraInfo uncalibrated;
+  EXPECT_THROW(updateIntrinsics(uncalibrated, &back), std::invalid_argument);
+}
+
+TEST(Conversions, MarkerObservationsRoundTrip) {
+  Blob b;
+  b.class_id = 3;
+  b.u = 12.25;
+  b.v = 400.125;
+  b.area = 42;
+  b.quality = 0.75;
+  vrm_msgs::MarkerObservations msg;
+  toMsg(std::vector<Blob>{b}, &msg);
+  const std::vector<Blob> back = fromMsg(msg);
+  ASSERT_EQ(back.size(), 1u);
+  EXPECT_EQ(back[0].class_id, 3);
+  EXPECT_DOUBLE_EQ(back[0].u, 12.25);
+  EXPECT_DOUBLE_EQ(back[0].v, 400.125);
+  EXPECT_FLOAT_EQ(static_cast<float>(back[0].quality), 0.75f);
+}
+
+TEST(Conversions, TrackedInstrumentTakesRollAndJawFromTheSensors) {
+  InstrumentEstimate est;
+  est.slot = "right";
+  est.valid = true;
+  est.trocar = Eigen::Vector3d(0.0073485, 0.0042426, 0.0084853);
+  est.tip = Eigen::Vector3d(0.001, 0.0, -0.005);
+  est.insertion_depth = (est.tip - est.trocar).norm();
+  est.shaft_axis = (est.tip - est.trocar) / est.insertion_depth;
+  est.quality = 0.9;
+  vrm_msgs::InstrumentState sensors;
+  sensors.type = vrm_msgs::InstrumentState::FORCEPS;
+  sensors.roll = 0.7;
+  sensors.jaw_angle = 0.3;
+  vrm_msgs::InstrumentState msg;
+  toMsg(est, &sensors, &msg);
+  EXPECT_EQ(msg.type, vrm_msgs::InstrumentState::FORCEPS);
+  EXPECT_DOUBLE_EQ(msg.roll, 0.7);
+  EXPECT_DOUBLE_EQ(msg.jaw_angle, 0.3);
+  EXPECT_TRUE(msg.valid);
+  // The message's trocar constraint (tip - depth * axis) recovers the trocar.
+  const InstrumentSample s = fromMsg(msg);
+  EXPECT_LT((s.trocar - est.trocar).norm(), 1e-12);
+  EXPECT_LT((s.orientation * Eigen::Vector3d::UnitZ() - est.shaft_axis).norm(), 1e-9);
+}
+
 }  // namespace
 }  // namespace vrm_tracking

@@ -1,0 +1,50 @@
+#pragma once
+// Rig calibration from images of a chessboard target (issue 5; the thesis calibrates EyeSi's cameras with Tsai's
+// method, §7.3.2 — here Zhang's method as implemented by OpenCV's calibrateCamera). Intrinsics per camera from
+// several views; the extrinsics (world -> camera) from one view of the target at a known world pose (a fixture in
+// place of the mechanical eye defines the world frame). Includes a renderer of exact synthetic target images so the
+// whole procedure is testable against a known rig.
+
+#include <opencv2/core.hpp>
+#include <vector>
+
+#include "vrm_tracking/camera_rig.h"
+
+namespace vrm_tracking {
+
+// A chessboard of cols × rows inner corners; corner (c, r) sits at (c·square, r·square, 0) in the target frame.
+// The square touching corners (0,0), (1,0), (0,1), (1,1) is black. cols × rows must be even × odd (or odd × even)
+// so that a 180° turn swaps the square colours, which makes the detected corner order unambiguous.
+struct ChessboardTarget {
+  int cols = 9;
+  int rows = 6;
+  double square = 0.0025;  // m
+  std::vector<cv::Point3f> objectPoints() const;
+  Eigen::Vector3d centre() const { return Eigen::Vector3d((cols - 1) * square / 2.0, (rows - 1) * square / 2.0, 0.0); }
+};
+
+// Renders the target (with a one-square white border on a grey background) as seen by `camera`, anti-aliased by
+// supersample² rays per pixel; pixels whose ray misses the board's front side see the background.
+void renderTarget(const CameraModel& camera, const Eigen::Isometry3d& target_to_world, const ChessboardTarget& target,
+                  cv::Mat* bgr, int supersample = 3);
+
+// Corners in the target's order (objectPoints()), refined to sub-pixel; false if the board is not found.
+bool detectTarget(const cv::Mat& bgr, const ChessboardTarget& target, std::vector<cv::Point2f>* corners);
+
+struct IntrinsicCalibration {
+  bool ok = false;
+  Eigen::Matrix3d K = Eigen::Matrix3d::Identity();
+  std::vector<double> distortion;  // k1 k2 p1 p2 k3
+  double rms_px = 0.0;             // reprojection RMS over all views
+  int views_used = 0;
+};
+
+// Zhang's method over the views in which the target is found (needs >= 3).
+IntrinsicCalibration calibrateIntrinsics(const std::vector<cv::Mat>& views, const ChessboardTarget& target);
+
+// world -> camera from one image of the target at the known pose target_to_world (intrinsics from `camera`).
+// false if the target is not found.
+bool calibrateExtrinsics(const cv::Mat& reference, const ChessboardTarget& target,
+                         const Eigen::Isometry3d& target_to_world, CameraModel* camera, double* rms_px = nullptr);
+
+}  // namespace vrm_tracking

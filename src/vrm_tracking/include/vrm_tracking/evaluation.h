@@ -1,0 +1,62 @@
+#pragma once
+// Offline evaluation of the tracking pipeline against ground truth (the `tracking` benchmark and tracking_eval):
+// sample a ground-truth trajectory, feed the pipeline either exact projected centroids plus Gaussian noise (the
+// FPGA path) or rendered images (renderer → RoiTracker detector), and compare the reconstructed eye rotation and
+// instrument tips with the truth. No ROS, no master; time is measured only through the clock the caller passes.
+
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "vrm_tracking/camera_rig.h"
+#include "vrm_tracking/marker_detector.h"
+#include "vrm_tracking/marker_layout.h"
+#include "vrm_tracking/pose_tracker.h"
+#include "vrm_tracking/rig_renderer.h"
+#include "vrm_tracking/surgeon_script.h"
+
+namespace vrm_tracking {
+
+struct EvalOptions {
+  bool rendered = false;  // false: exact centroids + noise_px Gaussian noise per coordinate
+  double noise_px = 0.0;
+  int occluded_camera = -1;  // this camera delivers nothing (-1: none)
+  RenderConfig render;       // rendered mode
+  RoiTrackerConfig roi;      // rendered mode
+  TrackerConfig tracker;
+  std::uint32_t seed = 1;
+  bool motion = true;             // pass marker velocities to the renderer (motion blur)
+  std::function<double()> clock;  // seconds, monotonic; empty: no timing
+};
+
+struct EvalResult {
+  int frames = 0;
+  double tip_rms_um = 0.0;  // world-frame tip marker error (what triangulation determines)
+  double tip_max_um = 0.0;
+  double tip_eye_rms_um = 0.0;  // eye-frame tip error (adds the eye-rotation error)
+  double eye_err_deg = 0.0;     // RMS angular error of the eye rotation
+  double eye_err_max_deg = 0.0;
+  double detect_rate = 0.0;      // visible (marker, camera) pairs with a centroid within 3 px
+  double track_rate = 0.0;       // instrument-frames with a valid pose
+  double ms_detect = 0.0;        // per camera triple
+  double ms_reconstruct = 0.0;   // per frame (all markers, eye and instruments)
+  double full_frame_rate = 0.0;  // fraction of camera frames that needed a full-frame pass
+};
+
+// times: sample instants (s); truth(t) gives the ground truth. Velocities for motion blur come from truth(t ± 1 ms).
+EvalResult evaluate(const CameraRig& rig, const MarkerLayout& layout,
+                    const std::function<SurgeonSnapshot(double)>& truth, const std::vector<double>& times,
+                    const EvalOptions& options);
+
+// Ideal floor: RMS error (µm) of the optimal least-squares (Gauss-Newton from the true point) triangulation of the
+// given points with isotropic Gaussian centroid noise noise_px, by Monte Carlo over `trials` draws per point.
+// cameras: indices used. Also the Cramér-Rao bound of the same configuration (crlb_um).
+double idealFloorUm(const CameraRig& rig, const std::vector<Eigen::Vector3d>& points, double noise_px,
+                    const std::vector<std::size_t>& cameras, int trials, std::uint32_t seed, double* crlb_um = nullptr);
+
+// The benchmark's parametric surgeon: tips circling at `speed` (m/s) on 3 mm circles in the vitreous, the eye
+// rotating a few degrees. speed 0: the tips jump to a new static position every sample (no motion blur).
+std::function<SurgeonSnapshot(double)> circlingSurgeon(const MarkerLayout& layout, double speed);
+
+}  // namespace vrm_tracking

@@ -1,0 +1,89 @@
+#pragma once
+// From per-camera marker centroids to the poses of the eye and the instruments (thesis §7.3.2):
+//   * each colour class is reconstructed from every camera that saw it (3-camera least squares, or the best
+//     consistent pair when a camera is occluded or saw a distractor);
+//   * the eye rotation about its fixed rotation centre from the two peripheral markers (a 2-vector Kabsch fit);
+//   * the instrument tip from its marker, moved into the eye frame; the shaft from the trocar (fixed in the eye)
+//     to the tip. Roll (magnetic sensor) and jaw angle (instrument input) are not optical: the caller adds them.
+// ROS-free; the tracker nodelet and the offline tools share it.
+
+#include <Eigen/Geometry>
+#include <string>
+#include <vector>
+
+#include "vrm_tracking/camera_rig.h"
+#include "vrm_tracking/marker_detector.h"
+#include "vrm_tracking/marker_layout.h"
+#include "vrm_tracking/triangulation.h"
+
+namespace vrm_tracking {
+
+// One camera's centroids for one frame (from the detector or pre-extracted: the FPGA path).
+struct CameraObservations {
+  std::size_t camera = 0;
+  std::vector<Blob> blobs;  // class_id, u, v, area, quality are used
+};
+
+struct TrackerConfig {
+  double gate_px = 3.0;                  // accept a reconstruction whose RMS reprojection residual is below this
+  double max_radius = 0.03;              // m: reject points farther than this from the rotation centre
+  double eye_marker_tolerance = 0.0015;  // m: |marker − centre| must match the layout within this
+};
+
+struct MarkerEstimate {
+  int class_id = 0;
+  bool valid = false;
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();  // world, m
+  double rms_px = 0.0;
+  int cameras = 0;
+  double quality = 0.0;  // 0..1
+};
+
+struct EyeEstimate {
+  bool valid = false;  // false: the rotation is held from the last valid frame (or identity)
+  Eigen::Quaterniond rotation = Eigen::Quaterniond::Identity();  // world -> eye
+  Eigen::Vector3d rotation_center = Eigen::Vector3d::Zero();
+  double quality = 0.0;
+};
+
+struct InstrumentEstimate {
+  std::string slot;
+  bool valid = false;
+  Eigen::Vector3d tip = Eigen::Vector3d::Zero();     // eye frame, m
+  Eigen::Vector3d trocar = Eigen::Vector3d::Zero();  // eye frame, m
+  Eigen::Vector3d shaft_axis = Eigen::Vector3d::UnitZ();
+  double insertion_depth = 0.0;
+  double quality = 0.0;
+};
+
+struct TrackingResult {
+  std::vector<MarkerEstimate> markers;  // one per class of the layout
+  EyeEstimate eye;
+  std::vector<InstrumentEstimate> instruments;  // in layout order
+};
+
+class PoseTracker {
+ public:
+  PoseTracker(CameraRig rig, MarkerLayout layout, TrackerConfig config = TrackerConfig());
+
+  // Observations of unknown cameras and non-finite centroids are ignored (never thrown on).
+  TrackingResult update(const std::vector<CameraObservations>& frame);
+  MarkerEstimate reconstruct(int class_id, const std::vector<CameraObservations>& frame) const;
+  void reset() { last_eye_ = EyeEstimate(); }
+
+  const CameraRig& rig() const { return rig_; }
+  const MarkerLayout& layout() const { return layout_; }
+
+ private:
+  CameraRig rig_;
+  MarkerLayout layout_;
+  TrackerConfig config_;
+  EyeEstimate last_eye_;
+};
+
+// Rotation R (world -> eye) that best maps the layout's eye-frame marker positions a0, b0 onto the measured
+// a, b (world, relative to the rotation centre): Kabsch on {a, b, a×b}.
+Eigen::Quaterniond eyeRotationFromMarkers(const Eigen::Vector3d& a0, const Eigen::Vector3d& b0,
+                                          const Eigen::Vector3d& a, const Eigen::Vector3d& b);
+
+}  // namespace vrm_tracking

@@ -1,0 +1,197 @@
+#include "vrm_tracking/evaluation.h"
+
+#include <Eigen/Dense>
+#include <cmath>
+#include <random>
+
+#include "vrm_tracking/triangulation.h"
+
+namespace vrm_tracking {
+
+namespace {
+constexpr double kPi = 3.14159265358979323846;
+
+double angleDeg(const Eigen::Quaterniond& a, const Eigen::Quaterniond& b) {
+  return a.normalized().angularDistance(b.normalized()) * 180.0 / kPi;
+}
+}  // namespace
+
+std::function<SurgeonSnapshot(double)> circlingSurgeon(const MarkerLayout& layout, double speed) {
+  return [layout, speed](double t) {
+    SurgeonSnapshot s;
+    s.rotation_center = layout.rotation_center;
+    s.eye_rotation = Eigen::AngleAxisd(5.0 * kPi / 180.0 * std::sin(2 * kPi * 0.3 * t), Eigen::Vector3d::UnitX()) *
+                     Eigen::AngleAxisd(4.0 * kPi / 180.0 * std::cos(2 * kPi * 0.2 * t), Eigen::Vector3d::UnitY());
+    const double radius = 0.003;
+    // speed 0: a golden-angle jump per 20 ms sample, so static frames still cover the circle.
+    const double phase = speed > 0.0 ? speed / radius * t : 2.39996 * std::round(t * 50.0);
+    for (std::size_t i = 0; i < layout.instruments.size(); ++i) {
+      const double sign = i % 2 == 0 ? -1.0 : 1.0;
+      const double ph = phase + kPi * static_cast<double>(i);
+      InstrumentSample inst;
+      inst.slot = layout.instruments[i].slot;
+      inst.trocar = layout.instruments[i].trocar;
+      inst.tip = Eigen::Vector3d(sign * 0.002 + radius * std::cos(ph), radius * std::sin(ph),
+                                 -0.006 + 0.3 * radius * std::sin(2.0 * ph) / 2.0);
+      inst.shaft_axis = (inst.tip - inst.trocar).normalized();
+      inst.insertion_depth = (inst.tip - inst.trocar).norm();
+      inst.orientation = shaftOrientation(inst.trocar, inst.shaft_axis, 0.0);
+      s.instruments.push_back(inst);
+    }
+    return s;
+  };
+}
+
+EvalResult evaluate(const CameraRig& rig, const MarkerLayout& layout,
+                    const std::function<SurgeonSnapshot(double)>& truth, const std::vector<double>& times,
+                    const EvalOptions& options) {
+  EvalResult result;
+  std::mt19937 rng(options.seed);
+  std::normal_distribution<double> noise(0.0, 1.0);
+  RenderConfig render = options.render;
+  render.seed = options.seed;
+  const RigRenderer renderer(rig, layout, render);
+  const MarkerDetector detector(layout.classes);
+  std::vector<RoiTracker> roi;
+  for (std::size_t c = 0; c < rig.size(); ++c) roi.emplace_back(&detector, options.roi);
+  PoseTracker tracker(rig, layout, options.tracker);
+
+  double tip2 = 0.0, tip_eye2 = 0.0, eye2 = 0.0, t_detect = 0.0, t_rec = 0.0;
+  long tips = 0, tips_valid = 0, visible = 0, detected = 0, camera_frames = 0, full_frames = 0;
+  cv::Mat image;
+  for (std::size_t f = 0; f < times.size(); ++f) {
+    const double t = times[f];
+    const SurgeonSnapshot snap = truth(t);
+    WorldScene scene = worldSceneFromSnapshot(snap, layout);
+    if (options.rendered && options.motion) {
+      setVelocities(worldSceneFromSnapshot(truth(t - 1e-3), layout), worldSceneFromSnapshot(truth(t + 1e-3), layout),
+                    2e-3, &scene);
+    }
+    std::vector<CameraObservations> frame;
+    for (std::size_t c = 0; c < rig.size(); ++c) {
+      if (static_cast<int>(c) == options.occluded_camera) continue;
+      CameraObservations obs;
+      obs.camera = c;
+      if (!options.rendered) {
+        for (const ProjectedMarker& p : renderer.project(c, scene)) {
+          if (!p.visible) continue;
+          ++visible;
+          ++detected;
+          Blob b;
+          b.class_id = p.class_id;
+          b.u = p.pixel.x() + options.noise_px * noise(rng);
+          b.v = p.pixel.y() + options.noise_px * noise(rng);
+          b.quality = 1.0;
+          obs.blobs.push_back(b);
+        }
+      } else {
+        std::vector<ProjectedMarker> projected;
+        renderer.render(c, scene, f, &image, &projected);
+        DetectionStats stats;
+        const double t0 = options.clock ? options.clock() : 0.0;
+        obs.blobs = roi[c].process(image, &stats);
+        if (options.clock) t_detect += options.clock() - t0;
+        ++camera_frames;
+        full_frames += stats.full_frame;
+        for (const ProjectedMarker& p : projected) {
+          if (!p.visible) continue;
+          ++visible;
+          for (const Blob& b : obs.blobs) {
+            if (b.class_id == p.class_id && std::hypot(b.u - p.pixel.x(), b.v - p.pixel.y()) < 3.0) {
+              ++detected;
+              break;
+            }
+          }
+        }
+      }
+      frame.push_back(std::move(obs));
+    }
+    const double t0 = options.clock ? options.clock() : 0.0;
+    const TrackingResult r = tracker.update(frame);
+    if (options.clock) t_rec += options.clock() - t0;
+
+    const double e = angleDeg(r.eye.rotation, snap.eye_rotation);
+    eye2 += e * e;
+    result.eye_err_max_deg = std::max(result.eye_err_max_deg, e);
+    const Eigen::Quaterniond q = snap.eye_rotation.normalized();
+    for (const InstrumentSample& s : snap.instruments) {
+      for (const InstrumentEstimate& est : r.instruments) {
+        if (est.slot != s.slot) continue;
+        ++tips;
+        if (!est.valid) continue;
+        ++tips_valid;
+        const Eigen::Vector3d world_true = snap.rotation_center + q * s.tip;
+        const Eigen::Vector3d world_est = r.eye.rotation_center + r.eye.rotation.normalized() * est.tip;
+        const double ew = (world_est - world_true).norm() * 1e6;
+        const double ee = (est.tip - s.tip).norm() * 1e6;
+        tip2 += ew * ew;
+        tip_eye2 += ee * ee;
+        result.tip_max_um = std::max(result.tip_max_um, ew);
+      }
+    }
+  }
+  result.frames = static_cast<int>(times.size());
+  if (tips_valid > 0) {
+    result.tip_rms_um = std::sqrt(tip2 / tips_valid);
+    result.tip_eye_rms_um = std::sqrt(tip_eye2 / tips_valid);
+  }
+  if (!times.empty()) {
+    result.eye_err_deg = std::sqrt(eye2 / times.size());
+    result.ms_detect = 1e3 * t_detect / times.size();
+    result.ms_reconstruct = 1e3 * t_rec / times.size();
+  }
+  result.detect_rate = visible > 0 ? static_cast<double>(detected) / visible : 0.0;
+  result.track_rate = tips > 0 ? static_cast<double>(tips_valid) / tips : 0.0;
+  result.full_frame_rate = camera_frames > 0 ? static_cast<double>(full_frames) / camera_frames : 0.0;
+  return result;
+}
+
+double idealFloorUm(const CameraRig& rig, const std::vector<Eigen::Vector3d>& points, double noise_px,
+                    const std::vector<std::size_t>& cameras, int trials, std::uint32_t seed, double* crlb_um) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> noise(0.0, noise_px);
+  double sum2 = 0.0, crlb2 = 0.0;
+  long n = 0;
+  for (const Eigen::Vector3d& p : points) {
+    std::vector<PixelObservation> exact;
+    Eigen::MatrixXd J(2 * cameras.size(), 3);
+    for (std::size_t i = 0; i < cameras.size(); ++i) {
+      PixelObservation o;
+      o.camera = cameras[i];
+      rig.cameras[cameras[i]].project(p, &o.pixel);
+      exact.push_back(o);
+      for (int k = 0; k < 3; ++k) {
+        Eigen::Vector3d xp = p, xm = p;
+        xp(k) += 1e-7;
+        xm(k) -= 1e-7;
+        Eigen::Vector2d pp, pm;
+        rig.cameras[cameras[i]].project(xp, &pp);
+        rig.cameras[cameras[i]].project(xm, &pm);
+        J.block<2, 1>(2 * i, k) = (pp - pm) / 2e-7;
+      }
+    }
+    // Cramér-Rao: covariance σ² (JᵀJ)⁻¹ of any unbiased estimator from these centroids.
+    crlb2 += noise_px * noise_px * (J.transpose() * J).inverse().trace();
+    for (int trial = 0; trial < trials; ++trial) {
+      std::vector<PixelObservation> obs = exact;
+      for (PixelObservation& o : obs) o.pixel += Eigen::Vector2d(noise(rng), noise(rng));
+      // Gauss-Newton from the truth: the least-squares optimum without any initialisation or outlier effects.
+      Eigen::Vector3d x = p;
+      for (int it = 0; it < 5; ++it) {
+        Eigen::VectorXd r(2 * obs.size());
+        for (std::size_t i = 0; i < obs.size(); ++i) {
+          Eigen::Vector2d px;
+          rig.cameras[obs[i].camera].project(x, &px);
+          r.segment<2>(2 * i) = px - obs[i].pixel;
+        }
+        x -= (J.transpose() * J).ldlt().solve(J.transpose() * r);
+      }
+      sum2 += (x - p).squaredNorm();
+      ++n;
+    }
+  }
+  if (crlb_um) *crlb_um = points.empty() ? 0.0 : std::sqrt(crlb2 / points.size()) * 1e6;
+  return n > 0 ? std::sqrt(sum2 / n) * 1e6 : 0.0;
+}
+
+}  // namespace vrm_tracking

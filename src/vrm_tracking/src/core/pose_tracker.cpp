@@ -1,0 +1,137 @@
+#include "vrm_tracking/pose_tracker.h"
+
+#include <Eigen/SVD>
+#include <cmath>
+
+namespace vrm_tracking {
+
+Eigen::Quaterniond eyeRotationFromMarkers(const Eigen::Vector3d& a0, const Eigen::Vector3d& b0,
+                                          const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+  // The normal pair fixes the reflection ambiguity of two vectors; scaled like the markers so it weighs equally.
+  const Eigen::Vector3d n0 = a0.cross(b0) / std::max(1e-12, a0.norm());
+  const Eigen::Vector3d n = a.cross(b) / std::max(1e-12, a.norm());
+  const Eigen::Matrix3d H = a * a0.transpose() + b * b0.transpose() + n * n0.transpose();
+  const Eigen::JacobiSVD<Eigen::Matrix3d> svd(H, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  Eigen::Matrix3d D = Eigen::Matrix3d::Identity();
+  D(2, 2) = (svd.matrixU() * svd.matrixV().transpose()).determinant() < 0.0 ? -1.0 : 1.0;
+  return Eigen::Quaterniond(svd.matrixU() * D * svd.matrixV().transpose()).normalized();
+}
+
+PoseTracker::PoseTracker(CameraRig rig, MarkerLayout layout, TrackerConfig config)
+    : rig_(std::move(rig)), layout_(std::move(layout)), config_(config) {
+  last_eye_.rotation_center = layout_.rotation_center;
+}
+
+MarkerEstimate PoseTracker::reconstruct(int class_id, const std::vector<CameraObservations>& frame) const {
+  MarkerEstimate est;
+  est.class_id = class_id;
+  // Candidates per camera (a camera may report distractors of the same class; at most 3 are considered).
+  std::vector<std::vector<PixelObservation>> cands;
+  for (const CameraObservations& cam : frame) {
+    if (cam.camera >= rig_.size()) continue;
+    std::vector<PixelObservation> c;
+    for (const Blob& b : cam.blobs) {
+      if (b.class_id != class_id || !std::isfinite(b.u) || !std::isfinite(b.v) || c.size() >= 3) continue;
+      c.push_back({cam.camera, Eigen::Vector2d(b.u, b.v)});
+    }
+    if (!c.empty()) cands.push_back(std::move(c));
+  }
+  if (cands.size() < 2) return est;
+
+  Triangulation best;
+  auto consider = [&](const std::vector<PixelObservation>& obs) {
+    const Triangulation t = triangulate(rig_, obs);
+    if (!t.valid || t.rms_px > config_.gate_px) return;
+    if ((t.point - layout_.rotation_center).norm() > config_.max_radius) return;
+    if (!best.valid || t.rms_px < best.rms_px) best = t;
+  };
+  // Every camera subset of size >= 2, the largest first: a consistent 3-camera solution beats any pair (more
+  // accurate); pairs are the fallback for occlusion or a distractor in one camera.
+  const std::size_t n = cands.size();
+  for (std::size_t size = n; size >= 2 && !best.valid; --size) {
+    for (unsigned mask = 0; mask < (1u << n); ++mask) {
+      if (static_cast<std::size_t>(__builtin_popcount(mask)) != size) continue;
+      std::vector<std::size_t> cams;
+      for (std::size_t i = 0; i < n; ++i) {
+        if (mask & (1u << i)) cams.push_back(i);
+      }
+      // Every combination of one candidate per chosen camera.
+      std::vector<std::size_t> pick(cams.size(), 0);
+      while (true) {
+        std::vector<PixelObservation> obs;
+        for (std::size_t i = 0; i < cams.size(); ++i) obs.push_back(cands[cams[i]][pick[i]]);
+        consider(obs);
+        std::size_t i = 0;
+        for (; i < cams.size(); ++i) {
+          if (++pick[i] < cands[cams[i]].size()) break;
+          pick[i] = 0;
+        }
+        if (i == cams.size()) break;
+      }
+    }
+    if (size == 2) break;
+  }
+  if (!best.valid) return est;
+  est.valid = true;
+  est.position = best.point;
+  est.rms_px = best.rms_px;
+  est.cameras = static_cast<int>(best.cameras.size());
+  est.quality = std::exp(-best.rms_px / config_.gate_px) * (best.cameras.size() >= 3 ? 1.0 : 0.8);
+  return est;
+}
+
+TrackingResult PoseTracker::update(const std::vector<CameraObservations>& frame) {
+  TrackingResult result;
+  for (const ColourClass& c : layout_.classes) result.markers.push_back(reconstruct(c.id, frame));
+  auto marker = [&](int class_id) -> const MarkerEstimate* {
+    for (const MarkerEstimate& m : result.markers) {
+      if (m.class_id == class_id) return &m;
+    }
+    return nullptr;
+  };
+
+  EyeEstimate eye = last_eye_;
+  eye.valid = false;
+  eye.quality = 0.0;
+  eye.rotation_center = layout_.rotation_center;
+  if (layout_.eye_markers.size() == 2) {
+    const MarkerEstimate* a = marker(layout_.eye_markers[0].class_id);
+    const MarkerEstimate* b = marker(layout_.eye_markers[1].class_id);
+    if (a && b && a->valid && b->valid) {
+      const Eigen::Vector3d va = a->position - layout_.rotation_center, vb = b->position - layout_.rotation_center;
+      const Eigen::Vector3d a0 = layout_.eye_markers[0].position, b0 = layout_.eye_markers[1].position;
+      // The markers are rigid on the eye: a wrong distance to the centre means a wrong reconstruction.
+      const double misfit = std::max(std::abs(va.norm() - a0.norm()), std::abs(vb.norm() - b0.norm()));
+      if (misfit < config_.eye_marker_tolerance) {
+        eye.rotation = eyeRotationFromMarkers(a0, b0, va, vb);
+        eye.valid = true;
+        eye.quality = std::min(a->quality, b->quality) * (1.0 - misfit / config_.eye_marker_tolerance);
+        last_eye_ = eye;
+      }
+    }
+  }
+  result.eye = eye;
+
+  // Instruments use the eye rotation of this frame, or the last valid one when the eye markers are hidden.
+  const Eigen::Quaterniond q = eye.rotation.normalized();
+  for (const InstrumentMarker& slot : layout_.instruments) {
+    InstrumentEstimate inst;
+    inst.slot = slot.slot;
+    inst.trocar = slot.trocar;
+    const MarkerEstimate* m = marker(slot.class_id);
+    if (m && m->valid) {
+      inst.tip = q.conjugate() * (m->position - layout_.rotation_center);
+      const Eigen::Vector3d d = inst.tip - slot.trocar;
+      inst.insertion_depth = d.norm();
+      if (inst.insertion_depth > 1e-6) {
+        inst.shaft_axis = d / inst.insertion_depth;
+        inst.valid = true;
+        inst.quality = m->quality * (eye.valid ? 1.0 : 0.5);
+      }
+    }
+    result.instruments.push_back(inst);
+  }
+  return result;
+}
+
+}  // namespace vrm_tracking

@@ -1,0 +1,281 @@
+#include "vrm_tracking/rig_renderer.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <opencv2/imgproc.hpp>
+#include <random>
+
+namespace vrm_tracking {
+
+namespace {
+
+// One drawable: a marker sphere (projected as a disc, smeared over the exposure) or a piece of a shaft, ordered
+// back to front (painter's algorithm) so a shaft in front of a marker hides it.
+struct Drawable {
+  double depth = 0.0;
+  bool is_marker = true;
+  std::size_t index = 0;
+  Eigen::Vector2d a = Eigen::Vector2d::Zero(), b = Eigen::Vector2d::Zero();  // shaft piece endpoints (px)
+  double radius_px = 0.0;
+};
+
+std::uint64_t mix(std::uint64_t a, std::uint64_t b) {
+  std::uint64_t x = a * 0x9E3779B97F4A7C15ULL ^ (b + 0x7F4A7C159E3779B9ULL + (a << 6) + (a >> 2));
+  x ^= x >> 31;
+  x *= 0xBF58476D1CE4E5B9ULL;
+  x ^= x >> 27;
+  return x;
+}
+
+// Coverage of a disc of radius r blurred by a Gaussian of σ at distance d from its centre (edge profile of a
+// defocused/PSF-blurred disc, exact for a straight edge): symmetric about the centre, so it moves no centroid.
+inline double discCoverage(double d, double r, double sigma) { return 0.5 * std::erfc((d - r) / (M_SQRT2 * sigma)); }
+
+double segmentDistance(const Eigen::Vector2d& p, const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
+  const Eigen::Vector2d ab = b - a;
+  const double len2 = ab.squaredNorm();
+  const double t = len2 > 0.0 ? std::clamp((p - a).dot(ab) / len2, 0.0, 1.0) : 0.0;
+  return (p - (a + t * ab)).norm();
+}
+
+constexpr std::size_t kNormalTableSize = 1 << 16;
+
+const std::vector<float>& normalTable() {
+  static const std::vector<float> table = [] {
+    std::vector<float> t(kNormalTableSize);
+    std::mt19937 rng(12345);
+    std::normal_distribution<float> normal(0.f, 1.f);
+    for (float& v : t) v = normal(rng);
+    return t;
+  }();
+  return table;
+}
+
+}  // namespace
+
+RigRenderer::RigRenderer(CameraRig rig, MarkerLayout layout, RenderConfig config)
+    : rig_(std::move(rig)), layout_(std::move(layout)), config_(config) {
+  buildBackgrounds();
+}
+
+void RigRenderer::setConfig(const RenderConfig& config) {
+  const bool rebuild =
+      config.seed != config_.seed || config.clutter != config_.clutter || config.background != config_.background;
+  config_ = config;
+  if (rebuild) buildBackgrounds();
+}
+
+void RigRenderer::buildBackgrounds() {
+  backgrounds_.clear();
+  for (std::size_t c = 0; c < rig_.size(); ++c) {
+    const CameraModel& cam = rig_.cameras[c];
+    std::mt19937 rng(static_cast<std::uint32_t>(mix(config_.seed, 1000 + c)));
+    cv::Mat bg(cam.height, cam.width, CV_32FC3);
+    // A vertical gradient (the inside of the mask housing is unevenly lit) plus grey clutter (cables, mechanics).
+    for (int y = 0; y < cam.height; ++y) {
+      const float level = static_cast<float>(config_.background * (0.7 + 0.6 * y / std::max(1, cam.height - 1)));
+      bg.row(y).setTo(cv::Scalar(level, level, level));
+    }
+    std::uniform_real_distribution<double> ux(0, cam.width), uy(0, cam.height), size(5, 60), grey(10, 110), tint(-6, 6),
+        angle(0, 180);
+    for (int i = 0; i < config_.clutter; ++i) {
+      const double g = grey(rng);
+      // Slightly tinted grey: low chroma, below every class's chroma_min, as real mechanics would be.
+      const cv::Scalar colour(g + tint(rng), g + tint(rng), g + tint(rng));
+      const cv::Point centre(static_cast<int>(ux(rng)), static_cast<int>(uy(rng)));
+      if (i % 2 == 0) {
+        cv::ellipse(bg, centre, cv::Size(static_cast<int>(size(rng)), static_cast<int>(size(rng) / 2)), angle(rng), 0,
+                    360, colour, cv::FILLED, cv::LINE_AA);
+      } else {
+        cv::rectangle(bg, cv::Rect(centre.x, centre.y, static_cast<int>(size(rng)), static_cast<int>(size(rng))),
+                      colour, cv::FILLED);
+      }
+    }
+    cv::GaussianBlur(bg, bg, cv::Size(0, 0), 1.5);
+    backgrounds_.push_back(bg);
+  }
+}
+
+std::vector<ProjectedMarker> RigRenderer::project(std::size_t camera, const WorldScene& scene) const {
+  const CameraModel& cam = rig_.cameras.at(camera);
+  std::vector<ProjectedMarker> out;
+  for (const WorldMarker& m : scene.markers) {
+    ProjectedMarker p;
+    p.class_id = m.class_id;
+    if (cam.project(m.position, &p.pixel)) {
+      const double depth = (cam.world_to_camera * m.position).z();
+      p.radius_px = cam.K(0, 0) * m.radius / depth;
+      p.visible = cam.inImage(p.pixel, p.radius_px);
+    }
+    out.push_back(p);
+  }
+  return out;
+}
+
+void RigRenderer::render(std::size_t camera, const WorldScene& scene, std::uint64_t frame_index, cv::Mat* image,
+                         std::vector<ProjectedMarker>* truth) const {
+  const CameraModel& cam = rig_.cameras.at(camera);
+  std::mt19937_64 rng(mix(mix(config_.seed, camera), frame_index));
+  // Reused per thread: a fresh 3.7 MB float image per frame costs page faults, not just a copy.
+  thread_local cv::Mat radiance_buffer;
+  backgrounds_.at(camera).copyTo(radiance_buffer);
+  cv::Mat& radiance = radiance_buffer;
+
+  std::vector<ProjectedMarker> projected = project(camera, scene);
+  std::vector<Drawable> drawables;
+  for (std::size_t i = 0; i < scene.markers.size(); ++i) {
+    if (!projected[i].visible && projected[i].radius_px <= 0.0) continue;
+    Drawable d;
+    d.depth = (cam.world_to_camera * scene.markers[i].position).z();
+    d.index = i;
+    drawables.push_back(d);
+  }
+  if (config_.shafts) {
+    for (const WorldSegment& s : scene.shafts) {
+      constexpr int kPieces = 24;  // short pieces so depth ordering against markers holds piecewise
+      for (int k = 0; k < kPieces; ++k) {
+        const Eigen::Vector3d a = s.a + (s.b - s.a) * (static_cast<double>(k) / kPieces);
+        const Eigen::Vector3d b = s.a + (s.b - s.a) * (static_cast<double>(k + 1) / kPieces);
+        Drawable d;
+        d.is_marker = false;
+        if (!cam.project(a, &d.a) || !cam.project(b, &d.b)) continue;
+        d.depth = (cam.world_to_camera * (0.5 * (a + b))).z();
+        d.radius_px = cam.K(0, 0) * s.radius / d.depth;
+        drawables.push_back(d);
+      }
+    }
+  }
+  std::sort(drawables.begin(), drawables.end(), [](const Drawable& x, const Drawable& y) { return x.depth > y.depth; });
+
+  // Distractors lie in the background (behind the eye): markers and shafts are drawn over them.
+  if (config_.distractors > 0) {
+    std::uniform_real_distribution<double> ux(0, cam.width), uy(0, cam.height), angle(0, 180), u01(0, 1);
+    for (int i = 0; i < config_.distractors; ++i) {
+      const cv::Point centre(static_cast<int>(ux(rng)), static_cast<int>(uy(rng)));
+      const int kind = i % 3;
+      cv::Scalar colour(220, 40, 220);  // magenta: no class
+      if (kind != 2 && !layout_.classes.empty()) {
+        const ColourClass& c =
+            layout_.classes[static_cast<std::size_t>(u01(rng) * layout_.classes.size()) % layout_.classes.size()];
+        colour = cv::Scalar(c.bgr[0], c.bgr[1], c.bgr[2]);
+      }
+      if (kind == 0) {  // a reflection streak: elongated, class-coloured
+        cv::ellipse(radiance, centre, cv::Size(14, 2), angle(rng), 0, 360, colour, cv::FILLED, cv::LINE_AA);
+      } else if (kind == 1) {  // a large coloured patch (a glove, a label)
+        cv::circle(radiance, centre, 40, colour, cv::FILLED, cv::LINE_AA);
+      } else {
+        cv::circle(radiance, centre, 4, colour, cv::FILLED, cv::LINE_AA);
+      }
+    }
+  }
+
+  const double sigma = std::max(0.3, config_.blur_px);
+  const int samples = std::max(1, config_.motion_samples);
+  // Radiance of a marker: its colour at full exposure sits at ~240 DN so exposure > 1.06 saturates.
+  for (const Drawable& d : drawables) {
+    if (d.is_marker) {
+      const WorldMarker& m = scene.markers[d.index];
+      const ColourClass* cls = layout_.findClass(m.class_id);
+      if (!cls) continue;
+      // Sub-frame positions over [-T/2, T/2] around the stamp: the blob's centroid stays the mid-exposure point.
+      std::vector<Eigen::Vector2d> centres;
+      std::vector<double> radii;
+      for (int s = 0; s < samples; ++s) {
+        const double dt = samples > 1 ? config_.exposure_time * ((s + 0.5) / samples - 0.5) : 0.0;
+        Eigen::Vector2d px;
+        const Eigen::Vector3d p = m.position + m.velocity * dt;
+        if (!cam.project(p, &px)) continue;
+        centres.push_back(px);
+        radii.push_back(cam.K(0, 0) * m.radius / (cam.world_to_camera * p).z());
+      }
+      if (centres.empty()) continue;
+      double x0 = 1e9, x1 = -1e9, y0 = 1e9, y1 = -1e9;
+      for (std::size_t s = 0; s < centres.size(); ++s) {
+        const double ext = radii[s] + 4.0 * sigma + 1.0;
+        x0 = std::min(x0, centres[s].x() - ext);
+        x1 = std::max(x1, centres[s].x() + ext);
+        y0 = std::min(y0, centres[s].y() - ext);
+        y1 = std::max(y1, centres[s].y() + ext);
+      }
+      const int ix0 = std::max(0, static_cast<int>(std::floor(x0))),
+                ix1 = std::min(cam.width - 1, static_cast<int>(std::ceil(x1)));
+      const int iy0 = std::max(0, static_cast<int>(std::floor(y0))),
+                iy1 = std::min(cam.height - 1, static_cast<int>(std::ceil(y1)));
+      const cv::Vec3f colour(cls->bgr[0], cls->bgr[1], cls->bgr[2]);
+      for (int y = iy0; y <= iy1; ++y) {
+        cv::Vec3f* row = radiance.ptr<cv::Vec3f>(y);
+        for (int x = ix0; x <= ix1; ++x) {
+          double a = 0.0;
+          for (std::size_t s = 0; s < centres.size(); ++s) {
+            a += discCoverage(std::hypot(x - centres[s].x(), y - centres[s].y()), radii[s], sigma);
+          }
+          a /= static_cast<double>(centres.size());
+          if (a < 1e-4) continue;
+          row[x] = row[x] * static_cast<float>(1.0 - a) + colour * static_cast<float>(a);
+        }
+      }
+    } else {
+      const double ext = d.radius_px + 3.0 * sigma + 1.0;
+      const int ix0 = std::max(0, static_cast<int>(std::floor(std::min(d.a.x(), d.b.x()) - ext)));
+      const int ix1 = std::min(cam.width - 1, static_cast<int>(std::ceil(std::max(d.a.x(), d.b.x()) + ext)));
+      const int iy0 = std::max(0, static_cast<int>(std::floor(std::min(d.a.y(), d.b.y()) - ext)));
+      const int iy1 = std::min(cam.height - 1, static_cast<int>(std::ceil(std::max(d.a.y(), d.b.y()) + ext)));
+      const cv::Vec3f steel(70.f, 72.f, 75.f);
+      for (int y = iy0; y <= iy1; ++y) {
+        cv::Vec3f* row = radiance.ptr<cv::Vec3f>(y);
+        for (int x = ix0; x <= ix1; ++x) {
+          const double a = discCoverage(segmentDistance(Eigen::Vector2d(x, y), d.a, d.b), d.radius_px, sigma);
+          if (a < 1e-4) continue;
+          row[x] = row[x] * static_cast<float>(1.0 - a) + steel * static_cast<float>(a);
+        }
+      }
+    }
+  }
+
+  // Sensor: exposure, shot noise (variance ∝ signal), read noise, 8-bit quantisation with saturation.
+  image->create(cam.height, cam.width, CV_8UC3);
+  // Per-pixel normal draws from a fixed table indexed by a xorshift stream: ~10× faster than
+  // std::normal_distribution, which matters at 3 × 640×480 × 50 Hz in the rig nodelet.
+  const std::vector<float>& table = normalTable();
+  std::uint64_t state = rng() | 1ULL;
+  const float exposure = static_cast<float>(config_.exposure);
+  // Noise σ per signal level from a table (read noise and shot noise, variance ∝ signal): no sqrt per pixel.
+  std::array<float, 257> sigma_of_level;
+  for (int level = 0; level <= 256; ++level) {
+    sigma_of_level[level] = static_cast<float>(
+        std::sqrt(config_.read_noise * config_.read_noise + std::max(0.0, config_.shot_gain) * level));
+  }
+  for (int y = 0; y < cam.height; ++y) {
+    const float* in = radiance.ptr<float>(y);
+    std::uint8_t* out = image->ptr<std::uint8_t>(y);
+    for (int i = 0; i < 3 * cam.width; ++i) {
+      float v = in[i] * exposure;
+      const float sd = sigma_of_level[std::clamp(static_cast<int>(v), 0, 256)];
+      state ^= state << 13;
+      state ^= state >> 7;
+      state ^= state << 17;
+      v += sd * table[state & (kNormalTableSize - 1)];
+      // Round half up without a libm call (v > -256 always: noise is a few σ of at most ~16 DN).
+      out[i] = static_cast<std::uint8_t>(std::clamp(static_cast<int>(v + 256.5f) - 256, 0, 255));
+    }
+  }
+
+  if (truth) {
+    // A marker counts as visible when its centre is not covered by a shaft piece nearer to the camera.
+    for (std::size_t i = 0; i < projected.size(); ++i) {
+      if (!projected[i].visible || !config_.shafts) continue;
+      const double depth = (cam.world_to_camera * scene.markers[i].position).z();
+      for (const Drawable& d : drawables) {
+        if (!d.is_marker && d.depth < depth &&
+            segmentDistance(projected[i].pixel, d.a, d.b) < d.radius_px + 0.5 * projected[i].radius_px) {
+          projected[i].visible = false;
+          break;
+        }
+      }
+    }
+    *truth = std::move(projected);
+  }
+}
+
+}  // namespace vrm_tracking

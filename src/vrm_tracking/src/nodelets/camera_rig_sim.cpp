@@ -1,0 +1,224 @@
+// Camera rig twin (issue 5, thesis §7.3.2): renders the three tracking cameras from the scripted surgeon's ground
+// truth and publishes what real cameras would — sensor_msgs/Image + CameraInfo per camera through image_transport —
+// plus, for evaluation only, the exact projected centroids (<camera>/markers_exact, the ideal FPGA output).
+// A frame is rendered when the eye state and every instrument of one stamp have arrived; the images carry that
+// stamp (the exposure midpoint), never the wall clock.
+
+#include <image_transport/image_transport.h>
+#include <nodelet/nodelet.h>
+#include <ros/ros.h>
+#include <sensor_msgs/CameraInfo.h>
+#include <sensor_msgs/Image.h>
+#include <sensor_msgs/image_encodings.h>
+#include <vrm_msgs/EyeState.h>
+#include <vrm_msgs/InstrumentState.h>
+#include <vrm_msgs/MarkerObservations.h>
+#include <vrm_msgs/publish.h>
+
+#include <algorithm>
+#include <boost/make_shared.hpp>
+#include <cmath>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <pluginlib/class_list_macros.hpp>
+#include <string>
+#include <vector>
+
+#include "vrm_tracking/conversions.h"
+#include "vrm_tracking/rig_renderer.h"
+
+namespace vrm_tracking {
+
+class CameraRigSim : public nodelet::Nodelet {
+ private:
+  void onInit() override {
+    ros::NodeHandle& nh = getNodeHandle();
+    ros::NodeHandle& pnh = getPrivateNodeHandle();
+    std::string rig_file, layout_file;
+    pnh.param<std::string>("rig_file", rig_file, "");
+    pnh.param<std::string>("layout_file", layout_file, "");
+    try {
+      rig_ = rig_file.empty() ? makeDefaultRig() : loadRigYaml(rig_file);
+      layout_ = layout_file.empty() ? makeDefaultLayout() : loadLayoutYaml(layout_file);
+    } catch (const std::exception& e) {
+      NODELET_FATAL("camera_rig_sim: %s", e.what());
+      throw;
+    }
+    RenderConfig config;
+    pnh.param("blur_px", config.blur_px, config.blur_px);
+    pnh.param("read_noise", config.read_noise, config.read_noise);
+    pnh.param("shot_gain", config.shot_gain, config.shot_gain);
+    pnh.param("exposure", config.exposure, config.exposure);
+    pnh.param("exposure_time", config.exposure_time, config.exposure_time);
+    pnh.param("clutter", config.clutter, config.clutter);
+    pnh.param("distractors", config.distractors, config.distractors);
+    pnh.param("shafts", config.shafts, config.shafts);
+    int seed = 1;
+    pnh.param("seed", seed, seed);  // a parameter, so a session's noise is reproducible (§2.4.2)
+    config.seed = static_cast<std::uint32_t>(seed);
+    // Fault injection for tests: camera `stop_camera` stops publishing after `stop_after` frames.
+    pnh.param("stop_camera", stop_camera_, -1);
+    pnh.param("stop_after", stop_after_, 0);
+    renderer_ = std::make_unique<RigRenderer>(rig_, layout_, config);
+
+    std::vector<std::string> slots;
+    for (const InstrumentMarker& m : layout_.instruments) slots.push_back(m.slot);
+    pnh.param("instrument_slots", slots, slots);
+    expected_slots_ = slots;
+    pnh.param<std::string>("optical_frame_suffix", frame_suffix_, "_optical");
+
+    image_transport::ImageTransport it(nh);
+    for (const CameraModel& cam : rig_.cameras) {
+      camera_pubs_.push_back(it.advertiseCamera(cam.name + "/image_raw", 2));
+      exact_pubs_.push_back(nh.advertise<vrm_msgs::MarkerObservations>(cam.name + "/markers_exact", 5));
+    }
+    eye_sub_ = nh.subscribe("ground_truth/eye_state", 10, &CameraRigSim::onEye, this);
+    instrument_sub_ = nh.subscribe("ground_truth/instrument_state", 20, &CameraRigSim::onInstrument, this);
+    NODELET_INFO("camera_rig_sim: %zu cameras, %zu instrument slots, seed %d", rig_.size(), expected_slots_.size(),
+                 seed);
+  }
+
+  void onEye(const vrm_msgs::EyeState::ConstPtr& msg) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    // A newer eye state closes the previous stamp even if an instrument never came (a script with fewer slots).
+    if (pending_eye_ && pending_eye_->header.stamp < msg->header.stamp && !rendered_pending_) renderLocked();
+    pending_eye_ = msg;
+    rendered_pending_ = false;
+    instruments_.erase(std::remove_if(instruments_.begin(), instruments_.end(),
+                                      [&](const vrm_msgs::InstrumentState::ConstPtr& i) {
+                                        return i->header.stamp != msg->header.stamp;
+                                      }),
+                       instruments_.end());
+    if (complete()) renderLocked();
+  }
+
+  void onInstrument(const vrm_msgs::InstrumentState::ConstPtr& msg) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (!pending_eye_ || msg->header.stamp != pending_eye_->header.stamp || rendered_pending_) {
+      // Instruments of a stamp whose eye state has not arrived yet are kept for it.
+      if (!pending_eye_ || msg->header.stamp > pending_eye_->header.stamp) instruments_.push_back(msg);
+      return;
+    }
+    instruments_.push_back(msg);
+    if (complete()) renderLocked();
+  }
+
+  bool complete() const {
+    if (!pending_eye_ || rendered_pending_) return false;
+    for (const std::string& slot : expected_slots_) {
+      bool found = false;
+      for (const auto& i : instruments_)
+        found |= i->instrument_id == slot && i->header.stamp == pending_eye_->header.stamp;
+      if (!found) return false;
+    }
+    return true;
+  }
+
+  void renderLocked() {
+    rendered_pending_ = true;
+    const std_msgs::Header truth_header = pending_eye_->header;
+    SurgeonSnapshot snap;
+    snap.eye_rotation = toEigen(pending_eye_->rotation);
+    snap.rotation_center = toEigen(pending_eye_->rotation_center);
+    if (!snap.eye_rotation.coeffs().allFinite() || !snap.rotation_center.allFinite()) {
+      NODELET_WARN_THROTTLE(1.0, "camera_rig_sim: non-finite ground-truth eye state ignored");
+      return;
+    }
+    snap.eye_rotation.normalize();
+    for (const auto& i : instruments_) {
+      if (i->header.stamp != truth_header.stamp) continue;
+      InstrumentSample s = fromMsg(*i);
+      if (!s.tip.allFinite() || !s.trocar.allFinite()) continue;
+      snap.instruments.push_back(s);
+    }
+    WorldScene scene = worldSceneFromSnapshot(snap, layout_);
+    // Motion blur from the velocity against the previous truth frame.
+    if (!previous_stamp_.isZero() && truth_header.stamp > previous_stamp_ &&
+        previous_scene_.markers.size() == scene.markers.size()) {
+      setVelocities(previous_scene_, scene, (truth_header.stamp - previous_stamp_).toSec(), &scene);
+    }
+    previous_scene_ = scene;
+    previous_stamp_ = truth_header.stamp;
+
+    for (std::size_t c = 0; c < rig_.size(); ++c) {
+      if (static_cast<int>(c) == stop_camera_ && frame_ >= static_cast<std::uint64_t>(stop_after_)) continue;
+      const CameraModel& cam = rig_.cameras[c];
+      std_msgs::Header header;
+      header.stamp = truth_header.stamp;
+      header.seq = static_cast<std::uint32_t>(frame_);
+      header.frame_id = cam.name + frame_suffix_;
+
+      std::vector<ProjectedMarker> truth;
+      if (camera_pubs_[c].getNumSubscribers() == 0) {
+        // Nobody looks at the images (e.g. the tracker reads markers_exact, the FPGA path): rendering three
+        // cameras would cost more than a core at 50 Hz for nothing.
+        publishExact(c, header, renderer_->project(c, scene));
+        continue;
+      }
+      // Render straight into the message buffer: no copy between renderer and subscribers in the manager.
+      auto image = boost::make_shared<sensor_msgs::Image>();
+      image->header = header;
+      image->width = static_cast<std::uint32_t>(cam.width);
+      image->height = static_cast<std::uint32_t>(cam.height);
+      image->encoding = sensor_msgs::image_encodings::BGR8;
+      image->step = 3 * image->width;
+      image->data.resize(static_cast<std::size_t>(image->step) * image->height);
+      cv::Mat view(cam.height, cam.width, CV_8UC3, image->data.data(), image->step);
+      renderer_->render(c, scene, frame_, &view, &truth);
+
+      auto info = boost::make_shared<sensor_msgs::CameraInfo>();
+      info->header = header;
+      toMsg(cam, info.get());
+      camera_pubs_[c].publish(image, info);
+
+      publishExact(c, header, truth);
+    }
+    ++frame_;
+  }
+
+  // The exact projected centroids of the visible markers (ground truth for evaluation; the ideal FPGA output).
+  void publishExact(std::size_t c, const std_msgs::Header& header, const std::vector<ProjectedMarker>& truth) {
+    const CameraModel& cam = rig_.cameras[c];
+    auto exact = boost::make_shared<vrm_msgs::MarkerObservations>();
+    exact->header = header;
+    exact->camera_name = cam.name;
+    exact->image_width = static_cast<std::uint32_t>(cam.width);
+    exact->image_height = static_cast<std::uint32_t>(cam.height);
+    std::vector<Blob> blobs;
+    for (const ProjectedMarker& p : truth) {
+      if (!p.visible) continue;
+      Blob b;
+      b.class_id = p.class_id;
+      b.u = p.pixel.x();
+      b.v = p.pixel.y();
+      b.area = M_PI * p.radius_px * p.radius_px;
+      b.quality = 1.0;
+      blobs.push_back(b);
+    }
+    toMsg(blobs, exact.get());
+    vrm_msgs::publishShared(exact_pubs_[c], exact);
+  }
+
+  CameraRig rig_;
+  MarkerLayout layout_;
+  std::unique_ptr<RigRenderer> renderer_;
+  std::vector<std::string> expected_slots_;
+  std::string frame_suffix_;
+  std::vector<image_transport::CameraPublisher> camera_pubs_;
+  std::vector<ros::Publisher> exact_pubs_;
+  ros::Subscriber eye_sub_, instrument_sub_;
+  std::mutex mutex_;
+  vrm_msgs::EyeState::ConstPtr pending_eye_;
+  bool rendered_pending_ = false;
+  std::vector<vrm_msgs::InstrumentState::ConstPtr> instruments_;
+  WorldScene previous_scene_;
+  ros::Time previous_stamp_;
+  std::uint64_t frame_ = 0;
+  int stop_camera_ = -1;
+  int stop_after_ = 0;
+};
+
+}  // namespace vrm_tracking
+
+PLUGINLIB_EXPORT_CLASS(vrm_tracking::CameraRigSim, nodelet::Nodelet)

@@ -1,0 +1,252 @@
+// Renderer → detector → pose tracker: centroids of rendered blobs against the exact projections, distractor
+// rejection, ROI tracking with full-frame fallback, and bad input (empty image, wrong encoding, NaN, a camera
+// missing).
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <opencv2/imgproc.hpp>
+
+#include "vrm_tracking/marker_detector.h"
+#include "vrm_tracking/pose_tracker.h"
+#include "vrm_tracking/rig_renderer.h"
+
+namespace vrm_tracking {
+namespace {
+
+SurgeonSnapshot snapshot(double angle, const Eigen::Vector3d& left_tip, const Eigen::Vector3d& right_tip) {
+  const MarkerLayout layout = makeDefaultLayout();
+  SurgeonSnapshot s;
+  s.eye_rotation = Eigen::Quaterniond(Eigen::AngleAxisd(angle, Eigen::Vector3d(1, -1, 0).normalized()));
+  for (const auto& [slot, tip] :
+       {std::make_pair(std::string("left"), left_tip), std::make_pair(std::string("right"), right_tip)}) {
+    InstrumentSample i;
+    i.slot = slot;
+    i.trocar = layout.findSlot(slot)->trocar;
+    i.tip = tip;
+    i.shaft_axis = (tip - i.trocar).normalized();
+    i.insertion_depth = (tip - i.trocar).norm();
+    s.instruments.push_back(i);
+  }
+  return s;
+}
+
+class Pipeline : public testing::Test {
+ protected:
+  Pipeline()
+      : rig_(makeDefaultRig()),
+        layout_(makeDefaultLayout()),
+        detector_(layout_.classes),
+        snap_(snapshot(0.05, Eigen::Vector3d(-0.002, 0.001, -0.005), Eigen::Vector3d(0.003, -0.002, -0.008))),
+        scene_(worldSceneFromSnapshot(snap_, layout_)) {}
+
+  RenderConfig quiet() const {
+    RenderConfig c;
+    c.read_noise = 0.0;
+    c.shot_gain = 0.0;
+    return c;
+  }
+
+  CameraRig rig_;
+  MarkerLayout layout_;
+  MarkerDetector detector_;
+  SurgeonSnapshot snap_;
+  WorldScene scene_;
+};
+
+TEST_F(Pipeline, CentroidsOfNoiselessRenderingsAreSubPixelExact) {
+  RigRenderer renderer(rig_, layout_, quiet());
+  for (std::size_t c = 0; c < rig_.size(); ++c) {
+    cv::Mat image;
+    std::vector<ProjectedMarker> truth;
+    renderer.render(c, scene_, 0, &image, &truth);
+    const std::vector<Blob> blobs = detector_.detect(image);
+    for (const ProjectedMarker& t : truth) {
+      if (!t.visible) continue;
+      int matches = 0;
+      for (const Blob& b : blobs) {
+        if (b.class_id != t.class_id) continue;
+        ++matches;
+        // 8-bit quantisation, the chroma threshold and the tinted background leave a few hundredths of a pixel.
+        EXPECT_LT(std::hypot(b.u - t.pixel.x(), b.v - t.pixel.y()), 0.1) << "camera " << c << " class " << t.class_id;
+        EXPECT_GT(b.quality, 0.5);
+      }
+      EXPECT_EQ(matches, 1) << "camera " << c << " class " << t.class_id;
+    }
+  }
+}
+
+TEST_F(Pipeline, RenderedFramesTrackWithinTensOfMicrometres) {
+  RenderConfig config;  // default noise, blur, clutter, shafts
+  RigRenderer renderer(rig_, layout_, config);
+  PoseTracker tracker(rig_, layout_);
+  std::vector<CameraObservations> frame;
+  for (std::size_t c = 0; c < rig_.size(); ++c) {
+    cv::Mat image;
+    renderer.render(c, scene_, 3, &image);
+    frame.push_back({c, detector_.detect(image)});
+  }
+  const TrackingResult r = tracker.update(frame);
+  ASSERT_TRUE(r.eye.valid);
+  EXPECT_LT(r.eye.rotation.angularDistance(snap_.eye_rotation) * 180.0 / M_PI, 0.5);
+  ASSERT_EQ(r.instruments.size(), 2u);
+  for (std::size_t i = 0; i < 2; ++i) {
+    ASSERT_TRUE(r.instruments[i].valid) << r.instruments[i].slot;
+    EXPECT_LT((r.instruments[i].tip - snap_.instruments[i].tip).norm(), 60e-6) << r.instruments[i].slot;
+    EXPECT_LT((r.instruments[i].shaft_axis - snap_.instruments[i].shaft_axis).norm(), 0.05);
+  }
+}
+
+TEST_F(Pipeline, ExactCentroidsGiveExactPoses) {
+  // The FPGA path with perfect centroids: projected → reconstructed exactly.
+  RigRenderer renderer(rig_, layout_, quiet());
+  PoseTracker tracker(rig_, layout_);
+  std::vector<CameraObservations> frame;
+  for (std::size_t c = 0; c < rig_.size(); ++c) {
+    CameraObservations obs{c, {}};
+    for (const ProjectedMarker& p : renderer.project(c, scene_)) {
+      Blob b;
+      b.class_id = p.class_id;
+      b.u = p.pixel.x();
+      b.v = p.pixel.y();
+      obs.blobs.push_back(b);
+    }
+    frame.push_back(obs);
+  }
+  const TrackingResult r = tracker.update(frame);
+  ASSERT_TRUE(r.eye.valid);
+  EXPECT_LT(r.eye.rotation.angularDistance(snap_.eye_rotation), 1e-9);
+  for (std::size_t i = 0; i < 2; ++i) {
+    ASSERT_TRUE(r.instruments[i].valid);
+    EXPECT_LT((r.instruments[i].tip - snap_.instruments[i].tip).norm(), 1e-9);
+    EXPECT_NEAR(r.instruments[i].insertion_depth, snap_.instruments[i].insertion_depth, 1e-9);
+  }
+  for (const MarkerEstimate& m : r.markers) EXPECT_EQ(m.cameras, 3);
+
+  // One camera missing: two-camera fallback, still exact.
+  frame.erase(frame.begin() + 1);
+  const TrackingResult two = tracker.update(frame);
+  ASSERT_TRUE(two.instruments[0].valid);
+  EXPECT_LT((two.instruments[0].tip - snap_.instruments[0].tip).norm(), 1e-9);
+  for (const MarkerEstimate& m : two.markers) EXPECT_EQ(m.cameras, 2);
+
+  // Only one camera: nothing valid, the eye rotation is held from the last frame.
+  frame.resize(1);
+  const TrackingResult one = tracker.update(frame);
+  EXPECT_FALSE(one.eye.valid);
+  EXPECT_LT(one.eye.rotation.angularDistance(snap_.eye_rotation), 1e-9);
+  EXPECT_FALSE(one.instruments[0].valid);
+}
+
+TEST_F(Pipeline, DistractorsAreRejectedOrOutvoted) {
+  RenderConfig config;
+  config.distractors = 12;
+  RigRenderer renderer(rig_, layout_, config);
+  PoseTracker tracker(rig_, layout_);
+  for (std::uint64_t frame_index = 0; frame_index < 5; ++frame_index) {
+    std::vector<CameraObservations> frame;
+    for (std::size_t c = 0; c < rig_.size(); ++c) {
+      cv::Mat image;
+      renderer.render(c, scene_, frame_index, &image);
+      frame.push_back({c, detector_.detect(image)});
+    }
+    const TrackingResult r = tracker.update(frame);
+    for (std::size_t i = 0; i < 2; ++i) {
+      ASSERT_TRUE(r.instruments[i].valid) << "frame " << frame_index;
+      EXPECT_LT((r.instruments[i].tip - snap_.instruments[i].tip).norm(), 80e-6) << "frame " << frame_index;
+    }
+  }
+}
+
+TEST_F(Pipeline, RoiTrackerMatchesFullFrameAndFallsBack) {
+  RigRenderer renderer(rig_, layout_, quiet());
+  RoiTracker roi(&detector_, RoiTrackerConfig());
+  cv::Mat image;
+  renderer.render(0, scene_, 0, &image);
+  DetectionStats stats;
+  const std::vector<Blob> first = roi.process(image, &stats);
+  EXPECT_TRUE(stats.full_frame);  // nothing predicted yet
+  const std::vector<Blob> second = roi.process(image, &stats);
+  EXPECT_FALSE(stats.full_frame);
+  EXPECT_EQ(stats.found_classes, 4);
+  ASSERT_EQ(first.size(), second.size());
+  for (std::size_t i = 0; i < first.size(); ++i) {
+    bool same = false;
+    for (const Blob& b : second)
+      same |= b.class_id == first[i].class_id && std::hypot(b.u - first[i].u, b.v - first[i].v) < 1e-9;
+    EXPECT_TRUE(same);
+  }
+  // A jump far outside the window: the full-frame fallback finds the markers again.
+  WorldScene moved = scene_;
+  for (WorldMarker& m : moved.markers) m.position += Eigen::Vector3d(0.006, 0.0, 0.0);
+  cv::Mat jumped;
+  renderer.render(0, moved, 1, &jumped);
+  const std::vector<Blob> third = roi.process(jumped, &stats);
+  EXPECT_TRUE(stats.full_frame);
+  EXPECT_EQ(stats.found_classes, 4);
+}
+
+TEST_F(Pipeline, BadImagesAreHandled) {
+  EXPECT_TRUE(detector_.detect(cv::Mat()).empty());  // empty image: no blobs, no throw
+  EXPECT_THROW(detector_.detect(cv::Mat(480, 640, CV_8UC1, cv::Scalar(0))), std::invalid_argument);
+  EXPECT_THROW(detector_.detect(cv::Mat(480, 640, CV_16UC3, cv::Scalar(0))), std::invalid_argument);
+  // Uniform and saturated images: nothing to find.
+  EXPECT_TRUE(detector_.detect(cv::Mat(480, 640, CV_8UC3, cv::Scalar(255, 255, 255))).empty());
+  EXPECT_TRUE(detector_.detect(cv::Mat(480, 640, CV_8UC3, cv::Scalar(0, 0, 0))).empty());
+  // A region outside the image.
+  cv::Mat image(480, 640, CV_8UC3, cv::Scalar(40, 40, 40));
+  EXPECT_TRUE(detector_.detect(image, cv::Rect(700, 500, 20, 20)).empty());
+  // NaN centroids in pre-extracted observations are ignored.
+  PoseTracker tracker(rig_, layout_);
+  Blob nan;
+  nan.u = std::numeric_limits<double>::quiet_NaN();
+  const TrackingResult r = tracker.update({{0, {nan}}, {1, {nan}}, {9, {nan}}});
+  EXPECT_FALSE(r.eye.valid);
+}
+
+TEST(MarkerDetector, ClassifiesTheLayoutColours) {
+  const MarkerLayout layout = makeDefaultLayout();
+  const MarkerDetector detector(layout.classes);
+  for (const ColourClass& c : layout.classes)
+    EXPECT_EQ(detector.classify(c.bgr[0], c.bgr[1], c.bgr[2]), c.id) << c.name;
+  EXPECT_EQ(detector.classify(220, 40, 220), -1);  // magenta distractor
+  EXPECT_EQ(detector.classify(90, 92, 95), -1);    // grey
+}
+
+TEST(MarkerLayout, YamlOverridesAndErrors) {
+  const MarkerLayout l = layoutFromYamlString(R"(
+eye_markers:
+  - {class: eye_a, position: [0.01, 0, -0.005]}
+  - {class: eye_b, position: [0, 0.01, -0.005]}
+instruments:
+  - {slot: only, class: tip_right, trocar: [0, 0.008, 0.008]}
+)");
+  ASSERT_EQ(l.instruments.size(), 1u);
+  EXPECT_EQ(l.instruments[0].class_id, 3);
+  EXPECT_THROW(layoutFromYamlString("instruments:\n  - {slot: x, class: nope, trocar: [0, 0, 0]}"), std::runtime_error);
+  EXPECT_THROW(layoutFromYamlString("eye_markers:\n  - {class: eye_a, position: [0, 0, 0]}"), std::runtime_error);
+}
+
+TEST(MarkerLayout, ShippedConfigIsTheDefaultLayout) {
+  const MarkerLayout file = loadLayoutYaml(std::string(VRM_TRACKING_SOURCE_DIR) + "/config/markers_default.yaml");
+  const MarkerLayout def = makeDefaultLayout();
+  ASSERT_EQ(file.classes.size(), def.classes.size());
+  for (std::size_t i = 0; i < def.classes.size(); ++i) {
+    EXPECT_EQ(file.classes[i].name, def.classes[i].name);
+    EXPECT_EQ(file.classes[i].bgr, def.classes[i].bgr);
+    EXPECT_EQ(file.classes[i].h_min, def.classes[i].h_min);
+    EXPECT_EQ(file.classes[i].h_max, def.classes[i].h_max);
+  }
+  ASSERT_EQ(file.eye_markers.size(), 2u);
+  for (std::size_t i = 0; i < 2; ++i) {
+    EXPECT_LT((file.eye_markers[i].position - def.eye_markers[i].position).norm(), 1e-15);
+  }
+  ASSERT_EQ(file.instruments.size(), def.instruments.size());
+  for (std::size_t i = 0; i < def.instruments.size(); ++i) {
+    EXPECT_EQ(file.instruments[i].slot, def.instruments[i].slot);
+    EXPECT_LT((file.instruments[i].trocar - def.instruments[i].trocar).norm(), 1e-15);
+  }
+}
+
+}  // namespace
+}  // namespace vrm_tracking
