@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# Set-up + build, then the headless simulator with simulated hardware for a bounded time, recording the session's
-# inputs to a bag, then a summary of what was recorded.
+# Set-up + build, then the headless simulator with simulated hardware (scripted surgeon seen through the camera rig
+# twin and the optical tracking, pedals, knobs; tissue simulation; renderer) for a bounded time, recording the
+# session's inputs to a bag and saving three stereo frames, then a summary of what was recorded.
 # Usage: scripts/run.sh [--duration SECONDS] [--scene NAME] [--bag PATH] [roslaunch args...]
 set -euo pipefail
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
@@ -28,7 +29,7 @@ mkdir -p "$out"
 echo "run.sh: headless simulator, simulated hardware, scene '$scene', ${duration} s, recording to $bag"
 # The recorder is a required node with --duration, so roslaunch ends by itself; timeout is only a safety net.
 timeout --signal=INT --kill-after=15 "$(awk "BEGIN{print int($duration) + 60}")" \
-  roslaunch --screen "$ROOT/launch/simulator.launch" sim:=true headless:=true record:=true \
+  roslaunch --screen "$ROOT/launch/simulator.launch" sim:=true headless:=true record:=true tracking:=true \
   "duration:=$duration" "bag:=$bag" "scene:=$scene" "snapshot_dir:=$out" snapshot_count:=3 "${extra[@]}" \
   >"$out/launch.log" 2>&1 || true
 log="$out/launch.log"
