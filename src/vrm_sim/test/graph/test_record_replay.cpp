@@ -126,7 +126,15 @@ TEST(RecordReplay, ReplayedInputStreamEqualsTheRecordedOne) {
     ASSERT_GT(original.count(topic) ? original.at(topic).size() : 0u, 0u) << topic << " was not recorded";
   }
 
-  std::vector<std::string> recorder_args = {"rosbag", "record", "-O", replayed, "__name:=replay_check_recorder"};
+  // The recorder binary itself rather than the `rosbag record` Python wrapper, so SIGINT reaches the process that
+  // closes the bag (Debian installs it in /usr/lib/rosbag).
+  const std::string recorder_binary = fs::exists("/usr/lib/rosbag/record") ? "/usr/lib/rosbag/record" : "";
+  std::vector<std::string> recorder_args = {"-O", replayed, "__name:=replay_check_recorder"};
+  if (recorder_binary.empty()) {
+    recorder_args.insert(recorder_args.begin(), {"rosbag", "record"});
+  } else {
+    recorder_args.insert(recorder_args.begin(), recorder_binary);
+  }
   recorder_args.insert(recorder_args.end(), topics.begin(), topics.end());
   ChildProcess topic_recorder(recorder_args);
   ASSERT_TRUE(topic_recorder.started());
@@ -143,6 +151,11 @@ TEST(RecordReplay, ReplayedInputStreamEqualsTheRecordedOne) {
   }
   topic_recorder.interrupt();
   EXPECT_EQ(topic_recorder.waitFor(20.0), 0);
+  // The recorder renames <bag>.active to <bag> when it has closed the file; on a loaded machine that may trail
+  // the exit of the process that was signalled.
+  const ros::WallTime closed_deadline = ros::WallTime::now() + ros::WallDuration(20.0);
+  while (!fs::exists(replayed) && ros::WallTime::now() < closed_deadline) ros::WallDuration(0.05).sleep();
+  EXPECT_FALSE(fs::exists(replayed + ".active") && !fs::exists(replayed)) << "the re-recorder never closed its bag";
   ASSERT_TRUE(fs::exists(replayed)) << "the re-recorder left no bag";
 
   const SerializedStream replayed_stream = readBag(replayed, topics);

@@ -277,7 +277,8 @@ TEST(SceneErrors, EachMistakeNamesLineAndField) {
       {replace("name: ball", "name: ball\n    material: {diffuse: [1, 0, 0, 1.5]}"),
        "objects[0].material.diffuse[3]: expected a colour component in [0, 1], got '1.5'"},
       {replace("name: ball", "name: ball\n    collision: {detector: zbuffer}"),
-       "objects[0].collision.detector: expected one of zcoll, zcoll_f, geometric, none, got 'zbuffer'"},
+       "objects[0].collision.detector: expected one of zcoll, zcoll_f, zcoll_cpu, zcoll_f_cpu, zcoll_gl, zcoll_f_gl, "
+       "myszkowski_cpu, geometric, fcl, fcl_aabb, fcl_obbrss, fcl_kios, none, got 'zbuffer'"},
       {replace("name: ball", "name: ball\n    frame: eye\n    frame: world"), "objects[0].frame: duplicate key"},
       {replace("name: ball", "name: ball\n    pose: {xyz: [0, 0, inf]}"),
        "objects[0].pose.xyz[2]: expected a finite number, got 'inf'"},
