@@ -5,6 +5,7 @@
 #include <geometry_msgs/Point.h>
 #include <geometry_msgs/Quaternion.h>
 #include <geometry_msgs/Vector3.h>
+#include <ros/node_handle.h>
 #include <sensor_msgs/CameraInfo.h>
 #include <vrm_msgs/EyeState.h>
 #include <vrm_msgs/InstrumentState.h>
@@ -13,6 +14,7 @@
 #include <vrm_msgs/PedalState.h>
 
 #include <cstdint>
+#include <memory>
 
 #include "vrm_tracking/camera_rig.h"
 #include "vrm_tracking/pose_tracker.h"
@@ -59,5 +61,9 @@ std::vector<Blob> fromMsg(const vrm_msgs::MarkerObservations& msg);
 void toMsg(const EyeEstimate& eye, vrm_msgs::EyeState* msg);
 void toMsg(const InstrumentEstimate& estimate, const vrm_msgs::InstrumentState* sensors,
            vrm_msgs::InstrumentState* msg);
+
+// The script every device twin plays: ~script (empty = the built-in demo, builtin:NAME, or a file), with ~loop
+// overriding the file's playback mode. Throws ScriptError (file, line, field) for a malformed script.
+std::unique_ptr<SurgeonScript> loadScriptFromParams(const ros::NodeHandle& private_nh);
 
 }  // namespace vrm_tracking

@@ -23,17 +23,12 @@ class PedalsSim : public nodelet::Nodelet {
     ros::NodeHandle& nh = getNodeHandle();
     ros::NodeHandle& pnh = getPrivateNodeHandle();
 
-    std::string spec;
-    pnh.param<std::string>("script", spec, "");
     try {
-      script_ = std::make_unique<SurgeonScript>(SurgeonScript::load(spec));
+      script_ = loadScriptFromParams(pnh);
     } catch (const std::exception& e) {
       NODELET_FATAL("cannot load surgeon script: %s", e.what());
       throw;
     }
-    bool loop = script_->playback() == Playback::kLoop;
-    pnh.param("loop", loop, loop);
-    script_->setPlayback(loop ? Playback::kLoop : Playback::kOnce);
 
     double rate = 100.0;
     pnh.param("rate", rate, rate);

@@ -23,17 +23,12 @@ class ScriptedSurgeon : public nodelet::Nodelet {
     ros::NodeHandle& nh = getNodeHandle();
     ros::NodeHandle& pnh = getPrivateNodeHandle();
 
-    std::string spec;
-    pnh.param<std::string>("script", spec, "");
     try {
-      script_ = std::make_unique<SurgeonScript>(SurgeonScript::load(spec));
+      script_ = loadScriptFromParams(pnh);
     } catch (const std::exception& e) {
       NODELET_FATAL("cannot load surgeon script: %s", e.what());
       throw;
     }
-    bool loop = script_->playback() == Playback::kLoop;
-    pnh.param("loop", loop, loop);
-    script_->setPlayback(loop ? Playback::kLoop : Playback::kOnce);
 
     double tremor_um = 0.0;
     int seed = 0;
@@ -60,8 +55,8 @@ class ScriptedSurgeon : public nodelet::Nodelet {
 
     NODELET_INFO("playing script '%s' (%s, %zu instruments, %.1f s, %s) at %.1f Hz, tremor %.1f um (seed %d)",
                  script_->name().c_str(), script_->definition().source.c_str(),
-                 script_->definition().instruments.size(), script_->duration(), loop ? "loop" : "once", rate, tremor_um,
-                 seed);
+                 script_->definition().instruments.size(), script_->duration(),
+                 script_->playback() == Playback::kLoop ? "loop" : "once", rate, tremor_um, seed);
   }
 
   void onTick(const ros::TimerEvent& event) {

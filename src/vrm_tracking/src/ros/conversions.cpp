@@ -230,4 +230,14 @@ void toMsg(const InstrumentEstimate& est, const vrm_msgs::InstrumentState* senso
   msg->valid = est.valid;
 }
 
+std::unique_ptr<SurgeonScript> loadScriptFromParams(const ros::NodeHandle& private_nh) {
+  std::string spec;
+  private_nh.param<std::string>("script", spec, "");
+  auto script = std::make_unique<SurgeonScript>(SurgeonScript::load(spec));
+  bool loop = script->playback() == Playback::kLoop;
+  private_nh.param("loop", loop, loop);
+  script->setPlayback(loop ? Playback::kLoop : Playback::kOnce);
+  return script;
+}
+
 }  // namespace vrm_tracking
