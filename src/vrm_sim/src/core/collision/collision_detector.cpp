@@ -101,6 +101,13 @@ CollisionStatus validate(const Eigen::Isometry3d& pose, const SurfaceView& surfa
   return CollisionStatus::kOk;
 }
 
+CollisionStatus validateMeshQuery(bool has_instrument, const InstrumentModel& instrument, const Eigen::Isometry3d& pose,
+                                  const SurfaceView& surface) {
+  if (!has_instrument) return CollisionStatus::kNoInstrument;
+  if (instrument.mesh.triangles.empty()) return CollisionStatus::kEmptyInput;
+  return validate(pose, surface);
+}
+
 void NodeAccumulator::begin(std::size_t node_count) {
   if (sum_.size() != node_count) {
     sum_.assign(node_count, 0.0);

@@ -17,6 +17,9 @@ namespace internal {
 
 // Checks pose, positions and indices; returns kOk or the status to report.
 CollisionStatus validate(const Eigen::Isometry3d& pose, const SurfaceView& surface);
+// The image-space detectors' precondition: an instrument with a mesh to rasterize, then validate().
+CollisionStatus validateMeshQuery(bool has_instrument, const InstrumentModel& instrument, const Eigen::Isometry3d& pose,
+                                  const SurfaceView& surface);
 bool isFinite(const Eigen::Isometry3d& pose);
 
 // Thesis §4.2.2: every contribution to a triangle is a candidate vector for each of its nodes; per node the set

@@ -41,15 +41,7 @@ class ZcollCpuDetector : public CollisionDetector {
   CollisionResult collide(const Eigen::Isometry3d& pose, const SurfaceView& surface) override {
     Stopwatch total, phase;
     CollisionResult result;
-    if (!has_instrument_) {
-      result.status = CollisionStatus::kNoInstrument;
-      return result;
-    }
-    if (instrument_.mesh.triangles.empty()) {
-      result.status = CollisionStatus::kEmptyInput;
-      return result;
-    }
-    result.status = validate(pose, surface);
+    result.status = validateMeshQuery(has_instrument_, instrument_, pose, surface);
     if (result.status != CollisionStatus::kOk) return result;
     if (!cache_valid_) renderInstrument();
     result.pixel_size = volume_.pixel_size;
