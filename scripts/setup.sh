@@ -11,7 +11,7 @@ PACKAGES=(
   libtf2-ros-dev libtf2-eigen-dev libtf2-geometry-msgs-dev ros-sensor-msgs libvisualization-msgs-dev
   libcv-bridge-dev libimage-transport-dev libopencv-dev libeigen3-dev
   libgtest-dev libbenchmark-dev libosmesa6-dev
-  libassimp-dev libyaml-cpp-dev libfcl-dev libsqlite3-dev
+  libassimp-dev libyaml-cpp-dev libfcl-dev libsqlite3-dev libbullet-dev
   python3-matplotlib
 )
 
