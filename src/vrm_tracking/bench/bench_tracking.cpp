@@ -11,11 +11,13 @@
 #include <cstdio>
 #include <cstring>
 #include <fstream>
+#include <functional>
 #include <sstream>
 #include <string>
 #include <vector>
 
 #include "vrm_tracking/evaluation.h"
+#include "vrm_tracking/pose_filter.h"
 
 using namespace vrm_tracking;
 
@@ -40,6 +42,8 @@ struct Row {
   RenderConfig render;
   double tip_marker_mm = 0.4;
   bool roi = true;
+  PoseFilterConfig filter;  // kNone for the accuracy rows
+  double filter_lag_ms = 0.0;
 };
 
 std::string num(double v) {
@@ -61,11 +65,13 @@ std::string toJson(const Row& row) {
     << ", \"eye_err_max_deg\": " << num(row.r.eye_err_max_deg) << ", \"detect_rate\": " << num(row.r.detect_rate)
     << ", \"track_rate\": " << num(row.r.track_rate) << ", \"ms_detect\": " << num(row.r.ms_detect)
     << ", \"ms_reconstruct\": " << num(row.r.ms_reconstruct) << ", \"full_frame_rate\": " << num(row.r.full_frame_rate)
-    << ", \"frames\": " << row.r.frames;
+    << ", \"frames\": " << row.r.frames << ", \"filter\": \"" << toString(row.filter.type) << "\""
+    << ", \"filter_lag_ms\": " << num(row.filter_lag_ms);
   if (row.source == "rendered") {
     o << ", \"read_noise_dn\": " << num(row.render.read_noise) << ", \"blur_px\": " << num(row.render.blur_px)
       << ", \"exposure\": " << num(row.render.exposure) << ", \"distractors\": " << row.render.distractors
-      << ", \"tip_marker_radius_mm\": " << num(row.tip_marker_mm) << ", \"roi\": " << (row.roi ? "true" : "false");
+      << ", \"tip_marker_radius_mm\": " << num(row.tip_marker_mm) << ", \"roi\": " << (row.roi ? "true" : "false")
+      << ", \"ms_render\": " << num(row.r.ms_render);
   }
   o << "}";
   return o.str();
@@ -75,6 +81,7 @@ std::string toJson(const Row& row) {
 
 int main(int argc, char** argv) {
   bool quick = false;
+  std::string only;  // run only the rows whose label contains this (development; the suite runs everything)
   std::string out = "bench/results/tracking.json";
   std::string command = "bench_tracking";
   for (int i = 1; i < argc; ++i) {
@@ -84,8 +91,11 @@ int main(int argc, char** argv) {
     } else if (!std::strcmp(argv[i], "--out") && i + 1 < argc) {
       out = argv[++i];
       command += std::string(" ") + argv[i];
+    } else if (!std::strcmp(argv[i], "--only") && i + 1 < argc) {
+      only = argv[++i];
+      command += std::string(" ") + argv[i];
     } else {
-      std::fprintf(stderr, "usage: bench_tracking [--quick] [--out FILE]\n");
+      std::fprintf(stderr, "usage: bench_tracking [--quick] [--out FILE] [--only LABEL_SUBSTRING]\n");
       return 2;
     }
   }
@@ -96,8 +106,9 @@ int main(int argc, char** argv) {
   const int floor_trials = quick ? 20 : 200;
   std::vector<Row> rows;
 
+  auto wanted = [&only](const std::string& label) { return only.empty() || label.find(only) != std::string::npos; };
   // (1) Centroid noise: the FPGA path. Tips move at 10 mm/s (positions only; no images).
-  {
+  if (wanted("cameras")) {
     const auto truth = circlingSurgeon(layout, 0.010);
     std::vector<double> times;
     std::vector<Eigen::Vector3d> tip_points;
@@ -133,6 +144,37 @@ int main(int argc, char** argv) {
     }
   }
 
+  // (1b) Filters (pose_filter.h) on the centroid path: noise reduction at rest (the truth frozen at t = 0) and the
+  // cost of their lag at 10 mm/s, 0.3 px noise, three cameras. filter_lag_ms: steady-state lag on a 10 mm/s ramp.
+  std::vector<PoseFilterConfig> filters(3);
+  filters[1].type = FilterType::kOneEuro;
+  filters[2].type = FilterType::kAlphaBeta;
+  {
+    const auto moving = circlingSurgeon(layout, 0.010);
+    const std::function<SurgeonSnapshot(double)> resting = [moving](double) { return moving(0.0); };
+    std::vector<double> times;
+    for (int f = 0; f < frames_noise; ++f) times.push_back(f / 50.0);
+    for (const PoseFilterConfig& filter : filters) {
+      for (bool still : {true, false}) {
+        Row row;
+        row.source = "centroid_noise";
+        row.label = std::string(still ? "at rest" : "10 mm/s") + ", filter " + toString(filter.type);
+        if (!wanted(row.label)) continue;
+        row.noise_px = 0.3;
+        row.speed_mm_s = still ? 0.0 : 10.0;
+        row.filter = filter;
+        row.filter_lag_ms = filter.type == FilterType::kNone ? 0.0 : 1e3 * measureRampLag(filter, 0.010, 50.0);
+        EvalOptions opt;
+        opt.noise_px = 0.3;
+        opt.seed = 13;
+        opt.clock = now;
+        opt.tracker.filter = filter;
+        row.r = evaluate(rig, layout, still ? resting : moving, times, opt);
+        rows.push_back(row);
+      }
+    }
+  }
+
   // (2) Rendered images: detection + reconstruction end to end.
   struct Case {
     std::string label;
@@ -142,6 +184,8 @@ int main(int argc, char** argv) {
     double tip_marker_mm;
     bool roi;
     double scale;  // resolution scale (focal length scales with it)
+    PoseFilterConfig filter = PoseFilterConfig();
+    double clean_quality_ratio = TrackerConfig().clean_quality_ratio;
   };
   std::vector<Case> cases;
   RenderConfig base;
@@ -176,11 +220,17 @@ int main(int argc, char** argv) {
     RenderConfig c = base;
     c.distractors = 12;
     cases.push_back({"12 distractor blobs", 10.0, 0, c, 0.4, true, 1.0});
+    Case untiered{"12 distractor blobs, no quality tiering", 10.0, 0, c, 0.4, true, 1.0};
+    untiered.clean_quality_ratio = 0.0;
+    cases.push_back(untiered);
   }
   cases.push_back({"full-frame detection (no ROI)", 10.0, 0, base, 0.4, false, 1.0});
+  cases.push_back({"10 mm/s, filter one_euro", 10.0, 0, base, 0.4, true, 1.0, filters[1]});
+  cases.push_back({"10 mm/s, filter alpha_beta", 10.0, 0, base, 0.4, true, 1.0, filters[2]});
   if (!quick) cases.push_back({"1280x960", 10.0, 0, base, 0.4, true, 2.0});
 
   for (const Case& c : cases) {
+    if (!wanted(c.label)) continue;
     MarkerLayout l = layout;
     l.tip_marker_radius = c.tip_marker_mm * 1e-3;
     DefaultRigGeometry g;
@@ -209,6 +259,10 @@ int main(int argc, char** argv) {
     opt.occluded_camera = c.occluded ? 2 : -1;
     opt.seed = 21;
     opt.clock = now;
+    opt.tracker.filter = c.filter;
+    opt.tracker.clean_quality_ratio = c.clean_quality_ratio;
+    row.filter = c.filter;
+    row.filter_lag_ms = c.filter.type == FilterType::kNone ? 0.0 : 1e3 * measureRampLag(c.filter, 0.010, 50.0);
     row.r = evaluate(r, l, truth, times, opt);
     rows.push_back(row);
   }

@@ -1,6 +1,6 @@
 // The VR part's entry point (thesis §2.4: object manager + scenario manager). Loads the scene, builds only what
 // it needs (MGE membranes for deformable objects only), takes every input topic of the VR part, keeps the frame
-// tree on tf2 (world -> eye -> trocar_* / instrument_*) and publishes the scene's surfaces for rendering, collision
+// tree on tf2 (world -> eye -> trocar_* -> instrument_*) and publishes the scene's surfaces for rendering, collision
 // and RViz. Stamps come from the inputs, so a replayed bag produces the same frames.
 #include <geometry_msgs/TransformStamped.h>
 #include <nodelet/nodelet.h>
@@ -55,6 +55,9 @@ class SceneManager : public nodelet::Nodelet {
     ros::NodeHandle& private_nh = getPrivateNodeHandle();
     world_frame_ = private_nh.param<std::string>("world_frame", "world");
     eye_frame_ = private_nh.param<std::string>("eye_frame", "eye");
+    // false when another node owns world -> eye -> trocar_* -> instrument_* (the optical tracker, tracking mode):
+    // one publisher per transform.
+    publish_pose_tf_ = private_nh.param("publish_pose_tf", true);
     const std::string scene_parameter = private_nh.param<std::string>("scene", "membrane_peeling");
 
     const std::string scene_path =
@@ -71,7 +74,7 @@ class SceneManager : public nodelet::Nodelet {
     NODELET_INFO("scene '%s' (%s): %zu objects, %zu deformable, %zu instruments", scene_.name.c_str(),
                  scene_path.c_str(), scene_.objects.size(), membranes_.size(), scene_.instruments.size());
 
-    publishStaticFrames();
+    if (publish_pose_tf_) publishStaticFrames();
     publishSurfaces(nh);
 
     eye_subscriber_ = nh.subscribe("eye_state", 10, &SceneManager::onEyeState, this);
@@ -179,7 +182,7 @@ class SceneManager : public nodelet::Nodelet {
     geometry_msgs::Pose pose;
     pose.position = eye->rotation_center;
     pose.orientation = eye->rotation;
-    if (!eye->valid) return;
+    if (!eye->valid || !publish_pose_tf_) return;
     if (!isFinite(pose)) {
       NODELET_WARN_THROTTLE(1.0, "eye_state with a non-finite pose ignored");
       return;
@@ -193,7 +196,7 @@ class SceneManager : public nodelet::Nodelet {
   }
 
   void onInstrumentState(const vrm_msgs::InstrumentState::ConstPtr& instrument) {
-    if (!instrument->valid) return;
+    if (!instrument->valid || !publish_pose_tf_) return;
     if (!isFinite(instrument->tip_pose) || instrument->instrument_id.empty()) {
       NODELET_WARN_THROTTLE(1.0, "instrument_state '%s' with a non-finite pose or no id ignored",
                             instrument->instrument_id.c_str());
@@ -203,7 +206,14 @@ class SceneManager : public nodelet::Nodelet {
     frame.header.stamp = instrument->header.stamp;
     frame.header.frame_id = instrument->header.frame_id.empty() ? eye_frame_ : instrument->header.frame_id;
     frame.child_frame_id = "instrument_" + instrument->instrument_id;
-    frame.transform = toTransformMsg(toEigen(instrument->tip_pose));
+    Eigen::Isometry3d tip = toEigen(instrument->tip_pose);
+    // world -> eye -> trocar_* -> instrument_*: the instrument hangs below its trocar (an eye-frame translation).
+    const scene::Trocar* trocar = scene_.findTrocar(instrument->instrument_id);
+    if (trocar && frame.header.frame_id == eye_frame_) {
+      frame.header.frame_id = "trocar_" + trocar->name;
+      tip.translation() -= trocar->position_in_eye;
+    }
+    frame.transform = toTransformMsg(tip);
     broadcaster_.sendTransform(frame);
   }
 
@@ -230,6 +240,7 @@ class SceneManager : public nodelet::Nodelet {
 
   std::string world_frame_;
   std::string eye_frame_;
+  bool publish_pose_tf_ = true;
   scene::SceneDescription scene_;
   mge::Graph graph_;
   std::map<std::string, TriangleMesh> meshes_;

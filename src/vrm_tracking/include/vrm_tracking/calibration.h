@@ -6,6 +6,7 @@
 // whole procedure is testable against a known rig.
 
 #include <opencv2/core.hpp>
+#include <string>
 #include <vector>
 
 #include "vrm_tracking/camera_rig.h"
@@ -46,5 +47,41 @@ IntrinsicCalibration calibrateIntrinsics(const std::vector<cv::Mat>& views, cons
 // false if the target is not found.
 bool calibrateExtrinsics(const cv::Mat& reference, const ChessboardTarget& target,
                          const Eigen::Isometry3d& target_to_world, CameraModel* camera, double* rms_px = nullptr);
+
+// --- Whole-rig procedure (the calibrate_rig tool and its tests) ---
+
+// The world fixture: the target centred on `centre` (the eye's rotation centre), printed face down towards the
+// cameras below. Its pose defines the world frame of the extrinsics.
+Eigen::Isometry3d fixturePose(const ChessboardTarget& target, const Eigen::Vector3d& centre);
+
+// A target pose facing `camera`, its centre at `centre` (world), tilted about its x and y axes and spun in-plane.
+Eigen::Isometry3d facingPose(const CameraModel& camera, const ChessboardTarget& target, const Eigen::Vector3d& centre,
+                             double tilt_x, double tilt_y, double spin);
+
+// `count` seeded calibration poses for one camera: centres within ±4 mm of `centre`, tilts within ±0.7 rad.
+std::vector<Eigen::Isometry3d> calibrationPoses(const CameraModel& camera, const ChessboardTarget& target,
+                                                const Eigen::Vector3d& centre, int count, unsigned seed);
+
+struct CameraCalibrationResult {
+  bool ok = false;
+  CameraModel camera;  // calibrated intrinsics + extrinsics (name and size from the images)
+  double intrinsic_rms_px = 0.0;
+  double extrinsic_rms_px = 0.0;
+  int views_used = 0;
+  std::string error;  // why not ok
+};
+
+// Intrinsics (Zhang) from `views`, extrinsics from `reference` (the target at `target_to_world`).
+CameraCalibrationResult calibrateCamera(const std::string& name, const std::vector<cv::Mat>& views,
+                                        const cv::Mat& reference, const ChessboardTarget& target,
+                                        const Eigen::Isometry3d& target_to_world);
+
+// Errors of a calibrated camera against the true one: focal length (%, worst of fx/fy), centre (m), rotation (deg).
+struct CalibrationError {
+  double focal_percent = 0.0;
+  double position_m = 0.0;
+  double rotation_deg = 0.0;
+};
+CalibrationError compareCameras(const CameraModel& calibrated, const CameraModel& truth);
 
 }  // namespace vrm_tracking

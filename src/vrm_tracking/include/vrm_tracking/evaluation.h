@@ -41,6 +41,7 @@ struct EvalResult {
   double track_rate = 0.0;       // instrument-frames with a valid pose
   double ms_detect = 0.0;        // per camera triple
   double ms_reconstruct = 0.0;   // per frame (all markers, eye and instruments)
+  double ms_render = 0.0;        // rendered mode: the synthetic rig's cost per camera triple (not the pipeline's)
   double full_frame_rate = 0.0;  // fraction of camera frames that needed a full-frame pass
 };
 

@@ -21,7 +21,10 @@ struct Blob {
   double v = 0.0;
   double area = 0.0;       // px²
   double roundness = 0.0;  // sqrt(λmin/λmax) of the weighted second moments, 1 = round
-  double quality = 0.0;    // 0..1: roundness, exposure (mean chroma), saturation
+  double quality = 0.0;    // 0..1: roundness, exposure (mean chroma), saturation, clean surroundings
+  // Fraction of a ring just outside the blob (1.5..3 px beyond its equivalent radius) that is coloured: a marker
+  // over a coloured distractor blends with it, so its chroma-weighted centroid is biased (distractor rejection).
+  double contamination = 0.0;
   bool touches_region_border = false;
 };
 
@@ -36,6 +39,8 @@ class MarkerDetector {
   // Components of the colour classes before the area/roundness gate (for diagnostics and tests).
   std::vector<Blob> components(const cv::Mat& bgr, cv::Rect region, int only_class = -1) const;
 
+  // Fraction of coloured pixels on a ring around (u, v) just outside a blob of this equivalent radius.
+  double ringContamination(const cv::Mat& bgr, double u, double v, double radius) const;
   // Class of one BGR pixel per the table, or -1.
   int classify(std::uint8_t b, std::uint8_t g, std::uint8_t r) const;
   const std::vector<ColourClass>& classes() const { return classes_; }
@@ -50,6 +55,7 @@ struct RoiTrackerConfig {
   int roi_half = 20;             // px: window half size around the prediction (a 41×41 search)
   int lost_search_interval = 5;  // frames between full-frame searches for a class not found anywhere
   int max_candidates = 3;        // per class in full-frame mode (the reconstruction picks the consistent one)
+  int lost_roi_frames = 25;      // frames a lost class is still searched around its last position (0.5 s at 50 Hz)
   bool use_roi = true;
 };
 
@@ -70,6 +76,7 @@ class RoiTracker {
   struct ClassState {
     bool valid = false;
     bool has_velocity = false;
+    bool seen = false;  // u, v hold a last position
     double u = 0.0, v = 0.0, du = 0.0, dv = 0.0;
     int lost_frames = 0;
   };

@@ -8,12 +8,14 @@
 // ROS-free; the tracker nodelet and the offline tools share it.
 
 #include <Eigen/Geometry>
+#include <limits>
 #include <string>
 #include <vector>
 
 #include "vrm_tracking/camera_rig.h"
 #include "vrm_tracking/marker_detector.h"
 #include "vrm_tracking/marker_layout.h"
+#include "vrm_tracking/pose_filter.h"
 #include "vrm_tracking/triangulation.h"
 
 namespace vrm_tracking {
@@ -28,12 +30,18 @@ struct TrackerConfig {
   double gate_px = 3.0;                  // accept a reconstruction whose RMS reprojection residual is below this
   double max_radius = 0.03;              // m: reject points farther than this from the rotation centre
   double eye_marker_tolerance = 0.0015;  // m: |marker − centre| must match the layout within this
+  // Blobs below this fraction of the best quality of their class in the frame are used only if the others do not
+  // reconstruct (distractor rejection; 0 = off).
+  double clean_quality_ratio = 0.5;
+  // Optional filter of every reconstructed marker position (so of the eye rotation and the tips); off by default.
+  PoseFilterConfig filter;
 };
 
 struct MarkerEstimate {
   int class_id = 0;
   bool valid = false;
-  Eigen::Vector3d position = Eigen::Vector3d::Zero();  // world, m
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();      // world, m (filtered if a filter is configured)
+  Eigen::Vector3d raw_position = Eigen::Vector3d::Zero();  // world, m, as triangulated
   double rms_px = 0.0;
   int cameras = 0;
   double quality = 0.0;  // 0..1
@@ -66,10 +74,12 @@ class PoseTracker {
  public:
   PoseTracker(CameraRig rig, MarkerLayout layout, TrackerConfig config = TrackerConfig());
 
-  // Observations of unknown cameras and non-finite centroids are ignored (never thrown on).
-  TrackingResult update(const std::vector<CameraObservations>& frame);
+  // Observations of unknown cameras and non-finite centroids are ignored (never thrown on). stamp (s, the camera
+  // exposure time) drives the optional filter; NaN: 20 ms after the previous frame.
+  TrackingResult update(const std::vector<CameraObservations>& frame,
+                        double stamp = std::numeric_limits<double>::quiet_NaN());
   MarkerEstimate reconstruct(int class_id, const std::vector<CameraObservations>& frame) const;
-  void reset() { last_eye_ = EyeEstimate(); }
+  void reset();
 
   const CameraRig& rig() const { return rig_; }
   const MarkerLayout& layout() const { return layout_; }
@@ -79,6 +89,8 @@ class PoseTracker {
   MarkerLayout layout_;
   TrackerConfig config_;
   EyeEstimate last_eye_;
+  std::vector<PointFilter> filters_;  // per colour class (index as layout_.classes)
+  double last_stamp_ = 0.0;
 };
 
 // Rotation R (world -> eye) that best maps the layout's eye-frame marker positions a0, b0 onto the measured

@@ -52,11 +52,14 @@ class RigRenderer {
 
  private:
   void buildBackgrounds();
+  float sensorSigma(int level) const;  // read + shot noise σ (DN) at a signal level
 
   CameraRig rig_;
   MarkerLayout layout_;
   RenderConfig config_;
-  std::vector<cv::Mat> backgrounds_;  // CV_32FC3 per camera, static clutter
+  std::vector<cv::Mat> backgrounds_;                          // CV_32FC3 per camera, static clutter
+  std::vector<std::vector<std::uint8_t>> background_levels_;  // per camera: exposed background, 8 bit
+  std::vector<std::uint8_t> noise_lut_;  // 256 levels × 256 noisy samples (sensor model of untouched pixels)
 };
 
 }  // namespace vrm_tracking

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
+#include <random>
 
 namespace vrm_tracking {
 
@@ -157,6 +158,77 @@ bool calibrateExtrinsics(const cv::Mat& reference, const ChessboardTarget& targe
     *rms_px = std::sqrt(sum / projected.size());
   }
   return true;
+}
+
+Eigen::Isometry3d fixturePose(const ChessboardTarget& target, const Eigen::Vector3d& centre) {
+  Eigen::Isometry3d fixture = Eigen::Isometry3d::Identity();
+  fixture.linear() = Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitX()).toRotationMatrix();
+  fixture.translation() = centre - fixture.linear() * target.centre();
+  return fixture;
+}
+
+Eigen::Isometry3d facingPose(const CameraModel& camera, const ChessboardTarget& target, const Eigen::Vector3d& centre,
+                             double tilt_x, double tilt_y, double spin) {
+  const Eigen::Matrix3d camera_to_world = camera.world_to_camera.linear().transpose();
+  // Target z along the camera's viewing direction (the printed face looks back at the camera), then the tilts and
+  // an in-plane spin.
+  const Eigen::Matrix3d facing = camera_to_world * Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitX()).toRotationMatrix();
+  const Eigen::Matrix3d rot = facing * Eigen::AngleAxisd(tilt_x, Eigen::Vector3d::UnitX()) *
+                              Eigen::AngleAxisd(tilt_y, Eigen::Vector3d::UnitY()) *
+                              Eigen::AngleAxisd(spin, Eigen::Vector3d::UnitZ());
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  pose.linear() = rot;
+  pose.translation() = centre - rot * target.centre();
+  return pose;
+}
+
+std::vector<Eigen::Isometry3d> calibrationPoses(const CameraModel& camera, const ChessboardTarget& target,
+                                                const Eigen::Vector3d& centre, int count, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> pos(-0.004, 0.004), tilt(-0.7, 0.7), spin(-M_PI, M_PI);
+  std::vector<Eigen::Isometry3d> poses;
+  for (int i = 0; i < count; ++i) {
+    const Eigen::Vector3d c = centre + Eigen::Vector3d(pos(rng), pos(rng), pos(rng));
+    const double tx = tilt(rng), ty = tilt(rng), sp = spin(rng);
+    poses.push_back(facingPose(camera, target, c, tx, ty, sp));
+  }
+  return poses;
+}
+
+CameraCalibrationResult calibrateCamera(const std::string& name, const std::vector<cv::Mat>& views,
+                                        const cv::Mat& reference, const ChessboardTarget& target,
+                                        const Eigen::Isometry3d& target_to_world) {
+  CameraCalibrationResult result;
+  const IntrinsicCalibration intr = calibrateIntrinsics(views, target);
+  result.views_used = intr.views_used;
+  result.intrinsic_rms_px = intr.rms_px;
+  if (!intr.ok) {
+    result.error = name + ": target found in " + std::to_string(intr.views_used) + " views (3 needed)";
+    return result;
+  }
+  CameraModel& cam = result.camera;
+  cam.name = name;
+  cam.width = reference.cols;
+  cam.height = reference.rows;
+  cam.K = intr.K;
+  cam.distortion = intr.distortion;
+  if (!calibrateExtrinsics(reference, target, target_to_world, &cam, &result.extrinsic_rms_px)) {
+    result.error = name + ": target not found in the reference (fixture) image";
+    return result;
+  }
+  result.ok = true;
+  return result;
+}
+
+CalibrationError compareCameras(const CameraModel& calibrated, const CameraModel& truth) {
+  CalibrationError e;
+  e.focal_percent = 100.0 * std::max(std::abs(calibrated.K(0, 0) / truth.K(0, 0) - 1.0),
+                                     std::abs(calibrated.K(1, 1) / truth.K(1, 1) - 1.0));
+  e.position_m = (calibrated.centreInWorld() - truth.centreInWorld()).norm();
+  e.rotation_deg = Eigen::Quaterniond(calibrated.world_to_camera.linear())
+                       .angularDistance(Eigen::Quaterniond(truth.world_to_camera.linear())) *
+                   180.0 / M_PI;
+  return e;
 }
 
 }  // namespace vrm_tracking

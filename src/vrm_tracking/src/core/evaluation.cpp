@@ -56,7 +56,7 @@ EvalResult evaluate(const CameraRig& rig, const MarkerLayout& layout,
   for (std::size_t c = 0; c < rig.size(); ++c) roi.emplace_back(&detector, options.roi);
   PoseTracker tracker(rig, layout, options.tracker);
 
-  double tip2 = 0.0, tip_eye2 = 0.0, eye2 = 0.0, t_detect = 0.0, t_rec = 0.0;
+  double tip2 = 0.0, tip_eye2 = 0.0, eye2 = 0.0, t_detect = 0.0, t_rec = 0.0, t_render = 0.0;
   long tips = 0, tips_valid = 0, visible = 0, detected = 0, camera_frames = 0, full_frames = 0;
   cv::Mat image;
   for (std::size_t f = 0; f < times.size(); ++f) {
@@ -86,7 +86,9 @@ EvalResult evaluate(const CameraRig& rig, const MarkerLayout& layout,
         }
       } else {
         std::vector<ProjectedMarker> projected;
+        const double r0 = options.clock ? options.clock() : 0.0;
         renderer.render(c, scene, f, &image, &projected);
+        if (options.clock) t_render += options.clock() - r0;
         DetectionStats stats;
         const double t0 = options.clock ? options.clock() : 0.0;
         obs.blobs = roi[c].process(image, &stats);
@@ -107,7 +109,7 @@ EvalResult evaluate(const CameraRig& rig, const MarkerLayout& layout,
       frame.push_back(std::move(obs));
     }
     const double t0 = options.clock ? options.clock() : 0.0;
-    const TrackingResult r = tracker.update(frame);
+    const TrackingResult r = tracker.update(frame, t);
     if (options.clock) t_rec += options.clock() - t0;
 
     const double e = angleDeg(r.eye.rotation, snap.eye_rotation);
@@ -139,6 +141,7 @@ EvalResult evaluate(const CameraRig& rig, const MarkerLayout& layout,
     result.eye_err_deg = std::sqrt(eye2 / times.size());
     result.ms_detect = 1e3 * t_detect / times.size();
     result.ms_reconstruct = 1e3 * t_rec / times.size();
+    result.ms_render = 1e3 * t_render / times.size();
   }
   result.detect_rate = visible > 0 ? static_cast<double>(detected) / visible : 0.0;
   result.track_rate = tips > 0 ? static_cast<double>(tips_valid) / tips : 0.0;

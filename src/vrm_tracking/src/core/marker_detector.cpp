@@ -29,6 +29,8 @@ double hueDeg(double b, double g, double r) {
   return h < 0.0 ? h + 360.0 : h;
 }
 
+constexpr double kPi = 3.14159265358979323846;
+
 bool inHue(double h, double lo, double hi) { return lo <= hi ? (h >= lo && h <= hi) : (h >= lo || h <= hi); }
 
 struct Accumulator {
@@ -36,6 +38,24 @@ struct Accumulator {
   bool border = false;
 };
 }  // namespace
+
+double MarkerDetector::ringContamination(const cv::Mat& bgr, double u, double v, double radius) const {
+  // 32 samples on each of two circles, 1.5 and 3 px beyond the equivalent radius (past the blur of the edge).
+  int coloured = 0, samples = 0;
+  for (const double r : {radius + 1.5, radius + 3.0}) {
+    for (int i = 0; i < 32; ++i) {
+      const double a = 2.0 * kPi * i / 32.0;
+      const int x = static_cast<int>(std::lround(u + r * std::cos(a))),
+                y = static_cast<int>(std::lround(v + r * std::sin(a)));
+      if (x < 0 || y < 0 || x >= bgr.cols || y >= bgr.rows) continue;
+      const std::uint8_t* p = bgr.ptr<std::uint8_t>(y) + 3 * x;
+      const int mx = std::max({p[0], p[1], p[2]}), mn = std::min({p[0], p[1], p[2]});
+      ++samples;
+      coloured += mx - mn >= min_chroma_;
+    }
+  }
+  return samples > 0 ? static_cast<double>(coloured) / samples : 0.0;
+}
 
 MarkerDetector::MarkerDetector(std::vector<ColourClass> classes) : classes_(std::move(classes)) {
   lut_.assign(1 << (3 * kLutBits), -1);
@@ -169,8 +189,10 @@ std::vector<Blob> MarkerDetector::components(const cv::Mat& bgr, cv::Rect region
     const double l1 = tr / 2.0 + disc, l2 = std::max(0.0, tr / 2.0 - disc);
     b.roundness = l1 > 0.0 ? std::sqrt(l2 / l1) : 0.0;
     const double mean_chroma = acc.sw / acc.n;
-    b.quality =
-        std::clamp(b.roundness * (1.0 - 0.5 * acc.saturated / acc.n) * std::min(1.0, mean_chroma / 100.0), 0.0, 1.0);
+    b.contamination = ringContamination(bgr, b.u, b.v, std::sqrt(acc.n / kPi));
+    b.quality = std::clamp(b.roundness * (1.0 - 0.5 * acc.saturated / acc.n) * std::min(1.0, mean_chroma / 100.0) *
+                               (1.0 - b.contamination),
+                           0.0, 1.0);
     // A blob cut by the search window is not a blob cut by the image: only the former is "touching".
     b.touches_region_border = acc.border;
     blobs.push_back(b);
@@ -207,11 +229,14 @@ void RoiTracker::reset() {
 void RoiTracker::update(int k, const Blob* blob) {
   ClassState& s = state_[k];
   if (!blob) {
+    // The last position is kept: a marker hidden for a few frames (behind a distractor, a shaft) is searched for
+    // there before the next full-frame pass.
     s.valid = false;
     s.has_velocity = false;
     ++s.lost_frames;
     return;
   }
+  s.seen = true;
   if (s.valid) {
     s.du = blob->u - s.u;
     s.dv = blob->v - s.v;
@@ -233,14 +258,17 @@ std::vector<Blob> RoiTracker::process(const cv::Mat& bgr, DetectionStats* stats)
   bool need_full = !config_.use_roi;
   for (std::size_t k = 0; k < classes.size() && config_.use_roi; ++k) {
     const ClassState& s = state_[k];
-    if (!s.valid) {
+    const bool recently_lost = !s.valid && s.seen && s.lost_frames <= config_.lost_roi_frames;
+    if (!s.valid && !recently_lost) {
       // A lost class is searched full frame, but not every frame: a marker hidden in this camera must not cost a
       // full-frame pass per frame.
       if (s.lost_frames % std::max(1, config_.lost_search_interval) == 0) need_full = true;
       continue;
     }
     const double pu = s.u + (s.has_velocity ? s.du : 0.0), pv = s.v + (s.has_velocity ? s.dv : 0.0);
-    int half = config_.roi_half;
+    // Recently lost: a doubled window around the last position (no velocity) every frame — cheap, and the marker
+    // is back as soon as it reappears; the full-frame pass stays on its lost_search_interval schedule.
+    int half = recently_lost ? 2 * config_.roi_half : config_.roi_half;
     for (int attempt = 0; attempt < 2 && !chosen[k]; ++attempt, half *= 2) {
       const cv::Rect roi(static_cast<int>(std::lround(pu)) - half, static_cast<int>(std::lround(pv)) - half,
                          2 * half + 1, 2 * half + 1);
@@ -262,7 +290,7 @@ std::vector<Blob> RoiTracker::process(const cv::Mat& bgr, DetectionStats* stats)
     }
     if (chosen[k]) {
       out.push_back(*chosen[k]);
-    } else {
+    } else if (!recently_lost || s.lost_frames % std::max(1, config_.lost_search_interval) == 0) {
       need_full = true;
     }
   }

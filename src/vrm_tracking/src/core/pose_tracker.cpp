@@ -19,24 +19,37 @@ Eigen::Quaterniond eyeRotationFromMarkers(const Eigen::Vector3d& a0, const Eigen
 
 PoseTracker::PoseTracker(CameraRig rig, MarkerLayout layout, TrackerConfig config)
     : rig_(std::move(rig)), layout_(std::move(layout)), config_(config) {
+  reset();
+}
+
+void PoseTracker::reset() {
+  last_eye_ = EyeEstimate();
   last_eye_.rotation_center = layout_.rotation_center;
+  filters_.assign(layout_.classes.size(), PointFilter(config_.filter));
+  last_stamp_ = 0.0;
 }
 
 MarkerEstimate PoseTracker::reconstruct(int class_id, const std::vector<CameraObservations>& frame) const {
   MarkerEstimate est;
   est.class_id = class_id;
   // Candidates per camera (a camera may report distractors of the same class; at most 3 are considered).
-  std::vector<std::vector<PixelObservation>> cands;
+  struct Candidate {
+    PixelObservation obs;
+    double quality;
+  };
+  std::vector<std::vector<Candidate>> all;
+  double best_quality = 0.0;
   for (const CameraObservations& cam : frame) {
     if (cam.camera >= rig_.size()) continue;
-    std::vector<PixelObservation> c;
+    std::vector<Candidate> c;
     for (const Blob& b : cam.blobs) {
       if (b.class_id != class_id || !std::isfinite(b.u) || !std::isfinite(b.v) || c.size() >= 3) continue;
-      c.push_back({cam.camera, Eigen::Vector2d(b.u, b.v)});
+      c.push_back({{cam.camera, Eigen::Vector2d(b.u, b.v)}, std::isfinite(b.quality) ? b.quality : 0.0});
+      best_quality = std::max(best_quality, c.back().quality);
     }
-    if (!c.empty()) cands.push_back(std::move(c));
+    if (!c.empty()) all.push_back(std::move(c));
   }
-  if (cands.size() < 2) return est;
+  if (all.size() < 2) return est;
 
   Triangulation best;
   auto consider = [&](const std::vector<PixelObservation>& obs) {
@@ -47,42 +60,65 @@ MarkerEstimate PoseTracker::reconstruct(int class_id, const std::vector<CameraOb
   };
   // Every camera subset of size >= 2, the largest first: a consistent 3-camera solution beats any pair (more
   // accurate); pairs are the fallback for occlusion or a distractor in one camera.
-  const std::size_t n = cands.size();
-  for (std::size_t size = n; size >= 2 && !best.valid; --size) {
-    for (unsigned mask = 0; mask < (1u << n); ++mask) {
-      if (static_cast<std::size_t>(__builtin_popcount(mask)) != size) continue;
-      std::vector<std::size_t> cams;
-      for (std::size_t i = 0; i < n; ++i) {
-        if (mask & (1u << i)) cams.push_back(i);
-      }
-      // Every combination of one candidate per chosen camera.
-      std::vector<std::size_t> pick(cams.size(), 0);
-      while (true) {
-        std::vector<PixelObservation> obs;
-        for (std::size_t i = 0; i < cams.size(); ++i) obs.push_back(cands[cams[i]][pick[i]]);
-        consider(obs);
-        std::size_t i = 0;
-        for (; i < cams.size(); ++i) {
-          if (++pick[i] < cands[cams[i]].size()) break;
-          pick[i] = 0;
+  auto search = [&](const std::vector<std::vector<PixelObservation>>& cands) {
+    const std::size_t n = cands.size();
+    for (std::size_t size = n; size >= 2 && !best.valid; --size) {
+      for (unsigned mask = 0; mask < (1u << n); ++mask) {
+        if (static_cast<std::size_t>(__builtin_popcount(mask)) != size) continue;
+        std::vector<std::size_t> cams;
+        for (std::size_t i = 0; i < n; ++i) {
+          if (mask & (1u << i)) cams.push_back(i);
         }
-        if (i == cams.size()) break;
+        // Every combination of one candidate per chosen camera.
+        std::vector<std::size_t> pick(cams.size(), 0);
+        while (true) {
+          std::vector<PixelObservation> obs;
+          for (std::size_t i = 0; i < cams.size(); ++i) obs.push_back(cands[cams[i]][pick[i]]);
+          consider(obs);
+          std::size_t i = 0;
+          for (; i < cams.size(); ++i) {
+            if (++pick[i] < cands[cams[i]].size()) break;
+            pick[i] = 0;
+          }
+          if (i == cams.size()) break;
+        }
       }
+      if (size == 2) break;
     }
-    if (size == 2) break;
+  };
+  // First only the clean blobs (quality within clean_quality_ratio of the class's best this frame: a blob over a
+  // coloured distractor, cut by a shaft or smeared loses quality and biases its centroid), then all of them.
+  std::vector<std::vector<PixelObservation>> clean, any;
+  for (const std::vector<Candidate>& cam : all) {
+    std::vector<PixelObservation> c, a;
+    for (const Candidate& k : cam) {
+      a.push_back(k.obs);
+      if (k.quality >= config_.clean_quality_ratio * best_quality) c.push_back(k.obs);
+    }
+    if (!c.empty()) clean.push_back(std::move(c));
+    any.push_back(std::move(a));
   }
+  if (clean.size() >= 2) search(clean);
+  if (!best.valid) search(any);
   if (!best.valid) return est;
   est.valid = true;
   est.position = best.point;
+  est.raw_position = best.point;
   est.rms_px = best.rms_px;
   est.cameras = static_cast<int>(best.cameras.size());
   est.quality = std::exp(-best.rms_px / config_.gate_px) * (best.cameras.size() >= 3 ? 1.0 : 0.8);
   return est;
 }
 
-TrackingResult PoseTracker::update(const std::vector<CameraObservations>& frame) {
+TrackingResult PoseTracker::update(const std::vector<CameraObservations>& frame, double stamp) {
+  if (!std::isfinite(stamp)) stamp = last_stamp_ + 0.02;
+  last_stamp_ = stamp;
   TrackingResult result;
-  for (const ColourClass& c : layout_.classes) result.markers.push_back(reconstruct(c.id, frame));
+  for (std::size_t k = 0; k < layout_.classes.size(); ++k) {
+    MarkerEstimate m = reconstruct(layout_.classes[k].id, frame);
+    if (m.valid) m.position = filters_[k].filter(m.raw_position, stamp);
+    result.markers.push_back(m);
+  }
   auto marker = [&](int class_id) -> const MarkerEstimate* {
     for (const MarkerEstimate& m : result.markers) {
       if (m.class_id == class_id) return &m;

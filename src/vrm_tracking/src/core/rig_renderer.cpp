@@ -18,6 +18,9 @@ struct Drawable {
   std::size_t index = 0;
   Eigen::Vector2d a = Eigen::Vector2d::Zero(), b = Eigen::Vector2d::Zero();  // shaft piece endpoints (px)
   double radius_px = 0.0;
+  std::vector<Eigen::Vector2d> centres;  // marker: sub-frame centres over the exposure
+  std::vector<double> radii;
+  cv::Rect box;  // pixels it may change (clipped to the image)
 };
 
 std::uint64_t mix(std::uint64_t a, std::uint64_t b) {
@@ -30,7 +33,13 @@ std::uint64_t mix(std::uint64_t a, std::uint64_t b) {
 
 // Coverage of a disc of radius r blurred by a Gaussian of σ at distance d from its centre (edge profile of a
 // defocused/PSF-blurred disc, exact for a straight edge): symmetric about the centre, so it moves no centroid.
-inline double discCoverage(double d, double r, double sigma) { return 0.5 * std::erfc((d - r) / (M_SQRT2 * sigma)); }
+// Beyond ±3.5 (erfc(3.5) = 7e-7) the value is taken as 0 or 1 without the libm call: most pixels of a box are.
+inline double discCoverage(double d, double r, double sigma) {
+  const double z = (d - r) / (M_SQRT2 * sigma);
+  if (z >= 3.5) return 0.0;
+  if (z <= -3.5) return 1.0;
+  return 0.5 * std::erfc(z);
+}
 
 double segmentDistance(const Eigen::Vector2d& p, const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
   const Eigen::Vector2d ab = b - a;
@@ -60,8 +69,9 @@ RigRenderer::RigRenderer(CameraRig rig, MarkerLayout layout, RenderConfig config
 }
 
 void RigRenderer::setConfig(const RenderConfig& config) {
-  const bool rebuild =
-      config.seed != config_.seed || config.clutter != config_.clutter || config.background != config_.background;
+  const bool rebuild = config.seed != config_.seed || config.clutter != config_.clutter ||
+                       config.background != config_.background || config.exposure != config_.exposure ||
+                       config.read_noise != config_.read_noise || config.shot_gain != config_.shot_gain;
   config_ = config;
   if (rebuild) buildBackgrounds();
 }
@@ -94,7 +104,34 @@ void RigRenderer::buildBackgrounds() {
     }
     cv::GaussianBlur(bg, bg, cv::Size(0, 0), 1.5);
     backgrounds_.push_back(bg);
+    // The exposed background level per pixel and channel, for the untouched pixels' table lookup.
+    std::vector<std::uint8_t> levels(static_cast<std::size_t>(cam.width) * cam.height * 3);
+    for (int y = 0; y < cam.height; ++y) {
+      const float* in = bg.ptr<float>(y);
+      for (int i = 0; i < 3 * cam.width; ++i) {
+        levels[static_cast<std::size_t>(y) * 3 * cam.width + i] =
+            static_cast<std::uint8_t>(std::clamp(static_cast<int>(std::lround(in[i] * config_.exposure)), 0, 255));
+      }
+    }
+    background_levels_.push_back(std::move(levels));
   }
+  // noise_lut_[level·256 + k]: level + σ(level)·z_k, rounded and saturated; 256 normal draws per level (the 64 Ki
+  // normal table, so the levels' draws are independent).
+  const std::vector<float>& table = normalTable();
+  noise_lut_.resize(256 * 256);
+  for (int lvl = 0; lvl < 256; ++lvl) {
+    const float sd = sensorSigma(lvl);
+    for (int k = 0; k < 256; ++k) {
+      const float v = lvl + sd * table[static_cast<std::size_t>(lvl) * 256 + k];
+      noise_lut_[static_cast<std::size_t>(lvl) * 256 + k] =
+          static_cast<std::uint8_t>(std::clamp(static_cast<int>(v + 256.5f) - 256, 0, 255));
+    }
+  }
+}
+
+float RigRenderer::sensorSigma(int level) const {
+  return static_cast<float>(
+      std::sqrt(config_.read_noise * config_.read_noise + std::max(0.0, config_.shot_gain) * level));
 }
 
 std::vector<ProjectedMarker> RigRenderer::project(std::size_t camera, const WorldScene& scene) const {
@@ -117,11 +154,6 @@ void RigRenderer::render(std::size_t camera, const WorldScene& scene, std::uint6
                          std::vector<ProjectedMarker>* truth) const {
   const CameraModel& cam = rig_.cameras.at(camera);
   std::mt19937_64 rng(mix(mix(config_.seed, camera), frame_index));
-  // Reused per thread: a fresh 3.7 MB float image per frame costs page faults, not just a copy.
-  thread_local cv::Mat radiance_buffer;
-  backgrounds_.at(camera).copyTo(radiance_buffer);
-  cv::Mat& radiance = radiance_buffer;
-
   std::vector<ProjectedMarker> projected = project(camera, scene);
   std::vector<Drawable> drawables;
   for (std::size_t i = 0; i < scene.markers.size(); ++i) {
@@ -149,78 +181,110 @@ void RigRenderer::render(std::size_t camera, const WorldScene& scene, std::uint6
   std::sort(drawables.begin(), drawables.end(), [](const Drawable& x, const Drawable& y) { return x.depth > y.depth; });
 
   // Distractors lie in the background (behind the eye): markers and shafts are drawn over them.
-  if (config_.distractors > 0) {
-    std::uniform_real_distribution<double> ux(0, cam.width), uy(0, cam.height), angle(0, 180), u01(0, 1);
-    for (int i = 0; i < config_.distractors; ++i) {
-      const cv::Point centre(static_cast<int>(ux(rng)), static_cast<int>(uy(rng)));
-      const int kind = i % 3;
-      cv::Scalar colour(220, 40, 220);  // magenta: no class
-      if (kind != 2 && !layout_.classes.empty()) {
-        const ColourClass& c =
-            layout_.classes[static_cast<std::size_t>(u01(rng) * layout_.classes.size()) % layout_.classes.size()];
-        colour = cv::Scalar(c.bgr[0], c.bgr[1], c.bgr[2]);
-      }
-      if (kind == 0) {  // a reflection streak: elongated, class-coloured
-        cv::ellipse(radiance, centre, cv::Size(14, 2), angle(rng), 0, 360, colour, cv::FILLED, cv::LINE_AA);
-      } else if (kind == 1) {  // a large coloured patch (a glove, a label)
-        cv::circle(radiance, centre, 40, colour, cv::FILLED, cv::LINE_AA);
-      } else {
-        cv::circle(radiance, centre, 4, colour, cv::FILLED, cv::LINE_AA);
-      }
-    }
-  }
-
   const double sigma = std::max(0.3, config_.blur_px);
   const int samples = std::max(1, config_.motion_samples);
-  // Radiance of a marker: its colour at full exposure sits at ~240 DN so exposure > 1.06 saturates.
-  for (const Drawable& d : drawables) {
+  const cv::Rect frame(0, 0, cam.width, cam.height);
+  auto box = [&frame](double x0, double y0, double x1, double y1) {
+    const int ix0 = static_cast<int>(std::floor(x0)), iy0 = static_cast<int>(std::floor(y0));
+    return cv::Rect(ix0, iy0, static_cast<int>(std::ceil(x1)) - ix0 + 1, static_cast<int>(std::ceil(y1)) - iy0 + 1) &
+           frame;
+  };
+  // Where anything is drawn: only these boxes get the float radiance and the exact sensor model; the rest of the
+  // frame is the static background through a per-level noise table (see below).
+  std::vector<cv::Rect> touched;
+  for (Drawable& d : drawables) {
     if (d.is_marker) {
       const WorldMarker& m = scene.markers[d.index];
-      const ColourClass* cls = layout_.findClass(m.class_id);
-      if (!cls) continue;
       // Sub-frame positions over [-T/2, T/2] around the stamp: the blob's centroid stays the mid-exposure point.
-      std::vector<Eigen::Vector2d> centres;
-      std::vector<double> radii;
       for (int s = 0; s < samples; ++s) {
         const double dt = samples > 1 ? config_.exposure_time * ((s + 0.5) / samples - 0.5) : 0.0;
         Eigen::Vector2d px;
         const Eigen::Vector3d p = m.position + m.velocity * dt;
         if (!cam.project(p, &px)) continue;
-        centres.push_back(px);
-        radii.push_back(cam.K(0, 0) * m.radius / (cam.world_to_camera * p).z());
+        d.centres.push_back(px);
+        d.radii.push_back(cam.K(0, 0) * m.radius / (cam.world_to_camera * p).z());
       }
-      if (centres.empty()) continue;
       double x0 = 1e9, x1 = -1e9, y0 = 1e9, y1 = -1e9;
-      for (std::size_t s = 0; s < centres.size(); ++s) {
-        const double ext = radii[s] + 4.0 * sigma + 1.0;
-        x0 = std::min(x0, centres[s].x() - ext);
-        x1 = std::max(x1, centres[s].x() + ext);
-        y0 = std::min(y0, centres[s].y() - ext);
-        y1 = std::max(y1, centres[s].y() + ext);
+      for (std::size_t s = 0; s < d.centres.size(); ++s) {
+        const double ext = d.radii[s] + 4.0 * sigma + 1.0;
+        x0 = std::min(x0, d.centres[s].x() - ext);
+        x1 = std::max(x1, d.centres[s].x() + ext);
+        y0 = std::min(y0, d.centres[s].y() - ext);
+        y1 = std::max(y1, d.centres[s].y() + ext);
       }
-      const int ix0 = std::max(0, static_cast<int>(std::floor(x0))),
-                ix1 = std::min(cam.width - 1, static_cast<int>(std::ceil(x1)));
-      const int iy0 = std::max(0, static_cast<int>(std::floor(y0))),
-                iy1 = std::min(cam.height - 1, static_cast<int>(std::ceil(y1)));
+      if (!d.centres.empty()) d.box = box(x0, y0, x1, y1);
+    } else {
+      const double ext = d.radius_px + 3.0 * sigma + 1.0;
+      d.box = box(std::min(d.a.x(), d.b.x()) - ext, std::min(d.a.y(), d.b.y()) - ext, std::max(d.a.x(), d.b.x()) + ext,
+                  std::max(d.a.y(), d.b.y()) + ext);
+    }
+    if (d.box.area() > 0) touched.push_back(d.box);
+  }
+  struct Distractor {
+    cv::Point centre;
+    int kind;
+    double angle;
+    cv::Scalar colour;
+  };
+  std::vector<Distractor> distractors;
+  if (config_.distractors > 0) {
+    std::uniform_real_distribution<double> ux(0, cam.width), uy(0, cam.height), angle(0, 180), u01(0, 1);
+    for (int i = 0; i < config_.distractors; ++i) {
+      Distractor dd;
+      dd.centre = cv::Point(static_cast<int>(ux(rng)), static_cast<int>(uy(rng)));
+      dd.kind = i % 3;
+      dd.colour = cv::Scalar(220, 40, 220);  // magenta: no class
+      if (dd.kind != 2 && !layout_.classes.empty()) {
+        const ColourClass& c =
+            layout_.classes[static_cast<std::size_t>(u01(rng) * layout_.classes.size()) % layout_.classes.size()];
+        dd.colour = cv::Scalar(c.bgr[0], c.bgr[1], c.bgr[2]);
+      }
+      dd.angle = dd.kind == 0 ? angle(rng) : 0.0;
+      const int reach = (dd.kind == 0 ? 14 : dd.kind == 1 ? 40 : 4) + 2;  // + anti-aliasing
+      const cv::Rect r = box(dd.centre.x - reach, dd.centre.y - reach, dd.centre.x + reach, dd.centre.y + reach);
+      if (r.area() > 0) touched.push_back(r);
+      distractors.push_back(dd);
+    }
+  }
+  // Reused per thread: a fresh 3.7 MB float image per frame costs page faults, not just a copy.
+  thread_local cv::Mat radiance_buffer;
+  radiance_buffer.create(cam.height, cam.width, CV_32FC3);
+  cv::Mat& radiance = radiance_buffer;
+  const cv::Mat& background = backgrounds_.at(camera);
+  for (const cv::Rect& r : touched) background(r).copyTo(radiance(r));
+
+  for (const Distractor& dd : distractors) {
+    if (dd.kind == 0) {  // a reflection streak: elongated, class-coloured
+      cv::ellipse(radiance, dd.centre, cv::Size(14, 2), dd.angle, 0, 360, dd.colour, cv::FILLED, cv::LINE_AA);
+    } else if (dd.kind == 1) {  // a large coloured patch (a glove, a label)
+      cv::circle(radiance, dd.centre, 40, dd.colour, cv::FILLED, cv::LINE_AA);
+    } else {
+      cv::circle(radiance, dd.centre, 4, dd.colour, cv::FILLED, cv::LINE_AA);
+    }
+  }
+
+  // Radiance of a marker: its colour at full exposure sits at ~240 DN so exposure > 1.06 saturates.
+  for (const Drawable& d : drawables) {
+    if (d.box.area() <= 0) continue;
+    const int ix0 = d.box.x, ix1 = d.box.br().x - 1, iy0 = d.box.y, iy1 = d.box.br().y - 1;
+    if (d.is_marker) {
+      const WorldMarker& m = scene.markers[d.index];
+      const ColourClass* cls = layout_.findClass(m.class_id);
+      if (!cls) continue;
       const cv::Vec3f colour(cls->bgr[0], cls->bgr[1], cls->bgr[2]);
       for (int y = iy0; y <= iy1; ++y) {
         cv::Vec3f* row = radiance.ptr<cv::Vec3f>(y);
         for (int x = ix0; x <= ix1; ++x) {
           double a = 0.0;
-          for (std::size_t s = 0; s < centres.size(); ++s) {
-            a += discCoverage(std::hypot(x - centres[s].x(), y - centres[s].y()), radii[s], sigma);
+          for (std::size_t s = 0; s < d.centres.size(); ++s) {
+            a += discCoverage(std::hypot(x - d.centres[s].x(), y - d.centres[s].y()), d.radii[s], sigma);
           }
-          a /= static_cast<double>(centres.size());
+          a /= static_cast<double>(d.centres.size());
           if (a < 1e-4) continue;
           row[x] = row[x] * static_cast<float>(1.0 - a) + colour * static_cast<float>(a);
         }
       }
     } else {
-      const double ext = d.radius_px + 3.0 * sigma + 1.0;
-      const int ix0 = std::max(0, static_cast<int>(std::floor(std::min(d.a.x(), d.b.x()) - ext)));
-      const int ix1 = std::min(cam.width - 1, static_cast<int>(std::ceil(std::max(d.a.x(), d.b.x()) + ext)));
-      const int iy0 = std::max(0, static_cast<int>(std::floor(std::min(d.a.y(), d.b.y()) - ext)));
-      const int iy1 = std::min(cam.height - 1, static_cast<int>(std::ceil(std::max(d.a.y(), d.b.y()) + ext)));
       const cv::Vec3f steel(70.f, 72.f, 75.f);
       for (int y = iy0; y <= iy1; ++y) {
         cv::Vec3f* row = radiance.ptr<cv::Vec3f>(y);
@@ -235,29 +299,46 @@ void RigRenderer::render(std::size_t camera, const WorldScene& scene, std::uint6
 
   // Sensor: exposure, shot noise (variance ∝ signal), read noise, 8-bit quantisation with saturation.
   image->create(cam.height, cam.width, CV_8UC3);
-  // Per-pixel normal draws from a fixed table indexed by a xorshift stream: ~10× faster than
-  // std::normal_distribution, which matters at 3 × 640×480 × 50 Hz in the rig nodelet.
-  const std::vector<float>& table = normalTable();
   std::uint64_t state = rng() | 1ULL;
+  auto next = [&state] {
+    state ^= state << 13;
+    state ^= state >> 7;
+    state ^= state << 17;
+    return state;
+  };
+  // Untouched pixels: the background's exposed level (static) through noise_lut_ — one table load per channel,
+  // eight 8-bit random indices per 64-bit draw. Quantising the background level first costs nothing measurable
+  // (no centroid is taken there).
+  const std::uint8_t* level = background_levels_.at(camera).data();
+  const std::uint8_t* lut = noise_lut_.data();
+  for (int y = 0; y < cam.height; ++y) {
+    std::uint8_t* out = image->ptr<std::uint8_t>(y);
+    const std::uint8_t* lv = level + static_cast<std::size_t>(y) * 3 * cam.width;
+    int i = 0;
+    for (; i + 8 <= 3 * cam.width; i += 8) {
+      std::uint64_t r = next();
+      for (int j = 0; j < 8; ++j, r >>= 8) out[i + j] = lut[(lv[i + j] << 8) | (r & 255)];
+    }
+    for (std::uint64_t r = next(); i < 3 * cam.width; ++i, r >>= 8) out[i] = lut[(lv[i] << 8) | (r & 255)];
+  }
+  // Touched pixels: the exact model from the float radiance. Per-pixel normal draws from a fixed table indexed by
+  // the xorshift stream: ~10× faster than std::normal_distribution. Overlapping boxes are simply redone.
+  const std::vector<float>& table = normalTable();
   const float exposure = static_cast<float>(config_.exposure);
   // Noise σ per signal level from a table (read noise and shot noise, variance ∝ signal): no sqrt per pixel.
   std::array<float, 257> sigma_of_level;
-  for (int level = 0; level <= 256; ++level) {
-    sigma_of_level[level] = static_cast<float>(
-        std::sqrt(config_.read_noise * config_.read_noise + std::max(0.0, config_.shot_gain) * level));
-  }
-  for (int y = 0; y < cam.height; ++y) {
-    const float* in = radiance.ptr<float>(y);
-    std::uint8_t* out = image->ptr<std::uint8_t>(y);
-    for (int i = 0; i < 3 * cam.width; ++i) {
-      float v = in[i] * exposure;
-      const float sd = sigma_of_level[std::clamp(static_cast<int>(v), 0, 256)];
-      state ^= state << 13;
-      state ^= state >> 7;
-      state ^= state << 17;
-      v += sd * table[state & (kNormalTableSize - 1)];
-      // Round half up without a libm call (v > -256 always: noise is a few σ of at most ~16 DN).
-      out[i] = static_cast<std::uint8_t>(std::clamp(static_cast<int>(v + 256.5f) - 256, 0, 255));
+  for (int lvl = 0; lvl <= 256; ++lvl) sigma_of_level[lvl] = sensorSigma(lvl);
+  for (const cv::Rect& r : touched) {
+    for (int y = r.y; y < r.br().y; ++y) {
+      const float* in = radiance.ptr<float>(y) + 3 * r.x;
+      std::uint8_t* out = image->ptr<std::uint8_t>(y) + 3 * r.x;
+      for (int i = 0; i < 3 * r.width; ++i) {
+        float v = in[i] * exposure;
+        const float sd = sigma_of_level[std::clamp(static_cast<int>(v), 0, 256)];
+        v += sd * table[next() & (kNormalTableSize - 1)];
+        // Round half up without a libm call (v > -256 always: noise is a few σ of at most ~16 DN).
+        out[i] = static_cast<std::uint8_t>(std::clamp(static_cast<int>(v + 256.5f) - 256, 0, 255));
+      }
     }
   }
 

@@ -3,6 +3,9 @@
 // plus, for evaluation only, the exact projected centroids (<camera>/markers_exact, the ideal FPGA output).
 // A frame is rendered when the eye state and every instrument of one stamp have arrived; the images carry that
 // stamp (the exposure midpoint), never the wall clock.
+// Calibration mode (calibration_views > 0): instead of markers, each camera shows a chessboard target from
+// `calibration_views` seeded poses in turn on <camera>/image_raw (+ camera_info), and the target on the world
+// fixture, latched, on <camera>/fixture/image_raw — what rig_calibrator (and a person with a real target) uses.
 
 #include <image_transport/image_transport.h>
 #include <nodelet/nodelet.h>
@@ -25,6 +28,7 @@
 #include <string>
 #include <vector>
 
+#include "vrm_tracking/calibration.h"
 #include "vrm_tracking/conversions.h"
 #include "vrm_tracking/rig_renderer.h"
 
@@ -72,6 +76,22 @@ class CameraRigSim : public nodelet::Nodelet {
     for (const CameraModel& cam : rig_.cameras) {
       camera_pubs_.push_back(it.advertiseCamera(cam.name + "/image_raw", 2));
       exact_pubs_.push_back(nh.advertise<vrm_msgs::MarkerObservations>(cam.name + "/markers_exact", 5));
+    }
+    pnh.param("calibration_views", calibration_views_, 0);
+    if (calibration_views_ > 0) {
+      pnh.param("target_cols", target_.cols, target_.cols);
+      pnh.param("target_rows", target_.rows, target_.rows);
+      pnh.param("target_square", target_.square, target_.square);
+      double rate = 5.0;
+      pnh.param("calibration_rate", rate, rate);
+      for (const CameraModel& cam : rig_.cameras) {
+        fixture_pubs_.push_back(nh.advertise<sensor_msgs::Image>(cam.name + "/fixture/image_raw", 1, /*latch=*/true));
+        calibration_poses_.push_back(calibrationPoses(cam, target_, layout_.rotation_center, calibration_views_,
+                                                      17 + 101 * fixture_pubs_.size()));
+      }
+      calibration_timer_ = nh.createWallTimer(ros::WallDuration(1.0 / rate), &CameraRigSim::onCalibrationTick, this);
+      NODELET_INFO("camera_rig_sim: calibration mode, %d target views per camera", calibration_views_);
+      return;
     }
     eye_sub_ = nh.subscribe("ground_truth/eye_state", 10, &CameraRigSim::onEye, this);
     instrument_sub_ = nh.subscribe("ground_truth/instrument_state", 20, &CameraRigSim::onInstrument, this);
@@ -177,6 +197,41 @@ class CameraRigSim : public nodelet::Nodelet {
     ++frame_;
   }
 
+  sensor_msgs::ImagePtr renderTargetImage(const CameraModel& cam, const Eigen::Isometry3d& pose,
+                                          const std_msgs::Header& header) const {
+    auto image = boost::make_shared<sensor_msgs::Image>();
+    image->header = header;
+    image->width = static_cast<std::uint32_t>(cam.width);
+    image->height = static_cast<std::uint32_t>(cam.height);
+    image->encoding = sensor_msgs::image_encodings::BGR8;
+    image->step = 3 * image->width;
+    image->data.resize(static_cast<std::size_t>(image->step) * image->height);
+    cv::Mat view(cam.height, cam.width, CV_8UC3, image->data.data(), image->step);
+    renderTarget(cam, pose, target_, &view, 3);
+    return image;
+  }
+
+  void onCalibrationTick(const ros::WallTimerEvent&) {
+    std_msgs::Header header;
+    header.stamp = ros::Time::now();  // a source: no ground truth drives the calibration views
+    header.seq = static_cast<std::uint32_t>(frame_);
+    for (std::size_t c = 0; c < rig_.size(); ++c) {
+      const CameraModel& cam = rig_.cameras[c];
+      header.frame_id = cam.name + frame_suffix_;
+      if (frame_ == 0) {
+        vrm_msgs::publishShared(fixture_pubs_[c],
+                                renderTargetImage(cam, fixturePose(target_, layout_.rotation_center), header));
+      }
+      if (camera_pubs_[c].getNumSubscribers() == 0) continue;
+      auto image = renderTargetImage(cam, calibration_poses_[c][frame_ % calibration_poses_[c].size()], header);
+      auto info = boost::make_shared<sensor_msgs::CameraInfo>();
+      info->header = header;
+      toMsg(cam, info.get());
+      camera_pubs_[c].publish(image, info);
+    }
+    ++frame_;
+  }
+
   // The exact projected centroids of the visible markers (ground truth for evaluation; the ideal FPGA output).
   void publishExact(std::size_t c, const std_msgs::Header& header, const std::vector<ProjectedMarker>& truth) {
     const CameraModel& cam = rig_.cameras[c];
@@ -217,6 +272,12 @@ class CameraRigSim : public nodelet::Nodelet {
   std::uint64_t frame_ = 0;
   int stop_camera_ = -1;
   int stop_after_ = 0;
+  // Calibration mode.
+  int calibration_views_ = 0;
+  ChessboardTarget target_;
+  std::vector<std::vector<Eigen::Isometry3d>> calibration_poses_;
+  std::vector<ros::Publisher> fixture_pubs_;
+  ros::WallTimer calibration_timer_;
 };
 
 }  // namespace vrm_tracking

@@ -1,11 +1,15 @@
 // Marker detector (issue 5, thesis §7.3.2): colour images of the tracking cameras → MarkerObservations, the same
 // message the EyeSi FPGA sends, so the tracker cannot tell a real camera + this nodelet from pre-extracted
 // centroids. Works on any ROS camera driver's sensor_msgs/Image (bgr8/rgb8/bgra8/rgba8); other encodings, empty
-// or truncated images are reported (throttled) and skipped — the other cameras carry on.
+// or truncated images are reported (throttled) and skipped — the other cameras carry on. Diagnostics per camera on
+// /diagnostics (wall-clock period `diagnostic_period`): ERROR when a camera never delivered or stopped (no image
+// for `stale_timeout` s) or every frame of the period was rejected; WARN for rejected frames (bad encoding, empty,
+// truncated) or a missing CameraInfo; values: rate, rejections and why, colour classes found per frame.
 
 #include "vrm_tracking/marker_detector.h"
 
 #include <cv_bridge/cv_bridge.h>
+#include <diagnostic_msgs/DiagnosticArray.h>
 #include <image_transport/image_transport.h>
 #include <nodelet/nodelet.h>
 #include <ros/ros.h>
@@ -14,7 +18,9 @@
 #include <vrm_msgs/MarkerObservations.h>
 #include <vrm_msgs/publish.h>
 
+#include <algorithm>
 #include <boost/make_shared.hpp>
+#include <cstdio>
 #include <memory>
 #include <mutex>
 #include <pluginlib/class_list_macros.hpp>
@@ -36,7 +42,21 @@ class MarkerDetectorNodelet : public nodelet::Nodelet {
     std::mutex mutex;
     int images_without_info = 0;
     bool have_info = false;
+    // Diagnostics of the current period (guarded by mutex).
+    int images = 0, rejected = 0, found_classes = 0;
+    std::vector<std::string> reject_reasons;  // distinct, at most a few
+    ros::WallTime last_image;
   };
+
+  void reject(Camera* cam, const std::string& reason) {
+    std::lock_guard<std::mutex> lock(cam->mutex);
+    ++cam->rejected;
+    if (cam->reject_reasons.size() < 5 &&
+        std::find(cam->reject_reasons.begin(), cam->reject_reasons.end(), reason) == cam->reject_reasons.end()) {
+      cam->reject_reasons.push_back(reason);
+    }
+    cam->last_image = ros::WallTime::now();
+  }
 
   void onInit() override {
     ros::NodeHandle& nh = getNodeHandle();
@@ -57,6 +77,9 @@ class MarkerDetectorNodelet : public nodelet::Nodelet {
     pnh.param("use_roi", roi.use_roi, roi.use_roi);
     std::vector<std::string> names = {"camera_0", "camera_1", "camera_2"};
     pnh.param("cameras", names, names);
+    pnh.param("stale_timeout", stale_timeout_, 1.0);
+    double diagnostic_period = 1.0;
+    pnh.param("diagnostic_period", diagnostic_period, diagnostic_period);
 
     image_transport::ImageTransport it(nh);
     for (const std::string& name : names) {
@@ -67,10 +90,17 @@ class MarkerDetectorNodelet : public nodelet::Nodelet {
       Camera* raw = cam.get();
       cam->image_sub = it.subscribe(name + "/image_raw", 2,
                                     [this, raw](const sensor_msgs::ImageConstPtr& msg) { onImage(raw, msg); });
-      cam->info_sub = nh.subscribe<sensor_msgs::CameraInfo>(
-          name + "/camera_info", 2, [raw](const sensor_msgs::CameraInfoConstPtr&) { raw->have_info = true; });
+      cam->info_sub = nh.subscribe<sensor_msgs::CameraInfo>(name + "/camera_info", 2,
+                                                            [raw](const sensor_msgs::CameraInfoConstPtr&) {
+                                                              std::lock_guard<std::mutex> lock(raw->mutex);
+                                                              raw->have_info = true;
+                                                            });
       cameras_.push_back(std::move(cam));
     }
+    start_wall_ = last_diag_wall_ = ros::WallTime::now();
+    diagnostics_pub_ = nh.advertise<diagnostic_msgs::DiagnosticArray>("/diagnostics", 10);
+    diagnostic_timer_ =
+        nh.createWallTimer(ros::WallDuration(diagnostic_period), &MarkerDetectorNodelet::publishDiagnostics, this);
     NODELET_INFO("marker_detector: %zu cameras, %zu colour classes, ROI %s", cameras_.size(), layout_.classes.size(),
                  roi.use_roi ? "on" : "off");
   }
@@ -79,6 +109,7 @@ class MarkerDetectorNodelet : public nodelet::Nodelet {
     namespace enc = sensor_msgs::image_encodings;
     if (msg->width == 0 || msg->height == 0 || msg->data.empty()) {
       NODELET_WARN_THROTTLE(2.0, "%s: empty image skipped", cam->name.c_str());
+      reject(cam, "empty image");
       return;
     }
     if (msg->encoding != enc::BGR8 && msg->encoding != enc::RGB8 && msg->encoding != enc::BGRA8 &&
@@ -87,15 +118,22 @@ class MarkerDetectorNodelet : public nodelet::Nodelet {
                             "%s: encoding '%s' is not a colour image (bgr8/rgb8/bgra8/rgba8 expected); "
                             "colour markers cannot be classified, frame skipped",
                             cam->name.c_str(), msg->encoding.c_str());
+      reject(cam, "encoding '" + msg->encoding + "' is not a colour image");
       return;
     }
     if (static_cast<std::size_t>(msg->step) * msg->height > msg->data.size() ||
         msg->step < msg->width * enc::numChannels(msg->encoding)) {
       NODELET_WARN_THROTTLE(2.0, "%s: truncated image (step %u, %zu bytes) skipped", cam->name.c_str(), msg->step,
                             msg->data.size());
+      reject(cam, "truncated image");
       return;
     }
-    if (!cam->have_info && ++cam->images_without_info == 50) {
+    bool have_info;
+    {
+      std::lock_guard<std::mutex> lock(cam->mutex);
+      have_info = cam->have_info;
+    }
+    if (!have_info && ++cam->images_without_info == 50) {
       NODELET_WARN(
           "%s: no CameraInfo on %s/camera_info after 50 images: detection continues, but the tracker "
           "relies on its rig calibration file for this camera",
@@ -107,6 +145,7 @@ class MarkerDetectorNodelet : public nodelet::Nodelet {
       image = cv_bridge::toCvShare(msg, enc::BGR8);
     } catch (const std::exception& e) {
       NODELET_WARN_THROTTLE(2.0, "%s: cannot read image: %s", cam->name.c_str(), e.what());
+      reject(cam, std::string("cannot read image: ") + e.what());
       return;
     }
     auto out = boost::make_shared<vrm_msgs::MarkerObservations>();
@@ -116,13 +155,83 @@ class MarkerDetectorNodelet : public nodelet::Nodelet {
     out->image_height = msg->height;
     {
       std::lock_guard<std::mutex> lock(cam->mutex);
-      toMsg(cam->roi->process(image->image), out.get());
+      DetectionStats stats;
+      toMsg(cam->roi->process(image->image, &stats), out.get());
+      ++cam->images;
+      cam->found_classes += stats.found_classes;
+      cam->last_image = ros::WallTime::now();
     }
     vrm_msgs::publishShared(cam->markers_pub, out);
   }
 
+  // One status per camera; counters cover the period since the last report.
+  void publishDiagnostics(const ros::WallTimerEvent&) {
+    namespace d = diagnostic_msgs;
+    const ros::WallTime now = ros::WallTime::now();
+    const double period = std::max(1e-3, (now - last_diag_wall_).toSec());
+    last_diag_wall_ = now;
+    auto array = boost::make_shared<d::DiagnosticArray>();
+    array->header.stamp = ros::Time::now();  // wall-clock health, not a camera frame
+    for (const auto& cam : cameras_) {
+      std::lock_guard<std::mutex> lock(cam->mutex);
+      d::DiagnosticStatus status;
+      status.name = getName() + ": " + cam->name;
+      status.hardware_id = cam->name;
+      auto kv = [&status](const std::string& key, const std::string& value) {
+        d::KeyValue k;
+        k.key = key;
+        k.value = value;
+        status.values.push_back(k);
+      };
+      char buf[64];
+      std::vector<std::string> problems;
+      int level = d::DiagnosticStatus::OK;
+      auto raise = [&level, &problems](int l, const std::string& what) {
+        level = std::max(level, l);
+        problems.push_back(what);
+      };
+      const double age = cam->last_image.isZero() ? (now - start_wall_).toSec() : (now - cam->last_image).toSec();
+      if (age > stale_timeout_) {
+        std::snprintf(buf, sizeof(buf), "%.1f", age);
+        raise(d::DiagnosticStatus::ERROR, cam->last_image.isZero()
+                                              ? std::string("no image received")
+                                              : std::string("camera stopped: no image for ") + buf + " s");
+      }
+      std::string reasons;
+      for (const std::string& r : cam->reject_reasons) reasons += (reasons.empty() ? "" : ", ") + r;
+      if (cam->rejected > 0) {
+        raise(cam->images == 0 ? d::DiagnosticStatus::ERROR : d::DiagnosticStatus::WARN,
+              std::to_string(cam->rejected) + " frame(s) rejected (" + reasons + ")");
+      }
+      if (!cam->have_info) raise(d::DiagnosticStatus::WARN, "no CameraInfo on " + cam->name + "/camera_info");
+      std::snprintf(buf, sizeof(buf), "%.3g", cam->images / period);
+      kv("rate hz", buf);
+      kv("frames", std::to_string(cam->images));
+      kv("rejected", std::to_string(cam->rejected));
+      kv("rejection reasons", reasons);
+      kv("camera_info", cam->have_info ? "yes" : "no");
+      std::snprintf(buf, sizeof(buf), "%.3g",
+                    cam->images ? static_cast<double>(cam->found_classes) / cam->images : 0.0);
+      kv("colour classes found per frame", buf);
+      status.level = static_cast<std::uint8_t>(level);
+      if (problems.empty()) {
+        status.message = "detecting";
+      } else {
+        for (std::size_t i = 0; i < problems.size(); ++i) status.message += (i ? "; " : "") + problems[i];
+      }
+      array->status.push_back(status);
+      cam->images = cam->rejected = cam->found_classes = 0;
+      cam->reject_reasons.clear();
+    }
+    vrm_msgs::publishShared(diagnostics_pub_, array);
+  }
+
   MarkerLayout layout_;
   std::unique_ptr<MarkerDetector> detector_;
+  ros::Publisher diagnostics_pub_;
+  ros::WallTimer diagnostic_timer_;
+  ros::WallTime start_wall_, last_diag_wall_;
+  double stale_timeout_ = 1.0;
   std::vector<std::unique_ptr<Camera>> cameras_;
 };
 

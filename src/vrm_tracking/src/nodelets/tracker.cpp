@@ -4,9 +4,14 @@
 // camera has reported, or with the cameras that did once a newer stamp is `sync_window` past it (a camera that
 // stops costs one frame of latency, not the tracking). Roll, jaw and the other instrument inputs are not optical:
 // they come from `instrument_sensors` (the instruments' own channels; in simulation the surgeon's ground truth).
-// tf: off by default — vrm_sim's scene_manager broadcasts world → eye → trocar_* / instrument_* from the states
-// this nodelet publishes; publish_tf:=true broadcasts them here instead (then do not run both).
+// tf (publish_tf): world → eye (camera stamps), eye → trocar_* (static, from the layout), trocar_* → instrument_*
+// (camera stamps). In tracking mode this nodelet owns those transforms and vrm_sim's scene_manager must run with
+// publish_pose_tf:=false (one publisher per transform); with publish_tf:=false scene_manager broadcasts them from
+// the states published here. Optional pose filter (`filter`: none | one_euro | alpha_beta, pose_filter.h).
+// Diagnostics (/diagnostics, wall-clock period): frames and cameras per frame, stale cameras, reprojection
+// residuals, eye/instrument validity — OK / WARN / ERROR.
 
+#include <diagnostic_msgs/DiagnosticArray.h>
 #include <geometry_msgs/TransformStamped.h>
 #include <nodelet/nodelet.h>
 #include <ros/ros.h>
@@ -17,7 +22,10 @@
 #include <vrm_msgs/MarkerObservations.h>
 #include <vrm_msgs/publish.h>
 
+#include <algorithm>
 #include <boost/make_shared.hpp>
+#include <cmath>
+#include <cstdio>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -51,7 +59,18 @@ class Tracker : public nodelet::Nodelet {
     pnh.param("publish_tf", publish_tf_, false);
     pnh.param<std::string>("world_frame", world_frame_, "world");
     pnh.param<std::string>("eye_frame", eye_frame_, "eye");
+    pnh.param("stale_timeout", stale_timeout_, 1.0);
+    double diagnostic_period = 1.0;
+    pnh.param("diagnostic_period", diagnostic_period, diagnostic_period);
+    std::string filter;
+    pnh.param<std::string>("filter", filter, "none");
+    pnh.param("filter_min_cutoff", config.filter.min_cutoff, config.filter.min_cutoff);
+    pnh.param("filter_beta", config.filter.beta, config.filter.beta);
+    pnh.param("filter_d_cutoff", config.filter.d_cutoff, config.filter.d_cutoff);
+    pnh.param("filter_alpha", config.filter.alpha, config.filter.alpha);
+    pnh.param("filter_beta_ab", config.filter.beta_ab, config.filter.beta_ab);
     try {
+      config.filter.type = filterTypeFromString(filter);
       CameraRig rig = rig_file.empty() ? makeDefaultRig() : loadRigYaml(rig_file);
       MarkerLayout layout = layout_file.empty() ? makeDefaultLayout() : loadLayoutYaml(layout_file);
       tracker_ = std::make_unique<PoseTracker>(rig, layout, config);
@@ -64,6 +83,11 @@ class Tracker : public nodelet::Nodelet {
     sensor_sub_ = nh.subscribe("instrument_sensors", 20, &Tracker::onSensors, this);
     const CameraRig& rig = tracker_->rig();
     last_seen_.assign(rig.size(), ros::Time());
+    last_wall_.assign(rig.size(), ros::WallTime());
+    diag_missing_.assign(rig.size(), 0);
+    diagnostics_pub_ = nh.advertise<diagnostic_msgs::DiagnosticArray>("/diagnostics", 10);
+    diagnostic_timer_ = nh.createWallTimer(ros::WallDuration(diagnostic_period), &Tracker::publishDiagnostics, this);
+    start_wall_ = last_diag_wall_ = ros::WallTime::now();
     for (std::size_t c = 0; c < rig.size(); ++c) {
       const std::string topic = rig.cameras[c].name + "/" + markers_topic;
       marker_subs_.push_back(nh.subscribe<vrm_msgs::MarkerObservations>(
@@ -81,8 +105,9 @@ class Tracker : public nodelet::Nodelet {
       }
       static_broadcaster_.sendTransform(trocars);
     }
-    NODELET_INFO("tracker: %zu cameras (%s), %zu instruments, tf %s", rig.size(), markers_topic.c_str(),
-                 tracker_->layout().instruments.size(), publish_tf_ ? "on" : "off (scene_manager broadcasts)");
+    NODELET_INFO("tracker: %zu cameras (%s), %zu instruments, tf %s, filter %s", rig.size(), markers_topic.c_str(),
+                 tracker_->layout().instruments.size(), publish_tf_ ? "on" : "off (scene_manager broadcasts)",
+                 toString(config.filter.type).c_str());
   }
 
   void onSensors(const vrm_msgs::InstrumentState::ConstPtr& msg) {
@@ -99,6 +124,7 @@ class Tracker : public nodelet::Nodelet {
       return;
     }
     last_seen_[camera] = stamp;
+    last_wall_[camera] = ros::WallTime::now();
     Pending& frame = pending_[stamp];
     frame.header = msg->header;
     frame.header.frame_id = world_frame_;
@@ -130,7 +156,8 @@ class Tracker : public nodelet::Nodelet {
     }
     std::vector<CameraObservations> observations;
     for (auto& entry : frame.cameras) observations.push_back(std::move(entry.second));
-    const TrackingResult result = tracker_->update(observations);
+    const TrackingResult result = tracker_->update(observations, frame.header.stamp.toSec());
+    accumulateDiagnostics(frame, result);
 
     auto eye = boost::make_shared<vrm_msgs::EyeState>();
     eye->header = frame.header;
@@ -154,10 +181,12 @@ class Tracker : public nodelet::Nodelet {
       const auto sensor = sensors_.find(est.slot);
       toMsg(est, sensor == sensors_.end() ? nullptr : sensor->second.get(), msg.get());
       if (publish_tf_ && est.valid) {
+        // Below its trocar: the trocar frame is the eye frame shifted to the insertion hole (no rotation).
         geometry_msgs::TransformStamped t;
         t.header = msg->header;
+        t.header.frame_id = "trocar_" + est.slot;
         t.child_frame_id = "instrument_" + est.slot;
-        t.transform.translation = toVector3Msg(est.tip);
+        t.transform.translation = toVector3Msg(est.tip - est.trocar);
         t.transform.rotation = msg->tip_pose.orientation;
         frames.push_back(t);
       }
@@ -165,6 +194,127 @@ class Tracker : public nodelet::Nodelet {
       vrm_msgs::publishShared(instrument_pub_, msg);
     }
     if (!frames.empty()) broadcaster_.sendTransform(frames);
+  }
+
+  void accumulateDiagnostics(const Pending& frame, const TrackingResult& result) {
+    ++diag_frames_;
+    const std::size_t n = tracker_->rig().size();
+    if (frame.cameras.size() < 2) {
+      ++diag_no_reconstruction_;
+    } else if (frame.cameras.size() < n) {
+      ++diag_partial_;
+    }
+    for (std::size_t c = 0; c < n; ++c) diag_missing_[c] += frame.cameras.count(c) ? 0 : 1;
+    for (const MarkerEstimate& m : result.markers) {
+      if (!m.valid) continue;
+      ++diag_markers_;
+      diag_cameras_used_ += m.cameras;
+      diag_residual_sum_ += m.rms_px;
+      diag_residual_max_ = std::max(diag_residual_max_, m.rms_px);
+    }
+    diag_eye_valid_ += result.eye.valid;
+    for (const InstrumentEstimate& est : result.instruments) {
+      ++diag_instruments_;
+      diag_instruments_valid_ += est.valid;
+    }
+  }
+
+  // One status per period; counters cover the period since the last one.
+  void publishDiagnostics(const ros::WallTimerEvent&) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    const ros::WallTime now = ros::WallTime::now();
+    diagnostic_msgs::DiagnosticStatus status;
+    status.name = getName() + ": pose reconstruction";
+    status.hardware_id = "tracking_rig";
+    auto kv = [&status](const std::string& key, const std::string& value) {
+      diagnostic_msgs::KeyValue k;
+      k.key = key;
+      k.value = value;
+      status.values.push_back(k);
+    };
+    auto fmt = [](double v) {
+      char buf[32];
+      std::snprintf(buf, sizeof(buf), "%.3g", v);
+      return std::string(buf);
+    };
+    std::vector<std::string> problems;
+    int level = diagnostic_msgs::DiagnosticStatus::OK;
+    auto raise = [&level, &problems](int l, const std::string& what) {
+      level = std::max(level, l);
+      problems.push_back(what);
+    };
+    const double period = std::max(1e-3, (now - last_diag_wall_).toSec());
+    const bool started =
+        std::any_of(last_wall_.begin(), last_wall_.end(), [](const ros::WallTime& t) { return !t.isZero(); });
+    const std::size_t n = tracker_->rig().size();
+    int cameras_live = 0;
+    for (std::size_t c = 0; c < n; ++c) {
+      const std::string& name = tracker_->rig().cameras[c].name;
+      const double age = last_wall_[c].isZero() ? (now - start_wall_).toSec() : (now - last_wall_[c]).toSec();
+      kv(name + " last markers age s", last_wall_[c].isZero() ? "never" : fmt(age));
+      kv(name + " frames missing", std::to_string(diag_missing_[c]));
+      if (age > stale_timeout_) {
+        if (started) {
+          raise(diagnostic_msgs::DiagnosticStatus::WARN,
+                name +
+                    (last_wall_[c].isZero() ? " never delivered markers" : " stale (stopped?) for " + fmt(age) + " s"));
+        }
+      } else {
+        ++cameras_live;
+      }
+    }
+    if (!started) {
+      const double waited = (now - start_wall_).toSec();
+      raise(
+          waited > stale_timeout_ ? diagnostic_msgs::DiagnosticStatus::ERROR : diagnostic_msgs::DiagnosticStatus::WARN,
+          "no marker frames yet");
+    } else if (cameras_live < 2) {
+      raise(diagnostic_msgs::DiagnosticStatus::ERROR,
+            std::to_string(cameras_live) + " camera(s) live: no reconstruction possible");
+    }
+    if (diag_frames_ > 0) {
+      if (diag_no_reconstruction_ > 0) {
+        // A few under load are frames whose other cameras arrived late; most of them means no tracking.
+        raise(2 * diag_no_reconstruction_ > diag_frames_ ? diagnostic_msgs::DiagnosticStatus::ERROR
+                                                         : diagnostic_msgs::DiagnosticStatus::WARN,
+              std::to_string(diag_no_reconstruction_) + " of " + std::to_string(diag_frames_) +
+                  " frames with fewer than 2 cameras (late or missing)");
+      }
+      if (diag_partial_ > 0) {
+        raise(diagnostic_msgs::DiagnosticStatus::WARN, std::to_string(diag_partial_) + " of " +
+                                                           std::to_string(diag_frames_) + " frames with " +
+                                                           "a camera missing (continuing with the others)");
+      }
+      if (diag_eye_valid_ < 0.9 * diag_frames_) {
+        raise(diagnostic_msgs::DiagnosticStatus::WARN, "eye markers reconstructed in " +
+                                                           std::to_string(diag_eye_valid_) + " of " +
+                                                           std::to_string(diag_frames_) + " frames");
+      }
+    }
+    kv("frames", std::to_string(diag_frames_));
+    kv("rate hz", fmt(diag_frames_ / period));
+    kv("cameras live", std::to_string(cameras_live) + " of " + std::to_string(n));
+    kv("cameras used per marker (mean)",
+       diag_markers_ ? fmt(static_cast<double>(diag_cameras_used_) / diag_markers_) : "-");
+    kv("reprojection rms px (mean)", diag_markers_ ? fmt(diag_residual_sum_ / diag_markers_) : "-");
+    kv("reprojection rms px (max)", diag_markers_ ? fmt(diag_residual_max_) : "-");
+    kv("eye valid", std::to_string(diag_eye_valid_) + " of " + std::to_string(diag_frames_));
+    kv("instruments valid", std::to_string(diag_instruments_valid_) + " of " + std::to_string(diag_instruments_));
+    status.level = static_cast<std::uint8_t>(level);
+    if (problems.empty()) {
+      status.message = "tracking with " + std::to_string(cameras_live) + " cameras";
+    } else {
+      for (std::size_t i = 0; i < problems.size(); ++i) status.message += (i ? "; " : "") + problems[i];
+    }
+    auto array = boost::make_shared<diagnostic_msgs::DiagnosticArray>();
+    array->header.stamp = ros::Time::now();  // diagnostics are about the wall-clock health, not a camera frame
+    array->status.push_back(status);
+    vrm_msgs::publishShared(diagnostics_pub_, array);
+    last_diag_wall_ = now;
+    diag_frames_ = diag_no_reconstruction_ = diag_partial_ = diag_markers_ = diag_cameras_used_ = 0;
+    diag_eye_valid_ = diag_instruments_ = diag_instruments_valid_ = 0;
+    diag_residual_sum_ = diag_residual_max_ = 0.0;
+    std::fill(diag_missing_.begin(), diag_missing_.end(), 0);
   }
 
   std::unique_ptr<PoseTracker> tracker_;
@@ -178,6 +328,16 @@ class Tracker : public nodelet::Nodelet {
   std::map<std::string, vrm_msgs::InstrumentState::ConstPtr> sensors_;
   std::vector<ros::Time> last_seen_;
   ros::Time last_processed_;
+  // Diagnostics (wall clock: they report the live health of the inputs).
+  ros::Publisher diagnostics_pub_;
+  ros::WallTimer diagnostic_timer_;
+  ros::WallTime start_wall_, last_diag_wall_;
+  std::vector<ros::WallTime> last_wall_;
+  std::vector<int> diag_missing_;
+  int diag_frames_ = 0, diag_no_reconstruction_ = 0, diag_partial_ = 0, diag_markers_ = 0, diag_cameras_used_ = 0;
+  int diag_eye_valid_ = 0, diag_instruments_ = 0, diag_instruments_valid_ = 0;
+  double diag_residual_sum_ = 0.0, diag_residual_max_ = 0.0;
+  double stale_timeout_ = 1.0;
   double sync_window_ = 0.03;
   bool publish_tf_ = false;
   std::string world_frame_, eye_frame_;

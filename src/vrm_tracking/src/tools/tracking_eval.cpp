@@ -1,7 +1,7 @@
 // tracking_eval (issue 5): renders the rig from a surgeon trajectory file, runs detection + reconstruction without a
 // master, and prints one JSON object with the accuracy and timing fields of the `tracking` benchmark.
 //   tracking_eval --trajectory FILE [--noise-px X] [--occlude CAM] [--seed N] [--frames N] [--tremor-um A]
-//                 [--rig FILE] [--layout FILE] [--distractors N]
+//                 [--rig FILE] [--layout FILE] [--distractors N] [--filter none|one_euro|alpha_beta]
 // --noise-px X > 0 evaluates the FPGA path (exact centroids + X px noise) instead of rendered images.
 // Exit codes: 0 ok, 2 usage or malformed input (the message names the file, line and field).
 
@@ -21,7 +21,8 @@ namespace {
 int usage(const char* message) {
   std::fprintf(stderr,
                "tracking_eval: %s\nusage: tracking_eval --trajectory FILE [--noise-px X] [--occlude CAM] [--seed N] "
-               "[--frames N] [--tremor-um A] [--rig FILE] [--layout FILE] [--distractors N]\n",
+               "[--frames N] [--tremor-um A] [--rig FILE] [--layout FILE] [--distractors N] [--filter "
+               "none|one_euro|alpha_beta]\n",
                message);
   return 2;
 }
@@ -34,7 +35,7 @@ bool parseNumber(const char* text, double* value) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::string trajectory, rig_file, layout_file;
+  std::string trajectory, rig_file, layout_file, filter = "none";
   double noise_px = 0.0, occlude = -1, seed = 1, frames = 0, tremor_um = 0.0, distractors = 0;
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
@@ -47,6 +48,9 @@ int main(int argc, char** argv) {
       rig_file = value;
     } else if (arg == "--layout") {
       layout_file = value;
+    } else if (arg == "--filter") {
+      filter = value;
+      ok = filter == "none" || filter == "one_euro" || filter == "alpha_beta";
     } else if (arg == "--noise-px") {
       ok = parseNumber(value, &noise_px) && noise_px >= 0.0;
     } else if (arg == "--occlude") {
@@ -83,6 +87,7 @@ int main(int argc, char** argv) {
     opt.occluded_camera = static_cast<int>(occlude);
     opt.seed = static_cast<std::uint32_t>(seed);
     opt.render.distractors = static_cast<int>(distractors);
+    opt.tracker.filter.type = filterTypeFromString(filter);
     // Thread CPU time, as the benchmark: ms on one core, whatever else the machine runs.
     opt.clock = [] {
       timespec ts{};
@@ -96,11 +101,11 @@ int main(int argc, char** argv) {
         "\"width\": %d, \"height\": %d, \"occluded_cams\": %d, \"seed\": %d, \"tip_rms_um\": %.4f, "
         "\"tip_max_um\": %.4f, \"tip_eye_rms_um\": %.4f, \"eye_err_deg\": %.6f, \"eye_err_max_deg\": %.6f, "
         "\"detect_rate\": %.6f, \"track_rate\": %.6f, \"ms_detect\": %.4f, \"ms_reconstruct\": %.4f, "
-        "\"full_frame_rate\": %.4f}\n",
+        "\"full_frame_rate\": %.4f, \"ms_render\": %.4f, \"filter\": \"%s\"}\n",
         opt.rendered ? "rendered" : "centroid_noise", trajectory.c_str(), r.frames, noise_px, rig.cameras[0].width,
         rig.cameras[0].height, occlude >= 0 ? 1 : 0, static_cast<int>(seed), r.tip_rms_um, r.tip_max_um,
         r.tip_eye_rms_um, r.eye_err_deg, r.eye_err_max_deg, r.detect_rate, r.track_rate, r.ms_detect, r.ms_reconstruct,
-        r.full_frame_rate);
+        r.full_frame_rate, r.ms_render, filter.c_str());
   } catch (const ScriptError& e) {
     std::fprintf(stderr, "tracking_eval: malformed trajectory: %s\n", e.what());
     return 2;

@@ -1,11 +1,16 @@
 // Graph test of the optical tracking (tracking.test): the tracked tip and eye rotation follow the ground truth,
 // every output stamp is a ground-truth (camera exposure) stamp, tracking continues when a camera stops, and the
-// detector survives malformed images. Every wait is a condition with a timeout, never a fixed sleep.
+// detector survives malformed images, the tracker's tf chain world -> eye -> trocar_* -> instrument_* composes to
+// the published states at their camera stamps, and /diagnostics reports the stopped camera and the bad input.
+// Every wait is a condition with a timeout, never a fixed sleep.
 
+#include <diagnostic_msgs/DiagnosticArray.h>
 #include <gtest/gtest.h>
 #include <ros/ros.h>
 #include <sensor_msgs/Image.h>
 #include <sensor_msgs/image_encodings.h>
+#include <tf2_ros/buffer.h>
+#include <tf2_ros/transform_listener.h>
 #include <vrm_msgs/EyeState.h>
 #include <vrm_msgs/InstrumentState.h>
 #include <vrm_msgs/MarkerObservations.h>
@@ -38,6 +43,7 @@ class Listener {
     subs_.push_back(nh.subscribe("instrument_state", 1000, &Listener::onInstrument, this));
     subs_.push_back(nh.subscribe("camera_2/markers", 500, &Listener::onCamera2, this));
     subs_.push_back(nh.subscribe("bad/cam_bad/markers", 10, &Listener::onBad, this));
+    subs_.push_back(nh.subscribe("/diagnostics", 100, &Listener::onDiagnostics, this));
   }
 
   bool waitFor(const std::function<bool()>& pred, double timeout_s) {
@@ -52,6 +58,7 @@ class Listener {
   std::vector<vrm_msgs::InstrumentState::ConstPtr> instrument;
   std::vector<ros::Time> camera2;
   std::vector<vrm_msgs::MarkerObservations::ConstPtr> bad;
+  std::vector<diagnostic_msgs::DiagnosticStatus> diagnostics;
 
  private:
   template <class F>
@@ -80,12 +87,16 @@ class Listener {
   void onBad(const vrm_msgs::MarkerObservations::ConstPtr& m) {
     locked([&] { bad.push_back(m); });
   }
+  void onDiagnostics(const diagnostic_msgs::DiagnosticArray::ConstPtr& m) {
+    locked([&] { diagnostics.insert(diagnostics.end(), m->status.begin(), m->status.end()); });
+  }
 
   std::condition_variable cv_;
   std::vector<ros::Subscriber> subs_;
 };
 
 std::unique_ptr<Listener> g_listener;
+std::unique_ptr<tf2_ros::Buffer> g_tf;
 int g_stop_after = 150;
 
 struct TipErrors {
@@ -127,7 +138,16 @@ double percentile(std::vector<double> v, double p) {
 
 TEST(TrackingGraph, TrackedTipFollowsGroundTruthWithPreservedStamps) {
   auto& l = *g_listener;
-  ASSERT_TRUE(l.waitFor([&] { return l.instrument.size() >= 200; }, kTimeout)) << "instrument_state not tracked";
+  // Enough three-camera frames (until camera_2 stops), or camera_2 has stopped and no more can come.
+  auto three_camera_until = [&l] { return l.camera2.empty() ? ros::TIME_MAX : l.camera2.back(); };
+  ASSERT_TRUE(l.waitFor(
+      [&] {
+        if (l.instrument.size() < 200) return false;
+        if (tipErrors(l, ros::Time(0, 1), three_camera_until()).um.size() >= 120) return true;
+        return !l.camera2.empty() && l.instrument.back()->header.stamp > l.camera2.back() + ros::Duration(0.5);
+      },
+      kTimeout))
+      << "instrument_state not tracked";
   std::lock_guard<std::mutex> lock(l.mutex_);
   // Only stamps the ground truth has: the tracker copies the camera stamps, which are the surgeon's ticks.
   // The three-camera phase: up to camera_2's last frame if it has stopped already.
@@ -240,6 +260,140 @@ TEST(TrackingGraph, DetectorSurvivesMalformedImages) {
   }
 }
 
+Eigen::Isometry3d toIsometry(const geometry_msgs::Transform& t) {
+  Eigen::Isometry3d x = Eigen::Isometry3d::Identity();
+  x.translation() = Eigen::Vector3d(t.translation.x, t.translation.y, t.translation.z);
+  x.linear() =
+      Eigen::Quaterniond(t.rotation.w, t.rotation.x, t.rotation.y, t.rotation.z).normalized().toRotationMatrix();
+  return x;
+}
+
+TEST(TrackingGraph, TfChainComposesTheStatesAtCameraStamps) {
+  auto& l = *g_listener;
+  // A tracked left instrument whose eye rotation was reconstructed in the same frame (same camera stamp).
+  vrm_msgs::InstrumentState::ConstPtr inst;
+  vrm_msgs::EyeState::ConstPtr eye;
+  ASSERT_TRUE(l.waitFor(
+      [&] {
+        for (auto it = l.instrument.rbegin(); it != l.instrument.rend(); ++it) {
+          if ((*it)->instrument_id != "left" || !(*it)->valid) continue;
+          for (const auto& e : l.eye) {
+            if (e->header.stamp == (*it)->header.stamp && e->valid) {
+              inst = *it;
+              eye = e;
+              return true;
+            }
+          }
+        }
+        return false;
+      },
+      kTimeout))
+      << "no frame with a valid eye and left instrument";
+  const ros::Time stamp = inst->header.stamp;
+  std::string error;
+  ASSERT_TRUE(g_tf->canTransform("world", "instrument_left", stamp, ros::Duration(10.0), &error)) << error;
+  const geometry_msgs::TransformStamped world_inst = g_tf->lookupTransform("world", "instrument_left", stamp);
+  const geometry_msgs::TransformStamped eye_inst = g_tf->lookupTransform("eye", "instrument_left", stamp);
+  const geometry_msgs::TransformStamped trocar_inst = g_tf->lookupTransform("trocar_left", "instrument_left", stamp);
+  EXPECT_EQ(world_inst.header.stamp, stamp) << "tf stamp is not the camera stamp";
+  EXPECT_EQ(trocar_inst.header.stamp, stamp);
+  std::string parent;
+  ASSERT_TRUE(g_tf->_getParent("instrument_left", stamp, parent));
+  EXPECT_EQ(parent, "trocar_left");
+  ASSERT_TRUE(g_tf->_getParent("trocar_left", stamp, parent));
+  EXPECT_EQ(parent, "eye");
+  ASSERT_TRUE(g_tf->_getParent("eye", stamp, parent));
+  EXPECT_EQ(parent, "world");
+
+  // world -> instrument_left equals eye pose (rotation about the centre) ∘ the instrument's eye-frame tip pose.
+  Eigen::Isometry3d world_eye = Eigen::Isometry3d::Identity();
+  world_eye.translation() = toEigen(eye->rotation_center);
+  world_eye.linear() = toEigen(eye->rotation).normalized().toRotationMatrix();
+  Eigen::Isometry3d eye_tip = Eigen::Isometry3d::Identity();
+  eye_tip.translation() = toEigen(inst->tip_pose.position);
+  eye_tip.linear() = toEigen(inst->tip_pose.orientation).normalized().toRotationMatrix();
+  const Eigen::Isometry3d expected = world_eye * eye_tip;
+  const Eigen::Isometry3d got = toIsometry(world_inst.transform);
+  EXPECT_LT((got.translation() - expected.translation()).norm(), 1e-9);
+  EXPECT_LT(Eigen::Quaterniond(got.linear()).angularDistance(Eigen::Quaterniond(expected.linear())), 1e-6);
+  EXPECT_LT((toIsometry(eye_inst.transform).translation() - eye_tip.translation()).norm(), 1e-9);
+}
+
+bool hasStatus(const Listener& l, const std::string& name_part, int min_level, const std::string& message_part) {
+  for (const auto& s : l.diagnostics) {
+    if (s.name.find(name_part) != std::string::npos && s.level >= min_level &&
+        s.message.find(message_part) != std::string::npos) {
+      return true;
+    }
+  }
+  return false;
+}
+
+TEST(TrackingGraph, DiagnosticsReportTheStoppedCameraAndBadInput) {
+  auto& l = *g_listener;
+  using diagnostic_msgs::DiagnosticStatus;
+  // A wrong encoding, repeated until reported (the detector's input queue is short: a burst may lose frames).
+  ros::NodeHandle nh;
+  ros::Publisher pub = nh.advertise<sensor_msgs::Image>("bad/cam_bad/image_raw", 10);
+  ASSERT_TRUE(l.waitFor([&] { return pub.getNumSubscribers() > 0; }, kTimeout)) << "detector not subscribed";
+  bool reported = false;
+  const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(kTimeout);
+  while (!reported && ros::WallTime::now() < deadline) {
+    pub.publish(image(sensor_msgs::image_encodings::MONO8, 64, 48, 1, ros::Time(6.0)));
+    reported = l.waitFor([&] { return hasStatus(l, "cam_bad", DiagnosticStatus::WARN, "encoding 'mono8'"); }, 0.5);
+  }
+  EXPECT_TRUE(reported) << "no diagnostic for the wrong encoding";
+  EXPECT_TRUE(l.waitFor([&] { return hasStatus(l, "cam_bad", DiagnosticStatus::WARN, "no CameraInfo"); }, kTimeout));
+  EXPECT_TRUE(l.waitFor([&] { return hasStatus(l, "marker_detector: camera_2", DiagnosticStatus::ERROR, "stopped"); },
+                        kTimeout))
+      << "the stopped camera is not reported";
+  EXPECT_TRUE(l.waitFor([&] { return hasStatus(l, "tracker", DiagnosticStatus::WARN, "camera_2"); }, kTimeout))
+      << "the tracker does not report the missing camera";
+  // Start-up (cameras connecting one by one) may legitimately report errors; from camera_2's stop on, two cameras
+  // remain: the tracker warns but never errs, camera_0 stays healthy. Wait for two reports of each after it.
+  auto stopIndex = [&l] {
+    std::size_t from = 0;
+    while (from < l.diagnostics.size() &&
+           !(l.diagnostics[from].name.find("marker_detector: camera_2") != std::string::npos &&
+             l.diagnostics[from].message.find("stopped") != std::string::npos)) {
+      ++from;
+    }
+    return from;
+  };
+  auto reportsAfter = [&l](std::size_t from, const std::string& name_part) {
+    int n = 0;
+    for (std::size_t i = from; i < l.diagnostics.size(); ++i)
+      n += l.diagnostics[i].name.find(name_part) != std::string::npos;
+    return n;
+  };
+  EXPECT_TRUE(l.waitFor(
+      [&] {
+        const std::size_t from = stopIndex();
+        return reportsAfter(from, "marker_detector: camera_0") >= 2 && reportsAfter(from, "tracker") >= 2;
+      },
+      kTimeout));
+  std::lock_guard<std::mutex> lock(l.mutex_);
+  const std::size_t from = stopIndex();
+  bool camera0_ok = false;
+  int tracker_reports = 0;
+  for (std::size_t i = from; i < l.diagnostics.size(); ++i) {
+    const auto& s = l.diagnostics[i];
+    if (s.name.find("marker_detector: camera_0") != std::string::npos) {
+      EXPECT_LT(s.level, DiagnosticStatus::ERROR) << s.message;
+      camera0_ok |= s.level == DiagnosticStatus::OK;
+      for (const auto& kv : s.values) {
+        if (kv.key == "camera_info") EXPECT_EQ(kv.value, "yes");
+      }
+    }
+    if (s.name.find("tracker") != std::string::npos) {
+      ++tracker_reports;
+      EXPECT_LT(s.level, DiagnosticStatus::ERROR) << s.message;
+    }
+  }
+  EXPECT_TRUE(camera0_ok);
+  EXPECT_GE(tracker_reports, 1);
+}
+
 }  // namespace
 }  // namespace vrm_tracking
 
@@ -250,11 +404,14 @@ int main(int argc, char** argv) {
   ros::NodeHandle pnh("~");
   pnh.param("stop_after", vrm_tracking::g_stop_after, 150);
   vrm_tracking::g_listener = std::make_unique<vrm_tracking::Listener>(nh);
+  vrm_tracking::g_tf = std::make_unique<tf2_ros::Buffer>(ros::Duration(30.0));
+  tf2_ros::TransformListener tf_listener(*vrm_tracking::g_tf);
   ros::AsyncSpinner spinner(2);
   spinner.start();
   const int result = RUN_ALL_TESTS();
   spinner.stop();
   vrm_tracking::g_listener.reset();
+  vrm_tracking::g_tf.reset();
   ros::shutdown();
   return result;
 }

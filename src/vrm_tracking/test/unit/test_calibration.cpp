@@ -14,20 +14,9 @@
 namespace vrm_tracking {
 namespace {
 
-// A target pose facing `cam` (tilted by up to max_tilt), its centre at `centre` (world).
 Eigen::Isometry3d facing(const CameraModel& cam, const ChessboardTarget& target, const Eigen::Vector3d& centre,
                          double tilt_x, double tilt_y, double spin) {
-  const Eigen::Matrix3d camera_to_world = cam.world_to_camera.linear().transpose();
-  // Target z towards the camera's back (the board faces the camera), then tilts and an in-plane spin.
-  const Eigen::Matrix3d facing_rot =
-      camera_to_world * Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitX()).toRotationMatrix();
-  const Eigen::Matrix3d rot = facing_rot * Eigen::AngleAxisd(tilt_x, Eigen::Vector3d::UnitX()) *
-                              Eigen::AngleAxisd(tilt_y, Eigen::Vector3d::UnitY()) *
-                              Eigen::AngleAxisd(spin, Eigen::Vector3d::UnitZ());
-  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
-  pose.linear() = rot;
-  pose.translation() = centre - rot * target.centre();
-  return pose;
+  return facingPose(cam, target, centre, tilt_x, tilt_y, spin);
 }
 
 TEST(Calibration, RendersAndDetectsTheTargetInOrder) {
@@ -126,6 +115,37 @@ TEST(Calibration, RecoversTheDefaultRig) {
   // The calibration survives the YAML round trip (what a real rig would save).
   const CameraRig back = rigFromYamlString(rigToYamlString(calibrated));
   EXPECT_LT((back.cameras[1].K - calibrated.cameras[1].K).norm(), 1e-9);
+}
+
+TEST(Calibration, CalibrateCameraProcedureWithinStatedTolerances) {
+  // The calibrate_rig procedure for one camera: 12 seeded views + the fixture view. Tolerances stated in the
+  // README: focal length within 0.5 %, camera centre within 1 mm, rotation within 0.5°.
+  const CameraRig truth = makeDefaultRig();
+  const ChessboardTarget target;
+  const CameraModel& cam = truth.cameras[1];
+  std::vector<cv::Mat> views;
+  for (const Eigen::Isometry3d& pose : calibrationPoses(cam, target, Eigen::Vector3d::Zero(), 12, 118)) {
+    views.emplace_back();
+    renderTarget(cam, pose, target, &views.back(), 3);
+  }
+  const Eigen::Isometry3d fixture = fixturePose(target, Eigen::Vector3d::Zero());
+  cv::Mat reference;
+  renderTarget(cam, fixture, target, &reference, 4);
+  const CameraCalibrationResult r = calibrateCamera("camera_1", views, reference, target, fixture);
+  ASSERT_TRUE(r.ok) << r.error;
+  EXPECT_EQ(r.camera.name, "camera_1");
+  EXPECT_EQ(r.camera.width, 640);
+  const CalibrationError e = compareCameras(r.camera, cam);
+  std::printf("camera_1: focal %.3f %%, centre %.3f mm, rotation %.3f deg\n", e.focal_percent, e.position_m * 1e3,
+              e.rotation_deg);
+  EXPECT_LT(e.focal_percent, 0.5);
+  EXPECT_LT(e.position_m, 0.001);
+  EXPECT_LT(e.rotation_deg, 0.5);
+  // Too few views with the target: a clear failure, not a rig.
+  const CameraCalibrationResult bad =
+      calibrateCamera("camera_1", std::vector<cv::Mat>(views.begin(), views.begin() + 2), reference, target, fixture);
+  EXPECT_FALSE(bad.ok);
+  EXPECT_NE(bad.error.find("3 needed"), std::string::npos);
 }
 
 }  // namespace
