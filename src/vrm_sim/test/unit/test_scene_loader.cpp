@@ -334,6 +334,80 @@ simulations: [tissue]
       << message;
 }
 
+// Topology and ChainMail keys of issue 3 (tearing, chainmail limits).
+std::string deformableScene(const std::string& tissue) {
+  return "scene: {name: x, kind: surgical}\nobjects:\n  - name: membrane\n    role: membrane\n"
+         "    mesh: {generator: membrane}\n    tissue: " +
+         tissue + "\nsimulations: [tissue]\n";
+}
+
+TEST(SceneLoader, TearingAndChainMailKeys) {
+  const SceneDescription defaults = loadSceneFromString(deformableScene("{model: mass_spring}"), "d.yaml");
+  EXPECT_EQ(defaults.objects[0].tissue.tear_strain, 0.0);
+  const SceneDescription torn =
+      loadSceneFromString(deformableScene("{model: mass_spring, tear_strain: 1.5}"), "t.yaml");
+  EXPECT_EQ(torn.objects[0].tissue.tear_strain, 1.5);
+  const SceneDescription chainmail = loadSceneFromString(
+      deformableScene("{model: chainmail, chainmail: {min_stretch: 0.9, max_stretch: 1.3, max_shear: 0.05, "
+                      "relaxation: 0.25, relaxation_iterations: 3}}"),
+      "c.yaml");
+  const TissueParameters& tissue = chainmail.objects[0].tissue;
+  EXPECT_EQ(tissue.model, TissueModel::kChainmail);
+  EXPECT_EQ(tissue.chainmail.min_stretch, 0.9);
+  EXPECT_EQ(tissue.chainmail.max_stretch, 1.3);
+  EXPECT_EQ(tissue.chainmail.max_shear, 0.05);
+  EXPECT_EQ(tissue.chainmail.relaxation, 0.25);
+  EXPECT_EQ(tissue.chainmail.relaxation_iterations, 3);
+  const SceneDescription refined = loadSceneFromString(
+      deformableScene("{model: mass_spring, refinement: {levels: 2, radius: 0.002, element_budget: 500, "
+                      "chain_stiffness_scaling: true}}"),
+      "r.yaml");
+  const RefinementParameters& refinement = refined.objects[0].tissue.refinement;
+  EXPECT_EQ(refinement.levels, 2);
+  EXPECT_EQ(refinement.radius, 0.002);
+  EXPECT_EQ(refinement.element_budget, 500);
+  EXPECT_TRUE(refinement.chain_stiffness_scaling);
+  EXPECT_EQ(defaults.objects[0].tissue.refinement.levels, 0);
+}
+
+TEST(SceneErrors, TearingAndChainMailMistakes) {
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"{model: mass_spring, tear_strain: 1.0}",
+       "6:47: objects[0].tissue.tear_strain: expected 0 (no tearing) or a number > 1"},
+      {"{model: mass_spring, tear_strain: -2}", "objects[0].tissue.tear_strain: expected 0 (no tearing)"},
+      {"{model: mass_spring, tear_strain: .nan}", "objects[0].tissue.tear_strain: expected 0 (no tearing)"},
+      {"{model: mass_spring, tear_strain: .inf}", "objects[0].tissue.tear_strain: expected 0 (no tearing)"},
+      {"{model: mass_spring, chainmail: {max_shear: 0.1}}",
+       "objects[0].tissue.chainmail: chainmail limits need model: chainmail"},
+      {"{model: chainmail, chainmail: {min_stretch: 1.1}}",
+       "objects[0].tissue.chainmail.min_stretch: expected a number in (0, 1], got '1.1'"},
+      {"{model: chainmail, chainmail: {min_stretch: 0}}", "objects[0].tissue.chainmail.min_stretch: expected"},
+      {"{model: chainmail, chainmail: {max_stretch: 0.9}}",
+       "objects[0].tissue.chainmail.max_stretch: expected a number >= 1, got '0.9'"},
+      {"{model: chainmail, chainmail: {max_shear: -0.1}}", "objects[0].tissue.chainmail.max_shear: expected"},
+      {"{model: chainmail, chainmail: {relaxation: 2}}", "objects[0].tissue.chainmail.relaxation: expected"},
+      {"{model: mass_spring, refinement: {levels: 5}}",
+       "objects[0].tissue.refinement.levels: expected an integer in [0, 4], got '5'"},
+      {"{model: mass_spring, refinement: {radius: 0}}", "objects[0].tissue.refinement.radius: expected a positive"},
+      {"{model: mass_spring, refinement: {element_budget: 0}}", "objects[0].tissue.refinement.element_budget:"},
+      {"{model: mass_spring, refinement: {levels: 1, radius: 0.001, budget: 10}}",
+       "objects[0].tissue.refinement.budget: unknown key"},
+      {"{model: chainmail, refinement: {levels: 1}}",
+       "objects[0].tissue.refinement: refinement needs model: mass_spring"},
+      {"{model: mass_spring, bending_stiffness: 0.1, refinement: {levels: 1}}",
+       "objects[0].tissue.refinement: refinement does not support bending springs"},
+      {"{model: mass_spring, adhesion_stiffness: 1, refinement: {levels: 1}}",
+       "objects[0].tissue.refinement: refinement does not support adhesion_stiffness"},
+      {"{model: chainmail, chainmail: {max_sheer: 0.1}}",
+       "objects[0].tissue.chainmail.max_sheer: unknown key (did you mean 'max_shear'?)"},
+  };
+  for (const auto& [tissue, expected] : cases) {
+    const std::string message = loadError(deformableScene(tissue));
+    EXPECT_NE(message.find("inline_scene.yaml:"), std::string::npos) << message;
+    EXPECT_NE(message.find(expected), std::string::npos) << "message: " << message << "\nexpected: " << expected;
+  }
+}
+
 TEST(SceneErrors, DuplicateObjectName) {
   std::string yaml = kMinimalScene;
   yaml.insert(yaml.find("simulations"), "  - {name: ball, role: rigid, mesh: {generator: box}}\n");

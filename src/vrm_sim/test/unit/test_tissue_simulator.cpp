@@ -3,10 +3,22 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdlib>
 #include <functional>
+#include <new>
 
 #include "vrm_sim/tissue/reference_scenes.h"
 #include "vrm_sim/tissue/tissue_simulator.h"
+
+// Counts heap allocations (replaces the global operator new of this test binary) for the no-allocation test.
+static long g_allocations = 0;
+void* operator new(std::size_t size) {
+  ++g_allocations;
+  if (void* p = std::malloc(size > 0 ? size : 1)) return p;
+  throw std::bad_alloc();
+}
+void operator delete(void* p) noexcept { std::free(p); }
+void operator delete(void* p, std::size_t) noexcept { std::free(p); }
 
 namespace vrm_sim {
 namespace tissue {
@@ -257,6 +269,60 @@ TEST(TissueSimulator, TopologyChangeKeepsSimulating) {
   simulator.advance(0.05, zeroClock);
   EXPECT_TRUE(membrane->checkConsistency().ok());
   EXPECT_TRUE(allFinite(*membrane));
+}
+
+TEST(TissueSimulator, EarlyStopEndsTheFrameOnceForcesFallBelowTheBound) {
+  const int cells = 12;
+  auto run = [&](double bound, int frames, const std::function<void(TissueSimulator&, int)>& instruments) {
+    auto membrane = makeGridMembrane(cells, kSize, kStiffness, kNodeMass);
+    TissueConfig config = defaultConfig("quasi_static_euler");
+    config.early_stop_force = bound;
+    TissueSimulator simulator(*membrane, config);
+    FrameReport report;
+    for (int frame = 0; frame < frames; ++frame) {
+      instruments(simulator, frame);
+      report = simulator.advance(0.02, zeroClock);  // 20 steps planned per frame
+    }
+    return std::make_pair(report, membrane->positions()[centreNode(cells)]);
+  };
+  // A sphere pressed 0.2 mm into the membrane from above, then held still (its centre lies `radius` behind the tip).
+  const double radius = 4e-4;
+  const auto press = [&](TissueSimulator& simulator, int frame) {
+    const double depth = std::min(frame, 10) * 2e-5;
+    simulator.setInstruments({sphereAt(Eigen::Vector3d(0.0, 0.0, 2.0 * radius - depth), radius)});
+  };
+  const auto [full, full_centre] = run(0.0, 60, press);
+  EXPECT_FALSE(full.early_stopped);
+  EXPECT_EQ(full.steps, 20);
+  const auto [stopped, stopped_centre] = run(1e-6, 60, press);
+  EXPECT_TRUE(stopped.early_stopped);
+  EXPECT_LT(stopped.steps, 20);
+  EXPECT_NEAR(stopped.simulated_time, stopped.steps * 1e-3, 1e-12);
+  // At equilibrium the skipped steps would not have moved it (the contact nodes are held by the sphere).
+  EXPECT_NEAR(stopped_centre.z(), full_centre.z(), 1e-6);
+  EXPECT_LT(stopped_centre.z(), -1e-4);
+  // A moving instrument never stops a frame early: it must reach its end-of-frame pose.
+  const auto [moving, moving_centre] = run(1e-6, 20, [&](TissueSimulator& simulator, int frame) {
+    simulator.setInstruments({sphereAt(Eigen::Vector3d(1e-5 * frame, 0.0, 2.0 * radius - 2e-4), radius)});
+  });
+  EXPECT_FALSE(moving.early_stopped);
+  EXPECT_EQ(moving.steps, 20);
+}
+
+TEST(TissueSimulator, StepsAllocateNothingOnceRunning) {
+  // Issue 3: no allocation inside a step. A sphere pressing and forceps holding a grasp, for every integrator.
+  for (const std::string& name : integratorNames()) {
+    auto membrane = makeGridMembrane(22, kSize, kStiffness, kNodeMass);
+    TissueSimulator simulator(*membrane, defaultConfig(name));
+    InstrumentInput forceps = forcepsAt(Eigen::Vector3d(1e-3, 0.0, -2e-4), 0.0);
+    simulator.setInstruments({sphereAt(Eigen::Vector3d(0.0, 0.0, 6e-4), 4e-4), forceps});
+    for (int frame = 0; frame < 20; ++frame) simulator.advance(1e-3, zeroClock);  // grasp, first contacts
+    ASSERT_FALSE(simulator.graspedNodes().empty());
+    ASSERT_FALSE(simulator.lastContacts().empty());
+    const long before = g_allocations;
+    for (int frame = 0; frame < 50; ++frame) simulator.advance(1e-3, zeroClock);
+    EXPECT_EQ(g_allocations - before, 0) << name;
+  }
 }
 
 // --- Watchdog ---

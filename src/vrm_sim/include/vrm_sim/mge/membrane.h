@@ -11,6 +11,7 @@
 #include <cstdint>
 #include <memory>
 #include <optional>
+#include <vector>
 
 #include "vrm_sim/mge/array_manager.h"
 #include "vrm_sim/mge/elements.h"
@@ -30,6 +31,13 @@ struct MembraneOptions {
   double bending_stiffness = 0.1;  // [N/m]
   // kDual: Node::position() etc. work on per-node copies and NodeArrays::sync() publishes them (thesis §3.3.2).
   StorageMode node_storage = StorageMode::kArray;
+};
+
+// What removeElements() took out of the membrane.
+struct RemovalSummary {
+  std::size_t nodes = 0, springs = 0, triangles = 0;
+  double mass = 0.0;  // of the removed nodes [kg]
+  bool any() const { return nodes + springs + triangles > 0; }
 };
 
 struct CutOptions {
@@ -100,6 +108,14 @@ class Membrane {
   void removeTriangle(Triangle& triangle, const CutOptions& options = {});
   // Removes the node with all its triangles (as removeTriangle with default options) and springs.
   void removeNode(Node& node);
+  // One topology change (a cut, a tear) in a single consistent batch: the given triangles, springs and nodes, plus
+  // everything that only made sense with them — all triangles of the nodes, the bending springs of every removed
+  // triangle, edge springs whose triangles are all removed, all springs of the nodes, and (with
+  // remove_isolated_nodes) nodes left with neither springs nor triangles. The whole set is determined before the
+  // first element goes, so overlapping inputs (a spring given and also orphaned) are removed exactly once. Repeated
+  // entries are allowed.
+  RemovalSummary removeElements(const std::vector<Triangle*>& triangles, const std::vector<Spring*>& springs,
+                                const std::vector<Node*>& nodes, bool remove_isolated_nodes = true);
 
   // Graph invariants plus: tissue lists and arrays describe the same elements; every array entry belongs to the
   // element whose connector holds that slot; spring/triangle node-slot entries equal the slots of their nodes.

@@ -36,6 +36,9 @@
 //         model: mass_spring                 # required: none | mass_spring | chainmail
 //         integrator: quasi_static_euler     # knownIntegrators()
 //         stiffness: 2.0                     # and the other TissueParameters fields by name
+//         tear_strain: 1.5                   # > 1: springs longer than 1.5 x rest length tear; 0 = off
+//         chainmail: {min_stretch: 0.8, max_stretch: 1.2, max_shear: 0.2, relaxation: 0.0}   # model chainmail only
+//         refinement: {levels: 1, radius: 0.001, element_budget: 2000}   # mass_spring only (thesis §5.2.4)
 //       collision: {detector: zcoll_f, resolution: 64, epsilon_shell_scale: 1.05}   # knownCollisionDetectors()
 //   instruments:
 //     - slot: right                          # required: left | right, one instrument per slot
@@ -44,6 +47,9 @@
 //       params: {jaw_angle_deg: 0}           # the instrument generator's fields
 //       alternatives: [vitrector]            # other types the trainee may switch to
 //       material: {...}
+//       path:                                # scripted motion (tissue_offline, tests), at least one waypoint:
+//         - {t: 0.0, tip: [x, y, z], jaw_angle_deg: 30}   # s (increasing), tip in the eye frame, forceps
+//                                            # opening (default 0); the shaft points from the trocar to the tip
 //   simulations: [tissue, collision, grasping, cutting, bleeding]   # required (may be []); lists 'tissue' if
 //                                            # and only if some object is deformable
 
@@ -104,6 +110,23 @@ struct Material {
   double shininess = 16.0;
 };
 
+// Link limits of the ChainMail model (Gibson 1997), multiples of the rest length; see tissue/chainmail.h.
+struct ChainMailParameters {
+  double min_stretch = 0.8;       // (0, 1]
+  double max_stretch = 1.2;       // >= 1
+  double max_shear = 0.2;         // >= 0
+  double relaxation = 0.0;        // [0, 1]: elastic relaxation per step (0 = purely inelastic)
+  int relaxation_iterations = 1;  // sweeps per step
+};
+
+// Local refinement at the instruments (thesis §5.2.4); see tissue/refinement.h.
+struct RefinementParameters {
+  int levels = 0;                        // LOD n in [0, 4]; 0 = off
+  double radius = 1e-3;                  // m around the instrument tip
+  int element_budget = 2000;             // fine springs in all refined regions
+  bool chain_stiffness_scaling = false;  // D(n) = 2^n D (eq. 5.14) instead of D
+};
+
 // Mass-spring parameters (thesis §5.1); defaults are a soft epiretinal membrane at the resolution of the default
 // membrane patch. Only meaningful when model != kNone.
 struct TissueParameters {
@@ -118,6 +141,10 @@ struct TissueParameters {
   double time_budget_ms = 2.0;      // integrate until spent (thesis §5.1; EyeSi: 2 ms for 1,500 springs)
   double dt = 1e-3;                 // s per integration step
   bool plastic = false;             // rest length follows the maximum length reached (thesis §5.1)
+  double early_stop_force = 0.0;    // N; > 0: a frame ends early once no free node feels more (at rest); 0 = off
+  double tear_strain = 0.0;         // > 1: springs longer than tear_strain x rest length break (tearing); 0 = off
+  ChainMailParameters chainmail;    // only with model kChainmail
+  RefinementParameters refinement;  // only with model kMassSpring, no bending springs, no adhesion
   bool isDeformable() const { return model != TissueModel::kNone; }
 };
 
@@ -163,6 +190,14 @@ struct EyeDescription {
   std::vector<Trocar> trocars;
 };
 
+// One timed waypoint of a scripted instrument path. Between waypoints tip and jaw angle are interpolated linearly;
+// the shaft always points from the instrument's trocar to the tip (the trocar is the pivot).
+struct InstrumentWaypoint {
+  double t = 0.0;                                        // s from the start, strictly increasing along a path
+  Eigen::Vector3d tip_in_eye = Eigen::Vector3d::Zero();  // m, eye frame
+  double jaw_angle_deg = 0.0;                            // forceps opening
+};
+
 struct InstrumentDescription {
   InstrumentSlot slot = InstrumentSlot::kLeft;
   InstrumentType type = InstrumentType::kLightPipe;
@@ -170,6 +205,7 @@ struct InstrumentDescription {
   GeneratorParams params = LightPipeParams{};  // the generator matching `type`
   std::vector<InstrumentType> alternatives;    // other instruments the trainee may switch to in this slot (GUI)
   Material material;
+  std::vector<InstrumentWaypoint> path;  // scripted motion (tissue_offline); empty = driven by the trainee
   SourceLocation location;
 };
 

@@ -26,12 +26,15 @@ class SpringSorter {
   const std::vector<std::uint8_t>& innerIsSecond() const { return inner_is_second_; }
   // Graph distance of every node to the nearest seed (-1 = unreachable).
   const std::vector<int>& nodeDistances() const { return distance_; }
+  // springs[order()[k]] for every k: the pass reads its springs' ends in sequence instead of through the order.
+  const std::vector<std::array<std::uint32_t, 2>>& orderedEnds() const { return ordered_ends_; }
 
  private:
   std::vector<std::uint32_t> adjacency_offsets_, adjacency_;  // CSR node -> incident springs
   std::vector<int> distance_;
   std::vector<std::uint32_t> queue_;
   std::vector<std::uint32_t> order_;
+  std::vector<std::array<std::uint32_t, 2>> ordered_ends_;
   std::vector<std::size_t> level_offsets_;
   std::vector<std::uint8_t> inner_is_second_;
   std::vector<int> spring_level_;

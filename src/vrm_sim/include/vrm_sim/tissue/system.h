@@ -68,6 +68,11 @@ class ForceModel {
                Eigen::Vector3d* forces) const;
   // Spring and anchor potential plus gravity potential of the free nodes [J].
   double potentialEnergy(const SystemView& system, const Eigen::Vector3d* x) const;
+
+ private:
+  // Per-spring forces of the last compute() (structure of arrays), kept between steps so a step allocates nothing;
+  // grows only after a topology change. One ForceModel therefore serves one thread at a time.
+  mutable std::vector<double> spring_forces_;
 };
 
 double kineticEnergy(const SystemView& system);

@@ -14,8 +14,10 @@
 #include <string>
 #include <vector>
 
+#include "vrm_sim/tissue/chainmail.h"
 #include "vrm_sim/tissue/contact.h"
 #include "vrm_sim/tissue/integrator.h"
+#include "vrm_sim/tissue/refinement.h"
 #include "vrm_sim/tissue/strain_limit.h"
 #include "vrm_sim/tissue/system.h"
 
@@ -38,6 +40,10 @@ struct WatchdogConfig {
 };
 
 struct TissueConfig {
+  // "mass_spring" (integrated with `integrator`) or "chainmail" (Gibson 1997, inelastic: instruments move nodes,
+  // links drag neighbours within the `chainmail` limits; no integration).
+  std::string model = "mass_spring";
+  ChainMailConfig chainmail;
   std::string integrator = "quasi_static_euler";
   IntegratorOptions integrator_options;
   double dt = 1e-3;             // s per step (fixed)
@@ -54,12 +60,22 @@ struct TissueConfig {
   // rejecting the membrane.
   bool repair_massless_nodes = false;
   int interaction_lifetime_steps = 50;  // interaction points are retired after this many steps (Alg. 5.2)
-  double shell_scale = 1.05;            // ε-shell (Fig. 5.1)
-  double friction = 0.3;                // f_R of eq. 5.12
-  double grasp_radius = 3e-4;           // m around the jaw centre
-  double grasp_jaw_angle = 0.15;        // rad: a forceps closing below this grasps, opening above releases
-  double projection_jaw_angle = 0.05;   // rad: below this the grasped nodes are pressed onto the jaw mid-plane
+  // Optional early stop (thesis §5.1, Alg. 5.2: "stop when forces fall below a bound"), 0 = off. > 0 [N]: advance()
+  // ends a frame early once the largest static force (springs, anchors, gravity, pressure; no damping) on a free
+  // node not held by an instrument is below this while the instruments rest: further steps would not move it.
+  double early_stop_force = 0.0;
+  double shell_scale = 1.05;           // ε-shell (Fig. 5.1)
+  double friction = 0.3;               // f_R of eq. 5.12
+  double grasp_radius = 3e-4;          // m around the jaw centre
+  double grasp_jaw_angle = 0.15;       // rad: a forceps closing below this grasps, opening above releases
+  double projection_jaw_angle = 0.05;  // rad: below this the grasped nodes are pressed onto the jaw mid-plane
   WatchdogConfig watchdog;
+  // After every accepted step, stretch springs longer than tear_strain · rest length break (see topology.h);
+  // <= 0 disables tearing.
+  double tear_strain = 0.0;
+  // Local refinement at the instruments (thesis §5.2.4, refinement.h); levels 0 = off. mass_spring without
+  // adhesion only (virtual nodes use the fixed flag).
+  RefinementConfig refinement;
 };
 
 // One instrument as the tissue sees it, in the membrane's frame. Instrument frame: origin at the tip, +z from the
@@ -73,6 +89,12 @@ struct InstrumentInput {
   bool can_grasp = false;
   double jaw_angle = 1.0;  // rad (forceps opening)
   double jaw_length = 1.5e-3;
+  // Vitrector: while `cuts`, every step removes the tissue inside the cutting volume, a capsule of `cut_radius` from
+  // cut_offset to cut_offset + cut_length behind the tip along −z (instrument frame; cut_length 0 = a sphere).
+  bool cuts = false;
+  double cut_radius = 0.0;
+  double cut_offset = 0.0;
+  double cut_length = 0.0;
 };
 
 struct FrameReport {
@@ -81,8 +103,9 @@ struct FrameReport {
   double requested_time = 0.0;
   double wall_time = 0.0;  // s by the given clock
   bool budget_exhausted = false;
-  int fallbacks = 0;        // rolled-back steps in this frame
-  double max_strain = 0.0;  // after the frame
+  int fallbacks = 0;           // rolled-back steps in this frame
+  double max_strain = 0.0;     // after the frame
+  bool early_stopped = false;  // the forces fell below early_stop_force: the rest of the frame was skipped
 };
 
 struct SimulatorStatistics {
@@ -93,6 +116,10 @@ struct SimulatorStatistics {
   double max_strain = 0.0;               // largest strain seen after any step
   // Why steps were rejected.
   std::uint64_t non_finite = 0, too_fast = 0, energy_growth = 0, strain_growth = 0;
+  // Topology changes (cut, tear, refinement / coarsening): each one that changed the triangles counts once; a
+  // TissueMesh producer sets topology_version from it.
+  std::uint64_t topology_changes = 0;
+  std::uint64_t cut_nodes = 0, removed_nodes = 0, torn_springs = 0;
 };
 
 using Clock = std::function<double()>;  // seconds, monotonic
@@ -131,6 +158,9 @@ class TissueSimulator {
   double totalEnergy();
   const std::vector<NodeDeformation>& lastContacts() const { return contacts_; }
   int fallbackLevel() const { return fallback_level_; }
+  std::uint64_t topologyChanges() const { return statistics_.topology_changes; }
+  ChainMail* chainmail() { return chainmail_.get(); }
+  LocalRefinement* refinement() { return refinement_.get(); }
 
  private:
   void rebuildConstraints();
@@ -139,11 +169,27 @@ class TissueSimulator {
                    const Eigen::Isometry3d& previous_pose, double dt);
   // Integrate + respond + limit, no watchdog.
   void rawStep(Integrator& integrator, double dt);
-  bool unstable(double kinetic_before, double strain_before);
+  bool unstable(double kinetic_before);
+  // Max strain of the springs not at an instrument (untouched_ marks), also caching the overall max in frame_strain_.
   double untouchedMaxStrain();
+  // The untouched max strain at the start of the current step (lazily, from the saved state).
+  double strainBefore();
+  // Marks the nodes at an instrument (contacts, grasps) with a new epoch, returned.
+  std::uint32_t markTouched(std::vector<std::uint32_t>& touched, std::uint32_t& epoch) const;
   void saveState();
   void restoreState();
   void sortSprings();
+  // Largest static force on a free node (TissueConfig::early_stop_force) and whether the instruments rest.
+  double maxFreeForce();
+  bool instrumentsAtRest() const;
+  // topology.cpp: the vitrector's cut and the local refinement at the instruments before a step; virtual nodes and
+  // tearing after an accepted one. Grasps survive topology changes (remapped by node identity).
+  void topologyBeforeStep();
+  void topologyAfterStep();
+  void finishRemoval(const std::vector<std::uint64_t>& grasped_ids);
+  std::vector<std::uint64_t> graspedNodeIds() const;
+  // chainmail.cpp: one step of the ChainMail model.
+  void chainmailStep();
 
   mge::Membrane* membrane_;
   TissueConfig config_;
@@ -175,11 +221,20 @@ class TissueSimulator {
   std::vector<double> saved_rest_lengths_;
   std::vector<std::uint32_t> touched_;  // per node: epoch of the last watchdog check that saw it at an instrument
   std::uint32_t touched_epoch_ = 0;
-  double last_strain_ = -1.0;  // untouched max strain after the last accepted step (-1 = unknown)
+  std::vector<std::uint32_t> touched_before_;  // the same at the start of the current step
+  std::uint32_t touched_before_epoch_ = 0;
+  std::vector<NodeDeformation> pending_deformations_;  // external deformations, replayed after a rollback
+  std::vector<Eigen::Vector3d> early_stop_forces_, early_stop_zero_;  // buffers of maxFreeForce()
+  double last_strain_ = -1.0;    // untouched max strain after the last accepted step (-1 = unknown)
+  double strain_before_ = -1.0;  // untouched max strain at the start of the current step (-1 = not yet measured)
+  double frame_strain_ = -1.0;   // max strain of all springs after the last step (-1 = unknown)
   int fallback_level_ = 0;
   int hold_remaining_ = 0;
   double pending_time_ = 0.0;
   SimulatorStatistics statistics_;
+  std::unique_ptr<ChainMail> chainmail_;
+  std::unique_ptr<LocalRefinement> refinement_;
+  std::vector<Eigen::Vector3d> chainmail_committed_;  // positions after the last ChainMail step
 };
 
 // Exact step of the instrument poses between frames (linear in translation, slerp in rotation).

@@ -25,6 +25,16 @@ void sortUnique(std::vector<T*>& elements) {
   elements.erase(std::unique(elements.begin(), elements.end()), elements.end());
 }
 
+// Sorted by element id, not address: the removal order decides the array slot order (last entry moves into the
+// hole), and ids are deterministic where heap addresses are not.
+bool byId(const Element* a, const Element* b) { return a->id() < b->id(); }
+
+template <typename T>
+void sortUniqueById(std::vector<T*>& elements) {
+  std::sort(elements.begin(), elements.end(), byId);
+  elements.erase(std::unique(elements.begin(), elements.end()), elements.end());
+}
+
 // Neighbour list of a const element without binding a ListAccess (which may add an empty label range).
 std::vector<Element*> listOf(const Element& element, Label label) { return element.neighbours(label); }
 
@@ -202,6 +212,68 @@ void Membrane::removeNode(Node& node) {
   sortUnique(springs);
   for (Spring* spring : springs) graph_->destroy(*spring);
   graph_->destroy(node);
+}
+
+RemovalSummary Membrane::removeElements(const std::vector<Triangle*>& triangles_in,
+                                        const std::vector<Spring*>& springs_in, const std::vector<Node*>& nodes_in,
+                                        bool remove_isolated_nodes) {
+  for (Triangle* triangle : triangles_in) requireOwn(*triangle, labels::kTriangleList);
+  for (Spring* spring : springs_in) requireOwn(*spring, labels::kSpringList);
+  for (Node* node : nodes_in) requireOwn(*node, labels::kNodeList);
+
+  std::vector<Node*> nodes = nodes_in;
+  sortUniqueById(nodes);
+  std::vector<Triangle*> triangles = triangles_in;
+  for (Node* node : nodes) {
+    for (Triangle* triangle : node->triangles()) triangles.push_back(triangle);
+  }
+  sortUniqueById(triangles);
+  std::vector<Spring*> springs = springs_in;
+  std::vector<Node*> candidates;  // may become isolated
+  for (Node* node : nodes) {
+    for (Spring* spring : node->springs()) springs.push_back(spring);
+  }
+  for (Triangle* triangle : triangles) {
+    for (Spring* spring : triangle->bendingSprings()) springs.push_back(spring);
+    for (Node* corner : triangle->nodes()) candidates.push_back(corner);
+  }
+  // Edge springs orphaned by this batch: every triangle that uses them is removed too.
+  const Label edge_users = referenceLabel(labels::kTriangleEdgeSprings);
+  for (Triangle* triangle : triangles) {
+    for (Spring* spring : triangle->edgeSprings()) {
+      bool orphaned = true;
+      for (std::size_t k = 0; k < spring->neighbourCount(edge_users) && orphaned; ++k) {
+        orphaned = std::binary_search(triangles.begin(), triangles.end(),
+                                      static_cast<Triangle*>(spring->neighbour(edge_users, k)), byId);
+      }
+      if (orphaned) springs.push_back(spring);
+    }
+  }
+  sortUniqueById(springs);
+  for (Spring* spring : springs) {
+    for (Node* end : spring->nodes()) candidates.push_back(end);
+  }
+  sortUniqueById(candidates);
+
+  RemovalSummary summary;
+  summary.triangles = triangles.size();
+  summary.springs = springs.size();
+  for (Triangle* triangle : triangles) graph_->destroy(*triangle);
+  for (Spring* spring : springs) graph_->destroy(*spring);
+  const Label spring_users = referenceLabel(labels::kSpringNodes);
+  const Label triangle_users = referenceLabel(labels::kTriangleNodes);
+  if (remove_isolated_nodes) {
+    for (Node* node : candidates) {
+      if (node->neighbourCount(spring_users) == 0 && node->neighbourCount(triangle_users) == 0) nodes.push_back(node);
+    }
+    sortUniqueById(nodes);
+  }
+  summary.nodes = nodes.size();
+  for (Node* node : nodes) {
+    summary.mass += node->mass();
+    graph_->destroy(*node);
+  }
+  return summary;
 }
 
 InvariantReport Membrane::checkConsistency() const {

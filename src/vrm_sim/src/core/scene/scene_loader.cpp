@@ -432,6 +432,39 @@ TissueParameters readTissue(const Field& field) {
   readPositive(fields, "time_budget_ms", tissue.time_budget_ms);
   readPositive(fields, "dt", tissue.dt);
   if (auto plastic = fields.optional("plastic")) tissue.plastic = plastic->boolean();
+  readNonNegative(fields, "early_stop_force", tissue.early_stop_force);
+  if (auto tear = fields.optional("tear_strain")) {
+    tissue.tear_strain =
+        tear->number("0 (no tearing) or a number > 1 (a multiple of the rest length)", 0.0, HUGE_VAL, true, false);
+    if (tissue.tear_strain > 0.0 && !(tissue.tear_strain > 1.0)) {
+      tear->fail("expected 0 (no tearing) or a number > 1 (a multiple of the rest length), got " + tear->shown());
+    }
+  }
+  if (auto chainmail = fields.optional("chainmail")) {
+    if (tissue.model != TissueModel::kChainmail) chainmail->fail("chainmail limits need model: chainmail");
+    MapFields limits(*chainmail);
+    ChainMailParameters& c = tissue.chainmail;
+    if (auto f = limits.optional("min_stretch")) c.min_stretch = f->number("a number in (0, 1]", 0.0, 1.0, false);
+    if (auto f = limits.optional("max_stretch")) c.max_stretch = f->number("a number >= 1", 1.0, HUGE_VAL, true, false);
+    if (auto f = limits.optional("max_shear")) c.max_shear = f->number("a number >= 0", 0.0, HUGE_VAL, true, false);
+    if (auto f = limits.optional("relaxation")) c.relaxation = f->number("a number in [0, 1]", 0.0, 1.0);
+    readInteger(limits, "relaxation_iterations", c.relaxation_iterations, 0, 100);
+    limits.finish();
+  }
+  if (auto refinement = fields.optional("refinement")) {
+    MapFields settings(*refinement);
+    RefinementParameters& r = tissue.refinement;
+    readInteger(settings, "levels", r.levels, 0, 4);
+    readPositive(settings, "radius", r.radius);
+    readInteger(settings, "element_budget", r.element_budget, 1, 10000000);
+    if (auto f = settings.optional("chain_stiffness_scaling")) r.chain_stiffness_scaling = f->boolean();
+    settings.finish();
+    if (r.levels > 0) {
+      if (tissue.model != TissueModel::kMassSpring) refinement->fail("refinement needs model: mass_spring");
+      if (tissue.bending_stiffness > 0.0) refinement->fail("refinement does not support bending springs");
+      if (tissue.adhesion_stiffness > 0.0) refinement->fail("refinement does not support adhesion_stiffness");
+    }
+  }
   fields.finish();
   return tissue;
 }
@@ -575,6 +608,27 @@ const std::vector<std::pair<std::string, InstrumentType>>& instrumentTypeNames()
   return names;
 }
 
+std::vector<InstrumentWaypoint> readInstrumentPath(const Field& field) {
+  std::vector<InstrumentWaypoint> path;
+  for (const Field& item : field.items()) {
+    MapFields fields(item);
+    InstrumentWaypoint waypoint;
+    const Field t = fields.required("t");
+    waypoint.t = t.nonNegative();
+    waypoint.tip_in_eye = fields.required("tip").vector3();
+    if (auto jaw = fields.optional("jaw_angle_deg")) {
+      waypoint.jaw_angle_deg = jaw->number("an angle in [0, 180] degrees", 0.0, 180.0);
+    }
+    fields.finish();
+    if (!path.empty() && !(waypoint.t > path.back().t)) {
+      t.fail("waypoint times must increase, got " + t.shown() + " after " + std::to_string(path.back().t));
+    }
+    path.push_back(waypoint);
+  }
+  if (path.empty()) field.fail("expected at least one waypoint");
+  return path;
+}
+
 InstrumentDescription readInstrument(const Field& field, const EyeDescription& eye) {
   InstrumentDescription instrument;
   instrument.location = field.location();
@@ -608,6 +662,7 @@ InstrumentDescription readInstrument(const Field& field, const EyeDescription& e
     }
   }
   if (auto material = fields.optional("material")) instrument.material = readMaterial(*material);
+  if (auto path = fields.optional("path")) instrument.path = readInstrumentPath(*path);
   fields.finish();
   return instrument;
 }

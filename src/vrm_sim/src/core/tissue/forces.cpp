@@ -1,6 +1,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "spring_kernels.h"
 #include "vrm_sim/mge/membrane.h"
 #include "vrm_sim/tissue/system.h"
 
@@ -31,15 +32,12 @@ void ForceModel::compute(const SystemView& system, const Eigen::Vector3d* x, con
   if (!external.empty()) {
     for (std::size_t i = 0; i < n; ++i) forces[i] += external[i];
   }
-  for (std::size_t s = 0; s < system.spring_count; ++s) {
-    const auto& ends = system.springs[s];
-    const Eigen::Vector3d d = x[ends[1]] - x[ends[0]];
-    const double length = d.norm();
-    if (length < kMinSpringLength) continue;  // a zero-length spring has no direction to push along
-    const Eigen::Vector3d f = (system.stiffnesses[s] * (length - system.rest_lengths[s]) / length) * d;
-    forces[ends[0]] += f;
-    forces[ends[1]] -= f;
-  }
+  // Two sweeps instead of one: the per-spring forces vectorise (no scatter), the scatter then only adds.
+  const std::size_t m = system.spring_count;
+  if (spring_forces_.size() < 3 * m) spring_forces_.resize(3 * m);
+  double* f = spring_forces_.data();
+  kernels::hookeForces(m, system.springs, x, system.stiffnesses, system.rest_lengths, f, f + m, f + 2 * m);
+  kernels::scatterSpringForces(m, system.springs, f, f + m, f + 2 * m, forces);
   for (const Anchor& anchor : anchors) {
     forces[anchor.node] += anchor.stiffness * (anchor.point - x[anchor.node]);
   }
@@ -79,16 +77,7 @@ double kineticEnergy(const SystemView& system) {
   return energy;
 }
 
-double maxStrain(const SystemView& system) {
-  double strain = 0.0;
-  for (std::size_t s = 0; s < system.spring_count; ++s) {
-    const double rest = system.rest_lengths[s];
-    if (rest < kMinSpringLength) continue;
-    const auto& ends = system.springs[s];
-    strain = std::max(strain, (system.positions[ends[1]] - system.positions[ends[0]]).norm() / rest);
-  }
-  return strain;
-}
+double maxStrain(const SystemView& system) { return kernels::strainMaxima(system, system.positions, nullptr, 0).all; }
 
 }  // namespace tissue
 }  // namespace vrm_sim

@@ -2,9 +2,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <stdexcept>
 #include <string>
 
+#include "spring_kernels.h"
 #include "vrm_sim/mge/membrane.h"
 
 namespace vrm_sim {
@@ -29,6 +31,11 @@ TissueSimulator::TissueSimulator(mge::Membrane& membrane, const TissueConfig& co
   fallback_options.cg_max_iterations = std::max(fallback_options.cg_max_iterations, 50);
   implicit_fallback_ = makeIntegrator("implicit_euler", fallback_options);
   forces_.params = config_.forces;
+  if (config_.model == "chainmail") {
+    chainmail_ = std::make_unique<ChainMail>(membrane, config_.chainmail);
+  } else if (config_.model != "mass_spring") {
+    throw std::invalid_argument("tissue: unknown model '" + config_.model + "' (mass_spring | chainmail)");
+  }
   onTopologyChanged();
   if (config_.repair_massless_nodes) {
     // Degenerate input: a node only in zero-area triangles got no lumped mass; give it the mean node mass.
@@ -38,6 +45,12 @@ TissueSimulator::TissueSimulator(mge::Membrane& membrane, const TissueConfig& co
     for (std::size_t i = 0; i < membrane_->nodeCount(); ++i) {
       if (!(membrane_->masses()[i] > 0.0)) membrane_->nodeAtSlot(i).mass() = mean;
     }
+  }
+  if (config_.refinement.levels > 0) {
+    if (chainmail_ || config_.adhesion_stiffness > 0.0) {
+      throw std::invalid_argument("tissue: refinement needs the mass_spring model without adhesion");
+    }
+    refinement_ = std::make_unique<LocalRefinement>(membrane, config_.refinement);
   }
   const SystemView system = view();
   for (std::size_t i = 0; i < system.node_count; ++i) {
@@ -79,6 +92,10 @@ void TissueSimulator::onTopologyChanged() {
   sorted_valid_ = false;
   rebuildConstraints();
   sorter_.rebuild(view());
+  if (chainmail_) {
+    chainmail_->rebuild();
+    chainmail_committed_.assign(membrane_->positions(), membrane_->positions() + n);
+  }
 }
 
 void TissueSimulator::rebuildConstraints() {
@@ -241,39 +258,58 @@ void TissueSimulator::rawStep(Integrator& integrator, double dt) {
 }
 
 void TissueSimulator::saveState() {
+  // Plain copies into buffers sized once per topology: the rollback costs two memcpy per step.
   const std::size_t n = membrane_->nodeCount();
-  saved_positions_.assign(membrane_->positions(), membrane_->positions() + n);
-  saved_velocities_.assign(membrane_->velocities(), membrane_->velocities() + n);
+  if (saved_positions_.size() != n) {
+    saved_positions_.resize(n);
+    saved_velocities_.resize(n);
+  }
+  std::memcpy(static_cast<void*>(saved_positions_.data()), membrane_->positions(), n * sizeof(Eigen::Vector3d));
+  std::memcpy(static_cast<void*>(saved_velocities_.data()), membrane_->velocities(), n * sizeof(Eigen::Vector3d));
   if (config_.plastic) {
     saved_rest_lengths_.assign(membrane_->restLengths(), membrane_->restLengths() + membrane_->springCount());
   }
 }
 
 void TissueSimulator::restoreState() {
-  std::copy(saved_positions_.begin(), saved_positions_.end(), membrane_->positions());
-  std::copy(saved_velocities_.begin(), saved_velocities_.end(), membrane_->velocities());
+  const std::size_t n = saved_positions_.size();
+  std::memcpy(static_cast<void*>(membrane_->positions()), saved_positions_.data(), n * sizeof(Eigen::Vector3d));
+  std::memcpy(static_cast<void*>(membrane_->velocities()), saved_velocities_.data(), n * sizeof(Eigen::Vector3d));
   if (config_.plastic) std::copy(saved_rest_lengths_.begin(), saved_rest_lengths_.end(), membrane_->restLengths());
+  frame_strain_ = -1.0;
+}
+
+std::uint32_t TissueSimulator::markTouched(std::vector<std::uint32_t>& touched, std::uint32_t& epoch) const {
+  // Springs at an instrument (contact or grasp) are stretched by the instrument, not by an instability.
+  ++epoch;
+  touched.resize(membrane_->nodeCount(), 0);
+  for (const NodeDeformation& contact : contacts_) {
+    if (contact.node < touched.size()) touched[contact.node] = epoch;
+  }
+  for (std::uint32_t node : grasped_nodes_) touched[node] = epoch;
+  return epoch;
 }
 
 double TissueSimulator::untouchedMaxStrain() {
+  const std::uint32_t epoch = markTouched(touched_, touched_epoch_);
   const SystemView system = view();
-  // Springs at an instrument (contact or grasp) are stretched by the instrument, not by an instability.
-  ++touched_epoch_;
-  touched_.resize(system.node_count, 0);
-  for (const NodeDeformation& contact : contacts_) touched_[contact.node] = touched_epoch_;
-  for (std::uint32_t node : grasped_nodes_) touched_[node] = touched_epoch_;
-  double strain = 0.0;
-  for (std::size_t s = 0; s < system.spring_count; ++s) {
-    const auto& ends = system.springs[s];
-    const double rest = system.rest_lengths[s];
-    if (rest < kMinSpringLength || (!system.isFree(ends[0]) && !system.isFree(ends[1]))) continue;
-    if (touched_[ends[0]] == touched_epoch_ || touched_[ends[1]] == touched_epoch_) continue;
-    strain = std::max(strain, (system.positions[ends[1]] - system.positions[ends[0]]).norm() / rest);
-  }
-  return strain;
+  const kernels::StrainMaxima maxima = kernels::strainMaxima(system, system.positions, touched_.data(), epoch);
+  frame_strain_ = maxima.all;
+  return maxima.untouched;
 }
 
-bool TissueSimulator::unstable(double kinetic_before, double strain_before) {
+double TissueSimulator::strainBefore() {
+  if (strain_before_ < 0.0) {
+    // Measured on the saved start state with the contacts and grasps the step started with.
+    const kernels::StrainMaxima maxima =
+        kernels::strainMaxima(view(), saved_positions_.data(), touched_before_.data(), touched_before_epoch_);
+    strain_before_ = maxima.untouched;
+  }
+  return strain_before_;
+}
+
+bool TissueSimulator::unstable(double kinetic_before) {
+  frame_strain_ = -1.0;
   const SystemView system = view();
   double total_mass = 0.0;
   double kinetic = 0.0;
@@ -303,7 +339,7 @@ bool TissueSimulator::unstable(double kinetic_before, double strain_before) {
   const double strain = untouchedMaxStrain();
   last_strain_ = strain;
   statistics_.max_strain = std::max(statistics_.max_strain, strain);
-  if (strain > strain_bound && strain > 1.5 * strain_before) {
+  if (strain > strain_bound && strain > 1.5 * strainBefore()) {
     ++statistics_.strain_growth;
     return true;
   }
@@ -311,8 +347,16 @@ bool TissueSimulator::unstable(double kinetic_before, double strain_before) {
 }
 
 bool TissueSimulator::step() {
+  frame_strain_ = -1.0;
+  if (chainmail_) {
+    chainmailStep();  // cuts and tears at its end
+    ++statistics_.steps;
+    return true;
+  }
+  topologyBeforeStep();
   if (!config_.watchdog.enabled) {
     rawStep(*integrator_, config_.dt);
+    topologyAfterStep();
     ++statistics_.steps;
     return true;
   }
@@ -322,14 +366,17 @@ bool TissueSimulator::step() {
   }
   saveState();
   const double kinetic_before = kineticEnergy();
-  // The previous step's check measured it already (grasped and touched springs are excluded either way).
-  const double strain_before = last_strain_ >= 0.0 ? last_strain_ : untouchedMaxStrain();
-  const std::vector<NodeDeformation> pending_deformations = external_deformations_;
+  // The previous step's check measured it already (grasped and touched springs are excluded either way). After
+  // kinematic motion it is unknown; it is only needed when the step ends far beyond the limit, so it is measured
+  // then, on the saved state (strainBefore()).
+  strain_before_ = last_strain_;
+  if (strain_before_ < 0.0) markTouched(touched_before_, touched_before_epoch_);
+  pending_deformations_.assign(external_deformations_.begin(), external_deformations_.end());
   bool ok = false;
   for (int level = fallback_level_; level <= config_.watchdog.max_halvings + 1 && !ok; ++level) {
     if (level > fallback_level_) {
       restoreState();
-      external_deformations_ = pending_deformations;
+      external_deformations_.assign(pending_deformations_.begin(), pending_deformations_.end());
       ++statistics_.fallbacks;
     }
     if (level <= config_.watchdog.max_halvings) {
@@ -340,7 +387,7 @@ bool TissueSimulator::step() {
       rawStep(*implicit_fallback_, config_.dt);
     }
     const std::uint64_t strain_rejections = statistics_.strain_growth;
-    ok = !unstable(kinetic_before, strain_before);
+    ok = !unstable(kinetic_before);
     // Implicit Euler cannot be unstable; if only the strain criterion still objects, the strain came from a
     // kinematic shock (e.g. grasped nodes pressed onto the jaw plane) and freezing the tissue would not help.
     if (!ok && level > config_.watchdog.max_halvings && statistics_.strain_growth > strain_rejections) ok = true;
@@ -356,6 +403,7 @@ bool TissueSimulator::step() {
     for (std::size_t i = 0; i < membrane_->nodeCount(); ++i) membrane_->velocities()[i].setZero();
     ++statistics_.unrecovered;
   }
+  if (ok) topologyAfterStep();
   ++statistics_.steps;
   return ok;
 }
@@ -369,6 +417,8 @@ FrameReport TissueSimulator::advance(double frame_time, const Clock& clock) {
   const double budget = config_.time_budget_ms * 1e-3;
   const int planned =
       std::min(config_.max_steps_per_frame, static_cast<int>(std::floor(pending_time_ / config_.dt + 1e-9)));
+  // Only with resting instruments: a moving one must reach its end-of-frame pose.
+  const bool early_stop = config_.early_stop_force > 0.0 && !chainmail_ && instrumentsAtRest();
   for (int s = 0; s < planned; ++s) {
     if (s > 0 && clock() - start >= budget) {
       report.budget_exhausted = true;
@@ -378,16 +428,49 @@ FrameReport TissueSimulator::advance(double frame_time, const Clock& clock) {
     step();
     ++report.steps;
     report.simulated_time += config_.dt;
+    if (early_stop && s + 1 < planned && maxFreeForce() < config_.early_stop_force) {
+      report.early_stopped = true;
+      break;
+    }
   }
   if (planned > 0) {
     previous_instruments_ = current_instruments_;
-    // Real time: time the budget did not cover is dropped, not owed to the next frame.
-    pending_time_ = report.budget_exhausted ? 0.0 : std::max(0.0, pending_time_ - report.simulated_time);
+    // Real time: time the budget did not cover is dropped, not owed to the next frame; so is the rest of a frame
+    // at equilibrium.
+    pending_time_ =
+        report.budget_exhausted || report.early_stopped ? 0.0 : std::max(0.0, pending_time_ - report.simulated_time);
   }
   report.wall_time = clock() - start;
   report.fallbacks = static_cast<int>(statistics_.fallbacks - fallbacks_before);
-  report.max_strain = maxStrain();
+  // The watchdog measured the state after the last step already.
+  report.max_strain = report.steps > 0 && frame_strain_ >= 0.0 ? frame_strain_ : maxStrain();
   return report;
+}
+
+double TissueSimulator::maxFreeForce() {
+  const SystemView system = view();
+  if (early_stop_forces_.size() != system.node_count) {
+    early_stop_forces_.resize(system.node_count);
+    early_stop_zero_.assign(system.node_count, Eigen::Vector3d::Zero());
+  }
+  forces_.compute(system, system.positions, early_stop_zero_.data(), early_stop_forces_.data());
+  // Nodes at an instrument are held by it: their spring forces stay unbalanced at equilibrium.
+  const std::uint32_t epoch = markTouched(touched_, touched_epoch_);
+  double max_force2 = 0.0;
+  for (std::size_t i = 0; i < system.node_count; ++i) {
+    if (system.isFree(i) && touched_[i] != epoch)
+      max_force2 = std::max(max_force2, early_stop_forces_[i].squaredNorm());
+  }
+  return std::sqrt(max_force2);
+}
+
+bool TissueSimulator::instrumentsAtRest() const {
+  for (std::size_t i = 0; i < target_instruments_.size() && i < previous_instruments_.size(); ++i) {
+    const InstrumentInput& now = target_instruments_[i];
+    const InstrumentInput& before = previous_instruments_[i];
+    if (now.pose.matrix() != before.pose.matrix() || now.jaw_angle != before.jaw_angle) return false;
+  }
+  return true;
 }
 
 double TissueSimulator::maxStrain() { return tissue::maxStrain(view()); }

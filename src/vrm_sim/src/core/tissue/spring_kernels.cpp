@@ -1,0 +1,82 @@
+#include "spring_kernels.h"
+
+#include <algorithm>
+#include <cmath>
+
+// Built twice, for AVX2 (4 doubles per instruction) and for the baseline x86-64 SSE2, and picked at load time.
+// AVX2 without FMA on purpose: FMA contraction would round differently from the baseline and the Eigen loops.
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+#define VRM_TISSUE_KERNEL __attribute__((target_clones("avx2", "default")))
+#else
+#define VRM_TISSUE_KERNEL
+#endif
+
+namespace vrm_sim {
+namespace tissue {
+namespace kernels {
+
+VRM_TISSUE_KERNEL
+void hookeForces(std::size_t spring_count, const std::array<std::uint32_t, 2>* springs, const Eigen::Vector3d* x,
+                 const double* stiffnesses, const double* rest_lengths, double* fx, double* fy, double* fz) {
+  // First the spring vectors d = x_b − x_a (a gather, scalar) ...
+  for (std::size_t s = 0; s < spring_count; ++s) {
+    const Eigen::Vector3d& a = x[springs[s][0]];
+    const Eigen::Vector3d& b = x[springs[s][1]];
+    fx[s] = b.x() - a.x();
+    fy[s] = b.y() - a.y();
+    fz[s] = b.z() - a.z();
+  }
+  // ... then the forces on contiguous arrays, where the square roots and divisions fill whole SIMD registers.
+  for (std::size_t s = 0; s < spring_count; ++s) {
+    const double dx = fx[s];
+    const double dy = fy[s];
+    const double dz = fz[s];
+    const double length = std::sqrt(dx * dx + dy * dy + dz * dz);
+    // A zero-length spring has no direction to push along. The division runs on a safe length in every lane and
+    // the result is selected afterwards, so the loop has no branch.
+    const double scale = stiffnesses[s] * (length - rest_lengths[s]) / std::max(length, kMinSpringLength);
+    const double used = length < kMinSpringLength ? 0.0 : scale;
+    fx[s] = used * dx;
+    fy[s] = used * dy;
+    fz[s] = used * dz;
+  }
+}
+
+void scatterSpringForces(std::size_t spring_count, const std::array<std::uint32_t, 2>* springs, const double* fx,
+                         const double* fy, const double* fz, Eigen::Vector3d* forces) {
+  for (std::size_t s = 0; s < spring_count; ++s) {
+    const Eigen::Vector3d f(fx[s], fy[s], fz[s]);
+    forces[springs[s][0]] += f;
+    forces[springs[s][1]] -= f;
+  }
+}
+
+StrainMaxima strainMaxima(const SystemView& system, const Eigen::Vector3d* x, const std::uint32_t* touched,
+                          std::uint32_t epoch) {
+  StrainMaxima maxima;
+  // |d|² <= bound·l² means |d|/l <= the untouched maximum (to 1e-12 relative), so the spring cannot change either
+  // maximum (untouched <= all). The slack lets the many springs at exactly the maximum (e.g. 1 at rest) skip too.
+  constexpr double kMargin = 1.0 + 1e-12;
+  double bound = 0.0;
+  for (std::size_t s = 0; s < system.spring_count; ++s) {
+    const auto& ends = system.springs[s];
+    const double rest = system.rest_lengths[s];
+    const Eigen::Vector3d d = x[ends[1]] - x[ends[0]];
+    const double length2 = d.squaredNorm();
+    if (length2 <= bound * (rest * rest)) continue;
+    if (rest < kMinSpringLength) continue;
+    const double strain = std::sqrt(length2) / rest;
+    maxima.all = std::max(maxima.all, strain);
+    if (!system.isFree(ends[0]) && !system.isFree(ends[1])) continue;
+    if (touched != nullptr && (touched[ends[0]] == epoch || touched[ends[1]] == epoch)) continue;
+    if (strain > maxima.untouched) {
+      maxima.untouched = strain;
+      bound = strain * strain * kMargin;
+    }
+  }
+  return maxima;
+}
+
+}  // namespace kernels
+}  // namespace tissue
+}  // namespace vrm_sim

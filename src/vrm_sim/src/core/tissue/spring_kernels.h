@@ -1,0 +1,40 @@
+#pragma once
+// The inner loops over springs that every step runs (forces, strain measurement), written on raw arrays so the
+// compiler can vectorise them. Each kernel gives bit for bit the result of the straightforward Eigen loop it
+// replaces (same operations in the same order, no FMA contraction), so the speed-up does not change the physics;
+// strainMaxima() says where it differs.
+
+#include <cstddef>
+#include <cstdint>
+
+#include "vrm_sim/tissue/system.h"
+
+namespace vrm_sim {
+namespace tissue {
+namespace kernels {
+
+// Hooke forces of eq. 5.2 per spring: f_s = k_s (|d_s| − l_s)/|d_s| · d_s with d_s = x_b − x_a (zero for springs
+// shorter than kMinSpringLength), written structure-of-arrays to fx/fy/fz (spring_count each). No scatter, so the
+// square roots and divisions of neighbouring springs run side by side in SIMD lanes.
+void hookeForces(std::size_t spring_count, const std::array<std::uint32_t, 2>* springs, const Eigen::Vector3d* x,
+                 const double* stiffnesses, const double* rest_lengths, double* fx, double* fy, double* fz);
+
+// forces[a] += f_s, forces[b] −= f_s in spring order (the order of the fused loop, hence the same sums).
+void scatterSpringForces(std::size_t spring_count, const std::array<std::uint32_t, 2>* springs, const double* fx,
+                         const double* fy, const double* fz, Eigen::Vector3d* forces);
+
+struct StrainMaxima {
+  double all = 0.0;        // max |d|/l over springs with l >= kMinSpringLength (maxStrain())
+  double untouched = 0.0;  // the same without springs between two constrained nodes or with a touched end
+};
+
+// Both maxima in one sweep without a square root per spring: a spring is measured exactly (sqrt, division) only
+// when |d|² exceeds the current untouched maximum's bound, which after the first few springs is rare. A spring
+// within 5e-13 (relative) of the running maximum may be skipped, so the maxima are exact to that. `touched`
+// (may be null) marks nodes at an instrument with the value `epoch`.
+StrainMaxima strainMaxima(const SystemView& system, const Eigen::Vector3d* x, const std::uint32_t* touched,
+                          std::uint32_t epoch);
+
+}  // namespace kernels
+}  // namespace tissue
+}  // namespace vrm_sim
