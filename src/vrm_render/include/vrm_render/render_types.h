@@ -111,6 +111,9 @@ struct RenderOptions {
   bool lighting = true;  // spotlight + Phong; off: flat material colour scaled by the ambient light
   bool bump_mapping = true;
   bool dof_pass = true;
+  // Lit shader only inside a screen rectangle bounding the spotlight's footprint, the ambient-only one elsewhere
+  // (same image; off: the lit shader everywhere, for comparison).
+  bool spot_scissor = true;
   int shadow_map_size = 512;
   int dof_downsample = 4;     // blur at 1/4 (or 1/2, 1) resolution, separable 9 taps: §7.4.2 pass 3 is the costliest
   float dof_sigma_px = 1.5f;  // Gaussian sigma at the reduced resolution (x dof_downsample at full resolution)
@@ -131,7 +134,7 @@ struct PassTimings {
   double ms_upload = 0.0;  // streaming changed deformable meshes
   double ms_shadow = 0.0;
   double ms_scene = 0.0;  // both eyes
-  double ms_dof = 0.0;    // both eyes
+  double ms_dof = 0.0;    // both eyes: reduced-resolution blur + the CPU blend
   double ms_readback = 0.0;
   double ms_total = 0.0;
   std::size_t triangles_drawn = 0;  // scene pass, both eyes

@@ -19,6 +19,14 @@ ObjectStyle objectStyle(const vrm_sim::scene::ObjectDescription& object);
 ObjectStyle instrumentStyle(const vrm_sim::scene::InstrumentDescription& instrument, bool ghost = false);
 std::string instrumentObjectId(const vrm_sim::scene::InstrumentDescription& instrument);  // "instrument_<slot>"
 
+// The mesh an instrument slot shows: `type` with the scene's parameters when it is the configured instrument, else
+// the generator defaults (switching instruments, InstrumentState.type); forceps with their jaws opened to
+// `jaw_angle_rad` (full opening, InstrumentState.jaw_angle; clamped to [0, pi], non-finite = closed).
+MeshData instrumentMesh(const vrm_sim::scene::InstrumentDescription& configured, vrm_sim::scene::InstrumentType type,
+                        double jaw_angle_rad = 0.0);
+// The rendered jaw opening in whole degrees: meshes are rebuilt only when this changes.
+int jawStepDeg(vrm_sim::scene::InstrumentType type, double jaw_angle_rad);
+
 // Light pipe spotlight for an instrument pose: tip at the frame origin, shining along the frame's +z.
 LightPipe lightPipeAt(const Eigen::Isometry3f& world_from_instrument, const LightPipe& defaults = {});
 

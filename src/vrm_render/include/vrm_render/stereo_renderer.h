@@ -5,9 +5,15 @@
 //           objects) are drawn into it;
 //   pass 2  the scene per eye: Phong shading with a per-pixel spotlight cone from the light pipe tip (shadowed),
 //           procedural bump mapping on the retina, vertex colour and injury (bleeding) on the tissue; opaque objects
-//           front to back (early depth), translucent ones (membrane, ghost instruments) back to front;
-//   pass 3  depth of field: the scene is blurred at reduced resolution with a separable Gaussian and mixed with the
-//           sharp image by the distance of each pixel from the focal plane.
+//           front to back (early depth), translucent ones (membrane, ghost instruments) back to front. llvmpipe runs
+//           both sides of every shader branch, so the lit shader is drawn only inside a screen rectangle that
+//           bounds the cone's footprint (the triangles clipped to a pyramid around the cone; scissor + stencil) and
+//           an ambient-only shader elsewhere: the same image (test SpotlightRectangle...) at a fraction of the cost.
+//           Opaque pixels store their depth-of-field weight in alpha;
+//   pass 3  depth of field: the scene is blurred at reduced resolution with a separable Gaussian; the blend with
+//           the sharp image by that weight is fused with the readback on the CPU (cheaper than a full-resolution
+//           pass on llvmpipe). Both eyes are submitted before either is read back, so one eye's rasterisation
+//           overlaps the next eye's binning and the previous eye's blend.
 // Static geometry lives in GPU buffers uploaded once; deformable meshes are streamed only when their version
 // changes. Objects outside a frustum are not drawn.
 
@@ -70,5 +76,12 @@ class StereoRenderer {
   MicroscopeState microscope_;
   LightPipe light_;
 };
+
+// llvmpipe allocates and frees its vertex and bin buffers for every draw; with glibc's defaults these large blocks
+// go back to the kernel each time and come back as fresh pages (about 3,000 page faults per stereo frame, ~5-10 %
+// of the frame's CPU time). This keeps freed memory in the heap (mmap threshold 256 MB, trim threshold 1 GB). It
+// changes malloc for the whole process, so the application calls it (the benchmark and the nodelet do); the
+// renderer itself does not.
+void retainFreedHeapMemory();
 
 }  // namespace vrm_render

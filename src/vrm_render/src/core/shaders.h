@@ -4,7 +4,9 @@
 namespace vrm_render {
 namespace shaders {
 
-// Pass 2: per-vertex transform; lighting happens per pixel.
+// Pass 2: per-vertex transform; lighting happens per pixel. The material colour, vertex colour and bleeding are
+// combined per vertex (one varying instead of two, no per-pixel mix). gl_Position is invariant so the ambient-only
+// and the lit variants rasterise exactly the same depths.
 inline constexpr const char* kSceneVertex = R"(
 layout(location = 0) in vec3 a_position;
 layout(location = 1) in vec3 a_normal;
@@ -14,8 +16,10 @@ uniform mat4 u_model;
 uniform mat3 u_normal_matrix;
 uniform mat4 u_view_proj;
 uniform mat4 u_light_view_proj;
-out vec4 v_color;
-out float v_injury;
+uniform vec4 u_diffuse;
+uniform vec3 u_blood;
+invariant gl_Position;
+out vec4 v_base;
 #if LIGHTING
 out vec3 v_world;
 out vec3 v_normal;
@@ -28,8 +32,8 @@ out vec4 v_light_clip;
 #endif
 void main() {
   vec4 world = u_model * vec4(a_position, 1.0);
-  v_color = a_color;
-  v_injury = a_injury;
+  v_base = u_diffuse * a_color;
+  v_base.rgb = mix(v_base.rgb, u_blood, clamp(a_injury, 0.0, 1.0));
 #if LIGHTING
   v_world = world.xyz;
   v_normal = u_normal_matrix * a_normal;
@@ -45,10 +49,13 @@ void main() {
 )";
 
 // Pass 2: Phong shading under the light pipe's spotlight (per pixel, with a soft cone edge and distance fall-off),
-// shadow-map lookup with hardware 2x2 PCF, procedural bump mapping, vertex colour and bleeding.
+// shadow-map lookup with hardware 2x2 PCF, procedural bump mapping, vertex colour and bleeding. LIGHTING 0 is the
+// ambient-only variant (u_colour_scale = ambient light; 1 for flat shading): the renderer draws it wherever the
+// spotlight cone cannot reach, because llvmpipe evaluates both sides of every branch for every pixel.
+// Alpha: the object's opacity for translucent objects (blended, destination alpha kept); for opaque ones the
+// depth-of-field blend weight of the pixel (0 = on the focal plane .. 1 = fully blurred), read back with the colour.
 inline constexpr const char* kSceneFragment = R"(
-in vec4 v_color;
-in float v_injury;
+in vec4 v_base;
 #if LIGHTING
 in vec3 v_world;
 in vec3 v_normal;
@@ -60,8 +67,8 @@ in vec3 v_object;
 in vec4 v_light_clip;
 #endif
 out vec4 frag;
+uniform float u_colour_scale;
 uniform vec3 u_camera_pos;
-uniform vec4 u_diffuse;
 uniform vec3 u_specular;
 uniform float u_shininess;
 uniform float u_ambient;
@@ -74,8 +81,12 @@ uniform float u_light_range;
 uniform sampler2DShadow u_shadow_map;
 uniform float u_shadow_bias;
 uniform float u_bump_amplitude;
-uniform vec3 u_blood;
 uniform float u_alpha_scale;
+uniform float u_coc_alpha;  // 1: opaque, alpha = DOF weight; 0: translucent, alpha = opacity
+uniform float u_near;
+uniform float u_far;
+uniform float u_focus;
+uniform float u_dof_range;
 
 #if BUMP
 // Gradient of a height field made of four plane waves in object coordinates (wavelengths 0.3-0.9 mm, directions
@@ -91,19 +102,24 @@ vec3 bumpGradient(vec3 p) {
 }
 #endif
 
+float dofWeight() {
+  float z_ndc = gl_FragCoord.z * 2.0 - 1.0;
+  float z = 2.0 * u_near * u_far / (u_far + u_near - z_ndc * (u_far - u_near));
+  float w = clamp(abs(z - u_focus) / u_dof_range, 0.0, 1.0);
+  return w * w * (3.0 - 2.0 * w);
+}
+
 void main() {
-  vec4 base = u_diffuse * v_color;
-  base.rgb = mix(base.rgb, u_blood, clamp(v_injury, 0.0, 1.0));
+  vec4 base = v_base;
+  float alpha = mix(base.a * u_alpha_scale, dofWeight(), u_coc_alpha);
 #if !LIGHTING
-  frag = vec4(base.rgb, base.a * u_alpha_scale);
+  frag = vec4(base.rgb * u_colour_scale, alpha);
 #else
   vec3 colour = base.rgb * u_ambient;
   vec3 to_light = u_light_pos - v_world;
   float d = length(to_light);
   vec3 l = to_light / max(d, 1e-9);
   float cone = smoothstep(u_cos_outer, u_cos_inner, dot(-l, u_light_dir));
-  // Most of the view lies outside the light pipe's cone: the normal, the bump map and the shadow lookup are only
-  // evaluated inside it (llvmpipe skips a branch when all pixels of a block agree).
   if (cone > 0.0) {
     vec3 n = normalize(v_normal);
     if (!gl_FrontFacing) n = -n;
@@ -129,7 +145,7 @@ void main() {
     float specular = diffuse > 0.0 ? t / (u_shininess - u_shininess * t + t) : 0.0;
     colour += cone * attenuation * visibility * (base.rgb * diffuse + u_specular * specular);
   }
-  frag = vec4(colour, base.a * u_alpha_scale);
+  frag = vec4(colour, alpha);
 #endif
 }
 )";
@@ -146,7 +162,9 @@ inline constexpr const char* kShadowFragment = R"(#version 330 core
 void main() {}
 )";
 
-// Pass 3: one triangle covering the viewport, no vertex buffer.
+// Pass 3 (depth of field) at reduced resolution: downsample, separable blur. The blend with the sharp image by the
+// per-pixel weight (scene alpha) happens on the CPU while reading back (composeDepthOfField).
+// One triangle covering the viewport, no vertex buffer.
 inline constexpr const char* kFullscreenVertex = R"(#version 330 core
 out vec2 v_uv;
 void main() {
@@ -177,30 +195,6 @@ void main() {
     c += (texture(u_src, v_uv + u_step * u_offset[i]) + texture(u_src, v_uv - u_step * u_offset[i])) * u_weight[i];
   }
   frag = c;
-}
-)";
-
-// Pass 3b: blend sharp and blurred by the pixel's distance from the focal plane (linearised depth).
-inline constexpr const char* kCompositeFragment = R"(#version 330 core
-in vec2 v_uv;
-out vec4 frag;
-uniform sampler2D u_sharp;
-uniform sampler2D u_blurred;
-uniform sampler2D u_depth;
-uniform float u_near;
-uniform float u_far;
-uniform float u_focus;
-uniform float u_dof_range;
-void main() {
-  ivec2 texel = ivec2(gl_FragCoord.xy);
-  float d = texelFetch(u_depth, texel, 0).r;
-  float z_ndc = d * 2.0 - 1.0;
-  float z = 2.0 * u_near * u_far / (u_far + u_near - z_ndc * (u_far - u_near));
-  float w = clamp(abs(z - u_focus) / u_dof_range, 0.0, 1.0);
-  w = w * w * (3.0 - 2.0 * w);
-  vec4 sharp = texelFetch(u_sharp, texel, 0);
-  // In-focus blocks skip the (filtered, upsampling) fetch of the blurred image.
-  frag = w > 0.0 ? mix(sharp, texture(u_blurred, v_uv), w) : sharp;
 }
 )";
 

@@ -1,5 +1,7 @@
 #include "vrm_render/stereo_renderer.h"
 
+#include <malloc.h>
+
 #define GL_GLEXT_PROTOTYPES
 #include <GL/gl.h>
 #include <GL/glext.h>
@@ -9,6 +11,8 @@
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <future>
+#include <limits>
 #include <map>
 #include <unordered_map>
 
@@ -76,7 +80,7 @@ class Program {
 struct RenderTarget {
   GLuint fbo = 0;
   GLuint color = 0;
-  GLuint depth = 0;  // depth texture (0 when the target has none)
+  GLuint depth = 0;  // depth (or depth-stencil) texture, 0 when the target has none
   int width = 0;
   int height = 0;
 
@@ -100,7 +104,9 @@ GLuint makeTexture(GLint internal_format, int width, int height, GLenum format, 
   return texture;
 }
 
-RenderTarget makeTarget(int width, int height, bool with_color, bool with_depth, const char* name) {
+enum class DepthKind { kNone, kDepth, kDepthStencil };
+
+RenderTarget makeTarget(int width, int height, bool with_color, DepthKind depth, const char* name) {
   RenderTarget target;
   target.width = width;
   target.height = height;
@@ -113,9 +119,12 @@ RenderTarget makeTarget(int width, int height, bool with_color, bool with_depth,
     glDrawBuffer(GL_NONE);
     glReadBuffer(GL_NONE);
   }
-  if (with_depth) {
+  if (depth == DepthKind::kDepth) {
     target.depth = makeTexture(GL_DEPTH_COMPONENT24, width, height, GL_DEPTH_COMPONENT, GL_UNSIGNED_INT, GL_NEAREST);
     glFramebufferTexture2D(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_TEXTURE_2D, target.depth, 0);
+  } else if (depth == DepthKind::kDepthStencil) {
+    target.depth = makeTexture(GL_DEPTH24_STENCIL8, width, height, GL_DEPTH_STENCIL, GL_UNSIGNED_INT_24_8, GL_NEAREST);
+    glFramebufferTexture2D(GL_FRAMEBUFFER, GL_DEPTH_STENCIL_ATTACHMENT, GL_TEXTURE_2D, target.depth, 0);
   }
   const GLenum status = glCheckFramebufferStatus(GL_FRAMEBUFFER);
   if (status != GL_FRAMEBUFFER_COMPLETE) {
@@ -138,6 +147,8 @@ struct Object {
   bool has_colors = false;
   bool has_injury = false;
   std::vector<std::uint32_t> triangles;              // to notice topology changes of streamed meshes
+  std::vector<float> positions;                      // object frame, for the spotlight's screen rectangle
+  bool in_cone = false;                              // this frame: the spotlight cone reaches the bounding sphere
   Eigen::Vector3f centre = Eigen::Vector3f::Zero();  // bounding sphere, object frame
   float radius = 0.0f;
 };
@@ -231,6 +242,218 @@ void validateOptions(const RenderOptions& options) {
   }
 }
 
+// A rectangle of pixels [x0, x1) x [y0, y1) in GL window coordinates (y up).
+struct PixelRect {
+  int x0 = 0, y0 = 0, x1 = 0, y1 = 0;
+  bool empty() const { return x1 <= x0 || y1 <= y0; }
+};
+
+// The eight-sided pyramid that circumscribes the light pipe's cone (apex at the tip, half angle a): eight side
+// planes tangent to the cone and the plane through the apex, as (n, d) with n.p + d >= 0 inside. Everything the
+// spotlight can light lies inside.
+constexpr int kPyramidSides = 8;
+using Pyramid = std::array<Eigen::Vector4f, kPyramidSides + 1>;
+
+Pyramid spotPyramid(const Eigen::Vector3f& tip, const Eigen::Vector3f& axis, float half_angle) {
+  const Eigen::Vector3f u = axis.unitOrthogonal();
+  const Eigen::Vector3f v = axis.cross(u);
+  const float tan_half = std::tan(half_angle);
+  Pyramid planes;
+  for (int k = 0; k <= kPyramidSides; ++k) {
+    const float phi = 2.0f * static_cast<float>(M_PI) * k / kPyramidSides;
+    // Side k touches the cone along the line t (axis + tan(a) s), s = cos(phi) u + sin(phi) v.
+    const Eigen::Vector3f n =
+        k < kPyramidSides ? Eigen::Vector3f((tan_half * axis - std::cos(phi) * u - std::sin(phi) * v).normalized())
+                          : axis;  // unit normals: render() compares plane distances with bounding-sphere radii
+    planes[k] << n, -n.dot(tip);
+  }
+  return planes;
+}
+
+// Appends to `out` the world positions of the corners of every triangle part of the mesh that lies inside the
+// pyramid (Sutherland-Hodgman clipping; triangles entirely outside one plane are skipped after a vertex test).
+void clipToPyramid(const std::vector<float>& positions, const std::vector<std::uint32_t>& triangles,
+                   const Eigen::Isometry3f& world_from_object, const Pyramid& world_planes,
+                   std::vector<std::uint16_t>* scratch, std::vector<Eigen::Vector3f>* out) {
+  // Planes in the object frame: n.(R p + t) + d = (R^T n).p + (n.t + d).
+  constexpr int kPlanes = kPyramidSides + 1;
+  Pyramid planes;
+  for (int i = 0; i < kPlanes; ++i) {
+    const Eigen::Vector3f n = world_planes[i].head<3>();
+    planes[i] << world_from_object.linear().transpose() * n,
+        n.dot(world_from_object.translation()) + world_planes[i].w();
+  }
+  const std::size_t vertex_count = positions.size() / 3;
+  std::vector<std::uint16_t>& outside = *scratch;  // bit i: outside plane i
+  outside.resize(vertex_count);
+  for (std::size_t v = 0; v < vertex_count; ++v) {
+    const Eigen::Map<const Eigen::Vector3f> p(positions.data() + 3 * v);
+    std::uint16_t code = 0;
+    for (int i = 0; i < kPlanes; ++i) {
+      if (planes[i].head<3>().dot(p) + planes[i].w() < 0.0f) code |= 1 << i;
+    }
+    outside[v] = code;
+  }
+  Eigen::Vector3f polygon[2][3 + kPlanes];  // each plane adds at most one corner
+  for (std::size_t t = 0; t + 2 < triangles.size(); t += 3) {
+    const std::uint32_t* tri = triangles.data() + t;
+    if (outside[tri[0]] & outside[tri[1]] & outside[tri[2]]) continue;
+    if ((outside[tri[0]] | outside[tri[1]] | outside[tri[2]]) == 0) {
+      for (int k = 0; k < 3; ++k)
+        out->push_back(world_from_object * Eigen::Map<const Eigen::Vector3f>(positions.data() + 3 * tri[k]));
+      continue;
+    }
+    int count = 3;
+    for (int k = 0; k < 3; ++k) polygon[0][k] = Eigen::Map<const Eigen::Vector3f>(positions.data() + 3 * tri[k]);
+    int src = 0;
+    for (int i = 0; i < kPlanes && count > 0; ++i) {
+      int kept = 0;
+      for (int k = 0; k < count; ++k) {
+        const Eigen::Vector3f& a = polygon[src][k];
+        const Eigen::Vector3f& b = polygon[src][(k + 1) % count];
+        const float da = planes[i].head<3>().dot(a) + planes[i].w();
+        const float db = planes[i].head<3>().dot(b) + planes[i].w();
+        if (da >= 0.0f) polygon[1 - src][kept++] = a;
+        if ((da >= 0.0f) != (db >= 0.0f)) polygon[1 - src][kept++] = a + (b - a) * (da / (da - db));
+      }
+      count = kept;
+      src = 1 - src;
+    }
+    for (int k = 0; k < count; ++k) out->push_back(world_from_object * polygon[src][k]);
+  }
+}
+
+// Bounding rectangle, in one eye's image, of `points` (the corners of the clipped triangles: the projection of a
+// convex polygon lies in the hull of its projected corners), with a pixel of rasterisation slack. A point behind
+// the camera makes the rectangle the whole image.
+PixelRect spotRect(const CameraView& camera, const std::vector<Eigen::Vector3f>& points) {
+  const PixelRect full{0, 0, camera.width, camera.height};
+  if (points.empty()) return {};
+  const Eigen::Matrix4f view_proj = camera.viewProjection();
+  float x0 = std::numeric_limits<float>::max(), y0 = x0, x1 = -x0, y1 = -x0;
+  for (const Eigen::Vector3f& point : points) {
+    const Eigen::Vector4f clip = view_proj * Eigen::Vector4f(point.x(), point.y(), point.z(), 1.0f);
+    if (!(clip.w() > 1e-6f)) return full;
+    const float x = (clip.x() / clip.w() + 1.0f) * 0.5f * camera.width;
+    const float y = (clip.y() / clip.w() + 1.0f) * 0.5f * camera.height;
+    const float pad = 2.0f;
+    x0 = std::min(x0, x - pad);
+    y0 = std::min(y0, y - pad);
+    x1 = std::max(x1, x + pad);
+    y1 = std::max(y1, y + pad);
+  }
+  auto clampTo = [](float value, int size) {
+    return static_cast<int>(std::clamp(value, 0.0f, static_cast<float>(size)));
+  };
+  return {clampTo(std::floor(x0), camera.width), clampTo(std::floor(y0), camera.height),
+          clampTo(std::ceil(x1), camera.width), clampTo(std::ceil(y1), camera.height)};
+}
+
+// Pass 3b on the CPU, fused with the readback: out (RGB, top row first) = mix(sharp, blurred, sharp.a / 255), the
+// blurred image sampled bilinearly at each pixel centre like texture() with GL_LINEAR and CLAMP_TO_EDGE. sharp
+// (width x height) and blurred are RGBA8 as glReadPixels returns them, bottom row first. On llvmpipe a
+// full-resolution composite pass costs several times this loop (generic texture sampling for every pixel).
+struct DofBlend {
+  const std::uint8_t* sharp = nullptr;
+  int width = 0;
+  int height = 0;
+  const std::uint8_t* blurred = nullptr;
+  int blurred_width = 0;
+  int blurred_height = 0;
+  const int* left = nullptr;  // per output column: offsets of the two blurred texels in an RGBA row
+  const int* right = nullptr;
+  const float* weight = nullptr;  // of the right texel
+
+  static void texel(float u, int size, int* i0, int* i1, float* f) {
+    const float fl = std::floor(u);
+    *f = u - fl;
+    *i0 = std::clamp(static_cast<int>(fl), 0, size - 1);
+    *i1 = std::clamp(static_cast<int>(fl) + 1, 0, size - 1);
+  }
+
+  void prepareColumns(std::vector<int>* columns, std::vector<float>* weights) {
+    columns->resize(2 * static_cast<std::size_t>(width));
+    weights->resize(width);
+    int* l = columns->data();
+    int* r = l + width;
+    for (int x = 0; x < width; ++x) {
+      texel((x + 0.5f) * blurred_width / width - 0.5f, blurred_width, &l[x], &r[x], &(*weights)[x]);
+      l[x] *= 4;
+      r[x] *= 4;
+    }
+    left = l;
+    right = r;
+    weight = weights->data();
+  }
+
+  // One output row: RGB = sharp + (lerp(b0, b1, g) - sharp) * sharp.a / 255. Restrict pointers and a local count:
+  // the byte stores could otherwise alias everything and force reloads.
+  static void blendRow(const std::uint8_t* __restrict sharp_row, const float* __restrict b0, const float* __restrict b1,
+                       float g, int n, std::uint8_t* __restrict out_row) {
+    for (int x = 0; x < n; ++x) {
+      const float w = sharp_row[4 * x + 3] * (1.0f / 255.0f);
+      for (int c = 0; c < 3; ++c) {
+        const float b = b0[4 * x + c] + (b1[4 * x + c] - b0[4 * x + c]) * g;
+        const float v = sharp_row[4 * x + c];
+        out_row[3 * x + c] = static_cast<std::uint8_t>(v + (b - v) * w + 0.5f);
+      }
+    }
+  }
+
+  // Blurred row j upsampled to the output width (RGB floats, 4 per pixel).
+  void upsampleRow(int j, float* out) const {
+    const std::uint8_t* row = blurred + static_cast<std::size_t>(j) * blurred_width * 4;
+    for (int x = 0; x < width; ++x) {
+      const std::uint8_t* a = row + left[x];
+      const std::uint8_t* b = row + right[x];
+      const float f = weight[x];
+      for (int c = 0; c < 3; ++c) out[4 * x + c] = a[c] + (b[c] - a[c]) * f;
+    }
+  }
+
+  // Output rows [y0, y1) (GL order, bottom first); `scratch` is per thread. Each blurred row is upsampled once
+  // (kept while consecutive output rows share it), so the per-pixel loop reads contiguous memory only.
+  void rows(int y0, int y1, std::vector<float>* scratch, RgbImage* out) const {
+    scratch->resize(8 * static_cast<std::size_t>(width));
+    float* upper = scratch->data();
+    float* lower = upper + 4 * static_cast<std::size_t>(width);
+    int upper_row = -1, lower_row = -1;
+    for (int y = y0; y < y1; ++y) {
+      int j0, j1;
+      float g;
+      texel((y + 0.5f) * blurred_height / height - 0.5f, blurred_height, &j0, &j1, &g);
+      if (j0 != lower_row) {
+        if (j0 == upper_row) {
+          std::swap(lower, upper);
+          std::swap(lower_row, upper_row);
+        } else {
+          upsampleRow(j0, lower);
+          lower_row = j0;
+        }
+      }
+      if (j1 != upper_row) {
+        upsampleRow(j1, upper);
+        upper_row = j1;
+      }
+      blendRow(sharp + static_cast<std::size_t>(y) * width * 4, lower, upper, g, width,
+               out->data.data() + static_cast<std::size_t>(height - 1 - y) * width * 3);
+    }
+  }
+};
+
+// RGBA (bottom row first) to RGB (top row first).
+void rgbaToRgbFlipped(const std::uint8_t* rgba, int width, int height, RgbImage* out) {
+  for (int y = 0; y < height; ++y) {
+    const std::uint8_t* s = rgba + static_cast<std::size_t>(y) * width * 4;
+    std::uint8_t* o = out->data.data() + static_cast<std::size_t>(height - 1 - y) * width * 3;
+    for (int x = 0; x < width; ++x) {
+      o[3 * x] = s[4 * x];
+      o[3 * x + 1] = s[4 * x + 1];
+      o[3 * x + 2] = s[4 * x + 2];
+    }
+  }
+}
+
 }  // namespace
 
 struct StereoRenderer::Impl {
@@ -253,33 +476,46 @@ struct StereoRenderer::Impl {
   Program shadow;
   Program copy;
   Program blur;
-  Program composite;
   GLuint fullscreen_vao = 0;
   RenderTarget shadow_target;
-  RenderTarget scene_target;
-  RenderTarget half_a;
-  RenderTarget half_b;
-  RenderTarget output_target;
+  // Per eye, so that both eyes can be in flight at once.
+  struct EyeTargets {
+    RenderTarget scene;   // colour (alpha: DOF weight) + depth-stencil
+    RenderTarget half_a;  // reduced: downsampled, then the blurred result
+    RenderTarget half_b;  // reduced: after the horizontal blur
+  };
+  std::array<EyeTargets, 2> eyes;
   std::map<std::string, Object> objects;
   std::vector<float> normal_scratch;
-  std::vector<std::uint8_t> readback;
+  std::vector<Eigen::Vector3f> spot_points;  // corners of the triangle parts inside the spotlight's pyramid
+  std::vector<std::uint16_t> clip_scratch;
+  std::vector<std::uint8_t> sharp;    // RGBA readback of the scene
+  std::vector<std::uint8_t> blurred;  // RGBA readback of the reduced, blurred scene
+  std::vector<int> dof_columns;
+  std::vector<float> dof_weights;
+  std::array<std::vector<float>, 2> dof_rows;  // per blending thread
   double pending_upload_ms = 0.0;
 
   void allocateTargets(const RenderOptions& options) {
-    for (RenderTarget* t : {&shadow_target, &scene_target, &half_a, &half_b, &output_target}) t->release();
-    shadow_target = makeTarget(options.shadow_map_size, options.shadow_map_size, false, true, "shadow");
+    shadow_target.release();
+    for (EyeTargets& eye : eyes) {
+      for (RenderTarget* t : {&eye.scene, &eye.half_a, &eye.half_b}) t->release();
+    }
+    shadow_target = makeTarget(options.shadow_map_size, options.shadow_map_size, false, DepthKind::kDepth, "shadow");
     glBindTexture(GL_TEXTURE_2D, shadow_target.depth);
     // Hardware depth comparison with linear filtering: a 2x2 percentage-closer filter for free.
     glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_COMPARE_MODE, GL_COMPARE_REF_TO_TEXTURE);
     glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_COMPARE_FUNC, GL_LEQUAL);
     glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
     glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
-    scene_target = makeTarget(options.width, options.height, true, true, "scene");
+    // Depth and stencil: the stencil marks the spotlight's rectangle (pass 2).
     const int w = std::max(1, options.width / options.dof_downsample);
     const int h = std::max(1, options.height / options.dof_downsample);
-    half_a = makeTarget(w, h, true, false, "blur_a");
-    half_b = makeTarget(w, h, true, false, "blur_b");
-    output_target = makeTarget(options.width, options.height, true, false, "output");
+    for (int e = 0; e < (options.stereo ? 2 : 1); ++e) {
+      eyes[e].scene = makeTarget(options.width, options.height, true, DepthKind::kDepthStencil, "scene");
+      eyes[e].half_a = makeTarget(w, h, true, DepthKind::kNone, "blur_a");
+      eyes[e].half_b = makeTarget(w, h, true, DepthKind::kNone, "blur_b");
+    }
     glBindFramebuffer(GL_FRAMEBUFFER, 0);
   }
 
@@ -296,6 +532,11 @@ struct StereoRenderer::Impl {
   }
 };
 
+void retainFreedHeapMemory() {
+  mallopt(M_MMAP_THRESHOLD, 256 << 20);
+  mallopt(M_TRIM_THRESHOLD, 1 << 30);
+}
+
 StereoRenderer::StereoRenderer(const RenderOptions& options, const MicroscopeRig& rig)
     : impl_(std::make_unique<Impl>()), options_(options), rig_(rig) {
   validateOptions(options);
@@ -304,13 +545,11 @@ StereoRenderer::StereoRenderer(const RenderOptions& options, const MicroscopeRig
   } catch (const std::exception& e) {
     throw RenderError(std::string("no OpenGL context for the renderer: ") + e.what());
   }
-  for (bool lighting : {false, true}) {
-    for (bool bump : {false, true}) impl_->sceneProgram(lighting, true, bump);  // compile errors surface here
-  }
+  impl_->sceneProgram(false, false, false);  // compile errors surface here
+  for (bool bump : {false, true}) impl_->sceneProgram(true, true, bump);
   impl_->shadow.build(shaders::kShadowVertex, shaders::kShadowFragment, "shadow");
   impl_->copy.build(shaders::kFullscreenVertex, shaders::kCopyFragment, "downsample");
   impl_->blur.build(shaders::kFullscreenVertex, shaders::kBlurFragment, "blur");
-  impl_->composite.build(shaders::kFullscreenVertex, shaders::kCompositeFragment, "composite");
   glGenVertexArrays(1, &impl_->fullscreen_vao);
   impl_->allocateTargets(options_);
   if (glGetError() != GL_NO_ERROR) throw RenderError("OpenGL error while setting up the renderer");
@@ -323,7 +562,7 @@ void StereoRenderer::setOptions(const RenderOptions& options) {
   impl_->context->makeCurrent();
   const bool resize = options.width != options_.width || options.height != options_.height ||
                       options.shadow_map_size != options_.shadow_map_size ||
-                      options.dof_downsample != options_.dof_downsample;
+                      options.dof_downsample != options_.dof_downsample || options.stereo != options_.stereo;
   options_ = options;
   if (resize) impl_->allocateTargets(options_);
 }
@@ -393,6 +632,7 @@ bool StereoRenderer::updateMesh(const std::string& id, const MeshView& mesh, std
   const Eigen::Map<const Eigen::Matrix3Xf> points(mesh.positions, 3, static_cast<Eigen::Index>(mesh.vertex_count));
   object.centre = 0.5f * (points.rowwise().minCoeff() + points.rowwise().maxCoeff());
   object.radius = std::sqrt((points.colwise() - object.centre).colwise().squaredNorm().maxCoeff());
+  object.positions.assign(mesh.positions, mesh.positions + mesh.vertex_count * 3);
   object.vertex_count = mesh.vertex_count;
   object.triangle_count = mesh.triangle_count;
   object.version = version;
@@ -487,12 +727,40 @@ void StereoRenderer::render(StereoFrame* frame) {
   }
 
   const int eye_count = options_.stereo ? 2 : 1;
-  const float cos_outer = std::cos(std::clamp(light_.cone_half_angle_rad, 0.01f, 1.5f));
+  const float half_angle = std::clamp(light_.cone_half_angle_rad, 0.01f, 1.5f);
+  const float cos_outer = std::cos(half_angle);
   const float cos_inner = std::cos(std::clamp(light_.cone_half_angle_rad * (1.0f - light_.cone_softness), 0.0f, 1.5f));
   const Eigen::Vector3f light_dir =
       light_on ? Eigen::Vector3f(light_.direction.normalized()) : -Eigen::Vector3f::UnitZ();
   const Eigen::Vector3f light_pos = light_on ? light_.tip : Eigen::Vector3f::Zero();
+  const float ambient = static_cast<float>(std::clamp(microscope_.ambient_light, 0.0, 1.0));
+
+  // Where the spotlight can reach. llvmpipe evaluates both sides of a branch for every pixel, so the lit shader
+  // would cost the same outside the cone, where only the ambient term remains. Instead, the lit program is drawn
+  // only inside a screen rectangle that bounds the cone's footprint (scissor; the stencil marks it), the ambient-only
+  // program everywhere else: the same image for a fraction of the cost. The footprint: the triangles of every object
+  // the cone reaches, clipped to the pyramid around the cone.
+  const bool split = options_.lighting && options_.spot_scissor;
+  im.spot_points.clear();
+  const auto pyramid = spotPyramid(light_pos, light_dir, half_angle);
+  for (auto& entry : im.objects) {
+    Object& object = entry.second;
+    object.in_cone = false;
+    if (!light_on || !object.has_mesh || !object.visible) continue;
+    const Eigen::Vector3f centre = object.pose * object.centre;
+    bool reached = true;
+    for (const Eigen::Vector4f& plane : pyramid)
+      reached = reached && plane.head<3>().dot(centre) + plane.w() >= -object.radius;
+    if (!reached) continue;
+    object.in_cone = true;
+    if (split)
+      clipToPyramid(object.positions, object.triangles, object.pose, pyramid, &im.clip_scratch, &im.spot_points);
+  }
+
+  // Both eyes are submitted before either is read back: llvmpipe rasterises one eye while this thread bins the next
+  // and later blends and converts the previous one (with time_passes each pass is waited for instead).
   for (int e = 0; e < eye_count; ++e) {
+    Impl::EyeTargets& target = im.eyes[e];
     const CameraView cam = camera(e == 0 ? Eye::kLeft : Eye::kRight);
     const Eigen::Matrix4f view_proj = cam.viewProjection();
     const auto planes = frustumPlanes(view_proj);
@@ -518,24 +786,45 @@ void StereoRenderer::render(StereoFrame* frame) {
     std::sort(opaque.begin(), opaque.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
     std::sort(translucent.begin(), translucent.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
 
-    glBindFramebuffer(GL_FRAMEBUFFER, im.scene_target.fbo);
+    glBindFramebuffer(GL_FRAMEBUFFER, target.scene.fbo);
     glViewport(0, 0, options_.width, options_.height);
+    // Alpha 1: the background counts as far from the focal plane (fully blurred).
     glClearColor(options_.background.x(), options_.background.y(), options_.background.z(), 1.0f);
     glEnable(GL_DEPTH_TEST);
     glDepthFunc(GL_LESS);
     glDepthMask(GL_TRUE);
     glDisable(GL_CULL_FACE);  // the retina is seen from inside, membranes from both sides
-    glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+    glStencilMask(0xFF);
+    glClearStencil(0);
+    glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT | GL_STENCIL_BUFFER_BIT);
+    const PixelRect spot = split ? spotRect(cam, im.spot_points) : PixelRect{};
+    if (!spot.empty()) {
+      glEnable(GL_SCISSOR_TEST);
+      glScissor(spot.x0, spot.y0, spot.x1 - spot.x0, spot.y1 - spot.y0);
+      glClearStencil(1);
+      glClear(GL_STENCIL_BUFFER_BIT);
+      glClearStencil(0);
+      glDisable(GL_SCISSOR_TEST);
+    }
+    glStencilFunc(GL_EQUAL, 0, 0xFF);
+    glStencilOp(GL_KEEP, GL_KEEP, GL_KEEP);
+
+    std::array<bool, 8> prepared{};  // per-eye uniforms set, per program variant
     Program* current = nullptr;
-    auto use = [&](bool bump) -> Program& {
-      Program& p = im.sceneProgram(options_.lighting, shadows, options_.bump_mapping && bump);
-      if (&p == current) return p;
-      current = &p;
-      p.use();
+    auto use = [&](bool lit, bool bump) -> Program& {
+      Program& p = im.sceneProgram(lit, shadows, options_.bump_mapping && bump);
+      if (&p != current) {
+        current = &p;
+        p.use();
+      }
+      const int key = (lit ? 1 : 0) | (lit && shadows ? 2 : 0) | (lit && options_.bump_mapping && bump ? 4 : 0);
+      if (prepared[key]) return p;
+      prepared[key] = true;
       glUniformMatrix4fv(p["u_view_proj"], 1, GL_FALSE, view_proj.data());
       glUniformMatrix4fv(p["u_light_view_proj"], 1, GL_FALSE, light_view_proj.data());
+      glUniform1f(p["u_colour_scale"], options_.lighting ? ambient : 1.0f);
       glUniform3fv(p["u_camera_pos"], 1, cam.position.data());
-      glUniform1f(p["u_ambient"], static_cast<float>(std::clamp(microscope_.ambient_light, 0.0, 1.0)));
+      glUniform1f(p["u_ambient"], ambient);
       glUniform3fv(p["u_light_pos"], 1, light_pos.data());
       glUniform3fv(p["u_light_dir"], 1, light_dir.data());
       // No light pipe: a cone that nothing lies in (cos > 1) leaves only the ambient term.
@@ -547,12 +836,15 @@ void StereoRenderer::render(StereoFrame* frame) {
       glUniform1f(p["u_bump_amplitude"], 1.4e-5f);
       glUniform3fv(p["u_blood"], 1, options_.blood_colour.data());
       glUniform1i(p["u_shadow_map"], 0);
+      glUniform1f(p["u_near"], cam.near_plane);
+      glUniform1f(p["u_far"], cam.far_plane);
+      glUniform1f(p["u_focus"], cam.focus_depth);
+      glUniform1f(p["u_dof_range"], rig_.depth_of_field / static_cast<float>(microscope_.zoom));
       return p;
     };
     glActiveTexture(GL_TEXTURE0);
     glBindTexture(GL_TEXTURE_2D, im.shadow_target.depth);
-    auto draw = [&](const Object& object, float alpha_scale) {
-      Program& p = use(object.style.bump_mapped);
+    auto drawWith = [&](Program& p, const Object& object, float alpha_scale, bool opaque) {
       const Material& m = object.style.material;
       glUniformMatrix4fv(p["u_model"], 1, GL_FALSE, object.pose.matrix().data());
       const Eigen::Matrix3f normal_matrix = object.pose.linear().inverse().transpose();
@@ -561,27 +853,47 @@ void StereoRenderer::render(StereoFrame* frame) {
       glUniform3fv(p["u_specular"], 1, m.specular.data());
       glUniform1f(p["u_shininess"], std::max(1.0f, m.shininess));
       glUniform1f(p["u_alpha_scale"], alpha_scale);
+      glUniform1f(p["u_coc_alpha"], opaque ? 1.0f : 0.0f);
       im.drawObject(object);
-      timings.triangles_drawn += object.triangle_count;
     };
-    for (const auto& entry : opaque) draw(*entry.second, 1.0f);
+    // One object in the current depth / blend state: lit inside the spot rectangle, ambient outside.
+    auto draw = [&](const Object& object, float alpha_scale, bool opaque) {
+      timings.triangles_drawn += object.triangle_count;
+      if (!split) {
+        drawWith(use(options_.lighting, object.style.bump_mapped), object, alpha_scale, opaque);
+        return;
+      }
+      // Objects the cone does not reach are ambient-only everywhere, including inside the rectangle.
+      const bool lit_part = object.in_cone && !spot.empty();
+      if (lit_part) {
+        glEnable(GL_SCISSOR_TEST);
+        drawWith(use(true, object.style.bump_mapped), object, alpha_scale, opaque);
+        glDisable(GL_SCISSOR_TEST);
+        glEnable(GL_STENCIL_TEST);
+      }
+      drawWith(use(false, false), object, alpha_scale, opaque);
+      glDisable(GL_STENCIL_TEST);
+    };
+    for (const auto& entry : opaque) draw(*entry.second, 1.0f, true);
     if (!translucent.empty()) {
       glEnable(GL_BLEND);
-      glBlendFunc(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA);
+      // Colour blends; alpha keeps the DOF weight of the opaque surface behind (translucent objects write no depth).
+      glBlendFuncSeparate(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA, GL_ZERO, GL_ONE);
       glDepthMask(GL_FALSE);
       for (const auto& entry : translucent) {
-        if (entry.second->style.ghost) {
+        const Object& object = *entry.second;
+        if (object.style.ghost) {
           // Depth-only first, so a ghost shows only its nearest surface (like a glass instrument, not an x-ray).
           glColorMask(GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
           glDepthMask(GL_TRUE);
-          draw(*entry.second, 1.0f);
+          drawWith(use(false, false), object, 1.0f, false);
           glColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
           glDepthMask(GL_FALSE);
           glDepthFunc(GL_LEQUAL);
-          draw(*entry.second, options_.ghost_alpha);
+          draw(object, options_.ghost_alpha, false);
           glDepthFunc(GL_LESS);
         } else {
-          draw(*entry.second, 1.0f);
+          draw(object, 1.0f, false);
         }
       }
       glDepthMask(GL_TRUE);
@@ -590,16 +902,15 @@ void StereoRenderer::render(StereoFrame* frame) {
     barrier();
     timings.ms_scene += msSince(start);
 
-    // Pass 3: depth of field.
-    GLuint result_fbo = im.scene_target.fbo;
+    // Pass 3: depth of field, blurred at reduced resolution on the GPU; the blend happens in the readback.
     if (options_.dof_pass) {
       start = Clock::now();
       glDisable(GL_DEPTH_TEST);
       glDepthMask(GL_FALSE);
-      glViewport(0, 0, im.half_a.width, im.half_a.height);
-      glBindFramebuffer(GL_FRAMEBUFFER, im.half_a.fbo);
+      glViewport(0, 0, target.half_a.width, target.half_a.height);
+      glBindFramebuffer(GL_FRAMEBUFFER, target.half_a.fbo);
       im.copy.use();
-      glBindTexture(GL_TEXTURE_2D, im.scene_target.color);
+      glBindTexture(GL_TEXTURE_2D, target.scene.color);
       glUniform1i(im.copy["u_src"], 0);
       im.drawFullscreen();
       // Gaussian weights of taps 0..4, pairs (1,2) and (3,4) merged into one bilinear fetch each.
@@ -616,56 +927,63 @@ void StereoRenderer::render(StereoFrame* frame) {
       glUniform1fv(im.blur["u_weight"], 3, weights);
       glUniform1fv(im.blur["u_offset"], 3, offsets);
       glUniform1i(im.blur["u_src"], 0);
-      glBindFramebuffer(GL_FRAMEBUFFER, im.half_b.fbo);
-      glBindTexture(GL_TEXTURE_2D, im.half_a.color);
-      glUniform2f(im.blur["u_step"], 1.0f / im.half_a.width, 0.0f);
+      glBindFramebuffer(GL_FRAMEBUFFER, target.half_b.fbo);
+      glBindTexture(GL_TEXTURE_2D, target.half_a.color);
+      glUniform2f(im.blur["u_step"], 1.0f / target.half_a.width, 0.0f);
       im.drawFullscreen();
-      glBindFramebuffer(GL_FRAMEBUFFER, im.half_a.fbo);
-      glBindTexture(GL_TEXTURE_2D, im.half_b.color);
-      glUniform2f(im.blur["u_step"], 0.0f, 1.0f / im.half_a.height);
+      glBindFramebuffer(GL_FRAMEBUFFER, target.half_a.fbo);
+      glBindTexture(GL_TEXTURE_2D, target.half_b.color);
+      glUniform2f(im.blur["u_step"], 0.0f, 1.0f / target.half_a.height);
       im.drawFullscreen();
-
-      glViewport(0, 0, options_.width, options_.height);
-      glBindFramebuffer(GL_FRAMEBUFFER, im.output_target.fbo);
-      Program& c = im.composite;
-      c.use();
-      glActiveTexture(GL_TEXTURE0);
-      glBindTexture(GL_TEXTURE_2D, im.scene_target.color);
-      glActiveTexture(GL_TEXTURE1);
-      glBindTexture(GL_TEXTURE_2D, im.half_a.color);
-      glActiveTexture(GL_TEXTURE2);
-      glBindTexture(GL_TEXTURE_2D, im.scene_target.depth);
-      glUniform1i(c["u_sharp"], 0);
-      glUniform1i(c["u_blurred"], 1);
-      glUniform1i(c["u_depth"], 2);
-      glUniform1f(c["u_near"], cam.near_plane);
-      glUniform1f(c["u_far"], cam.far_plane);
-      glUniform1f(c["u_focus"], cam.focus_depth);
-      glUniform1f(c["u_dof_range"], rig_.depth_of_field / static_cast<float>(microscope_.zoom));
-      im.drawFullscreen();
-      glActiveTexture(GL_TEXTURE0);
       glDepthMask(GL_TRUE);
       barrier();
       timings.ms_dof += msSince(start);
-      result_fbo = im.output_target.fbo;
     }
 
-    // Readback, flipped to top row first.
-    start = Clock::now();
+    glFlush();  // start rasterising this eye now
+  }
+
+  // Readback (RGBA, the format of the targets: a plain copy in llvmpipe), then on the CPU: DOF blend, RGB, flip.
+  const int width = options_.width, height = options_.height;
+  for (int e = 0; e < eye_count; ++e) {
+    Impl::EyeTargets& target = im.eyes[e];
+    auto start = Clock::now();
     RgbImage& image = frame->images[e];
-    image.width = options_.width;
-    image.height = options_.height;
-    const std::size_t row = static_cast<std::size_t>(options_.width) * 3;
-    image.data.resize(row * options_.height);
-    im.readback.resize(row * options_.height);
-    glBindFramebuffer(GL_READ_FRAMEBUFFER, result_fbo);
-    glReadBuffer(GL_COLOR_ATTACHMENT0);
+    image.width = width;
+    image.height = height;
+    image.data.resize(static_cast<std::size_t>(width) * height * 3);
+    im.sharp.resize(static_cast<std::size_t>(width) * height * 4);
     glPixelStorei(GL_PACK_ALIGNMENT, 1);
-    glReadPixels(0, 0, options_.width, options_.height, GL_RGB, GL_UNSIGNED_BYTE, im.readback.data());
-    for (int y = 0; y < options_.height; ++y) {
-      std::memcpy(image.data.data() + row * y, im.readback.data() + row * (options_.height - 1 - y), row);
+    glBindFramebuffer(GL_READ_FRAMEBUFFER, target.scene.fbo);
+    glReadBuffer(GL_COLOR_ATTACHMENT0);
+    glReadPixels(0, 0, width, height, GL_RGBA, GL_UNSIGNED_BYTE, im.sharp.data());
+    if (!options_.dof_pass) {
+      rgbaToRgbFlipped(im.sharp.data(), width, height, &image);
+      timings.ms_readback += msSince(start);
+      continue;
     }
+    DofBlend blend;
+    blend.sharp = im.sharp.data();
+    blend.width = width;
+    blend.height = height;
+    blend.blurred_width = target.half_a.width;
+    blend.blurred_height = target.half_a.height;
+    im.blurred.resize(static_cast<std::size_t>(blend.blurred_width) * blend.blurred_height * 4);
+    blend.blurred = im.blurred.data();
+    glBindFramebuffer(GL_READ_FRAMEBUFFER, target.half_a.fbo);
+    glReadPixels(0, 0, blend.blurred_width, blend.blurred_height, GL_RGBA, GL_UNSIGNED_BYTE, im.blurred.data());
     timings.ms_readback += msSince(start);
+    start = Clock::now();
+    blend.prepareColumns(&im.dof_columns, &im.dof_weights);
+    if (e + 1 < eye_count) {
+      blend.rows(0, height, &im.dof_rows[0], &image);  // overlaps the rasterisation of the next eye
+    } else {
+      // Nothing left to overlap with: two threads.
+      auto top = std::async(std::launch::async, [&] { blend.rows(0, height / 2, &im.dof_rows[1], &image); });
+      blend.rows(height / 2, height, &im.dof_rows[0], &image);
+      top.get();
+    }
+    timings.ms_dof += msSince(start);
   }
   if (eye_count == 1) frame->images[1] = RgbImage();
   glBindFramebuffer(GL_FRAMEBUFFER, 0);

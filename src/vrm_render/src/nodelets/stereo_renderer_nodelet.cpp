@@ -4,10 +4,16 @@
 //
 // Subscribes (node handle namespace): meshes/<object> (vrm_msgs/TissueMesh, latched, one per scene object; for
 // deformable objects also tissue/<object> from tissue_sim),
-//   eye_state, instrument_state, microscope.
-// Publishes: stereo/left/image_raw + camera_info, stereo/right/image_raw + camera_info (image_transport),
-//   render_timing (vrm_msgs/StageTiming).
-// Service: ~save_snapshot (std_srvs/Trigger): writes the last frame as PNGs into ~snapshot_dir.
+//   eye_state, instrument_state (pose, instrument type: the drawn mesh switches; forceps jaw angle: the jaws open),
+//   microscope, and with ~ghost_instruments the replayed instructor's instruments on ~ghost_topic (default
+//   ghost/instrument_state), drawn translucent.
+// Publishes: stereo/left/image_raw + camera_info, stereo/right/image_raw + camera_info (image_transport; frame ids
+//   <camera_frame>_left_optical / _right_optical), render_timing (vrm_msgs/StageTiming), and on tf with each frame's
+//   stamp: world -> <camera_frame> (the objective; REP-103 body axes: x along the optical axis, z up) ->
+//   <camera_frame>_{left,right}_optical (REP-103 optical: z forward, x right, y down). Default camera_frame:
+//   microscope.
+// Service: ~save_snapshot (std_srvs/Trigger): writes the last rendered frame (left, right) as PNGs into
+//   ~snapshot_dir (/tmp when empty) and returns the path prefix.
 
 #include <cv_bridge/cv_bridge.h>
 #include <image_transport/image_transport.h>
@@ -16,6 +22,7 @@
 #include <sensor_msgs/CameraInfo.h>
 #include <sensor_msgs/Image.h>
 #include <std_srvs/Trigger.h>
+#include <tf2_ros/transform_broadcaster.h>
 #include <vrm_msgs/EyeState.h>
 #include <vrm_msgs/InstrumentState.h>
 #include <vrm_msgs/MicroscopeSettings.h>
@@ -25,6 +32,7 @@
 
 #include <boost/make_shared.hpp>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <map>
 #include <mutex>
@@ -45,6 +53,43 @@ Eigen::Isometry3f toIsometry(const geometry_msgs::Pose& pose) {
   Eigen::Quaternionf q(pose.orientation.w, pose.orientation.x, pose.orientation.y, pose.orientation.z);
   if (q.norm() < 1e-6f) q = Eigen::Quaternionf::Identity();
   t.linear() = q.normalized().toRotationMatrix();
+  return t;
+}
+
+geometry_msgs::Transform toTransformMsg(const Eigen::Isometry3f& t) {
+  geometry_msgs::Transform msg;
+  msg.translation.x = t.translation().x();
+  msg.translation.y = t.translation().y();
+  msg.translation.z = t.translation().z();
+  const Eigen::Quaternionf q(t.linear());
+  msg.rotation.x = q.x();
+  msg.rotation.y = q.y();
+  msg.rotation.z = q.z();
+  msg.rotation.w = q.w();
+  return msg;
+}
+
+// REP-103 optical frame of a camera in the world: z forward, x right, y down (the GL view matrix has x right, y up,
+// z backward in its rows).
+Eigen::Isometry3f worldFromOptical(const CameraView& camera) {
+  Eigen::Isometry3f t = Eigen::Isometry3f::Identity();
+  const Eigen::Matrix3f rows = camera.view.topLeftCorner<3, 3>();
+  t.linear().col(0) = rows.row(0).transpose();
+  t.linear().col(1) = -rows.row(1).transpose();
+  t.linear().col(2) = -rows.row(2).transpose();
+  t.translation() = camera.position;
+  return t;
+}
+
+// The objective in REP-103 body axes: x along the optical axis, z up (the rig's up, made orthogonal), y left.
+Eigen::Isometry3f worldFromObjective(const MicroscopeRig& rig) {
+  Eigen::Isometry3f t = Eigen::Isometry3f::Identity();
+  const Eigen::Vector3f x = rig.view_direction.normalized();
+  const Eigen::Vector3f z = (rig.up - rig.up.dot(x) * x).normalized();
+  t.linear().col(0) = x;
+  t.linear().col(1) = z.cross(x);
+  t.linear().col(2) = z;
+  t.translation() = rig.objective;
   return t;
 }
 
@@ -86,6 +131,10 @@ class StereoRendererNodelet : public nodelet::Nodelet {
     pnh.param("snapshot_every", snapshot_every_, 10);
     pnh.param("world_frame", world_frame_, std::string("world"));
     pnh.param("eye_frame", eye_frame_, std::string("eye"));
+    pnh.param("camera_frame", camera_frame_, std::string("microscope"));
+    pnh.param("ghost_topic", ghost_topic_, std::string("ghost/instrument_state"));
+    // llvmpipe's per-draw buffers would otherwise cost ~3,000 page faults per frame (see retainFreedHeapMemory).
+    if (pnh.param("retain_heap_memory", true)) retainFreedHeapMemory();
     const std::string scene_parameter = pnh.param<std::string>("scene", "membrane_peeling");
 
     try {
@@ -110,15 +159,16 @@ class StereoRendererNodelet : public nodelet::Nodelet {
       }
     }
     for (const auto& instrument : scene_.instruments) {
-      const std::string id = instrumentObjectId(instrument);
-      const MeshData mesh = toMeshData(vrm_sim::scene::buildInstrumentMesh(instrument));
-      renderer_->setStyle(id, instrumentStyle(instrument, ghost_instruments_));
-      renderer_->updateMesh(id, mesh.view(), 1);
-      renderer_->setVisible(id, false);  // until tracked
-      slots_[vrm_sim::scene::toString(instrument.slot)] = {id, instrument.type, {}};
+      const std::string slot_name = vrm_sim::scene::toString(instrument.slot);
+      slots_[slot_name] = makeSlot(instrument, instrumentObjectId(instrument), false);
+      // The instructor's instrument in the same slot, replayed (e.g. from a recorded session), translucent.
+      if (ghost_instruments_) ghost_slots_[slot_name] = makeSlot(instrument, "ghost_" + slot_name, true);
     }
     eye_sub_ = nh.subscribe("eye_state", 5, &StereoRendererNodelet::onEyeState, this);
     instrument_sub_ = nh.subscribe("instrument_state", 10, &StereoRendererNodelet::onInstrumentState, this);
+    if (ghost_instruments_) {
+      ghost_sub_ = nh.subscribe(ghost_topic_, 10, &StereoRendererNodelet::onGhostState, this);
+    }
     microscope_sub_ = nh.subscribe("microscope", 5, &StereoRendererNodelet::onMicroscope, this);
 
     image_transport::ImageTransport it(nh);
@@ -134,10 +184,38 @@ class StereoRendererNodelet : public nodelet::Nodelet {
 
  private:
   struct Slot {
+    vrm_sim::scene::InstrumentDescription description;  // as configured in the scene
     std::string object_id;
-    vrm_sim::scene::InstrumentType type;
-    vrm_msgs::InstrumentState::ConstPtr state;
+    bool ghost = false;
+    vrm_msgs::InstrumentState::ConstPtr state;  // newest input (guarded by mutex_)
+    // What the renderer shows (render thread): type and jaw step of the uploaded mesh.
+    vrm_sim::scene::InstrumentType shown_type = vrm_sim::scene::InstrumentType::kLightPipe;
+    int shown_jaw_deg = 0;
   };
+
+  Slot makeSlot(const vrm_sim::scene::InstrumentDescription& instrument, const std::string& id, bool ghost) {
+    Slot slot;
+    slot.description = instrument;
+    slot.object_id = id;
+    slot.ghost = ghost;
+    showInstrument(&slot, instrument.type, 0.0);
+    renderer_->setVisible(id, false);  // until tracked
+    return slot;
+  }
+
+  // Uploads the slot's mesh for `type` and `jaw_angle` when either changed what is drawn (instrument switching,
+  // forceps jaws in whole degrees).
+  void showInstrument(Slot* slot, vrm_sim::scene::InstrumentType type, double jaw_angle) {
+    const int jaw = jawStepDeg(type, jaw_angle);
+    if (renderer_->hasObject(slot->object_id) && type == slot->shown_type && jaw == slot->shown_jaw_deg) return;
+    vrm_sim::scene::InstrumentDescription shown = slot->description;
+    shown.type = type;
+    const MeshData mesh = instrumentMesh(slot->description, type, jaw_angle);
+    renderer_->setStyle(slot->object_id, instrumentStyle(shown, slot->ghost));
+    renderer_->updateMesh(slot->object_id, mesh.view(), ++instrument_mesh_version_);
+    slot->shown_type = type;
+    slot->shown_jaw_deg = jaw;
+  }
 
   void noteStamp(const ros::Time& stamp) {
     if (stamp > newest_stamp_) newest_stamp_ = stamp;
@@ -166,6 +244,14 @@ class StereoRendererNodelet : public nodelet::Nodelet {
     slot->second.state = state;
     noteStamp(state->header.stamp);
   }
+  // Replayed ghost instruments: shown with the next frame, but their (recorded) stamps do not stamp the frame.
+  void onGhostState(const vrm_msgs::InstrumentState::ConstPtr& state) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    auto slot = ghost_slots_.find(state->instrument_id);
+    if (slot == ghost_slots_.end()) return;
+    slot->second.state = state;
+    dirty_ = true;
+  }
   void onMicroscope(const vrm_msgs::MicroscopeSettings::ConstPtr& settings) {
     std::lock_guard<std::mutex> lock(mutex_);
     microscope_ = settings;
@@ -189,6 +275,7 @@ class StereoRendererNodelet : public nodelet::Nodelet {
 
   std::string saveSnapshot(const StereoFrame& frame, const ros::Time& stamp) {
     const std::string dir = snapshot_dir_.empty() ? std::string("/tmp") : snapshot_dir_;
+    std::filesystem::create_directories(dir);  // throws (-> service message) when it cannot
     char name[64];
     std::snprintf(name, sizeof(name), "/render_%06llu_%u.%09u", static_cast<unsigned long long>(frame_count_),
                   stamp.sec, stamp.nsec);
@@ -208,6 +295,8 @@ class StereoRendererNodelet : public nodelet::Nodelet {
     microscope_in_use_ = microscope_;
     slot_states_.clear();
     for (const auto& entry : slots_) slot_states_[entry.first] = entry.second.state;
+    ghost_states_.clear();
+    for (const auto& entry : ghost_slots_) ghost_states_[entry.first] = entry.second.state;
     return true;
   }
 
@@ -241,32 +330,52 @@ class StereoRendererNodelet : public nodelet::Nodelet {
     auto frameToWorld = [&](const std::string& frame) {
       return frame == world_frame_ ? Eigen::Isometry3f::Identity() : world_from_eye;
     };
-    try {
-      for (const auto& entry : mesh_frames_) renderer_->setPose(entry.first, frameToWorld(entry.second));
-      LightPipe light;
-      for (const auto& entry : slot_states_) {
-        const Slot& slot = slots_.at(entry.first);
-        const auto& state = entry.second;
-        const bool valid = state && state->valid;
-        renderer_->setVisible(slot.object_id, valid);
-        if (!valid) continue;
+    // Each input on its own: a bad one (non-finite pose, unknown type) is skipped, the others still apply.
+    for (const auto& entry : mesh_frames_) {
+      try {
+        renderer_->setPose(entry.first, frameToWorld(entry.second));
+      } catch (const RenderError& error) {
+        NODELET_WARN_THROTTLE(1.0, "mesh pose ignored: %s", error.what());
+      }
+    }
+    LightPipe light;
+    auto applyInstrument = [&](Slot& slot, const vrm_msgs::InstrumentState::ConstPtr& state) {
+      const bool valid = state && state->valid;
+      renderer_->setVisible(slot.object_id, valid);
+      if (!valid) return;
+      vrm_sim::scene::InstrumentType type = slot.shown_type;
+      if (state->type <= vrm_msgs::InstrumentState::HOOK) {
+        type = static_cast<vrm_sim::scene::InstrumentType>(state->type);  // same order as the message constants
+      } else {
+        NODELET_WARN_THROTTLE(1.0, "instrument '%s': unknown type %d, keeping %s", state->instrument_id.c_str(),
+                              state->type, vrm_sim::scene::toString(type));
+      }
+      try {
+        showInstrument(&slot, type, state->jaw_angle);
         const Eigen::Isometry3f pose =
             frameToWorld(state->header.frame_id.empty() ? eye_frame_ : state->header.frame_id) *
             toIsometry(state->tip_pose);
         renderer_->setPose(slot.object_id, pose);
-        if (slot.type == vrm_sim::scene::InstrumentType::kLightPipe) light = lightPipeAt(pose);
+        if (!slot.ghost && type == vrm_sim::scene::InstrumentType::kLightPipe) light = lightPipeAt(pose);
+      } catch (const std::exception& error) {
+        renderer_->setVisible(slot.object_id, false);
+        NODELET_WARN_THROTTLE(1.0, "instrument '%s' ignored: %s", state->instrument_id.c_str(), error.what());
       }
-      renderer_->setLightPipe(light);
-      if (microscope_in_use_) {
-        MicroscopeState knobs;
-        knobs.focus_distance = microscope_in_use_->focus_distance;
-        knobs.zoom = microscope_in_use_->zoom;
-        knobs.ambient_light = microscope_in_use_->ambient_light;
-        knobs.disparity_scale = microscope_in_use_->disparity_scale;
+    };
+    for (const auto& entry : slot_states_) applyInstrument(slots_.at(entry.first), entry.second);
+    for (const auto& entry : ghost_states_) applyInstrument(ghost_slots_.at(entry.first), entry.second);
+    renderer_->setLightPipe(light);
+    if (microscope_in_use_) {
+      MicroscopeState knobs;
+      knobs.focus_distance = microscope_in_use_->focus_distance;
+      knobs.zoom = microscope_in_use_->zoom;
+      knobs.ambient_light = microscope_in_use_->ambient_light;
+      knobs.disparity_scale = microscope_in_use_->disparity_scale;
+      try {
         renderer_->setMicroscope(knobs);
+      } catch (const RenderError& error) {
+        NODELET_WARN_THROTTLE(1.0, "microscope settings ignored: %s", error.what());
       }
-    } catch (const RenderError& error) {
-      NODELET_WARN_THROTTLE(1.0, "input ignored: %s", error.what());
     }
     try {
       renderer_->render(&last_frame_);
@@ -286,9 +395,33 @@ class StereoRendererNodelet : public nodelet::Nodelet {
         NODELET_WARN_THROTTLE(5.0, "snapshot failed: %s", error.what());
       }
     }
+    publishFrames(stamp);
     publishEye(0, left_pub_, stamp);
     if (renderer_->options().stereo) publishEye(1, right_pub_, stamp);
     publishTiming(stamp, start, end);
+  }
+
+  std::string opticalFrame(int eye) const { return camera_frame_ + (eye == 0 ? "_left_optical" : "_right_optical"); }
+
+  // world -> objective -> each eye's optical frame, with the frame's stamp (the eye positions follow focus, zoom
+  // and the disparity setting).
+  void publishFrames(const ros::Time& stamp) {
+    std::vector<geometry_msgs::TransformStamped> frames;
+    const Eigen::Isometry3f world_from_objective = worldFromObjective(renderer_->rig());
+    geometry_msgs::TransformStamped frame;
+    frame.header.stamp = stamp;
+    frame.header.frame_id = world_frame_;
+    frame.child_frame_id = camera_frame_;
+    frame.transform = toTransformMsg(world_from_objective);
+    frames.push_back(frame);
+    for (int eye = 0; eye < (renderer_->options().stereo ? 2 : 1); ++eye) {
+      const CameraView camera = renderer_->camera(eye == 0 ? Eye::kLeft : Eye::kRight);
+      frame.header.frame_id = camera_frame_;
+      frame.child_frame_id = opticalFrame(eye);
+      frame.transform = toTransformMsg(world_from_objective.inverse() * worldFromOptical(camera));
+      frames.push_back(frame);
+    }
+    broadcaster_.sendTransform(frames);
   }
 
   void publishEye(int eye, const image_transport::CameraPublisher& publisher, const ros::Time& stamp) {
@@ -297,7 +430,7 @@ class StereoRendererNodelet : public nodelet::Nodelet {
     const RgbImage& rgb = last_frame_.images[eye];
     auto image = boost::make_shared<sensor_msgs::Image>();
     image->header.stamp = stamp;
-    image->header.frame_id = eye == 0 ? "microscope_left_optical" : "microscope_right_optical";
+    image->header.frame_id = opticalFrame(eye);
     image->width = rgb.width;
     image->height = rgb.height;
     image->encoding = "rgb8";
@@ -356,10 +489,14 @@ class StereoRendererNodelet : public nodelet::Nodelet {
   int snapshots_saved_ = 0;
   std::string world_frame_;
   std::string eye_frame_;
+  std::string camera_frame_;
+  std::string ghost_topic_;
+  std::uint64_t instrument_mesh_version_ = 0;
 
   std::mutex mutex_;  // inputs
   std::map<std::string, vrm_msgs::TissueMesh::ConstPtr> pending_meshes_;
-  std::map<std::string, Slot> slots_;
+  std::map<std::string, Slot> slots_;        // live instruments by slot ("left", "right")
+  std::map<std::string, Slot> ghost_slots_;  // replayed ones (with ~ghost_instruments)
   vrm_msgs::EyeState::ConstPtr eye_;
   vrm_msgs::MicroscopeSettings::ConstPtr microscope_;
   ros::Time newest_stamp_;
@@ -368,6 +505,7 @@ class StereoRendererNodelet : public nodelet::Nodelet {
   std::mutex render_mutex_;  // renderer and last frame
   std::map<std::string, std::string> mesh_frames_;
   std::map<std::string, vrm_msgs::InstrumentState::ConstPtr> slot_states_;
+  std::map<std::string, vrm_msgs::InstrumentState::ConstPtr> ghost_states_;
   vrm_msgs::EyeState::ConstPtr eye_in_use_;
   vrm_msgs::MicroscopeSettings::ConstPtr microscope_in_use_;
   StereoFrame last_frame_;
@@ -376,7 +514,8 @@ class StereoRendererNodelet : public nodelet::Nodelet {
 
   std::vector<ros::Subscriber> mesh_subscribers_;
   std::map<std::string, std::uint64_t> newest_mesh_version_;
-  ros::Subscriber eye_sub_, instrument_sub_, microscope_sub_;
+  ros::Subscriber eye_sub_, instrument_sub_, ghost_sub_, microscope_sub_;
+  tf2_ros::TransformBroadcaster broadcaster_;
   image_transport::CameraPublisher left_pub_, right_pub_;
   ros::Publisher timing_pub_;
   ros::ServiceServer snapshot_srv_;

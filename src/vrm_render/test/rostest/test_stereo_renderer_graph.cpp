@@ -1,13 +1,21 @@
 // Graph test of the stereo_renderer nodelet: with a scripted scene running, left and right images arrive in pairs
 // with equal stamps, the stamps increase monotonically, the stamp spacing matches the configured rate (stamps are
-// input stamps, so this is not a wall-clock assertion), and the images show the lit scene.
+// input stamps, so this is not a wall-clock assertion), and the images show the lit scene. The camera frames are on
+// tf with the images' stamps (REP-103 optical axes looking down at the eye), CameraInfo carries the same frame id,
+// the snapshot service writes the stereo pair, and the replayed ghost instruments are subscribed.
 
 #include <gtest/gtest.h>
 #include <ros/ros.h>
 #include <sensor_msgs/CameraInfo.h>
 #include <sensor_msgs/Image.h>
+#include <std_srvs/Trigger.h>
+#include <tf2_ros/transform_listener.h>
+#include <vrm_msgs/InstrumentState.h>
 
+#include <Eigen/Geometry>
 #include <algorithm>
+#include <cstdio>
+#include <fstream>
 #include <map>
 #include <mutex>
 #include <vector>
@@ -19,6 +27,13 @@ struct Collected {
   std::vector<sensor_msgs::Image::ConstPtr> left, right;
   std::vector<sensor_msgs::CameraInfo::ConstPtr> right_info;
 };
+
+bool isPng(const std::string& path) {
+  std::ifstream file(path, std::ios::binary);
+  char signature[8] = {};
+  file.read(signature, 8);
+  return file.good() && std::string(signature + 1, 3) == "PNG";
+}
 
 TEST(StereoRendererGraph, PublishesPairedImagesAtTheRateWithMonotonicStamps) {
   ros::NodeHandle nh;
@@ -42,6 +57,8 @@ TEST(StereoRendererGraph, PublishesPairedImagesAtTheRateWithMonotonicStamps) {
                                                       std::lock_guard<std::mutex> lock(c.mutex);
                                                       c.right_info.push_back(m);
                                                     });
+  tf2_ros::Buffer tf_buffer;
+  tf2_ros::TransformListener tf_listener(tf_buffer);
   ros::AsyncSpinner spinner(2);
   spinner.start();
   // Wait on the condition (enough frames), bounded by a generous timeout; no fixed sleeps.
@@ -53,6 +70,51 @@ TEST(StereoRendererGraph, PublishesPairedImagesAtTheRateWithMonotonicStamps) {
     }
     ros::WallDuration(0.05).sleep();
   }
+  // Camera frames on tf at the stamp of an image (the frame is published with the images).
+  sensor_msgs::Image::ConstPtr tf_image;
+  {
+    std::lock_guard<std::mutex> lock(c.mutex);
+    ASSERT_FALSE(c.left.empty());
+    tf_image = c.left[c.left.size() / 2];
+  }
+  EXPECT_EQ(tf_image->header.frame_id, "microscope_left_optical");
+  std::string tf_error;
+  ASSERT_TRUE(
+      tf_buffer.canTransform("world", "microscope_left_optical", tf_image->header.stamp, ros::Duration(5.0), &tf_error))
+      << tf_error;
+  const auto left_tf = tf_buffer.lookupTransform("world", "microscope_left_optical", tf_image->header.stamp);
+  const auto right_tf = tf_buffer.lookupTransform("world", "microscope_right_optical", tf_image->header.stamp);
+  const auto objective_tf = tf_buffer.lookupTransform("world", "microscope", tf_image->header.stamp);
+  // The microscope hangs above the eye and looks down: the optical z axis (forward) is world -z; the right path
+  // is to the right (+x along the image's x axis) of the left one; the objective is between them.
+  const auto& q = left_tf.transform.rotation;
+  const Eigen::Quaterniond rotation(q.w, q.x, q.y, q.z);
+  const Eigen::Vector3d forward = rotation * Eigen::Vector3d::UnitZ();
+  const Eigen::Vector3d image_x = rotation * Eigen::Vector3d::UnitX();
+  EXPECT_LT(forward.z(), -0.99) << "optical z should look down, got " << forward.transpose();
+  const Eigen::Vector3d baseline(right_tf.transform.translation.x - left_tf.transform.translation.x,
+                                 right_tf.transform.translation.y - left_tf.transform.translation.y,
+                                 right_tf.transform.translation.z - left_tf.transform.translation.z);
+  EXPECT_GT(baseline.dot(image_x), 0.005) << "right camera right of the left one";
+  EXPECT_GT(objective_tf.transform.translation.z, 0.1) << "objective above the eye";
+
+  // Snapshot service: the stereo pair as PNGs.
+  std_srvs::Trigger snapshot;
+  ASSERT_TRUE(ros::service::waitForService("stereo_renderer/save_snapshot", ros::Duration(10.0)));
+  ASSERT_TRUE(ros::service::call("stereo_renderer/save_snapshot", snapshot));
+  EXPECT_TRUE(snapshot.response.success) << snapshot.response.message;
+  const std::string prefix = snapshot.response.message;
+  EXPECT_TRUE(isPng(prefix + "_left.png")) << prefix;
+  EXPECT_TRUE(isPng(prefix + "_right.png")) << prefix;
+  std::remove((prefix + "_left.png").c_str());
+  std::remove((prefix + "_right.png").c_str());
+
+  // The replayed instructor's instruments (ghost_instruments) are listened to.
+  ros::Publisher ghost = nh.advertise<vrm_msgs::InstrumentState>("ghost/instrument_state", 1);
+  const ros::WallTime ghost_deadline = ros::WallTime::now() + ros::WallDuration(10.0);
+  while (ghost.getNumSubscribers() == 0 && ros::WallTime::now() < ghost_deadline) ros::WallDuration(0.05).sleep();
+  EXPECT_GT(ghost.getNumSubscribers(), 0u) << "ghost/instrument_state not subscribed";
+
   spinner.stop();
   std::lock_guard<std::mutex> lock(c.mutex);
   ASSERT_GE(static_cast<int>(c.left.size()), frames) << "left images";
@@ -86,6 +148,8 @@ TEST(StereoRendererGraph, PublishesPairedImagesAtTheRateWithMonotonicStamps) {
   EXPECT_GT(red / (width * height), 20.0) << "the retina under the light pipe should be visible";
   ASSERT_FALSE(c.right_info.empty());
   EXPECT_LT(c.right_info.back()->P[3], 0.0) << "right camera info carries the stereo baseline (Tx < 0)";
+  EXPECT_EQ(c.right_info.back()->header.frame_id, "microscope_right_optical");
+  EXPECT_EQ(c.right.back()->header.frame_id, "microscope_right_optical");
 }
 
 }  // namespace

@@ -16,6 +16,7 @@
 #include "vrm_render/stereo_renderer.h"
 #include "vrm_sim/scene/eye_meshes.h"
 #include "vrm_sim/scene/instrument_meshes.h"
+#include "vrm_sim/scene/scene_loader.h"
 
 namespace vrm_render {
 namespace {
@@ -347,6 +348,76 @@ TEST(Renderer, BadInputIsRejectedWithAClearErrorAndTheRendererKeepsRunning) {
   const StereoFrame after = renderFrame(renderer);
   EXPECT_EQ(after.images[0].width, kWidth);
   EXPECT_EQ(after.images[0].data, before.images[0].data);
+}
+
+// The lit shader drawn only inside the spotlight's screen rectangle (ambient-only elsewhere) must give the image of
+// the lit shader everywhere: a rectangle that missed part of the footprint would leave lit pixels dark. Stereo,
+// shadows, bump mapping, DOF, a translucent membrane and instruments whose long shaft triangles cross the cone.
+TEST(Renderer, SpotlightRectangleRendersTheSameImageAsLightingEverywhere) {
+  RenderOptions options;
+  options.width = kWidth;
+  options.height = kHeight;
+  LightPipe light;
+  const std::vector<SceneObject> scene = typicalScene(&light);
+  options.spot_scissor = false;
+  StereoRenderer everywhere(options);
+  options.spot_scissor = true;
+  StereoRenderer split(options);
+  for (StereoRenderer* renderer : {&everywhere, &split}) {
+    for (const SceneObject& object : scene) {
+      renderer->setStyle(object.id, object.style);
+      renderer->setPose(object.id, object.pose);
+      renderer->updateMesh(object.id, object.mesh.view(), 1);
+    }
+  }
+  // The typical aim, a wide cone, and a light pipe near the rim aiming across the eye.
+  LightPipe wide = light;
+  wide.cone_half_angle_rad = 1.2f;
+  LightPipe rim = light;
+  rim.tip = Eigen::Vector3f(-0.008f, 0.004f, -0.004f);
+  rim.direction = Eigen::Vector3f(1.0f, -0.3f, -0.5f).normalized();
+  for (const LightPipe& pipe : {light, wide, rim}) {
+    everywhere.setLightPipe(pipe);
+    split.setLightPipe(pipe);
+    const StereoFrame a = renderFrame(everywhere);
+    const StereoFrame b = renderFrame(split);
+    for (int eye = 0; eye < 2; ++eye) {
+      EXPECT_LT(fractionDifferent(a.images[eye], b.images[eye], 2), 1e-4) << "eye " << eye;
+      EXPECT_GT(psnr(a.images[eye], b.images[eye]), 50.0) << "eye " << eye;
+    }
+  }
+}
+
+// Instrument switching and jaw animation (InstrumentState.type, .jaw_angle): the forceps' jaws open with the angle
+// (the mesh widens across the jaws), other instruments ignore it, and a switched slot draws the other instrument.
+TEST(InstrumentMesh, ForcepsJawsOpenWithTheAngleAndSwitchingChangesTheMesh) {
+  namespace scene = vrm_sim::scene;
+  scene::InstrumentDescription forceps;
+  forceps.type = scene::InstrumentType::kForceps;
+  forceps.params = scene::defaultInstrumentParams(forceps.type);
+  auto spread = [](const MeshData& mesh) {  // extent across the jaws (y) of the part beyond the shaft's end
+    float lo = 0.0f, hi = 0.0f;
+    for (std::size_t i = 0; i < mesh.positions.size(); i += 3) {
+      if (mesh.positions[i + 2] > -0.0016f) {
+        lo = std::min(lo, mesh.positions[i + 1]);
+        hi = std::max(hi, mesh.positions[i + 1]);
+      }
+    }
+    return hi - lo;
+  };
+  const MeshData closed = instrumentMesh(forceps, forceps.type, 0.0);
+  const MeshData open = instrumentMesh(forceps, forceps.type, 0.6);
+  EXPECT_EQ(closed.triangles.size(), open.triangles.size());
+  EXPECT_GT(spread(open), spread(closed) + 0.0003f) << "0.6 rad over 1.5 mm jaws: the tips ~0.9 mm apart";
+  EXPECT_EQ(jawStepDeg(forceps.type, 0.6), 34);
+  EXPECT_EQ(jawStepDeg(forceps.type, std::nan("")), 0);
+  EXPECT_EQ(jawStepDeg(scene::InstrumentType::kVitrector, 0.6), 0) << "only forceps have jaws";
+  const MeshData vitrector = instrumentMesh(forceps, scene::InstrumentType::kVitrector, 0.6);
+  const MeshData reference =
+      toMeshData(scene::buildInstrumentMesh({scene::InstrumentSlot::kLeft, scene::InstrumentType::kVitrector, "left",
+                                             scene::defaultInstrumentParams(scene::InstrumentType::kVitrector)}));
+  EXPECT_EQ(vitrector.positions, reference.positions) << "a switched slot draws the default instrument of that type";
+  EXPECT_NE(vitrector.positions.size(), closed.positions.size());
 }
 
 TEST(Renderer, MonoModeRendersOneImage) {
