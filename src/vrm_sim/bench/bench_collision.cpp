@@ -1,7 +1,8 @@
 // Benchmark `collision` (thesis §4.2.7, Figs. 4.19-4.21): a teapot-like instrument (~2,500 triangles, sphere body,
 // capsule spout and handle, sphere knob) against a membrane (~2,450 triangles); "heavy" (~700) and "light" (~100)
 // colliding triangles; static and deformed membrane; ZCOLL/F and ZCOLL on the CPU and on OpenGL (OSMesa) at 30², 100²,
-// 300²; FCL (AABB, OBBRSS, kIOS) build and refit + collide with full contacts; the exact primitives. Also the cone test
+// 300² (GL also as *_gl_cpumask: without the GPU-side reductions of §4.2.5, footprint read back and mask made on the
+// CPU); FCL (AABB, OBBRSS, kIOS) build and refit + collide with full contacts; the exact primitives. Also the cone test
 // of §4.2.6 (measured full-detection depth next to the prediction). Usage: bench_collision [--quick] [--out FILE]
 #include <algorithm>
 #include <chrono>
@@ -283,16 +284,23 @@ int main(int argc, char** argv) {
     }
     // Image space (CPU and GL). Heavy and light queries alternate so that drifting load on this shared machine hits
     // both alike (the thesis' claim: ZCOLL/F's time does not depend on the severity).
-    for (const std::string method : {"zcoll_f_cpu", "zcoll_cpu", "zcoll_f_gl", "zcoll_gl"}) {
+    // "<gl method>_cpumask": the GL backend without GPU-side reductions (footprint read back, mask on the CPU).
+    for (const std::string method :
+         {"zcoll_f_cpu", "zcoll_cpu", "zcoll_f_gl", "zcoll_gl", "zcoll_f_gl_cpumask", "zcoll_gl_cpumask"}) {
+      const std::string suffix = "_cpumask";
+      const bool cpu_mask =
+          method.size() > suffix.size() && method.compare(method.size() - suffix.size(), suffix.size(), suffix) == 0;
+      const std::string detector_name = cpu_mask ? method.substr(0, method.size() - suffix.size()) : method;
       for (int resolution : {30, 100, 300}) {
         CollisionOptions options;
         options.resolution = resolution;
+        options.gpu_reductions = !cpu_mask;
         std::map<std::string, std::unique_ptr<CollisionDetector>> detectors;
         std::map<std::string, Row> image_rows;
         std::map<std::string, CollisionResult> last;
         std::map<std::string, double> err;
         for (const auto& [severity, target] : targets) {
-          detectors[severity] = makeCollisionDetector(method, options);
+          detectors[severity] = makeCollisionDetector(detector_name, options);
           detectors[severity]->setInstrument(teapot);
           detectors[severity]->collide(poses[severity], view(0));  // renders and caches B's depth (Alg. 4.2 l. 4)
           image_rows[severity] = Row{method, "teapot_membrane", severity, ""};

@@ -20,6 +20,7 @@ teapot = [r for r in rows if r["scene"] == "teapot_membrane"]
 cones = sorted((r for r in rows if r["scene"] == "cone_test"), key=lambda r: r["resolution"])
 image_methods = sorted({r["method"] for r in teapot if isinstance(r["resolution"], int)})
 styles = {"heavy": "-", "light": "--"}
+colours = {m: plt.cm.tab10(i % 10) for i, m in enumerate(image_methods)}  # one colour per method, style = severity
 
 fig, axes = plt.subplots(1, 3, figsize=(15, 4.5))
 for method in image_methods:
@@ -29,10 +30,10 @@ for method in image_methods:
         if not sel:
             continue
         res = [r["resolution"] for r in sel]
-        axes[0].plot(res, [r["deform_err_um"] for r in sel], styles[severity], marker="o",
+        axes[0].plot(res, [r["deform_err_um"] for r in sel], styles[severity], marker="o", color=colours[method],
                      label=f"{method} {severity}")
         axes[1].plot(res, [r["tris_found"] / max(1, r["tris_exact"]) for r in sel], styles[severity], marker="o",
-                     label=f"{method} {severity}")
+                     color=colours[method], label=f"{method} {severity}")
 pixel = sorted({(r["resolution"], r["pixel_um"]) for r in teapot if r["method"] == "zcoll_f_cpu"})
 axes[0].plot([p[0] for p in pixel], [p[1] for p in pixel], "k:", label="pixel size")
 axes[0].set(xscale="log", yscale="log", xlabel="resolution r (r x r pixels)", ylabel="RMS deformation error [µm]",
@@ -62,7 +63,7 @@ for ax, deformed in zip(axes, (False, True)):
                           and r["deformed"] == deformed), key=lambda r: r["resolution"])
             if sel:
                 ax.plot([r["resolution"] for r in sel], [r["ms_total"] for r in sel], styles[severity], marker="o",
-                        label=f"{method} {severity}")
+                        color=colours[method], label=f"{method} {severity}")
     for r in teapot:
         if r["deformed"] == deformed and not isinstance(r["resolution"], int) and r["severity"] == "heavy":
             label = r["method"] + (f" ({r['bv']})" if r.get("bv") else "")

@@ -38,5 +38,51 @@ TEST(Conversions, TissueMeshPacksPositionsTrianglesAndNormals) {
   EXPECT_DOUBLE_EQ(marker.points[5].y, 1.0);
 }
 
+TEST(Conversions, SelectedTrianglesMarkerHasOnlyThoseTriangles) {
+  const std::vector<Eigen::Vector3d> positions = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}};
+  const std::vector<std::array<std::uint32_t, 3>> triangles = {{0, 1, 2}, {0, 2, 3}};
+  visualization_msgs::Marker marker;
+  fillTriangleListMarker(positions.data(), triangles.data(), {1}, {1, 0, 0, 1}, marker);
+  ASSERT_EQ(marker.points.size(), 3u);
+  EXPECT_DOUBLE_EQ(marker.points[2].x, 0.0);  // node 3
+  EXPECT_DOUBLE_EQ(marker.points[2].y, 1.0);
+  EXPECT_EQ(marker.type, visualization_msgs::Marker::TRIANGLE_LIST);
+}
+
+TEST(Conversions, EyeStateIsARotationAboutTheCentre) {
+  vrm_msgs::EyeState eye;
+  eye.rotation_center.x = 0.01;
+  const Eigen::Quaterniond q(Eigen::AngleAxisd(0.5, Eigen::Vector3d::UnitX()));
+  eye.rotation.w = q.w();
+  eye.rotation.x = q.x();
+  const Eigen::Isometry3d world_from_eye = worldFromEye(eye);
+  EXPECT_TRUE(world_from_eye.translation().isApprox(Eigen::Vector3d(0.01, 0, 0)));
+  EXPECT_TRUE(world_from_eye.linear().isApprox(q.toRotationMatrix()));
+}
+
+TEST(Conversions, CollisionReportCopiesTheResult) {
+  collision::CollisionResult result;
+  result.colliding = true;
+  result.triangles = {3, 7};
+  result.nodes = {1};
+  result.deformations = {Eigen::Vector3d(0, 0, -2e-4)};
+  result.contact_points = {Eigen::Vector3d(1, 2, 3)};
+  result.contact_normals = {Eigen::Vector3d::UnitZ()};
+  result.pixel_size = 1e-5;
+  result.timing.ms_total = 0.5;
+  vrm_msgs::CollisionReport report;
+  fillCollisionReport(result, report);
+  EXPECT_TRUE(report.colliding);
+  EXPECT_EQ(report.triangles, result.triangles);
+  EXPECT_EQ(report.nodes, result.nodes);
+  ASSERT_EQ(report.deformations.size(), 1u);
+  EXPECT_DOUBLE_EQ(report.deformations[0].z, -2e-4);
+  ASSERT_EQ(report.contact_points.size(), 1u);
+  EXPECT_DOUBLE_EQ(report.contact_points[0].y, 2.0);
+  EXPECT_DOUBLE_EQ(report.contact_normals[0].z, 1.0);
+  EXPECT_DOUBLE_EQ(report.pixel_size, 1e-5);
+  EXPECT_DOUBLE_EQ(report.ms_total, 0.5);
+}
+
 }  // namespace
 }  // namespace vrm_sim

@@ -9,8 +9,12 @@
 #include <Eigen/Geometry>
 #include <array>
 #include <cstdint>
+#include <vector>
 
+#include "vrm_msgs/CollisionReport.h"
+#include "vrm_msgs/EyeState.h"
 #include "vrm_msgs/TissueMesh.h"
+#include "vrm_sim/collision/collision_detector.h"
 #include "vrm_sim/triangle_mesh.h"
 
 namespace vrm_sim {
@@ -29,5 +33,16 @@ void fillTissueMesh(const TriangleMesh& mesh, vrm_msgs::TissueMesh& message);
 // A TRIANGLE_LIST marker of the mesh (RViz has no indexed triangles, so vertices are expanded per triangle).
 void fillTriangleListMarker(const vrm_msgs::TissueMesh& mesh, const std::array<float, 4>& rgba,
                             visualization_msgs::Marker& marker);
+// A TRIANGLE_LIST marker of the `selected` triangles only (e.g. the colliding ones); header and ns are the caller's.
+void fillTriangleListMarker(const Eigen::Vector3d* positions, const std::array<std::uint32_t, 3>* triangles,
+                            const std::vector<std::uint32_t>& selected, const std::array<float, 4>& rgba,
+                            visualization_msgs::Marker& marker);
+
+// The eye's pose in the world (world <- eye): the mechanical eye rotates about its fixed rotation centre.
+Eigen::Isometry3d worldFromEye(const vrm_msgs::EyeState& eye);
+
+// Copies a query's result (colliding, triangles, node deformations, contacts, pixel size, phase times) into a
+// CollisionReport; header, detector and object names are the caller's.
+void fillCollisionReport(const collision::CollisionResult& result, vrm_msgs::CollisionReport& report);
 
 }  // namespace vrm_sim

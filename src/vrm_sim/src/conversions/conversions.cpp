@@ -85,4 +85,67 @@ void fillTriangleListMarker(const vrm_msgs::TissueMesh& mesh, const std::array<f
   }
 }
 
+void fillTriangleListMarker(const Eigen::Vector3d* positions, const std::array<std::uint32_t, 3>* triangles,
+                            const std::vector<std::uint32_t>& selected, const std::array<float, 4>& rgba,
+                            visualization_msgs::Marker& marker) {
+  marker.type = visualization_msgs::Marker::TRIANGLE_LIST;
+  marker.action = visualization_msgs::Marker::ADD;
+  marker.pose.orientation.w = 1.0;
+  marker.scale.x = marker.scale.y = marker.scale.z = 1.0;
+  marker.color.r = rgba[0];
+  marker.color.g = rgba[1];
+  marker.color.b = rgba[2];
+  marker.color.a = rgba[3];
+  marker.points.resize(3 * selected.size());
+  for (std::size_t i = 0; i < selected.size(); ++i) {
+    for (int corner = 0; corner < 3; ++corner) {
+      const Eigen::Vector3d& p = positions[triangles[selected[i]][corner]];
+      geometry_msgs::Point& point = marker.points[3 * i + corner];
+      point.x = p.x();
+      point.y = p.y();
+      point.z = p.z();
+    }
+  }
+}
+
+Eigen::Isometry3d worldFromEye(const vrm_msgs::EyeState& eye) {
+  geometry_msgs::Pose pose;
+  pose.position = eye.rotation_center;
+  pose.orientation = eye.rotation;
+  return toEigen(pose);
+}
+
+void fillCollisionReport(const collision::CollisionResult& result, vrm_msgs::CollisionReport& report) {
+  auto toVector3 = [](const Eigen::Vector3d& v) {
+    geometry_msgs::Vector3 msg;
+    msg.x = v.x();
+    msg.y = v.y();
+    msg.z = v.z();
+    return msg;
+  };
+  report.colliding = result.colliding;
+  report.triangles = result.triangles;
+  report.nodes = result.nodes;
+  report.deformations.clear();
+  report.deformations.reserve(result.deformations.size());
+  for (const Eigen::Vector3d& d : result.deformations) report.deformations.push_back(toVector3(d));
+  report.contact_points.clear();
+  report.contact_points.reserve(result.contact_points.size());
+  for (const Eigen::Vector3d& p : result.contact_points) {
+    geometry_msgs::Point point;
+    point.x = p.x();
+    point.y = p.y();
+    point.z = p.z();
+    report.contact_points.push_back(point);
+  }
+  report.contact_normals.clear();
+  report.contact_normals.reserve(result.contact_normals.size());
+  for (const Eigen::Vector3d& n : result.contact_normals) report.contact_normals.push_back(toVector3(n));
+  report.pixel_size = result.pixel_size;
+  report.ms_raster = result.timing.ms_raster;
+  report.ms_readback = result.timing.ms_readback;
+  report.ms_analysis = result.timing.ms_analysis;
+  report.ms_total = result.timing.ms_total;
+}
+
 }  // namespace vrm_sim

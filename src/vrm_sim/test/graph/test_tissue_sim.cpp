@@ -8,6 +8,7 @@
 #include <cmath>
 #include <functional>
 #include <mutex>
+#include <variant>
 
 #include "vrm_msgs/InstrumentState.h"
 #include "vrm_msgs/StageTiming.h"
@@ -175,6 +176,102 @@ TEST(TissueSimGraph, GraspPullDeformsAndReleaseReturnsTowardRest) {
   EXPECT_TRUE(watcher.versionsIncrease());
   EXPECT_GT(watcher.meshes(), 10);
   EXPECT_GT(watcher.timings(), 10);
+}
+
+// Topology of the published membrane: versions, triangle count, index validity.
+class TopologyWatcher {
+ public:
+  TopologyWatcher(ros::NodeHandle& nh, const std::string& topic) {
+    subscriber_ = nh.subscribe(topic, 10, &TopologyWatcher::onMesh, this);
+  }
+  std::uint64_t topologyVersion() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return topology_version_;
+  }
+  std::size_t triangles() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return triangles_;
+  }
+  bool consistent() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return consistent_;
+  }
+
+ private:
+  void onMesh(const vrm_msgs::TissueMesh::ConstPtr& mesh) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    topology_version_ = mesh->topology_version;
+    triangles_ = mesh->triangles.size() / 3;
+    const std::size_t nodes = mesh->positions.size() / 3;
+    if (mesh->positions.size() % 3 != 0 || mesh->triangles.size() % 3 != 0) consistent_ = false;
+    for (std::uint32_t index : mesh->triangles) consistent_ = consistent_ && index < nodes;
+    for (float value : mesh->positions) consistent_ = consistent_ && std::isfinite(value);
+  }
+
+  ros::Subscriber subscriber_;
+  std::mutex mutex_;
+  std::uint64_t topology_version_ = 0;
+  std::size_t triangles_ = 0;
+  bool consistent_ = true;
+};
+
+// The vitrector (an alternative of the forceps' slot in this scene) removes membrane only while it aspirates and
+// cuts: switched in by the message's type, held at the membrane with suction 0 (nothing removed), then with
+// suction and cutter on (triangles removed, topology_version raised, indices valid).
+TEST(TissueSimGraph, VitrectorCutsOnlyWithSuctionAndKeepsTheMeshConsistent) {
+  ros::NodeHandle nh;
+  ros::NodeHandle private_nh("~");
+  const std::string scene_name = private_nh.param<std::string>("scene", "membrane_peeling");
+  const std::string object_name = private_nh.param<std::string>("object", "membrane");
+  const auto scene = vrm_sim::scene::loadScene(vrm_sim::scene::shippedScenePath(scene_name));
+  const auto* object = scene.findObject(object_name);
+  ASSERT_NE(object, nullptr);
+  const vrm_sim::TriangleMesh mesh = vrm_sim::scene::buildMesh(*object, vrm_sim::scene::MeshFrame::kParent);
+  Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+  for (const auto& v : mesh.vertices) centroid += v / static_cast<double>(mesh.vertexCount());
+  Eigen::Vector3d target = mesh.vertices.front();
+  for (const auto& v : mesh.vertices) {
+    if ((v - centroid).norm() < (target - centroid).norm()) target = v;
+  }
+  const Eigen::Vector3d inward = -target.normalized();
+  const auto vitrector = std::get<vrm_sim::scene::VitrectorParams>(
+      vrm_sim::scene::defaultInstrumentParams(vrm_sim::scene::InstrumentType::kVitrector));
+  // The port (cut_offset .. cut_offset + port_length behind the tip) straddles the membrane.
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  pose.linear() = Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), -inward).toRotationMatrix();
+  pose.translation() = target - inward * (vitrector.port_distance_from_tip + 0.5 * vitrector.port_length);
+
+  TopologyWatcher watcher(nh, "tissue/" + object_name);
+  ros::Publisher publisher = nh.advertise<vrm_msgs::InstrumentState>("instrument_state", 20);
+  const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(30.0);
+  while (ros::ok() && publisher.getNumSubscribers() == 0 && ros::WallTime::now() < deadline) {
+    ros::WallDuration(0.01).sleep();
+  }
+  ASSERT_GT(publisher.getNumSubscribers(), 0u);
+  ros::AsyncSpinner spinner(1);
+  spinner.start();
+  auto vitrectorAt = [&](double suction, vrm_msgs::InstrumentState& state) {
+    state.type = vrm_msgs::InstrumentState::VITRECTOR;
+    state.tip_pose = vrm_sim::toPoseMsg(pose);
+    state.suction = suction;
+    state.cut_rate = suction > 0.0 ? 2500.0 : 0.0;
+  };
+  // No suction: the vitrector only pushes; wait until the membrane has been published at least once.
+  drive(
+      publisher, [&](double, vrm_msgs::InstrumentState& s) { vitrectorAt(0.0, s); }, 10.0,
+      [&] { return watcher.topologyVersion() > 0; });
+  drive(
+      publisher, [&](double, vrm_msgs::InstrumentState& s) { vitrectorAt(0.0, s); }, 0.3);
+  const std::uint64_t version_before = watcher.topologyVersion();
+  const std::size_t triangles_before = watcher.triangles();
+  ASSERT_GT(version_before, 0u) << "no membrane published";
+  ASSERT_EQ(triangles_before, mesh.triangleCount()) << "the membrane lost triangles without suction";
+  // Suction and cutter on: tissue in the port is removed.
+  const bool cut = drive(
+      publisher, [&](double, vrm_msgs::InstrumentState& s) { vitrectorAt(0.6, s); }, 20.0,
+      [&] { return watcher.topologyVersion() > version_before && watcher.triangles() < triangles_before; });
+  EXPECT_TRUE(cut) << "topology_version " << watcher.topologyVersion() << ", triangles " << watcher.triangles();
+  EXPECT_TRUE(watcher.consistent()) << "a published mesh had an index past its nodes or a non-finite position";
 }
 
 }  // namespace

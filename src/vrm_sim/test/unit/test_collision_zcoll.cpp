@@ -230,14 +230,35 @@ TEST(ZcollCpu, CachesInstrumentDepthUntilShapeOrDirectionChanges) {
   for (const Vector3d& d : along.deformations) EXPECT_NEAR(d.normalized().dot(z), 1.0, 1e-9);
 }
 
-TEST(ZcollCpu, BoundedPixelSize) {
+// Bounded error: every image-space backend raises the resolution until the pixel size near the tip is within the
+// bound, reports it per query, and keeps the configured resolution when that already satisfies the bound.
+TEST_P(ZcollTruth, BoundedPixelSize) {
+  const InstrumentModel sphere = primitiveInstrument(Primitive::sphere(Vector3d(0, 0, -0.0005), 0.0005));
+  const TriangleMesh surface = plane(0.004, 20);
+  const Eigen::Isometry3d pose = pointingDown(Vector3d(0, 0, -0.0001));
   CollisionOptions options;
   options.resolution = 32;
+  const CollisionResult free_size = run(GetParam(), sphere, pose, surface, options);
+  ASSERT_EQ(free_size.status, CollisionStatus::kOk) << toString(free_size.status);
+  EXPECT_EQ(free_size.resolution, 32);
+  EXPECT_GT(free_size.pixel_size, 30e-6);  // 1 mm over 30 pixels
   options.max_pixel_size = 10e-6;
-  const CollisionResult r = run("zcoll_f_cpu", primitiveInstrument(Primitive::sphere(Vector3d(0, 0, -0.0005), 0.0005)),
-                                pointingDown(Vector3d(0, 0, -0.0001)), plane(0.004, 20), options);
-  EXPECT_LE(r.pixel_size, 10e-6);
-  EXPECT_GT(r.resolution, 32);
+  const CollisionResult bounded = run(GetParam(), sphere, pose, surface, options);
+  ASSERT_EQ(bounded.status, CollisionStatus::kOk) << toString(bounded.status);
+  EXPECT_LE(bounded.pixel_size, 10e-6);
+  EXPECT_GT(bounded.pixel_size, 9e-6) << "the smallest resolution within the bound";
+  EXPECT_GT(bounded.resolution, 32);
+  EXPECT_TRUE(bounded.colliding);
+  // Same volume on every backend (the GL viewport follows the CPU choice).
+  EXPECT_EQ(bounded.resolution, run("zcoll_f_cpu", sphere, pose, surface, options).resolution);
+  // A bound looser than the configured resolution's pixel changes nothing; max_resolution caps the raise.
+  options.max_pixel_size = 1e-3;
+  EXPECT_EQ(run(GetParam(), sphere, pose, surface, options).resolution, 32);
+  options.max_pixel_size = 1e-6;
+  options.max_resolution = 200;
+  const CollisionResult capped = run(GetParam(), sphere, pose, surface, options);
+  EXPECT_EQ(capped.resolution, 200);
+  EXPECT_GT(capped.pixel_size, 1e-6);
 }
 
 // Thesis §4.2.6, Fig. 4.13/4.14: a 4 x 4 grid of cones (alpha = 50°) sinks into a disc; all cones are detected

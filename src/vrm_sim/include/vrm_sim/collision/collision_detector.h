@@ -11,7 +11,8 @@
 //                 (gl_PrimitiveID + 1), depth + colour readback of the ROI, analysis on the CPU.
 //   zcoll_gl      ZCOLL on OpenGL: additionally the instrument's stencil pass (increment on z pass) and stencil
 //                 readback; odd parity = collision.
-//   geometric     exact primitives (sphere, capsule, box) of InstrumentModel::primitives vs the surface triangles.
+//   geometric     exact primitives (sphere, capsule, box, cylinder, cone, plane) of InstrumentModel::primitives vs the
+//                 surface triangles.
 //   fcl, fcl_aabb, fcl_obbrss, fcl_kios   FCL 0.7 BVH mesh-mesh test with refit of the deformed surface; "fcl" is
 //                 OBBRSS. Full contact set; no deformation vectors (FCL gives none for mesh-mesh).
 //   zcoll, zcoll_f   aliases of zcoll_cpu / zcoll_f_cpu (the scene YAML names), the fastest path on this machine.
@@ -48,19 +49,31 @@ class Membrane;
 namespace collision {
 
 // Exact convex solids for the geometric detector and as test references; in instrument coordinates.
+//   sphere    centre a, radius
+//   capsule   segment a-b swept by a sphere of radius
+//   box       centre a, half_extents in the box frame, rotation box -> instrument
+//   cylinder  axis a-b (flat caps at a and b), radius
+//   cone      apex a, base centre b (flat base), base radius `radius`
+//   plane     the half-space {x : normal . (x - a) <= 0} (normal unit, pointing out of the solid)
+// A cylinder or cone with a == b has no axis and is empty (never overlaps); NaN / negative sizes are invalid and
+// never overlap either (see primitives.h isValid()).
 struct Primitive {
-  enum class Type { kSphere, kCapsule, kBox };
+  enum class Type { kSphere, kCapsule, kBox, kCylinder, kCone, kPlane };
   Type type = Type::kSphere;
-  Eigen::Vector3d a = Eigen::Vector3d::Zero();             // sphere/box centre; capsule segment start
-  Eigen::Vector3d b = Eigen::Vector3d::Zero();             // capsule segment end
-  double radius = 0.0;                                     // sphere, capsule
+  Eigen::Vector3d a = Eigen::Vector3d::Zero();             // sphere/box centre; capsule/cylinder start; cone apex
+  Eigen::Vector3d b = Eigen::Vector3d::Zero();             // capsule/cylinder end; cone base centre
+  double radius = 0.0;                                     // sphere, capsule, cylinder, cone base
   Eigen::Vector3d half_extents = Eigen::Vector3d::Zero();  // box, in the box frame
   Eigen::Matrix3d rotation = Eigen::Matrix3d::Identity();  // box frame -> instrument frame
+  Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();       // plane
 
   static Primitive sphere(const Eigen::Vector3d& centre, double radius);
   static Primitive capsule(const Eigen::Vector3d& a, const Eigen::Vector3d& b, double radius);
   static Primitive box(const Eigen::Vector3d& centre, const Eigen::Vector3d& half_extents,
                        const Eigen::Matrix3d& rotation = Eigen::Matrix3d::Identity());
+  static Primitive cylinder(const Eigen::Vector3d& a, const Eigen::Vector3d& b, double radius);
+  static Primitive cone(const Eigen::Vector3d& apex, const Eigen::Vector3d& base_centre, double base_radius);
+  static Primitive plane(const Eigen::Vector3d& point, const Eigen::Vector3d& normal);
 };
 
 // The instrument: its closed surface mesh (image-space and FCL detectors) and optionally an exact primitive
@@ -107,6 +120,11 @@ struct CollisionOptions {
   DeformationReduction reduction = DeformationReduction::kMax;
   ReadbackMode readback = ReadbackMode::kFull;
   int fcl_max_contacts = 100000;
+  // GL backends: reduce the collision mask on the GPU before reading back (§4.2.5: yes/no by OR-folded quadrants,
+  // ROI by OR-folded rows/columns, then only the collision's ROI). false: read depth, colour and stencil of the
+  // instrument's whole footprint and build the mask on the CPU (for comparison; on llvmpipe, where "GPU" memory is
+  // host memory, the extra passes can cost more than the bytes they save).
+  bool gpu_reductions = true;
 };
 
 enum class CollisionStatus {
@@ -142,6 +160,7 @@ struct CollisionResult {
   std::vector<Eigen::Vector3d> contact_normals;  // unit, pointing from the instrument into the surface
   double pixel_size = 0.0;                       // [m/pixel] for image-space detectors, 0 otherwise
   int resolution = 0;                            // pixels per edge actually used
+  std::size_t readback_bytes = 0;                // GL backends: bytes read back from the framebuffer per query
   PhaseTiming timing;
 };
 

@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <optional>
 #include <vector>
 
 #include "vrm_sim/triangle_mesh.h"
@@ -77,6 +78,10 @@ PixelRect orFoldRoi(const std::vector<std::uint8_t>& mask, int width, int height
 // Thesis §4.1.4: a surface is z-convex in the volume if no pixel is covered more than once (additive stencil).
 // Returns the maximum coverage count (0 = not visible, 1 = z-convex).
 int maxCoverage(const TriangleMesh& mesh_in_instrument_frame, const ProjectionVolume& volume);
+// The same check on OpenGL (OSMesa), as the thesis does it: the mesh into the stencil with GL_INCR and no depth
+// test, a stencil-tested full-screen pass marks pixels covered more than once, OR-folded on the GPU to one pixel (two
+// bytes read back). True = z-convex. nullopt if no GL context can be created.
+std::optional<bool> zConvexOnGl(const TriangleMesh& mesh_in_instrument_frame, const ProjectionVolume& volume);
 
 // ---------------------------------------------------------------------------------------------------------------
 template <class Fragment>

@@ -1,6 +1,7 @@
 #include "vrm_sim/collision/collision_detector.h"
 
 #include <algorithm>
+#include <cmath>
 #include <stdexcept>
 
 #include "detector_internals.h"
@@ -85,6 +86,25 @@ namespace internal {
 
 bool isFinite(const Eigen::Isometry3d& pose) { return pose.matrix().allFinite(); }
 
+int chooseResolution(const InstrumentModel& instrument, const CollisionOptions& options) {
+  int r = std::max(4, options.resolution);
+  if (options.max_pixel_size > 0.0) {
+    const ProjectionVolume probe =
+        fitProjectionVolume(instrument.mesh, instrument.projection_direction, r, instrument.tip_region_length);
+    if (probe.resolution > 0) {
+      // pixel_size = extent / (r - 2) (one pixel margin on each side).
+      const double extent = probe.pixel_size * (r - 2);
+      const double needed = std::ceil(extent / options.max_pixel_size) + 2.0;
+      r = static_cast<int>(std::clamp<double>(needed, r, std::max(r, options.max_resolution)));
+    }
+  }
+  return r;
+}
+
+bool volumeOptionsDiffer(const CollisionOptions& a, const CollisionOptions& b) {
+  return a.resolution != b.resolution || a.max_pixel_size != b.max_pixel_size || a.max_resolution != b.max_resolution;
+}
+
 CollisionStatus validate(const Eigen::Isometry3d& pose, const SurfaceView& surface) {
   if (!isFinite(pose)) return CollisionStatus::kInvalidInput;
   if (surface.triangle_count == 0 || surface.node_count == 0 || !surface.positions || !surface.triangles) {
@@ -119,7 +139,15 @@ void NodeAccumulator::begin(std::size_t node_count) {
 
 void NodeAccumulator::finish(DeformationReduction reduction, const Eigen::Vector3d& direction,
                              CollisionResult& result) {
-  std::sort(touched_.begin(), touched_.end());
+  // Sorted by a scan over all nodes when that is cheaper than sorting the touched ones (a heavy contact).
+  if (touched_.size() * 8 > count_.size()) {
+    touched_.clear();
+    for (std::size_t n = 0; n < count_.size(); ++n) {
+      if (count_[n] != 0) touched_.push_back(static_cast<std::uint32_t>(n));
+    }
+  } else {
+    std::sort(touched_.begin(), touched_.end());
+  }
   result.nodes.reserve(result.nodes.size() + touched_.size());
   result.deformations.reserve(result.deformations.size() + touched_.size());
   for (std::uint32_t node : touched_) {

@@ -21,6 +21,12 @@ CollisionStatus validate(const Eigen::Isometry3d& pose, const SurfaceView& surfa
 CollisionStatus validateMeshQuery(bool has_instrument, const InstrumentModel& instrument, const Eigen::Isometry3d& pose,
                                   const SurfaceView& surface);
 bool isFinite(const Eigen::Isometry3d& pose);
+// Image-space resolution for `instrument` (CPU and GL alike): options.resolution, raised (up to max_resolution) until
+// the pixel size is at most options.max_pixel_size when that bound is set (bounded error, issue 4). The volume's
+// extent does not depend on r, so one fit gives the pixel size for any r.
+int chooseResolution(const InstrumentModel& instrument, const CollisionOptions& options);
+// True if the options change the rendering volume (cached instrument depth must be re-rendered).
+bool volumeOptionsDiffer(const CollisionOptions& a, const CollisionOptions& b);
 
 // Thesis §4.2.2: every contribution to a triangle is a candidate vector for each of its nodes; per node the set
 // D_v is reduced by max or mean. In image space all vectors of one query are parallel to z (Eq. 4.2), so only their

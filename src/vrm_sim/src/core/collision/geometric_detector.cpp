@@ -3,6 +3,8 @@
 // definition exactly (move a penetrated node along z to the instrument's front surface on its z line), evaluated at
 // the node instead of at pixel centres.
 #include <algorithm>
+#include <cmath>
+#include <limits>
 
 #include "detector_internals.h"
 #include "vrm_sim/collision/primitives.h"
@@ -59,8 +61,9 @@ class GeometricDetector : public CollisionDetector {
         if (!tb.intersects(boxes[k]) || !overlapsTriangle(solids[k], p0, p1, p2)) continue;
         result.triangles.push_back(static_cast<std::uint32_t>(t));
         if (options_.readback == ReadbackMode::kFull) {
-          const Vector3d centre =
-              solids[k].type == Primitive::Type::kCapsule ? 0.5 * (solids[k].a + solids[k].b) : solids[k].a;
+          const bool axial = solids[k].type == Primitive::Type::kCapsule ||
+                             solids[k].type == Primitive::Type::kCylinder || solids[k].type == Primitive::Type::kCone;
+          const Vector3d centre = axial ? Vector3d(0.5 * (solids[k].a + solids[k].b)) : solids[k].a;
           const Vector3d c = closestPointOnTriangle(centre, p0, p1, p2);
           const Vector3d n = c - centre;
           result.contact_points.push_back(c);
@@ -84,7 +87,10 @@ class GeometricDetector : public CollisionDetector {
         // The front surface on the node's z line is the most distal end of all primitives' line intervals.
         double front = 0.0;
         for (const Primitive& s : solids) {
-          if (auto interval = lineInterval(s, p, z)) front = std::max(front, (*interval)[1]);
+          // A half-space reaches infinitely far: it gives no finite push.
+          if (auto interval = lineInterval(s, p, z); interval && std::isfinite((*interval)[1])) {
+            front = std::max(front, (*interval)[1]);
+          }
         }
         result.nodes.push_back(static_cast<std::uint32_t>(n));
         result.deformations.push_back(front * z);
@@ -107,6 +113,15 @@ class GeometricDetector : public CollisionDetector {
       case Primitive::Type::kBox: {
         const Vector3d half = p.rotation.cwiseAbs() * p.half_extents;
         return Eigen::AlignedBox3d(p.a - half, p.a + half);
+      }
+      case Primitive::Type::kCylinder:
+      case Primitive::Type::kCone: {  // conservative: the capsule around the axis
+        Eigen::AlignedBox3d box(p.a.cwiseMin(p.b), p.a.cwiseMax(p.b));
+        return Eigen::AlignedBox3d(box.min() - Vector3d::Constant(p.radius), box.max() + Vector3d::Constant(p.radius));
+      }
+      case Primitive::Type::kPlane: {
+        const double inf = std::numeric_limits<double>::infinity();
+        return Eigen::AlignedBox3d(Vector3d::Constant(-inf), Vector3d::Constant(inf));
       }
     }
     return {};

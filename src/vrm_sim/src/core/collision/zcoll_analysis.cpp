@@ -31,11 +31,7 @@ void analyzeCollisionMask(const ProjectionVolume& volume, const std::vector<std:
       if (id < 0 || static_cast<std::size_t>(id) >= surface.triangle_count) continue;  // a corrupt colour
       const std::uint32_t t = static_cast<std::uint32_t>(id);
       const float penetration = zbuf_a[i] - zbuf_b[i];  // a - b_min
-      if (scratch.triangle_count[t] == 0) {
-        hit.push_back(t);
-        scratch.triangle_best[t] = penetration;
-        scratch.best_pixel[t] = static_cast<std::uint32_t>(i);
-      } else if (penetration > scratch.triangle_best[t]) {
+      if (scratch.triangle_count[t] == 0 || penetration > scratch.triangle_best[t]) {
         scratch.triangle_best[t] = penetration;
         scratch.best_pixel[t] = static_cast<std::uint32_t>(i);
       }
@@ -44,7 +40,13 @@ void analyzeCollisionMask(const ProjectionVolume& volume, const std::vector<std:
       ++scratch.triangle_count[t];
     }
   }
-  std::sort(hit.begin(), hit.end());
+  // The hit list, sorted, by one scan over the per-triangle counters instead of sorting: O(triangles), the same for
+  // a light and a heavy contact (the thesis' severity independence, §4.2.7), and cheaper than sorting ~700 ids.
+  const std::size_t first_new = hit.size();
+  for (std::size_t t = 0; t < surface.triangle_count; ++t) {
+    if (scratch.triangle_count[t] != 0) hit.push_back(static_cast<std::uint32_t>(t));
+  }
+  std::inplace_merge(hit.begin(), hit.begin() + first_new, hit.end());
   if (want_vectors) {
     for (std::uint32_t t : hit) {
       for (std::uint32_t n : surface.triangles[t]) {

@@ -31,10 +31,7 @@ class ZcollCpuDetector : public CollisionDetector {
   }
 
   void setOptions(const CollisionOptions& options) override {
-    if (options.resolution != options_.resolution || options.max_pixel_size != options_.max_pixel_size ||
-        options.max_resolution != options_.max_resolution) {
-      cache_valid_ = false;
-    }
+    if (volumeOptionsDiffer(options, options_)) cache_valid_ = false;
     options_ = options;
   }
 
@@ -150,27 +147,12 @@ class ZcollCpuDetector : public CollisionDetector {
     return (count_max & 1) != 0 || count_max != count;
   }
 
-  int chooseResolution() const {
-    int r = std::max(4, options_.resolution);
-    if (options_.max_pixel_size > 0.0) {
-      // Bounded error: the extent does not depend on r, so one fit gives the pixel size for any r.
-      const ProjectionVolume probe =
-          fitProjectionVolume(instrument_.mesh, instrument_.projection_direction, r, instrument_.tip_region_length);
-      if (probe.resolution > 0) {
-        const double extent = probe.pixel_size * (r - 2);
-        const int needed = static_cast<int>(std::ceil(extent / options_.max_pixel_size)) + 2;
-        r = std::clamp(needed, r, std::max(r, options_.max_resolution));
-      }
-    }
-    return r;
-  }
-
   // Alg. 4.2 lines 4-7 / Alg. 4.3 lines 3-5: B's depth (and for ZCOLL all its depth layers, the input of the
   // stencil pass) in instrument coordinates, kept until shape, z direction or resolution change.
   void renderInstrument() {
     cache_valid_ = true;
-    volume_ = fitProjectionVolume(instrument_.mesh, instrument_.projection_direction, chooseResolution(),
-                                  instrument_.tip_region_length);
+    volume_ = fitProjectionVolume(instrument_.mesh, instrument_.projection_direction,
+                                  chooseResolution(instrument_, options_), instrument_.tip_region_length);
     b_roi_ = PixelRect{};
     const int r = volume_.resolution;
     if (r <= 0) return;

@@ -97,6 +97,10 @@ TissueConfig tissueConfigFor(const scene::TissueParameters& parameters, const sc
   config.chainmail.max_shear = parameters.chainmail.max_shear;
   config.chainmail.relaxation = parameters.chainmail.relaxation;
   config.chainmail.relaxation_iterations = parameters.chainmail.relaxation_iterations;
+  config.refinement.levels = parameters.refinement.levels;
+  config.refinement.radius = parameters.refinement.radius;
+  config.refinement.element_budget = static_cast<std::size_t>(std::max(0, parameters.refinement.element_budget));
+  config.refinement.chain_stiffness_scaling = parameters.refinement.chain_stiffness_scaling;
   config.shell_scale = collision.epsilon_shell_scale;
   config.integrator_options.cg_max_iterations = 10;
   config.integrator_options.cg_tolerance = 1e-6;
@@ -115,6 +119,13 @@ InstrumentInput instrumentInputFor(const scene::InstrumentDescription& descripti
           shaft = &params.shaft;
         }
         if constexpr (std::is_same_v<T, scene::ForcepsParams>) instrument.jaw_length = params.jaw_length;
+        // The vitrector removes what its port aspirates: a capsule over the port, as wide as the shaft. Whether it
+        // cuts is the driver's input (suction and cut rate), `cuts` stays false here.
+        if constexpr (std::is_same_v<T, scene::VitrectorParams>) {
+          instrument.cut_radius = 0.5 * params.shaft.diameter;
+          instrument.cut_offset = params.port_distance_from_tip;
+          instrument.cut_length = params.port_length;
+        }
       },
       description.params);
   instrument.radius = shaft ? 0.5 * shaft->diameter : 3e-4;
