@@ -85,6 +85,8 @@ void TissueSimulator::onTopologyChanged() {
   forces_.triangle_count = membrane_->triangleCount();
   if (!forces_.external.empty()) forces_.external.resize(n, Eigen::Vector3d::Zero());
   interaction_points_.clear();
+  // Deformation vectors address node slots of the old topology.
+  external_deformations_.clear();
   interaction_stamp_.assign(n, 0);
   touched_.assign(n, 0);
   last_strain_ = -1.0;
