@@ -111,9 +111,9 @@ struct RenderOptions {
   bool lighting = true;  // spotlight + Phong; off: flat material colour scaled by the ambient light
   bool bump_mapping = true;
   bool dof_pass = true;
-  // Lit shader only inside a screen rectangle bounding the spotlight's footprint, the ambient-only one elsewhere
-  // (same image; off: the lit shader everywhere, for comparison).
-  bool spot_scissor = true;
+  // Lit shader only for the triangles the spotlight may reach (the shadow lookup only for those a shadow may reach),
+  // the ambient-only one for the rest (same image; off: the lit shader everywhere, for comparison).
+  bool light_partition = true;
   int shadow_map_size = 512;
   int dof_downsample = 4;     // blur at 1/4 (or 1/2, 1) resolution, separable 9 taps: §7.4.2 pass 3 is the costliest
   float dof_sigma_px = 1.5f;  // Gaussian sigma at the reduced resolution (x dof_downsample at full resolution)

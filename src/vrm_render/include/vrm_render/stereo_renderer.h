@@ -6,9 +6,10 @@
 //   pass 2  the scene per eye: Phong shading with a per-pixel spotlight cone from the light pipe tip (shadowed),
 //           procedural bump mapping on the retina, vertex colour and injury (bleeding) on the tissue; opaque objects
 //           front to back (early depth), translucent ones (membrane, ghost instruments) back to front. llvmpipe runs
-//           both sides of every shader branch, so the lit shader is drawn only inside a screen rectangle that
-//           bounds the cone's footprint (the triangles clipped to a pyramid around the cone; scissor + stencil) and
-//           an ambient-only shader elsewhere: the same image (test SpotlightRectangle...) at a fraction of the cost.
+//           both sides of every shader branch, so each frame the triangles are partitioned on the CPU: those that
+//           may reach into a pyramid around the cone are drawn with the lit shader (with the shadow lookup only if
+//           they may also reach the casters' rectangle in the shadow map), the rest with an ambient-only one; each
+//           triangle is drawn once, the image is the same (test SpotlightPartition...) at a fraction of the cost.
 //           Opaque pixels store their depth-of-field weight in alpha;
 //   pass 3  depth of field: the scene is blurred at reduced resolution with a separable Gaussian; the blend with
 //           the sharp image by that weight is fused with the readback on the CPU (cheaper than a full-resolution

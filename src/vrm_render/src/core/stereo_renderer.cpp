@@ -16,6 +16,10 @@
 #include <map>
 #include <unordered_map>
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 #include "shaders.h"
 #include "vrm_gl/gl_context.h"
 
@@ -80,7 +84,7 @@ class Program {
 struct RenderTarget {
   GLuint fbo = 0;
   GLuint color = 0;
-  GLuint depth = 0;  // depth (or depth-stencil) texture, 0 when the target has none
+  GLuint depth = 0;  // depth texture, 0 when the target has none
   int width = 0;
   int height = 0;
 
@@ -104,7 +108,7 @@ GLuint makeTexture(GLint internal_format, int width, int height, GLenum format, 
   return texture;
 }
 
-enum class DepthKind { kNone, kDepth, kDepthStencil };
+enum class DepthKind { kNone, kDepth };
 
 RenderTarget makeTarget(int width, int height, bool with_color, DepthKind depth, const char* name) {
   RenderTarget target;
@@ -122,9 +126,6 @@ RenderTarget makeTarget(int width, int height, bool with_color, DepthKind depth,
   if (depth == DepthKind::kDepth) {
     target.depth = makeTexture(GL_DEPTH_COMPONENT24, width, height, GL_DEPTH_COMPONENT, GL_UNSIGNED_INT, GL_NEAREST);
     glFramebufferTexture2D(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_TEXTURE_2D, target.depth, 0);
-  } else if (depth == DepthKind::kDepthStencil) {
-    target.depth = makeTexture(GL_DEPTH24_STENCIL8, width, height, GL_DEPTH_STENCIL, GL_UNSIGNED_INT_24_8, GL_NEAREST);
-    glFramebufferTexture2D(GL_FRAMEBUFFER, GL_DEPTH_STENCIL_ATTACHMENT, GL_TEXTURE_2D, target.depth, 0);
   }
   const GLenum status = glCheckFramebufferStatus(GL_FRAMEBUFFER);
   if (status != GL_FRAMEBUFFER_COMPLETE) {
@@ -146,9 +147,11 @@ struct Object {
   std::size_t triangle_count = 0;
   bool has_colors = false;
   bool has_injury = false;
-  std::vector<std::uint32_t> triangles;              // to notice topology changes of streamed meshes
-  std::vector<float> positions;                      // object frame, for the spotlight's screen rectangle
-  bool in_cone = false;                              // this frame: the spotlight cone reaches the bounding sphere
+  std::vector<std::uint32_t> triangles;  // to notice topology changes of streamed meshes
+  std::vector<float> positions;          // object frame, for the spotlight's partition
+  bool in_cone = false;                  // this frame: the spotlight cone reaches the bounding sphere
+  std::size_t shadowed_triangles = 0;    // this frame, in_cone: the triangle ranges of LightPartition
+  std::size_t lit_triangles = 0;
   Eigen::Vector3f centre = Eigen::Vector3f::Zero();  // bounding sphere, object frame
   float radius = 0.0f;
 };
@@ -242,12 +245,6 @@ void validateOptions(const RenderOptions& options) {
   }
 }
 
-// A rectangle of pixels [x0, x1) x [y0, y1) in GL window coordinates (y up).
-struct PixelRect {
-  int x0 = 0, y0 = 0, x1 = 0, y1 = 0;
-  bool empty() const { return x1 <= x0 || y1 <= y0; }
-};
-
 // The eight-sided pyramid that circumscribes the light pipe's cone (apex at the tip, half angle a): eight side
 // planes tangent to the cone and the plane through the apex, as (n, d) with n.p + d >= 0 inside. Everything the
 // spotlight can light lies inside.
@@ -270,11 +267,62 @@ Pyramid spotPyramid(const Eigen::Vector3f& tip, const Eigen::Vector3f& axis, flo
   return planes;
 }
 
-// Appends to `out` the world positions of the corners of every triangle part of the mesh that lies inside the
-// pyramid (Sutherland-Hodgman clipping; triangles entirely outside one plane are skipped after a vertex test).
-void clipToPyramid(const std::vector<float>& positions, const std::vector<std::uint32_t>& triangles,
-                   const Eigen::Isometry3f& world_from_object, const Pyramid& world_planes,
-                   std::vector<std::uint16_t>* scratch, std::vector<Eigen::Vector3f>* out) {
+// Where the shadow map can hold a caster: a rectangle in the light's normalised device coordinates (x0, y0, x1, y1),
+// nowhere (no shadows) or anywhere (a caster reaches behind the light pipe tip).
+struct ShadowBox {
+  enum Kind { kNowhere, kRect, kAnywhere } kind = kNowhere;
+  Eigen::Matrix4f light_view_proj = Eigen::Matrix4f::Identity();
+  Eigen::Vector4f rect = Eigen::Vector4f::Zero();
+
+  // Grows the box by a caster (object frame): its triangles clipped to the light's near plane (z >= -w in clip
+  // coordinates), as the shadow pass rasterises them.
+  void add(const std::vector<float>& positions, const std::vector<std::uint32_t>& triangles,
+           const Eigen::Isometry3f& world_from_object) {
+    if (kind == kAnywhere) return;
+    const Eigen::Matrix4f m = light_view_proj * world_from_object.matrix();
+    auto clip = [&](std::uint32_t v) {
+      return Eigen::Vector4f(m * Eigen::Vector4f(positions[3 * v], positions[3 * v + 1], positions[3 * v + 2], 1.0f));
+    };
+    auto grow = [&](const Eigen::Vector4f& c) {
+      if (!(c.w() > 1e-9f)) {
+        kind = kAnywhere;
+        return;
+      }
+      const float x = c.x() / c.w(), y = c.y() / c.w();
+      if (kind == kNowhere) {
+        rect << x, y, x, y;
+        kind = kRect;
+      }
+      rect = Eigen::Vector4f(std::min(rect[0], x), std::min(rect[1], y), std::max(rect[2], x), std::max(rect[3], y));
+    };
+    for (std::size_t t = 0; t + 2 < triangles.size() && kind != kAnywhere; t += 3) {
+      const Eigen::Vector4f c[3] = {clip(triangles[t]), clip(triangles[t + 1]), clip(triangles[t + 2])};
+      for (int k = 0; k < 3; ++k) {
+        const Eigen::Vector4f& a = c[k];
+        const Eigen::Vector4f& b = c[(k + 1) % 3];
+        const float da = a.z() + a.w(), db = b.z() + b.w();
+        if (da >= 0.0f) grow(a);
+        if ((da >= 0.0f) != (db >= 0.0f)) grow(a + (b - a) * (da / (da - db)));
+      }
+    }
+  }
+};
+
+// The triangle ranges partitionForLight() produces: [0, shadowed) may be lit and shadowed, [shadowed, lit) may be lit
+// but no shadow reaches them, [lit, count) are outside the spotlight's pyramid.
+struct LightPartition {
+  std::size_t shadowed = 0;
+  std::size_t lit = 0;
+};
+
+// Orders a mesh's triangles for the spotlight into the three ranges of LightPartition (each in the original order;
+// written to `out`). A triangle whose corners all lie outside one plane of the pyramid cannot be lit (the pyramid
+// and the triangle are convex); one whose corners, seen from the light, all lie beyond one edge of the shadow box
+// cannot be shadowed (the shadow lookup of its fragments returns exactly 1 there).
+LightPartition partitionForLight(const std::vector<float>& positions, const std::vector<std::uint32_t>& triangles,
+                                 const Eigen::Isometry3f& world_from_object, const Pyramid& world_planes,
+                                 const ShadowBox& shadow_box, std::vector<std::uint16_t>* codes,
+                                 std::array<std::vector<std::uint32_t>, 2>* scratch, std::vector<std::uint32_t>* out) {
   // Planes in the object frame: n.(R p + t) + d = (R^T n).p + (n.t + d).
   constexpr int kPlanes = kPyramidSides + 1;
   Pyramid planes;
@@ -283,70 +331,49 @@ void clipToPyramid(const std::vector<float>& positions, const std::vector<std::u
     planes[i] << world_from_object.linear().transpose() * n,
         n.dot(world_from_object.translation()) + world_planes[i].w();
   }
+  const Eigen::Matrix4f light_from_object = shadow_box.light_view_proj * world_from_object.matrix();
+  const Eigen::Vector4f& box = shadow_box.rect;
   const std::size_t vertex_count = positions.size() / 3;
-  std::vector<std::uint16_t>& outside = *scratch;  // bit i: outside plane i
-  outside.resize(vertex_count);
+  // Bits 0-8: outside pyramid plane i; bits 9-12: left of, below, right of, above the shadow box.
+  constexpr int kBoxShift = kPlanes;
+  codes->resize(vertex_count);
   for (std::size_t v = 0; v < vertex_count; ++v) {
     const Eigen::Map<const Eigen::Vector3f> p(positions.data() + 3 * v);
     std::uint16_t code = 0;
     for (int i = 0; i < kPlanes; ++i) {
       if (planes[i].head<3>().dot(p) + planes[i].w() < 0.0f) code |= 1 << i;
     }
-    outside[v] = code;
+    if (shadow_box.kind == ShadowBox::kNowhere) {
+      code |= 1 << kBoxShift;  // beyond every edge
+    } else if (shadow_box.kind == ShadowBox::kRect) {
+      const Eigen::Vector4f c = light_from_object * Eigen::Vector4f(p.x(), p.y(), p.z(), 1.0f);
+      if (c.w() > 0.0f) {  // else no bit: maybe shadowed
+        if (c.x() < box[0] * c.w()) code |= 1 << kBoxShift;
+        if (c.y() < box[1] * c.w()) code |= 1 << (kBoxShift + 1);
+        if (c.x() > box[2] * c.w()) code |= 1 << (kBoxShift + 2);
+        if (c.y() > box[3] * c.w()) code |= 1 << (kBoxShift + 3);
+      }
+    }
+    (*codes)[v] = code;
   }
-  Eigen::Vector3f polygon[2][3 + kPlanes];  // each plane adds at most one corner
+  constexpr std::uint16_t kPyramidBits = (1 << kPlanes) - 1;
+  out->clear();
+  std::vector<std::uint32_t>& unshadowed = (*scratch)[0];
+  std::vector<std::uint32_t>& unlit = (*scratch)[1];
+  unshadowed.clear();
+  unlit.clear();
   for (std::size_t t = 0; t + 2 < triangles.size(); t += 3) {
     const std::uint32_t* tri = triangles.data() + t;
-    if (outside[tri[0]] & outside[tri[1]] & outside[tri[2]]) continue;
-    if ((outside[tri[0]] | outside[tri[1]] | outside[tri[2]]) == 0) {
-      for (int k = 0; k < 3; ++k)
-        out->push_back(world_from_object * Eigen::Map<const Eigen::Vector3f>(positions.data() + 3 * tri[k]));
-      continue;
-    }
-    int count = 3;
-    for (int k = 0; k < 3; ++k) polygon[0][k] = Eigen::Map<const Eigen::Vector3f>(positions.data() + 3 * tri[k]);
-    int src = 0;
-    for (int i = 0; i < kPlanes && count > 0; ++i) {
-      int kept = 0;
-      for (int k = 0; k < count; ++k) {
-        const Eigen::Vector3f& a = polygon[src][k];
-        const Eigen::Vector3f& b = polygon[src][(k + 1) % count];
-        const float da = planes[i].head<3>().dot(a) + planes[i].w();
-        const float db = planes[i].head<3>().dot(b) + planes[i].w();
-        if (da >= 0.0f) polygon[1 - src][kept++] = a;
-        if ((da >= 0.0f) != (db >= 0.0f)) polygon[1 - src][kept++] = a + (b - a) * (da / (da - db));
-      }
-      count = kept;
-      src = 1 - src;
-    }
-    for (int k = 0; k < count; ++k) out->push_back(world_from_object * polygon[src][k]);
+    const std::uint16_t all = (*codes)[tri[0]] & (*codes)[tri[1]] & (*codes)[tri[2]];
+    std::vector<std::uint32_t>* part = (all & kPyramidBits) ? &unlit : (all & ~kPyramidBits) ? &unshadowed : out;
+    part->insert(part->end(), tri, tri + 3);
   }
-}
-
-// Bounding rectangle, in one eye's image, of `points` (the corners of the clipped triangles: the projection of a
-// convex polygon lies in the hull of its projected corners), with a pixel of rasterisation slack. A point behind
-// the camera makes the rectangle the whole image.
-PixelRect spotRect(const CameraView& camera, const std::vector<Eigen::Vector3f>& points) {
-  const PixelRect full{0, 0, camera.width, camera.height};
-  if (points.empty()) return {};
-  const Eigen::Matrix4f view_proj = camera.viewProjection();
-  float x0 = std::numeric_limits<float>::max(), y0 = x0, x1 = -x0, y1 = -x0;
-  for (const Eigen::Vector3f& point : points) {
-    const Eigen::Vector4f clip = view_proj * Eigen::Vector4f(point.x(), point.y(), point.z(), 1.0f);
-    if (!(clip.w() > 1e-6f)) return full;
-    const float x = (clip.x() / clip.w() + 1.0f) * 0.5f * camera.width;
-    const float y = (clip.y() / clip.w() + 1.0f) * 0.5f * camera.height;
-    const float pad = 2.0f;
-    x0 = std::min(x0, x - pad);
-    y0 = std::min(y0, y - pad);
-    x1 = std::max(x1, x + pad);
-    y1 = std::max(y1, y + pad);
-  }
-  auto clampTo = [](float value, int size) {
-    return static_cast<int>(std::clamp(value, 0.0f, static_cast<float>(size)));
-  };
-  return {clampTo(std::floor(x0), camera.width), clampTo(std::floor(y0), camera.height),
-          clampTo(std::ceil(x1), camera.width), clampTo(std::ceil(y1), camera.height)};
+  LightPartition partition;
+  partition.shadowed = out->size() / 3;
+  out->insert(out->end(), unshadowed.begin(), unshadowed.end());
+  partition.lit = out->size() / 3;
+  out->insert(out->end(), unlit.begin(), unlit.end());
+  return partition;
 }
 
 // Pass 3b on the CPU, fused with the readback: out (RGB, top row first) = mix(sharp, blurred, sharp.a / 255), the
@@ -386,10 +413,41 @@ struct DofBlend {
     weight = weights->data();
   }
 
-  // One output row: RGB = sharp + (lerp(b0, b1, g) - sharp) * sharp.a / 255. Restrict pointers and a local count:
-  // the byte stores could otherwise alias everything and force reloads.
+  // One output row: RGB = sharp + (lerp(b0, b1, g) - sharp) * sharp.a / 255. SSE2 (x86-64 baseline), one pixel per
+  // vector, the same float operations in the same order as the scalar reference (blendRowScalar, kept for the last
+  // pixel of a row and for other architectures): bit-identical output.
+  // Each pixel is stored as 4 bytes at 3 x; the next pixel overwrites the fourth, the row's last pixel is written
+  // with 3 byte stores so that no byte of another row (maybe another thread's) is touched.
   static void blendRow(const std::uint8_t* __restrict sharp_row, const float* __restrict b0, const float* __restrict b1,
                        float g, int n, std::uint8_t* __restrict out_row) {
+#if defined(__SSE2__)
+    const __m128 gv = _mm_set1_ps(g);
+    const __m128 half = _mm_set1_ps(0.5f);
+    const __m128 inv255 = _mm_set1_ps(1.0f / 255.0f);
+    const __m128i zero = _mm_setzero_si128();
+    int x = 0;
+    for (; x + 1 < n; ++x) {
+      std::uint32_t packed;
+      std::memcpy(&packed, sharp_row + 4 * x, 4);
+      const __m128i s16 = _mm_unpacklo_epi8(_mm_cvtsi32_si128(static_cast<int>(packed)), zero);
+      const __m128 v = _mm_cvtepi32_ps(_mm_unpacklo_epi16(s16, zero));
+      const __m128 w = _mm_mul_ps(_mm_shuffle_ps(v, v, _MM_SHUFFLE(3, 3, 3, 3)), inv255);
+      const __m128 lo = _mm_loadu_ps(b0 + 4 * x);
+      const __m128 b = _mm_add_ps(lo, _mm_mul_ps(_mm_sub_ps(_mm_loadu_ps(b1 + 4 * x), lo), gv));
+      const __m128 r = _mm_add_ps(_mm_add_ps(v, _mm_mul_ps(_mm_sub_ps(b, v), w)), half);
+      const __m128i i32 = _mm_cvttps_epi32(r);
+      const __m128i i8 = _mm_packus_epi16(_mm_packs_epi32(i32, zero), zero);
+      const std::uint32_t out = static_cast<std::uint32_t>(_mm_cvtsi128_si32(i8));
+      std::memcpy(out_row + 3 * x, &out, 4);
+    }
+    blendRowScalar(sharp_row + 4 * x, b0 + 4 * x, b1 + 4 * x, g, n - x, out_row + 3 * x);
+#else
+    blendRowScalar(sharp_row, b0, b1, g, n, out_row);
+#endif
+  }
+
+  static void blendRowScalar(const std::uint8_t* __restrict sharp_row, const float* __restrict b0,
+                             const float* __restrict b1, float g, int n, std::uint8_t* __restrict out_row) {
     for (int x = 0; x < n; ++x) {
       const float w = sharp_row[4 * x + 3] * (1.0f / 255.0f);
       for (int c = 0; c < 3; ++c) {
@@ -400,15 +458,30 @@ struct DofBlend {
     }
   }
 
-  // Blurred row j upsampled to the output width (RGB floats, 4 per pixel).
+  // Blurred row j upsampled to the output width (RGB floats, 4 per pixel; the fourth is not used).
   void upsampleRow(int j, float* out) const {
     const std::uint8_t* row = blurred + static_cast<std::size_t>(j) * blurred_width * 4;
+#if defined(__SSE2__)
+    const __m128i zero = _mm_setzero_si128();
+    auto load = [&](const std::uint8_t* p) {
+      std::uint32_t packed;
+      std::memcpy(&packed, p, 4);
+      return _mm_cvtepi32_ps(
+          _mm_unpacklo_epi16(_mm_unpacklo_epi8(_mm_cvtsi32_si128(static_cast<int>(packed)), zero), zero));
+    };
+    for (int x = 0; x < width; ++x) {
+      const __m128 a = load(row + left[x]);
+      const __m128 b = load(row + right[x]);
+      _mm_storeu_ps(out + 4 * x, _mm_add_ps(a, _mm_mul_ps(_mm_sub_ps(b, a), _mm_set1_ps(weight[x]))));
+    }
+#else
     for (int x = 0; x < width; ++x) {
       const std::uint8_t* a = row + left[x];
       const std::uint8_t* b = row + right[x];
       const float f = weight[x];
       for (int c = 0; c < 3; ++c) out[4 * x + c] = a[c] + (b[c] - a[c]) * f;
     }
+#endif
   }
 
   // Output rows [y0, y1) (GL order, bottom first); `scratch` is per thread. Each blurred row is upsampled once
@@ -480,17 +553,18 @@ struct StereoRenderer::Impl {
   RenderTarget shadow_target;
   // Per eye, so that both eyes can be in flight at once.
   struct EyeTargets {
-    RenderTarget scene;   // colour (alpha: DOF weight) + depth-stencil
+    RenderTarget scene;   // colour (alpha: DOF weight) + depth
     RenderTarget half_a;  // reduced: downsampled, then the blurred result
     RenderTarget half_b;  // reduced: after the horizontal blur
   };
   std::array<EyeTargets, 2> eyes;
   std::map<std::string, Object> objects;
   std::vector<float> normal_scratch;
-  std::vector<Eigen::Vector3f> spot_points;  // corners of the triangle parts inside the spotlight's pyramid
-  std::vector<std::uint16_t> clip_scratch;
-  std::vector<std::uint8_t> sharp;    // RGBA readback of the scene
-  std::vector<std::uint8_t> blurred;  // RGBA readback of the reduced, blurred scene
+  std::vector<std::uint16_t> pyramid_codes;  // per vertex: outside which planes of the spotlight's pyramid
+  std::array<std::vector<std::uint32_t>, 2> partition_scratch;
+  std::vector<std::uint32_t> partitioned;  // an object's triangles, those the spotlight may reach first
+  std::vector<std::uint8_t> sharp;         // RGBA readback of the scene
+  std::vector<std::uint8_t> blurred;       // RGBA readback of the reduced, blurred scene
   std::vector<int> dof_columns;
   std::vector<float> dof_weights;
   std::array<std::vector<float>, 2> dof_rows;  // per blending thread
@@ -508,11 +582,10 @@ struct StereoRenderer::Impl {
     glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_COMPARE_FUNC, GL_LEQUAL);
     glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
     glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
-    // Depth and stencil: the stencil marks the spotlight's rectangle (pass 2).
     const int w = std::max(1, options.width / options.dof_downsample);
     const int h = std::max(1, options.height / options.dof_downsample);
     for (int e = 0; e < (options.stereo ? 2 : 1); ++e) {
-      eyes[e].scene = makeTarget(options.width, options.height, true, DepthKind::kDepthStencil, "scene");
+      eyes[e].scene = makeTarget(options.width, options.height, true, DepthKind::kDepth, "scene");
       eyes[e].half_a = makeTarget(w, h, true, DepthKind::kNone, "blur_a");
       eyes[e].half_b = makeTarget(w, h, true, DepthKind::kNone, "blur_b");
     }
@@ -524,11 +597,14 @@ struct StereoRenderer::Impl {
     glDrawArrays(GL_TRIANGLES, 0, 3);
   }
 
-  void drawObject(const Object& object) {
+  // Triangles [first, first + count) of the object's index buffer.
+  void drawObject(const Object& object, std::size_t first, std::size_t count) {
+    if (count == 0) return;
     glBindVertexArray(object.vao);
     if (!object.has_colors) glVertexAttrib4f(2, 1.0f, 1.0f, 1.0f, 1.0f);
     if (!object.has_injury) glVertexAttrib1f(3, 0.0f);
-    glDrawElements(GL_TRIANGLES, static_cast<GLsizei>(object.triangle_count * 3), GL_UNSIGNED_INT, nullptr);
+    glDrawElements(GL_TRIANGLES, static_cast<GLsizei>(count * 3), GL_UNSIGNED_INT,
+                   reinterpret_cast<const void*>(first * 3 * sizeof(std::uint32_t)));
   }
 };
 
@@ -546,7 +622,9 @@ StereoRenderer::StereoRenderer(const RenderOptions& options, const MicroscopeRig
     throw RenderError(std::string("no OpenGL context for the renderer: ") + e.what());
   }
   impl_->sceneProgram(false, false, false);  // compile errors surface here
-  for (bool bump : {false, true}) impl_->sceneProgram(true, true, bump);
+  for (bool bump : {false, true}) {
+    for (bool shadows : {false, true}) impl_->sceneProgram(true, shadows, bump);
+  }
   impl_->shadow.build(shaders::kShadowVertex, shaders::kShadowFragment, "shadow");
   impl_->copy.build(shaders::kFullscreenVertex, shaders::kCopyFragment, "downsample");
   impl_->blur.build(shaders::kFullscreenVertex, shaders::kBlurFragment, "blur");
@@ -701,6 +779,58 @@ void StereoRenderer::render(StereoFrame* frame) {
     light_view_proj = frustumMatrix(-extent, extent, -extent, extent, light_.shadow_near, light_.shadow_far) *
                       lookAtMatrix(light_.tip, light_.direction, Eigen::Vector3f::UnitY());
   }
+  const int eye_count = options_.stereo ? 2 : 1;
+  const float half_angle = std::clamp(light_.cone_half_angle_rad, 0.01f, 1.5f);
+  const float cos_outer = std::cos(half_angle);
+  const float cos_inner = std::cos(std::clamp(light_.cone_half_angle_rad * (1.0f - light_.cone_softness), 0.0f, 1.5f));
+  const Eigen::Vector3f light_dir =
+      light_on ? Eigen::Vector3f(light_.direction.normalized()) : -Eigen::Vector3f::UnitZ();
+  const Eigen::Vector3f light_pos = light_on ? light_.tip : Eigen::Vector3f::Zero();
+  const float ambient = static_cast<float>(std::clamp(microscope_.ambient_light, 0.0, 1.0));
+
+  // Where the spotlight can reach. llvmpipe evaluates both sides of a branch for every pixel, so the lit shader
+  // would cost the same outside the cone, where only the ambient term remains. Instead, the triangles of each object
+  // the cone reaches are split (every frame, both eyes share it) into those that may reach into the pyramid around
+  // the cone, drawn with the lit program, and the rest, drawn with the ambient-only one: every triangle is drawn
+  // once, and the image is the same for a fraction of the cost (the lit program adds nothing outside the cone).
+  // Before pass 1, so that rewriting an index buffer never waits for a draw that uses it.
+  const bool split = options_.lighting && options_.light_partition;
+  const auto pyramid = spotPyramid(light_pos, light_dir, half_angle);
+  // Where a shadow can fall: the casters' rectangle in the shadow map, 2 texels wider (the 2x2 filter reaches 1).
+  ShadowBox shadow_box;
+  shadow_box.light_view_proj = light_view_proj;
+  if (split && shadows) {
+    for (const auto& entry : im.objects) {
+      const Object& object = entry.second;
+      if (!object.has_mesh || !object.visible || !object.style.casts_shadow || object.style.ghost) continue;
+      shadow_box.add(object.positions, object.triangles, object.pose);
+    }
+    const float margin = 4.0f / im.shadow_target.width;
+    shadow_box.rect += Eigen::Vector4f(-margin, -margin, margin, margin);
+  }
+  for (auto& entry : im.objects) {
+    Object& object = entry.second;
+    object.in_cone = false;
+    object.shadowed_triangles = object.lit_triangles = object.triangle_count;
+    if (!light_on || !object.has_mesh || !object.visible) continue;
+    const Eigen::Vector3f centre = object.pose * object.centre;
+    bool reached = true;
+    for (const Eigen::Vector4f& plane : pyramid)
+      reached = reached && plane.head<3>().dot(centre) + plane.w() >= -object.radius;
+    if (!reached) continue;
+    object.in_cone = true;
+    if (!split) continue;
+    const LightPartition partition =
+        partitionForLight(object.positions, object.triangles, object.pose, pyramid, shadow_box, &im.pyramid_codes,
+                          &im.partition_scratch, &im.partitioned);
+    object.shadowed_triangles = partition.shadowed;
+    object.lit_triangles = partition.lit;
+    glBindBuffer(GL_COPY_WRITE_BUFFER, object.buffers[4]);
+    glBufferSubData(GL_COPY_WRITE_BUFFER, 0, static_cast<GLsizeiptr>(im.partitioned.size() * sizeof(std::uint32_t)),
+                    im.partitioned.data());
+  }
+  glBindBuffer(GL_COPY_WRITE_BUFFER, 0);
+
   if (shadows) {
     const auto start = Clock::now();
     glBindFramebuffer(GL_FRAMEBUFFER, im.shadow_target.fbo);
@@ -724,37 +854,6 @@ void StereoRenderer::render(StereoFrame* frame) {
     glDisable(GL_POLYGON_OFFSET_FILL);
     barrier();
     timings.ms_shadow = msSince(start);
-  }
-
-  const int eye_count = options_.stereo ? 2 : 1;
-  const float half_angle = std::clamp(light_.cone_half_angle_rad, 0.01f, 1.5f);
-  const float cos_outer = std::cos(half_angle);
-  const float cos_inner = std::cos(std::clamp(light_.cone_half_angle_rad * (1.0f - light_.cone_softness), 0.0f, 1.5f));
-  const Eigen::Vector3f light_dir =
-      light_on ? Eigen::Vector3f(light_.direction.normalized()) : -Eigen::Vector3f::UnitZ();
-  const Eigen::Vector3f light_pos = light_on ? light_.tip : Eigen::Vector3f::Zero();
-  const float ambient = static_cast<float>(std::clamp(microscope_.ambient_light, 0.0, 1.0));
-
-  // Where the spotlight can reach. llvmpipe evaluates both sides of a branch for every pixel, so the lit shader
-  // would cost the same outside the cone, where only the ambient term remains. Instead, the lit program is drawn
-  // only inside a screen rectangle that bounds the cone's footprint (scissor; the stencil marks it), the ambient-only
-  // program everywhere else: the same image for a fraction of the cost. The footprint: the triangles of every object
-  // the cone reaches, clipped to the pyramid around the cone.
-  const bool split = options_.lighting && options_.spot_scissor;
-  im.spot_points.clear();
-  const auto pyramid = spotPyramid(light_pos, light_dir, half_angle);
-  for (auto& entry : im.objects) {
-    Object& object = entry.second;
-    object.in_cone = false;
-    if (!light_on || !object.has_mesh || !object.visible) continue;
-    const Eigen::Vector3f centre = object.pose * object.centre;
-    bool reached = true;
-    for (const Eigen::Vector4f& plane : pyramid)
-      reached = reached && plane.head<3>().dot(centre) + plane.w() >= -object.radius;
-    if (!reached) continue;
-    object.in_cone = true;
-    if (split)
-      clipToPyramid(object.positions, object.triangles, object.pose, pyramid, &im.clip_scratch, &im.spot_points);
   }
 
   // Both eyes are submitted before either is read back: llvmpipe rasterises one eye while this thread bins the next
@@ -794,30 +893,18 @@ void StereoRenderer::render(StereoFrame* frame) {
     glDepthFunc(GL_LESS);
     glDepthMask(GL_TRUE);
     glDisable(GL_CULL_FACE);  // the retina is seen from inside, membranes from both sides
-    glStencilMask(0xFF);
-    glClearStencil(0);
-    glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT | GL_STENCIL_BUFFER_BIT);
-    const PixelRect spot = split ? spotRect(cam, im.spot_points) : PixelRect{};
-    if (!spot.empty()) {
-      glEnable(GL_SCISSOR_TEST);
-      glScissor(spot.x0, spot.y0, spot.x1 - spot.x0, spot.y1 - spot.y0);
-      glClearStencil(1);
-      glClear(GL_STENCIL_BUFFER_BIT);
-      glClearStencil(0);
-      glDisable(GL_SCISSOR_TEST);
-    }
-    glStencilFunc(GL_EQUAL, 0, 0xFF);
-    glStencilOp(GL_KEEP, GL_KEEP, GL_KEEP);
+    glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
 
     std::array<bool, 8> prepared{};  // per-eye uniforms set, per program variant
     Program* current = nullptr;
-    auto use = [&](bool lit, bool bump) -> Program& {
-      Program& p = im.sceneProgram(lit, shadows, options_.bump_mapping && bump);
+    auto use = [&](bool lit, bool bump, bool shadowed = true) -> Program& {
+      const bool shadows_here = shadows && shadowed;
+      Program& p = im.sceneProgram(lit, shadows_here, options_.bump_mapping && bump);
       if (&p != current) {
         current = &p;
         p.use();
       }
-      const int key = (lit ? 1 : 0) | (lit && shadows ? 2 : 0) | (lit && options_.bump_mapping && bump ? 4 : 0);
+      const int key = (lit ? 1 : 0) | (lit && shadows_here ? 2 : 0) | (lit && options_.bump_mapping && bump ? 4 : 0);
       if (prepared[key]) return p;
       prepared[key] = true;
       glUniformMatrix4fv(p["u_view_proj"], 1, GL_FALSE, view_proj.data());
@@ -844,7 +931,10 @@ void StereoRenderer::render(StereoFrame* frame) {
     };
     glActiveTexture(GL_TEXTURE0);
     glBindTexture(GL_TEXTURE_2D, im.shadow_target.depth);
-    auto drawWith = [&](Program& p, const Object& object, float alpha_scale, bool opaque) {
+    auto drawWith = [&](Program& p, const Object& object, float alpha_scale, bool opaque, std::size_t first = 0,
+                        std::size_t count = std::numeric_limits<std::size_t>::max()) {
+      count = std::min(count, object.triangle_count - std::min(first, object.triangle_count));
+      if (count == 0) return;
       const Material& m = object.style.material;
       glUniformMatrix4fv(p["u_model"], 1, GL_FALSE, object.pose.matrix().data());
       const Eigen::Matrix3f normal_matrix = object.pose.linear().inverse().transpose();
@@ -854,25 +944,23 @@ void StereoRenderer::render(StereoFrame* frame) {
       glUniform1f(p["u_shininess"], std::max(1.0f, m.shininess));
       glUniform1f(p["u_alpha_scale"], alpha_scale);
       glUniform1f(p["u_coc_alpha"], opaque ? 1.0f : 0.0f);
-      im.drawObject(object);
+      im.drawObject(object, first, count);
     };
-    // One object in the current depth / blend state: lit inside the spot rectangle, ambient outside.
+    // One object in the current depth / blend state: its triangles the spotlight may reach lit, the rest ambient.
     auto draw = [&](const Object& object, float alpha_scale, bool opaque) {
       timings.triangles_drawn += object.triangle_count;
       if (!split) {
         drawWith(use(options_.lighting, object.style.bump_mapped), object, alpha_scale, opaque);
         return;
       }
-      // Objects the cone does not reach are ambient-only everywhere, including inside the rectangle.
-      const bool lit_part = object.in_cone && !spot.empty();
-      if (lit_part) {
-        glEnable(GL_SCISSOR_TEST);
-        drawWith(use(true, object.style.bump_mapped), object, alpha_scale, opaque);
-        glDisable(GL_SCISSOR_TEST);
-        glEnable(GL_STENCIL_TEST);
+      if (object.in_cone) {
+        drawWith(use(true, object.style.bump_mapped), object, alpha_scale, opaque, 0, object.shadowed_triangles);
+        drawWith(use(true, object.style.bump_mapped, false), object, alpha_scale, opaque, object.shadowed_triangles,
+                 object.lit_triangles - object.shadowed_triangles);
+        drawWith(use(false, false), object, alpha_scale, opaque, object.lit_triangles);
+      } else {
+        drawWith(use(false, false), object, alpha_scale, opaque);
       }
-      drawWith(use(false, false), object, alpha_scale, opaque);
-      glDisable(GL_STENCIL_TEST);
     };
     for (const auto& entry : opaque) draw(*entry.second, 1.0f, true);
     if (!translucent.empty()) {

@@ -350,20 +350,26 @@ TEST(Renderer, BadInputIsRejectedWithAClearErrorAndTheRendererKeepsRunning) {
   EXPECT_EQ(after.images[0].data, before.images[0].data);
 }
 
-// The lit shader drawn only inside the spotlight's screen rectangle (ambient-only elsewhere) must give the image of
-// the lit shader everywhere: a rectangle that missed part of the footprint would leave lit pixels dark. Stereo,
-// shadows, bump mapping, DOF, a translucent membrane and instruments whose long shaft triangles cross the cone.
-TEST(Renderer, SpotlightRectangleRendersTheSameImageAsLightingEverywhere) {
+// The lit shader drawn only for the triangles that may reach into the spotlight's pyramid, its shadow lookup only
+// for those that may reach the casters' rectangle in the shadow map (ambient-only elsewhere), must give the image of
+// the lit shader everywhere: a partition that missed part of the footprint would leave lit pixels dark, one that
+// missed part of the shadow would light it. Stereo, shadows (the forceps' shadow lies in view: checked below), bump
+// mapping, DOF, a translucent membrane and instruments whose long shaft triangles cross the cone and reach behind
+// the light pipe tip.
+TEST(Renderer, SpotlightPartitionRendersTheSameImageAsLightingEverywhere) {
   RenderOptions options;
   options.width = kWidth;
   options.height = kHeight;
   LightPipe light;
   const std::vector<SceneObject> scene = typicalScene(&light);
-  options.spot_scissor = false;
+  options.light_partition = false;
   StereoRenderer everywhere(options);
-  options.spot_scissor = true;
+  options.shadow_pass = false;
+  StereoRenderer unshadowed(options);
+  options.shadow_pass = true;
+  options.light_partition = true;
   StereoRenderer split(options);
-  for (StereoRenderer* renderer : {&everywhere, &split}) {
+  for (StereoRenderer* renderer : {&everywhere, &split, &unshadowed}) {
     for (const SceneObject& object : scene) {
       renderer->setStyle(object.id, object.style);
       renderer->setPose(object.id, object.pose);
@@ -371,6 +377,10 @@ TEST(Renderer, SpotlightRectangleRendersTheSameImageAsLightingEverywhere) {
     }
   }
   // The typical aim, a wide cone, and a light pipe near the rim aiming across the eye.
+  unshadowed.setLightPipe(light);
+  everywhere.setLightPipe(light);
+  EXPECT_GT(fractionDifferent(renderFrame(everywhere).images[0], renderFrame(unshadowed).images[0], 8), 1e-3)
+      << "the typical scene shows no shadow: the test would not see a wrong shadow partition";
   LightPipe wide = light;
   wide.cone_half_angle_rad = 1.2f;
   LightPipe rim = light;
