@@ -191,6 +191,12 @@ class TissueSim : public nodelet::Nodelet {
   // Instrument switching (thesis §7: the trainee changes instruments in a trocar): the scene lists which types a
   // slot may take; any other type in the input keeps the current one.
   void switchInstrumentIfNeeded(Instrument& instrument, std::uint8_t message_type, const std::string& slot) {
+    static_assert(static_cast<int>(scene::InstrumentType::kLightPipe) == vrm_msgs::InstrumentState::LIGHT_PIPE &&
+                      static_cast<int>(scene::InstrumentType::kForceps) == vrm_msgs::InstrumentState::FORCEPS &&
+                      static_cast<int>(scene::InstrumentType::kVitrector) == vrm_msgs::InstrumentState::VITRECTOR &&
+                      static_cast<int>(scene::InstrumentType::kNeedle) == vrm_msgs::InstrumentState::NEEDLE &&
+                      static_cast<int>(scene::InstrumentType::kHook) == vrm_msgs::InstrumentState::HOOK,
+                  "scene::InstrumentType must follow the InstrumentState type constants");
     if (message_type > vrm_msgs::InstrumentState::HOOK) return;
     const auto type = static_cast<scene::InstrumentType>(message_type);
     if (type == instrument.current.type) return;
