@@ -13,6 +13,7 @@
 #include <string>
 
 #include "vrm_tracking/conversions.h"
+#include "vrm_tracking/scene_trocars.h"
 #include "vrm_tracking/surgeon_script.h"
 
 namespace vrm_tracking {
@@ -23,11 +24,25 @@ class ScriptedSurgeon : public nodelet::Nodelet {
     ros::NodeHandle& nh = getNodeHandle();
     ros::NodeHandle& pnh = getPrivateNodeHandle();
 
+    std::string scene_spec;  // optional: the scene whose trocars the instruments pivot at (else the script's)
+    pnh.param<std::string>("scene", scene_spec, "");
     try {
       script_ = loadScriptFromParams(pnh);
+      if (!scene_spec.empty()) {
+        const vrm_sim::scene::SceneDescription scene = loadSceneSpec(scene_spec);
+        script_ = std::make_unique<SurgeonScript>(applySceneTrocars(scene, *script_));
+        NODELET_INFO("trocars from scene '%s' (%s), overriding the script's", scene.name.c_str(),
+                     scene.source_file.c_str());
+      } else {
+        NODELET_INFO("trocars from the script (no ~scene given)");
+      }
     } catch (const std::exception& e) {
-      NODELET_FATAL("cannot load surgeon script: %s", e.what());
+      NODELET_FATAL("cannot load surgeon script or scene: %s", e.what());
       throw;
+    }
+    for (const InstrumentTrack& track : script_->definition().instruments) {
+      NODELET_INFO("trocar %s at [%.6f, %.6f, %.6f] m (eye frame)", track.slot.c_str(), track.trocar.x(),
+                   track.trocar.y(), track.trocar.z());
     }
 
     double tremor_um = 0.0;

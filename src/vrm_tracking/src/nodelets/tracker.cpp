@@ -4,10 +4,10 @@
 // camera has reported, or with the cameras that did once a newer stamp is `sync_window` past it (a camera that
 // stops costs one frame of latency, not the tracking). Roll, jaw and the other instrument inputs are not optical:
 // they come from `instrument_sensors` (the instruments' own channels; in simulation the surgeon's ground truth).
-// tf (publish_tf): world → eye (camera stamps), eye → trocar_* (static, from the layout), trocar_* → instrument_*
-// (camera stamps). In tracking mode this nodelet owns those transforms and vrm_sim's scene_manager must run with
-// publish_pose_tf:=false (one publisher per transform); with publish_tf:=false scene_manager broadcasts them from
-// the states published here. Optional pose filter (`filter`: none | one_euro | alpha_beta, pose_filter.h).
+// tf (publish_tf): world → eye (camera stamps), eye → trocar_* (static, from the layout or ~scene), trocar_* →
+// instrument_* (camera stamps). In tracking mode this nodelet owns those transforms and vrm_sim's scene_manager must
+// run with publish_pose_tf:=false (one publisher per transform); with publish_tf:=false scene_manager broadcasts them
+// from the states published here. Optional pose filter (`filter`: none | one_euro | alpha_beta, pose_filter.h).
 // Diagnostics (/diagnostics, wall-clock period): frames and cameras per frame, stale cameras, reprojection
 // residuals, eye/instrument validity — OK / WARN / ERROR.
 
@@ -35,6 +35,7 @@
 
 #include "vrm_tracking/conversions.h"
 #include "vrm_tracking/pose_tracker.h"
+#include "vrm_tracking/scene_trocars.h"
 
 namespace vrm_tracking {
 
@@ -51,6 +52,8 @@ class Tracker : public nodelet::Nodelet {
     std::string rig_file, layout_file, markers_topic;
     pnh.param<std::string>("rig_file", rig_file, "");
     pnh.param<std::string>("layout_file", layout_file, "");
+    std::string scene_spec;  // optional: the scene whose trocars override the layout's (name or path)
+    pnh.param<std::string>("scene", scene_spec, "");
     pnh.param<std::string>("markers_topic", markers_topic, "markers");
     TrackerConfig config;
     pnh.param("gate_px", config.gate_px, config.gate_px);
@@ -73,6 +76,18 @@ class Tracker : public nodelet::Nodelet {
       config.filter.type = filterTypeFromString(filter);
       CameraRig rig = rig_file.empty() ? makeDefaultRig() : loadRigYaml(rig_file);
       MarkerLayout layout = layout_file.empty() ? makeDefaultLayout() : loadLayoutYaml(layout_file);
+      if (!scene_spec.empty()) {
+        const vrm_sim::scene::SceneDescription scene = loadSceneSpec(scene_spec);
+        applySceneTrocars(scene, &layout);
+        NODELET_INFO("tracker: trocars from scene '%s' (%s), overriding the layout's", scene.name.c_str(),
+                     scene.source_file.c_str());
+      } else {
+        NODELET_INFO("tracker: trocars from the marker layout (no ~scene given)");
+      }
+      for (const InstrumentMarker& m : layout.instruments) {
+        NODELET_INFO("tracker: trocar %s at [%.6f, %.6f, %.6f] m (eye frame)", m.slot.c_str(), m.trocar.x(),
+                     m.trocar.y(), m.trocar.z());
+      }
       tracker_ = std::make_unique<PoseTracker>(rig, layout, config);
     } catch (const std::exception& e) {
       NODELET_FATAL("tracker: %s", e.what());

@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "vrm_tracking/conversions.h"
+#include "vrm_tracking/scene_trocars.h"
 #include "vrm_tracking/surgeon_script.h"
 
 namespace vrm_tracking {
@@ -81,6 +82,7 @@ class Listener {
 
 std::unique_ptr<Listener> g_listener;
 std::string g_script_path;
+std::string g_scene;  // the surgeon's ~scene: its trocars replace the script's
 double g_zoom_max = 3.0;
 
 // Mean receive rate over `window` messages, skipping the first `skip` (connection set-up may deliver a burst).
@@ -122,9 +124,16 @@ TEST(SimulatedHardware, EyeStateAtTrackingRate) {
 }
 
 TEST(SimulatedHardware, InstrumentStatePerSlotWithTrocarConstraint) {
-  const SurgeonScript script = SurgeonScript::load(g_script_path);
+  const SurgeonScript file_script = SurgeonScript::load(g_script_path);
+  // With a scene, the instruments pivot at the scene's trocars, not at the script's (the scene is the truth).
+  const SurgeonScript script = g_scene.empty() ? file_script : applySceneTrocars(loadSceneSpec(g_scene), file_script);
   const ScriptDefinition& def = script.definition();
   ASSERT_EQ(def.instruments.size(), 2u);
+  if (!g_scene.empty()) {
+    for (std::size_t i = 0; i < def.instruments.size(); ++i) {  // the test scene really moves them
+      EXPECT_GT((def.instruments[i].trocar - file_script.definition().instruments[i].trocar).norm(), 1e-4);
+    }
+  }
   auto& l = *g_listener;
   ASSERT_TRUE(l.waitFor(
       [&] {
@@ -241,6 +250,7 @@ int main(int argc, char** argv) {
   ros::NodeHandle nh;
   ros::NodeHandle pnh("~");
   pnh.param<std::string>("script", vrm_tracking::g_script_path, "");
+  pnh.param<std::string>("scene", vrm_tracking::g_scene, "");
   pnh.param("zoom_max", vrm_tracking::g_zoom_max, 3.0);
   vrm_tracking::g_listener = std::make_unique<vrm_tracking::Listener>(nh);
   ros::AsyncSpinner spinner(2);

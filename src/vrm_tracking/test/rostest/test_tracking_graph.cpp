@@ -28,6 +28,7 @@
 #include <vector>
 
 #include "vrm_tracking/conversions.h"
+#include "vrm_tracking/scene_trocars.h"
 
 namespace vrm_tracking {
 namespace {
@@ -98,6 +99,8 @@ class Listener {
 std::unique_ptr<Listener> g_listener;
 std::unique_ptr<tf2_ros::Buffer> g_tf;
 int g_stop_after = 150;
+std::string g_scene;        // ~scene of surgeon and tracker: its trocars replace the script's and the layout's
+std::string g_layout_file;  // the tracker's layout, whose own trocars the scene overrides
 
 struct TipErrors {
   std::vector<double> um;
@@ -319,6 +322,41 @@ TEST(TrackingGraph, TfChainComposesTheStatesAtCameraStamps) {
   EXPECT_LT((toIsometry(eye_inst.transform).translation() - eye_tip.translation()).norm(), 1e-9);
 }
 
+// One trocar for everyone: the tracker's static trocar frames and the surgeon's pivots are the scene's, not the
+// layout's or the script's own copies.
+TEST(TrackingGraph, TrocarsComeFromTheScene) {
+  if (g_scene.empty()) GTEST_SKIP() << "no ~scene given";
+  const vrm_sim::scene::SceneDescription scene = loadSceneSpec(g_scene);
+  const MarkerLayout layout = loadLayoutYaml(g_layout_file);
+  ASSERT_EQ(layout.instruments.size(), 2u);
+  for (const InstrumentMarker& marker : layout.instruments) {
+    SCOPED_TRACE(marker.slot);
+    const Eigen::Vector3d expected = sceneTrocarForSlot(scene, marker.slot);
+    ASSERT_GT((expected - marker.trocar).norm(), 1e-4) << "the test scene must move the trocars";
+    std::string error;
+    ASSERT_TRUE(g_tf->canTransform("eye", "trocar_" + marker.slot, ros::Time(0), ros::Duration(10.0), &error)) << error;
+    const geometry_msgs::TransformStamped frame = g_tf->lookupTransform("eye", "trocar_" + marker.slot, ros::Time(0));
+    EXPECT_LT((toIsometry(frame.transform).translation() - expected).norm(), 1e-9) << "tracker: trocar frame";
+
+    auto& l = *g_listener;
+    ASSERT_TRUE(l.waitFor(
+        [&] {
+          for (const auto& t : l.truth_instrument) {
+            if (t.first.first == marker.slot) return true;
+          }
+          return false;
+        },
+        kTimeout))
+        << "no ground truth for " << marker.slot;
+    std::lock_guard<std::mutex> lock(l.mutex_);
+    for (const auto& t : l.truth_instrument) {
+      if (t.first.first != marker.slot) continue;
+      const InstrumentSample truth = fromMsg(*t.second);  // trocar = tip - insertion_depth * shaft_axis
+      EXPECT_LT((truth.trocar - expected).norm(), 1e-9) << "surgeon: shaft misses the scene's trocar";
+    }
+  }
+}
+
 bool hasStatus(const Listener& l, const std::string& name_part, int min_level, const std::string& message_part) {
   for (const auto& s : l.diagnostics) {
     if (s.name.find(name_part) != std::string::npos && s.level >= min_level &&
@@ -403,14 +441,18 @@ int main(int argc, char** argv) {
   ros::NodeHandle nh;
   ros::NodeHandle pnh("~");
   pnh.param("stop_after", vrm_tracking::g_stop_after, 150);
+  pnh.param<std::string>("scene", vrm_tracking::g_scene, "");
+  pnh.param<std::string>("layout_file", vrm_tracking::g_layout_file, "");
   vrm_tracking::g_listener = std::make_unique<vrm_tracking::Listener>(nh);
   vrm_tracking::g_tf = std::make_unique<tf2_ros::Buffer>(ros::Duration(30.0));
-  tf2_ros::TransformListener tf_listener(*vrm_tracking::g_tf);
+  // The listener's own thread writes into the buffer: it must go before the buffer does.
+  auto tf_listener = std::make_unique<tf2_ros::TransformListener>(*vrm_tracking::g_tf);
   ros::AsyncSpinner spinner(2);
   spinner.start();
   const int result = RUN_ALL_TESTS();
   spinner.stop();
   vrm_tracking::g_listener.reset();
+  tf_listener.reset();
   vrm_tracking::g_tf.reset();
   ros::shutdown();
   return result;
