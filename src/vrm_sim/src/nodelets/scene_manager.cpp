@@ -27,6 +27,7 @@
 #include "vrm_sim/conversions.h"
 #include "vrm_sim/mge/membrane.h"
 #include "vrm_sim/scene/scene_loader.h"
+#include "vrm_sim/tissue/offline_run.h"
 
 namespace vrm_sim {
 
@@ -105,12 +106,8 @@ class SceneManager : public nodelet::Nodelet {
       TriangleMesh mesh = scene::buildMesh(object, scene::MeshFrame::kParent);
       // Model only what the scene needs: mass-spring state exists for deformable objects only.
       if (object.isDeformable() && scene_.simulates(scene::Simulation::kTissue)) {
-        mge::MembraneOptions options;
-        options.total_mass = object.tissue.node_mass * static_cast<double>(mesh.vertexCount());
-        options.stretch_stiffness = object.tissue.stiffness;
-        options.bending_springs = object.tissue.bending_stiffness > 0.0;
-        options.bending_stiffness = object.tissue.bending_stiffness;
-        membranes_[object.name] = mge::buildMembrane(graph_, mesh, options);
+        membranes_[object.name] =
+            mge::buildMembrane(graph_, mesh, tissue::membraneOptionsFor(object.tissue, mesh.vertexCount()));
       }
       meshes_.emplace(object.name, std::move(mesh));
     }

@@ -215,13 +215,8 @@ class TissueSim : public nodelet::Nodelet {
     for (const auto& object : scene_.objects) {
       if (!object.isDeformable()) continue;
       const TriangleMesh mesh = scene::buildMesh(object, scene::MeshFrame::kParent);
-      mge::MembraneOptions options;
-      options.total_mass = object.tissue.node_mass * static_cast<double>(mesh.vertexCount());
-      options.stretch_stiffness = object.tissue.stiffness;
-      options.bending_springs = object.tissue.bending_stiffness > 0.0;
-      options.bending_stiffness = object.tissue.bending_stiffness;
       Tissue tissue;
-      tissue.membrane = mge::buildMembrane(mesh, options);
+      tissue.membrane = mge::buildMembrane(mesh, tissue::membraneOptionsFor(object.tissue, mesh.vertexCount()));
       tissue.simulator = std::make_unique<tissue::TissueSimulator>(
           *tissue.membrane, tissue::tissueConfigFor(object.tissue, object.collision));
       tissue.frame_id = frameOf(object.frame);

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <functional>
 #include <mutex>
+#include <stdexcept>
 #include <variant>
 
 #include "vrm_msgs/InstrumentState.h"
@@ -108,40 +109,65 @@ bool drive(ros::Publisher& publisher, const std::function<void(double, vrm_msgs:
   return false;
 }
 
-TEST(TissueSimGraph, GraspPullDeformsAndReleaseReturnsTowardRest) {
-  ros::NodeHandle nh;
-  ros::NodeHandle private_nh("~");
-  const std::string scene_name = private_nh.param<std::string>("scene", "membrane_peeling");
-  const std::string object_name = private_nh.param<std::string>("object", "membrane");
-  const auto scene = vrm_sim::scene::loadScene(vrm_sim::scene::shippedScenePath(scene_name));
-  const auto* object = scene.findObject(object_name);
-  ASSERT_NE(object, nullptr);
-  const vrm_sim::TriangleMesh mesh = vrm_sim::scene::buildMesh(*object, vrm_sim::scene::MeshFrame::kParent);
-  std::vector<float> rest;
-  Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
-  for (const auto& v : mesh.vertices) {
-    rest.insert(rest.end(), {static_cast<float>(v.x()), static_cast<float>(v.y()), static_cast<float>(v.z())});
-    centroid += v / static_cast<double>(mesh.vertexCount());
+// The membrane under test (params scene/object) and the vertex nearest its centroid, where the instruments work;
+// the membrane faces the eye centre, so `inward` points from that vertex towards it.
+struct MembraneUnderTest {
+  std::string object_name;
+  vrm_sim::TriangleMesh mesh;
+  Eigen::Vector3d target = Eigen::Vector3d::Zero();
+  Eigen::Vector3d inward = Eigen::Vector3d::Zero();
+  // Instrument frame with +z (handle -> tip) pointing outward, towards the retina; origin at the eye centre.
+  Eigen::Isometry3d outwardFacing() const {
+    Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+    pose.linear() = Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), -inward).toRotationMatrix();
+    return pose;
   }
-  // The vertex nearest the centroid; the membrane faces the eye centre.
-  Eigen::Vector3d target = mesh.vertices.front();
-  for (const auto& v : mesh.vertices) {
-    if ((v - centroid).norm() < (target - centroid).norm()) target = v;
-  }
-  const Eigen::Vector3d inward = -target.normalized();
-  const double jaw_length = 0.0015;
-  // Instrument +z (handle -> tip) points outward (towards the retina); the jaw centre straddles the membrane.
-  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
-  pose.linear() = Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), -inward).toRotationMatrix();
-  const Eigen::Vector3d grasp_tip = target - inward * (0.5 * jaw_length);
+};
 
-  MeshWatcher watcher(nh, "tissue/" + object_name, rest);
-  ros::Publisher publisher = nh.advertise<vrm_msgs::InstrumentState>("instrument_state", 20);
+MembraneUnderTest membraneUnderTest() {
+  ros::NodeHandle private_nh("~");
+  MembraneUnderTest membrane;
+  const std::string scene_name = private_nh.param<std::string>("scene", "membrane_peeling");
+  membrane.object_name = private_nh.param<std::string>("object", "membrane");
+  const auto scene = vrm_sim::scene::loadScene(vrm_sim::scene::shippedScenePath(scene_name));
+  const auto* object = scene.findObject(membrane.object_name);
+  if (object == nullptr) throw std::runtime_error("scene has no object " + membrane.object_name);
+  membrane.mesh = vrm_sim::scene::buildMesh(*object, vrm_sim::scene::MeshFrame::kParent);
+  Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+  for (const auto& v : membrane.mesh.vertices) centroid += v / static_cast<double>(membrane.mesh.vertexCount());
+  membrane.target = membrane.mesh.vertices.front();
+  for (const auto& v : membrane.mesh.vertices) {
+    if ((v - centroid).norm() < (membrane.target - centroid).norm()) membrane.target = v;
+  }
+  membrane.inward = -membrane.target.normalized();
+  return membrane;
+}
+
+// Waits (30 s at most) until tissue_sim subscribes the publisher.
+bool waitForSubscriber(const ros::Publisher& publisher) {
   const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(30.0);
   while (ros::ok() && publisher.getNumSubscribers() == 0 && ros::WallTime::now() < deadline) {
     ros::WallDuration(0.01).sleep();
   }
-  ASSERT_GT(publisher.getNumSubscribers(), 0u) << "tissue_sim does not subscribe instrument_state";
+  return publisher.getNumSubscribers() > 0;
+}
+
+TEST(TissueSimGraph, GraspPullDeformsAndReleaseReturnsTowardRest) {
+  ros::NodeHandle nh;
+  const MembraneUnderTest membrane = membraneUnderTest();
+  std::vector<float> rest;
+  for (const auto& v : membrane.mesh.vertices) {
+    rest.insert(rest.end(), {static_cast<float>(v.x()), static_cast<float>(v.y()), static_cast<float>(v.z())});
+  }
+  const Eigen::Vector3d& inward = membrane.inward;
+  const double jaw_length = 0.0015;
+  // The jaw centre straddles the membrane.
+  const Eigen::Isometry3d pose = membrane.outwardFacing();
+  const Eigen::Vector3d grasp_tip = membrane.target - inward * (0.5 * jaw_length);
+
+  MeshWatcher watcher(nh, "tissue/" + membrane.object_name, rest);
+  ros::Publisher publisher = nh.advertise<vrm_msgs::InstrumentState>("instrument_state", 20);
+  ASSERT_TRUE(waitForSubscriber(publisher)) << "tissue_sim does not subscribe instrument_state";
   ros::AsyncSpinner spinner(1);
   spinner.start();
 
@@ -220,34 +246,17 @@ class TopologyWatcher {
 // suction and cutter on (triangles removed, topology_version raised, indices valid).
 TEST(TissueSimGraph, VitrectorCutsOnlyWithSuctionAndKeepsTheMeshConsistent) {
   ros::NodeHandle nh;
-  ros::NodeHandle private_nh("~");
-  const std::string scene_name = private_nh.param<std::string>("scene", "membrane_peeling");
-  const std::string object_name = private_nh.param<std::string>("object", "membrane");
-  const auto scene = vrm_sim::scene::loadScene(vrm_sim::scene::shippedScenePath(scene_name));
-  const auto* object = scene.findObject(object_name);
-  ASSERT_NE(object, nullptr);
-  const vrm_sim::TriangleMesh mesh = vrm_sim::scene::buildMesh(*object, vrm_sim::scene::MeshFrame::kParent);
-  Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
-  for (const auto& v : mesh.vertices) centroid += v / static_cast<double>(mesh.vertexCount());
-  Eigen::Vector3d target = mesh.vertices.front();
-  for (const auto& v : mesh.vertices) {
-    if ((v - centroid).norm() < (target - centroid).norm()) target = v;
-  }
-  const Eigen::Vector3d inward = -target.normalized();
+  const MembraneUnderTest membrane = membraneUnderTest();
   const auto vitrector = std::get<vrm_sim::scene::VitrectorParams>(
       vrm_sim::scene::defaultInstrumentParams(vrm_sim::scene::InstrumentType::kVitrector));
   // The port (cut_offset .. cut_offset + port_length behind the tip) straddles the membrane.
-  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
-  pose.linear() = Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), -inward).toRotationMatrix();
-  pose.translation() = target - inward * (vitrector.port_distance_from_tip + 0.5 * vitrector.port_length);
+  Eigen::Isometry3d pose = membrane.outwardFacing();
+  pose.translation() =
+      membrane.target - membrane.inward * (vitrector.port_distance_from_tip + 0.5 * vitrector.port_length);
 
-  TopologyWatcher watcher(nh, "tissue/" + object_name);
+  TopologyWatcher watcher(nh, "tissue/" + membrane.object_name);
   ros::Publisher publisher = nh.advertise<vrm_msgs::InstrumentState>("instrument_state", 20);
-  const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(30.0);
-  while (ros::ok() && publisher.getNumSubscribers() == 0 && ros::WallTime::now() < deadline) {
-    ros::WallDuration(0.01).sleep();
-  }
-  ASSERT_GT(publisher.getNumSubscribers(), 0u);
+  ASSERT_TRUE(waitForSubscriber(publisher)) << "tissue_sim does not subscribe instrument_state";
   ros::AsyncSpinner spinner(1);
   spinner.start();
   auto vitrectorAt = [&](double suction, vrm_msgs::InstrumentState& state) {
@@ -265,7 +274,7 @@ TEST(TissueSimGraph, VitrectorCutsOnlyWithSuctionAndKeepsTheMeshConsistent) {
   const std::uint64_t version_before = watcher.topologyVersion();
   const std::size_t triangles_before = watcher.triangles();
   ASSERT_GT(version_before, 0u) << "no membrane published";
-  ASSERT_EQ(triangles_before, mesh.triangleCount()) << "the membrane lost triangles without suction";
+  ASSERT_EQ(triangles_before, membrane.mesh.triangleCount()) << "the membrane lost triangles without suction";
   // Suction and cutter on: tissue in the port is removed.
   const bool cut = drive(
       publisher, [&](double, vrm_msgs::InstrumentState& s) { vitrectorAt(0.6, s); }, 20.0,

@@ -7,14 +7,11 @@
 #include <cstdint>
 #include <string>
 
+#include "vrm_sim/mge/membrane.h"
 #include "vrm_sim/scene/scene_description.h"
 #include "vrm_sim/tissue/tissue_simulator.h"
 
 namespace vrm_sim {
-namespace mge {
-class Membrane;
-}
-
 namespace tissue {
 
 struct OfflineOptions {
@@ -51,6 +48,9 @@ std::uint64_t stateHash(mge::Membrane& membrane, std::uint64_t hash = 1469598103
 // The scene's tissue parameters as simulator configuration (shared by the offline driver and the tissue_sim
 // nodelet's needs).
 TissueConfig tissueConfigFor(const scene::TissueParameters& parameters, const scene::CollisionParameters& collision);
+// The mass-spring membrane a deformable scene object is built as (node mass spread over its `node_count` vertices,
+// spring and bending stiffness); shared by the scene manager, the tissue nodelet and the offline driver.
+mge::MembraneOptions membraneOptionsFor(const scene::TissueParameters& parameters, std::size_t node_count);
 // The instrument's tissue-side shape: a capsule along the shaft; the forceps grasp with their jaws instead.
 InstrumentInput instrumentInputFor(const scene::InstrumentDescription& description);
 // The scripted pose (tip and shaft direction from the trocar, in the eye frame) and jaw angle [rad] at time t; the

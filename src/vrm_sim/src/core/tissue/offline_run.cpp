@@ -107,6 +107,15 @@ TissueConfig tissueConfigFor(const scene::TissueParameters& parameters, const sc
   return config;
 }
 
+mge::MembraneOptions membraneOptionsFor(const scene::TissueParameters& parameters, std::size_t node_count) {
+  mge::MembraneOptions options;
+  options.total_mass = parameters.node_mass * static_cast<double>(node_count);
+  options.stretch_stiffness = parameters.stiffness;
+  options.bending_springs = parameters.bending_stiffness > 0.0;
+  options.bending_stiffness = parameters.bending_stiffness;
+  return options;
+}
+
 InstrumentInput instrumentInputFor(const scene::InstrumentDescription& description) {
   InstrumentInput instrument;
   const scene::ShaftParams* shaft = nullptr;
@@ -196,14 +205,9 @@ OfflineResult runOffline(const scene::SceneDescription& scene, const OfflineOpti
   for (const auto& object : scene.objects) {
     if (!object.isDeformable()) continue;
     const TriangleMesh mesh = scene::buildMesh(object, scene::MeshFrame::kParent);
-    mge::MembraneOptions membrane_options;
-    membrane_options.total_mass = object.tissue.node_mass * static_cast<double>(mesh.vertexCount());
-    membrane_options.stretch_stiffness = object.tissue.stiffness;
-    membrane_options.bending_springs = object.tissue.bending_stiffness > 0.0;
-    membrane_options.bending_stiffness = object.tissue.bending_stiffness;
     OfflineTissue tissue;
     tissue.object = &object;
-    tissue.membrane = mge::buildMembrane(mesh, membrane_options);
+    tissue.membrane = mge::buildMembrane(mesh, membraneOptionsFor(object.tissue, mesh.vertexCount()));
     TissueConfig config = tissueConfigFor(object.tissue, object.collision);
     if (!options.integrator.empty()) config.integrator = options.integrator;
     if (options.dt > 0.0) config.dt = options.dt;
