@@ -1,9 +1,14 @@
-// tissue_offline: runs a scene's tissue simulation headless, without a ROS master (issue 3), the instruments
-// following their scripted paths from the scene file; prints one JSON object
-//   {"stable", "steps", "ms_per_step", "max_strain", "energy_drift", "fallbacks", "final_state_hash"}.
+// tissue_offline: runs a scene headless, without a ROS master, through the same simulation core as the tissue_sim
+// nodelet (vrm_sim::world::World): the instruments follow their scripted paths from the scene file, sampled into
+// instrument states at --rate Hz; prints one JSON object
+//   {"stable", "frames", "steps", "ms_per_step", "ms_per_frame", "ms_per_frame_max", "max_strain",
+//    "max_grasped_nodes", "energy_drift", "fallbacks", "retina_contacts", "max_injury",
+//    "tissues": [{"object", "outcome", "torn_springs", "released_adhesions", "topology_version", "max_lift"}],
+//    "final_state_hash"}.
 // Same scene, options and seed -> the same final_state_hash, bit for bit.
 //
-// Usage: rosrun vrm_sim tissue_offline --scene FILE.yaml|NAME --seconds T [--integrator NAME] [--dt DT] [--seed N]
+// Usage: rosrun vrm_sim tissue_offline --scene FILE.yaml|NAME --seconds T [--rate HZ] [--integrator NAME] [--dt DT]
+//        [--detector NAME] [--seed N]
 // (NAME: a shipped scene, e.g. membrane_peeling). Exit status: 0 ran (see "stable"), 1 bad scene or options,
 // 2 usage.
 #include <cstdio>
@@ -12,14 +17,14 @@
 #include <string>
 
 #include "vrm_sim/scene/scene_loader.h"
-#include "vrm_sim/tissue/offline_run.h"
+#include "vrm_sim/world/offline.h"
 
 namespace {
 
 int usage(const char* problem) {
   std::fprintf(stderr,
-               "tissue_offline: %s\nusage: tissue_offline --scene FILE.yaml|NAME --seconds T [--integrator NAME] "
-               "[--dt DT] [--seed N]\n",
+               "tissue_offline: %s\nusage: tissue_offline --scene FILE.yaml|NAME --seconds T [--rate HZ] "
+               "[--integrator NAME] [--dt DT] [--detector NAME] [--seed N]\n",
                problem);
   return 2;
 }
@@ -35,7 +40,7 @@ bool parseDouble(const char* text, double& value) {
 int main(int argc, char** argv) {
   std::string scene_argument;
   bool have_seconds = false;
-  vrm_sim::tissue::OfflineOptions options;
+  vrm_sim::world::OfflineOptions options;
   for (int i = 1; i < argc; ++i) {
     const std::string flag = argv[i];
     if (i + 1 >= argc) return usage(("missing value after " + flag).c_str());
@@ -45,6 +50,10 @@ int main(int argc, char** argv) {
     } else if (flag == "--seconds") {
       if (!parseDouble(value, options.seconds)) return usage("--seconds expects a number");
       have_seconds = true;
+    } else if (flag == "--rate") {
+      if (!parseDouble(value, options.rate) || !(options.rate > 0.0)) return usage("--rate expects a positive number");
+    } else if (flag == "--detector") {
+      options.detector = value;
     } else if (flag == "--integrator") {
       options.integrator = value;
     } else if (flag == "--dt") {
@@ -63,7 +72,7 @@ int main(int argc, char** argv) {
     const bool shipped = scene_argument.find('/') == std::string::npos && scene_argument.find('.') == std::string::npos;
     const std::string path = shipped ? vrm_sim::scene::shippedScenePath(scene_argument) : scene_argument;
     const vrm_sim::scene::SceneDescription scene = vrm_sim::scene::loadScene(path);
-    const vrm_sim::tissue::OfflineResult result = vrm_sim::tissue::runOffline(scene, options);
+    const vrm_sim::world::OfflineResult result = vrm_sim::world::runOffline(scene, options);
     std::printf("%s\n", result.json().c_str());
   } catch (const std::exception& error) {
     std::fprintf(stderr, "tissue_offline: %s\n", error.what());

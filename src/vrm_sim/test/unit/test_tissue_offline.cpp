@@ -8,10 +8,15 @@
 
 #include "vrm_sim/scene/scene_loader.h"
 #include "vrm_sim/tissue/offline_run.h"
+#include "vrm_sim/world/offline.h"
 
 namespace vrm_sim {
 namespace tissue {
 namespace {
+
+using world::OfflineOptions;
+using world::OfflineResult;
+using world::runOffline;
 
 const std::string kOfflineBinary = VRM_TISSUE_OFFLINE_BINARY;
 

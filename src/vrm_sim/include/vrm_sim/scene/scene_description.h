@@ -138,6 +138,7 @@ struct TissueParameters {
   double strain_limit = 1.1;        // tau_c of Alg. 5.1 (>= 1): springs are shortened to tau_c * rest length
   double bending_stiffness = 0.0;   // N/m, springs across adjacent triangles
   double adhesion_stiffness = 0.0;  // N/m, springs from the fixed (adhesion) vertices to their rest positions
+  double adhesion_break_force = 0.0;  // N; > 0: an adhesion spring pulled harder lets go (peels off); 0 = never
   double time_budget_ms = 2.0;      // integrate until spent (thesis §5.1; EyeSi: 2 ms for 1,500 springs)
   double dt = 1e-3;                 // s per integration step
   bool plastic = false;             // rest length follows the maximum length reached (thesis §5.1)

@@ -56,6 +56,9 @@ struct TissueConfig {
   bool plastic = false;                  // rest length follows the maximum length reached (thesis §5.1)
   // > 0: the membrane's fixed nodes are held by zero-length springs of this stiffness instead of being pinned.
   double adhesion_stiffness = 0.0;
+  // > 0 [N]: an adhesion spring pulled with more than this lets go of its node for good (the membrane peels off the
+  // retina there); 0: adhesion never lets go.
+  double adhesion_break_force = 0.0;
   // Degenerate input: give free nodes without mass (only in zero-area triangles) the mean node mass instead of
   // rejecting the membrane.
   bool repair_massless_nodes = false;
@@ -80,7 +83,10 @@ struct TissueConfig {
 
 // One instrument as the tissue sees it, in the membrane's frame. Instrument frame: origin at the tip, +z from the
 // handle to the tip; the collision shape is a capsule of `radius` from the tip back along −z over `length` (a
-// sphere if length <= radius). Forceps jaws open towards ±y, so their mid-plane is the instrument's xz plane.
+// sphere if length <= radius). Forceps (`jaws`): the shaft capsule ends at the hinge, jaw_length behind the tip, and
+// each jaw is a capsule of `jaw_radius` from the hinge towards its tip, opened by ±jaw_angle/2 towards ±y — so the
+// open jaws push tissue only under the blades, and tissue between them can be grasped. Their mid-plane is the
+// instrument's xz plane. An instrument that holds a grasp pushes nothing (its grasped nodes follow it instead).
 struct InstrumentInput {
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
   double radius = 3e-4;
@@ -89,6 +95,8 @@ struct InstrumentInput {
   bool can_grasp = false;
   double jaw_angle = 1.0;  // rad (forceps opening)
   double jaw_length = 1.5e-3;
+  bool jaws = false;
+  double jaw_radius = 1e-4;
   // Vitrector: while `cuts`, every step removes the tissue inside the cutting volume, a capsule of `cut_radius` from
   // cut_offset to cut_offset + cut_length behind the tip along −z (instrument frame; cut_length 0 = a sphere).
   bool cuts = false;
@@ -120,6 +128,7 @@ struct SimulatorStatistics {
   // TissueMesh producer sets topology_version from it.
   std::uint64_t topology_changes = 0;
   std::uint64_t cut_nodes = 0, removed_nodes = 0, torn_springs = 0;
+  std::uint64_t released_adhesions = 0;  // adhesion springs that let go (adhesion_break_force)
 };
 
 using Clock = std::function<double()>;  // seconds, monotonic
@@ -148,6 +157,8 @@ class TissueSimulator {
   void releaseAll();
 
   const std::vector<std::uint32_t>& graspedNodes() const { return grasped_nodes_; }
+  // Whether instrument `index` (setInstruments order) holds a grasp.
+  bool isGrasping(std::size_t index) const { return index < grasps_.size() && grasps_[index].active; }
   const SimulatorStatistics& statistics() const { return statistics_; }
   const TissueConfig& config() const { return config_; }
   const Integrator& integrator() const { return *integrator_; }
@@ -186,6 +197,7 @@ class TissueSimulator {
   // tearing after an accepted one. Grasps survive topology changes (remapped by node identity).
   void topologyBeforeStep();
   void topologyAfterStep();
+  void releaseOverloadedAdhesions();
   void finishRemoval(const std::vector<std::uint64_t>& grasped_ids);
   std::vector<std::uint64_t> graspedNodeIds() const;
   // chainmail.cpp: one step of the ChainMail model.
@@ -236,6 +248,9 @@ class TissueSimulator {
   std::unique_ptr<LocalRefinement> refinement_;
   std::vector<Eigen::Vector3d> chainmail_committed_;  // positions after the last ChainMail step
 };
+
+// The capsules an instrument pushes tissue with, in the membrane's frame (see InstrumentInput).
+std::vector<Capsule> instrumentCapsules(const InstrumentInput& instrument);
 
 // Exact step of the instrument poses between frames (linear in translation, slerp in rotation).
 Eigen::Isometry3d interpolatePose(const Eigen::Isometry3d& from, const Eigen::Isometry3d& to, double alpha);

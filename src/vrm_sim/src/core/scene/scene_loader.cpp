@@ -429,6 +429,7 @@ TissueParameters readTissue(const Field& field) {
   }
   readNonNegative(fields, "bending_stiffness", tissue.bending_stiffness);
   readNonNegative(fields, "adhesion_stiffness", tissue.adhesion_stiffness);
+  readNonNegative(fields, "adhesion_break_force", tissue.adhesion_break_force);
   readPositive(fields, "time_budget_ms", tissue.time_budget_ms);
   readPositive(fields, "dt", tissue.dt);
   if (auto plastic = fields.optional("plastic")) tissue.plastic = plastic->boolean();

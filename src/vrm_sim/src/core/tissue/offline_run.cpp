@@ -23,18 +23,7 @@ namespace {
 
 constexpr double kDegToRad = M_PI / 180.0;
 
-// SplitMix64 (Steele et al. 2014): a fixed, portable generator, so a seed means the same offsets everywhere.
-std::uint64_t splitMix64(std::uint64_t& state) {
-  std::uint64_t z = (state += 0x9e3779b97f4a7c15ull);
-  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
-  z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
-  return z ^ (z >> 31);
-}
 
-// In [-1, 1), from the top 53 bits.
-double symmetricUnit(std::uint64_t& state) {
-  return static_cast<double>(splitMix64(state) >> 11) * (2.0 / 9007199254740992.0) - 1.0;
-}
 
 std::uint64_t fnv1a(std::uint64_t hash, const void* data, std::size_t bytes) {
   const auto* p = static_cast<const unsigned char*>(data);
@@ -45,34 +34,11 @@ std::uint64_t fnv1a(std::uint64_t hash, const void* data, std::size_t bytes) {
   return hash;
 }
 
-std::string number(double value) {
-  if (!std::isfinite(value)) return "null";
-  std::ostringstream out;
-  out.precision(9);
-  out << value;
-  return out.str();
-}
 
-struct OfflineTissue {
-  const scene::ObjectDescription* object = nullptr;
-  std::unique_ptr<mge::Membrane> membrane;
-  std::unique_ptr<TissueSimulator> simulator;
-  Eigen::Isometry3d object_from_eye = Eigen::Isometry3d::Identity();
-  double energy_start = 0.0;
-};
 
 }  // namespace
 
-std::string OfflineResult::json() const {
-  char hash[24];
-  std::snprintf(hash, sizeof(hash), "0x%016llx", static_cast<unsigned long long>(final_state_hash));
-  std::ostringstream out;
-  out << "{\"stable\": " << (stable ? "true" : "false") << ", \"steps\": " << steps
-      << ", \"ms_per_step\": " << number(ms_per_step) << ", \"max_strain\": " << number(max_strain)
-      << ", \"energy_drift\": " << number(energy_drift) << ", \"fallbacks\": " << fallbacks
-      << ", \"final_state_hash\": \"" << hash << "\"}";
-  return out.str();
-}
+std::uint64_t hashBytes(std::uint64_t hash, const void* data, std::size_t bytes) { return fnv1a(hash, data, bytes); }
 
 std::uint64_t stateHash(mge::Membrane& membrane, std::uint64_t hash) {
   const std::size_t n = membrane.nodeCount();
@@ -90,6 +56,7 @@ TissueConfig tissueConfigFor(const scene::TissueParameters& parameters, const sc
   config.strain_limit = parameters.strain_limit;
   config.plastic = parameters.plastic;
   config.adhesion_stiffness = parameters.adhesion_stiffness;
+  config.adhesion_break_force = parameters.adhesion_break_force;
   config.tear_strain = parameters.tear_strain;
   config.early_stop_force = parameters.early_stop_force;
   config.chainmail.min_stretch = parameters.chainmail.min_stretch;
@@ -127,7 +94,11 @@ InstrumentInput instrumentInputFor(const scene::InstrumentDescription& descripti
                       std::is_same_v<T, scene::HookParams>) {
           shaft = &params.shaft;
         }
-        if constexpr (std::is_same_v<T, scene::ForcepsParams>) instrument.jaw_length = params.jaw_length;
+        if constexpr (std::is_same_v<T, scene::ForcepsParams>) {
+          instrument.jaw_length = params.jaw_length;
+          instrument.jaws = true;
+          instrument.jaw_radius = 0.5 * std::max(params.jaw_thickness, params.jaw_tip_width);
+        }
         // The vitrector removes what its port aspirates: a capsule over the port, as wide as the shaft. Whether it
         // cuts is the driver's input (suction and cut rate), `cuts` stays false here.
         if constexpr (std::is_same_v<T, scene::VitrectorParams>) {
@@ -140,8 +111,8 @@ InstrumentInput instrumentInputFor(const scene::InstrumentDescription& descripti
   instrument.radius = shaft ? 0.5 * shaft->diameter : 3e-4;
   instrument.length = shaft ? shaft->length : 0.0;
   instrument.can_grasp = description.type == scene::InstrumentType::kForceps;
-  // Forceps: the jaws grasp; the shaft stays behind them and above the tissue while grasping.
-  instrument.collides = !instrument.can_grasp;
+  // Every instrument pushes tissue; the forceps with their jaw blades and shaft (not while they hold a grasp).
+  instrument.collides = true;
   return instrument;
 }
 
@@ -177,102 +148,6 @@ InstrumentInput scriptedInstrument(const scene::SceneDescription& scene,
   instrument.pose.translation() = tip;
   instrument.jaw_angle = jaw_deg * kDegToRad;
   return instrument;
-}
-
-OfflineResult runOffline(const scene::SceneDescription& scene, const OfflineOptions& options) {
-  if (!(options.seconds >= 0.0) || !std::isfinite(options.seconds)) {
-    throw std::invalid_argument("tissue_offline: --seconds must be a non-negative number");
-  }
-  if (!(options.dt >= 0.0) || !std::isfinite(options.dt)) {
-    throw std::invalid_argument("tissue_offline: --dt must be positive (or 0 for the scene's)");
-  }
-  if (!(options.frame > 0.0)) throw std::invalid_argument("tissue_offline: the frame time must be positive");
-  scene::SourceLocation where;
-  where.file = scene.source_file;
-  if (!options.integrator.empty()) {
-    const auto& known = integratorNames();
-    if (std::find(known.begin(), known.end(), options.integrator) == known.end()) {
-      std::string names;
-      for (const auto& name : known) names += (names.empty() ? "" : ", ") + name;
-      throw std::invalid_argument("tissue_offline: unknown integrator '" + options.integrator + "' (known: " + names +
-                                  ")");
-    }
-  }
-
-  const Eigen::Isometry3d world_from_eye = scene::Pose{scene.eye.centre_in_world, scene.eye.rest_rpy_deg}.toIsometry();
-  std::vector<OfflineTissue> tissues;
-  std::uint64_t seed_state = options.seed;
-  for (const auto& object : scene.objects) {
-    if (!object.isDeformable()) continue;
-    const TriangleMesh mesh = scene::buildMesh(object, scene::MeshFrame::kParent);
-    OfflineTissue tissue;
-    tissue.object = &object;
-    tissue.membrane = mge::buildMembrane(mesh, membraneOptionsFor(object.tissue, mesh.vertexCount()));
-    TissueConfig config = tissueConfigFor(object.tissue, object.collision);
-    if (!options.integrator.empty()) config.integrator = options.integrator;
-    if (options.dt > 0.0) config.dt = options.dt;
-    config.max_steps_per_frame =
-        std::max(config.max_steps_per_frame, static_cast<int>(std::ceil(options.frame / config.dt)) + 1);
-    if (options.seed != 0) {
-      Eigen::Vector3d* x = tissue.membrane->positions();
-      const std::uint8_t* fixed = tissue.membrane->fixedFlags();
-      for (std::size_t i = 0; i < tissue.membrane->nodeCount(); ++i) {
-        const Eigen::Vector3d offset(symmetricUnit(seed_state), symmetricUnit(seed_state), symmetricUnit(seed_state));
-        if (!fixed[i]) x[i] += 1e-6 * offset;
-      }
-    }
-    try {
-      tissue.simulator = std::make_unique<TissueSimulator>(*tissue.membrane, config);
-    } catch (const std::invalid_argument& error) {
-      throw scene::SceneError(object.location, error.what());
-    }
-    if (object.frame == scene::ObjectFrame::kWorld) tissue.object_from_eye = world_from_eye;
-    tissue.energy_start = tissue.simulator->totalEnergy();
-    tissues.push_back(std::move(tissue));
-  }
-  if (tissues.empty()) throw scene::SceneError(where, "the scene has no deformable object to simulate");
-
-  std::vector<const scene::InstrumentDescription*> scripted;
-  for (const auto& instrument : scene.instruments) {
-    if (!instrument.path.empty()) scripted.push_back(&instrument);
-  }
-
-  OfflineResult result;
-  const auto no_clock = [] { return 0.0; };  // no budget: every frame runs all its steps (deterministic)
-  double wall = 0.0;
-  const int frames = static_cast<int>(std::llround(options.seconds / options.frame));
-  std::vector<InstrumentInput> inputs(scripted.size());
-  for (int f = 0; f <= frames; ++f) {
-    const double t = f * options.frame;
-    for (OfflineTissue& tissue : tissues) {
-      for (std::size_t k = 0; k < scripted.size(); ++k) {
-        inputs[k] = scriptedInstrument(scene, *scripted[k], t);
-        inputs[k].pose = tissue.object_from_eye * inputs[k].pose;
-      }
-      tissue.simulator->setInstruments(inputs);
-      if (f == 0) continue;  // the first poses only set where the motion starts
-      const auto start = std::chrono::steady_clock::now();
-      const FrameReport report = tissue.simulator->advance(options.frame, no_clock);
-      wall += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-      result.max_strain = std::max(result.max_strain, report.max_strain);
-    }
-  }
-  std::uint64_t hash = 14695981039346656037ull;
-  for (OfflineTissue& tissue : tissues) {
-    const SimulatorStatistics& statistics = tissue.simulator->statistics();
-    result.steps += statistics.steps;
-    result.fallbacks += statistics.fallbacks;
-    bool finite = true;
-    for (std::size_t i = 0; i < tissue.membrane->nodeCount(); ++i) {
-      finite = finite && tissue.membrane->positions()[i].allFinite() && tissue.membrane->velocities()[i].allFinite();
-    }
-    result.stable = result.stable && finite && statistics.unrecovered == 0;
-    result.energy_drift += tissue.simulator->totalEnergy() - tissue.energy_start;
-    hash = stateHash(*tissue.membrane, hash);
-  }
-  result.final_state_hash = hash;
-  result.ms_per_step = result.steps > 0 ? 1e3 * wall / static_cast<double>(result.steps) : 0.0;
-  return result;
 }
 
 }  // namespace tissue

@@ -12,6 +12,28 @@
 namespace vrm_sim {
 namespace tissue {
 
+std::vector<Capsule> instrumentCapsules(const InstrumentInput& instrument) {
+  std::vector<Capsule> capsules;
+  const Eigen::Isometry3d& pose = instrument.pose;
+  const double r = instrument.radius;
+  if (!instrument.jaws) {
+    capsules.push_back({pose * Eigen::Vector3d(0.0, 0.0, -r), pose * Eigen::Vector3d(0.0, 0.0, -std::max(instrument.length, r)), r});
+    return capsules;
+  }
+  const double hinge_z = -instrument.jaw_length;
+  capsules.push_back({pose * Eigen::Vector3d(0.0, 0.0, hinge_z - r),
+                      pose * Eigen::Vector3d(0.0, 0.0, std::min(hinge_z - r, -std::max(instrument.length, r))), r});
+  // Jaw blades from the hinge; the capsule's rounded end stops at the blade's tip.
+  const double half_angle = 0.5 * std::clamp(instrument.jaw_angle, 0.0, 1.5);
+  const double reach = std::max(instrument.jaw_length - instrument.jaw_radius, 0.0);
+  for (const double side : {1.0, -1.0}) {
+    const Eigen::Vector3d direction(0.0, side * std::sin(half_angle), std::cos(half_angle));
+    const Eigen::Vector3d hinge(0.0, 0.0, hinge_z);
+    capsules.push_back({pose * hinge, pose * Eigen::Vector3d(hinge + reach * direction), instrument.jaw_radius});
+  }
+  return capsules;
+}
+
 Eigen::Isometry3d interpolatePose(const Eigen::Isometry3d& from, const Eigen::Isometry3d& to, double alpha) {
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
   const Eigen::Quaterniond q0(from.rotation());
@@ -237,13 +259,11 @@ void TissueSimulator::rawStep(Integrator& integrator, double dt) {
   contacts_.clear();
   for (std::size_t i = 0; i < current_instruments_.size(); ++i) {
     const InstrumentInput& instrument = current_instruments_[i];
-    if (!instrument.collides) continue;
-    Capsule capsule;
-    capsule.radius = instrument.radius;
-    capsule.a = instrument.pose * Eigen::Vector3d(0.0, 0.0, -instrument.radius);
-    capsule.b = instrument.pose * Eigen::Vector3d(0.0, 0.0, -std::max(instrument.length, instrument.radius));
+    if (!instrument.collides || isGrasping(i)) continue;
     const Eigen::Vector3d velocity = (instrument.pose.translation() - step_start_poses_[i].translation()) / config_.dt;
-    detectCapsuleContacts(system, capsule, velocity, config_.shell_scale, contacts_);
+    for (const Capsule& capsule : instrumentCapsules(instrument)) {
+      detectCapsuleContacts(system, capsule, velocity, config_.shell_scale, contacts_);
+    }
   }
   contacts_.insert(contacts_.end(), external_deformations_.begin(), external_deformations_.end());
   external_deformations_.clear();

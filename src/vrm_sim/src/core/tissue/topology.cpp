@@ -182,7 +182,28 @@ void TissueSimulator::topologyBeforeStep() {
   }
 }
 
+void TissueSimulator::releaseOverloadedAdhesions() {
+  if (!(config_.adhesion_break_force > 0.0) || forces_.anchors.empty()) return;
+  const Eigen::Vector3d* x = membrane_->positions();
+  const auto before = forces_.anchors.size();
+  forces_.anchors.erase(std::remove_if(forces_.anchors.begin(), forces_.anchors.end(),
+                                       [&](const Anchor& anchor) {
+                                         const double force = anchor.stiffness * (x[anchor.node] - anchor.point).norm();
+                                         if (!(force > config_.adhesion_break_force)) return false;
+                                         // For good: a later topology change rebuilds anchors from the fixed flags.
+                                         anchored_[anchor.node] = 0;
+                                         membrane_->nodeAtSlot(anchor.node).setFixed(false);
+                                         return true;
+                                       }),
+                        forces_.anchors.end());
+  if (forces_.anchors.size() == before) return;
+  statistics_.released_adhesions += before - forces_.anchors.size();
+  last_strain_ = -1.0;
+  rebuildConstraints();
+}
+
 void TissueSimulator::topologyAfterStep() {
+  releaseOverloadedAdhesions();
   if (refinement_) refinement_->updateVirtualNodes();
   if (!(config_.tear_strain > 0.0)) return;
   const std::vector<std::uint64_t> grasped_ids = graspedNodeIds();

@@ -1,0 +1,68 @@
+#pragma once
+// Headless runs of a scene without ROS (`rosrun vrm_sim tissue_offline`): the instruments follow their scripted
+// paths (scene key instruments[].path), sampled into instrument states at `rate` Hz exactly as a device twin would
+// publish them, and drive the same World the tissue_sim nodelet wraps. No wall clock enters the result, so the same
+// scene, options and seed give the same final state bit for bit — and the same state as the graph given the same
+// input sequence (test/graph/core_equivalence). The wall clock only measures the cost.
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "vrm_sim/scene/scene_description.h"
+#include "vrm_sim/world/world.h"
+
+namespace vrm_sim {
+namespace world {
+
+struct OfflineOptions {
+  double seconds = 1.0;    // simulated time
+  double rate = 50.0;      // Hz: input ticks (the scripted surgeon's and the tracker's rate)
+  std::string integrator;  // empty: each object's scene integrator
+  double dt = 0.0;         // s; 0: each object's scene dt
+  std::string detector;    // empty: the scene's collision detectors
+  // 0: the scene as written. Otherwise every free node starts displaced by a reproducible pseudo-random offset of at
+  // most 1 µm per axis (SplitMix64 of the seed), e.g. to test how sensitive a result is to the initial state.
+  std::uint64_t seed = 0;
+};
+
+struct OfflineTissueResult {
+  std::string object;
+  std::uint64_t topology_version = 1;
+  std::uint64_t torn_springs = 0;
+  std::uint64_t released_adhesions = 0;
+  double max_lift = 0.0;
+  PeelOutcome outcome = PeelOutcome::kUntouched;
+};
+
+struct OfflineResult {
+  bool stable = true;           // every node finite, no step the watchdog could not recover
+  std::uint64_t frames = 0;
+  std::uint64_t steps = 0;      // integration steps, summed over the objects
+  double ms_per_step = 0.0;     // wall time of the tissue stages per step (measurement only)
+  double ms_per_frame = 0.0;    // mean wall time of a whole frame (collision, tissue, bleeding)
+  double ms_per_frame_max = 0.0;
+  double max_strain = 0.0;      // max |d|/l over all springs after any frame
+  std::size_t max_grasped_nodes = 0;
+  double energy_drift = 0.0;    // J: total energy (kinetic + potential) at the end minus at the start
+  std::uint64_t fallbacks = 0;  // watchdog rollbacks
+  std::size_t retina_contacts = 0;
+  double max_injury = 0.0;
+  std::vector<OfflineTissueResult> tissues;
+  std::uint64_t final_state_hash = 0;
+
+  // One JSON object with the fields above (the hash as a "0x…" hex string: JSON numbers lose 64-bit integers).
+  std::string json() const;
+};
+
+// The instrument states the scene's scripted paths produce: one per scripted instrument every 1/rate s from t = 0 to
+// `seconds` (inclusive), stamps from `start`, poses in the eye frame. Throws std::invalid_argument for a bad rate.
+std::vector<InstrumentState> scriptedInputs(const scene::SceneDescription& scene, double rate, double seconds,
+                                            Stamp start = 0);
+
+// Runs `scene` for options.seconds. Throws scene::SceneError for a scene the simulation cannot run (no deformable
+// object, an unknown integrator) and std::invalid_argument for bad options.
+OfflineResult runOffline(const scene::SceneDescription& scene, const OfflineOptions& options);
+
+}  // namespace world
+}  // namespace vrm_sim

@@ -1,0 +1,283 @@
+#pragma once
+// The simulation core of the VR part (thesis §2.4: VR objects, simulations and the scenario behind the mediators):
+// one ROS-free World that owns the loaded scene, its deformable tissues, the colliders of every object, the
+// instruments and the session state, and advances one *frame* per input tick. The tissue_sim nodelet, the offline
+// tools (tissue_offline, and the replay tools built on it) and the tests all drive this one class through the same
+// handle() calls — the cartographer_ros pattern of one handler path for live and recorded input.
+//
+// Frames. Inputs carry their stamps (ns, from header.stamp; nothing here reads a clock for the simulation):
+//   * eye and instrument states are *frame sources*: all of them that carry the same stamp S belong to the frame at
+//     S. The frame closes (collision → tissue step → bleeding → hash → observer) as soon as every source that
+//     contributed to the previous frame has delivered at S, or when an input with a later stamp arrives, or on
+//     flush(). A source state with a stamp older than the pending frame is late: it is applied to the next frame and
+//     counted (statistics().late_inputs).
+//   * pedal states and scenario commands are *state inputs*: buffered and applied, in stamp order, when the first
+//     frame with a stamp >= theirs closes, so their arrival order relative to the poses does not matter.
+// The simulated time of a frame is the stamp difference to the previous frame (capped by max_frame_time); tissue
+// steps are fixed-Δt substeps of it. With the default options no wall clock enters the result, so the same input
+// sequence gives the same state bit for bit (stateHash()), live or offline.
+//
+// Frames of reference: each object lives in the eye or the world frame (scene `frame`); instrument poses arrive in
+// "eye" or "world" and are moved into each object's frame with the eye pose of the frame they belong to.
+
+#include <Eigen/Geometry>
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "vrm_sim/collision/collision_detector.h"
+#include "vrm_sim/scene/scene_description.h"
+#include "vrm_sim/world/bleeding.h"
+
+namespace vrm_sim {
+namespace mge {
+class Membrane;
+}
+namespace tissue {
+class TissueSimulator;
+struct SimulatorStatistics;
+}  // namespace tissue
+
+namespace world {
+
+using Stamp = std::int64_t;  // ns since the epoch of the input stamps
+constexpr double toSeconds(Stamp stamp) { return 1e-9 * static_cast<double>(stamp); }
+Stamp fromSeconds(double seconds);
+
+// ---- inputs (core types; vrm_sim/conversions.h converts the messages) ----
+
+struct EyeState {
+  Stamp stamp = 0;
+  Eigen::Quaterniond rotation = Eigen::Quaterniond::Identity();  // world <- eye about the rotation centre
+  Eigen::Vector3d rotation_center = Eigen::Vector3d::Zero();     // m, world
+  bool valid = true;
+};
+
+struct InstrumentState {
+  Stamp stamp = 0;
+  std::string slot;                                       // "left" | "right"
+  std::optional<scene::InstrumentType> type;              // nullopt: keep the slot's current type
+  Eigen::Isometry3d tip_pose = Eigen::Isometry3d::Identity();  // instrument frame (tip, +z towards the tip) in frame_id
+  std::string frame_id = "eye";                           // "eye" | "world" ("" = eye)
+  double jaw_angle = 1.0;                                 // rad, forceps opening
+  double suction = 0.0;                                   // 0..1
+  double cut_rate = 0.0;                                  // Hz
+  bool valid = true;                                      // false: not tracked; keeps its pose, stops interacting
+};
+
+struct PedalState {
+  Stamp stamp = 0;
+  double travel = 0.0;
+  bool reflux = false;
+  bool instrument_switch = false;
+  bool zoom_in = false, zoom_out = false, focus_near = false, focus_far = false;
+};
+
+struct ScenarioCommand {
+  enum class Type { kLoad, kStart, kPause, kResume, kStop, kReset, kSelectInstrument };
+  Stamp stamp = 0;
+  Type command = Type::kStart;
+  std::string scenario;  // kLoad
+  std::string argument;  // kSelectInstrument: "slot:type", e.g. "right:vitrector"
+  std::uint32_t seed = 0;
+};
+
+// ---- outputs ----
+
+// How a peel went (scene objects with role membrane / ilm): torn as soon as one stretch spring tore.
+enum class PeelOutcome { kUntouched, kGrasped, kLifted, kTorn };
+const char* toString(PeelOutcome outcome);
+
+struct TissueReport {
+  std::string object;
+  std::string frame_id;          // "eye" | "world"
+  const mge::Membrane* membrane = nullptr;
+  int steps = 0;                 // this frame
+  int fallbacks = 0;             // watchdog rollbacks this frame
+  double max_strain = 0.0;       // after this frame
+  std::size_t grasped_nodes = 0;
+  bool changed = false;          // positions or topology changed this frame
+  std::uint64_t version = 1;     // +1 per changed frame
+  std::uint64_t topology_version = 1;  // 1 + topology changes
+  std::uint64_t torn_springs = 0;      // so far
+  std::uint64_t cut_nodes = 0;         // so far
+  std::uint64_t released_adhesions = 0;  // adhesion points pulled off so far
+  double max_lift = 0.0;         // m: largest distance of a node from its rest position
+  double lifted_fraction = 0.0;  // nodes more than 0.1 mm from their rest position
+  PeelOutcome outcome = PeelOutcome::kUntouched;
+};
+
+struct InjuryReport {
+  std::string object;  // the retina
+  std::string frame_id;
+  const std::vector<float>* injury = nullptr;  // per vertex, 0..1
+  const TriangleMesh* mesh = nullptr;          // the object's (rigid) surface the field lives on
+  bool changed = false;
+  std::uint64_t version = 1;
+  double max_injury = 0.0;
+  std::size_t contacts = 0;  // contact events so far
+};
+
+// One instrument vs one object in this frame (reported for tissues and the bleeding retina always, for other rigid
+// objects only while setRigidReports(true)).
+struct CollisionRecord {
+  std::string instrument;  // slot
+  std::string object;
+  std::string frame_id;
+  std::string detector;
+  collision::CollisionResult result;
+  collision::SurfaceView surface;  // valid until the next frame
+};
+
+struct StageTime {
+  std::string stage;  // collision_<object>, tissue_<object>, bleeding, collision_rigid
+  double start = 0.0, end = 0.0;  // by WorldOptions::clock (measurement only)
+};
+
+struct FrameResult {
+  Stamp stamp = 0;
+  std::uint64_t frame = 0;   // 1, 2, ...
+  double frame_time = 0.0;   // s of simulated time covered
+  bool paused = false;
+  std::vector<TissueReport> tissues;
+  std::vector<InjuryReport> injuries;
+  std::vector<CollisionRecord> collisions;
+  std::vector<ContactEvent> contacts_ended;  // retina contact events that ended in this frame
+  std::vector<StageTime> stages;
+  double wall_time = 0.0;  // s, by WorldOptions::clock
+  std::uint64_t state_hash = 0;
+};
+
+struct WorldStatistics {
+  std::uint64_t frames = 0;
+  std::uint64_t inputs = 0;
+  std::uint64_t late_inputs = 0;      // frame sources older than the pending frame
+  std::uint64_t rejected_inputs = 0;  // non-finite values, unknown slot or frame
+  std::uint64_t tissue_steps = 0;
+  double max_strain = 0.0;
+  std::size_t max_grasped_nodes = 0;
+  double max_frame_wall_time = 0.0;  // s
+  double total_frame_wall_time = 0.0;
+};
+
+enum class Severity { kInfo, kWarning };
+using Log = std::function<void(Severity, const std::string&)>;
+using Clock = std::function<double()>;  // s, monotonic
+using FrameObserver = std::function<void(const FrameResult&)>;
+
+struct WorldOptions {
+  std::string detector_override;     // non-empty: this collision detector for every object
+  double collision_max_pixel_size = 0.0;
+  double max_frame_time = 0.05;      // s: a longer gap between stamps (start, pause of the input) is capped
+  // Measurement only (stage times, frame wall time); the default is a steady clock. Never decides a result unless
+  // wall_clock_budget is set.
+  Clock clock;
+  // true: each tissue frame stops integrating when its time_budget_ms of wall time is spent (thesis §5.1), which
+  // makes the result depend on the machine's speed. false (default): every frame integrates its whole simulated
+  // time (bounded by max_frame_time), deterministic; over-budget frames are only counted.
+  bool wall_clock_budget = false;
+  BleedingParameters bleeding;
+  Log log;
+};
+
+class World {
+ public:
+  // Builds tissues, colliders and instruments from `scene`. Throws scene::SceneError / std::invalid_argument for a
+  // scene the simulation cannot run.
+  World(scene::SceneDescription scene, WorldOptions options = {});
+  ~World();
+  World(const World&) = delete;
+  World& operator=(const World&) = delete;
+
+  void handle(const EyeState& eye);
+  void handle(const InstrumentState& instrument);
+  void handle(const PedalState& pedals);
+  void handle(const ScenarioCommand& command);
+  // End of input: closes the pending frame, if any.
+  void flush();
+
+  // Called after every frame (synchronously, from handle() / flush()).
+  void setFrameObserver(FrameObserver observer) { observer_ = std::move(observer); }
+  // Whether rigid objects without bleeding are collided too (only for reports; never changes the state).
+  void setRigidReports(bool enabled) { rigid_reports_ = enabled; }
+
+  const scene::SceneDescription& scene() const { return scene_; }
+  const WorldStatistics& statistics() const { return statistics_; }
+  std::uint64_t frame() const { return statistics_.frames; }
+  std::optional<Stamp> lastFrameStamp() const { return last_frame_stamp_; }
+  bool paused() const { return paused_; }
+  bool simulatesAnything() const;
+  // FNV-1a over every tissue's node positions, velocities and rest lengths, its topology version and grasped
+  // nodes, every injury field, and the session flags: equal inputs give an equal hash, bit for bit.
+  std::uint64_t stateHash() const;
+
+  std::vector<std::string> tissueNames() const;
+  mge::Membrane* membrane(const std::string& object);
+  const tissue::TissueSimulator* tissueSimulator(const std::string& object) const;
+  tissue::TissueSimulator* tissueSimulator(const std::string& object);
+  TissueReport tissueReport(const std::string& object) const;
+  const std::vector<float>* injury(const std::string& object) const;
+  const std::vector<InjuryReport>& injuries() const { return last_injuries_; }
+  std::vector<ContactEvent> contactEvents() const;  // all retina contact events so far
+  const PedalState& pedals() const { return pedals_; }
+
+ private:
+  struct Instrument;
+  struct Collider;
+  struct Tissue;
+  struct RigidObject;
+
+  void buildInstruments();
+  void buildTissues();
+  void buildRigidObjects();
+  void resetTissues();
+  std::optional<Collider> makeCollider(const scene::ObjectDescription& object) const;
+  // Repeated warnings (same key) at most every kLogEveryFrames frames; an empty key is never throttled.
+  void log(Severity severity, const std::string& key, const std::string& message);
+
+  bool acceptSource(Stamp stamp, const std::string& source);
+  void closeFrameIfComplete();
+  void closeFrame();
+  void applyStateInputs(Stamp up_to);
+  void apply(const ScenarioCommand& command);
+  void setInstrumentType(Instrument& instrument, scene::InstrumentType type);
+  bool switchInstrument(Instrument& instrument, scene::InstrumentType type);
+  std::optional<Eigen::Isometry3d> transform(const std::string& target, const std::string& source) const;
+  void stepTissue(Tissue& tissue, double frame_time, FrameResult& result);
+  void bleed(RigidObject& object, FrameResult& result);
+  collision::CollisionResult collide(Collider& collider, const std::string& slot, Instrument& instrument,
+                                     const Eigen::Isometry3d& pose, const collision::SurfaceView& surface);
+  double now() const;
+
+  scene::SceneDescription scene_;
+  WorldOptions options_;
+  std::map<std::string, std::unique_ptr<Instrument>> instruments_;
+  std::map<std::string, std::unique_ptr<Tissue>> tissues_;
+  std::vector<std::unique_ptr<RigidObject>> rigid_;
+  Eigen::Isometry3d world_from_eye_ = Eigen::Isometry3d::Identity();
+
+  // Frame assembly (see the top of the file).
+  std::optional<Stamp> pending_stamp_;
+  std::vector<std::string> pending_sources_;
+  std::vector<std::string> expected_sources_;
+  std::optional<Stamp> last_frame_stamp_;
+  std::optional<Stamp> first_stamp_;
+  std::map<std::string, std::uint64_t> logged_at_frame_;
+  std::vector<PedalState> buffered_pedals_;
+  std::vector<ScenarioCommand> buffered_commands_;
+  PedalState pedals_;
+  bool paused_ = false;
+  bool running_ = true;
+  bool rigid_reports_ = false;
+
+  FrameObserver observer_;
+  WorldStatistics statistics_;
+  std::vector<InjuryReport> last_injuries_;
+};
+
+}  // namespace world
+}  // namespace vrm_sim

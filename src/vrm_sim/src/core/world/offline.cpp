@@ -1,0 +1,181 @@
+#include "vrm_sim/world/offline.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <sstream>
+#include <stdexcept>
+
+#include "vrm_sim/mge/membrane.h"
+#include "vrm_sim/scene/scene_loader.h"
+#include "vrm_sim/tissue/integrator.h"
+#include "vrm_sim/tissue/offline_run.h"
+#include "vrm_sim/tissue/tissue_simulator.h"
+
+namespace vrm_sim {
+namespace world {
+
+namespace {
+
+// SplitMix64 (Steele et al. 2014): a fixed, portable generator, so a seed means the same offsets everywhere.
+std::uint64_t splitMix64(std::uint64_t& state) {
+  std::uint64_t z = (state += 0x9e3779b97f4a7c15ull);
+  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+  z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+  return z ^ (z >> 31);
+}
+
+// In [-1, 1), from the top 53 bits.
+double symmetricUnit(std::uint64_t& state) {
+  return static_cast<double>(splitMix64(state) >> 11) * (2.0 / 9007199254740992.0) - 1.0;
+}
+
+std::string number(double value) {
+  if (!std::isfinite(value)) return "null";
+  std::ostringstream out;
+  out.precision(9);
+  out << value;
+  return out.str();
+}
+
+}  // namespace
+
+std::string OfflineResult::json() const {
+  char hash[24];
+  std::snprintf(hash, sizeof(hash), "0x%016llx", static_cast<unsigned long long>(final_state_hash));
+  std::ostringstream out;
+  out << "{\"stable\": " << (stable ? "true" : "false") << ", \"frames\": " << frames << ", \"steps\": " << steps
+      << ", \"ms_per_step\": " << number(ms_per_step) << ", \"ms_per_frame\": " << number(ms_per_frame)
+      << ", \"ms_per_frame_max\": " << number(ms_per_frame_max) << ", \"max_strain\": " << number(max_strain)
+      << ", \"max_grasped_nodes\": " << max_grasped_nodes << ", \"energy_drift\": " << number(energy_drift)
+      << ", \"fallbacks\": " << fallbacks << ", \"retina_contacts\": " << retina_contacts
+      << ", \"max_injury\": " << number(max_injury) << ", \"tissues\": [";
+  for (std::size_t i = 0; i < tissues.size(); ++i) {
+    const OfflineTissueResult& t = tissues[i];
+    out << (i ? ", " : "") << "{\"object\": \"" << t.object << "\", \"outcome\": \"" << toString(t.outcome)
+        << "\", \"torn_springs\": " << t.torn_springs << ", \"released_adhesions\": " << t.released_adhesions
+        << ", \"topology_version\": " << t.topology_version << ", \"max_lift\": " << number(t.max_lift) << "}";
+  }
+  out << "], \"final_state_hash\": \"" << hash << "\"}";
+  return out.str();
+}
+
+std::vector<InstrumentState> scriptedInputs(const scene::SceneDescription& scene, double rate, double seconds,
+                                            Stamp start) {
+  if (!(rate > 0.0) || !std::isfinite(rate)) throw std::invalid_argument("scriptedInputs: rate must be positive");
+  if (!(seconds >= 0.0) || !std::isfinite(seconds)) {
+    throw std::invalid_argument("scriptedInputs: seconds must be a non-negative number");
+  }
+  std::vector<InstrumentState> inputs;
+  const long ticks = std::lround(seconds * rate);
+  for (long tick = 0; tick <= ticks; ++tick) {
+    const double t = static_cast<double>(tick) / rate;
+    for (const auto& instrument : scene.instruments) {
+      if (instrument.path.empty()) continue;
+      const tissue::InstrumentInput scripted = tissue::scriptedInstrument(scene, instrument, t);
+      InstrumentState state;
+      state.stamp = start + fromSeconds(t);
+      state.slot = scene::toString(instrument.slot);
+      state.type = instrument.type;
+      state.tip_pose = scripted.pose;
+      state.frame_id = "eye";
+      state.jaw_angle = scripted.jaw_angle;
+      inputs.push_back(state);
+    }
+  }
+  return inputs;
+}
+
+OfflineResult runOffline(const scene::SceneDescription& scene_in, const OfflineOptions& options) {
+  if (!(options.seconds >= 0.0) || !std::isfinite(options.seconds)) {
+    throw std::invalid_argument("tissue_offline: --seconds must be a non-negative number");
+  }
+  if (!(options.dt >= 0.0) || !std::isfinite(options.dt)) {
+    throw std::invalid_argument("tissue_offline: --dt must be positive (or 0 for the scene's)");
+  }
+  if (!(options.rate > 0.0) || !std::isfinite(options.rate)) {
+    throw std::invalid_argument("tissue_offline: --rate must be positive");
+  }
+  if (!options.integrator.empty()) {
+    const auto& known = tissue::integratorNames();
+    if (std::find(known.begin(), known.end(), options.integrator) == known.end()) {
+      std::string names;
+      for (const auto& name : known) names += (names.empty() ? "" : ", ") + name;
+      throw std::invalid_argument("tissue_offline: unknown integrator '" + options.integrator + "' (known: " + names +
+                                  ")");
+    }
+  }
+  scene::SceneDescription scene = scene_in;
+  for (auto& object : scene.objects) {
+    if (!object.isDeformable()) continue;
+    if (!options.integrator.empty()) object.tissue.integrator = options.integrator;
+    if (options.dt > 0.0) object.tissue.dt = options.dt;
+  }
+  if (!scene.hasDeformableObjects()) {
+    scene::SourceLocation where;
+    where.file = scene.source_file;
+    throw scene::SceneError(where, "the scene has no deformable object to simulate");
+  }
+  WorldOptions world_options;
+  world_options.detector_override = options.detector;
+  World world(scene, world_options);
+
+  std::uint64_t seed_state = options.seed;
+  std::vector<double> energy_start;
+  for (const std::string& name : world.tissueNames()) {
+    mge::Membrane& membrane = *world.membrane(name);
+    if (options.seed != 0) {
+      Eigen::Vector3d* x = membrane.positions();
+      const std::uint8_t* fixed = membrane.fixedFlags();
+      for (std::size_t i = 0; i < membrane.nodeCount(); ++i) {
+        const Eigen::Vector3d offset(symmetricUnit(seed_state), symmetricUnit(seed_state), symmetricUnit(seed_state));
+        if (!fixed[i]) x[i] += 1e-6 * offset;
+      }
+    }
+    energy_start.push_back(world.tissueSimulator(name)->totalEnergy());
+  }
+
+  OfflineResult result;
+  double tissue_wall = 0.0;
+  world.setFrameObserver([&](const FrameResult& frame) {
+    for (const StageTime& stage : frame.stages) {
+      if (stage.stage.rfind("tissue_", 0) == 0) tissue_wall += stage.end - stage.start;
+    }
+  });
+  for (const InstrumentState& input : scriptedInputs(scene, options.rate, options.seconds)) world.handle(input);
+  world.flush();
+
+  const WorldStatistics& statistics = world.statistics();
+  result.frames = statistics.frames;
+  result.steps = statistics.tissue_steps;
+  result.max_strain = statistics.max_strain;
+  result.max_grasped_nodes = statistics.max_grasped_nodes;
+  result.ms_per_frame = statistics.frames > 0 ? 1e3 * statistics.total_frame_wall_time / statistics.frames : 0.0;
+  result.ms_per_frame_max = 1e3 * statistics.max_frame_wall_time;
+  result.ms_per_step = result.steps > 0 ? 1e3 * tissue_wall / static_cast<double>(result.steps) : 0.0;
+  std::size_t index = 0;
+  for (const std::string& name : world.tissueNames()) {
+    tissue::TissueSimulator& simulator = *world.tissueSimulator(name);
+    mge::Membrane& membrane = *world.membrane(name);
+    const tissue::SimulatorStatistics& stats = simulator.statistics();
+    result.fallbacks += stats.fallbacks;
+    bool finite = true;
+    for (std::size_t i = 0; i < membrane.nodeCount(); ++i) {
+      finite = finite && membrane.positions()[i].allFinite() && membrane.velocities()[i].allFinite();
+    }
+    result.stable = result.stable && finite && stats.unrecovered == 0;
+    result.energy_drift += simulator.totalEnergy() - energy_start[index++];
+    const TissueReport report = world.tissueReport(name);
+    result.tissues.push_back(
+        {name, report.topology_version, report.torn_springs, report.released_adhesions, report.max_lift, report.outcome});
+  }
+  for (const InjuryReport& injury : world.injuries()) {
+    result.retina_contacts += injury.contacts;
+    result.max_injury = std::max(result.max_injury, injury.max_injury);
+  }
+  result.final_state_hash = world.stateHash();
+  return result;
+}
+
+}  // namespace world
+}  // namespace vrm_sim

@@ -1,0 +1,781 @@
+#include "vrm_sim/world/world.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <unordered_map>
+#include <variant>
+
+#include "vrm_sim/mge/membrane.h"
+#include "vrm_sim/scene/instrument_meshes.h"
+#include "vrm_sim/scene/scene_loader.h"
+#include "vrm_sim/tissue/offline_run.h"
+#include "vrm_sim/tissue/tissue_simulator.h"
+
+namespace vrm_sim {
+namespace world {
+
+namespace {
+
+constexpr double kRadToDeg = 180.0 / M_PI;
+constexpr double kLiftThreshold = 1e-4;  // m: a node this far from its rest position counts as lifted
+constexpr double kPeelLift = 5e-4;       // m: a grasped membrane lifted this far is peeling
+constexpr std::uint64_t kLogEveryFrames = 250;  // a repeated message at most every ~5 s at 50 Hz
+
+// The detectors whose deformation vectors drive the tissue response (thesis §4.2.2); the others report only and the
+// tissue's own exact capsule test is the response.
+bool deformsTissue(const std::string& detector) { return detector.rfind("zcoll", 0) == 0; }
+
+std::string sourceName(const char* kind, const std::string& slot) { return std::string(kind) + ":" + slot; }
+
+}  // namespace
+
+Stamp fromSeconds(double seconds) { return static_cast<Stamp>(std::llround(seconds * 1e9)); }
+
+const char* toString(PeelOutcome outcome) {
+  switch (outcome) {
+    case PeelOutcome::kUntouched: return "untouched";
+    case PeelOutcome::kGrasped: return "grasped";
+    case PeelOutcome::kLifted: return "lifted";
+    case PeelOutcome::kTorn: return "torn";
+  }
+  return "?";
+}
+
+struct World::Instrument {
+  const scene::InstrumentDescription* description = nullptr;
+  scene::InstrumentDescription current;  // the type in use (the scene's or one of its alternatives)
+  tissue::InstrumentInput shape;         // capsule and grasping parameters; pose filled per object
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();  // in frame_id
+  std::string frame_id = "eye";
+  bool active = false;
+  double jaw_angle = 1.0;
+  double suction = 0.0;
+  bool cutting = false;  // vitrector with suction and cutter running
+  collision::InstrumentModel model;
+  int model_jaw_deg = -1000;  // whole degrees, so tracking noise does not invalidate cached depth images
+  std::uint64_t model_version = 0;
+};
+
+// One object the instruments are tested against, with a detector per instrument (detectors cache the instrument's
+// depth image / BVH, thesis Alg. 4.2 line 4).
+struct World::Collider {
+  std::string object;
+  std::string frame_id;
+  std::string detector_name;
+  collision::CollisionOptions options;
+  struct PerInstrument {
+    std::unique_ptr<collision::CollisionDetector> detector;
+    std::uint64_t model_version = 0;
+    std::optional<Eigen::Vector3d> last_tip;  // for the instrument velocity of eq. 5.12
+  };
+  std::map<std::string, PerInstrument> instruments;
+};
+
+struct World::Tissue {
+  const scene::ObjectDescription* object = nullptr;
+  std::unique_ptr<mge::Membrane> membrane;
+  std::unique_ptr<tissue::TissueSimulator> simulator;
+  std::string frame_id;
+  std::optional<Collider> collider;
+  bool detector_response = false;
+  std::vector<Eigen::Vector3d> last_positions;
+  std::unordered_map<std::uint64_t, Eigen::Vector3d> rest_by_id;
+  std::vector<Eigen::Vector3d> rest_by_slot;  // NaN for nodes born after the start (refinement)
+  std::uint64_t rest_topology = 0;
+  TissueReport report;
+  bool ever_grasped = false;
+  double peak_lift = 0.0;
+  bool peels = false;  // membrane / ILM
+};
+
+struct World::RigidObject {
+  const scene::ObjectDescription* object = nullptr;
+  TriangleMesh mesh;
+  Collider collider;
+  std::unique_ptr<BleedingField> bleeding;  // the retina when the scene simulates bleeding
+  InjuryReport report;
+};
+
+World::World(scene::SceneDescription scene, WorldOptions options) : scene_(std::move(scene)), options_(std::move(options)) {
+  if (!options_.clock) {
+    options_.clock = [] {
+      return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+    };
+  }
+  if (!(options_.max_frame_time > 0.0)) throw std::invalid_argument("world: max_frame_time must be positive");
+  buildInstruments();
+  buildTissues();
+  buildRigidObjects();
+}
+
+World::~World() = default;
+
+double World::now() const { return options_.clock(); }
+
+void World::log(Severity severity, const std::string& key, const std::string& message) {
+  if (!options_.log) return;
+  if (!key.empty()) {
+    auto last = logged_at_frame_.find(key);
+    if (last != logged_at_frame_.end() && statistics_.frames < last->second + kLogEveryFrames) return;
+    logged_at_frame_[key] = statistics_.frames;
+  }
+  options_.log(severity, message);
+}
+
+bool World::simulatesAnything() const {
+  if (!tissues_.empty()) return true;
+  return !rigid_.empty();
+}
+
+std::optional<World::Collider> World::makeCollider(const scene::ObjectDescription& object) const {
+  const std::string name = options_.detector_override.empty() ? object.collision.detector : options_.detector_override;
+  if (name == "none") return std::nullopt;
+  Collider collider;
+  collider.object = object.name;
+  collider.frame_id = object.frame == scene::ObjectFrame::kEye ? "eye" : "world";
+  collider.detector_name = name;
+  collider.options.resolution = object.collision.resolution;
+  collider.options.max_pixel_size = options_.collision_max_pixel_size;
+  collision::makeCollisionDetector(name);  // throws for an unknown name (the loader checks the scene's names)
+  return collider;
+}
+
+void World::buildInstruments() {
+  for (const auto& description : scene_.instruments) {
+    auto instrument = std::make_unique<Instrument>();
+    instrument->description = &description;
+    setInstrumentType(*instrument, description.type);
+    instruments_[scene::toString(description.slot)] = std::move(instrument);
+  }
+}
+
+// The slot's shape for `type`: the scene's parameters for its declared type, the generator defaults for an
+// alternative. The collision model is rebuilt on the next query.
+void World::setInstrumentType(Instrument& instrument, scene::InstrumentType type) {
+  instrument.current = *instrument.description;
+  if (type != instrument.description->type) {
+    instrument.current.type = type;
+    instrument.current.params = scene::defaultInstrumentParams(type);
+  }
+  instrument.shape = tissue::instrumentInputFor(instrument.current);
+  // The geometric detector's exact shape: the simulator's capsules.
+  instrument.model.primitives.clear();
+  tissue::InstrumentInput at_origin = instrument.shape;
+  at_origin.pose = Eigen::Isometry3d::Identity();
+  at_origin.jaw_angle = 0.0;
+  for (const tissue::Capsule& capsule : tissue::instrumentCapsules(at_origin)) {
+    instrument.model.primitives.push_back(collision::Primitive::capsule(capsule.a, capsule.b, capsule.radius));
+  }
+  instrument.model_version = 0;
+  instrument.model_jaw_deg = -1000;
+}
+
+// Instrument switching (thesis §7: the trainee changes instruments in a trocar): the scene lists which types a slot
+// may take; any other type keeps the current one.
+bool World::switchInstrument(Instrument& instrument, scene::InstrumentType type) {
+  if (type == instrument.current.type) return true;
+  const auto& allowed = instrument.description->alternatives;
+  const std::string slot = scene::toString(instrument.description->slot);
+  if (type != instrument.description->type && std::find(allowed.begin(), allowed.end(), type) == allowed.end()) {
+    log(Severity::kWarning, "switch:" + slot, "instrument '" + slot + "': type " + scene::toString(type) +
+                                " is not allowed in this slot by the scene; keeping " +
+                                scene::toString(instrument.current.type));
+    return false;
+  }
+  log(Severity::kInfo, "", "instrument '" + slot + "' switched to " + scene::toString(type));
+  setInstrumentType(instrument, type);
+  return true;
+}
+
+void World::buildTissues() {
+  if (!scene_.simulates(scene::Simulation::kTissue)) return;
+  for (const auto& object : scene_.objects) {
+    if (!object.isDeformable()) continue;
+    auto tissue = std::make_unique<Tissue>();
+    tissue->object = &object;
+    tissue->frame_id = object.frame == scene::ObjectFrame::kEye ? "eye" : "world";
+    tissue->peels = object.role == scene::ObjectRole::kMembrane || object.role == scene::ObjectRole::kIlm;
+    if (scene_.simulates(scene::Simulation::kCollision)) tissue->collider = makeCollider(object);
+    tissue->detector_response = tissue->collider && deformsTissue(tissue->collider->detector_name);
+    tissues_[object.name] = std::move(tissue);
+  }
+  resetTissues();
+}
+
+// (Re)builds every tissue in its rest state (start and ScenarioCommand RESET).
+void World::resetTissues() {
+  for (auto& [name, tissue] : tissues_) {
+    const scene::ObjectDescription& object = *tissue->object;
+    const TriangleMesh mesh = scene::buildMesh(object, scene::MeshFrame::kParent);
+    tissue->simulator.reset();
+    tissue->membrane = mge::buildMembrane(mesh, tissue::membraneOptionsFor(object.tissue, mesh.vertexCount()));
+    tissue::TissueConfig config = tissue::tissueConfigFor(object.tissue, object.collision);
+    // A frame covers at most max_frame_time: every step of it must run (deterministic frames).
+    config.max_steps_per_frame =
+        std::max(config.max_steps_per_frame, static_cast<int>(std::ceil(options_.max_frame_time / config.dt)) + 1);
+    try {
+      tissue->simulator = std::make_unique<tissue::TissueSimulator>(*tissue->membrane, config);
+    } catch (const std::invalid_argument& error) {
+      throw scene::SceneError(object.location, error.what());
+    }
+    const std::size_t n = tissue->membrane->nodeCount();
+    tissue->last_positions.assign(tissue->membrane->positions(), tissue->membrane->positions() + n);
+    tissue->rest_by_id.clear();
+    for (std::size_t i = 0; i < n; ++i) {
+      tissue->rest_by_id[tissue->membrane->nodeAtSlot(i).id()] = tissue->membrane->positions()[i];
+    }
+    tissue->rest_by_slot = tissue->last_positions;
+    tissue->rest_topology = 1;
+    const std::uint64_t version = tissue->report.version;
+    tissue->report = TissueReport{};
+    tissue->report.object = name;
+    tissue->report.frame_id = tissue->frame_id;
+    tissue->report.membrane = tissue->membrane.get();
+    tissue->report.version = version + 1;  // a reset is a change consumers must see
+    tissue->report.changed = true;
+    tissue->ever_grasped = false;
+    tissue->peak_lift = 0.0;
+  }
+}
+
+void World::buildRigidObjects() {
+  if (!scene_.simulates(scene::Simulation::kCollision)) return;
+  for (const auto& object : scene_.objects) {
+    if (object.isDeformable()) continue;
+    std::optional<Collider> collider = makeCollider(object);
+    if (!collider) continue;
+    auto rigid = std::make_unique<RigidObject>();
+    rigid->object = &object;
+    rigid->mesh = scene::buildMesh(object, scene::MeshFrame::kParent);
+    rigid->collider = std::move(*collider);
+    if (object.role == scene::ObjectRole::kRetina && scene_.simulates(scene::Simulation::kBleeding)) {
+      std::vector<Eigen::Vector3d> vertices(rigid->mesh.vertices.begin(), rigid->mesh.vertices.end());
+      rigid->bleeding = std::make_unique<BleedingField>(object.name, std::move(vertices), options_.bleeding);
+      rigid->report.object = object.name;
+      rigid->report.frame_id = rigid->collider.frame_id;
+      rigid->report.injury = &rigid->bleeding->field();
+      rigid->report.mesh = &rigid->mesh;
+      last_injuries_.push_back(rigid->report);
+    }
+    rigid_.push_back(std::move(rigid));
+  }
+}
+
+// target <- source for the frames the world knows (eye, world); nullopt for any other.
+std::optional<Eigen::Isometry3d> World::transform(const std::string& target, const std::string& source) const {
+  const std::string& from = source.empty() ? std::string("eye") : source;
+  if (from == target) return Eigen::Isometry3d::Identity();
+  if (target == "eye" && from == "world") return world_from_eye_.inverse();
+  if (target == "world" && from == "eye") return world_from_eye_;
+  return std::nullopt;
+}
+
+// ---- frame assembly ----
+
+bool World::acceptSource(Stamp stamp, const std::string& source) {
+  ++statistics_.inputs;
+  if (pending_stamp_ && stamp > *pending_stamp_) closeFrame();
+  if (!pending_stamp_) {
+    if (last_frame_stamp_ && stamp <= *last_frame_stamp_) {
+      ++statistics_.late_inputs;  // its state takes effect in the next frame
+      return false;
+    }
+    pending_stamp_ = stamp;
+    pending_sources_.clear();
+  } else if (stamp < *pending_stamp_) {
+    ++statistics_.late_inputs;
+    return false;
+  }
+  if (std::find(pending_sources_.begin(), pending_sources_.end(), source) == pending_sources_.end()) {
+    pending_sources_.push_back(source);
+  }
+  return true;
+}
+
+void World::closeFrameIfComplete() {
+  if (!pending_stamp_ || expected_sources_.empty()) return;
+  for (const std::string& source : expected_sources_) {
+    if (std::find(pending_sources_.begin(), pending_sources_.end(), source) == pending_sources_.end()) return;
+  }
+  closeFrame();
+}
+
+void World::flush() {
+  if (pending_stamp_) closeFrame();
+}
+
+void World::handle(const EyeState& eye) {
+  const bool finite = eye.rotation.coeffs().allFinite() && eye.rotation_center.allFinite() &&
+                      std::abs(eye.rotation.norm() - 1.0) < 1e-3;
+  acceptSource(eye.stamp, "eye");
+  if (!finite) {
+    ++statistics_.rejected_inputs;
+    log(Severity::kWarning, "eye:nonfinite", "eye_state with a non-finite or non-unit rotation ignored");
+  } else if (eye.valid) {
+    world_from_eye_ = Eigen::Translation3d(eye.rotation_center) * eye.rotation.normalized();
+  }
+  closeFrameIfComplete();
+}
+
+void World::handle(const InstrumentState& state) {
+  auto slot = instruments_.find(state.slot);
+  if (slot == instruments_.end()) {
+    ++statistics_.rejected_inputs;
+    log(Severity::kWarning, "slot:" + state.slot, "instrument_state for slot '" + state.slot + "', which the scene does not have, ignored");
+    return;
+  }
+  if (!transform("eye", state.frame_id)) {
+    ++statistics_.rejected_inputs;
+    log(Severity::kWarning, "frame:" + state.slot, "instrument_state '" + state.slot + "' in unknown frame '" + state.frame_id +
+                                "' ignored (eye or world expected)");
+    return;
+  }
+  acceptSource(state.stamp, sourceName("instrument", state.slot));
+  const bool finite = state.tip_pose.matrix().allFinite() && std::isfinite(state.jaw_angle) &&
+                      std::isfinite(state.suction) && std::isfinite(state.cut_rate);
+  if (!finite) {
+    ++statistics_.rejected_inputs;
+    log(Severity::kWarning, "nonfinite:" + state.slot, "instrument_state '" + state.slot + "' with non-finite values ignored");
+    closeFrameIfComplete();
+    return;
+  }
+  Instrument& instrument = *slot->second;
+  // Invalid tracking: the instrument keeps its last pose but stops interacting (no phantom grasps).
+  instrument.pose = state.tip_pose;
+  instrument.frame_id = state.frame_id.empty() ? "eye" : state.frame_id;
+  instrument.jaw_angle = state.valid ? state.jaw_angle : 1.0;
+  instrument.active = state.valid;
+  instrument.suction = state.valid ? state.suction : 0.0;
+  if (state.type) switchInstrument(instrument, *state.type);
+  instrument.cutting = state.valid && instrument.current.type == scene::InstrumentType::kVitrector &&
+                       state.suction > 0.0 && state.cut_rate > 0.0;
+  closeFrameIfComplete();
+}
+
+void World::handle(const PedalState& pedals) {
+  ++statistics_.inputs;
+  if (!std::isfinite(pedals.travel)) {
+    ++statistics_.rejected_inputs;
+    log(Severity::kWarning, "pedals:nonfinite", "pedals with a non-finite travel ignored");
+    return;
+  }
+  buffered_pedals_.push_back(pedals);
+  if (last_frame_stamp_ && pedals.stamp <= *last_frame_stamp_ && !pending_stamp_) applyStateInputs(*last_frame_stamp_);
+}
+
+void World::handle(const ScenarioCommand& command) {
+  ++statistics_.inputs;
+  buffered_commands_.push_back(command);
+  if (last_frame_stamp_ && command.stamp <= *last_frame_stamp_ && !pending_stamp_) {
+    applyStateInputs(*last_frame_stamp_);
+  }
+}
+
+void World::applyStateInputs(Stamp up_to) {
+  auto by_stamp = [](const auto& a, const auto& b) { return a.stamp < b.stamp; };
+  std::stable_sort(buffered_pedals_.begin(), buffered_pedals_.end(), by_stamp);
+  std::stable_sort(buffered_commands_.begin(), buffered_commands_.end(), by_stamp);
+  auto pedal = buffered_pedals_.begin();
+  for (; pedal != buffered_pedals_.end() && pedal->stamp <= up_to; ++pedal) pedals_ = *pedal;
+  buffered_pedals_.erase(buffered_pedals_.begin(), pedal);
+  auto command = buffered_commands_.begin();
+  for (; command != buffered_commands_.end() && command->stamp <= up_to; ++command) apply(*command);
+  buffered_commands_.erase(buffered_commands_.begin(), command);
+}
+
+void World::apply(const ScenarioCommand& command) {
+  using Type = ScenarioCommand::Type;
+  switch (command.command) {
+    case Type::kPause: paused_ = true; break;
+    case Type::kResume: paused_ = false; break;
+    case Type::kStart:
+      running_ = true;
+      paused_ = false;
+      break;
+    case Type::kStop: running_ = false; break;
+    case Type::kReset:
+      resetTissues();
+      for (auto& rigid : rigid_) {
+        if (rigid->bleeding) rigid->bleeding->clear();
+      }
+      paused_ = false;
+      running_ = true;
+      break;
+    case Type::kLoad:
+      if (command.scenario.empty() || command.scenario == scene_.name) {
+        apply(ScenarioCommand{command.stamp, Type::kReset, "", "", command.seed});
+      } else {
+        log(Severity::kWarning, "", "LOAD '" + command.scenario + "': this world runs scene '" + scene_.name +
+                                    "'; another scene needs a new VR part (ignored)");
+      }
+      break;
+    case Type::kSelectInstrument: {
+      const auto colon = command.argument.find(':');
+      const std::string slot = command.argument.substr(0, colon);
+      auto instrument = instruments_.find(slot);
+      std::optional<scene::InstrumentType> type;
+      if (colon != std::string::npos) {
+        const std::string name = command.argument.substr(colon + 1);
+        for (auto candidate : {scene::InstrumentType::kLightPipe, scene::InstrumentType::kForceps,
+                               scene::InstrumentType::kVitrector, scene::InstrumentType::kNeedle,
+                               scene::InstrumentType::kHook}) {
+          if (name == scene::toString(candidate)) type = candidate;
+        }
+      }
+      if (instrument == instruments_.end() || !type) {
+        log(Severity::kWarning, "", "SELECT_INSTRUMENT '" + command.argument + "': expected slot:type (e.g. right:vitrector)");
+        break;
+      }
+      switchInstrument(*instrument->second, *type);
+      break;
+    }
+  }
+}
+
+// ---- one frame ----
+
+void World::closeFrame() {
+  const Stamp stamp = *pending_stamp_;
+  double frame_time = 0.0;
+  if (last_frame_stamp_) frame_time = std::min(toSeconds(stamp - *last_frame_stamp_), options_.max_frame_time);
+  expected_sources_ = pending_sources_;
+  pending_stamp_.reset();
+  pending_sources_.clear();
+  applyStateInputs(stamp);
+  if (!first_stamp_) first_stamp_ = stamp;
+  last_frame_stamp_ = stamp;
+
+  FrameResult result;
+  result.stamp = stamp;
+  result.frame = ++statistics_.frames;
+  result.frame_time = frame_time;
+  result.paused = paused_ || !running_;
+  const double start = now();
+  for (auto& [name, tissue] : tissues_) {
+    if (result.paused) {
+      tissue->report.steps = 0;
+      tissue->report.fallbacks = 0;
+      tissue->report.changed = tissue->report.changed && statistics_.frames == 1;
+      result.tissues.push_back(tissue->report);
+      continue;
+    }
+    stepTissue(*tissue, frame_time, result);
+  }
+  for (auto& rigid : rigid_) {
+    if (rigid->bleeding) {
+      if (!result.paused) bleed(*rigid, result);
+      continue;
+    }
+    if (!rigid_reports_) continue;
+    const double collision_start = now();
+    const collision::SurfaceView surface = collision::SurfaceView::of(rigid->mesh);
+    for (auto& [slot, instrument] : instruments_) {
+      if (!instrument->active) continue;
+      const Eigen::Isometry3d pose = *transform(rigid->collider.frame_id, instrument->frame_id) * instrument->pose;
+      result.collisions.push_back({slot, rigid->object->name, rigid->collider.frame_id, rigid->collider.detector_name,
+                                   collide(rigid->collider, slot, *instrument, pose, surface), surface});
+    }
+    result.stages.push_back({"collision_" + rigid->object->name, collision_start, now()});
+  }
+  last_injuries_.clear();
+  for (auto& rigid : rigid_) {
+    if (rigid->bleeding) last_injuries_.push_back(rigid->report);
+  }
+  result.injuries = last_injuries_;
+  result.wall_time = now() - start;
+  statistics_.total_frame_wall_time += result.wall_time;
+  statistics_.max_frame_wall_time = std::max(statistics_.max_frame_wall_time, result.wall_time);
+  result.state_hash = stateHash();
+  if (observer_) observer_(result);
+}
+
+void World::stepTissue(Tissue& tissue, double frame_time, FrameResult& result) {
+  std::vector<tissue::InstrumentInput> inputs;
+  std::vector<Instrument*> sources;
+  for (auto& [slot, source] : instruments_) {
+    tissue::InstrumentInput input = source->shape;
+    input.pose = *transform(tissue.frame_id, source->frame_id) * source->pose;
+    input.jaw_angle = source->jaw_angle;
+    // The capsule test is the response unless the detector's deformation vectors are (or nothing collides).
+    input.collides = source->active && source->shape.collides && tissue.collider && !tissue.detector_response;
+    input.can_grasp = source->active && source->shape.can_grasp && scene_.simulates(scene::Simulation::kGrasping);
+    input.cuts = source->active && source->cutting && scene_.simulates(scene::Simulation::kCutting);
+    inputs.push_back(input);
+    sources.push_back(source.get());
+  }
+  if (tissue.collider) {
+    const double collision_start = now();
+    const collision::SurfaceView surface = collision::SurfaceView::of(*tissue.membrane);
+    std::vector<tissue::NodeDeformation> deformations;
+    for (std::size_t k = 0; k < sources.size(); ++k) {
+      Instrument& source = *sources[k];
+      const std::string slot = scene::toString(source.description->slot);
+      if (!source.active) continue;
+      collision::CollisionResult hit = collide(*tissue.collider, slot, source, inputs[k].pose, surface);
+      // Velocity of the instrument in the object's frame (v_P of eq. 5.12) from the last query.
+      std::optional<Eigen::Vector3d>& last = tissue.collider->instruments[slot].last_tip;
+      Eigen::Vector3d velocity = Eigen::Vector3d::Zero();
+      if (last && frame_time > 0.0) velocity = (inputs[k].pose.translation() - *last) / frame_time;
+      last = inputs[k].pose.translation();
+      // An instrument that holds a grasp pushes nothing: its grasped nodes follow it.
+      if (tissue.detector_response && source.shape.collides && !tissue.simulator->isGrasping(k)) {
+        for (std::size_t i = 0; i < hit.nodes.size(); ++i) {
+          tissue::NodeDeformation d;
+          d.node = hit.nodes[i];
+          d.deformation = hit.deformations[i];
+          // Image space: every vector of a query is parallel to the projection direction (Eq. 4.2).
+          const double length = d.deformation.norm();
+          if (length > 0.0) d.normal = d.deformation / length;
+          d.instrument_velocity = velocity;
+          deformations.push_back(d);
+        }
+      }
+      result.collisions.push_back(
+          {slot, tissue.object->name, tissue.frame_id, tissue.collider->detector_name, std::move(hit), surface});
+    }
+    if (!deformations.empty()) tissue.simulator->addDeformations(deformations);
+    result.stages.push_back({"collision_" + tissue.object->name, collision_start, now()});
+  }
+
+  const double tissue_start = now();
+  tissue.simulator->setInstruments(inputs);
+  const tissue::Clock no_budget = [] { return 0.0; };
+  const tissue::FrameReport frame = tissue.simulator->advance(frame_time, options_.wall_clock_budget ? options_.clock : no_budget);
+  result.stages.push_back({"tissue_" + tissue.object->name, tissue_start, now()});
+  if (frame.fallbacks > 0) {
+    log(Severity::kWarning, "watchdog:" + tissue.object->name, "tissue '" + tissue.object->name + "': watchdog rolled back " +
+                                std::to_string(frame.fallbacks) + " steps (total " +
+                                std::to_string(tissue.simulator->statistics().fallbacks) + ")");
+  }
+  statistics_.tissue_steps += static_cast<std::uint64_t>(frame.steps);
+
+  mge::Membrane& membrane = *tissue.membrane;
+  const tissue::SimulatorStatistics& stats = tissue.simulator->statistics();
+  TissueReport& report = tissue.report;
+  const std::uint64_t topology_version = 1 + stats.topology_changes;
+  const std::size_t n = membrane.nodeCount();
+  const bool moved = tissue.last_positions.size() != n ||
+                     std::memcmp(tissue.last_positions.data(), membrane.positions(), n * sizeof(Eigen::Vector3d)) != 0;
+  report.changed = moved || topology_version != report.topology_version;
+  if (report.changed) {
+    ++report.version;
+    tissue.last_positions.assign(membrane.positions(), membrane.positions() + n);
+    if (topology_version != tissue.rest_topology) {
+      tissue.rest_by_slot.resize(n);
+      for (std::size_t i = 0; i < n; ++i) {
+        const auto rest = tissue.rest_by_id.find(membrane.nodeAtSlot(i).id());
+        tissue.rest_by_slot[i] = rest != tissue.rest_by_id.end()
+                                     ? rest->second
+                                     : Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
+      }
+      tissue.rest_topology = topology_version;
+    }
+    double max_lift = 0.0;
+    std::size_t lifted = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+      const Eigen::Vector3d& rest = tissue.rest_by_slot[i];
+      if (!rest.allFinite()) continue;
+      const double lift = (membrane.positions()[i] - rest).norm();
+      max_lift = std::max(max_lift, lift);
+      if (lift > kLiftThreshold) ++lifted;
+    }
+    report.max_lift = max_lift;
+    report.lifted_fraction = n > 0 ? static_cast<double>(lifted) / static_cast<double>(n) : 0.0;
+  }
+  report.membrane = &membrane;
+  report.steps = frame.steps;
+  report.fallbacks = frame.fallbacks;
+  report.max_strain = frame.max_strain;
+  report.grasped_nodes = tissue.simulator->graspedNodes().size();
+  report.topology_version = topology_version;
+  report.torn_springs = stats.torn_springs;
+  report.cut_nodes = stats.cut_nodes;
+  report.released_adhesions = stats.released_adhesions;
+  if (report.grasped_nodes > 0) {
+    tissue.ever_grasped = true;
+    tissue.peak_lift = std::max(tissue.peak_lift, report.max_lift);
+  }
+  if (tissue.peels) {
+    if (report.torn_springs > 0) {
+      report.outcome = PeelOutcome::kTorn;
+    } else if (tissue.ever_grasped && tissue.peak_lift >= kPeelLift) {
+      report.outcome = PeelOutcome::kLifted;
+    } else if (tissue.ever_grasped) {
+      report.outcome = PeelOutcome::kGrasped;
+    }
+  }
+  statistics_.max_strain = std::max(statistics_.max_strain, report.max_strain);
+  statistics_.max_grasped_nodes = std::max(statistics_.max_grasped_nodes, report.grasped_nodes);
+  result.tissues.push_back(report);
+}
+
+void World::bleed(RigidObject& object, FrameResult& result) {
+  const double start = now();
+  const double time = toSeconds(result.stamp - *first_stamp_);
+  const collision::SurfaceView surface = collision::SurfaceView::of(object.mesh);
+  BleedingField& field = *object.bleeding;
+  for (auto& [slot, instrument] : instruments_) {
+    if (!instrument->active) continue;
+    const Eigen::Isometry3d pose = *transform(object.collider.frame_id, instrument->frame_id) * instrument->pose;
+    collision::CollisionResult hit = collide(object.collider, slot, *instrument, pose, surface);
+    if (hit.colliding) {
+      // The deepest deformation vector is how far the tip presses into the retina; detectors without vectors
+      // (FCL) report the contact only.
+      std::size_t deepest = hit.nodes.size();
+      double depth = 0.0;
+      for (std::size_t i = 0; i < hit.nodes.size(); ++i) {
+        const double d = hit.deformations[i].norm();
+        if (deepest == hit.nodes.size() || d > depth) {
+          deepest = i;
+          depth = d;
+        }
+      }
+      Eigen::Vector3d point = Eigen::Vector3d::Zero();
+      if (deepest < hit.nodes.size()) {
+        point = object.mesh.vertices[hit.nodes[deepest]];
+      } else if (!hit.contact_points.empty()) {
+        for (const Eigen::Vector3d& p : hit.contact_points) point += p;
+        point /= static_cast<double>(hit.contact_points.size());
+      } else {
+        point = pose.translation();
+      }
+      field.contact(slot, point, depth, false, time);
+    }
+    // The vitrector aspirates what comes near its port (thesis §7.4: touching the retina makes it bleed).
+    if (instrument->current.type == scene::InstrumentType::kVitrector && instrument->suction > 0.0) {
+      const auto* vitrector = std::get_if<scene::VitrectorParams>(&instrument->current.params);
+      if (vitrector != nullptr) {
+        const Eigen::Vector3d port = pose * Eigen::Vector3d(0.5 * vitrector->shaft.diameter, 0.0,
+                                                            -(vitrector->port_distance_from_tip +
+                                                              0.5 * vitrector->port_length));
+        const double distance = field.distanceToSurface(port);
+        if (distance < options_.bleeding.aspiration_distance) {
+          field.contact(slot, port, options_.bleeding.aspiration_distance - distance, true, time);
+        }
+      }
+    }
+    result.collisions.push_back(
+        {slot, object.object->name, object.collider.frame_id, object.collider.detector_name, std::move(hit), surface});
+  }
+  const std::size_t ended_before = result.contacts_ended.size();
+  object.report.changed = field.update(time, &result.contacts_ended);
+  if (object.report.changed) ++object.report.version;
+  object.report.max_injury = field.maxInjury();
+  object.report.contacts = field.events().size();
+  for (std::size_t i = ended_before; i < result.contacts_ended.size(); ++i) {
+    const ContactEvent& event = result.contacts_ended[i];
+    log(Severity::kInfo, "", "retina contact by '" + event.instrument + "' for " +
+                             std::to_string(static_cast<int>(std::lround(1e3 * event.duration()))) + " ms, " +
+                             std::to_string(static_cast<int>(std::lround(1e6 * event.max_depth))) + " um deep" +
+                             (event.aspiration ? " (aspiration)" : ""));
+  }
+  result.stages.push_back({"bleeding_" + object.object->name, start, now()});
+}
+
+// The instrument's collision mesh follows its shape: the forceps' jaws open and close (whole degrees, so a noisy
+// jaw angle does not invalidate the detectors' cached depth images every frame).
+collision::CollisionResult World::collide(Collider& collider, const std::string& slot, Instrument& instrument,
+                                          const Eigen::Isometry3d& pose, const collision::SurfaceView& surface) {
+  int jaw_deg = 0;
+  scene::InstrumentDescription description = instrument.current;
+  if (auto* forceps = std::get_if<scene::ForcepsParams>(&description.params)) {
+    jaw_deg = static_cast<int>(std::lround(std::clamp(instrument.jaw_angle, 0.0, 1.5) * kRadToDeg));
+    forceps->jaw_angle_deg = jaw_deg;
+  }
+  if (instrument.model_version == 0 || jaw_deg != instrument.model_jaw_deg) {
+    instrument.model.mesh = scene::buildInstrumentMesh(description);
+    if (instrument.shape.jaws) {
+      tissue::InstrumentInput at_origin = instrument.shape;
+      at_origin.pose = Eigen::Isometry3d::Identity();
+      at_origin.jaw_angle = jaw_deg / kRadToDeg;
+      instrument.model.primitives.clear();
+      for (const tissue::Capsule& capsule : tissue::instrumentCapsules(at_origin)) {
+        instrument.model.primitives.push_back(collision::Primitive::capsule(capsule.a, capsule.b, capsule.radius));
+      }
+    }
+    instrument.model_jaw_deg = jaw_deg;
+    ++instrument.model_version;
+  }
+  Collider::PerInstrument& entry = collider.instruments[slot];
+  if (!entry.detector) entry.detector = collision::makeCollisionDetector(collider.detector_name, collider.options);
+  if (entry.model_version != instrument.model_version) {
+    entry.detector->setInstrument(instrument.model);
+    entry.model_version = instrument.model_version;
+  }
+  collision::CollisionResult result = entry.detector->collide(pose, surface);
+  if (result.status == collision::CollisionStatus::kBackendUnavailable ||
+      result.status == collision::CollisionStatus::kInvalidInput) {
+    log(Severity::kWarning, "collision:" + slot + collider.object, "collision '" + slot + "' vs '" + collider.object + "' (" + collider.detector_name +
+                                "): " + collision::toString(result.status));
+  }
+  return result;
+}
+
+// ---- state ----
+
+std::uint64_t World::stateHash() const {
+  std::uint64_t hash = 14695981039346656037ull;
+  for (const auto& [name, tissue] : tissues_) {
+    mge::Membrane& membrane = *tissue->membrane;
+    hash = tissue::stateHash(membrane, hash);
+    hash = tissue::hashBytes(hash, membrane.restLengths(), membrane.springCount() * sizeof(double));
+    const std::uint64_t topology = tissue->report.topology_version;
+    hash = tissue::hashBytes(hash, &topology, sizeof(topology));
+    const std::vector<std::uint32_t>& grasped = tissue->simulator->graspedNodes();
+    hash = tissue::hashBytes(hash, grasped.data(), grasped.size() * sizeof(std::uint32_t));
+  }
+  for (const auto& rigid : rigid_) {
+    if (!rigid->bleeding) continue;
+    const std::vector<float>& field = rigid->bleeding->field();
+    hash = tissue::hashBytes(hash, field.data(), field.size() * sizeof(float));
+  }
+  const std::uint8_t flags[] = {static_cast<std::uint8_t>(paused_), static_cast<std::uint8_t>(running_)};
+  return tissue::hashBytes(hash, flags, sizeof(flags));
+}
+
+std::vector<std::string> World::tissueNames() const {
+  std::vector<std::string> names;
+  for (const auto& entry : tissues_) names.push_back(entry.first);
+  return names;
+}
+
+mge::Membrane* World::membrane(const std::string& object) {
+  auto it = tissues_.find(object);
+  return it == tissues_.end() ? nullptr : it->second->membrane.get();
+}
+
+const tissue::TissueSimulator* World::tissueSimulator(const std::string& object) const {
+  auto it = tissues_.find(object);
+  return it == tissues_.end() ? nullptr : it->second->simulator.get();
+}
+
+tissue::TissueSimulator* World::tissueSimulator(const std::string& object) {
+  auto it = tissues_.find(object);
+  return it == tissues_.end() ? nullptr : it->second->simulator.get();
+}
+
+TissueReport World::tissueReport(const std::string& object) const {
+  auto it = tissues_.find(object);
+  return it == tissues_.end() ? TissueReport{} : it->second->report;
+}
+
+const std::vector<float>* World::injury(const std::string& object) const {
+  for (const auto& rigid : rigid_) {
+    if (rigid->bleeding && rigid->object->name == object) return &rigid->bleeding->field();
+  }
+  return nullptr;
+}
+
+std::vector<ContactEvent> World::contactEvents() const {
+  std::vector<ContactEvent> events;
+  for (const auto& rigid : rigid_) {
+    if (!rigid->bleeding) continue;
+    events.insert(events.end(), rigid->bleeding->events().begin(), rigid->bleeding->events().end());
+  }
+  return events;
+}
+
+}  // namespace world
+}  // namespace vrm_sim
