@@ -3,7 +3,7 @@
 // rgb8 images with CameraInfo. Stamps are the newest input stamp the frame reflects; nothing reads a clock for them.
 //
 // Subscribes (node handle namespace): meshes/<object> (vrm_msgs/TissueMesh, latched, one per scene object; for
-// deformable objects also tissue/<object> from tissue_sim),
+// deformable objects, and the retina of a scene that simulates bleeding, also tissue/<object> from tissue_sim),
 //   eye_state, instrument_state (pose, instrument type: the drawn mesh switches; forceps jaw angle: the jaws open),
 //   microscope, and with ~ghost_instruments the replayed instructor's instruments on ~ghost_topic (default
 //   ghost/instrument_state), drawn translucent.
@@ -151,8 +151,12 @@ class StereoRendererNodelet : public nodelet::Nodelet {
       mesh_subscribers_.push_back(nh.subscribe<vrm_msgs::TissueMesh>(
           "meshes/" + object.name, 2,
           boost::bind(&StereoRendererNodelet::onMesh, this, object.name, boost::placeholders::_1)));
-      // Deformable objects: the scene manager's latched rest shape first, then tissue_sim's deformed versions.
-      if (object.isDeformable() && scene_.simulates(vrm_sim::scene::Simulation::kTissue)) {
+      // Deformable objects: the scene manager's latched rest shape first, then tissue_sim's deformed versions; the
+      // retina of a bleeding scene: tissue_sim's copy carries the injury field (bleeding colour, thesis §6).
+      const bool bleeds = object.role == vrm_sim::scene::ObjectRole::kRetina &&
+                          scene_.simulates(vrm_sim::scene::Simulation::kBleeding) &&
+                          scene_.simulates(vrm_sim::scene::Simulation::kCollision);
+      if ((object.isDeformable() && scene_.simulates(vrm_sim::scene::Simulation::kTissue)) || bleeds) {
         mesh_subscribers_.push_back(nh.subscribe<vrm_msgs::TissueMesh>(
             "tissue/" + object.name, 2,
             boost::bind(&StereoRendererNodelet::onMesh, this, object.name, boost::placeholders::_1)));

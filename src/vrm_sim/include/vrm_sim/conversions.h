@@ -9,13 +9,19 @@
 #include <Eigen/Geometry>
 #include <array>
 #include <cstdint>
+#include <optional>
 #include <vector>
 
 #include "vrm_msgs/CollisionReport.h"
 #include "vrm_msgs/EyeState.h"
+#include "vrm_msgs/InstrumentState.h"
+#include "vrm_msgs/PedalState.h"
+#include "vrm_msgs/ScenarioCommand.h"
+#include "vrm_msgs/SimulationState.h"
 #include "vrm_msgs/TissueMesh.h"
 #include "vrm_sim/collision/collision_detector.h"
 #include "vrm_sim/triangle_mesh.h"
+#include "vrm_sim/world/world.h"
 
 namespace vrm_sim {
 
@@ -44,5 +50,17 @@ Eigen::Isometry3d worldFromEye(const vrm_msgs::EyeState& eye);
 // Copies a query's result (colliding, triangles, node deformations, contacts, pixel size, phase times) into a
 // CollisionReport; header, detector and object names are the caller's.
 void fillCollisionReport(const collision::CollisionResult& result, vrm_msgs::CollisionReport& report);
+
+// Inputs of the simulation core (world/world.h): stamps become integer nanoseconds, so the core's frame assembly
+// compares them exactly. A message type outside the known instrument constants keeps the slot's current type.
+world::Stamp toStamp(const ros::Time& stamp);
+ros::Time toRosTime(world::Stamp stamp);
+world::EyeState toWorld(const vrm_msgs::EyeState& eye);
+world::InstrumentState toWorld(const vrm_msgs::InstrumentState& instrument);
+world::PedalState toWorld(const vrm_msgs::PedalState& pedals);
+// Returns nullopt for an unknown command value.
+std::optional<world::ScenarioCommand> toWorld(const vrm_msgs::ScenarioCommand& command);
+// The frame's report (header, tissues, injuries); header.frame_id stays empty.
+void fillSimulationState(const world::FrameResult& frame, std::uint64_t late_inputs, vrm_msgs::SimulationState& message);
 
 }  // namespace vrm_sim

@@ -1,5 +1,10 @@
 #include "vrm_sim/conversions.h"
 
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <map>
+
 namespace vrm_sim {
 
 Eigen::Isometry3d toEigen(const geometry_msgs::Pose& pose) {
@@ -146,6 +151,124 @@ void fillCollisionReport(const collision::CollisionResult& result, vrm_msgs::Col
   report.ms_readback = result.timing.ms_readback;
   report.ms_analysis = result.timing.ms_analysis;
   report.ms_total = result.timing.ms_total;
+}
+
+world::Stamp toStamp(const ros::Time& stamp) {
+  return static_cast<world::Stamp>(stamp.sec) * 1000000000LL + static_cast<world::Stamp>(stamp.nsec);
+}
+
+ros::Time toRosTime(world::Stamp stamp) {
+  ros::Time time;
+  time.fromNSec(static_cast<std::uint64_t>(std::max<world::Stamp>(stamp, 0)));
+  return time;
+}
+
+world::EyeState toWorld(const vrm_msgs::EyeState& eye) {
+  world::EyeState state;
+  state.stamp = toStamp(eye.header.stamp);
+  state.rotation = Eigen::Quaterniond(eye.rotation.w, eye.rotation.x, eye.rotation.y, eye.rotation.z);
+  state.rotation_center = Eigen::Vector3d(eye.rotation_center.x, eye.rotation_center.y, eye.rotation_center.z);
+  state.valid = eye.valid;
+  return state;
+}
+
+world::InstrumentState toWorld(const vrm_msgs::InstrumentState& instrument) {
+  static_assert(static_cast<int>(scene::InstrumentType::kLightPipe) == vrm_msgs::InstrumentState::LIGHT_PIPE &&
+                    static_cast<int>(scene::InstrumentType::kForceps) == vrm_msgs::InstrumentState::FORCEPS &&
+                    static_cast<int>(scene::InstrumentType::kVitrector) == vrm_msgs::InstrumentState::VITRECTOR &&
+                    static_cast<int>(scene::InstrumentType::kNeedle) == vrm_msgs::InstrumentState::NEEDLE &&
+                    static_cast<int>(scene::InstrumentType::kHook) == vrm_msgs::InstrumentState::HOOK,
+                "scene::InstrumentType must follow the InstrumentState type constants");
+  world::InstrumentState state;
+  state.stamp = toStamp(instrument.header.stamp);
+  state.slot = instrument.instrument_id;
+  if (instrument.type <= vrm_msgs::InstrumentState::HOOK) state.type = static_cast<scene::InstrumentType>(instrument.type);
+  // A pose with a non-finite or zero quaternion reaches the core as a non-finite pose (rejected there).
+  const geometry_msgs::Quaternion& q = instrument.tip_pose.orientation;
+  const double norm = std::sqrt(q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w);
+  if (std::isfinite(norm) && norm > 1e-9) {
+    state.tip_pose = toEigen(instrument.tip_pose);
+  } else {
+    state.tip_pose.matrix().setConstant(std::numeric_limits<double>::quiet_NaN());
+  }
+  state.frame_id = instrument.header.frame_id;
+  state.jaw_angle = instrument.jaw_angle;
+  state.suction = instrument.suction;
+  state.cut_rate = instrument.cut_rate;
+  state.valid = instrument.valid;
+  return state;
+}
+
+world::PedalState toWorld(const vrm_msgs::PedalState& pedals) {
+  world::PedalState state;
+  state.stamp = toStamp(pedals.header.stamp);
+  state.travel = pedals.travel;
+  state.reflux = pedals.reflux;
+  state.instrument_switch = pedals.instrument_switch;
+  state.zoom_in = pedals.zoom_in;
+  state.zoom_out = pedals.zoom_out;
+  state.focus_near = pedals.focus_near;
+  state.focus_far = pedals.focus_far;
+  return state;
+}
+
+std::optional<world::ScenarioCommand> toWorld(const vrm_msgs::ScenarioCommand& command) {
+  using Type = world::ScenarioCommand::Type;
+  static const std::map<std::uint8_t, Type> kTypes = {
+      {vrm_msgs::ScenarioCommand::LOAD, Type::kLoad},     {vrm_msgs::ScenarioCommand::START, Type::kStart},
+      {vrm_msgs::ScenarioCommand::PAUSE, Type::kPause},   {vrm_msgs::ScenarioCommand::RESUME, Type::kResume},
+      {vrm_msgs::ScenarioCommand::STOP, Type::kStop},     {vrm_msgs::ScenarioCommand::RESET, Type::kReset},
+      {vrm_msgs::ScenarioCommand::SELECT_INSTRUMENT, Type::kSelectInstrument}};
+  const auto type = kTypes.find(command.command);
+  if (type == kTypes.end()) return std::nullopt;
+  world::ScenarioCommand result;
+  result.stamp = toStamp(command.header.stamp);
+  result.command = type->second;
+  result.scenario = command.scenario;
+  result.argument = command.argument;
+  result.seed = command.seed;
+  return result;
+}
+
+static_assert(static_cast<int>(world::PeelOutcome::kUntouched) == vrm_msgs::TissueState::UNTOUCHED &&
+                  static_cast<int>(world::PeelOutcome::kGrasped) == vrm_msgs::TissueState::GRASPED &&
+                  static_cast<int>(world::PeelOutcome::kLifted) == vrm_msgs::TissueState::LIFTED &&
+                  static_cast<int>(world::PeelOutcome::kTorn) == vrm_msgs::TissueState::TORN,
+              "world::PeelOutcome must follow the TissueState outcome constants");
+
+void fillSimulationState(const world::FrameResult& frame, std::uint64_t late_inputs,
+                         vrm_msgs::SimulationState& message) {
+  message.header.stamp = toRosTime(frame.stamp);
+  message.frame = frame.frame;
+  message.state_hash = frame.state_hash;
+  message.frame_time = frame.frame_time;
+  message.wall_time = frame.wall_time;
+  message.paused = frame.paused;
+  message.late_inputs = late_inputs;
+  message.tissues.clear();
+  for (const world::TissueReport& report : frame.tissues) {
+    vrm_msgs::TissueState tissue;
+    tissue.tissue_id = report.object;
+    tissue.version = report.version;
+    tissue.topology_version = report.topology_version;
+    tissue.steps = static_cast<std::uint32_t>(report.steps);
+    tissue.fallbacks = static_cast<std::uint32_t>(report.fallbacks);
+    tissue.grasped_nodes = static_cast<std::uint32_t>(report.grasped_nodes);
+    tissue.max_strain = report.max_strain;
+    tissue.max_lift = report.max_lift;
+    tissue.lifted_fraction = report.lifted_fraction;
+    tissue.torn_springs = report.torn_springs;
+    tissue.cut_nodes = report.cut_nodes;
+    tissue.released_adhesions = report.released_adhesions;
+    tissue.outcome = static_cast<std::uint8_t>(report.outcome);
+    message.tissues.push_back(tissue);
+  }
+  message.retina_contacts = 0;
+  message.max_injury = 0.0f;
+  for (const world::InjuryReport& injury : frame.injuries) {
+    message.retina_contacts += static_cast<std::uint32_t>(injury.contacts);
+    message.max_injury = std::max(message.max_injury, static_cast<float>(injury.max_injury));
+  }
 }
 
 }  // namespace vrm_sim
