@@ -157,8 +157,10 @@ class TissueSimulator {
   void releaseAll();
 
   const std::vector<std::uint32_t>& graspedNodes() const { return grasped_nodes_; }
-  // Whether instrument `index` (setInstruments order) holds a grasp.
-  bool isGrasping(std::size_t index) const { return index < grasps_.size() && grasps_[index].active; }
+  // Whether instrument `index` (setInstruments order) holds tissue (jaws that closed on nothing hold nothing).
+  bool isGrasping(std::size_t index) const {
+    return index < grasps_.size() && grasps_[index].active && !grasps_[index].nodes.empty();
+  }
   const SimulatorStatistics& statistics() const { return statistics_; }
   const TissueConfig& config() const { return config_; }
   const Integrator& integrator() const { return *integrator_; }

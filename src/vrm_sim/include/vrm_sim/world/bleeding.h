@@ -17,9 +17,9 @@ namespace world {
 struct BleedingParameters {
   double depth_full = 1e-4;        // m: a contact this deep starts a spot of full intensity (1.0)
   double min_intensity = 0.3;      // a grazing contact still leaves a visible spot
-  double initial_radius = 1e-4;    // m: sigma of a new spot
+  double initial_radius = 1.5e-4;  // m: sigma of a new spot (at least half the contact footprint's extent)
   double spread_rate = 1.5e-4;     // m/s: sigma grows this fast ...
-  double max_radius = 8e-4;        // ... up to this
+  double max_radius = 1e-3;        // ... up to this
   double aspiration_distance = 2e-4;  // m: a vitrector port with suction closer than this to the retina injures it
   double new_spot_distance = 3e-4;    // m: a contact that moved this far from its last spot starts another one
 };
@@ -40,9 +40,10 @@ class BleedingField {
   // `vertices`: the retina's vertex positions (object frame); copied.
   BleedingField(std::string object, std::vector<Eigen::Vector3d> vertices, BleedingParameters parameters = {});
 
-  // A contact of `instrument` in the current frame at `point` (object frame), `depth` m deep.
+  // A contact of `instrument` in the current frame centred at `point` (object frame), `depth` m deep, over a
+  // footprint of `extent` m (the largest distance of a touched vertex from `point`).
   void contact(const std::string& instrument, const Eigen::Vector3d& point, double depth, bool aspiration,
-               double time);
+               double time, double extent = 0.0);
   // Closes the frame at `time`: contacts not renewed in it end (appended to `ended`), the field is recomputed
   // where spots still spread. Returns whether the field changed.
   bool update(double time, std::vector<ContactEvent>* ended = nullptr);
@@ -60,6 +61,7 @@ class BleedingField {
     Eigen::Vector3d centre = Eigen::Vector3d::Zero();
     double onset = 0.0;
     double intensity = 0.0;
+    double initial_radius = 0.0;
     bool spreading = true;
   };
   struct Active {

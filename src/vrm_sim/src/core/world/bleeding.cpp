@@ -28,13 +28,14 @@ double BleedingField::distanceToSurface(const Eigen::Vector3d& point) const {
 }
 
 double BleedingField::radiusAt(const Spot& spot, double time) const {
-  return std::min(parameters_.max_radius,
-                  parameters_.initial_radius + parameters_.spread_rate * std::max(0.0, time - spot.onset));
+  return std::min(std::max(parameters_.max_radius, spot.initial_radius),
+                  spot.initial_radius + parameters_.spread_rate * std::max(0.0, time - spot.onset));
 }
 
 void BleedingField::contact(const std::string& instrument, const Eigen::Vector3d& point, double depth,
-                            bool aspiration, double time) {
-  if (!point.allFinite() || !std::isfinite(depth) || !std::isfinite(time)) return;
+                            bool aspiration, double time, double extent) {
+  if (!point.allFinite() || !std::isfinite(depth) || !std::isfinite(time) || !std::isfinite(extent)) return;
+  const double initial_radius = std::max(parameters_.initial_radius, 0.5 * extent);
   depth = std::max(0.0, depth);
   const double intensity =
       std::clamp(parameters_.min_intensity + (1.0 - parameters_.min_intensity) * depth / parameters_.depth_full,
@@ -50,7 +51,7 @@ void BleedingField::contact(const std::string& instrument, const Eigen::Vector3d
     event.max_depth = depth;
     event.aspiration = aspiration;
     events_.push_back(event);
-    spots_.push_back({point, time, intensity, true});
+    spots_.push_back({point, time, intensity, initial_radius, true});
     active_.push_back({instrument, events_.size() - 1, spots_.size() - 1, true});
     dirty_ = true;
     return;
@@ -63,7 +64,7 @@ void BleedingField::contact(const std::string& instrument, const Eigen::Vector3d
   Spot& spot = spots_[active->spot];
   if ((point - spot.centre).norm() > parameters_.new_spot_distance) {
     // Dragged along the retina: a smear of spots.
-    spots_.push_back({point, time, intensity, true});
+    spots_.push_back({point, time, intensity, initial_radius, true});
     active->spot = spots_.size() - 1;
     dirty_ = true;
   } else if (intensity > spot.intensity) {

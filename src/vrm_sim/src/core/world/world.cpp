@@ -632,16 +632,20 @@ void World::bleed(RigidObject& object, FrameResult& result) {
           depth = d;
         }
       }
+      // The spot is centred on the footprint (the touched vertices), as wide as it.
       Eigen::Vector3d point = Eigen::Vector3d::Zero();
+      double extent = 0.0;
       if (deepest < hit.nodes.size()) {
-        point = object.mesh.vertices[hit.nodes[deepest]];
+        for (std::uint32_t node : hit.nodes) point += object.mesh.vertices[node];
+        point /= static_cast<double>(hit.nodes.size());
+        for (std::uint32_t node : hit.nodes) extent = std::max(extent, (object.mesh.vertices[node] - point).norm());
       } else if (!hit.contact_points.empty()) {
         for (const Eigen::Vector3d& p : hit.contact_points) point += p;
         point /= static_cast<double>(hit.contact_points.size());
       } else {
         point = pose.translation();
       }
-      field.contact(slot, point, depth, false, time);
+      field.contact(slot, point, depth, false, time, extent);
     }
     // The vitrector aspirates what comes near its port (thesis §7.4: touching the retina makes it bleed).
     if (instrument->current.type == scene::InstrumentType::kVitrector && instrument->suction > 0.0) {
