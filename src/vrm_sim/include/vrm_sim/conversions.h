@@ -57,6 +57,9 @@ world::Stamp toStamp(const ros::Time& stamp);
 ros::Time toRosTime(world::Stamp stamp);
 world::EyeState toWorld(const vrm_msgs::EyeState& eye);
 world::InstrumentState toWorld(const vrm_msgs::InstrumentState& instrument);
+// The message a device twin publishes for `instrument` (shaft axis, insertion depth and roll are left zero: the core
+// does not read them); toWorld(toMsg(x)) == x number for number.
+vrm_msgs::InstrumentState toMsg(const world::InstrumentState& instrument);
 world::PedalState toWorld(const vrm_msgs::PedalState& pedals);
 // Returns nullopt for an unknown command value.
 std::optional<world::ScenarioCommand> toWorld(const vrm_msgs::ScenarioCommand& command);

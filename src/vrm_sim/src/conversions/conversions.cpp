@@ -183,20 +183,37 @@ world::InstrumentState toWorld(const vrm_msgs::InstrumentState& instrument) {
   state.stamp = toStamp(instrument.header.stamp);
   state.slot = instrument.instrument_id;
   if (instrument.type <= vrm_msgs::InstrumentState::HOOK) state.type = static_cast<scene::InstrumentType>(instrument.type);
-  // A pose with a non-finite or zero quaternion reaches the core as a non-finite pose (rejected there).
-  const geometry_msgs::Quaternion& q = instrument.tip_pose.orientation;
-  const double norm = std::sqrt(q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w);
-  if (std::isfinite(norm) && norm > 1e-9) {
-    state.tip_pose = toEigen(instrument.tip_pose);
-  } else {
-    state.tip_pose.matrix().setConstant(std::numeric_limits<double>::quiet_NaN());
-  }
+  // Copied number for number (the core rejects non-finite or zero quaternions).
+  const geometry_msgs::Pose& pose = instrument.tip_pose;
+  state.tip_position = Eigen::Vector3d(pose.position.x, pose.position.y, pose.position.z);
+  state.tip_orientation = Eigen::Quaterniond(pose.orientation.w, pose.orientation.x, pose.orientation.y, pose.orientation.z);
   state.frame_id = instrument.header.frame_id;
   state.jaw_angle = instrument.jaw_angle;
   state.suction = instrument.suction;
   state.cut_rate = instrument.cut_rate;
   state.valid = instrument.valid;
   return state;
+}
+
+vrm_msgs::InstrumentState toMsg(const world::InstrumentState& instrument) {
+  vrm_msgs::InstrumentState message;
+  message.header.stamp = toRosTime(instrument.stamp);
+  message.header.frame_id = instrument.frame_id;
+  message.instrument_id = instrument.slot;
+  message.type = instrument.type ? static_cast<std::uint8_t>(*instrument.type) : 255;
+  message.tip_pose.position.x = instrument.tip_position.x();
+  message.tip_pose.position.y = instrument.tip_position.y();
+  message.tip_pose.position.z = instrument.tip_position.z();
+  message.tip_pose.orientation.w = instrument.tip_orientation.w();
+  message.tip_pose.orientation.x = instrument.tip_orientation.x();
+  message.tip_pose.orientation.y = instrument.tip_orientation.y();
+  message.tip_pose.orientation.z = instrument.tip_orientation.z();
+  message.jaw_angle = instrument.jaw_angle;
+  message.suction = instrument.suction;
+  message.cut_rate = instrument.cut_rate;
+  message.tracking_quality = instrument.valid ? 1.0f : 0.0f;
+  message.valid = instrument.valid;
+  return message;
 }
 
 world::PedalState toWorld(const vrm_msgs::PedalState& pedals) {

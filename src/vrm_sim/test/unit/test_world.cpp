@@ -59,10 +59,12 @@ InstrumentState instrumentAt(const scene::SceneDescription& scene, const std::st
   InstrumentState state;
   state.stamp = stamp;
   state.slot = slot;
-  state.tip_pose.linear().col(0) = x;
-  state.tip_pose.linear().col(1) = z.cross(x);
-  state.tip_pose.linear().col(2) = z;
-  state.tip_pose.translation() = tip;
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  pose.linear().col(0) = x;
+  pose.linear().col(1) = z.cross(x);
+  pose.linear().col(2) = z;
+  pose.translation() = tip;
+  state.setPose(pose);
   state.jaw_angle = jaw_angle;
   return state;
 }
@@ -298,7 +300,7 @@ TEST(World, InstrumentPosesInTheWorldFrameFollowTheEyeRotation) {
            {instrumentAt(scene, "left", Eigen::Vector3d(-0.003, 0.0, -0.004), 0.0, stamp),
             instrumentAt(scene, "right", (1 - alpha) * pole(0.0013) + alpha * pole(0.0001), 0.35, stamp)}) {
         if (in_world_frame) {
-          state.tip_pose = world_from_eye * state.tip_pose;
+          state.setPose(world_from_eye * state.pose());
           state.frame_id = "world";
         }
         world.handle(state);
@@ -321,7 +323,7 @@ TEST(World, NonFiniteOrUnknownInputsAreRejectedWithoutTouchingTheState) {
   world.flush();
   const std::uint64_t hash = world.stateHash();
   InstrumentState bad = instrumentAt(world.scene(), "right", pole(0.0001), 0.35, stamp);
-  bad.tip_pose.translation().x() = std::nan("");
+  bad.tip_position.x() = std::nan("");
   world.handle(bad);
   InstrumentState unknown = instrumentAt(world.scene(), "right", pole(0.0001), 0.35, stamp);
   unknown.slot = "third_hand";

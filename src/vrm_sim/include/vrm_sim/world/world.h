@@ -61,12 +61,18 @@ struct InstrumentState {
   Stamp stamp = 0;
   std::string slot;                                       // "left" | "right"
   std::optional<scene::InstrumentType> type;              // nullopt: keep the slot's current type
-  Eigen::Isometry3d tip_pose = Eigen::Isometry3d::Identity();  // instrument frame (tip, +z towards the tip) in frame_id
+  // The instrument frame (origin at the tip, +z from the handle towards the tip) in frame_id, as position and unit
+  // quaternion like the message, so converting a message is lossless and a replay feeds the very same numbers.
+  Eigen::Vector3d tip_position = Eigen::Vector3d::Zero();
+  Eigen::Quaterniond tip_orientation = Eigen::Quaterniond::Identity();
   std::string frame_id = "eye";                           // "eye" | "world" ("" = eye)
   double jaw_angle = 1.0;                                 // rad, forceps opening
   double suction = 0.0;                                   // 0..1
   double cut_rate = 0.0;                                  // Hz
   bool valid = true;                                      // false: not tracked; keeps its pose, stops interacting
+
+  void setPose(const Eigen::Isometry3d& pose);
+  Eigen::Isometry3d pose() const;  // the quaternion normalised
 };
 
 struct PedalState {

@@ -77,7 +77,7 @@ std::vector<InstrumentState> scriptedInputs(const scene::SceneDescription& scene
       state.stamp = start + fromSeconds(t);
       state.slot = scene::toString(instrument.slot);
       state.type = instrument.type;
-      state.tip_pose = scripted.pose;
+      state.setPose(scripted.pose);
       state.frame_id = "eye";
       state.jaw_angle = scripted.jaw_angle;
       inputs.push_back(state);

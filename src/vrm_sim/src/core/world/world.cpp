@@ -31,6 +31,18 @@ std::string sourceName(const char* kind, const std::string& slot) { return std::
 
 }  // namespace
 
+void InstrumentState::setPose(const Eigen::Isometry3d& pose) {
+  tip_position = pose.translation();
+  tip_orientation = Eigen::Quaterniond(pose.rotation());
+}
+
+Eigen::Isometry3d InstrumentState::pose() const {
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  pose.linear() = tip_orientation.normalized().toRotationMatrix();
+  pose.translation() = tip_position;
+  return pose;
+}
+
 Stamp fromSeconds(double seconds) { return static_cast<Stamp>(std::llround(seconds * 1e9)); }
 
 const char* toString(PeelOutcome outcome) {
@@ -333,7 +345,8 @@ void World::handle(const InstrumentState& state) {
     return;
   }
   acceptSource(state.stamp, sourceName("instrument", state.slot));
-  const bool finite = state.tip_pose.matrix().allFinite() && std::isfinite(state.jaw_angle) &&
+  const double norm = state.tip_orientation.norm();
+  const bool finite = state.tip_position.allFinite() && std::isfinite(norm) && norm > 1e-9 && std::isfinite(state.jaw_angle) &&
                       std::isfinite(state.suction) && std::isfinite(state.cut_rate);
   if (!finite) {
     ++statistics_.rejected_inputs;
@@ -343,7 +356,7 @@ void World::handle(const InstrumentState& state) {
   }
   Instrument& instrument = *slot->second;
   // Invalid tracking: the instrument keeps its last pose but stops interacting (no phantom grasps).
-  instrument.pose = state.tip_pose;
+  instrument.pose = state.pose();
   instrument.frame_id = state.frame_id.empty() ? "eye" : state.frame_id;
   instrument.jaw_angle = state.valid ? state.jaw_angle : 1.0;
   instrument.active = state.valid;
