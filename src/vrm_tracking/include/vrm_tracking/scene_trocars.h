@@ -1,14 +1,18 @@
 #pragma once
-// The scene file as the single source of truth for the trocars (the fixed insertion holes of the mechanical eye).
-// Surgeon scripts (surgeon_script.h) and marker layouts (marker_layout.h) carry their own trocar per slot so they
-// work without a scene; when a nodelet is given a scene (~scene), these functions replace those copies by the
-// scene's trocars, so the twin surgeon, the tracker and the VR part pivot the instruments at the same points.
+// The scene file as the single source of truth for the trocars (the fixed insertion holes of the mechanical eye) and
+// for where tissue is. Surgeon scripts (surgeon_script.h) and marker layouts (marker_layout.h) carry their own trocar
+// per slot so they work without a scene; when a nodelet is given a scene (~scene), these functions replace those
+// copies by the scene's trocars, so the twin surgeon, the tracker and the VR part pivot the instruments at the same
+// points. Keyframes written `on` a scene object (SurfaceTarget) are put on that object's surface here, so a script
+// grasps the membrane where the scene has it, not where its author once measured it.
 // ROS-free; links vrm_sim's scene library (vrm_scene).
 
 #include <Eigen/Core>
 #include <string>
+#include <vector>
 
 #include "vrm_sim/scene/scene_description.h"
+#include "vrm_sim/triangle_mesh.h"
 #include "vrm_tracking/marker_layout.h"
 #include "vrm_tracking/surgeon_script.h"
 
@@ -23,8 +27,47 @@ vrm_sim::scene::SceneDescription loadSceneSpec(const std::string& spec);
 // slot. Throws std::runtime_error naming the scene file, the slot and the scene's trocars if there is none.
 Eigen::Vector3d sceneTrocarForSlot(const vrm_sim::scene::SceneDescription& scene, const std::string& slot);
 
-// Replaces every instrument track's / instrument marker's trocar by the scene's (sceneTrocarForSlot). All slots are
-// resolved before anything changes, so on an exception the input is untouched.
+// A point of a triangle mesh nearest to a query point, with the normal of the triangle it lies on turned towards the
+// eye centre (the origin of the mesh's frame): "above" a retina or membrane is the side the instruments come from.
+struct SurfacePoint {
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();
+  Eigen::Vector3d inward_normal = Eigen::Vector3d::UnitZ();  // unit
+  double distance = 0.0;                                     // from the query point, m
+};
+
+// Brute force over the triangles (scene objects have a few thousand; this runs once per keyframe at load time).
+// Throws std::invalid_argument for a mesh without (non-degenerate) triangles.
+SurfacePoint closestSurfacePoint(const vrm_sim::TriangleMesh& surface, const Eigen::Vector3d& point);
+
+// Where a keyframe written `on` an object with this surface lands: closest point to `written_tip` plus `height`
+// along the inward normal (negative: below the surface).
+Eigen::Vector3d resolveSurfaceTip(const vrm_sim::TriangleMesh& surface, const Eigen::Vector3d& written_tip,
+                                  double height);
+
+// What applyScene() did with the keyframes written on scene objects, for the caller's log.
+struct SceneTargetReport {
+  std::size_t resolved_keyframes = 0;
+  // On an object the scene lacks (only where ScriptDefinition::targets_optional): they play their written tips.
+  std::size_t kept_keyframes = 0;
+  std::vector<std::string> missing_objects;  // unique, in order of first use
+};
+
+// Everything the scene decides for a script: the trocars (applySceneTrocars) and the keyframes written on scene
+// objects (resolveSurfaceTip on buildMesh(object, kParent)). An object the scene does not have is a ScriptError naming
+// the object, the keyframe (field, line, time) and the scene, unless script->targets_optional; an object in the world
+// frame is a ScriptError (tips are in the eye frame and the eye moves in the world). Resolution always starts from
+// the written tip, so applying a scene twice, or another scene afterwards, gives the same result as once. All of it
+// is computed before anything changes, so on an exception the script is untouched. `report` may be null.
+void applyScene(const vrm_sim::scene::SceneDescription& scene, ScriptDefinition* script,
+                SceneTargetReport* report = nullptr);
+// The script rebuilt by applyScene (validated again; ScriptError if a tip left the eye). The playback mode is kept,
+// the tremor is not (set it afterwards).
+SurgeonScript applyScene(const vrm_sim::scene::SceneDescription& scene, const SurgeonScript& script,
+                         SceneTargetReport* report = nullptr);
+
+// The trocars only (keyframes on scene objects keep their tips): replaces every instrument track's / instrument
+// marker's trocar by the scene's (sceneTrocarForSlot). All slots are resolved before anything changes, so on an
+// exception the input is untouched.
 void applySceneTrocars(const vrm_sim::scene::SceneDescription& scene, ScriptDefinition* script);
 void applySceneTrocars(const vrm_sim::scene::SceneDescription& scene, MarkerLayout* layout);
 // The script rebuilt with the scene's trocars (validated again: the tips must still be reachable; ScriptError

@@ -112,10 +112,24 @@ struct EyeKeyframe {
   int line = 0;
 };
 
+// A keyframe tip written against a scene object (YAML `on:` / `height:`), so that scripts that touch tissue follow
+// the scene file instead of a copy of its geometry. applyScene() (scene_trocars.h) resolves it: the closest point of
+// the object's surface to `written_tip`, moved `height` along the surface normal that points into the eye (towards
+// the eye centre). Until then, and where no scene is given, the keyframe plays `written_tip`.
+struct SurfaceTarget {
+  std::string object;   // scene object name; empty: the keyframe's tip is a plain eye-frame position
+  double height = 0.0;  // m above the surface (towards the eye centre); negative: below it
+  Eigen::Vector3d written_tip = Eigen::Vector3d::Zero();  // eye frame, m: the author's point near the object
+  bool resolved = false;  // the keyframe's tip is the scene-resolved point (set by applyScene)
+
+  bool active() const { return !object.empty(); }
+};
+
 struct InstrumentKeyframe {
   double t = 0.0;
   InstrumentType type = InstrumentType::kLightPipe;
-  Eigen::Vector3d tip = Eigen::Vector3d::Zero();
+  Eigen::Vector3d tip = Eigen::Vector3d::Zero();  // what is played (the resolved point for a resolved target)
+  SurfaceTarget target;
   double roll = 0.0;
   double jaw_angle = 0.0;
   double suction = 0.0;
@@ -152,7 +166,13 @@ struct ScriptDefinition {
   std::vector<InstrumentTrack> instruments;
   std::vector<PedalKeyframe> pedal_track;            // empty: defaults
   std::vector<MicroscopeKeyframe> microscope_track;  // empty: defaults
+  // Built-in scripts are meant for every scene: there a keyframe `on` an object the scene lacks keeps its written
+  // tip. A file is written for a scene, so there a missing object is an error (see applyScene).
+  bool targets_optional = false;
 };
+
+// Names of the scene objects the script's keyframes are written on (SurfaceTarget), unique, in order of first use.
+std::vector<std::string> surfaceTargetObjects(const ScriptDefinition& definition);
 
 // Physiological tremor (thesis §1.3: 8–10 Hz). A sum of sinusoids with frequencies, phases and weights drawn once
 // from std::mt19937(seed), so the offset is a pure function of (seed, slot, t): the same recording replays

@@ -22,15 +22,37 @@ Eigen::Vector3d spherePoint(double radius, double polar, double azimuth) {
          Eigen::Vector3d(std::sin(polar) * std::cos(azimuth), std::sin(polar) * std::sin(azimuth), std::cos(polar));
 }
 
+// Where the demo expects the membrane: a copy of the membrane of vrm_sim's default scene (membrane_peeling: 0.3 mm
+// above the retina, centred 8° from the posterior pole at azimuth 0). It only makes the written tips plausible;
+// the keyframes are written `on: membrane`, so applyScene() puts them on the scene's membrane, wherever it is.
+constexpr double kNominalMembraneHeight = 0.0003;        // m above the retina
+constexpr double kNominalMembraneCentreOffsetDeg = 8.0;  // from the posterior pole, towards azimuth 0
+
+// Point `height` above (towards the eye centre; negative: below) the nominal membrane, `arc` metres along the
+// membrane from its centre towards azimuth `azimuth` (about the optical axis, 0 = +x).
+Eigen::Vector3d nominalMembranePoint(double eye_radius, double arc, double azimuth, double height) {
+  const double membrane_radius = eye_radius - kNominalMembraneHeight;
+  const double offset = kNominalMembraneCentreOffsetDeg * kDeg;
+  const Eigen::Vector3d centre_direction(std::sin(offset), 0.0, -std::cos(offset));
+  Eigen::Vector3d towards(std::cos(azimuth), std::sin(azimuth), 0.0);
+  towards = (towards - towards.dot(centre_direction) * centre_direction).normalized();  // tangent at the centre
+  const double angle = arc / membrane_radius;
+  const Eigen::Vector3d direction = std::cos(angle) * centre_direction + std::sin(angle) * towards;
+  return (membrane_radius - height) * direction;
+}
+
 // "demo" (40 s loop): eye gently rotating ±5°; left light pipe circling above the posterior pole; right forceps
-// approaching a point 0.5 mm above the retina at 0.5 mm/s, closing its jaws, pulling back and releasing; pedal
-// travel, the cutter switch, zoom/focus buttons and the microscope knobs change along the way. Every track ends
-// where it starts so the loop is seamless.
+// peeling the membrane within the first 14 s (so a short session shows it): it grasps the membrane between its
+// adhesion ring and its edge on the side facing the right trocar, lifts it 1.2 mm while pulling it 1 mm towards the
+// membrane centre, releases it and withdraws. Pedal travel, the cutter switch, zoom/focus buttons and the
+// microscope knobs change along the way. Every track ends where it starts so the loop is seamless.
 ScriptDefinition makeDemo() {
   ScriptDefinition d;
   d.name = "demo";
   d.source = "<builtin:demo>";
   d.playback = Playback::kLoop;
+  // The demo runs with every scene; where one has no membrane, the grasp keyframes keep their written tips.
+  d.targets_optional = true;
   const double period = 40.0;
   const double r = d.eye.radius;
 
@@ -62,29 +84,45 @@ ScriptDefinition makeDemo() {
 
   InstrumentTrack right;
   right.slot = "right";
-  right.trocar = spherePoint(r, 45.0 * kDeg, 30.0 * kDeg);
+  const double right_azimuth = 30.0 * kDeg;
+  right.trocar = spherePoint(r, 45.0 * kDeg, right_azimuth);
   const Eigen::Vector3d start(0.001, 0.0, -0.006);
-  const double above_retina = 0.0005;
-  const Eigen::Vector3d target(0.001, 0.0, -std::sqrt(std::pow(r - above_retina, 2) - 0.001 * 0.001));
-  const double travel_time = (target - start).norm() / 0.0005;  // 0.5 mm/s
-  auto forceps = [&](double t, const Eigen::Vector3d& tip, double jaw, double roll) {
+  // Grasp 2 mm from the membrane centre towards the right trocar: outside the adhesion ring (0.6 x the 2.5 mm patch
+  // radius = 1.5 mm), inside the edge, and on the side the shaft comes from, so the jaws reach it.
+  const double grasp_arc = 0.002;
+  const double peel_arc = grasp_arc - 0.001;  // peel 1 mm towards the centre, against the adhesion points
+  // vrm_sim grasps the nodes between the tip and 1.5 mm behind it along the shaft (TissueSimulator::updateGrasp), so
+  // the tip goes just below the membrane before the jaws close; the open jaws push only what lies under the blades.
+  const double grasp_height = -0.00006;
+  const double approach_height = 0.0004;
+  const double peel_height = 0.0012;
+  const double open = 0.35;  // rad
+  auto forceps = [&](double t, const Eigen::Vector3d& tip, double jaw) {
     InstrumentKeyframe key;
     key.t = t;
     key.type = InstrumentType::kForceps;
     key.tip = tip;
     key.jaw_angle = jaw;
-    key.roll = roll;
     right.keyframes.push_back(key);
   };
-  const double open = 0.35;  // rad
-  double t = 2.0;
-  forceps(0.0, start, open, 0.0);
-  forceps(t, start, open, 0.0);
-  forceps(t += travel_time, target, open, 0.0);
-  forceps(t += 1.5, target, 0.0, 0.0);         // grasp
-  forceps(t += travel_time, start, 0.0, 0.4);  // peel back, rolling the wrist a little
-  forceps(t += 2.0, start, open, 0.0);         // release
-  forceps(period, start, open, 0.0);
+  auto forcepsOnMembrane = [&](double t, double arc, double height, double jaw) {
+    forceps(t, nominalMembranePoint(r, arc, right_azimuth, height), jaw);
+    SurfaceTarget& target = right.keyframes.back().target;
+    target.object = "membrane";
+    target.height = height;
+    target.written_tip = right.keyframes.back().tip;
+  };
+  forceps(0.0, start, open);
+  forceps(1.0, start, open);                                 // rest
+  forcepsOnMembrane(4.2, grasp_arc, approach_height, open);  // above the grasp point
+  forcepsOnMembrane(5.2, grasp_arc, grasp_height, open);     // descend, slowly, jaws open
+  forcepsOnMembrane(5.5, grasp_arc, grasp_height, open);     // settle
+  forcepsOnMembrane(5.8, grasp_arc, grasp_height, 0.0);      // close: grasp
+  forcepsOnMembrane(9.8, peel_arc, peel_height, 0.0);        // peel: lift and pull towards the centre
+  forcepsOnMembrane(10.3, peel_arc, peel_height, 0.0);       // hold
+  forcepsOnMembrane(10.6, peel_arc, peel_height, open);      // release
+  forceps(14.0, start, open);                                // withdraw
+  forceps(period, start, open);
   d.instruments.push_back(right);
 
   auto pedal = [&](double time, double travel, bool cutter, bool zoom_in, bool zoom_out, bool near, bool far) {

@@ -207,17 +207,14 @@ class Parser {
       }
       key.t = readTime(k, kb);
       key.line = lineOf(k);
-      checkKeys(k, kb, {"t", "type", "tip", "roll", "jaw_angle", "suction", "cut_rate", "injection_flow"});
+      checkKeys(k, kb,
+                {"t", "type", "tip", "on", "height", "roll", "jaw_angle", "suction", "cut_rate", "injection_flow"});
       if (const YAML::Node type = k["type"]) {
         key.type = readType(type, join(kb, "type"));
       } else if (track.keyframes.empty() && !have_type) {
         fail(k, join(kb, "type"), "missing: give the instrument type in the slot or its first keyframe");
       }
-      if (const YAML::Node tip = k["tip"]) {
-        key.tip = readVector3(tip, join(kb, "tip"));
-      } else if (track.keyframes.empty()) {
-        fail(k, join(kb, "tip"), "missing: the first keyframe of a slot needs a tip position");
-      }
+      parseTipPosition(k, kb, track.keyframes.empty(), &key);
       readOptional(k, "roll", kb, &key.roll);
       readOptional(k, "jaw_angle", kb, &key.jaw_angle);
       readOptional(k, "suction", kb, &key.suction);
@@ -226,6 +223,29 @@ class Parser {
       track.keyframes.push_back(key);
     }
     return track;
+  }
+
+  // A keyframe that writes `tip` or `on` starts a new position, either plain or on a scene object; nothing of the
+  // previous keyframe's surface target carries over then (a plain `tip` after an `on` keyframe is plain again).
+  // A keyframe that writes neither keeps the previous position, target included. `height` belongs to `on`: it is
+  // measured from that object's surface, so it may not stand alone.
+  void parseTipPosition(const YAML::Node& k, const std::string& kb, bool first, InstrumentKeyframe* key) const {
+    const YAML::Node tip = k["tip"];
+    const YAML::Node on = k["on"];
+    const YAML::Node height = k["height"];
+    if (height && !on) fail(height, join(kb, "height"), "needs 'on' in the same keyframe (the object it is above)");
+    if (tip) {
+      key->tip = readVector3(tip, join(kb, "tip"));
+    } else if (first) {
+      fail(k, join(kb, "tip"), "missing: the first keyframe of a slot needs a tip position");
+    }
+    if (!tip && !on) return;
+    key->target = SurfaceTarget{};
+    if (!on) return;
+    key->target.object = readString(on, join(kb, "on"));
+    if (key->target.object.empty()) fail(on, join(kb, "on"), "must name an object of the scene");
+    if (height) key->target.height = readDouble(height, join(kb, "height"));
+    key->target.written_tip = key->tip;  // `on` without `tip`: the previous keyframe's written tip
   }
 
   InstrumentType readType(const YAML::Node& node, const std::string& field) const {

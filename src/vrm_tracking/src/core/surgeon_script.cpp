@@ -88,6 +88,18 @@ Eigen::Quaterniond shaftOrientation(const Eigen::Vector3d& trocar, const Eigen::
   return (Eigen::Quaterniond(basis) * Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitZ())).normalized();
 }
 
+std::vector<std::string> surfaceTargetObjects(const ScriptDefinition& definition) {
+  std::vector<std::string> objects;
+  for (const InstrumentTrack& track : definition.instruments) {
+    for (const InstrumentKeyframe& key : track.keyframes) {
+      if (key.target.active() && std::find(objects.begin(), objects.end(), key.target.object) == objects.end()) {
+        objects.push_back(key.target.object);
+      }
+    }
+  }
+  return objects;
+}
+
 // ---------------------------------------------------------------------------------------------------------------
 
 Tremor::Tremor(double amplitude, std::uint32_t seed, std::size_t num_slots) : amplitude_(amplitude) {
@@ -217,6 +229,10 @@ void SurgeonScript::validate() const {
         msg << "tip is " << k.tip.norm() * 1e3 << " mm from the eye centre, outside the eye sphere (radius "
             << d.eye.radius * 1e3 << " mm + margin " << d.eye.margin * 1e3 << " mm)";
         throw ScriptError(src, k.line, kb + ".tip", msg.str());
+      }
+      if (k.target.active()) {
+        finite(k.target.height, k.line, kb + ".height");
+        finiteVector(k.target.written_tip, k.line, kb + ".tip");
       }
       finite(k.roll, k.line, kb + ".roll");
       inRange(k.jaw_angle, 0.0, kPi, k.line, kb + ".jaw_angle");

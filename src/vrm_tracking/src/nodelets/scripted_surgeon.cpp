@@ -11,6 +11,7 @@
 #include <memory>
 #include <pluginlib/class_list_macros.hpp>
 #include <string>
+#include <vector>
 
 #include "vrm_tracking/conversions.h"
 #include "vrm_tracking/scene_trocars.h"
@@ -24,17 +25,32 @@ class ScriptedSurgeon : public nodelet::Nodelet {
     ros::NodeHandle& nh = getNodeHandle();
     ros::NodeHandle& pnh = getPrivateNodeHandle();
 
-    std::string scene_spec;  // optional: the scene whose trocars the instruments pivot at (else the script's)
+    // Optional: the scene whose trocars the instruments pivot at and whose objects the keyframes written `on` an
+    // object are placed on (else the script's trocars and written tips).
+    std::string scene_spec;
     pnh.param<std::string>("scene", scene_spec, "");
     try {
       script_ = loadScriptFromParams(pnh);
       if (!scene_spec.empty()) {
         const vrm_sim::scene::SceneDescription scene = loadSceneSpec(scene_spec);
-        script_ = std::make_unique<SurgeonScript>(applySceneTrocars(scene, *script_));
-        NODELET_INFO("trocars from scene '%s' (%s), overriding the script's", scene.name.c_str(),
-                     scene.source_file.c_str());
+        SceneTargetReport targets;
+        script_ = std::make_unique<SurgeonScript>(applyScene(scene, *script_, &targets));
+        NODELET_INFO("trocars from scene '%s' (%s), overriding the script's; %zu keyframes placed on its objects",
+                     scene.name.c_str(), scene.source_file.c_str(), targets.resolved_keyframes);
+        if (!targets.missing_objects.empty()) {
+          NODELET_WARN("scene '%s' has no object %s: %zu keyframes of script '%s' keep their written tips",
+                       scene.name.c_str(), joinNames(targets.missing_objects).c_str(), targets.kept_keyframes,
+                       script_->name().c_str());
+        }
       } else {
         NODELET_INFO("trocars from the script (no ~scene given)");
+        const std::vector<std::string> objects = surfaceTargetObjects(script_->definition());
+        if (!objects.empty()) {
+          NODELET_WARN(
+              "script '%s' places keyframes on scene objects (%s) but no ~scene is given: they keep their "
+              "written tips",
+              script_->name().c_str(), joinNames(objects).c_str());
+        }
       }
     } catch (const std::exception& e) {
       NODELET_FATAL("cannot load surgeon script or scene: %s", e.what());
@@ -72,6 +88,12 @@ class ScriptedSurgeon : public nodelet::Nodelet {
                  script_->name().c_str(), script_->definition().source.c_str(),
                  script_->definition().instruments.size(), script_->duration(),
                  script_->playback() == Playback::kLoop ? "loop" : "once", rate, tremor_um, seed);
+  }
+
+  static std::string joinNames(const std::vector<std::string>& names) {
+    std::string joined;
+    for (const std::string& name : names) joined += (joined.empty() ? "'" : ", '") + name + "'";
+    return joined;
   }
 
   void onTick(const ros::TimerEvent& event) {

@@ -1,7 +1,10 @@
-// The scene file as the single source of the trocars: scripts and marker layouts take the scene's trocars per slot.
+// The scene file as the single source of the trocars and of where tissue is: scripts and marker layouts take the
+// scene's trocars per slot, and keyframes written `on` a scene object are put on that object's surface.
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
 #include <string>
 
 #include "vrm_sim/scene/scene_loader.h"
@@ -129,6 +132,270 @@ TEST(SceneTrocars, SceneSpecIsANameOrAPath) {
   EXPECT_EQ(by_name.name, "navigation");
   EXPECT_EQ(loadSceneSpec(by_name.source_file).name, "navigation");
   EXPECT_THROW(loadSceneSpec("no_such_scene"), scene::SceneError);
+}
+
+// ---- Keyframes written on scene objects (SurfaceTarget, applyScene) ----
+
+// The membrane of the shipped membrane_peeling scene: 0.3 mm above the 12 mm retina, centred 8 deg from the pole.
+constexpr double kMembraneSphereRadius = 0.012 - 0.0003;
+
+vrm_sim::TriangleMesh sceneMesh(const scene::SceneDescription& description, const std::string& object_name) {
+  const scene::ObjectDescription* object = description.findObject(object_name);
+  if (object == nullptr) throw std::runtime_error("test scene has no object " + object_name);
+  return scene::buildMesh(*object, scene::MeshFrame::kParent);
+}
+
+// Height of `point` above the surface (along its inward normal; negative below), as the tissue simulation sees it.
+double heightAbove(const vrm_sim::TriangleMesh& surface, const Eigen::Vector3d& point) {
+  const SurfacePoint nearest = closestSurfacePoint(surface, point);
+  return (point - nearest.position).dot(nearest.inward_normal);
+}
+
+// Keyframes 1-3 on the membrane at three heights, from written tips that are off the membrane (one outside it,
+// towards the retina; one inside the eye); keyframe 4 carries keyframe 3's target over; keyframe 5 is plain again.
+const char* const kOnMembrane = R"(name: on_membrane
+instruments:
+  right:
+    trocar: [0.0073485, 0.0042426, 0.0084853]
+    type: forceps
+    keyframes:
+      - {t: 0.0, tip: [0.001, 0.0, -0.006], jaw_angle: 0.35}
+      - {t: 6.0, on: membrane, tip: [0.00336, 0.0010, -0.0114], jaw_angle: 0.3, roll: 0.2}
+      - {t: 7.0, on: membrane, tip: [0.00336, 0.0010, -0.0114], height: 0.0005}
+      - {t: 8.0, on: membrane, tip: [0.0030, 0.0008, -0.0105], height: -0.00006}
+      - {t: 8.5, jaw_angle: 0.0}
+      - {t: 9.0, tip: [0.001, 0.0, -0.006]}
+)";
+
+TEST(SceneTargets, ResolvedTipLiesOnTheMembraneAndHeightFollowsTheInwardNormal) {
+  const scene::SceneDescription peeling = loadSceneSpec("membrane_peeling");
+  const vrm_sim::TriangleMesh membrane = sceneMesh(peeling, "membrane");
+  const SurgeonScript written = SurgeonScript::fromYamlString(kOnMembrane, "on_membrane.yaml");
+  SceneTargetReport report;
+  const SurgeonScript script = applyScene(peeling, written, &report);
+  EXPECT_EQ(report.resolved_keyframes, 4u);
+  EXPECT_EQ(report.kept_keyframes, 0u);
+  EXPECT_TRUE(report.missing_objects.empty());
+  const std::vector<InstrumentKeyframe>& keys = script.definition().instruments.at(0).keyframes;
+  const std::vector<InstrumentKeyframe>& before = written.definition().instruments.at(0).keyframes;
+  ASSERT_EQ(keys.size(), 6u);
+
+  // Height 0: on the mesh, and (independently of the closest-point code) on the membrane's sphere; the chords of
+  // the ~0.16 mm triangles lie < 0.3 um inside it.
+  const Eigen::Vector3d on_surface = keys[1].tip;
+  EXPECT_LT(closestSurfacePoint(membrane, on_surface).distance, 1e-6);
+  EXPECT_NEAR(on_surface.norm(), kMembraneSphereRadius, 1e-6);
+  EXPECT_TRUE(keys[1].target.resolved);
+  // No vertex is nearer to the written tip than the resolved point (it is the closest point, not a nearby one).
+  double nearest_vertex = 1.0;
+  for (const Eigen::Vector3d& vertex : membrane.vertices) {
+    nearest_vertex = std::min(nearest_vertex, (vertex - before[1].tip).norm());
+  }
+  EXPECT_LE((on_surface - before[1].tip).norm(), nearest_vertex + 1e-12);
+  // The keyframe keeps its other fields.
+  EXPECT_DOUBLE_EQ(keys[1].jaw_angle, 0.3);
+  EXPECT_DOUBLE_EQ(keys[1].roll, 0.2);
+  EXPECT_EQ(keys[1].type, InstrumentType::kForceps);
+  EXPECT_DOUBLE_EQ(keys[1].t, 6.0);
+
+  // Height 0.5 mm from the same written tip: straight up the inward normal, which near the posterior pole is
+  // roughly +z (towards the eye centre).
+  const Eigen::Vector3d lifted = keys[2].tip - on_surface;
+  EXPECT_NEAR(lifted.norm(), 0.0005, 1e-9);
+  EXPECT_GT(lifted.normalized().z(), 0.9);
+  EXPECT_GT(lifted.normalized().dot(-on_surface.normalized()), 0.9999);
+  EXPECT_NEAR(keys[2].tip.norm(), kMembraneSphereRadius - 0.0005, 2e-6);
+  EXPECT_NEAR(heightAbove(membrane, keys[2].tip), 0.0005, 1e-9);
+
+  // Negative height: below the membrane; a carried-over keyframe resolves to the same point.
+  EXPECT_NEAR(heightAbove(membrane, keys[3].tip), -0.00006, 1e-9);
+  EXPECT_NEAR(keys[3].tip.norm(), kMembraneSphereRadius + 0.00006, 2e-6);
+  EXPECT_EQ(keys[4].target.object, "membrane");
+  EXPECT_LT((keys[4].tip - keys[3].tip).norm(), 1e-15);
+  EXPECT_DOUBLE_EQ(keys[4].jaw_angle, 0.0);
+
+  // Keyframes without `on` are unchanged.
+  EXPECT_FALSE(keys[0].target.active());
+  EXPECT_FALSE(keys[5].target.active());
+  EXPECT_EQ(keys[0].tip, before[0].tip);
+  EXPECT_EQ(keys[5].tip, before[5].tip);
+
+  // The played script follows the resolved keyframes, through the scene's trocar.
+  const InstrumentSample at_grasp = script.sample(8.0).instruments.at(0);
+  EXPECT_LT((at_grasp.tip - keys[3].tip).norm(), 1e-12);
+  EXPECT_LT((at_grasp.trocar - sceneTrocarForSlot(peeling, "right")).norm(), 1e-12);
+
+  // Resolution starts from the written tip: applying the scene again changes nothing.
+  const SurgeonScript twice = applyScene(peeling, script);
+  for (std::size_t i = 0; i < keys.size(); ++i) {
+    EXPECT_LT((twice.definition().instruments[0].keyframes[i].tip - keys[i].tip).norm(), 1e-15) << i;
+  }
+}
+
+TEST(SceneTargets, ClosestPointOnAFlatSquare) {
+  // Two triangles of the plane z = -0.01 (eye centre above it: the inward normal is +z), x, y in [0, 1] mm.
+  vrm_sim::TriangleMesh square;
+  square.name = "square";
+  square.vertices = {{0.0, 0.0, -0.01}, {0.001, 0.0, -0.01}, {0.001, 0.001, -0.01}, {0.0, 0.001, -0.01}};
+  square.triangles = {{0, 1, 2}, {0, 2, 3}};  // wound away from the centre: the normal must still point up
+  const SurfacePoint inside = closestSurfacePoint(square, Eigen::Vector3d(0.0004, 0.0003, -0.012));
+  expectNear(inside.position, Eigen::Vector3d(0.0004, 0.0003, -0.01), 1e-15);
+  expectNear(inside.inward_normal, Eigen::Vector3d::UnitZ(), 1e-12);
+  EXPECT_NEAR(inside.distance, 0.002, 1e-15);
+  // Beyond an edge and a corner: the nearest boundary point.
+  expectNear(closestSurfacePoint(square, Eigen::Vector3d(0.0005, -0.002, -0.0095)).position,
+             Eigen::Vector3d(0.0005, 0.0, -0.01), 1e-15);
+  expectNear(closestSurfacePoint(square, Eigen::Vector3d(0.003, 0.004, -0.0095)).position,
+             Eigen::Vector3d(0.001, 0.001, -0.01), 1e-15);
+  // On the shared diagonal both triangles are nearest: their (equal) normals, not a cancelled sum.
+  expectNear(resolveSurfaceTip(square, Eigen::Vector3d(0.0005, 0.0005, -0.011), 0.0002),
+             Eigen::Vector3d(0.0005, 0.0005, -0.0098), 1e-15);
+  EXPECT_THROW(closestSurfacePoint(vrm_sim::TriangleMesh{}, Eigen::Vector3d::Zero()), std::invalid_argument);
+}
+
+TEST(SceneTargets, MissingObjectIsAnErrorNamingItTheKeyframeAndTheScene) {
+  const scene::SceneDescription navigation = loadSceneSpec("navigation");  // has no membrane
+  const SurgeonScript written = SurgeonScript::fromYamlString(kOnMembrane, "on_membrane.yaml");
+  try {
+    applyScene(navigation, written);
+    FAIL() << "a script file on an object the scene lacks must be rejected";
+  } catch (const ScriptError& error) {
+    const std::string message = error.what();
+    EXPECT_EQ(error.source(), "on_membrane.yaml");
+    EXPECT_EQ(error.line(), 8) << message;  // the first keyframe on the membrane
+    EXPECT_EQ(error.field(), "instruments.right.keyframes[1].on") << message;
+    EXPECT_NE(message.find("on_membrane.yaml:8:"), std::string::npos) << message;
+    EXPECT_NE(message.find("'membrane'"), std::string::npos) << message;
+    EXPECT_NE(message.find("t = 6 s"), std::string::npos) << message;
+    EXPECT_NE(message.find("scene 'navigation'"), std::string::npos) << message;
+    EXPECT_NE(message.find("target_sphere_1"), std::string::npos) << message;  // what the scene has instead
+  }
+  // Nothing half applied to a definition either.
+  ScriptDefinition definition = written.definition();
+  EXPECT_THROW(applyScene(navigation, &definition), ScriptError);
+  EXPECT_EQ(definition.instruments[0].trocar, written.definition().instruments[0].trocar);
+  EXPECT_FALSE(definition.instruments[0].keyframes[1].target.resolved);
+}
+
+TEST(SceneTargets, BuiltinScriptOnAMissingObjectKeepsTheWrittenTips) {
+  const SurgeonScript demo = SurgeonScript::builtin("demo");
+  ASSERT_TRUE(demo.definition().targets_optional);
+  ASSERT_EQ(surfaceTargetObjects(demo.definition()), std::vector<std::string>{"membrane"});
+  const scene::SceneDescription navigation = loadSceneSpec("navigation");
+  SceneTargetReport report;
+  const SurgeonScript applied = applyScene(navigation, demo, &report);
+  EXPECT_EQ(report.resolved_keyframes, 0u);
+  EXPECT_GT(report.kept_keyframes, 0u);
+  EXPECT_EQ(report.missing_objects, std::vector<std::string>{"membrane"});
+  for (std::size_t slot = 0; slot < demo.definition().instruments.size(); ++slot) {
+    const InstrumentTrack& track = applied.definition().instruments[slot];
+    expectNear(track.trocar, sceneTrocarForSlot(navigation, track.slot), 1e-12);  // the trocars still apply
+    for (std::size_t i = 0; i < track.keyframes.size(); ++i) {
+      EXPECT_EQ(track.keyframes[i].tip, demo.definition().instruments[slot].keyframes[i].tip) << i;
+      EXPECT_FALSE(track.keyframes[i].target.resolved);
+    }
+  }
+  // The same definition as a file would be an error.
+  ScriptDefinition strict = demo.definition();
+  strict.targets_optional = false;
+  EXPECT_THROW(applyScene(navigation, &strict), ScriptError);
+}
+
+TEST(SceneTargets, ObjectsInTheWorldFrameAreRejected) {
+  const scene::SceneDescription world = scene::loadSceneFromString(R"(scene: {name: world_objects, kind: abstract}
+objects:
+  - {name: membrane, role: abstract_target, frame: world, mesh: {generator: sphere, params: {radius: 0.001}}}
+simulations: [collision]
+)",
+                                                                   "world_objects.yaml");
+  try {
+    applyScene(world, SurgeonScript::fromYamlString(kOnMembrane, "on_membrane.yaml"));
+    FAIL() << "an object in the world frame must be rejected";
+  } catch (const ScriptError& error) {
+    const std::string message = error.what();
+    EXPECT_NE(message.find("world frame"), std::string::npos) << message;
+    EXPECT_NE(message.find("'membrane'"), std::string::npos) << message;
+    EXPECT_NE(message.find("world_objects"), std::string::npos) << message;
+  }
+}
+
+// The built-in demo, applied to the shipped default scene, really grasps the membrane: when the jaws close, the tip
+// is just below the membrane and vrm_sim's grasp region (TissueSimulator::updateGrasp: within 0.75 mm of the jaw
+// centre 0.75 mm behind the tip, and within 0.3 mm of the shaft axis) holds membrane nodes; it peels and lets go
+// early enough for a 20 s session.
+TEST(SceneTargets, DemoGraspsTheShippedMembrane) {
+  const scene::SceneDescription peeling = loadSceneSpec("membrane_peeling");
+  const vrm_sim::TriangleMesh membrane = sceneMesh(peeling, "membrane");
+  SceneTargetReport report;
+  SurgeonScript demo = applyScene(peeling, SurgeonScript::builtin("demo"), &report);
+  demo.setTremor(0.0, 0);
+  EXPECT_TRUE(report.missing_objects.empty());
+  EXPECT_GT(report.resolved_keyframes, 0u);
+  const auto forceps = [&](double t) { return demo.sample(t).instruments.at(1); };
+  ASSERT_EQ(forceps(0.0).slot, "right");
+  ASSERT_EQ(forceps(0.0).type, InstrumentType::kForceps);
+
+  // The keyframe where the jaws have closed, and the moment they pass vrm_sim's grasp threshold on the way.
+  constexpr double kGraspJawAngle = 0.15;  // rad, vrm_sim's default TissueConfig::grasp_jaw_angle
+  const std::vector<InstrumentKeyframe>& keys = demo.definition().instruments.at(1).keyframes;
+  const auto closed =
+      std::find_if(keys.begin() + 1, keys.end(), [](const InstrumentKeyframe& key) { return key.jaw_angle == 0.0; });
+  ASSERT_NE(closed, keys.end());
+  const double close_time = closed->t;
+  double grasp_time = close_time;
+  for (double t = (closed - 1)->t; t <= close_time; t += 1e-3) {
+    if (forceps(t).jaw_angle < kGraspJawAngle) {
+      grasp_time = t;
+      break;
+    }
+  }
+  EXPECT_LE(close_time, 6.0);
+  EXPECT_GT(forceps(grasp_time - 0.3).jaw_angle, 0.3);  // closing takes about 0.3 s
+  for (double t : {grasp_time, close_time}) {
+    SCOPED_TRACE("t = " + std::to_string(t));
+    const InstrumentSample tip = forceps(t);
+    const double height = heightAbove(membrane, tip.tip);
+    EXPECT_LE(height, 0.0) << "tip above the membrane: the jaws close on nothing";
+    EXPECT_GE(height, -150e-6) << "tip too deep below the membrane";
+    const Eigen::Vector3d jaw_centre = tip.tip - 0.00075 * tip.shaft_axis;
+    int between_jaws = 0;
+    for (const Eigen::Vector3d& node : membrane.vertices) {
+      const Eigen::Vector3d from_centre = node - jaw_centre;
+      const double off_axis = (from_centre - from_centre.dot(tip.shaft_axis) * tip.shaft_axis).norm();
+      if (from_centre.norm() <= 0.00075 && off_axis <= 0.0003) ++between_jaws;
+    }
+    EXPECT_GE(between_jaws, 3) << "membrane nodes in vrm_sim's grasp region";
+  }
+
+  // Grasped point between the adhesion ring (1.5 mm from the membrane centre) and the edge (2.5 mm), on the side
+  // facing the right trocar.
+  const Eigen::Vector3d membrane_centre = membrane.vertices.at(0);  // the cap's pole vertex is the patch centre
+  const Eigen::Vector3d grasp_point = closestSurfacePoint(membrane, forceps(close_time).tip).position;
+  const double from_centre = (grasp_point - membrane_centre).norm();
+  EXPECT_GT(from_centre, 0.0017);
+  EXPECT_LT(from_centre, 0.0023);
+  const Eigen::Vector3d trocar = sceneTrocarForSlot(peeling, "right");
+  EXPECT_GT((grasp_point - membrane_centre).head<2>().normalized().dot(trocar.head<2>().normalized()), 0.95);
+
+  // Peel: jaws stay closed while the tip rises ~1.2 mm above the grasp point and moves ~1 mm towards the centre.
+  double release_time = 0.0;
+  for (double t = close_time; t < 20.0; t += 0.01) {
+    if (forceps(t).jaw_angle > kGraspJawAngle) {
+      release_time = t;
+      break;
+    }
+  }
+  ASSERT_GT(release_time, close_time + 4.0);
+  EXPECT_LT(release_time, 12.0);
+  const Eigen::Vector3d peeled = forceps(release_time - 0.35).tip;
+  EXPECT_NEAR(heightAbove(membrane, peeled), 0.0012, 5e-5);
+  const Eigen::Vector3d peeled_foot = closestSurfacePoint(membrane, peeled).position;
+  EXPECT_NEAR((grasp_point - peeled_foot).norm(), 0.001, 1e-4);
+  EXPECT_LT((peeled_foot - membrane_centre).norm(), from_centre - 0.0009);
+  // Back at the start by 14 s and resting there until the loop ends.
+  EXPECT_LT((forceps(14.0).tip - forceps(0.0).tip).norm(), 1e-12);
+  EXPECT_LT((forceps(39.9).tip - forceps(0.0).tip).norm(), 1e-12);
+  EXPECT_GT(forceps(14.0).jaw_angle, kGraspJawAngle);
 }
 
 }  // namespace

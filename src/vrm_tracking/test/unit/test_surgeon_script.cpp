@@ -5,6 +5,7 @@
 #include <cmath>
 #include <fstream>
 #include <string>
+#include <vector>
 
 #include "vrm_tracking/surgeon_script.h"
 
@@ -241,17 +242,68 @@ TEST(SurgeonScript, BuiltinDemo) {
   for (std::size_t i = 0; i < first.instruments.size(); ++i) {
     EXPECT_LT((first.instruments[i].tip - last.instruments[i].tip).norm(), 1e-9);
   }
-  // The forceps gets within ~0.5 mm of the retina and closes its jaws there.
+  // Without a scene the forceps plays its written tips: it goes 60 um below the nominal membrane (0.3 mm above the
+  // retina), closes its jaws there before 6 s, and is back at its start, jaws open, by 14 s.
+  EXPECT_TRUE(demo.definition().targets_optional);
   double closest = 1.0;
-  bool closed_near_retina = false;
+  double first_closed = -1.0;
   for (double t = 0.0; t < demo.duration(); t += 0.05) {
     const InstrumentSample& f = demo.sample(t).instruments[1];
     const double gap = demo.definition().eye.radius - f.tip.norm();
     closest = std::min(closest, gap);
-    closed_near_retina = closed_near_retina || (gap < 0.0006 && f.jaw_angle == 0.0);
+    if (first_closed < 0.0 && f.jaw_angle == 0.0) {
+      first_closed = t;
+      EXPECT_LT(gap, 0.0003) << "jaws closed above the nominal membrane";
+    }
   }
-  EXPECT_NEAR(closest, 0.0005, 1e-5);
-  EXPECT_TRUE(closed_near_retina);
+  EXPECT_NEAR(closest, 0.0003 - 0.00006, 1e-6);
+  EXPECT_GT(first_closed, 0.0);
+  EXPECT_LE(first_closed, 6.0);
+  const InstrumentSample back = demo.sample(14.0).instruments[1];
+  EXPECT_LT((back.tip - first.instruments[1].tip).norm(), 1e-12);
+  EXPECT_GT(back.jaw_angle, 0.3);
+}
+
+// ---- keyframes written on scene objects (`on`, `height`); resolution itself: test_scene_trocars ----
+
+TEST(SurgeonScript, SurfaceTargetsParseAndPlayTheWrittenTipWithoutAScene) {
+  const SurgeonScript s = SurgeonScript::fromYamlString(R"(instruments:
+  right:
+    trocar: [0.0, 0.008, 0.008]
+    type: forceps
+    keyframes:
+      - {t: 0.0, tip: [0.0, 0.0, -0.005], jaw_angle: 0.35}
+      - {t: 1.0, on: membrane, tip: [0.0033, 0.001, -0.0112], height: -0.00006}
+      - {t: 2.0, jaw_angle: 0.0}
+      - {t: 3.0, on: retina, height: 0.0005}
+      - {t: 4.0, on: membrane}
+      - {t: 5.0, tip: [0.0, 0.0, -0.005]}
+)",
+                                                        "targets.yaml");
+  const std::vector<InstrumentKeyframe>& keys = s.definition().instruments.at(0).keyframes;
+  ASSERT_EQ(keys.size(), 6u);
+  EXPECT_FALSE(keys[0].target.active());
+  EXPECT_EQ(keys[1].target.object, "membrane");
+  EXPECT_DOUBLE_EQ(keys[1].target.height, -0.00006);
+  EXPECT_EQ(keys[1].target.written_tip, Eigen::Vector3d(0.0033, 0.001, -0.0112));
+  EXPECT_FALSE(keys[1].target.resolved);
+  // Not resolved (no scene): the written tip plays.
+  EXPECT_EQ(keys[1].tip, keys[1].target.written_tip);
+  EXPECT_LT((s.sample(1.0).instruments[0].tip - Eigen::Vector3d(0.0033, 0.001, -0.0112)).norm(), 1e-15);
+  // Neither tip nor on: the whole position carries over, target included.
+  EXPECT_EQ(keys[2].target.object, "membrane");
+  EXPECT_DOUBLE_EQ(keys[2].target.height, -0.00006);
+  EXPECT_EQ(keys[2].tip, keys[1].tip);
+  // `on` without tip: another object from the previous written tip; height defaults to 0 with a new `on`.
+  EXPECT_EQ(keys[3].target.object, "retina");
+  EXPECT_DOUBLE_EQ(keys[3].target.height, 0.0005);
+  EXPECT_EQ(keys[3].target.written_tip, keys[1].target.written_tip);
+  EXPECT_DOUBLE_EQ(keys[4].target.height, 0.0);
+  // A plain tip ends the target.
+  EXPECT_FALSE(keys[5].target.active());
+  EXPECT_EQ(surfaceTargetObjects(s.definition()), (std::vector<std::string>{"membrane", "retina"}));
+  EXPECT_TRUE(surfaceTargetObjects(simple().definition()).empty());
+  EXPECT_FALSE(s.definition().targets_optional);  // a file is written for its scene
 }
 
 // ---- malformed files: every message names the file and the line ----
@@ -289,6 +341,22 @@ TEST(SurgeonScriptErrors, MessagesNameFileLineAndField) {
       {"bad playback", "name: x\nplayback: sometimes\n", 2, "playback"},
       {"zero quaternion", "eye_track:\n  - {t: 0.0, quaternion: {w: 0, x: 0, y: 0, z: 0}}\n", 2, "quaternion"},
       {"negative time", "eye_track:\n  - {t: -1.0, rpy: [0, 0, 0]}\n", 2, "eye_track[0].t"},
+      {"height not a number", withRight("      - {t: 0.0, tip: [0, 0, -0.011], on: membrane, height: high}\n"), 6,
+       "instruments.right.keyframes[0].height"},
+      {"height a list", withRight("      - {t: 0.0, tip: [0, 0, -0.011], on: membrane, height: [0.1]}\n"), 6,
+       "instruments.right.keyframes[0].height"},
+      {"on an empty name", withRight("      - {t: 0.0, tip: [0, 0, -0.011]}\n      - {t: 1.0, on: \"\"}\n"), 7,
+       "instruments.right.keyframes[1].on"},
+      {"on without a name", withRight("      - {t: 0.0, tip: [0, 0, -0.011], on: }\n"), 6,
+       "instruments.right.keyframes[0].on"},
+      {"on a list", withRight("      - {t: 0.0, tip: [0, 0, -0.011], on: [membrane]}\n"), 6,
+       "instruments.right.keyframes[0].on"},
+      {"height without on", withRight("      - {t: 0.0, tip: [0, 0, -0.011], height: 0.0001}\n"), 6,
+       "instruments.right.keyframes[0].height"},
+      {"on without any tip", withRight("      - {t: 0.0, on: membrane}\n"), 6, "instruments.right.keyframes[0].tip"},
+      {"misspelt on key", withRight("      - {t: 0.0, tip: [0, 0, -0.011], onn: membrane}\n"), 6, "onn"},
+      {"infinite height", withRight("      - {t: 0.0, tip: [0, 0, -0.011], on: membrane, height: .inf}\n"), 6,
+       "height"},
   };
   for (const BadCase& c : cases) {
     const std::string path = testing::TempDir() + "/bad_script.yaml";

@@ -37,6 +37,7 @@
 //         integrator: quasi_static_euler     # knownIntegrators()
 //         stiffness: 2.0                     # and the other TissueParameters fields by name
 //         tear_strain: 1.5                   # > 1: springs longer than 1.5 x rest length tear; 0 = off
+//         adhesion_break_force: 1.0e-3       # N: an adhesion spring pulled harder lets go (peels off); 0 = never
 //         chainmail: {min_stretch: 0.8, max_stretch: 1.2, max_shear: 0.2, relaxation: 0.0}   # model chainmail only
 //         refinement: {levels: 1, radius: 0.001, element_budget: 2000}   # mass_spring only (thesis §5.2.4)
 //       collision: {detector: zcoll_f, resolution: 64, epsilon_shell_scale: 1.05}   # knownCollisionDetectors()

@@ -8,6 +8,7 @@
 // measures its budget with, so tests with a fake clock are deterministic.
 
 #include <Eigen/Geometry>
+#include <array>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -213,6 +214,7 @@ class TissueSimulator {
   std::vector<std::uint8_t> constrained_;
   std::vector<std::uint8_t> grasped_;
   std::vector<std::uint8_t> anchored_;
+  std::vector<std::uint8_t> pressed_;  // nodes with a contact in the current step (tearing spares them)
 
   std::vector<InstrumentInput> previous_instruments_, target_instruments_, current_instruments_;
   std::vector<Eigen::Isometry3d> step_start_poses_;
@@ -251,8 +253,15 @@ class TissueSimulator {
   std::vector<Eigen::Vector3d> chainmail_committed_;  // positions after the last ChainMail step
 };
 
-// The capsules an instrument pushes tissue with, in the membrane's frame (see InstrumentInput).
-std::vector<Capsule> instrumentCapsules(const InstrumentInput& instrument);
+// The capsules an instrument pushes tissue with, in the membrane's frame (see InstrumentInput); a fixed-size set, so
+// a step allocates nothing.
+struct InstrumentCapsules {
+  std::array<Capsule, 3> capsules;
+  std::size_t count = 0;
+  const Capsule* begin() const { return capsules.data(); }
+  const Capsule* end() const { return capsules.data() + count; }
+};
+InstrumentCapsules instrumentCapsules(const InstrumentInput& instrument);
 
 // Exact step of the instrument poses between frames (linear in translation, slerp in rotation).
 Eigen::Isometry3d interpolatePose(const Eigen::Isometry3d& from, const Eigen::Isometry3d& to, double alpha);

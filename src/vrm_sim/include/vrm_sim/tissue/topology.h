@@ -30,7 +30,9 @@ struct TearResult {
 // spring as an edge go with it (with their bending springs and orphaned edges), and nodes left without springs and
 // triangles are removed. tear_strain <= 0 or non-finite disables tearing. Springs with a zero rest length or a
 // non-finite length never break (the latter is the stability watchdog's business).
-TearResult tearOverstretched(mge::Membrane& membrane, double tear_strain);
+// `pressed` (optional, one flag per node slot): springs at a node an instrument presses or holds in this step never
+// break — a blunt push dents tissue for one step beyond any strain, and tissue tears beside the jaws, not in them.
+TearResult tearOverstretched(mge::Membrane& membrane, double tear_strain, const std::uint8_t* pressed = nullptr);
 
 struct TopologyCheckOptions {
   bool allow_isolated_nodes = false;  // a fresh chain / mesh may have none anyway

@@ -12,26 +12,27 @@
 namespace vrm_sim {
 namespace tissue {
 
-std::vector<Capsule> instrumentCapsules(const InstrumentInput& instrument) {
-  std::vector<Capsule> capsules;
+InstrumentCapsules instrumentCapsules(const InstrumentInput& instrument) {
+  InstrumentCapsules set;
+  auto add = [&set](const Capsule& capsule) { set.capsules[set.count++] = capsule; };
   const Eigen::Isometry3d& pose = instrument.pose;
   const double r = instrument.radius;
   if (!instrument.jaws) {
-    capsules.push_back({pose * Eigen::Vector3d(0.0, 0.0, -r), pose * Eigen::Vector3d(0.0, 0.0, -std::max(instrument.length, r)), r});
-    return capsules;
+    add({pose * Eigen::Vector3d(0.0, 0.0, -r), pose * Eigen::Vector3d(0.0, 0.0, -std::max(instrument.length, r)), r});
+    return set;
   }
   const double hinge_z = -instrument.jaw_length;
-  capsules.push_back({pose * Eigen::Vector3d(0.0, 0.0, hinge_z - r),
-                      pose * Eigen::Vector3d(0.0, 0.0, std::min(hinge_z - r, -std::max(instrument.length, r))), r});
+  add({pose * Eigen::Vector3d(0.0, 0.0, hinge_z - r),
+       pose * Eigen::Vector3d(0.0, 0.0, std::min(hinge_z - r, -std::max(instrument.length, r))), r});
   // Jaw blades from the hinge; the capsule's rounded end stops at the blade's tip.
   const double half_angle = 0.5 * std::clamp(instrument.jaw_angle, 0.0, 1.5);
   const double reach = std::max(instrument.jaw_length - instrument.jaw_radius, 0.0);
   for (const double side : {1.0, -1.0}) {
     const Eigen::Vector3d direction(0.0, side * std::sin(half_angle), std::cos(half_angle));
     const Eigen::Vector3d hinge(0.0, 0.0, hinge_z);
-    capsules.push_back({pose * hinge, pose * Eigen::Vector3d(hinge + reach * direction), instrument.jaw_radius});
+    add({pose * hinge, pose * Eigen::Vector3d(hinge + reach * direction), instrument.jaw_radius});
   }
-  return capsules;
+  return set;
 }
 
 Eigen::Isometry3d interpolatePose(const Eigen::Isometry3d& from, const Eigen::Isometry3d& to, double alpha) {
