@@ -36,6 +36,8 @@
 #include <fstream>
 #include <map>
 #include <mutex>
+#include <sstream>
+#include <algorithm>
 #include <pluginlib/class_list_macros.hpp>
 
 #include "vrm_render/image_io.h"
@@ -129,6 +131,12 @@ class StereoRendererNodelet : public nodelet::Nodelet {
     pnh.param("snapshot_dir", snapshot_dir_, std::string());
     pnh.param("snapshot_count", snapshot_count_, 0);
     pnh.param("snapshot_every", snapshot_every_, 10);
+    // "6 8 10": save at these seconds of input time after the first input instead of every snapshot_every-th frame
+    // (so a bounded session's frames show its key moments, e.g. the grasp and the peel).
+    std::istringstream times(pnh.param<std::string>("snapshot_times", ""));
+    for (double t; times >> t;) snapshot_times_.push_back(t);
+    std::sort(snapshot_times_.begin(), snapshot_times_.end());
+    if (!snapshot_times_.empty()) snapshot_count_ = static_cast<int>(snapshot_times_.size());
     pnh.param("world_frame", world_frame_, std::string("world"));
     pnh.param("eye_frame", eye_frame_, std::string("eye"));
     pnh.param("camera_frame", camera_frame_, std::string("microscope"));
@@ -222,6 +230,7 @@ class StereoRendererNodelet : public nodelet::Nodelet {
   }
 
   void noteStamp(const ros::Time& stamp) {
+    if (first_stamp_.isZero() && !stamp.isZero()) first_stamp_ = stamp;
     if (stamp > newest_stamp_) newest_stamp_ = stamp;
     dirty_ = true;
   }
@@ -308,7 +317,12 @@ class StereoRendererNodelet : public nodelet::Nodelet {
     std::lock_guard<std::mutex> render_lock(render_mutex_);
     // Render only what somebody sees: with no image or timing subscriber and no snapshot due, the frame is skipped
     // (a headless session keeps its cores for tracking and simulation). Inputs stay queued as the latest state.
-    const bool snapshot_due = snapshot_count_ > 0 && !snapshot_dir_.empty() && snapshots_saved_ < snapshot_count_;
+    bool snapshot_due = snapshot_count_ > 0 && !snapshot_dir_.empty() && snapshots_saved_ < snapshot_count_;
+    if (snapshot_due && !snapshot_times_.empty()) {
+      std::lock_guard<std::mutex> lock(mutex_);
+      snapshot_due = !first_stamp_.isZero() &&
+                     (newest_stamp_ - first_stamp_).toSec() >= snapshot_times_[static_cast<std::size_t>(snapshots_saved_)];
+    }
     const bool watched =
         left_pub_.getNumSubscribers() > 0 || right_pub_.getNumSubscribers() > 0 || timing_pub_.getNumSubscribers() > 0;
     if (!snapshot_due && !watched) return;
@@ -390,8 +404,9 @@ class StereoRendererNodelet : public nodelet::Nodelet {
     const ros::Time end = ros::Time::now();
     ++frame_count_;
     last_stamp_ = stamp;
+    const bool every_nth = snapshot_times_.empty() && frame_count_ % std::max(1, snapshot_every_) == 0;
     if (snapshot_count_ > 0 && !snapshot_dir_.empty() && snapshots_saved_ < snapshot_count_ &&
-        frame_count_ % std::max(1, snapshot_every_) == 0) {
+        (snapshot_due && !snapshot_times_.empty() ? true : every_nth)) {
       try {
         saveSnapshot(last_frame_, stamp);
         ++snapshots_saved_;
@@ -490,6 +505,8 @@ class StereoRendererNodelet : public nodelet::Nodelet {
   std::string snapshot_dir_;
   int snapshot_count_ = 0;
   int snapshot_every_ = 10;
+  std::vector<double> snapshot_times_;  // s after first_stamp_
+  ros::Time first_stamp_;
   int snapshots_saved_ = 0;
   std::string world_frame_;
   std::string eye_frame_;
