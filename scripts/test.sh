@@ -11,6 +11,18 @@ rm -rf "$ROOT/build/test_results"
 # One test at a time: rostests start their own masters and the machine has two cores.
 cmake --build "$ROOT/build" --target run_tests -j1 || true
 
+# The main job as a user runs it (short form, through the first grasp and peel): the default session must grasp the
+# membrane and publish it deformed (run.sh --check). Its verdict joins the others as a JUnit case.
+echo "test.sh: ./scripts/run.sh --duration 12 --check"
+mkdir -p "$ROOT/build/test_results/main_job"
+failures=0 failure=""
+if ! main_job=$("$ROOT/scripts/run.sh" --duration 12 --check 2>&1); then
+  failures=1 failure="<failure message=\"the default session did not grasp and move the membrane\"/>"
+fi
+echo "$main_job" | tail -n 4
+printf '<?xml version="1.0"?>\n<testsuite name="main_job" tests="1" failures="%s" errors="0"><testcase classname="run_sh" name="default_session_grasps_and_peels">%s</testcase></testsuite>\n' \
+  "$failures" "$failure" >"$ROOT/build/test_results/main_job/TEST-main_job.xml"
+
 set +e
 summary=$(catkin_test_results "$ROOT/build/test_results" --all 2>&1)
 verdict=$?
