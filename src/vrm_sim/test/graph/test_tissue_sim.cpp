@@ -12,6 +12,7 @@
 #include <variant>
 
 #include "vrm_msgs/InstrumentState.h"
+#include "vrm_msgs/ScenarioCommand.h"
 #include "vrm_msgs/StageTiming.h"
 #include "vrm_msgs/TissueMesh.h"
 #include "vrm_sim/conversions.h"
@@ -257,6 +258,13 @@ TEST(TissueSimGraph, VitrectorCutsOnlyWithSuctionAndKeepsTheMeshConsistent) {
   TopologyWatcher watcher(nh, "tissue/" + membrane.object_name);
   ros::Publisher publisher = nh.advertise<vrm_msgs::InstrumentState>("instrument_state", 20);
   ASSERT_TRUE(waitForSubscriber(publisher)) << "tissue_sim does not subscribe instrument_state";
+  // The other test may have peeled this membrane: start from the rest state (applied with the next frame).
+  ros::Publisher commands = nh.advertise<vrm_msgs::ScenarioCommand>("scenario_command", 1, true);
+  ASSERT_TRUE(waitForSubscriber(commands)) << "tissue_sim does not subscribe scenario_command";
+  vrm_msgs::ScenarioCommand reset;
+  reset.header.stamp = ros::Time::now();
+  reset.command = vrm_msgs::ScenarioCommand::RESET;
+  commands.publish(reset);
   ros::AsyncSpinner spinner(1);
   spinner.start();
   auto vitrectorAt = [&](double suction, vrm_msgs::InstrumentState& state) {

@@ -111,6 +111,7 @@ void TissueSimulator::onTopologyChanged() {
   // Deformation vectors address node slots of the old topology.
   external_deformations_.clear();
   interaction_stamp_.assign(n, 0);
+  if (!frame_pressed_.empty()) frame_pressed_.assign(n, 0);  // slots moved: the marks would name other nodes
   touched_.assign(n, 0);
   last_strain_ = -1.0;
   sorted_seeds_.clear();
@@ -264,6 +265,14 @@ void TissueSimulator::rawStep(Integrator& integrator, double dt) {
     const Eigen::Vector3d velocity = (instrument.pose.translation() - step_start_poses_[i].translation()) / config_.dt;
     for (const Capsule& capsule : instrumentCapsules(instrument)) {
       detectCapsuleContacts(system, capsule, velocity, config_.shell_scale, contacts_);
+    }
+  }
+  if (config_.tear_strain > 0.0 && !external_deformations_.empty()) {
+    // The detector's vectors land in the frame's first step only; the nodes they moved stay "pressed" for the whole
+    // frame, so the dent they make relaxes instead of tearing in the next substep.
+    frame_pressed_.resize(membrane_->nodeCount(), 0);
+    for (const NodeDeformation& d : external_deformations_) {
+      if (d.node < frame_pressed_.size()) frame_pressed_[d.node] = 1;
     }
   }
   contacts_.insert(contacts_.end(), external_deformations_.begin(), external_deformations_.end());
@@ -434,6 +443,7 @@ bool TissueSimulator::step() {
 FrameReport TissueSimulator::advance(double frame_time, const Clock& clock) {
   FrameReport report;
   const double start = clock();
+  std::fill(frame_pressed_.begin(), frame_pressed_.end(), 0);
   const std::uint64_t fallbacks_before = statistics_.fallbacks;
   pending_time_ += std::max(frame_time, 0.0);
   report.requested_time = pending_time_;

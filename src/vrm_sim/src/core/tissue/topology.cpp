@@ -209,6 +209,7 @@ void TissueSimulator::topologyAfterStep() {
   if (!(config_.tear_strain > 0.0)) return;
   const std::vector<std::uint64_t> grasped_ids = graspedNodeIds();
   pressed_.assign(membrane_->nodeCount(), 0);
+  if (frame_pressed_.size() == pressed_.size()) pressed_ = frame_pressed_;
   for (const NodeDeformation& contact : contacts_) {
     if (contact.node < pressed_.size()) pressed_[contact.node] = 1;
   }
