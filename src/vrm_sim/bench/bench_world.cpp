@@ -106,8 +106,8 @@ int main(int argc, char** argv) {
   }
   const scene::SceneDescription base = scene::loadScene(scene::shippedScenePath("membrane_peeling"));
   const double rate = 50.0;
-  const std::vector<std::string> detectors = quick ? std::vector<std::string>{"zcoll_f"}
-                                                   : std::vector<std::string>{"zcoll_f", "geometric", "zcoll_f_gl"};
+  const std::vector<std::string> detectors =
+      quick ? std::vector<std::string>{"zcoll_f"} : std::vector<std::string>{"zcoll_f", "geometric", "zcoll_f_gl"};
   const std::vector<double> speeds = quick ? std::vector<double>{1.0} : std::vector<double>{1.0, 4.0};
   std::string rows;
   std::printf("bench_world (%s): membrane_peeling scripted peel through world::World at %.0f Hz\n",
@@ -122,7 +122,8 @@ int main(int argc, char** argv) {
       // Converged reference of the same motion: dt / 8 and 8x the input rate.
       const Run reference = quick ? first : run(variant(base, speed, 0.125), detector, 8.0 * rate);
       double error_rms = 0.0, error_max = 0.0;
-      const bool comparable = reference.topology == first.topology && reference.positions.size() == first.positions.size();
+      const bool comparable =
+          reference.topology == first.topology && reference.positions.size() == first.positions.size();
       if (comparable) {
         for (std::size_t i = 0; i < first.positions.size(); ++i) {
           const double e = (first.positions[i] - reference.positions[i]).norm();

@@ -30,15 +30,15 @@
 #include <vrm_msgs/TissueMesh.h>
 #include <vrm_msgs/publish.h>
 
+#include <algorithm>
 #include <boost/make_shared.hpp>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <map>
 #include <mutex>
-#include <sstream>
-#include <algorithm>
 #include <pluginlib/class_list_macros.hpp>
+#include <sstream>
 
 #include "vrm_render/image_io.h"
 #include "vrm_render/scene_setup.h"
@@ -320,8 +320,8 @@ class StereoRendererNodelet : public nodelet::Nodelet {
     bool snapshot_due = snapshot_count_ > 0 && !snapshot_dir_.empty() && snapshots_saved_ < snapshot_count_;
     if (snapshot_due && !snapshot_times_.empty()) {
       std::lock_guard<std::mutex> lock(mutex_);
-      snapshot_due = !first_stamp_.isZero() &&
-                     (newest_stamp_ - first_stamp_).toSec() >= snapshot_times_[static_cast<std::size_t>(snapshots_saved_)];
+      snapshot_due = !first_stamp_.isZero() && (newest_stamp_ - first_stamp_).toSec() >=
+                                                   snapshot_times_[static_cast<std::size_t>(snapshots_saved_)];
     }
     const bool watched =
         left_pub_.getNumSubscribers() > 0 || right_pub_.getNumSubscribers() > 0 || timing_pub_.getNumSubscribers() > 0;

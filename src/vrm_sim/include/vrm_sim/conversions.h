@@ -64,6 +64,7 @@ world::PedalState toWorld(const vrm_msgs::PedalState& pedals);
 // Returns nullopt for an unknown command value.
 std::optional<world::ScenarioCommand> toWorld(const vrm_msgs::ScenarioCommand& command);
 // The frame's report (header, tissues, injuries); header.frame_id stays empty.
-void fillSimulationState(const world::FrameResult& frame, std::uint64_t late_inputs, vrm_msgs::SimulationState& message);
+void fillSimulationState(const world::FrameResult& frame, std::uint64_t late_inputs,
+                         vrm_msgs::SimulationState& message);
 
 }  // namespace vrm_sim

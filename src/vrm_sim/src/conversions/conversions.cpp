@@ -182,11 +182,13 @@ world::InstrumentState toWorld(const vrm_msgs::InstrumentState& instrument) {
   world::InstrumentState state;
   state.stamp = toStamp(instrument.header.stamp);
   state.slot = instrument.instrument_id;
-  if (instrument.type <= vrm_msgs::InstrumentState::HOOK) state.type = static_cast<scene::InstrumentType>(instrument.type);
+  if (instrument.type <= vrm_msgs::InstrumentState::HOOK)
+    state.type = static_cast<scene::InstrumentType>(instrument.type);
   // Copied number for number (the core rejects non-finite or zero quaternions).
   const geometry_msgs::Pose& pose = instrument.tip_pose;
   state.tip_position = Eigen::Vector3d(pose.position.x, pose.position.y, pose.position.z);
-  state.tip_orientation = Eigen::Quaterniond(pose.orientation.w, pose.orientation.x, pose.orientation.y, pose.orientation.z);
+  state.tip_orientation =
+      Eigen::Quaterniond(pose.orientation.w, pose.orientation.x, pose.orientation.y, pose.orientation.z);
   state.frame_id = instrument.header.frame_id;
   state.jaw_angle = instrument.jaw_angle;
   state.suction = instrument.suction;
@@ -232,9 +234,12 @@ world::PedalState toWorld(const vrm_msgs::PedalState& pedals) {
 std::optional<world::ScenarioCommand> toWorld(const vrm_msgs::ScenarioCommand& command) {
   using Type = world::ScenarioCommand::Type;
   static const std::map<std::uint8_t, Type> kTypes = {
-      {vrm_msgs::ScenarioCommand::LOAD, Type::kLoad},     {vrm_msgs::ScenarioCommand::START, Type::kStart},
-      {vrm_msgs::ScenarioCommand::PAUSE, Type::kPause},   {vrm_msgs::ScenarioCommand::RESUME, Type::kResume},
-      {vrm_msgs::ScenarioCommand::STOP, Type::kStop},     {vrm_msgs::ScenarioCommand::RESET, Type::kReset},
+      {vrm_msgs::ScenarioCommand::LOAD, Type::kLoad},
+      {vrm_msgs::ScenarioCommand::START, Type::kStart},
+      {vrm_msgs::ScenarioCommand::PAUSE, Type::kPause},
+      {vrm_msgs::ScenarioCommand::RESUME, Type::kResume},
+      {vrm_msgs::ScenarioCommand::STOP, Type::kStop},
+      {vrm_msgs::ScenarioCommand::RESET, Type::kReset},
       {vrm_msgs::ScenarioCommand::SELECT_INSTRUMENT, Type::kSelectInstrument}};
   const auto type = kTypes.find(command.command);
   if (type == kTypes.end()) return std::nullopt;

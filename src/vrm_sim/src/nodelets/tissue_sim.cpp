@@ -132,8 +132,8 @@ class TissueSim : public nodelet::Nodelet {
       if (!tissue.changed) continue;
       auto mesh = boost::make_shared<vrm_msgs::TissueMesh>();
       mge::Membrane& membrane = *world_->membrane(tissue.object);
-      fillTissueMesh(membrane.positions(), membrane.nodeCount(), membrane.triangleNodeSlots(),
-                     membrane.triangleCount(), *mesh);
+      fillTissueMesh(membrane.positions(), membrane.nodeCount(), membrane.triangleNodeSlots(), membrane.triangleCount(),
+                     *mesh);
       mesh->header.stamp = stamp;
       mesh->header.frame_id = frameName(tissue.frame_id);
       mesh->tissue_id = tissue.object;
@@ -213,12 +213,13 @@ class TissueSim : public nodelet::Nodelet {
                     1e3 * tissue.max_lift, world::toString(tissue.outcome));
       tissues += line;
     }
-    NODELET_INFO("tissue_sim: frame %lu, %lu tissue meshes published,%s retina contacts %zu; frame %.2f ms mean, "
-                 "%.2f ms max",
-                 static_cast<unsigned long>(frame.frame), static_cast<unsigned long>(meshes_published_),
-                 tissues.c_str(), frame.injuries.empty() ? 0 : frame.injuries.front().contacts,
-                 1e3 * statistics.total_frame_wall_time / std::max<std::uint64_t>(statistics.frames, 1),
-                 1e3 * statistics.max_frame_wall_time);
+    NODELET_INFO(
+        "tissue_sim: frame %lu, %lu tissue meshes published,%s retina contacts %zu; frame %.2f ms mean, "
+        "%.2f ms max",
+        static_cast<unsigned long>(frame.frame), static_cast<unsigned long>(meshes_published_), tissues.c_str(),
+        frame.injuries.empty() ? 0 : frame.injuries.front().contacts,
+        1e3 * statistics.total_frame_wall_time / std::max<std::uint64_t>(statistics.frames, 1),
+        1e3 * statistics.max_frame_wall_time);
   }
 
   const std::string& frameName(const std::string& core_frame) const {

@@ -63,13 +63,14 @@ TEST(CoreEquivalence, TheGraphAndTheOfflineToolEndInTheSameState) {
         observed.last_stamp = toStamp(state->header.stamp);
         observed.last_hash = state->state_hash;
         ++observed.frames;
-        for (const auto& tissue : state->tissues) observed.max_grasped = std::max(observed.max_grasped, tissue.grasped_nodes);
+        for (const auto& tissue : state->tissues)
+          observed.max_grasped = std::max(observed.max_grasped, tissue.grasped_nodes);
       });
-  ros::Subscriber meshes = nh.subscribe<vrm_msgs::TissueMesh>("tissue/membrane", 100,
-                                                              [&](const vrm_msgs::TissueMesh::ConstPtr&) {
-                                                                std::lock_guard<std::mutex> lock(observed.mutex);
-                                                                ++observed.meshes;
-                                                              });
+  ros::Subscriber meshes =
+      nh.subscribe<vrm_msgs::TissueMesh>("tissue/membrane", 100, [&](const vrm_msgs::TissueMesh::ConstPtr&) {
+        std::lock_guard<std::mutex> lock(observed.mutex);
+        ++observed.meshes;
+      });
   ros::Publisher instruments = nh.advertise<vrm_msgs::InstrumentState>("instrument_state", 100);
   ros::AsyncSpinner spinner(2);
   spinner.start();

@@ -41,8 +41,8 @@ objects:
 instruments:
   - {slot: left, type: light_pipe, trocar: left}
   - {slot: right, type: forceps, trocar: right, alternatives: [vitrector]}
-simulations: )" + simulations +
-         "\n";
+simulations: )" +
+         simulations + "\n";
 }
 
 scene::SceneDescription testScene(const std::string& tissue_extra = "", const std::string& detector = "zcoll_f",
@@ -89,9 +89,8 @@ void moveForceps(World& world, const Eigen::Vector3d& from, const Eigen::Vector3
   for (int k = 0; k <= ticks; ++k) {
     const double alpha = static_cast<double>(k) / ticks;
     world.handle(instrumentAt(world.scene(), "left", Eigen::Vector3d(-0.003, 0.0, -0.004), 0.0, stamp));
-    world.handle(
-        instrumentAt(world.scene(), "right", (1 - alpha) * from + alpha * to, (1 - alpha) * jaw_from + alpha * jaw_to,
-                     stamp));
+    world.handle(instrumentAt(world.scene(), "right", (1 - alpha) * from + alpha * to,
+                              (1 - alpha) * jaw_from + alpha * jaw_to, stamp));
     stamp += kTick;
   }
 }
@@ -312,7 +311,8 @@ TEST(World, InstrumentPosesInTheWorldFrameFollowTheEyeRotation) {
   };
   const std::vector<Eigen::Vector3d> eye_frame = run(false), world_frame = run(true);
   double difference = 0.0;
-  for (std::size_t i = 0; i < eye_frame.size(); ++i) difference = std::max(difference, (eye_frame[i] - world_frame[i]).norm());
+  for (std::size_t i = 0; i < eye_frame.size(); ++i)
+    difference = std::max(difference, (eye_frame[i] - world_frame[i]).norm());
   EXPECT_LT(difference, 1e-9);  // only the rounding of world_from_eye and its inverse
 }
 

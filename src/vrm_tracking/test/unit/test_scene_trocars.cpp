@@ -443,14 +443,14 @@ TEST(SceneTargets, TheDemoScriptsGraspAndPeelTheMembraneInTheSimulationCore) {
   EXPECT_GT(demo.max_lift, 5e-4);
   EXPECT_NE(demo.outcome, vrm_sim::world::PeelOutcome::kUntouched);
 
-  const SurgeonScript file = SurgeonScript::load(std::string(VRM_TRACKING_SOURCE_DIR) +
-                                                 "/config/trajectories/membrane_peeling_demo.yaml");
+  const SurgeonScript file =
+      SurgeonScript::load(std::string(VRM_TRACKING_SOURCE_DIR) + "/config/trajectories/membrane_peeling_demo.yaml");
   const vrm_sim::world::TissueReport peel = playThroughTheCore(peeling, applyScene(peeling, file), 18.0, &grasped);
   EXPECT_GT(grasped, 0u) << "membrane_peeling_demo.yaml's grasp misses the membrane";
   EXPECT_GT(peel.max_lift, 5e-4);
 
-  // Control: the same demo without the scene's targets (its written tips, against the membrane lying on the retina 0.3 mm deeper)
-  // must miss — the test can fail.
+  // Control: the same demo without the scene's targets (its written tips, against the membrane lying on the retina 0.3
+  // mm deeper) must miss — the test can fail.
   scene::SceneDescription deeper = peeling;
   for (auto& object : deeper.objects) {
     if (object.name != "membrane") continue;

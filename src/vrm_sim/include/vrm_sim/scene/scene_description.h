@@ -133,20 +133,20 @@ struct RefinementParameters {
 struct TissueParameters {
   TissueModel model = TissueModel::kNone;
   std::string integrator = "quasi_static_euler";
-  double stiffness = 2.0;           // N/m, per spring (k in eq. 5.2)
-  double damping = 0.01;            // N s/m
-  double node_mass = 1e-5;          // kg per node
-  double strain_limit = 1.1;        // tau_c of Alg. 5.1 (>= 1): springs are shortened to tau_c * rest length
-  double bending_stiffness = 0.0;   // N/m, springs across adjacent triangles
-  double adhesion_stiffness = 0.0;  // N/m, springs from the fixed (adhesion) vertices to their rest positions
+  double stiffness = 2.0;             // N/m, per spring (k in eq. 5.2)
+  double damping = 0.01;              // N s/m
+  double node_mass = 1e-5;            // kg per node
+  double strain_limit = 1.1;          // tau_c of Alg. 5.1 (>= 1): springs are shortened to tau_c * rest length
+  double bending_stiffness = 0.0;     // N/m, springs across adjacent triangles
+  double adhesion_stiffness = 0.0;    // N/m, springs from the fixed (adhesion) vertices to their rest positions
   double adhesion_break_force = 0.0;  // N; > 0: an adhesion spring pulled harder lets go (peels off); 0 = never
-  double time_budget_ms = 2.0;      // integrate until spent (thesis §5.1; EyeSi: 2 ms for 1,500 springs)
-  double dt = 1e-3;                 // s per integration step
-  bool plastic = false;             // rest length follows the maximum length reached (thesis §5.1)
-  double early_stop_force = 0.0;    // N; > 0: a frame ends early once no free node feels more (at rest); 0 = off
-  double tear_strain = 0.0;         // > 1: springs longer than tear_strain x rest length break (tearing); 0 = off
-  ChainMailParameters chainmail;    // only with model kChainmail
-  RefinementParameters refinement;  // only with model kMassSpring, no bending springs, no adhesion
+  double time_budget_ms = 2.0;        // integrate until spent (thesis §5.1; EyeSi: 2 ms for 1,500 springs)
+  double dt = 1e-3;                   // s per integration step
+  bool plastic = false;               // rest length follows the maximum length reached (thesis §5.1)
+  double early_stop_force = 0.0;      // N; > 0: a frame ends early once no free node feels more (at rest); 0 = off
+  double tear_strain = 0.0;           // > 1: springs longer than tear_strain x rest length break (tearing); 0 = off
+  ChainMailParameters chainmail;      // only with model kChainmail
+  RefinementParameters refinement;    // only with model kMassSpring, no bending springs, no adhesion
   bool isDeformable() const { return model != TissueModel::kNone; }
 };
 

@@ -214,7 +214,7 @@ class TissueSimulator {
   std::vector<std::uint8_t> constrained_;
   std::vector<std::uint8_t> grasped_;
   std::vector<std::uint8_t> anchored_;
-  std::vector<std::uint8_t> pressed_;  // nodes with a contact in the current step (tearing spares them)
+  std::vector<std::uint8_t> pressed_;        // nodes with a contact in the current step (tearing spares them)
   std::vector<std::uint8_t> frame_pressed_;  // nodes the detector's vectors moved in the current frame
 
   std::vector<InstrumentInput> previous_instruments_, target_instruments_, current_instruments_;

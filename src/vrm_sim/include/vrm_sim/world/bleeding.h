@@ -15,11 +15,11 @@ namespace vrm_sim {
 namespace world {
 
 struct BleedingParameters {
-  double depth_full = 1e-4;        // m: a contact this deep starts a spot of full intensity (1.0)
-  double min_intensity = 0.3;      // a grazing contact still leaves a visible spot
-  double initial_radius = 1.5e-4;  // m: sigma of a new spot (at least half the contact footprint's extent)
-  double spread_rate = 1.5e-4;     // m/s: sigma grows this fast ...
-  double max_radius = 1e-3;        // ... up to this
+  double depth_full = 1e-4;           // m: a contact this deep starts a spot of full intensity (1.0)
+  double min_intensity = 0.3;         // a grazing contact still leaves a visible spot
+  double initial_radius = 1.5e-4;     // m: sigma of a new spot (at least half the contact footprint's extent)
+  double spread_rate = 1.5e-4;        // m/s: sigma grows this fast ...
+  double max_radius = 1e-3;           // ... up to this
   double aspiration_distance = 2e-4;  // m: a vitrector port with suction closer than this to the retina injures it
   double new_spot_distance = 3e-4;    // m: a contact that moved this far from its last spot starts another one
 };
@@ -27,10 +27,10 @@ struct BleedingParameters {
 struct ContactEvent {
   std::string instrument;  // slot
   std::string object;
-  double start = 0.0, end = 0.0;  // s (simulated time)
-  double max_depth = 0.0;         // m
+  double start = 0.0, end = 0.0;                    // s (simulated time)
+  double max_depth = 0.0;                           // m
   Eigen::Vector3d point = Eigen::Vector3d::Zero();  // first contact, object frame
-  bool aspiration = false;        // vitrector suction rather than pressure
+  bool aspiration = false;                          // vitrector suction rather than pressure
   bool ongoing = true;
   double duration() const { return end - start; }
 };
@@ -42,8 +42,8 @@ class BleedingField {
 
   // A contact of `instrument` in the current frame centred at `point` (object frame), `depth` m deep, over a
   // footprint of `extent` m (the largest distance of a touched vertex from `point`).
-  void contact(const std::string& instrument, const Eigen::Vector3d& point, double depth, bool aspiration,
-               double time, double extent = 0.0);
+  void contact(const std::string& instrument, const Eigen::Vector3d& point, double depth, bool aspiration, double time,
+               double extent = 0.0);
   // Closes the frame at `time`: contacts not renewed in it end (appended to `ended`), the field is recomputed
   // where spots still spread. Returns whether the field changed.
   bool update(double time, std::vector<ContactEvent>* ended = nullptr);

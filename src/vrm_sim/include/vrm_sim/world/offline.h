@@ -36,13 +36,13 @@ struct OfflineTissueResult {
 };
 
 struct OfflineResult {
-  bool stable = true;           // every node finite, no step the watchdog could not recover
+  bool stable = true;  // every node finite, no step the watchdog could not recover
   std::uint64_t frames = 0;
-  std::uint64_t steps = 0;      // integration steps, summed over the objects
-  double ms_per_step = 0.0;     // wall time of the tissue stages per step (measurement only)
-  double ms_per_frame = 0.0;    // mean wall time of a whole frame (collision, tissue, bleeding)
+  std::uint64_t steps = 0;    // integration steps, summed over the objects
+  double ms_per_step = 0.0;   // wall time of the tissue stages per step (measurement only)
+  double ms_per_frame = 0.0;  // mean wall time of a whole frame (collision, tissue, bleeding)
   double ms_per_frame_max = 0.0;
-  double max_strain = 0.0;      // max |d|/l over all springs after any frame
+  double max_strain = 0.0;  // max |d|/l over all springs after any frame
   std::size_t max_grasped_nodes = 0;
   double energy_drift = 0.0;    // J: total energy (kinetic + potential) at the end minus at the start
   std::uint64_t fallbacks = 0;  // watchdog rollbacks

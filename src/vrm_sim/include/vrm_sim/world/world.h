@@ -59,17 +59,17 @@ struct EyeState {
 
 struct InstrumentState {
   Stamp stamp = 0;
-  std::string slot;                                       // "left" | "right"
-  std::optional<scene::InstrumentType> type;              // nullopt: keep the slot's current type
+  std::string slot;                           // "left" | "right"
+  std::optional<scene::InstrumentType> type;  // nullopt: keep the slot's current type
   // The instrument frame (origin at the tip, +z from the handle towards the tip) in frame_id, as position and unit
   // quaternion like the message, so converting a message is lossless and a replay feeds the very same numbers.
   Eigen::Vector3d tip_position = Eigen::Vector3d::Zero();
   Eigen::Quaterniond tip_orientation = Eigen::Quaterniond::Identity();
-  std::string frame_id = "eye";                           // "eye" | "world" ("" = eye)
-  double jaw_angle = 1.0;                                 // rad, forceps opening
-  double suction = 0.0;                                   // 0..1
-  double cut_rate = 0.0;                                  // Hz
-  bool valid = true;                                      // false: not tracked; keeps its pose, stops interacting
+  std::string frame_id = "eye";  // "eye" | "world" ("" = eye)
+  double jaw_angle = 1.0;        // rad, forceps opening
+  double suction = 0.0;          // 0..1
+  double cut_rate = 0.0;         // Hz
+  bool valid = true;             // false: not tracked; keeps its pose, stops interacting
 
   void setPose(const Eigen::Isometry3d& pose);
   Eigen::Isometry3d pose() const;  // the quaternion normalised
@@ -100,20 +100,20 @@ const char* toString(PeelOutcome outcome);
 
 struct TissueReport {
   std::string object;
-  std::string frame_id;          // "eye" | "world"
+  std::string frame_id;  // "eye" | "world"
   const mge::Membrane* membrane = nullptr;
-  int steps = 0;                 // this frame
-  int fallbacks = 0;             // watchdog rollbacks this frame
-  double max_strain = 0.0;       // after this frame
+  int steps = 0;            // this frame
+  int fallbacks = 0;        // watchdog rollbacks this frame
+  double max_strain = 0.0;  // after this frame
   std::size_t grasped_nodes = 0;
-  bool changed = false;          // positions or topology changed this frame
-  std::uint64_t version = 1;     // +1 per changed frame
-  std::uint64_t topology_version = 1;  // 1 + topology changes
-  std::uint64_t torn_springs = 0;      // so far
-  std::uint64_t cut_nodes = 0;         // so far
+  bool changed = false;                  // positions or topology changed this frame
+  std::uint64_t version = 1;             // +1 per changed frame
+  std::uint64_t topology_version = 1;    // 1 + topology changes
+  std::uint64_t torn_springs = 0;        // so far
+  std::uint64_t cut_nodes = 0;           // so far
   std::uint64_t released_adhesions = 0;  // adhesion points pulled off so far
-  double max_lift = 0.0;         // m: largest distance of a node from its rest position
-  double lifted_fraction = 0.0;  // nodes more than 0.1 mm from their rest position
+  double max_lift = 0.0;                 // m: largest distance of a node from its rest position
+  double lifted_fraction = 0.0;          // nodes more than 0.1 mm from their rest position
   PeelOutcome outcome = PeelOutcome::kUntouched;
 };
 
@@ -140,14 +140,14 @@ struct CollisionRecord {
 };
 
 struct StageTime {
-  std::string stage;  // collision_<object>, tissue_<object>, bleeding, collision_rigid
+  std::string stage;              // collision_<object>, tissue_<object>, bleeding, collision_rigid
   double start = 0.0, end = 0.0;  // by WorldOptions::clock (measurement only)
 };
 
 struct FrameResult {
   Stamp stamp = 0;
-  std::uint64_t frame = 0;   // 1, 2, ...
-  double frame_time = 0.0;   // s of simulated time covered
+  std::uint64_t frame = 0;  // 1, 2, ...
+  double frame_time = 0.0;  // s of simulated time covered
   bool paused = false;
   std::vector<TissueReport> tissues;
   std::vector<InjuryReport> injuries;
@@ -176,9 +176,9 @@ using Clock = std::function<double()>;  // s, monotonic
 using FrameObserver = std::function<void(const FrameResult&)>;
 
 struct WorldOptions {
-  std::string detector_override;     // non-empty: this collision detector for every object
+  std::string detector_override;  // non-empty: this collision detector for every object
   double collision_max_pixel_size = 0.0;
-  double max_frame_time = 0.05;      // s: a longer gap between stamps (start, pause of the input) is capped
+  double max_frame_time = 0.05;  // s: a longer gap between stamps (start, pause of the input) is capped
   // Measurement only (stage times, frame wall time); the default is a steady clock. Never decides a result unless
   // wall_clock_budget is set.
   Clock clock;

@@ -23,8 +23,6 @@ namespace {
 
 constexpr double kDegToRad = M_PI / 180.0;
 
-
-
 std::uint64_t fnv1a(std::uint64_t hash, const void* data, std::size_t bytes) {
   const auto* p = static_cast<const unsigned char*>(data);
   for (std::size_t i = 0; i < bytes; ++i) {
@@ -33,8 +31,6 @@ std::uint64_t fnv1a(std::uint64_t hash, const void* data, std::size_t bytes) {
   }
   return hash;
 }
-
-
 
 }  // namespace
 

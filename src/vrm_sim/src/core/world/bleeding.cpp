@@ -32,16 +32,16 @@ double BleedingField::radiusAt(const Spot& spot, double time) const {
                   spot.initial_radius + parameters_.spread_rate * std::max(0.0, time - spot.onset));
 }
 
-void BleedingField::contact(const std::string& instrument, const Eigen::Vector3d& point, double depth,
-                            bool aspiration, double time, double extent) {
+void BleedingField::contact(const std::string& instrument, const Eigen::Vector3d& point, double depth, bool aspiration,
+                            double time, double extent) {
   if (!point.allFinite() || !std::isfinite(depth) || !std::isfinite(time) || !std::isfinite(extent)) return;
   const double initial_radius = std::max(parameters_.initial_radius, 0.5 * extent);
   depth = std::max(0.0, depth);
   const double intensity =
       std::clamp(parameters_.min_intensity + (1.0 - parameters_.min_intensity) * depth / parameters_.depth_full,
                  parameters_.min_intensity, 1.0);
-  auto active = std::find_if(active_.begin(), active_.end(),
-                             [&](const Active& entry) { return entry.instrument == instrument; });
+  auto active =
+      std::find_if(active_.begin(), active_.end(), [&](const Active& entry) { return entry.instrument == instrument; });
   if (active == active_.end()) {
     ContactEvent event;
     event.instrument = instrument;

@@ -166,8 +166,8 @@ OfflineResult runOffline(const scene::SceneDescription& scene_in, const OfflineO
     result.stable = result.stable && finite && stats.unrecovered == 0;
     result.energy_drift += simulator.totalEnergy() - energy_start[index++];
     const TissueReport report = world.tissueReport(name);
-    result.tissues.push_back(
-        {name, report.topology_version, report.torn_springs, report.released_adhesions, report.max_lift, report.outcome});
+    result.tissues.push_back({name, report.topology_version, report.torn_springs, report.released_adhesions,
+                              report.max_lift, report.outcome});
   }
   for (const InjuryReport& injury : world.injuries()) {
     result.retina_contacts += injury.contacts;

@@ -19,8 +19,8 @@ namespace world {
 namespace {
 
 constexpr double kRadToDeg = 180.0 / M_PI;
-constexpr double kLiftThreshold = 1e-4;  // m: a node this far from its rest position counts as lifted
-constexpr double kPeelLift = 5e-4;       // m: a grasped membrane lifted this far is peeling
+constexpr double kLiftThreshold = 1e-4;         // m: a node this far from its rest position counts as lifted
+constexpr double kPeelLift = 5e-4;              // m: a grasped membrane lifted this far is peeling
 constexpr std::uint64_t kLogEveryFrames = 250;  // a repeated message at most every ~5 s at 50 Hz
 
 // The detectors whose deformation vectors drive the tissue response (thesis §4.2.2); the others report only and the
@@ -47,18 +47,22 @@ Stamp fromSeconds(double seconds) { return static_cast<Stamp>(std::llround(secon
 
 const char* toString(PeelOutcome outcome) {
   switch (outcome) {
-    case PeelOutcome::kUntouched: return "untouched";
-    case PeelOutcome::kGrasped: return "grasped";
-    case PeelOutcome::kLifted: return "lifted";
-    case PeelOutcome::kTorn: return "torn";
+    case PeelOutcome::kUntouched:
+      return "untouched";
+    case PeelOutcome::kGrasped:
+      return "grasped";
+    case PeelOutcome::kLifted:
+      return "lifted";
+    case PeelOutcome::kTorn:
+      return "torn";
   }
   return "?";
 }
 
 struct World::Instrument {
   const scene::InstrumentDescription* description = nullptr;
-  scene::InstrumentDescription current;  // the type in use (the scene's or one of its alternatives)
-  tissue::InstrumentInput shape;         // capsule and grasping parameters; pose filled per object
+  scene::InstrumentDescription current;                    // the type in use (the scene's or one of its alternatives)
+  tissue::InstrumentInput shape;                           // capsule and grasping parameters; pose filled per object
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();  // in frame_id
   std::string frame_id = "eye";
   bool active = false;
@@ -110,7 +114,8 @@ struct World::RigidObject {
   InjuryReport report;
 };
 
-World::World(scene::SceneDescription scene, WorldOptions options) : scene_(std::move(scene)), options_(std::move(options)) {
+World::World(scene::SceneDescription scene, WorldOptions options)
+    : scene_(std::move(scene)), options_(std::move(options)) {
   if (!options_.clock) {
     options_.clock = [] {
       return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
@@ -191,9 +196,9 @@ bool World::switchInstrument(Instrument& instrument, scene::InstrumentType type)
   const auto& allowed = instrument.description->alternatives;
   const std::string slot = scene::toString(instrument.description->slot);
   if (type != instrument.description->type && std::find(allowed.begin(), allowed.end(), type) == allowed.end()) {
-    log(Severity::kWarning, "switch:" + slot, "instrument '" + slot + "': type " + scene::toString(type) +
-                                " is not allowed in this slot by the scene; keeping " +
-                                scene::toString(instrument.current.type));
+    log(Severity::kWarning, "switch:" + slot,
+        "instrument '" + slot + "': type " + scene::toString(type) +
+            " is not allowed in this slot by the scene; keeping " + scene::toString(instrument.current.type));
     return false;
   }
   log(Severity::kInfo, "", "instrument '" + slot + "' switched to " + scene::toString(type));
@@ -335,22 +340,25 @@ void World::handle(const InstrumentState& state) {
   auto slot = instruments_.find(state.slot);
   if (slot == instruments_.end()) {
     ++statistics_.rejected_inputs;
-    log(Severity::kWarning, "slot:" + state.slot, "instrument_state for slot '" + state.slot + "', which the scene does not have, ignored");
+    log(Severity::kWarning, "slot:" + state.slot,
+        "instrument_state for slot '" + state.slot + "', which the scene does not have, ignored");
     return;
   }
   if (!transform("eye", state.frame_id)) {
     ++statistics_.rejected_inputs;
-    log(Severity::kWarning, "frame:" + state.slot, "instrument_state '" + state.slot + "' in unknown frame '" + state.frame_id +
-                                "' ignored (eye or world expected)");
+    log(Severity::kWarning, "frame:" + state.slot,
+        "instrument_state '" + state.slot + "' in unknown frame '" + state.frame_id +
+            "' ignored (eye or world expected)");
     return;
   }
   acceptSource(state.stamp, sourceName("instrument", state.slot));
   const double norm = state.tip_orientation.norm();
-  const bool finite = state.tip_position.allFinite() && std::isfinite(norm) && norm > 1e-9 && std::isfinite(state.jaw_angle) &&
-                      std::isfinite(state.suction) && std::isfinite(state.cut_rate);
+  const bool finite = state.tip_position.allFinite() && std::isfinite(norm) && norm > 1e-9 &&
+                      std::isfinite(state.jaw_angle) && std::isfinite(state.suction) && std::isfinite(state.cut_rate);
   if (!finite) {
     ++statistics_.rejected_inputs;
-    log(Severity::kWarning, "nonfinite:" + state.slot, "instrument_state '" + state.slot + "' with non-finite values ignored");
+    log(Severity::kWarning, "nonfinite:" + state.slot,
+        "instrument_state '" + state.slot + "' with non-finite values ignored");
     closeFrameIfComplete();
     return;
   }
@@ -401,13 +409,19 @@ void World::applyStateInputs(Stamp up_to) {
 void World::apply(const ScenarioCommand& command) {
   using Type = ScenarioCommand::Type;
   switch (command.command) {
-    case Type::kPause: paused_ = true; break;
-    case Type::kResume: paused_ = false; break;
+    case Type::kPause:
+      paused_ = true;
+      break;
+    case Type::kResume:
+      paused_ = false;
+      break;
     case Type::kStart:
       running_ = true;
       paused_ = false;
       break;
-    case Type::kStop: running_ = false; break;
+    case Type::kStop:
+      running_ = false;
+      break;
     case Type::kReset:
       resetTissues();
       for (auto& rigid : rigid_) {
@@ -420,8 +434,9 @@ void World::apply(const ScenarioCommand& command) {
       if (command.scenario.empty() || command.scenario == scene_.name) {
         apply(ScenarioCommand{command.stamp, Type::kReset, "", "", command.seed});
       } else {
-        log(Severity::kWarning, "", "LOAD '" + command.scenario + "': this world runs scene '" + scene_.name +
-                                    "'; another scene needs a new VR part (ignored)");
+        log(Severity::kWarning, "",
+            "LOAD '" + command.scenario + "': this world runs scene '" + scene_.name +
+                "'; another scene needs a new VR part (ignored)");
       }
       break;
     case Type::kSelectInstrument: {
@@ -431,14 +446,15 @@ void World::apply(const ScenarioCommand& command) {
       std::optional<scene::InstrumentType> type;
       if (colon != std::string::npos) {
         const std::string name = command.argument.substr(colon + 1);
-        for (auto candidate : {scene::InstrumentType::kLightPipe, scene::InstrumentType::kForceps,
-                               scene::InstrumentType::kVitrector, scene::InstrumentType::kNeedle,
-                               scene::InstrumentType::kHook}) {
+        for (auto candidate :
+             {scene::InstrumentType::kLightPipe, scene::InstrumentType::kForceps, scene::InstrumentType::kVitrector,
+              scene::InstrumentType::kNeedle, scene::InstrumentType::kHook}) {
           if (name == scene::toString(candidate)) type = candidate;
         }
       }
       if (instrument == instruments_.end() || !type) {
-        log(Severity::kWarning, "", "SELECT_INSTRUMENT '" + command.argument + "': expected slot:type (e.g. right:vitrector)");
+        log(Severity::kWarning, "",
+            "SELECT_INSTRUMENT '" + command.argument + "': expected slot:type (e.g. right:vitrector)");
         break;
       }
       switchInstrument(*instrument->second, *type);
@@ -555,12 +571,13 @@ void World::stepTissue(Tissue& tissue, double frame_time, FrameResult& result) {
   const double tissue_start = now();
   tissue.simulator->setInstruments(inputs);
   const tissue::Clock no_budget = [] { return 0.0; };
-  const tissue::FrameReport frame = tissue.simulator->advance(frame_time, options_.wall_clock_budget ? options_.clock : no_budget);
+  const tissue::FrameReport frame =
+      tissue.simulator->advance(frame_time, options_.wall_clock_budget ? options_.clock : no_budget);
   result.stages.push_back({"tissue_" + tissue.object->name, tissue_start, now()});
   if (frame.fallbacks > 0) {
-    log(Severity::kWarning, "watchdog:" + tissue.object->name, "tissue '" + tissue.object->name + "': watchdog rolled back " +
-                                std::to_string(frame.fallbacks) + " steps (total " +
-                                std::to_string(tissue.simulator->statistics().fallbacks) + ")");
+    log(Severity::kWarning, "watchdog:" + tissue.object->name,
+        "tissue '" + tissue.object->name + "': watchdog rolled back " + std::to_string(frame.fallbacks) +
+            " steps (total " + std::to_string(tissue.simulator->statistics().fallbacks) + ")");
   }
   statistics_.tissue_steps += static_cast<std::uint64_t>(frame.steps);
 
@@ -664,9 +681,9 @@ void World::bleed(RigidObject& object, FrameResult& result) {
     if (instrument->current.type == scene::InstrumentType::kVitrector && instrument->suction > 0.0) {
       const auto* vitrector = std::get_if<scene::VitrectorParams>(&instrument->current.params);
       if (vitrector != nullptr) {
-        const Eigen::Vector3d port = pose * Eigen::Vector3d(0.5 * vitrector->shaft.diameter, 0.0,
-                                                            -(vitrector->port_distance_from_tip +
-                                                              0.5 * vitrector->port_length));
+        const Eigen::Vector3d port =
+            pose * Eigen::Vector3d(0.5 * vitrector->shaft.diameter, 0.0,
+                                   -(vitrector->port_distance_from_tip + 0.5 * vitrector->port_length));
         const double distance = field.distanceToSurface(port);
         if (distance < options_.bleeding.aspiration_distance) {
           field.contact(slot, port, options_.bleeding.aspiration_distance - distance, true, time);
@@ -683,10 +700,11 @@ void World::bleed(RigidObject& object, FrameResult& result) {
   object.report.contacts = field.events().size();
   for (std::size_t i = ended_before; i < result.contacts_ended.size(); ++i) {
     const ContactEvent& event = result.contacts_ended[i];
-    log(Severity::kInfo, "", "retina contact by '" + event.instrument + "' for " +
-                             std::to_string(static_cast<int>(std::lround(1e3 * event.duration()))) + " ms, " +
-                             std::to_string(static_cast<int>(std::lround(1e6 * event.max_depth))) + " um deep" +
-                             (event.aspiration ? " (aspiration)" : ""));
+    log(Severity::kInfo, "",
+        "retina contact by '" + event.instrument + "' for " +
+            std::to_string(static_cast<int>(std::lround(1e3 * event.duration()))) + " ms, " +
+            std::to_string(static_cast<int>(std::lround(1e6 * event.max_depth))) + " um deep" +
+            (event.aspiration ? " (aspiration)" : ""));
   }
   result.stages.push_back({"bleeding_" + object.object->name, start, now()});
 }
@@ -724,8 +742,9 @@ collision::CollisionResult World::collide(Collider& collider, const std::string&
   collision::CollisionResult result = entry.detector->collide(pose, surface);
   if (result.status == collision::CollisionStatus::kBackendUnavailable ||
       result.status == collision::CollisionStatus::kInvalidInput) {
-    log(Severity::kWarning, "collision:" + slot + collider.object, "collision '" + slot + "' vs '" + collider.object + "' (" + collider.detector_name +
-                                "): " + collision::toString(result.status));
+    log(Severity::kWarning, "collision:" + slot + collider.object,
+        "collision '" + slot + "' vs '" + collider.object + "' (" + collider.detector_name +
+            "): " + collision::toString(result.status));
   }
   return result;
 }
