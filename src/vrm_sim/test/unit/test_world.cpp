@@ -351,8 +351,16 @@ TEST(World, PauseStopsTheSimulationAndResetRestoresTheRestState) {
   moveForceps(world, pole(0.0001), pole(0.0001), 0.35, 0.35, 5, stamp);
   world.flush();
   EXPECT_GT(maxDisplacement(*world.membrane("membrane"), rest), 1e-4);
+  const std::uint64_t version = world.tissueReport("membrane").version;
   world.handle(ScenarioCommand{stamp - kTick, ScenarioCommand::Type::kReset});
   EXPECT_EQ(world.stateHash(), rest_hash);
+  // The rebuilt membrane is published with the next frame even where nothing moves it.
+  std::vector<FrameResult> frames;
+  world.setFrameObserver([&](const FrameResult& frame) { frames.push_back(frame); });
+  moveForceps(world, pole(0.003), pole(0.003), 0.35, 0.35, 2, stamp);
+  ASSERT_FALSE(frames.empty());
+  EXPECT_TRUE(frames.front().tissues.at(0).changed);
+  EXPECT_GT(frames.front().tissues.at(0).version, version);
 }
 
 TEST(World, ASceneWithoutTissueRunsNoMassSpring) {

@@ -103,7 +103,8 @@ struct World::Tissue {
   TissueReport report;
   bool ever_grasped = false;
   double peak_lift = 0.0;
-  bool peels = false;  // membrane / ILM
+  bool peels = false;         // membrane / ILM
+  bool reset_pending = true;  // rebuilt (start, RESET): the next frame publishes it even if nothing moves
 };
 
 struct World::RigidObject {
@@ -250,8 +251,8 @@ void World::resetTissues() {
     tissue->report.object = name;
     tissue->report.frame_id = tissue->frame_id;
     tissue->report.membrane = tissue->membrane.get();
-    tissue->report.version = version + 1;  // a reset is a change consumers must see
-    tissue->report.changed = true;
+    tissue->report.version = version;
+    tissue->reset_pending = true;
     tissue->ever_grasped = false;
     tissue->peak_lift = 0.0;
   }
@@ -486,7 +487,9 @@ void World::closeFrame() {
     if (result.paused) {
       tissue->report.steps = 0;
       tissue->report.fallbacks = 0;
-      tissue->report.changed = tissue->report.changed && statistics_.frames == 1;
+      tissue->report.changed = tissue->reset_pending;
+      if (tissue->reset_pending) ++tissue->report.version;
+      tissue->reset_pending = false;
       result.tissues.push_back(tissue->report);
       continue;
     }
@@ -588,7 +591,8 @@ void World::stepTissue(Tissue& tissue, double frame_time, FrameResult& result) {
   const std::size_t n = membrane.nodeCount();
   const bool moved = tissue.last_positions.size() != n ||
                      std::memcmp(tissue.last_positions.data(), membrane.positions(), n * sizeof(Eigen::Vector3d)) != 0;
-  report.changed = moved || topology_version != report.topology_version;
+  report.changed = moved || topology_version != report.topology_version || tissue.reset_pending;
+  tissue.reset_pending = false;
   if (report.changed) {
     ++report.version;
     tissue.last_positions.assign(membrane.positions(), membrane.positions() + n);
