@@ -178,15 +178,7 @@ void World::setInstrumentType(Instrument& instrument, scene::InstrumentType type
     instrument.current.params = scene::defaultInstrumentParams(type);
   }
   instrument.shape = tissue::instrumentInputFor(instrument.current);
-  // The geometric detector's exact shape: the simulator's capsules.
-  instrument.model.primitives.clear();
-  tissue::InstrumentInput at_origin = instrument.shape;
-  at_origin.pose = Eigen::Isometry3d::Identity();
-  at_origin.jaw_angle = 0.0;
-  for (const tissue::Capsule& capsule : tissue::instrumentCapsules(at_origin)) {
-    instrument.model.primitives.push_back(collision::Primitive::capsule(capsule.a, capsule.b, capsule.radius));
-  }
-  instrument.model_version = 0;
+  instrument.model_version = 0;  // collide() rebuilds the collision model before the next query
   instrument.model_jaw_deg = -1000;
 }
 
@@ -657,19 +649,12 @@ void World::bleed(RigidObject& object, FrameResult& result) {
     if (hit.colliding) {
       // The deepest deformation vector is how far the tip presses into the retina; detectors without vectors
       // (FCL) report the contact only.
-      std::size_t deepest = hit.nodes.size();
       double depth = 0.0;
-      for (std::size_t i = 0; i < hit.nodes.size(); ++i) {
-        const double d = hit.deformations[i].norm();
-        if (deepest == hit.nodes.size() || d > depth) {
-          deepest = i;
-          depth = d;
-        }
-      }
+      for (const Eigen::Vector3d& deformation : hit.deformations) depth = std::max(depth, deformation.norm());
       // The spot is centred on the footprint (the touched vertices), as wide as it.
       Eigen::Vector3d point = Eigen::Vector3d::Zero();
       double extent = 0.0;
-      if (deepest < hit.nodes.size()) {
+      if (!hit.nodes.empty()) {
         for (std::uint32_t node : hit.nodes) point += object.mesh.vertices[node];
         point /= static_cast<double>(hit.nodes.size());
         for (std::uint32_t node : hit.nodes) extent = std::max(extent, (object.mesh.vertices[node] - point).norm());
@@ -717,22 +702,19 @@ void World::bleed(RigidObject& object, FrameResult& result) {
 // jaw angle does not invalidate the detectors' cached depth images every frame).
 collision::CollisionResult World::collide(Collider& collider, const std::string& slot, Instrument& instrument,
                                           const Eigen::Isometry3d& pose, const collision::SurfaceView& surface) {
-  int jaw_deg = 0;
-  scene::InstrumentDescription description = instrument.current;
-  if (auto* forceps = std::get_if<scene::ForcepsParams>(&description.params)) {
-    jaw_deg = static_cast<int>(std::lround(std::clamp(instrument.jaw_angle, 0.0, 1.5) * kRadToDeg));
-    forceps->jaw_angle_deg = jaw_deg;
-  }
+  const int jaw_deg =
+      instrument.shape.jaws ? static_cast<int>(std::lround(std::clamp(instrument.jaw_angle, 0.0, 1.5) * kRadToDeg)) : 0;
   if (instrument.model_version == 0 || jaw_deg != instrument.model_jaw_deg) {
+    scene::InstrumentDescription description = instrument.current;
+    if (auto* forceps = std::get_if<scene::ForcepsParams>(&description.params)) forceps->jaw_angle_deg = jaw_deg;
     instrument.model.mesh = scene::buildInstrumentMesh(description);
-    if (instrument.shape.jaws) {
-      tissue::InstrumentInput at_origin = instrument.shape;
-      at_origin.pose = Eigen::Isometry3d::Identity();
-      at_origin.jaw_angle = jaw_deg / kRadToDeg;
-      instrument.model.primitives.clear();
-      for (const tissue::Capsule& capsule : tissue::instrumentCapsules(at_origin)) {
-        instrument.model.primitives.push_back(collision::Primitive::capsule(capsule.a, capsule.b, capsule.radius));
-      }
+    // The geometric detector's exact shape: the simulator's capsules at the same jaw opening.
+    tissue::InstrumentInput at_origin = instrument.shape;
+    at_origin.pose = Eigen::Isometry3d::Identity();
+    at_origin.jaw_angle = jaw_deg / kRadToDeg;
+    instrument.model.primitives.clear();
+    for (const tissue::Capsule& capsule : tissue::instrumentCapsules(at_origin)) {
+      instrument.model.primitives.push_back(collision::Primitive::capsule(capsule.a, capsule.b, capsule.radius));
     }
     instrument.model_jaw_deg = jaw_deg;
     ++instrument.model_version;
