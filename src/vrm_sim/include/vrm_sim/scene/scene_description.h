@@ -50,12 +50,31 @@
 //       material: {...}
 //       path:                                # scripted motion (tissue_offline, tests), at least one waypoint:
 //         - {t: 0.0, tip: [x, y, z], jaw_angle_deg: 30}   # s (increasing), tip in the eye frame, forceps
-//                                            # opening (default 0); the shaft points from the trocar to the tip
+//                                            # opening (default 0); the shaft points from the trocar to the tip;
+//                                            # also suction (0..1) and cut_rate_hz (vitrector), default 0
+//       tremor: {amplitude: 2.0e-5, frequency_hz: 10}   # added to the scripted tip (m per axis, Hz); default none
 //   simulations: [tissue, collision, grasping, cutting, bleeding]   # required (may be []); lists 'tissue' if
 //                                            # and only if some object is deformable
+//   scenario:                                # optional: the scene is a training scenario (thesis §2.1-2.3, §7.4.1)
+//     type: navigation                       # required: knownScenarioTypes()
+//     description: free text
+//     time_limit: 60                         # s of running time (pauses excluded); exceeded = failed; 0 = none
+//     params: {targets: [a, b], hold_time: 10}   # the type's parameters: numbers, names or lists of them
+//     fail_if: {retina_contacts: 10}         # the scenario fails as soon as a score item reaches the value
+//     scoring:                               # score items: 100 points at `best`, 0 at `worst`, linear between
+//       time: {weight: 1, best: 20, worst: 90}   # (either order); total = weighted mean, 0..100
+//     difficulty:
+//       default: medium                      # required with levels
+//       levels:                              # named overrides of any scene value, by dotted path; list items
+//         easy: {scenario.time_limit: 120, objects.membrane.tissue.adhesion_stiffness: 2.0}   # by name / slot
+//         medium: {}
+//     scripts:                               # scripted sessions (scenario_offline --script NAME, the twin surgeon)
+//       expert:
+//         - {slot: right, path: [...], tremor: {...}}   # the instrument path format above
 
 #include <Eigen/Geometry>
 #include <array>
+#include <map>
 #include <optional>
 #include <set>
 #include <string>
@@ -98,6 +117,8 @@ const std::vector<std::string>& knownIntegrators();
 // zcoll, zcoll_f (the thesis' algorithms, fastest backend), zcoll[_f]_cpu, zcoll[_f]_gl, myszkowski_cpu, geometric,
 // fcl, fcl_aabb, fcl_obbrss, fcl_kios, none
 const std::vector<std::string>& knownCollisionDetectors();
+// navigation, trajectory, pick_and_place, steady_hold, membrane_peeling, ilm_peeling, vitrectomy (vrm_sim/scenario)
+const std::vector<std::string>& knownScenarioTypes();
 
 struct Pose {
   Eigen::Vector3d xyz = Eigen::Vector3d::Zero();
@@ -198,6 +219,20 @@ struct InstrumentWaypoint {
   double t = 0.0;                                        // s from the start, strictly increasing along a path
   Eigen::Vector3d tip_in_eye = Eigen::Vector3d::Zero();  // m, eye frame
   double jaw_angle_deg = 0.0;                            // forceps opening
+  double suction = 0.0;                                  // 0..1 (vitrector aspiration, from the pedal)
+  double cut_rate_hz = 0.0;                              // vitrector cutter
+};
+
+// The path at time t: linear between waypoints, the first / last waypoint before / after the path (t set to t).
+// The path must not be empty.
+InstrumentWaypoint samplePath(const std::vector<InstrumentWaypoint>& path, double t);
+
+// A scripted hand's physiological tremor (thesis §1.3: 8-12 Hz), added to the interpolated tip: a sinusoid of
+// `amplitude` per axis (phases 0, 120, 240 degrees), so a script states exactly the tremor it tests.
+struct PathTremor {
+  double amplitude = 0.0;  // m; 0 = none
+  double frequency_hz = 10.0;
+  Eigen::Vector3d offset(double t) const;
 };
 
 struct InstrumentDescription {
@@ -208,7 +243,55 @@ struct InstrumentDescription {
   std::vector<InstrumentType> alternatives;    // other instruments the trainee may switch to in this slot (GUI)
   Material material;
   std::vector<InstrumentWaypoint> path;  // scripted motion (tissue_offline); empty = driven by the trainee
+  PathTremor tremor;                     // on the scripted path
   SourceLocation location;
+};
+
+// ---- training scenarios (the optional `scenario:` section) ----
+
+// A type parameter as written: a number, a name, or a list of either (the scenario type checks what it needs).
+struct ScenarioParam {
+  std::vector<double> numbers;
+  std::vector<std::string> names;
+  SourceLocation location;
+};
+
+// One score item: 100 points at `best`, 0 at `worst`, linear in between, clamped (best < worst: less is better).
+struct ScoringRule {
+  std::string item;
+  double weight = 1.0;
+  double best = 0.0;
+  double worst = 1.0;
+  SourceLocation location;
+};
+
+struct FailureRule {
+  std::string item;  // the scenario fails once this score item reaches `at_least`
+  double at_least = 1.0;
+  SourceLocation location;
+};
+
+// One instrument's part of a scripted session.
+struct ScriptedInstrument {
+  InstrumentSlot slot = InstrumentSlot::kRight;
+  std::vector<InstrumentWaypoint> path;
+  PathTremor tremor;
+  SourceLocation location;
+};
+
+struct ScenarioDescription {
+  std::string type;  // knownScenarioTypes()
+  std::string description;
+  double time_limit = 0.0;  // s of running time; 0 = none
+  std::map<std::string, ScenarioParam> params;
+  std::vector<FailureRule> fail_if;
+  std::vector<ScoringRule> scoring;
+  std::vector<std::string> difficulty_levels;  // in file order
+  std::string difficulty;                      // the level this description was loaded with ("" = no levels)
+  std::map<std::string, std::vector<ScriptedInstrument>> scripts;
+  SourceLocation location;
+
+  const ScenarioParam* param(const std::string& name) const;
 };
 
 struct SceneDescription {
@@ -219,6 +302,7 @@ struct SceneDescription {
   std::vector<ObjectDescription> objects;
   std::vector<InstrumentDescription> instruments;
   std::set<Simulation> simulations;
+  std::optional<ScenarioDescription> scenario;
   std::string source_file;  // absolute path of the YAML file, empty if built in code
 
   // The loader guarantees: hasDeformableObjects() == simulates(Simulation::kTissue).
@@ -228,6 +312,11 @@ struct SceneDescription {
   const Trocar* findTrocar(const std::string& trocar_name) const;
   const InstrumentDescription* findInstrument(InstrumentSlot slot) const;
 };
+
+// The scene with its instruments following the scripted session `script` (scenario.scripts): each scripted slot's
+// path and tremor replaced, every other slot's path cleared. Throws std::invalid_argument naming the known scripts.
+SceneDescription withScript(const SceneDescription& scene, const std::string& script);
+SceneDescription withScript(const SceneDescription& scene, const std::vector<ScriptedInstrument>& script);
 
 // The instrument generator's defaults for a type.
 GeneratorParams defaultInstrumentParams(InstrumentType type);

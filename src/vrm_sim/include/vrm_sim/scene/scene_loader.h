@@ -28,12 +28,23 @@ class SceneError : public std::runtime_error {
 // Parses and validates a scene file: unknown keys, wrong types, out-of-range values, inconsistent simulations,
 // unknown trocars and missing mesh files are all SceneErrors. Relative mesh paths are resolved against the scene
 // file's directory, then against the vrm_sim package directory.
-SceneDescription loadScene(const std::string& path);
+// `difficulty`: the scenario's difficulty level whose overrides to apply (empty: its default level); a level the
+// scenario does not have, or any level for a scene without levels, is a SceneError.
+SceneDescription loadScene(const std::string& path, const std::string& difficulty = "");
 // Same, from text; `virtual_path` names the document in messages and anchors relative mesh paths.
-SceneDescription loadSceneFromString(const std::string& yaml_text, const std::string& virtual_path);
+SceneDescription loadSceneFromString(const std::string& yaml_text, const std::string& virtual_path,
+                                     const std::string& difficulty = "");
+
+// A scripted session in its own file (scenario_offline --script FILE): `script:` with the list format of a
+// scenario's scripts (see scene_description.h). SceneError with file:line:col as for scenes.
+std::vector<ScriptedInstrument> loadScript(const std::string& path);
 
 // Path of a shipped scene, e.g. shippedScenePath("navigation") -> <package>/config/scenes/navigation.yaml.
 std::string shippedScenePath(const std::string& scene_name);
+// What the nodes' and tools' `scene` arguments mean: an existing file, else the name of a shipped scene.
+std::string resolveScenePath(const std::string& name_or_path);
+// Names of the shipped scenes (config/scenes/*.yaml), sorted.
+std::vector<std::string> shippedScenes();
 
 enum class MeshFrame {
   kLocal,   // vertices in the object's own frame

@@ -130,6 +130,7 @@ struct SimulatorStatistics {
   std::uint64_t topology_changes = 0;
   std::uint64_t cut_nodes = 0, removed_nodes = 0, torn_springs = 0;
   std::uint64_t released_adhesions = 0;  // adhesion springs that let go (adhesion_break_force)
+  double max_adhesion_force = 0.0;       // N: the largest pull on an adhesion spring after any step
 };
 
 using Clock = std::function<double()>;  // seconds, monotonic
@@ -158,6 +159,8 @@ class TissueSimulator {
   void releaseAll();
 
   const std::vector<std::uint32_t>& graspedNodes() const { return grasped_nodes_; }
+  // Adhesion springs that still hold (thesis §7: the points where a membrane adheres to the retina).
+  std::size_t adhesionPoints() const;
   // Whether instrument `index` (setInstruments order) holds tissue (jaws that closed on nothing hold nothing).
   bool isGrasping(std::size_t index) const {
     return index < grasps_.size() && grasps_[index].active && !grasps_[index].nodes.empty();

@@ -60,9 +60,46 @@ struct OfflineResult {
 std::vector<InstrumentState> scriptedInputs(const scene::SceneDescription& scene, double rate, double seconds,
                                             Stamp start = 0);
 
+// The scripted instruments' states at path time t, stamped `stamp`.
+std::vector<InstrumentState> scriptedInputsAt(const scene::SceneDescription& scene, double t, Stamp stamp);
+
 // Runs `scene` for options.seconds. Throws scene::SceneError for a scene the simulation cannot run (no deformable
 // object, an unknown integrator) and std::invalid_argument for bad options.
 OfflineResult runOffline(const scene::SceneDescription& scene, const OfflineOptions& options);
+
+// ---- scenario sessions (rosrun vrm_sim scenario_offline) ----
+
+struct ScenarioRunOptions {
+  std::string script = "expert";  // a scripted session of the scene's scenario (scenario.scripts)
+  std::vector<scene::ScriptedInstrument> script_parts;  // non-empty: this script instead (a script file)
+  double rate = 50.0;   // Hz: input ticks
+  double grace = 5.0;   // s after the script's last waypoint (instruments hold still) before the run ends
+  std::uint32_t seed = 0;  // recorded with the result (the scenario layer draws no random numbers)
+  std::string detector;    // empty: the scene's collision detectors
+};
+
+struct ScenarioRunResult {
+  std::string scenario, type, difficulty, script;
+  std::string state;  // finished | failed | timeout (time limit, or the script ended without an outcome)
+  std::string message;
+  scenario::Score score;
+  std::uint32_t seed = 0;
+  std::uint64_t frames = 0;
+  std::uint64_t final_state_hash = 0;
+  double sim_seconds = 0.0;   // running time of the scenario
+  double wall_seconds = 0.0;  // the whole run (measurement only)
+  // Mean CPU (wall) ms per frame, in total and by stage; which stages ran at all.
+  double ms_per_frame = 0.0, ms_scenario = 0.0, ms_tissue = 0.0, ms_collision = 0.0, ms_bleeding = 0.0;
+  std::vector<std::string> simulations;  // "tissue", "collision", "bleeding", "scenario" (stages that ran)
+
+  // One JSON object (scenario_offline's output line; the hash as a "0x…" string).
+  std::string json() const;
+};
+
+// Plays the scene's scripted session through the simulation core and its scenario, from START to the end of the
+// scenario (finished / failed) or grace seconds after the script's last waypoint. Throws scene::SceneError for a
+// scene without a scenario and std::invalid_argument for an unknown script or bad options.
+ScenarioRunResult runScenario(const scene::SceneDescription& scene, const ScenarioRunOptions& options);
 
 }  // namespace world
 }  // namespace vrm_sim

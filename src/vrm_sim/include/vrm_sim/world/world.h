@@ -30,6 +30,7 @@
 #include <vector>
 
 #include "vrm_sim/collision/collision_detector.h"
+#include "vrm_sim/scenario/runner.h"
 #include "vrm_sim/scene/scene_description.h"
 #include "vrm_sim/world/bleeding.h"
 
@@ -114,6 +115,8 @@ struct TissueReport {
   std::uint64_t released_adhesions = 0;  // adhesion points pulled off so far
   double max_lift = 0.0;                 // m: largest distance of a node from its rest position
   double lifted_fraction = 0.0;          // nodes more than 0.1 mm from their rest position
+  std::size_t adhesion_points = 0;       // adhesion springs still holding
+  double max_adhesion_force = 0.0;       // N, largest pull on an adhesion point so far
   PeelOutcome outcome = PeelOutcome::kUntouched;
 };
 
@@ -125,7 +128,9 @@ struct InjuryReport {
   bool changed = false;
   std::uint64_t version = 1;
   double max_injury = 0.0;
-  std::size_t contacts = 0;  // contact events so far
+  double injured_area = 0.0;  // m^2 of the surface with injury above 0.1
+  std::size_t contacts = 0;   // contact events so far
+  bool in_contact = false;    // a contact event is ongoing
 };
 
 // One instrument vs one object in this frame (reported for tissues and the bleeding retina always, for other rigid
@@ -156,6 +161,7 @@ struct FrameResult {
   std::vector<StageTime> stages;
   double wall_time = 0.0;  // s, by WorldOptions::clock
   std::uint64_t state_hash = 0;
+  const scenario::Status* scenario = nullptr;  // the scene's scenario after this frame (null: the scene has none)
 };
 
 struct WorldStatistics {
@@ -188,6 +194,10 @@ struct WorldOptions {
   bool wall_clock_budget = false;
   BleedingParameters bleeding;
   Log log;
+  // A scene with a scenario: true starts it with the first frame (and again with the first frame after a RESET), as
+  // a scripted or replayed session expects; false waits for ScenarioCommand START (the console). Until it runs, the
+  // world is frozen like in PAUSE.
+  bool auto_start = true;
 };
 
 class World {
@@ -230,6 +240,14 @@ class World {
   const std::vector<InjuryReport>& injuries() const { return last_injuries_; }
   std::vector<ContactEvent> contactEvents() const;  // all retina contact events so far
   const PedalState& pedals() const { return pedals_; }
+  // The scenario's state and score; null for a scene without a scenario section.
+  const scenario::Status* scenarioStatus() const { return runner_ ? &runner_->status() : nullptr; }
+  // A message for the trainee in the scenario status (e.g. a refused command); no effect without a scenario.
+  void note(const std::string& message) {
+    if (runner_) runner_->setMessage(message);
+  }
+  // Whether the world advances (tissue, bleeding) in the next frame: not while paused or before the scenario starts.
+  bool simulating() const;
 
  private:
   struct Instrument;
@@ -255,6 +273,8 @@ class World {
   std::optional<Eigen::Isometry3d> transform(const std::string& target, const std::string& source) const;
   void stepTissue(Tissue& tissue, double frame_time, FrameResult& result);
   void bleed(RigidObject& object, FrameResult& result);
+  void advanceScenario(const FrameResult& result);
+  void refuse(const std::string& message);
   collision::CollisionResult collide(Collider& collider, const std::string& slot, Instrument& instrument,
                                      const Eigen::Isometry3d& pose, const collision::SurfaceView& surface);
   double now() const;
@@ -279,6 +299,8 @@ class World {
   bool paused_ = false;
   bool running_ = true;
   bool rigid_reports_ = false;
+  std::unique_ptr<scenario::ScenarioRunner> runner_;
+  bool auto_started_ = false;
 
   FrameObserver observer_;
   WorldStatistics statistics_;

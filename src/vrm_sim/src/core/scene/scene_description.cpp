@@ -1,6 +1,7 @@
 #include "vrm_sim/scene/scene_description.h"
 
 #include <algorithm>
+#include <stdexcept>
 #include <cmath>
 
 #include "vrm_sim/scene/mesh_utils.h"
@@ -8,7 +9,8 @@
 namespace vrm_sim {
 namespace scene {
 namespace {
-constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
+constexpr double kPi = 3.14159265358979323846;
+constexpr double kDegToRad = kPi / 180.0;
 }  // namespace
 
 const char* toString(SceneKind kind) { return kind == SceneKind::kAbstract ? "abstract" : "surgical"; }
@@ -91,6 +93,67 @@ const std::vector<std::string>& knownCollisionDetectors() {
                                                  "zcoll_f_gl", "myszkowski_cpu", "geometric", "fcl",         "fcl_aabb",
                                                  "fcl_obbrss", "fcl_kios",       "none"};
   return names;
+}
+
+const std::vector<std::string>& knownScenarioTypes() {
+  static const std::vector<std::string> names = {"navigation",       "trajectory",  "pick_and_place", "steady_hold",
+                                                 "membrane_peeling", "ilm_peeling", "vitrectomy"};
+  return names;
+}
+
+Eigen::Vector3d PathTremor::offset(double t) const {
+  if (!(amplitude > 0.0)) return Eigen::Vector3d::Zero();
+  const double phase = 2.0 * kPi * frequency_hz * t;
+  return amplitude * Eigen::Vector3d(std::sin(phase), std::sin(phase + 2.0 * kPi / 3.0),
+                                     std::sin(phase + 4.0 * kPi / 3.0));
+}
+
+InstrumentWaypoint samplePath(const std::vector<InstrumentWaypoint>& path, double t) {
+  InstrumentWaypoint sample = t <= path.front().t ? path.front() : path.back();
+  if (t > path.front().t && t < path.back().t) {
+    const auto next = std::upper_bound(path.begin(), path.end(), t,
+                                       [](double time, const InstrumentWaypoint& w) { return time < w.t; });
+    const InstrumentWaypoint& b = *next;
+    const InstrumentWaypoint& a = *(next - 1);
+    const double alpha = (t - a.t) / (b.t - a.t);
+    sample.tip_in_eye = (1.0 - alpha) * a.tip_in_eye + alpha * b.tip_in_eye;
+    sample.jaw_angle_deg = (1.0 - alpha) * a.jaw_angle_deg + alpha * b.jaw_angle_deg;
+    sample.suction = (1.0 - alpha) * a.suction + alpha * b.suction;
+    sample.cut_rate_hz = (1.0 - alpha) * a.cut_rate_hz + alpha * b.cut_rate_hz;
+  }
+  sample.t = t;
+  return sample;
+}
+
+const ScenarioParam* ScenarioDescription::param(const std::string& name) const {
+  const auto found = params.find(name);
+  return found == params.end() ? nullptr : &found->second;
+}
+
+SceneDescription withScript(const SceneDescription& scene, const std::string& script) {
+  std::string known;
+  if (scene.scenario) {
+    for (const auto& [name, instruments] : scene.scenario->scripts) known += (known.empty() ? "" : ", ") + name;
+  }
+  if (!scene.scenario || scene.scenario->scripts.count(script) == 0) {
+    throw std::invalid_argument("scene '" + scene.name + "' has no scripted session '" + script + "'" +
+                                (known.empty() ? std::string(" (it has none)") : " (it has: " + known + ")"));
+  }
+  return withScript(scene, scene.scenario->scripts.at(script));
+}
+
+SceneDescription withScript(const SceneDescription& scene, const std::vector<ScriptedInstrument>& script) {
+  SceneDescription scripted = scene;
+  for (auto& instrument : scripted.instruments) {
+    instrument.path.clear();
+    instrument.tremor = PathTremor{};
+    for (const ScriptedInstrument& part : script) {
+      if (part.slot != instrument.slot) continue;
+      instrument.path = part.path;
+      instrument.tremor = part.tremor;
+    }
+  }
+  return scripted;
 }
 
 Eigen::Isometry3d Pose::toIsometry() const {

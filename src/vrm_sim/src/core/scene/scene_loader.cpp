@@ -620,6 +620,8 @@ std::vector<InstrumentWaypoint> readInstrumentPath(const Field& field) {
     if (auto jaw = fields.optional("jaw_angle_deg")) {
       waypoint.jaw_angle_deg = jaw->number("an angle in [0, 180] degrees", 0.0, 180.0);
     }
+    readFraction(fields, "suction", waypoint.suction);
+    readNonNegative(fields, "cut_rate_hz", waypoint.cut_rate_hz);
     fields.finish();
     if (!path.empty() && !(waypoint.t > path.back().t)) {
       t.fail("waypoint times must increase, got " + t.shown() + " after " + std::to_string(path.back().t));
@@ -628,6 +630,19 @@ std::vector<InstrumentWaypoint> readInstrumentPath(const Field& field) {
   }
   if (path.empty()) field.fail("expected at least one waypoint");
   return path;
+}
+
+PathTremor readTremor(const Field& field) {
+  PathTremor tremor;
+  MapFields fields(field);
+  if (auto amplitude = fields.optional("amplitude")) {
+    tremor.amplitude = amplitude->number("an amplitude in [0, 0.001] m", 0.0, 1e-3);
+  }
+  if (auto frequency = fields.optional("frequency_hz")) {
+    tremor.frequency_hz = frequency->number("a frequency in (0, 100] Hz", 0.0, 100.0, false, true);
+  }
+  fields.finish();
+  return tremor;
 }
 
 InstrumentDescription readInstrument(const Field& field, const EyeDescription& eye) {
@@ -664,11 +679,228 @@ InstrumentDescription readInstrument(const Field& field, const EyeDescription& e
   }
   if (auto material = fields.optional("material")) instrument.material = readMaterial(*material);
   if (auto path = fields.optional("path")) instrument.path = readInstrumentPath(*path);
+  if (auto tremor = fields.optional("tremor")) instrument.tremor = readTremor(*tremor);
   fields.finish();
   return instrument;
 }
 
-SceneDescription readScene(const YAML::Node& root, const std::string& file) {
+// ---- the scenario section ----
+
+ScenarioParam readScenarioParam(const Field& field) {
+  ScenarioParam param;
+  param.location = field.location();
+  auto read_one = [&param](const Field& item) {
+    double value = 0.0;
+    if (!item.node().IsScalar() || item.node().Scalar().empty()) {
+      item.fail("expected a number or a name, got " + item.shown());
+    }
+    const std::string& scalar = item.node().Scalar();
+    char* end = nullptr;
+    value = std::strtod(scalar.c_str(), &end);
+    if (end == scalar.c_str() + scalar.size()) {
+      if (!std::isfinite(value)) item.fail("expected a finite number, got " + item.shown());
+      param.numbers.push_back(value);
+    } else {
+      param.names.push_back(scalar);
+    }
+  };
+  if (field.node().IsSequence()) {
+    for (const Field& item : field.items()) read_one(item);
+    if (!param.numbers.empty() && !param.names.empty()) field.fail("expected numbers or names, not a mix");
+  } else {
+    read_one(field);
+  }
+  return param;
+}
+
+std::vector<ScriptedInstrument> readScript(const Field& field) {
+  std::vector<ScriptedInstrument> script;
+  for (const Field& item : field.items()) {
+    MapFields fields(item);
+    ScriptedInstrument part;
+    part.location = item.location();
+    const Field slot = fields.required("slot");
+    part.slot = slot.choice<InstrumentSlot>({{"left", InstrumentSlot::kLeft}, {"right", InstrumentSlot::kRight}});
+    part.path = readInstrumentPath(fields.required("path"));
+    if (auto tremor = fields.optional("tremor")) part.tremor = readTremor(*tremor);
+    fields.finish();
+    for (const ScriptedInstrument& earlier : script) {
+      if (earlier.slot == part.slot) slot.fail(std::string("slot '") + toString(part.slot) + "' is scripted twice");
+    }
+    script.push_back(std::move(part));
+  }
+  if (script.empty()) field.fail("expected at least one scripted instrument");
+  return script;
+}
+
+// Only checks the shape (levels are maps of dotted paths); applyDifficulty() resolved the paths before parsing.
+void readDifficulty(const Field& field, ScenarioDescription& scenario) {
+  MapFields fields(field);
+  const Field levels = fields.required("levels");
+  if (!levels.node().IsMap() || levels.node().size() == 0) levels.fail("expected a map of named levels");
+  for (const auto& entry : levels.node()) scenario.difficulty_levels.push_back(entry.first.Scalar());
+  const Field default_level = fields.required("default");
+  default_level.name(scenario.difficulty_levels);
+  fields.finish();
+}
+
+ScenarioDescription readScenario(const Field& field, const std::string& difficulty) {
+  ScenarioDescription scenario;
+  scenario.location = field.location();
+  MapFields fields(field);
+  scenario.type = fields.required("type").name(knownScenarioTypes());
+  if (auto description = fields.optional("description")) scenario.description = description->text();
+  readNonNegative(fields, "time_limit", scenario.time_limit);
+  if (auto params = fields.optional("params")) {
+    MapFields param_fields(*params);
+    for (const auto& entry : params->node()) {
+      const std::string key = entry.first.Scalar();
+      scenario.params[key] = readScenarioParam(*param_fields.optional(key));
+    }
+    param_fields.finish();
+  }
+  if (auto fail_if = fields.optional("fail_if")) {
+    MapFields fail_fields(*fail_if);
+    for (const auto& entry : fail_if->node()) {
+      const std::string key = entry.first.Scalar();
+      const Field value = *fail_fields.optional(key);
+      scenario.fail_if.push_back({key, value.finite(), value.location()});
+    }
+    fail_fields.finish();
+  }
+  if (auto scoring = fields.optional("scoring")) {
+    MapFields item_fields(*scoring);
+    for (const auto& entry : scoring->node()) {
+      const std::string key = entry.first.Scalar();
+      const Field item = *item_fields.optional(key);
+      ScoringRule rule;
+      rule.item = key;
+      rule.location = item.location();
+      MapFields rule_fields(item);
+      readNonNegative(rule_fields, "weight", rule.weight);
+      rule.best = rule_fields.required("best").finite();
+      rule.worst = rule_fields.required("worst").finite();
+      rule_fields.finish();
+      if (rule.best == rule.worst) item.fail("best and worst must differ");
+      scenario.scoring.push_back(rule);
+    }
+    item_fields.finish();
+    double total_weight = 0.0;
+    for (const ScoringRule& rule : scenario.scoring) total_weight += rule.weight;
+    if (!(total_weight > 0.0)) scoring->fail("expected at least one item with a positive weight");
+  }
+  if (auto levels = fields.optional("difficulty")) {
+    readDifficulty(*levels, scenario);
+    scenario.difficulty = difficulty;
+  } else if (!difficulty.empty()) {
+    field.fail("difficulty '" + difficulty + "' requested, but the scenario has no difficulty levels");
+  }
+  if (auto scripts = fields.optional("scripts")) {
+    MapFields script_fields(*scripts);
+    for (const auto& entry : scripts->node()) {
+      const std::string key = entry.first.Scalar();
+      scenario.scripts[key] = readScript(*script_fields.optional(key));
+    }
+    script_fields.finish();
+  }
+  fields.finish();
+  return scenario;
+}
+
+// Difficulty levels override scene values by dotted path ("objects.membrane.tissue.adhesion_stiffness"; list items
+// are addressed by their `name` or `slot`). The override is written into the YAML tree before it is parsed, so the
+// overridden value passes the same checks as a written one and an error points at the override's line.
+YAML::Node resolveOverride(YAML::Node root, const Field& key_field, const std::string& path, bool create_leaf) {
+  std::vector<std::string> parts;
+  std::stringstream stream(path);
+  for (std::string part; std::getline(stream, part, '.');) parts.push_back(part);
+  if (parts.size() < 2 || std::any_of(parts.begin(), parts.end(), [](const std::string& p) { return p.empty(); })) {
+    key_field.fail("expected a dotted path such as objects.membrane.tissue.stiffness");
+  }
+  YAML::Node node = root;
+  std::string walked;
+  for (std::size_t i = 0; i < parts.size(); ++i) {
+    const std::string& part = parts[i];
+    const bool leaf = i + 1 == parts.size();
+    if (node.IsSequence()) {
+      YAML::Node match;
+      for (std::size_t j = 0; j < node.size(); ++j) {
+        const YAML::Node item = node[j];
+        if (!item.IsMap()) continue;
+        const YAML::Node& lookup = item;
+        for (const char* id_key : {"name", "slot"}) {
+          if (lookup[id_key] && lookup[id_key].IsScalar() && lookup[id_key].Scalar() == part) match = item;
+        }
+      }
+      if (!match) key_field.fail("'" + walked + "' has no item named '" + part + "'");
+      node = match;
+    } else if (node.IsMap()) {
+      const YAML::Node& lookup = node;  // const: a lookup must not insert the key
+      if (!lookup[part]) {
+        if (leaf && create_leaf) return node;  // the caller adds the key (the parser then checks it is allowed)
+        if (leaf) return node;
+        key_field.fail("'" + (walked.empty() ? part : walked + "." + part) + "' is not in the scene");
+      }
+      if (leaf) return node;
+      node = lookup[part];
+    } else {
+      key_field.fail("'" + walked + "' is a value, not a map or list");
+    }
+    walked += (walked.empty() ? "" : ".") + part;
+  }
+  return node;
+}
+
+std::string applyDifficulty(YAML::Node root, const std::string& file, const std::string& requested) {
+  const YAML::Node& const_root = root;
+  const YAML::Node scenario = root.IsMap() ? const_root["scenario"] : YAML::Node();
+  if (!scenario || !scenario.IsMap() || !scenario["difficulty"]) return requested;
+  const YAML::Node difficulty = scenario["difficulty"];
+  const Field difficulty_field(difficulty, "scenario.difficulty", file);
+  if (!difficulty.IsMap() || !difficulty["levels"] || !difficulty["levels"].IsMap()) return requested;  // reported later
+  const YAML::Node levels = difficulty["levels"];
+  std::vector<std::string> names;
+  for (const auto& entry : levels) names.push_back(entry.first.Scalar());
+  std::string level = requested;
+  if (level.empty()) {
+    if (!difficulty["default"] || !difficulty["default"].IsScalar()) return requested;  // reported later
+    level = difficulty["default"].Scalar();
+  }
+  if (std::find(names.begin(), names.end(), level) == names.end()) {
+    difficulty_field.fail("unknown difficulty level '" + level + "'" + suggestion(level, names) +
+                          "; levels: " + joinNames(names));
+  }
+  // Every level's paths must resolve (a typo in "hard" fails even while "easy" is loaded); only `level` is applied.
+  // Snapshot the overrides first: applying one changes the tree the others are resolved in.
+  struct Override {
+    std::string path;
+    YAML::Node value;
+    Field key;
+  };
+  std::vector<Override> chosen;
+  for (const auto& entry : levels) {
+    const std::string name = entry.first.Scalar();
+    const Field level_field(entry.second, "scenario.difficulty.levels." + name, file);
+    if (entry.second.IsNull()) continue;
+    if (!entry.second.IsMap()) level_field.fail("expected a map of dotted paths to values, got " + level_field.shown());
+    for (const auto& override_entry : entry.second) {
+      const std::string path = override_entry.first.Scalar();
+      const Field key_field(override_entry.first, level_field.path() + "." + path, file);
+      if (path.rfind("scenario.difficulty", 0) == 0) key_field.fail("a level cannot change the levels");
+      resolveOverride(root, key_field, path, true);
+      if (name == level) chosen.push_back({path, YAML::Clone(override_entry.second), key_field});
+    }
+  }
+  for (const Override& override_value : chosen) {
+    YAML::Node parent = resolveOverride(root, override_value.key, override_value.path, true);
+    const std::string leaf = override_value.path.substr(override_value.path.rfind('.') + 1);
+    if (!parent.IsMap()) override_value.key.fail("'" + override_value.path + "' does not name a map entry");
+    parent[leaf] = override_value.value;
+  }
+  return level;
+}
+
+SceneDescription readScene(const YAML::Node& root, const std::string& file, const std::string& difficulty) {
   const Field root_field(root, "", file);
   if (!root.IsMap())
     root_field.fail("a scene file must be a map with the keys scene, eye, objects, ...; got " + root_field.shown());
@@ -725,6 +957,11 @@ SceneDescription readScene(const YAML::Node& root, const std::string& file) {
   for (const Field& item : simulations.items()) {
     if (!scene.simulations.insert(item.choice(simulation_names)).second) item.fail("listed twice");
   }
+  if (auto scenario = fields.optional("scenario")) {
+    scene.scenario = readScenario(*scenario, difficulty);
+  } else if (!difficulty.empty()) {
+    root_field.fail("difficulty '" + difficulty + "' requested, but the scene has no scenario section");
+  }
   fields.finish();
 
   // The simulation skips the mass-spring model entirely when no object is deformable, so both statements must agree.
@@ -740,7 +977,8 @@ SceneDescription readScene(const YAML::Node& root, const std::string& file) {
   return scene;
 }
 
-SceneDescription parseScene(const std::function<YAML::Node()>& parse, const std::string& file) {
+SceneDescription parseScene(const std::function<YAML::Node()>& parse, const std::string& file,
+                            const std::string& difficulty) {
   YAML::Node root;
   try {
     root = parse();
@@ -754,7 +992,8 @@ SceneDescription parseScene(const std::function<YAML::Node()>& parse, const std:
     throw SceneError(location, "YAML syntax error: " + error.msg);
   }
   try {
-    return readScene(root, file);
+    const std::string level = applyDifficulty(root, file, difficulty);
+    return readScene(root, file, level);
   } catch (const YAML::Exception& error) {  // not expected: every access above checks the node type first
     SourceLocation location;
     location.file = file;
@@ -774,7 +1013,7 @@ SceneError::SceneError(const SourceLocation& location, const std::string& proble
       location_(location),
       problem_(problem) {}
 
-SceneDescription loadScene(const std::string& path) {
+SceneDescription loadScene(const std::string& path, const std::string& difficulty) {
   SourceLocation location;
   location.file = path;
   std::error_code error;
@@ -784,11 +1023,53 @@ SceneDescription loadScene(const std::string& path) {
   std::ostringstream text;
   text << stream.rdbuf();
   const std::string content = text.str();
-  return parseScene([&content] { return YAML::Load(content); }, path);
+  return parseScene([&content] { return YAML::Load(content); }, path, difficulty);
 }
 
-SceneDescription loadSceneFromString(const std::string& yaml_text, const std::string& virtual_path) {
-  return parseScene([&yaml_text] { return YAML::Load(yaml_text); }, virtual_path);
+SceneDescription loadSceneFromString(const std::string& yaml_text, const std::string& virtual_path,
+                                     const std::string& difficulty) {
+  return parseScene([&yaml_text] { return YAML::Load(yaml_text); }, virtual_path, difficulty);
+}
+
+std::vector<ScriptedInstrument> loadScript(const std::string& path) {
+  SourceLocation location;
+  location.file = path;
+  std::error_code error;
+  if (!fs::is_regular_file(path, error)) throw SceneError(location, "script file not found");
+  YAML::Node root;
+  try {
+    root = YAML::LoadFile(path);
+  } catch (const YAML::Exception& yaml_error) {
+    if (!yaml_error.mark.is_null()) {
+      location.line = yaml_error.mark.line + 1;
+      location.column = yaml_error.mark.column + 1;
+    }
+    throw SceneError(location, "YAML syntax error: " + yaml_error.msg);
+  }
+  const Field root_field(root, "", path);
+  MapFields fields(root_field);
+  std::vector<ScriptedInstrument> script = readScript(fields.required("script"));
+  fields.finish();
+  return script;
+}
+
+std::string resolveScenePath(const std::string& name_or_path) {
+  std::error_code error;
+  if (fs::is_regular_file(name_or_path, error)) return name_or_path;
+  if (name_or_path.find('/') != std::string::npos || name_or_path.find(".yaml") != std::string::npos) {
+    return name_or_path;  // meant as a path: loadScene reports it missing
+  }
+  return shippedScenePath(name_or_path);
+}
+
+std::vector<std::string> shippedScenes() {
+  std::vector<std::string> names;
+  std::error_code error;
+  for (const auto& entry : fs::directory_iterator(fs::path(VRM_SIM_SOURCE_DIR) / "config" / "scenes", error)) {
+    if (entry.path().extension() == ".yaml") names.push_back(entry.path().stem().string());
+  }
+  std::sort(names.begin(), names.end());
+  return names;
 }
 
 std::string shippedScenePath(const std::string& scene_name) {

@@ -116,20 +116,9 @@ InstrumentInput scriptedInstrument(const scene::SceneDescription& scene,
                                    const scene::InstrumentDescription& description, double t) {
   const auto& path = description.path;
   if (path.empty()) throw std::invalid_argument("scriptedInstrument: instrument has no path");
-  Eigen::Vector3d tip = path.front().tip_in_eye;
-  double jaw_deg = path.front().jaw_angle_deg;
-  if (t >= path.back().t) {
-    tip = path.back().tip_in_eye;
-    jaw_deg = path.back().jaw_angle_deg;
-  } else if (t > path.front().t) {
-    const auto next = std::upper_bound(path.begin(), path.end(), t,
-                                       [](double time, const scene::InstrumentWaypoint& w) { return time < w.t; });
-    const auto& b = *next;
-    const auto& a = *(next - 1);
-    const double alpha = (t - a.t) / (b.t - a.t);
-    tip = (1.0 - alpha) * a.tip_in_eye + alpha * b.tip_in_eye;
-    jaw_deg = (1.0 - alpha) * a.jaw_angle_deg + alpha * b.jaw_angle_deg;
-  }
+  const scene::InstrumentWaypoint sample = scene::samplePath(path, t);
+  const Eigen::Vector3d tip = sample.tip_in_eye + description.tremor.offset(t);
+  const double jaw_deg = sample.jaw_angle_deg;
   InstrumentInput instrument = instrumentInputFor(description);
   // Instrument frame: +z from the handle to the tip, i.e. from the trocar (the pivot) to the tip.
   const scene::Trocar* trocar = scene.findTrocar(description.trocar);

@@ -183,9 +183,16 @@ void TissueSimulator::topologyBeforeStep() {
   }
 }
 
+std::size_t TissueSimulator::adhesionPoints() const { return forces_.anchors.size(); }
+
 void TissueSimulator::releaseOverloadedAdhesions() {
-  if (!(config_.adhesion_break_force > 0.0) || forces_.anchors.empty()) return;
+  if (forces_.anchors.empty()) return;
   const Eigen::Vector3d* x = membrane_->positions();
+  for (const Anchor& anchor : forces_.anchors) {
+    statistics_.max_adhesion_force =
+        std::max(statistics_.max_adhesion_force, anchor.stiffness * (x[anchor.node] - anchor.point).norm());
+  }
+  if (!(config_.adhesion_break_force > 0.0)) return;
   const auto before = forces_.anchors.size();
   forces_.anchors.erase(std::remove_if(forces_.anchors.begin(), forces_.anchors.end(),
                                        [&](const Anchor& anchor) {

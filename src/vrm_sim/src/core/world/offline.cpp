@@ -1,6 +1,8 @@
 #include "vrm_sim/world/offline.h"
 
 #include <algorithm>
+#include <chrono>
+#include <map>
 #include <cmath>
 #include <cstdio>
 #include <sstream>
@@ -60,6 +62,26 @@ std::string OfflineResult::json() const {
   return out.str();
 }
 
+std::vector<InstrumentState> scriptedInputsAt(const scene::SceneDescription& scene, double t, Stamp stamp) {
+  std::vector<InstrumentState> inputs;
+  for (const auto& instrument : scene.instruments) {
+    if (instrument.path.empty()) continue;
+    const tissue::InstrumentInput scripted = tissue::scriptedInstrument(scene, instrument, t);
+    InstrumentState state;
+    state.stamp = stamp;
+    state.slot = scene::toString(instrument.slot);
+    state.type = instrument.type;
+    state.setPose(scripted.pose);
+    state.frame_id = "eye";
+    state.jaw_angle = scripted.jaw_angle;
+    const scene::InstrumentWaypoint sample = scene::samplePath(instrument.path, t);
+    state.suction = sample.suction;
+    state.cut_rate = sample.cut_rate_hz;
+    inputs.push_back(state);
+  }
+  return inputs;
+}
+
 std::vector<InstrumentState> scriptedInputs(const scene::SceneDescription& scene, double rate, double seconds,
                                             Stamp start) {
   if (!(rate > 0.0) || !std::isfinite(rate)) throw std::invalid_argument("scriptedInputs: rate must be positive");
@@ -70,18 +92,7 @@ std::vector<InstrumentState> scriptedInputs(const scene::SceneDescription& scene
   const long ticks = std::lround(seconds * rate);
   for (long tick = 0; tick <= ticks; ++tick) {
     const double t = static_cast<double>(tick) / rate;
-    for (const auto& instrument : scene.instruments) {
-      if (instrument.path.empty()) continue;
-      const tissue::InstrumentInput scripted = tissue::scriptedInstrument(scene, instrument, t);
-      InstrumentState state;
-      state.stamp = start + fromSeconds(t);
-      state.slot = scene::toString(instrument.slot);
-      state.type = instrument.type;
-      state.setPose(scripted.pose);
-      state.frame_id = "eye";
-      state.jaw_angle = scripted.jaw_angle;
-      inputs.push_back(state);
-    }
+    for (InstrumentState& state : scriptedInputsAt(scene, t, start + fromSeconds(t))) inputs.push_back(state);
   }
   return inputs;
 }
@@ -174,6 +185,124 @@ OfflineResult runOffline(const scene::SceneDescription& scene_in, const OfflineO
     result.max_injury = std::max(result.max_injury, injury.max_injury);
   }
   result.final_state_hash = world.stateHash();
+  return result;
+}
+
+namespace {
+
+std::string quoted(const std::string& text) {
+  std::string out = "\"";
+  for (char c : text) {
+    if (c == '"' || c == '\\') {
+      out += '\\';
+      out += c;
+    } else if (static_cast<unsigned char>(c) < 0x20) {
+      char escaped[8];
+      std::snprintf(escaped, sizeof(escaped), "\\u%04x", c);
+      out += escaped;
+    } else {
+      out += c;
+    }
+  }
+  return out + "\"";
+}
+
+}  // namespace
+
+std::string ScenarioRunResult::json() const {
+  char hash[24];
+  std::snprintf(hash, sizeof(hash), "0x%016llx", static_cast<unsigned long long>(final_state_hash));
+  std::ostringstream out;
+  out << "{\"scenario\": " << quoted(scenario) << ", \"type\": " << quoted(type)
+      << ", \"difficulty\": " << quoted(difficulty) << ", \"script\": " << quoted(script)
+      << ", \"seed\": " << seed << ", \"state\": " << quoted(state) << ", \"message\": " << quoted(message)
+      << ", \"total\": " << number(score.total) << ", \"items\": {";
+  for (std::size_t i = 0; i < score.items.size(); ++i) {
+    out << (i ? ", " : "") << quoted(score.items[i].name) << ": " << number(score.items[i].value);
+  }
+  out << "}, \"points\": {";
+  bool first = true;
+  for (const scenario::ScoreItem& item : score.items) {
+    if (!(item.weight > 0.0)) continue;
+    out << (first ? "" : ", ") << quoted(item.name) << ": " << number(item.points);
+    first = false;
+  }
+  out << "}, \"final_state_hash\": \"" << hash << "\", \"frames\": " << frames
+      << ", \"sim_seconds\": " << number(sim_seconds) << ", \"wall_seconds\": " << number(wall_seconds)
+      << ", \"ms_per_frame\": " << number(ms_per_frame) << ", \"ms_scenario\": " << number(ms_scenario)
+      << ", \"ms_tissue\": " << number(ms_tissue) << ", \"ms_collision\": " << number(ms_collision)
+      << ", \"ms_bleeding\": " << number(ms_bleeding) << ", \"simulations\": [";
+  for (std::size_t i = 0; i < simulations.size(); ++i) out << (i ? ", " : "") << quoted(simulations[i]);
+  out << "]}";
+  return out.str();
+}
+
+ScenarioRunResult runScenario(const scene::SceneDescription& scene, const ScenarioRunOptions& options) {
+  if (!scene.scenario) {
+    scene::SourceLocation where;
+    where.file = scene.source_file;
+    throw scene::SceneError(where, "the scene '" + scene.name + "' has no scenario section");
+  }
+  if (!(options.rate > 0.0) || !std::isfinite(options.rate)) throw std::invalid_argument("--rate must be positive");
+  if (!(options.grace >= 0.0) || !std::isfinite(options.grace)) {
+    throw std::invalid_argument("grace must be a non-negative number");
+  }
+  const scene::SceneDescription scripted = options.script_parts.empty()
+                                               ? scene::withScript(scene, options.script)
+                                               : scene::withScript(scene, options.script_parts);
+  double script_end = 0.0;
+  for (const auto& instrument : scripted.instruments) {
+    if (!instrument.path.empty()) script_end = std::max(script_end, instrument.path.back().t);
+  }
+  WorldOptions world_options;
+  world_options.detector_override = options.detector;
+  world_options.auto_start = true;
+  World world(scripted, world_options);
+
+  ScenarioRunResult result;
+  result.scenario = scene.name;
+  result.type = scene.scenario->type;
+  result.difficulty = scene.scenario->difficulty;
+  result.script = options.script_parts.empty() ? options.script : "file";
+  result.seed = options.seed;
+  std::map<std::string, double> stage_ms;
+  world.setFrameObserver([&](const FrameResult& frame) {
+    for (const StageTime& stage : frame.stages) {
+      const std::string kind = stage.stage.substr(0, stage.stage.find('_'));
+      stage_ms[kind] += 1e3 * (stage.end - stage.start);
+    }
+  });
+  const auto wall_start = std::chrono::steady_clock::now();
+  const double seconds = script_end + options.grace;
+  const long ticks = std::lround(seconds * options.rate);
+  for (long tick = 0; tick <= ticks; ++tick) {
+    const double t = static_cast<double>(tick) / options.rate;
+    // One tick at a time (scriptedInputs of [t, t]), so a long session never holds all its inputs at once.
+    for (const InstrumentState& input : scriptedInputsAt(scripted, t, fromSeconds(t))) world.handle(input);
+    world.flush();
+    if (world.scenarioStatus()->state == scenario::State::kFinished ||
+        world.scenarioStatus()->state == scenario::State::kFailed) {
+      break;
+    }
+  }
+  result.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
+  const scenario::Status& status = *world.scenarioStatus();
+  result.state = status.timed_out || status.state == scenario::State::kRunning ? "timeout" : scenario::toString(status.state);
+  result.message = status.state == scenario::State::kRunning ? "the script ended without completing the task"
+                                                             : status.message;
+  result.score = status.score;
+  result.sim_seconds = status.elapsed;
+  result.frames = world.statistics().frames;
+  result.final_state_hash = world.stateHash();
+  const double frames = static_cast<double>(std::max<std::uint64_t>(result.frames, 1));
+  result.ms_per_frame = 1e3 * world.statistics().total_frame_wall_time / frames;
+  result.ms_scenario = stage_ms["scenario"] / frames;
+  result.ms_tissue = stage_ms["tissue"] / frames;
+  result.ms_collision = stage_ms["collision"] / frames;
+  result.ms_bleeding = stage_ms["bleeding"] / frames;
+  for (const char* kind : {"tissue", "collision", "bleeding", "scenario"}) {
+    if (stage_ms.count(kind) > 0) result.simulations.push_back(kind);
+  }
   return result;
 }
 

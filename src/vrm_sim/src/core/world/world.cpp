@@ -68,6 +68,7 @@ struct World::Instrument {
   bool active = false;
   double jaw_angle = 1.0;
   double suction = 0.0;
+  double cut_rate = 0.0;
   bool cutting = false;  // vitrector with suction and cutter running
   collision::InstrumentModel model;
   int model_jaw_deg = -1000;  // whole degrees, so tracking noise does not invalidate cached depth images
@@ -112,6 +113,7 @@ struct World::RigidObject {
   TriangleMesh mesh;
   Collider collider;
   std::unique_ptr<BleedingField> bleeding;  // the retina when the scene simulates bleeding
+  std::vector<double> vertex_areas;         // m^2 per vertex (a third of each adjacent triangle), for injured_area
   InjuryReport report;
 };
 
@@ -126,6 +128,7 @@ World::World(scene::SceneDescription scene, WorldOptions options)
   buildInstruments();
   buildTissues();
   buildRigidObjects();
+  if (scene_.scenario) runner_ = std::make_unique<scenario::ScenarioRunner>(scene_);
 }
 
 World::~World() = default;
@@ -143,8 +146,13 @@ void World::log(Severity severity, const std::string& key, const std::string& me
 }
 
 bool World::simulatesAnything() const {
-  if (!tissues_.empty()) return true;
+  if (!tissues_.empty() || runner_) return true;
   return !rigid_.empty();
+}
+
+bool World::simulating() const {
+  if (paused_ || !running_) return false;
+  return !runner_ || runner_->status().state != scenario::State::kIdle;
 }
 
 std::optional<World::Collider> World::makeCollider(const scene::ObjectDescription& object) const {
@@ -267,6 +275,14 @@ void World::buildRigidObjects() {
       rigid->report.frame_id = rigid->collider.frame_id;
       rigid->report.injury = &rigid->bleeding->field();
       rigid->report.mesh = &rigid->mesh;
+      rigid->vertex_areas.assign(rigid->mesh.vertices.size(), 0.0);
+      for (const auto& triangle : rigid->mesh.triangles) {
+        const std::uint32_t a = triangle[0], b = triangle[1], c = triangle[2];
+        const double area = 0.5 * (rigid->mesh.vertices[b] - rigid->mesh.vertices[a])
+                                      .cross(rigid->mesh.vertices[c] - rigid->mesh.vertices[a])
+                                      .norm();
+        for (std::uint32_t v : {a, b, c}) rigid->vertex_areas[v] += area / 3.0;
+      }
       last_injuries_.push_back(rigid->report);
     }
     rigid_.push_back(std::move(rigid));
@@ -363,6 +379,7 @@ void World::handle(const InstrumentState& state) {
   instrument.active = state.valid;
   instrument.suction = state.valid ? state.suction : 0.0;
   if (state.type) switchInstrument(instrument, *state.type);
+  instrument.cut_rate = state.valid ? state.cut_rate : 0.0;
   instrument.cutting = state.valid && instrument.current.type == scene::InstrumentType::kVitrector &&
                        state.suction > 0.0 && state.cut_rate > 0.0;
   closeFrameIfComplete();
@@ -399,21 +416,37 @@ void World::applyStateInputs(Stamp up_to) {
   buffered_commands_.erase(buffered_commands_.begin(), command);
 }
 
+void World::refuse(const std::string& message) {
+  log(Severity::kWarning, "", message);
+  if (runner_) runner_->setMessage(message);
+}
+
 void World::apply(const ScenarioCommand& command) {
   using Type = ScenarioCommand::Type;
+  const double time = toSeconds(command.stamp);
+  std::string refused;
   switch (command.command) {
     case Type::kPause:
-      paused_ = true;
+      if (runner_) refused = runner_->pause(time);
+      if (refused.empty()) paused_ = true;
       break;
     case Type::kResume:
-      paused_ = false;
+      if (runner_) refused = runner_->resume(time);
+      if (refused.empty()) paused_ = false;
       break;
     case Type::kStart:
-      running_ = true;
-      paused_ = false;
+      if (runner_) refused = runner_->start(time);
+      if (refused.empty()) {
+        running_ = true;
+        paused_ = false;
+      }
       break;
     case Type::kStop:
-      running_ = false;
+      if (runner_) {
+        refused = runner_->stop(time);
+      } else {
+        running_ = false;
+      }
       break;
     case Type::kReset:
       resetTissues();
@@ -422,6 +455,8 @@ void World::apply(const ScenarioCommand& command) {
       }
       paused_ = false;
       running_ = true;
+      if (runner_) runner_->reset();
+      auto_started_ = false;
       break;
     case Type::kLoad:
       if (command.scenario.empty() || command.scenario == scene_.name) {
@@ -429,7 +464,7 @@ void World::apply(const ScenarioCommand& command) {
       } else {
         log(Severity::kWarning, "",
             "LOAD '" + command.scenario + "': this world runs scene '" + scene_.name +
-                "'; another scene needs a new VR part (ignored)");
+                "'; another scene needs a new World (world::Session does that; ignored)");
       }
       break;
     case Type::kSelectInstrument: {
@@ -454,6 +489,7 @@ void World::apply(const ScenarioCommand& command) {
       break;
     }
   }
+  if (!refused.empty()) refuse(refused);
 }
 
 // ---- one frame ----
@@ -468,12 +504,16 @@ void World::closeFrame() {
   applyStateInputs(stamp);
   if (!first_stamp_) first_stamp_ = stamp;
   last_frame_stamp_ = stamp;
+  if (runner_ && options_.auto_start && !auto_started_ && runner_->status().state == scenario::State::kIdle) {
+    auto_started_ = true;
+    runner_->start(toSeconds(stamp));
+  }
 
   FrameResult result;
   result.stamp = stamp;
   result.frame = ++statistics_.frames;
   result.frame_time = frame_time;
-  result.paused = paused_ || !running_;
+  result.paused = !simulating();
   const double start = now();
   for (auto& [name, tissue] : tissues_) {
     if (result.paused) {
@@ -508,6 +548,12 @@ void World::closeFrame() {
     if (rigid->bleeding) last_injuries_.push_back(rigid->report);
   }
   result.injuries = last_injuries_;
+  if (runner_) {
+    const double scenario_start = now();
+    advanceScenario(result);
+    result.scenario = &runner_->status();
+    result.stages.push_back({"scenario", scenario_start, now()});
+  }
   result.wall_time = now() - start;
   statistics_.total_frame_wall_time += result.wall_time;
   statistics_.max_frame_wall_time = std::max(statistics_.max_frame_wall_time, result.wall_time);
@@ -619,6 +665,8 @@ void World::stepTissue(Tissue& tissue, double frame_time, FrameResult& result) {
   report.torn_springs = stats.torn_springs;
   report.cut_nodes = stats.cut_nodes;
   report.released_adhesions = stats.released_adhesions;
+  report.adhesion_points = tissue.simulator->adhesionPoints();
+  report.max_adhesion_force = stats.max_adhesion_force;
   if (report.grasped_nodes > 0) {
     tissue.ever_grasped = true;
     tissue.peak_lift = std::max(tissue.peak_lift, report.max_lift);
@@ -687,6 +735,15 @@ void World::bleed(RigidObject& object, FrameResult& result) {
   if (object.report.changed) ++object.report.version;
   object.report.max_injury = field.maxInjury();
   object.report.contacts = field.events().size();
+  object.report.in_contact = !field.events().empty() && field.events().back().ongoing;
+  if (object.report.changed) {
+    double area = 0.0;
+    const std::vector<float>& injury = field.field();
+    for (std::size_t v = 0; v < injury.size() && v < object.vertex_areas.size(); ++v) {
+      if (injury[v] > 0.1f) area += object.vertex_areas[v];
+    }
+    object.report.injured_area = area;
+  }
   for (std::size_t i = ended_before; i < result.contacts_ended.size(); ++i) {
     const ContactEvent& event = result.contacts_ended[i];
     log(Severity::kInfo, "",
@@ -754,7 +811,60 @@ std::uint64_t World::stateHash() const {
     hash = tissue::hashBytes(hash, field.data(), field.size() * sizeof(float));
   }
   const std::uint8_t flags[] = {static_cast<std::uint8_t>(paused_), static_cast<std::uint8_t>(running_)};
-  return tissue::hashBytes(hash, flags, sizeof(flags));
+  hash = tissue::hashBytes(hash, flags, sizeof(flags));
+  if (runner_) runner_->hash(hash);
+  return hash;
+}
+
+// The scenario sees what this frame produced, in the eye frame (scenario/scenario.h: FrameView).
+void World::advanceScenario(const FrameResult& result) {
+  scenario::FrameView view;
+  view.time = toSeconds(result.stamp);
+  view.dt = result.frame_time;
+  view.world_from_eye = world_from_eye_;
+  for (const auto& [slot, instrument] : instruments_) {
+    scenario::InstrumentView entry;
+    entry.slot = slot;
+    entry.type = instrument->current.type;
+    entry.valid = instrument->active;
+    const Eigen::Isometry3d pose = *transform("eye", instrument->frame_id) * instrument->pose;
+    entry.tip = pose.translation();
+    entry.axis = pose.linear().col(2);
+    entry.jaw_angle = instrument->jaw_angle;
+    entry.suction = instrument->suction;
+    entry.cut_rate = instrument->cut_rate;
+    view.instruments.push_back(entry);
+  }
+  view.pedals = {pedals_.travel, pedals_.reflux, pedals_.instrument_switch};
+  for (const auto& [name, tissue] : tissues_) {
+    const TissueReport& report = tissue->report;
+    scenario::TissueView entry;
+    entry.object = name;
+    entry.role = tissue->object->role;
+    entry.grasped_nodes = report.grasped_nodes;
+    entry.max_strain = report.max_strain;
+    entry.max_lift = report.max_lift;
+    entry.lifted_fraction = report.lifted_fraction;
+    entry.torn_springs = report.torn_springs;
+    entry.cut_nodes = report.cut_nodes;
+    entry.released_adhesions = report.released_adhesions;
+    entry.adhesion_points = tissue->simulator->adhesionPoints();
+    entry.max_adhesion_force = tissue->simulator->statistics().max_adhesion_force;
+    entry.initial_node_count = tissue->rest_by_id.size();
+    entry.positions = tissue->membrane->positions();
+    entry.node_count = tissue->membrane->nodeCount();
+    entry.rest_positions = &tissue->rest_by_slot;
+    view.tissues.push_back(entry);
+  }
+  for (const auto& rigid : rigid_) {
+    if (!rigid->bleeding) continue;
+    view.retina.simulated = true;
+    view.retina.contact_events += rigid->report.contacts;
+    view.retina.in_contact = view.retina.in_contact || rigid->report.in_contact;
+    view.retina.max_injury = std::max(view.retina.max_injury, rigid->report.max_injury);
+    view.retina.injured_area += rigid->report.injured_area;
+  }
+  runner_->frame(view);
 }
 
 std::vector<std::string> World::tissueNames() const {

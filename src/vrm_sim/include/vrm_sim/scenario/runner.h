@@ -1,0 +1,90 @@
+#pragma once
+// A scenario session (thesis §2.3): the state machine IDLE -> RUNNING <-> PAUSED -> FINISHED | FAILED around one
+// Scenario, its running time (pauses excluded; input stamps only), the time limit, the failure rules (`fail_if`) and
+// the score (`scoring`: every item linear between its best and worst value, weighted mean 0..100).
+//
+// Items every scenario reports besides its own: time (s, running), completed (1 once FINISHED, else 0).
+
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "vrm_sim/scenario/scenario.h"
+
+namespace vrm_sim {
+namespace scenario {
+
+enum class State { kIdle, kRunning, kPaused, kFinished, kFailed };
+const char* toString(State state);  // idle, running, paused, finished, failed
+
+struct ScoreItem {
+  std::string name;
+  double value = 0.0;
+  std::string unit;
+  double weight = 0.0;  // 0: reported, not scored
+  double points = 0.0;  // 0..100 for this item
+};
+
+struct Score {
+  double total = 0.0;  // 0..100
+  std::vector<ScoreItem> items;
+  const ScoreItem* item(const std::string& name) const;
+};
+
+// Points of one value under one rule: 100 at best, 0 at worst, linear and clamped in between.
+double itemPoints(const scene::ScoringRule& rule, double value);
+Score computeScore(const std::vector<scene::ScoringRule>& rules, const std::vector<Measurement>& measurements);
+
+struct Status {
+  std::string scenario;    // the scene's name
+  std::string type;        // the scenario type
+  std::string difficulty;  // level name ("" = none)
+  State state = State::kIdle;
+  double elapsed = 0.0;  // s running
+  bool timed_out = false;
+  std::string message;   // why it ended, or the last refused command
+  std::string progress;  // the scenario's own one-liner
+  std::optional<double> start_time, end_time;  // s, input stamps
+  Score score;
+};
+
+class ScenarioRunner {
+ public:
+  // Throws scene::SceneError for a scenario that cannot run (see makeScenario) or a scoring / failure rule naming
+  // an item the type does not report.
+  explicit ScenarioRunner(const scene::SceneDescription& scene);
+  ~ScenarioRunner();
+
+  // Commands at input time `time` (s). Each returns "" when applied, else why not (the state is then unchanged).
+  std::string start(double time);
+  std::string pause(double time);
+  std::string resume(double time);
+  std::string stop(double time);  // ends a running or paused session as failed ("stopped")
+  void reset();                   // back to IDLE with a fresh scenario (the world resets its tissues alongside)
+  // A note for the trainee in status().message, e.g. why a command was refused (the state is unchanged).
+  void setMessage(const std::string& message) { status_.message = message; }
+
+  // One simulation frame: advances time, measurements, success and failure while RUNNING; nothing otherwise.
+  void frame(const FrameView& frame);
+
+  const Status& status() const { return status_; }
+  bool running() const { return status_.state == State::kRunning; }
+  bool ended() const { return status_.state == State::kFinished || status_.state == State::kFailed; }
+  void hash(std::uint64_t& state) const;
+  const scene::ScenarioDescription& description() const { return description_; }
+
+ private:
+  void refreshScore();
+  void finish(State state, const std::string& message, double time);
+
+  scene::SceneDescription scene_;
+  scene::ScenarioDescription description_;
+  std::unique_ptr<Scenario> scenario_;
+  Status status_;
+  double last_time_ = 0.0;  // input time up to which `elapsed` counts
+};
+
+}  // namespace scenario
+}  // namespace vrm_sim

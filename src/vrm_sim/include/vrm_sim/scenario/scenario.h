@@ -1,0 +1,111 @@
+#pragma once
+// The training layer (thesis §2.1-2.3: a scenario is a task with success and failure criteria and a score; §7.4.1:
+// abstract scenarios train a skill without anatomy, surgical ones a step of an operation). ROS-free: a scenario sees
+// one FrameView per simulation frame — what the simulation core (world/world.h) knows after the frame: instruments,
+// pedals, tissues, retina contacts — and turns it into measurements. Time is the frames' input stamps only, so a
+// replayed session scores exactly like the live one.
+//
+// One class per scenario type behind this interface, chosen by the scene's `scenario.type` (makeScenario()); the
+// ScenarioRunner (runner.h) adds the state machine, the time limit, the failure rules and the scoring.
+
+#include <Eigen/Geometry>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "vrm_sim/scene/scene_description.h"
+
+namespace vrm_sim {
+namespace scenario {
+
+struct InstrumentView {
+  std::string slot;  // "left" | "right"
+  scene::InstrumentType type = scene::InstrumentType::kLightPipe;
+  bool valid = false;                                 // tracked and interacting
+  Eigen::Vector3d tip = Eigen::Vector3d::Zero();      // m, eye frame
+  Eigen::Vector3d axis = -Eigen::Vector3d::UnitZ();   // unit, eye frame, from the handle towards the tip
+  double jaw_angle = 1.0;                             // rad
+  double suction = 0.0;                               // 0..1
+  double cut_rate = 0.0;                              // Hz
+};
+
+struct PedalView {
+  double travel = 0.0;
+  bool reflux = false;
+  bool instrument_switch = false;
+};
+
+struct TissueView {
+  std::string object;
+  scene::ObjectRole role = scene::ObjectRole::kMembrane;
+  std::size_t grasped_nodes = 0;
+  double max_strain = 0.0;
+  double max_lift = 0.0;         // m
+  double lifted_fraction = 0.0;  // of the nodes, more than 0.1 mm off their rest position
+  std::uint64_t torn_springs = 0;
+  std::uint64_t cut_nodes = 0;
+  std::uint64_t released_adhesions = 0;
+  std::size_t adhesion_points = 0;      // holding now
+  double max_adhesion_force = 0.0;      // N, largest pull on an adhesion point so far
+  std::size_t initial_node_count = 0;   // at the start (rest)
+  const Eigen::Vector3d* positions = nullptr;  // by node slot, valid during the frame
+  std::size_t node_count = 0;
+  const std::vector<Eigen::Vector3d>* rest_positions = nullptr;  // by node slot at the start (NaN: born later)
+};
+
+struct RetinaView {
+  bool simulated = false;          // a bleeding retina in the simulation core (else scenarios test the tip)
+  std::size_t contact_events = 0;  // pressure or aspiration contacts so far
+  bool in_contact = false;
+  double max_injury = 0.0;    // 0..1
+  double injured_area = 0.0;  // m^2 of retina with injury above 0.1
+};
+
+struct FrameView {
+  double time = 0.0;  // s: the frame's input stamp
+  double dt = 0.0;    // s of simulated time the frame covered
+  Eigen::Isometry3d world_from_eye = Eigen::Isometry3d::Identity();
+  std::vector<InstrumentView> instruments;
+  PedalView pedals;
+  std::vector<TissueView> tissues;
+  RetinaView retina;
+
+  const InstrumentView* instrument(const std::string& slot) const;
+  const TissueView* tissue(const std::string& object) const;
+};
+
+struct Measurement {
+  std::string name;
+  double value = 0.0;
+  std::string unit;
+};
+
+class Scenario {
+ public:
+  virtual ~Scenario() = default;
+  // Every item measurements() reports (names and units), so the loader-side checks can reject a scoring or failure
+  // rule naming an item the type does not produce.
+  virtual std::vector<Measurement> items() const = 0;
+  // One running frame; `elapsed` is the running time after it (s, pauses excluded).
+  virtual void update(const FrameView& frame, double elapsed) = 0;
+  virtual bool succeeded() const = 0;
+  virtual std::vector<Measurement> measurements(double elapsed) const = 0;
+  // One line for the trainee, e.g. "target 2 of 4".
+  virtual std::string progress() const = 0;
+  // Mixes the scenario's state into a state hash (FNV-1a, see hashBytes()).
+  virtual void hash(std::uint64_t& state) const = 0;
+};
+
+// Builds the scene's scenario (scene.scenario must be set). Throws scene::SceneError with the location of the
+// offending parameter for a missing or wrong parameter or a scene object the type needs but the scene lacks.
+std::unique_ptr<Scenario> makeScenario(const scene::SceneDescription& scene);
+
+void hashBytes(std::uint64_t& state, const void* data, std::size_t size);
+template <typename T>
+void hashValue(std::uint64_t& state, const T& value) {
+  hashBytes(state, &value, sizeof(value));
+}
+
+}  // namespace scenario
+}  // namespace vrm_sim

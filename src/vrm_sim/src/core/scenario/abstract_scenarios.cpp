@@ -1,0 +1,380 @@
+// The abstract scenarios of thesis §7.4.1: skills without anatomy (navigation, trajectory following, pick and place,
+// steady hold). Geometry in the eye frame; the retina is the eye sphere unless the core simulates it.
+#include <algorithm>
+#include <cmath>
+
+#include "common.h"
+#include "scenarios.h"
+
+namespace vrm_sim {
+namespace scenario {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+// Touch the targets in the given order with the tool's tip while the light pipe illuminates the target (bimanual).
+class Navigation : public Scenario {
+ public:
+  explicit Navigation(const scene::SceneDescription& scene) : contacts_(scene.eye.radius) {
+    Params params(scene);
+    for (const std::string& name : params.names("targets")) {
+      const scene::ObjectDescription* object = scene.findObject(name);
+      if (object == nullptr) params.fail("targets", "the scene has no object '" + name + "'");
+      targets_.push_back(sphereOf(*object, params, "targets"));
+    }
+    tool_ = params.slot("tool", "right");
+    light_ = params.name("light", "left");
+    if (light_ != "none") light_ = params.slot("light", "left");
+    tolerance_ = params.number("touch_tolerance", 1e-4, 0.0, 2e-3);
+    cone_cos_ = std::cos(params.number("light_cone_deg", 25.0, 1.0, 90.0) * kPi / 180.0);
+    params.finish();
+    touching_.resize(targets_.size());
+  }
+
+  std::vector<Measurement> items() const override { return measurements(0.0); }
+
+  void update(const FrameView& frame, double) override {
+    contacts_.update(frame);
+    const InstrumentView* tool = frame.instrument(tool_);
+    if (tool == nullptr || !tool->valid) return;
+    if (last_tip_) path_length_ += (tool->tip - *last_tip_).norm();
+    last_tip_ = tool->tip;
+    const InstrumentView* light = light_ == "none" ? nullptr : frame.instrument(light_);
+    for (std::size_t i = 0; i < targets_.size(); ++i) {
+      const Sphere& target = targets_[i];
+      const double gap = (tool->tip - target.centre).norm() - target.radius;
+      if (!touching_[i].update(gap, tolerance_, 2.0 * tolerance_ + 5e-5)) continue;
+      if (i == next_) {
+        if (lit(light, target)) {
+          ++next_;
+        } else {
+          ++unlit_touches_;
+        }
+      } else if (i > next_) {
+        ++wrong_touches_;
+      }
+    }
+  }
+
+  bool succeeded() const override { return next_ == targets_.size(); }
+
+  std::vector<Measurement> measurements(double) const override {
+    return {{"targets_touched", static_cast<double>(next_), "1"},
+            {"path_length", path_length_, "m"},
+            {"wrong_touches", static_cast<double>(wrong_touches_), "1"},
+            {"unlit_touches", static_cast<double>(unlit_touches_), "1"},
+            {"retina_contacts", static_cast<double>(contacts_.count()), "1"}};
+  }
+
+  std::string progress() const override {
+    if (succeeded()) return "all targets touched";
+    return format("target %zu of %zu: %s", next_ + 1, targets_.size(), targets_[next_].name.c_str());
+  }
+
+  void hash(std::uint64_t& state) const override {
+    hashValue(state, next_);
+    hashValue(state, path_length_);
+    hashValue(state, wrong_touches_);
+    hashValue(state, unlit_touches_);
+    contacts_.hash(state);
+  }
+
+ private:
+  bool lit(const InstrumentView* light, const Sphere& target) const {
+    if (light_ == "none") return true;
+    if (light == nullptr || !light->valid) return false;
+    const Eigen::Vector3d to_target = target.centre - light->tip;
+    const double distance = to_target.norm();
+    return distance > 0.0 && light->axis.dot(to_target) / distance >= cone_cos_;
+  }
+
+  std::vector<Sphere> targets_;
+  std::vector<ContactCounter> touching_;
+  std::string tool_, light_;
+  double tolerance_ = 1e-4, cone_cos_ = 0.9;
+  std::size_t next_ = 0, wrong_touches_ = 0, unlit_touches_ = 0;
+  double path_length_ = 0.0;
+  std::optional<Eigen::Vector3d> last_tip_;
+  RetinaContacts contacts_;
+};
+
+// Follow a path marked on the retina at a given height above it: from its first point to its last.
+class Trajectory : public Scenario {
+ public:
+  explicit Trajectory(const scene::SceneDescription& scene) : contacts_(scene.eye.radius) {
+    Params params(scene);
+    const std::vector<Eigen::Vector3d> marked = params.points("path");
+    if (marked.size() < 2) params.fail("path", "expected at least two points");
+    const double height = params.number("height", 5e-4, 0.0, 5e-3);
+    for (const Eigen::Vector3d& point : marked) {
+      if (!(point.norm() > height)) params.fail("path", "a path point lies at the eye centre");
+      path_.push_back(point * (1.0 - height / point.norm()));  // towards the eye centre, i.e. above the retina
+    }
+    length_ = pathLength(path_);
+    tool_ = params.slot("tool", "right");
+    tolerance_ = params.number("end_tolerance", 3e-4, 1e-5, 5e-3);
+    finish_fraction_ = params.number("finish_fraction", 0.95, 0.1, 1.0);
+    params.finish();
+  }
+
+  std::vector<Measurement> items() const override { return measurements(0.0); }
+
+  void update(const FrameView& frame, double) override {
+    contacts_.update(frame);
+    const InstrumentView* tool = frame.instrument(tool_);
+    if (tool == nullptr || !tool->valid) return;
+    if (!started_) {
+      started_ = (tool->tip - path_.front()).norm() < tolerance_;
+      last_tip_ = tool->tip;
+      if (!started_) return;
+    }
+    const PolylineProjection projection = projectOnPolyline(path_, tool->tip);
+    deviation_.add(projection.distance);
+    if (projection.distance < 3.0 * tolerance_) progress_ = std::max(progress_, projection.arc);
+    if (frame.dt > 0.0) speed_.add((tool->tip - last_tip_).norm() / frame.dt);
+    last_tip_ = tool->tip;
+    finished_ = progress_ >= finish_fraction_ * length_ && (tool->tip - path_.back()).norm() < tolerance_;
+  }
+
+  bool succeeded() const override { return finished_; }
+
+  std::vector<Measurement> measurements(double) const override {
+    return {{"progress", length_ > 0.0 ? progress_ / length_ : 0.0, "1"},
+            {"mean_deviation", deviation_.mean(), "m"},
+            {"max_deviation", deviation_.max(), "m"},
+            {"speed_variability", speed_.coefficientOfVariation(), "1"},
+            {"retina_contacts", static_cast<double>(contacts_.count()), "1"}};
+  }
+
+  std::string progress() const override {
+    if (!started_) return "bring the tip to the start of the path";
+    return format("%.0f %% of the path", 100.0 * (length_ > 0.0 ? progress_ / length_ : 0.0));
+  }
+
+  void hash(std::uint64_t& state) const override {
+    hashValue(state, started_);
+    hashValue(state, progress_);
+    hashValue(state, deviation_.mean());
+    hashValue(state, deviation_.max());
+    contacts_.hash(state);
+  }
+
+ private:
+  std::vector<Eigen::Vector3d> path_;
+  double length_ = 0.0, tolerance_ = 3e-4, finish_fraction_ = 0.95;
+  std::string tool_;
+  bool started_ = false, finished_ = false;
+  double progress_ = 0.0;
+  Eigen::Vector3d last_tip_ = Eigen::Vector3d::Zero();
+  RunningStats deviation_, speed_;
+  RetinaContacts contacts_;
+};
+
+// Grasp a sphere with the forceps, carry it into a ring and let go there. A released sphere is a rigid body under
+// gravity with the viscous drag of the eye's fluid filling; it comes to rest on the retina.
+class PickAndPlace : public Scenario {
+ public:
+  explicit PickAndPlace(const scene::SceneDescription& scene)
+      : eye_radius_(scene.eye.radius), contacts_(scene.eye.radius) {
+    Params params(scene);
+    ball_ = sphereOf(params.object("ball", "ball"), params, "ball");
+    const scene::ObjectDescription& ring = params.object("ring", "ring");
+    const auto* torus = ring.mesh.generator ? std::get_if<scene::TorusParams>(&*ring.mesh.generator) : nullptr;
+    if (torus == nullptr || ring.frame != scene::ObjectFrame::kEye) {
+      params.fail("ring", "object '" + ring.name + "' must be a torus in the eye frame");
+    }
+    const Eigen::Isometry3d ring_pose = ring.pose.toIsometry();
+    ring_centre_ = ring_pose.translation();
+    ring_normal_ = ring_pose.linear().col(2);
+    ring_radius_ = torus->major_radius;
+    tool_ = params.slot("gripper", "right");
+    grasp_tolerance_ = params.number("grasp_tolerance", 2e-4, 0.0, 2e-3);
+    grasp_angle_ = params.number("grasp_angle_deg", 8.0, 0.5, 90.0) * kPi / 180.0;
+    gravity_ = params.number("gravity", 9.81, 0.0, 100.0);
+    drag_ = params.number("drag", 30.0, 0.0, 1e4);
+    params.finish();
+    position_ = ball_.centre;
+  }
+
+  std::vector<Measurement> items() const override { return measurements(0.0); }
+
+  void update(const FrameView& frame, double) override {
+    contacts_.update(frame);
+    const InstrumentView* tool = frame.instrument(tool_);
+    const bool valid = tool != nullptr && tool->valid;
+    const bool closed = valid && tool->jaw_angle < grasp_angle_;
+    if (held_) {
+      if (!closed) {
+        held_ = false;
+        resting_ = false;
+        if (inRing(position_)) {
+          placed_ = true;
+        } else {
+          ++drops_;
+        }
+      } else {
+        position_ = tool->tip + offset_;
+      }
+    } else if (!placed_ && valid && closed && jaws_were_open_ &&
+               (tool->tip - position_).norm() < ball_.radius + grasp_tolerance_) {
+      held_ = true;
+      offset_ = position_ - tool->tip;
+      velocity_.setZero();
+    }
+    jaws_were_open_ = valid && !closed;
+    if (!held_ && !resting_ && !placed_) fall(frame);
+  }
+
+  bool succeeded() const override { return placed_; }
+
+  std::vector<Measurement> measurements(double) const override {
+    return {{"placed", placed_ ? 1.0 : 0.0, "1"},
+            {"drops", static_cast<double>(drops_), "1"},
+            {"ball_impacts", static_cast<double>(impacts_), "1"},
+            {"retina_contacts", static_cast<double>(contacts_.count()), "1"}};
+  }
+
+  std::string progress() const override {
+    if (placed_) return "placed in the ring";
+    return held_ ? "carry the sphere into the ring" : "grasp the sphere";
+  }
+
+  void hash(std::uint64_t& state) const override {
+    hashBytes(state, position_.data(), sizeof(double) * 3);
+    hashValue(state, held_);
+    hashValue(state, drops_);
+    hashValue(state, impacts_);
+    contacts_.hash(state);
+  }
+
+ private:
+  bool inRing(const Eigen::Vector3d& p) const {
+    const Eigen::Vector3d d = p - ring_centre_;
+    const double along = d.dot(ring_normal_);
+    return (d - along * ring_normal_).norm() < ring_radius_ && std::abs(along) < ring_radius_;
+  }
+
+  // Semi-implicit Euler in the eye frame; gravity is the world's -z seen from the (rotating) eye.
+  void fall(const FrameView& frame) {
+    const Eigen::Vector3d gravity = frame.world_from_eye.linear().transpose() * Eigen::Vector3d(0, 0, -gravity_);
+    const int substeps = std::max(1, static_cast<int>(std::ceil(frame.dt / 1e-3)));
+    const double h = frame.dt / substeps;
+    for (int i = 0; i < substeps; ++i) {
+      velocity_ = (velocity_ + h * gravity) / (1.0 + h * drag_);
+      position_ += h * velocity_;
+      if (position_.norm() + ball_.radius >= eye_radius_) {
+        position_ *= (eye_radius_ - ball_.radius) / position_.norm();
+        velocity_.setZero();
+        resting_ = true;
+        ++impacts_;
+        return;
+      }
+    }
+  }
+
+  Sphere ball_;
+  Eigen::Vector3d ring_centre_, ring_normal_;
+  double ring_radius_ = 0.0, eye_radius_;
+  std::string tool_;
+  double grasp_tolerance_ = 2e-4, grasp_angle_ = 0.14, gravity_ = 9.81, drag_ = 30.0;
+  Eigen::Vector3d position_, velocity_ = Eigen::Vector3d::Zero(), offset_ = Eigen::Vector3d::Zero();
+  bool held_ = false, resting_ = true, placed_ = false, jaws_were_open_ = false;
+  std::size_t drops_ = 0, impacts_ = 0;
+  RetinaContacts contacts_;
+};
+
+// Hold the tip inside a small sphere (100 µm) for a while; the tremor (tip RMS, power in the 8-12 Hz band of
+// physiological tremor, thesis §1.3) is measured from the tracked tip during the hold.
+class SteadyHold : public Scenario {
+ public:
+  explicit SteadyHold(const scene::SceneDescription& scene) : contacts_(scene.eye.radius) {
+    Params params(scene);
+    const std::vector<Eigen::Vector3d> centre = params.points("centre");
+    if (centre.size() != 1) params.fail("centre", "expected one point x, y, z");
+    centre_ = centre.front();
+    radius_ = params.number("radius", 1e-4, 1e-6, 5e-3);
+    hold_time_ = params.number("hold_time", 10.0, 0.1, 600.0);
+    band_low_ = params.number("band_low_hz", 8.0, 0.0, 1000.0);
+    band_high_ = params.number("band_high_hz", 12.0, band_low_, 1000.0);
+    tool_ = params.slot("tool", "right");
+    params.finish();
+  }
+
+  std::vector<Measurement> items() const override { return measurements(0.0); }
+
+  void update(const FrameView& frame, double elapsed) override {
+    contacts_.update(frame);
+    const InstrumentView* tool = frame.instrument(tool_);
+    const bool inside = tool != nullptr && tool->valid && (tool->tip - centre_).norm() <= radius_;
+    if (inside && !inside_) {
+      hold_start_ = elapsed;
+      samples_.clear();
+      times_.clear();
+    }
+    if (!inside && inside_) ++exits_;
+    inside_ = inside;
+    if (!inside) return;
+    samples_.push_back(tool->tip);
+    times_.push_back(frame.time);
+    longest_hold_ = std::max(longest_hold_, elapsed - hold_start_);
+    held_ = longest_hold_ >= hold_time_;
+    if (held_ || samples_.size() % 25 == 0) analyse();
+  }
+
+  bool succeeded() const override { return held_; }
+
+  std::vector<Measurement> measurements(double) const override {
+    return {{"hold", longest_hold_, "s"},
+            {"exits", static_cast<double>(exits_), "1"},
+            {"tip_rms", rms_, "m"},
+            {"tremor_band_power", band_power_, "m^2"},
+            {"retina_contacts", static_cast<double>(contacts_.count()), "1"}};
+  }
+
+  std::string progress() const override {
+    return inside_ ? format("holding %.1f of %.0f s", longest_hold_, hold_time_) : "bring the tip into the sphere";
+  }
+
+  void hash(std::uint64_t& state) const override {
+    hashValue(state, longest_hold_);
+    hashValue(state, exits_);
+    hashValue(state, samples_.size());
+    contacts_.hash(state);
+  }
+
+ private:
+  void analyse() {
+    rms_ = rmsDistance(samples_, centre_);
+    const double span = times_.size() > 1 ? times_.back() - times_.front() : 0.0;
+    band_power_ = span > 0.0 ? bandPower(samples_, static_cast<double>(times_.size() - 1) / span, band_low_, band_high_)
+                             : 0.0;
+  }
+
+  Eigen::Vector3d centre_;
+  double radius_ = 1e-4, hold_time_ = 10.0, band_low_ = 8.0, band_high_ = 12.0;
+  std::string tool_;
+  bool inside_ = false, held_ = false;
+  double hold_start_ = 0.0, longest_hold_ = 0.0, rms_ = 0.0, band_power_ = 0.0;
+  std::size_t exits_ = 0;
+  std::vector<Eigen::Vector3d> samples_;
+  std::vector<double> times_;
+  RetinaContacts contacts_;
+};
+
+}  // namespace
+
+std::unique_ptr<Scenario> makeNavigation(const scene::SceneDescription& scene) {
+  return std::make_unique<Navigation>(scene);
+}
+std::unique_ptr<Scenario> makeTrajectory(const scene::SceneDescription& scene) {
+  return std::make_unique<Trajectory>(scene);
+}
+std::unique_ptr<Scenario> makePickAndPlace(const scene::SceneDescription& scene) {
+  return std::make_unique<PickAndPlace>(scene);
+}
+std::unique_ptr<Scenario> makeSteadyHold(const scene::SceneDescription& scene) {
+  return std::make_unique<SteadyHold>(scene);
+}
+
+}  // namespace scenario
+}  // namespace vrm_sim

@@ -1,0 +1,67 @@
+#pragma once
+// Shared pieces of the scenario types (not installed): strict parameter reading and the retina contact counter.
+
+#include <optional>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "vrm_sim/scenario/metrics.h"
+#include "vrm_sim/scenario/scenario.h"
+#include "vrm_sim/scene/scene_loader.h"
+
+namespace vrm_sim {
+namespace scenario {
+
+// Reads the scenario's `params`; every parameter a type does not ask for is an error on finish(), like the loader's
+// unknown keys, so a misspelt parameter never silently leaves a default in place.
+class Params {
+ public:
+  explicit Params(const scene::SceneDescription& scene) : scene_(scene), scenario_(*scene.scenario) {}
+
+  double number(const std::string& name, double fallback, double minimum, double maximum);
+  std::string name(const std::string& name, const std::string& fallback);
+  std::vector<std::string> names(const std::string& name);
+  std::vector<Eigen::Vector3d> points(const std::string& name);  // a flat list x1, y1, z1, x2, ...
+  // A scene object the scenario refers to, by the name in parameter `name` (default `fallback`).
+  const scene::ObjectDescription& object(const std::string& name, const std::string& fallback);
+  // The instrument slot named by parameter `name` ("left" | "right"); the scene must have an instrument there.
+  std::string slot(const std::string& name, const std::string& fallback);
+  void finish() const;
+  [[noreturn]] void fail(const std::string& name, const std::string& problem) const;
+
+ private:
+  const scene::ScenarioParam* get(const std::string& name);
+  const scene::SceneDescription& scene_;
+  const scene::ScenarioDescription& scenario_;
+  std::set<std::string> asked_;
+};
+
+// The centre (in the object's frame) and radius of a sphere object (generator sphere).
+struct Sphere {
+  std::string name;
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+  double radius = 0.0;
+};
+Sphere sphereOf(const scene::ObjectDescription& object, Params& params, const std::string& parameter);
+
+// Retina contacts of every instrument: the simulation core's contact events where the retina is simulated
+// (bleeding), else the instrument tips' distance to the eye sphere (enter below 50 µm, leave above 100 µm).
+class RetinaContacts {
+ public:
+  explicit RetinaContacts(double eye_radius) : eye_radius_(eye_radius) {}
+  void update(const FrameView& frame);
+  std::size_t count() const;
+  void hash(std::uint64_t& state) const;
+
+ private:
+  double eye_radius_;
+  std::optional<std::size_t> first_events_;
+  std::size_t events_ = 0;
+  std::vector<std::pair<std::string, ContactCounter>> tips_;
+};
+
+std::string format(const char* format, ...);
+
+}  // namespace scenario
+}  // namespace vrm_sim

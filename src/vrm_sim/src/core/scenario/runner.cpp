@@ -1,0 +1,204 @@
+#include "vrm_sim/scenario/runner.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+#include "vrm_sim/scene/scene_loader.h"
+
+namespace vrm_sim {
+namespace scenario {
+
+const char* toString(State state) {
+  switch (state) {
+    case State::kIdle:
+      return "idle";
+    case State::kRunning:
+      return "running";
+    case State::kPaused:
+      return "paused";
+    case State::kFinished:
+      return "finished";
+    case State::kFailed:
+      return "failed";
+  }
+  return "?";
+}
+
+const ScoreItem* Score::item(const std::string& name) const {
+  for (const ScoreItem& entry : items) {
+    if (entry.name == name) return &entry;
+  }
+  return nullptr;
+}
+
+double itemPoints(const scene::ScoringRule& rule, double value) {
+  if (!std::isfinite(value)) return 0.0;
+  const double fraction = (value - rule.worst) / (rule.best - rule.worst);
+  return 100.0 * std::clamp(fraction, 0.0, 1.0);
+}
+
+Score computeScore(const std::vector<scene::ScoringRule>& rules, const std::vector<Measurement>& measurements) {
+  Score score;
+  double weighted = 0.0, weights = 0.0;
+  for (const Measurement& measurement : measurements) {
+    ScoreItem item{measurement.name, measurement.value, measurement.unit, 0.0, 0.0};
+    for (const scene::ScoringRule& rule : rules) {
+      if (rule.item != measurement.name) continue;
+      item.weight = rule.weight;
+      item.points = itemPoints(rule, measurement.value);
+      weighted += rule.weight * item.points;
+      weights += rule.weight;
+    }
+    score.items.push_back(item);
+  }
+  score.total = weights > 0.0 ? weighted / weights : 0.0;
+  return score;
+}
+
+namespace {
+
+std::string seconds(double value) {
+  char text[32];
+  std::snprintf(text, sizeof(text), "%.1f s", value);
+  return text;
+}
+
+}  // namespace
+
+ScenarioRunner::ScenarioRunner(const scene::SceneDescription& scene) : scene_(scene) {
+  if (!scene.scenario) {
+    scene::SourceLocation where;
+    where.file = scene.source_file;
+    throw scene::SceneError(where, "the scene has no scenario section");
+  }
+  description_ = *scene.scenario;
+  scenario_ = makeScenario(scene_);
+  std::vector<Measurement> items = scenario_->items();
+  items.push_back({"time", 0.0, "s"});
+  items.push_back({"completed", 0.0, "1"});
+  auto known = [&items](const std::string& name) {
+    return std::any_of(items.begin(), items.end(), [&name](const Measurement& item) { return item.name == name; });
+  };
+  std::string names;
+  for (const Measurement& item : items) names += (names.empty() ? "" : ", ") + item.name;
+  for (const scene::ScoringRule& rule : description_.scoring) {
+    if (!known(rule.item)) {
+      throw scene::SceneError(rule.location, "scenario type '" + description_.type + "' has no score item '" +
+                                                 rule.item + "'; its items: " + names);
+    }
+  }
+  for (const scene::FailureRule& rule : description_.fail_if) {
+    if (!known(rule.item)) {
+      throw scene::SceneError(rule.location, "scenario type '" + description_.type + "' has no score item '" +
+                                                 rule.item + "'; its items: " + names);
+    }
+  }
+  status_.scenario = scene.name;
+  status_.type = description_.type;
+  status_.difficulty = description_.difficulty;
+  refreshScore();
+}
+
+ScenarioRunner::~ScenarioRunner() = default;
+
+std::string ScenarioRunner::start(double time) {
+  if (status_.state == State::kRunning || status_.state == State::kPaused) {
+    return "START refused: the scenario is already " + std::string(toString(status_.state)) + " (STOP or RESET first)";
+  }
+  if (ended()) return "START refused: the session has ended; RESET starts a new one";
+  status_.state = State::kRunning;
+  status_.start_time = time;
+  status_.message = "started";
+  last_time_ = time;
+  return "";
+}
+
+std::string ScenarioRunner::pause(double time) {
+  if (status_.state != State::kRunning) {
+    return "PAUSE refused: the scenario is " + std::string(toString(status_.state));
+  }
+  status_.elapsed += std::max(0.0, time - last_time_);
+  last_time_ = time;
+  status_.state = State::kPaused;
+  status_.message = "paused";
+  refreshScore();
+  return "";
+}
+
+std::string ScenarioRunner::resume(double time) {
+  if (status_.state != State::kPaused) return "RESUME refused: the scenario is " + std::string(toString(status_.state));
+  status_.state = State::kRunning;
+  status_.message = "resumed";
+  last_time_ = time;
+  return "";
+}
+
+std::string ScenarioRunner::stop(double time) {
+  if (status_.state != State::kRunning && status_.state != State::kPaused) {
+    return "STOP refused: the scenario is " + std::string(toString(status_.state));
+  }
+  if (status_.state == State::kRunning) status_.elapsed += std::max(0.0, time - last_time_);
+  finish(State::kFailed, "stopped by the trainee", time);
+  return "";
+}
+
+void ScenarioRunner::reset() {
+  scenario_ = makeScenario(scene_);
+  status_ = Status{};
+  status_.scenario = scene_.name;
+  status_.type = description_.type;
+  status_.difficulty = description_.difficulty;
+  status_.message = "reset";
+  last_time_ = 0.0;
+  refreshScore();
+}
+
+void ScenarioRunner::finish(State state, const std::string& message, double time) {
+  status_.state = state;
+  status_.message = message;
+  status_.end_time = time;
+  refreshScore();
+}
+
+void ScenarioRunner::frame(const FrameView& frame) {
+  if (status_.state != State::kRunning) return;
+  status_.elapsed += std::max(0.0, frame.time - last_time_);
+  last_time_ = frame.time;
+  scenario_->update(frame, status_.elapsed);
+  status_.progress = scenario_->progress();
+  if (scenario_->succeeded()) {
+    finish(State::kFinished, "task completed in " + seconds(status_.elapsed), frame.time);
+    return;
+  }
+  refreshScore();
+  for (const scene::FailureRule& rule : description_.fail_if) {
+    const ScoreItem* item = status_.score.item(rule.item);
+    if (item != nullptr && item->value >= rule.at_least) {
+      char value[64];
+      std::snprintf(value, sizeof(value), "%g", item->value);
+      finish(State::kFailed, "failed: " + rule.item + " reached " + value, frame.time);
+      return;
+    }
+  }
+  if (description_.time_limit > 0.0 && status_.elapsed >= description_.time_limit) {
+    status_.timed_out = true;
+    finish(State::kFailed, "time limit of " + seconds(description_.time_limit) + " reached", frame.time);
+  }
+}
+
+void ScenarioRunner::refreshScore() {
+  std::vector<Measurement> measurements = scenario_->measurements(status_.elapsed);
+  measurements.push_back({"time", status_.elapsed, "s"});
+  measurements.push_back({"completed", status_.state == State::kFinished ? 1.0 : 0.0, "1"});
+  status_.score = computeScore(description_.scoring, measurements);
+}
+
+void ScenarioRunner::hash(std::uint64_t& state) const {
+  hashValue(state, static_cast<int>(status_.state));
+  hashValue(state, status_.elapsed);
+  scenario_->hash(state);
+}
+
+}  // namespace scenario
+}  // namespace vrm_sim
