@@ -1,25 +1,33 @@
 #!/usr/bin/env bash
-# Set-up + build, then the headless simulator with simulated hardware (scripted surgeon seen through the camera rig
-# twin and the optical tracking, pedals, knobs; tissue simulation; renderer) for a bounded time, recording the
-# session's inputs to a bag and saving three stereo frames (4.5 s: forceps over the membrane, 6.5 s: grasped, 9.5 s:
-# peeled), then a summary of what was recorded and of what the simulation did (outputs.bag).
-# With --check the exit status says whether the session did its job: simulation frames were produced and, in a scene
-# with tissue, the membrane was published deformed and grasped (CI runs the short form).
-# Usage: scripts/run.sh [--duration SECONDS] [--scene NAME] [--bag PATH] [--check] [roslaunch args...]
+# Set-up + build, then the headless simulator with simulated hardware running a training scenario end to end: the
+# scripted expert surgeon (the scene's scenario.scripts.expert) seen through the camera rig twin and the optical
+# tracking, pedals, knobs; the scenario manager (simulation core: collision, tissue, bleeding, scenario and score);
+# the renderer. It runs for a bounded time, records the session's inputs to a bag, saves three stereo frames and
+# writes the session's result JSON, then prints a summary of what was recorded and of what the simulation did
+# (outputs.bag) and the score table.
+# With --check the exit status says whether the session did its job: simulation frames were produced, in a scene
+# with tissue the tissue was published deformed and grasped, and the scenario finished (CI runs the short form).
+# Usage: scripts/run.sh [--duration SECONDS] [--scenario NAME] [--difficulty LEVEL] [--script expert|novice]
+#                       [--bag PATH] [--check] [roslaunch args...]
+# (--scene is a synonym of --scenario; scenario_offline --list names the scenarios.)
 set -euo pipefail
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 duration=20
 scene=membrane_peeling
+difficulty=""
+script=expert
 bag=""
 check=()
 extra=()
 while (($#)); do
   case $1 in
     --duration) duration=$2; shift 2 ;;
-    --scene) scene=$2; shift 2 ;;
+    --scene | --scenario) scene=$2; shift 2 ;;
+    --difficulty) difficulty=$2; shift 2 ;;
+    --script) script=$2; shift 2 ;;
     --bag) bag=$2; shift 2 ;;
     --check) check=(--check); shift ;;
-    -h | --help) sed -n '2,7p' "$0"; exit 0 ;;
+    -h | --help) sed -n '2,12p' "$0"; exit 0 ;;
     *) extra+=("$1"); shift ;;
   esac
 done
@@ -29,14 +37,17 @@ done
 source "$ROOT/scripts/common.sh"
 
 out="$ROOT/build/sessions/$(date +%Y%m%d_%H%M%S)"
+# Stereo frames while the expert works: approach, grasp, peel (seconds after the first input).
+SNAPSHOT_TIMES=${SNAPSHOT_TIMES:-"1 3 6"}
 mkdir -p "$out"
 [[ -n $bag ]] || bag="$out/session.bag"
-echo "run.sh: headless simulator, simulated hardware, scene '$scene', ${duration} s, recording to $bag"
+echo "run.sh: headless simulator, simulated hardware, scenario '$scene'${difficulty:+ ($difficulty)}, scripted $script, ${duration} s, recording to $bag"
 # The recorder is a required node with --duration, so roslaunch ends by itself; timeout is only a safety net.
 timeout --signal=INT --kill-after=15 "$(awk "BEGIN{print int($duration) + 60}")" \
   roslaunch --screen "$ROOT/launch/simulator.launch" sim:=true headless:=true record:=true tracking:=true \
   "duration:=$duration" "bag:=$bag" "outputs_bag:=$out/outputs.bag" "scene:=$scene" "snapshot_dir:=$out" \
-  snapshot_times:="4.5 6.5 9.5" "${extra[@]}" \
+  "difficulty:=$difficulty" "script:=scenario:$script" "result_file:=$out/result.json" \
+  snapshot_times:="$SNAPSHOT_TIMES" "${extra[@]}" \
   >"$out/launch.log" 2>&1 || true
 log="$out/launch.log"
 grep -hE "scene '|FATAL|ERROR" "$log" | sed -E 's/\x1b\[[0-9;]*m//g' | head -n 10 || true
@@ -45,4 +56,5 @@ status=0
 /usr/bin/python3 "$ROOT/scripts/bag_summary.py" "$bag" || status=1
 echo "stereo frames: $(find "$out" -name '*.png' | wc -l) PNGs in $out"
 /usr/bin/python3 "$ROOT/scripts/session_summary.py" "${check[@]}" "$out/outputs.bag" || status=1
+if [[ -f $out/result.json ]]; then echo "result: $out/result.json"; else echo "result: none (the scenario did not end within ${duration} s)"; fi
 exit $status

@@ -1,14 +1,28 @@
 #!/usr/bin/env python3
 """What the simulation did in a session, from the outputs bag run.sh records (vrm_msgs/SimulationState per frame and
 vrm_msgs/StageTiming): frames, per tissue the meshes published, grasped nodes, strain, lift and peel outcome, retina
-contacts, and the frame cost. With --check, exit 1 unless frames were produced and, where the scene has tissue, the
-tissue was published deformed and grasped.
+contacts, and the frame cost; then the training scenario's end state and score table (vrm_msgs/ScenarioStatus). With
+--check, exit 1 unless frames were produced, where the scene has tissue the tissue was published deformed and grasped,
+and the scenario finished (the scripted expert completes its task).
 Usage: session_summary.py [--check] OUTPUTS.bag"""
 import sys
 
 import rosbag
 
 OUTCOMES = {0: "untouched", 1: "grasped", 2: "lifted (clean peel so far)", 3: "torn"}
+STATES = {0: "idle", 1: "running", 2: "paused", 3: "finished", 4: "failed"}
+
+
+def print_score(status):
+    """The score table a trainee sees at the end of a session."""
+    level = f" ({status.difficulty})" if status.difficulty else ""
+    print(f"scenario '{status.scenario}'{level}: {STATES.get(status.state, status.state)} after {status.elapsed:.1f} s"
+          f" - {status.message}")
+    print(f"  {'item':<22} {'value':>12} {'unit':<5} {'weight':>6}")
+    for item in status.score.items:
+        weight = f"{item.weight:g}" if item.weight > 0 else "-"
+        print(f"  {item.name:<22} {item.value:>12.6g} {item.unit:<5} {weight:>6}")
+    print(f"  {'total':<22} {status.score.total:>12.1f} / 100")
 
 
 def percentile(values, fraction):
@@ -49,8 +63,11 @@ def main(arguments):
                     entry["first_grasp"] = state.header.stamp.to_sec()
                 entry["last"] = tissue
         start = bag.get_start_time() if frames else 0.0
+        status = None
+        for _, message, _ in bag.read_messages(topics=["/scenario_status"]):
+            status = message
     if not frames:
-        print("simulation: no frames (tissue_sim published no simulation_state)")
+        print("simulation: no frames (scenario_manager published no simulation_state)")
         return 1 if check else 0
     print(f"simulation: {frames} frames, frame cost {sum(wall_ms) / len(wall_ms):.2f} ms mean, "
           f"{percentile(wall_ms, 0.95):.2f} ms p95, {max(wall_ms):.2f} ms max; {late} late inputs")
@@ -66,6 +83,14 @@ def main(arguments):
     print(f"  retina: {last.retina_contacts} contacts, max injury {last.max_injury:.2f}")
     if check and not ok:
         print("session_summary: --check failed: the tissue was not published deformed and grasped", file=sys.stderr)
+        return 1
+    if status is None:
+        print("scenario: no scenario_status recorded")
+        return 1 if check else 0
+    print_score(status)
+    if check and STATES.get(status.state) != "finished":
+        print(f"session_summary: --check failed: the scenario ended {STATES.get(status.state, status.state)}, "
+              "not finished", file=sys.stderr)
         return 1
     return 0
 

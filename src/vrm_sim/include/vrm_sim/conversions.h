@@ -17,6 +17,7 @@
 #include "vrm_msgs/InstrumentState.h"
 #include "vrm_msgs/PedalState.h"
 #include "vrm_msgs/ScenarioCommand.h"
+#include "vrm_msgs/ScenarioStatus.h"
 #include "vrm_msgs/SimulationState.h"
 #include "vrm_msgs/TissueMesh.h"
 #include "vrm_sim/collision/collision_detector.h"
@@ -66,5 +67,8 @@ std::optional<world::ScenarioCommand> toWorld(const vrm_msgs::ScenarioCommand& c
 // The frame's report (header, tissues, injuries); header.frame_id stays empty.
 void fillSimulationState(const world::FrameResult& frame, std::uint64_t late_inputs,
                          vrm_msgs::SimulationState& message);
+// The scenario's state, progress message and score (header left to the caller).
+void fillScenarioStatus(const scenario::Status& status, vrm_msgs::ScenarioStatus& message);
+void fillScore(const scenario::Score& score, vrm_msgs::Score& message);
 
 }  // namespace vrm_sim

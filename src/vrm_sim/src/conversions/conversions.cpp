@@ -293,4 +293,45 @@ void fillSimulationState(const world::FrameResult& frame, std::uint64_t late_inp
   }
 }
 
+void fillScore(const scenario::Score& score, vrm_msgs::Score& message) {
+  message.total = score.total;
+  message.items.clear();
+  for (const scenario::ScoreItem& item : score.items) {
+    vrm_msgs::ScoreItem entry;
+    entry.name = item.name;
+    entry.value = item.value;
+    entry.unit = item.unit;
+    entry.weight = item.weight;
+    message.items.push_back(entry);
+  }
+}
+
+void fillScenarioStatus(const scenario::Status& status, vrm_msgs::ScenarioStatus& message) {
+  message.scenario = status.scenario;
+  message.difficulty = status.difficulty;
+  switch (status.state) {
+    case scenario::State::kIdle:
+      message.state = vrm_msgs::ScenarioStatus::IDLE;
+      break;
+    case scenario::State::kRunning:
+      message.state = vrm_msgs::ScenarioStatus::RUNNING;
+      break;
+    case scenario::State::kPaused:
+      message.state = vrm_msgs::ScenarioStatus::PAUSED;
+      break;
+    case scenario::State::kFinished:
+      message.state = vrm_msgs::ScenarioStatus::FINISHED;
+      break;
+    case scenario::State::kFailed:
+      message.state = vrm_msgs::ScenarioStatus::FAILED;
+      break;
+  }
+  message.elapsed = status.elapsed;
+  message.message = status.progress.empty() || status.message.find("refused") != std::string::npos ||
+                            status.state == scenario::State::kFinished || status.state == scenario::State::kFailed
+                        ? status.message
+                        : status.progress;
+  fillScore(status.score, message.score);
+}
+
 }  // namespace vrm_sim

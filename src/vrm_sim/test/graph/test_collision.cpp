@@ -1,4 +1,4 @@
-// tissue_sim's collision detection in a manager: the light pipe, posed in the world frame of an eye rotated by 20°,
+// scenario_manager's collision detection in a manager: the light pipe, posed in the world frame of an eye rotated by 20°,
 // is pushed 0.15 mm through the membrane along the membrane's normal. Expected: CollisionReports (stamped with the
 // input stamps, in the eye frame, from the scene's detector) with colliding triangles and deformation vectors along
 // the normal, no longer than the penetration; markers for exactly the colliding triangles; the membrane pushed
@@ -172,9 +172,9 @@ TEST(CollisionGraph, PushedInstrumentReportsTrianglesAndNormalDeformations) {
           !watcher.connected())) {
     ros::WallDuration(0.01).sleep();
   }
-  ASSERT_GT(instrument_publisher.getNumSubscribers(), 0u) << "tissue_sim does not subscribe instrument_state";
-  ASSERT_GT(eye_publisher.getNumSubscribers(), 0u) << "tissue_sim does not subscribe eye_state";
-  ASSERT_TRUE(watcher.connected()) << "tissue_sim does not advertise collision_report / collision_markers";
+  ASSERT_GT(instrument_publisher.getNumSubscribers(), 0u) << "scenario_manager does not subscribe instrument_state";
+  ASSERT_GT(eye_publisher.getNumSubscribers(), 0u) << "scenario_manager does not subscribe eye_state";
+  ASSERT_TRUE(watcher.connected()) << "scenario_manager does not advertise collision_report / collision_markers";
   ros::AsyncSpinner spinner(1);
   spinner.start();
 

@@ -1,5 +1,5 @@
 // The live graph and the offline tool run one simulation core (world::World): the same instrument sequence through
-// tissue_sim (as messages, in ticks) and through tissue_offline (library and process) ends in the same state hash.
+// scenario_manager (as messages, in ticks) and through tissue_offline (library and process) ends in the same state hash.
 #include <gtest/gtest.h>
 #include <ros/ros.h>
 
@@ -75,7 +75,7 @@ TEST(CoreEquivalence, TheGraphAndTheOfflineToolEndInTheSameState) {
   ros::AsyncSpinner spinner(2);
   spinner.start();
   ASSERT_TRUE(waitFor([&] { return instruments.getNumSubscribers() > 0 && states.getNumPublishers() > 0; }, 30.0))
-      << "tissue_sim did not come up";
+      << "scenario_manager did not come up";
 
   const scene::SceneDescription scene = scene::loadScene(scene::shippedScenePath("membrane_peeling"));
   const std::vector<world::InstrumentState> inputs =

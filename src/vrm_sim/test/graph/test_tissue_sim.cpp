@@ -1,4 +1,4 @@
-// tissue_sim in a manager: a scripted grasp-and-pull with the forceps must deform the membrane (published on
+// scenario_manager in a manager: a scripted grasp-and-pull with the forceps must deform the membrane (published on
 // tissue/<object> with increasing versions), keep it finite, and let it return toward rest after the release.
 // Every wait is on a condition with a timeout; nothing asserts on timing.
 #include <gtest/gtest.h>

@@ -74,4 +74,10 @@ void applySceneTrocars(const vrm_sim::scene::SceneDescription& scene, MarkerLayo
 // otherwise). The playback mode is kept; the tremor is not (set it afterwards).
 SurgeonScript applySceneTrocars(const vrm_sim::scene::SceneDescription& scene, const SurgeonScript& script);
 
+// The scene's scripted session `name` (scenario.scripts, e.g. "expert") as a surgeon script, so the device twins
+// play in the graph what scenario_offline plays offline: one track per scripted instrument through the scene's
+// trocar, a keyframe at every waypoint (and every 5 ms along a path with tremor, so the played tip includes it),
+// played once; the eye rests. Throws std::invalid_argument naming the scene's scripts for an unknown name.
+SurgeonScript scenarioScript(const vrm_sim::scene::SceneDescription& scene, const std::string& name);
+
 }  // namespace vrm_tracking

@@ -29,8 +29,16 @@ class ScriptedSurgeon : public nodelet::Nodelet {
     // object are placed on (else the script's trocars and written tips).
     std::string scene_spec;
     pnh.param<std::string>("scene", scene_spec, "");
+    std::string script_spec;
+    pnh.param<std::string>("script", script_spec, "");
     try {
-      script_ = loadScriptFromParams(pnh);
+      // "scenario:NAME": the scene's own scripted session (what scenario_offline plays), once.
+      if (script_spec.rfind("scenario:", 0) == 0) {
+        if (scene_spec.empty()) throw std::invalid_argument("script '" + script_spec + "' needs the ~scene parameter");
+        script_ = std::make_unique<SurgeonScript>(scenarioScript(loadSceneSpec(scene_spec), script_spec.substr(9)));
+      } else {
+        script_ = loadScriptFromParams(pnh);
+      }
       if (!scene_spec.empty()) {
         const vrm_sim::scene::SceneDescription scene = loadSceneSpec(scene_spec);
         SceneTargetReport targets;

@@ -193,4 +193,42 @@ SurgeonScript applySceneTrocars(const scene::SceneDescription& scene, const Surg
   return SurgeonScript(std::move(definition));
 }
 
+SurgeonScript scenarioScript(const scene::SceneDescription& scene, const std::string& name) {
+  const scene::SceneDescription scripted = scene::withScript(scene, name);
+  ScriptDefinition definition;
+  definition.name = scene.name + ":" + name;
+  definition.source = scene.source_file + " (scenario.scripts." + name + ")";
+  definition.playback = Playback::kOnce;
+  definition.eye.radius = scene.eye.radius;
+  constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
+  for (const scene::InstrumentDescription& instrument : scripted.instruments) {
+    if (instrument.path.empty()) continue;
+    InstrumentTrack track;
+    track.slot = scene::toString(instrument.slot);
+    const scene::Trocar* trocar = scene.findTrocar(instrument.trocar);
+    if (trocar == nullptr) throw std::invalid_argument("scene '" + scene.name + "': unknown trocar " + instrument.trocar);
+    track.trocar = trocar->position_in_eye;
+    std::vector<double> times;
+    for (const scene::InstrumentWaypoint& waypoint : instrument.path) times.push_back(waypoint.t);
+    if (instrument.tremor.amplitude > 0.0) {
+      for (double t = 0.0; t < instrument.path.back().t; t += 0.005) times.push_back(t);
+      std::sort(times.begin(), times.end());
+      times.erase(std::unique(times.begin(), times.end(), [](double a, double b) { return b - a < 1e-9; }), times.end());
+    }
+    for (double t : times) {
+      const scene::InstrumentWaypoint sample = scene::samplePath(instrument.path, t);
+      InstrumentKeyframe key;
+      key.t = t;
+      key.type = parseInstrumentType(scene::toString(instrument.type));
+      key.tip = sample.tip_in_eye + instrument.tremor.offset(t);
+      key.jaw_angle = sample.jaw_angle_deg * kDegToRad;
+      key.suction = sample.suction;
+      key.cut_rate = sample.cut_rate_hz;
+      track.keyframes.push_back(key);
+    }
+    definition.instruments.push_back(std::move(track));
+  }
+  return SurgeonScript(std::move(definition));
+}
+
 }  // namespace vrm_tracking

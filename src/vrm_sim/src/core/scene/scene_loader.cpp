@@ -817,23 +817,27 @@ YAML::Node resolveOverride(YAML::Node root, const Field& key_field, const std::s
   if (parts.size() < 2 || std::any_of(parts.begin(), parts.end(), [](const std::string& p) { return p.empty(); })) {
     key_field.fail("expected a dotted path such as objects.membrane.tissue.stiffness");
   }
-  YAML::Node node = root;
+  // Node::operator= on a valid node overwrites the node it refers to (yaml-cpp); walking uses reset() instead.
+  YAML::Node node;
+  node.reset(root);
   std::string walked;
   for (std::size_t i = 0; i < parts.size(); ++i) {
     const std::string& part = parts[i];
     const bool leaf = i + 1 == parts.size();
     if (node.IsSequence()) {
-      YAML::Node match;
-      for (std::size_t j = 0; j < node.size(); ++j) {
-        const YAML::Node item = node[j];
+      std::optional<std::size_t> match;
+      const YAML::Node& list = node;
+      for (std::size_t j = 0; j < list.size(); ++j) {
+        const YAML::Node item = list[j];
         if (!item.IsMap()) continue;
-        const YAML::Node& lookup = item;
         for (const char* id_key : {"name", "slot"}) {
-          if (lookup[id_key] && lookup[id_key].IsScalar() && lookup[id_key].Scalar() == part) match = item;
+          if (item[id_key] && item[id_key].IsScalar() && item[id_key].Scalar() == part) match = j;
         }
       }
       if (!match) key_field.fail("'" + walked + "' has no item named '" + part + "'");
-      node = match;
+      if (leaf) key_field.fail("'" + path + "' names a whole list item; name one of its values");
+      YAML::Node item = node[*match];
+      node.reset(item);
     } else if (node.IsMap()) {
       const YAML::Node& lookup = node;  // const: a lookup must not insert the key
       if (!lookup[part]) {
@@ -842,7 +846,8 @@ YAML::Node resolveOverride(YAML::Node root, const Field& key_field, const std::s
         key_field.fail("'" + (walked.empty() ? part : walked + "." + part) + "' is not in the scene");
       }
       if (leaf) return node;
-      node = lookup[part];
+      YAML::Node child = node[part];
+      node.reset(child);
     } else {
       key_field.fail("'" + walked + "' is a value, not a map or list");
     }

@@ -1,0 +1,351 @@
+// The VR part's scenario manager (thesis §2.4): a thin adapter around the ROS-free simulation core — a
+// vrm_sim::world::Session holding the World of the loaded scene (world/world.h — frame assembly by input stamps,
+// collision, tissue, grasping, cutting, tearing, bleeding, and the scene's training scenario with its score). It
+// converts the input messages (vrm_sim/conversions.h), hands them to the core and publishes what a frame produced.
+// The offline tools (tissue_offline, scenario_offline, session replays) drive the very same core, so the same inputs
+// give the same state and score here and there (test/graph/core_equivalence).
+//
+// Subscribes: eye_state, instrument_state, pedals, scenario_command (LOAD with `scenario` = scene name or path and
+// `argument` = difficulty switches the scene at run time; START, PAUSE, RESUME, STOP, RESET, SELECT_INSTRUMENT).
+// Publishes (zero copy, stamps = the frame's input stamp):
+//   scenario_status     vrm_msgs/ScenarioStatus, latched: on every state change, every 0.1 s of input time while
+//                       running, and after every command (a refused one says why in `message`)
+//   score               vrm_msgs/Score, latched: the final score when the scenario finishes or fails
+//   tissue/<object>     vrm_msgs/TissueMesh of each deformable object, when it changed; of the retina (positions
+//                       static, `injury` per vertex) when its bleeding changed
+//   simulation_state    vrm_msgs/SimulationState after every frame (state hash, per-tissue grasp/strain/peel outcome,
+//                       retina contacts)
+//   tissue_timing       vrm_msgs/StageTiming (collision_<object>, tissue_<object>, bleeding_<object>; wall clock)
+//   collision_report, collision_markers   only while subscribed (rigid objects without bleeding are only tested then)
+// Parameters (private): scene (name or path), difficulty (level; "" = the scenario's default), collision_detector
+// (override for every object), max_frame_time (s, default 0.05), collision_max_pixel_size (m), wall_clock_budget
+// (default false: deterministic frames; true: each tissue stops at its scene time_budget_ms of wall time, as EyeSi
+// did), auto_start (default true: the scenario starts with the first input; false: on START), result_file (the
+// session's result JSON, written when the scenario ends; "" = none), bag (the session bag's path, recorded in the
+// result file), seed, eye_frame / world_frame names.
+#include <nodelet/nodelet.h>
+#include <ros/ros.h>
+#include <visualization_msgs/MarkerArray.h>
+
+#include <boost/make_shared.hpp>
+#include <fstream>
+#include <iomanip>
+#include <sstream>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <pluginlib/class_list_macros.hpp>
+
+#include "vrm_msgs/CollisionReport.h"
+#include "vrm_msgs/ScenarioStatus.h"
+#include "vrm_msgs/Score.h"
+#include "vrm_msgs/SimulationState.h"
+#include "vrm_msgs/StageTiming.h"
+#include "vrm_msgs/TissueMesh.h"
+#include "vrm_msgs/publish.h"
+#include "vrm_sim/conversions.h"
+#include "vrm_sim/mge/membrane.h"
+#include "vrm_sim/scene/scene_loader.h"
+#include "vrm_sim/world/session.h"
+
+namespace vrm_sim {
+
+class ScenarioManager : public nodelet::Nodelet {
+ public:
+  void onInit() override {
+    ros::NodeHandle& nh = getNodeHandle();
+    ros::NodeHandle& private_nh = getPrivateNodeHandle();
+    const std::string scene_parameter = private_nh.param<std::string>("scene", "membrane_peeling");
+    const std::string difficulty = private_nh.param<std::string>("difficulty", "");
+    world::WorldOptions options;
+    options.detector_override = private_nh.param<std::string>("collision_detector", "");
+    options.max_frame_time = private_nh.param("max_frame_time", 0.05);
+    options.collision_max_pixel_size = private_nh.param("collision_max_pixel_size", 0.0);
+    options.wall_clock_budget = private_nh.param("wall_clock_budget", false);
+    options.auto_start = private_nh.param("auto_start", true);
+    options.clock = [] { return ros::WallTime::now().toSec(); };
+    options.log = [this](world::Severity severity, const std::string& message) {
+      if (severity == world::Severity::kWarning) {
+        NODELET_WARN("%s", message.c_str());
+      } else {
+        NODELET_INFO("%s", message.c_str());
+      }
+    };
+    eye_frame_ = private_nh.param<std::string>("eye_frame", "eye");
+    world_frame_ = private_nh.param<std::string>("world_frame", "world");
+    result_file_ = private_nh.param<std::string>("result_file", "");
+    bag_path_ = private_nh.param<std::string>("bag", "");
+    seed_ = static_cast<std::uint32_t>(private_nh.param("seed", 0));
+    try {
+      session_ = std::make_unique<world::Session>(world::Session::loadByName(scene_parameter, difficulty), options);
+    } catch (const std::exception& error) {
+      NODELET_FATAL("scenario_manager: cannot set up scene '%s': %s", scene_parameter.c_str(), error.what());
+      ros::requestShutdown();
+      return;
+    }
+    state_publisher_ = nh.advertise<vrm_msgs::SimulationState>("simulation_state", 50);
+    timing_publisher_ = nh.advertise<vrm_msgs::StageTiming>("tissue_timing", 5);
+    report_publisher_ = nh.advertise<vrm_msgs::CollisionReport>("collision_report", 20);
+    marker_publisher_ = nh.advertise<visualization_msgs::MarkerArray>("collision_markers", 2);
+    status_publisher_ = nh.advertise<vrm_msgs::ScenarioStatus>("scenario_status", 5, true);
+    score_publisher_ = nh.advertise<vrm_msgs::Score>("score", 2, true);
+    session_->setFrameObserver([this](const world::FrameResult& frame) { publish(frame); });
+    session_->setLoadObserver([this](world::World& world) { onLoaded(world); });
+    onLoaded(session_->world());
+    eye_subscriber_ = nh.subscribe("eye_state", 10, &ScenarioManager::onEyeState, this);
+    instrument_subscriber_ = nh.subscribe("instrument_state", 20, &ScenarioManager::onInstrumentState, this);
+    pedal_subscriber_ = nh.subscribe("pedals", 20, &ScenarioManager::onPedals, this);
+    command_subscriber_ = nh.subscribe("scenario_command", 10, &ScenarioManager::onScenarioCommand, this);
+    NODELET_INFO("scenario_manager: deterministic frames: %s, scenario start: %s",
+                 options.wall_clock_budget ? "no (wall-clock budget)" : "yes",
+                 options.auto_start ? "with the first input" : "on START");
+  }
+
+ private:
+  // The manager runs callbacks on several threads; the core is one state machine.
+  void onEyeState(const vrm_msgs::EyeState::ConstPtr& eye) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    prepareReports();
+    session_->handle(toWorld(*eye));
+  }
+  void onInstrumentState(const vrm_msgs::InstrumentState::ConstPtr& instrument) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    prepareReports();
+    session_->handle(toWorld(*instrument));
+  }
+  void onPedals(const vrm_msgs::PedalState::ConstPtr& pedals) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    session_->handle(toWorld(*pedals));
+  }
+  void onScenarioCommand(const vrm_msgs::ScenarioCommand::ConstPtr& command) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    const auto converted = toWorld(*command);
+    if (!converted) {
+      NODELET_WARN("scenario_command with unknown command %u ignored", static_cast<unsigned>(command->command));
+      session_->world().note("unknown command " + std::to_string(command->command) + " ignored");
+      publishStatus(command->header.stamp, true);
+      return;
+    }
+    session_->handle(*converted);
+    // The command takes effect with the next frame (stamp order); a refusal or a LOAD shows at once.
+    publishStatus(command->header.stamp, true);
+  }
+
+  // A (new) scene: its tissue and retina topics, and its scenario's first status.
+  void onLoaded(world::World& world) {
+    ros::NodeHandle& nh = getNodeHandle();
+    for (const std::string& name : world.tissueNames()) {
+      if (mesh_publishers_.count(name) == 0) mesh_publishers_[name] = nh.advertise<vrm_msgs::TissueMesh>("tissue/" + name, 2);
+    }
+    for (const world::InjuryReport& injury : world.injuries()) {
+      if (mesh_publishers_.count(injury.object) == 0) {
+        mesh_publishers_[injury.object] = nh.advertise<vrm_msgs::TissueMesh>("tissue/" + injury.object, 2, true);
+      }
+    }
+    last_state_.reset();
+    result_written_ = false;
+    const scenario::Status* status = world.scenarioStatus();
+    NODELET_INFO("scenario_manager: scene '%s'%s, %zu deformable objects, %zu bleeding surfaces%s",
+                 world.scene().name.c_str(),
+                 status ? (", scenario " + status->type + (status->difficulty.empty() ? "" : " (" + status->difficulty + ")")).c_str() : "",
+                 world.tissueNames().size(), world.injuries().size(),
+                 world.simulatesAnything() ? "" : "; nothing to simulate");
+    publishStatus(ros::Time(0), true);
+  }
+
+  void prepareReports() {
+    reports_wanted_ = report_publisher_.getNumSubscribers() > 0;
+    markers_wanted_ = marker_publisher_.getNumSubscribers() > 0;
+    session_->world().setRigidReports(reports_wanted_ || markers_wanted_);
+  }
+
+  static ros::Time wallStamp(double seconds) { return ros::Time(std::max(seconds, 0.0)); }
+
+  void publish(const world::FrameResult& frame) {
+    const ros::Time stamp = toRosTime(frame.stamp);
+    for (const world::TissueReport& tissue : frame.tissues) {
+      if (!tissue.changed) continue;
+      auto mesh = boost::make_shared<vrm_msgs::TissueMesh>();
+      mge::Membrane& membrane = *session_->world().membrane(tissue.object);
+      fillTissueMesh(membrane.positions(), membrane.nodeCount(), membrane.triangleNodeSlots(), membrane.triangleCount(),
+                     *mesh);
+      mesh->header.stamp = stamp;
+      mesh->header.frame_id = frameName(tissue.frame_id);
+      mesh->tissue_id = tissue.object;
+      mesh->version = tissue.version;
+      mesh->topology_version = tissue.topology_version;
+      vrm_msgs::publishShared(mesh_publishers_[tissue.object], mesh);
+      ++meshes_published_;
+    }
+    for (const world::InjuryReport& injury : frame.injuries) {
+      if (!injury.changed) continue;
+      auto mesh = boost::make_shared<vrm_msgs::TissueMesh>();
+      fillTissueMesh(*injury.mesh, *mesh);
+      mesh->injury = *injury.injury;
+      mesh->header.stamp = stamp;
+      mesh->header.frame_id = frameName(injury.frame_id);
+      mesh->tissue_id = injury.object;
+      mesh->version = injury.version;
+      mesh->topology_version = 1;
+      vrm_msgs::publishShared(mesh_publishers_[injury.object], mesh);
+    }
+    boost::shared_ptr<visualization_msgs::MarkerArray> markers;
+    if (markers_wanted_) markers = boost::make_shared<visualization_msgs::MarkerArray>();
+    for (const world::CollisionRecord& record : frame.collisions) {
+      if (reports_wanted_) {
+        auto report = boost::make_shared<vrm_msgs::CollisionReport>();
+        report->header.stamp = stamp;
+        report->header.frame_id = frameName(record.frame_id);
+        report->detector = record.detector;
+        report->object_a = "instrument_" + record.instrument;
+        report->object_b = record.object;
+        fillCollisionReport(record.result, *report);
+        vrm_msgs::publishShared(report_publisher_, report);
+      }
+      if (markers) {
+        visualization_msgs::Marker marker;
+        marker.header.stamp = stamp;
+        marker.header.frame_id = frameName(record.frame_id);
+        marker.ns = record.object + "/" + record.instrument;
+        if (record.result.triangles.empty()) {
+          marker.action = visualization_msgs::Marker::DELETE;
+        } else {
+          fillTriangleListMarker(record.surface.positions, record.surface.triangles, record.result.triangles,
+                                 {1.0f, 0.1f, 0.1f, 0.8f}, marker);
+        }
+        markers->markers.push_back(std::move(marker));
+      }
+    }
+    if (markers) vrm_msgs::publishShared(marker_publisher_, markers);
+
+    auto timing = boost::make_shared<vrm_msgs::StageTiming>();
+    timing->header.stamp = stamp;
+    timing->frame = frame.frame;
+    for (const world::StageTime& stage : frame.stages) {
+      vrm_msgs::StageStamp entry;
+      entry.stage = stage.stage;
+      entry.start = wallStamp(stage.start);
+      entry.end = wallStamp(stage.end);
+      timing->stages.push_back(entry);
+    }
+    vrm_msgs::publishShared(timing_publisher_, timing);
+
+    auto state = boost::make_shared<vrm_msgs::SimulationState>();
+    fillSimulationState(frame, session_->world().statistics().late_inputs, *state);
+    vrm_msgs::publishShared(state_publisher_, state);
+    publishStatus(stamp, false);
+    logProgress(frame);
+  }
+
+  // Latched status on a state change or a command, else every 0.1 s of input time while running (>= 5 Hz); the
+  // final score and the result file once the scenario ends.
+  void publishStatus(const ros::Time& stamp, bool force) {
+    const scenario::Status* status = session_->world().scenarioStatus();
+    if (status == nullptr) return;
+    const bool changed = !last_state_ || *last_state_ != status->state;
+    const bool due = status->state == scenario::State::kRunning && (stamp - last_status_stamp_).toSec() >= 0.1;
+    if (!force && !changed && !due && status->message == last_message_) return;
+    last_state_ = status->state;
+    last_message_ = status->message;
+    last_status_stamp_ = stamp;
+    auto message = boost::make_shared<vrm_msgs::ScenarioStatus>();
+    message->header.stamp = stamp;
+    fillScenarioStatus(*status, *message);
+    vrm_msgs::publishShared(status_publisher_, message);
+    if (changed && (status->state == scenario::State::kFinished || status->state == scenario::State::kFailed)) {
+      auto score = boost::make_shared<vrm_msgs::Score>();
+      fillScore(status->score, *score);
+      vrm_msgs::publishShared(score_publisher_, score);
+      NODELET_INFO("scenario '%s' %s: %s; score %.1f / 100", status->scenario.c_str(), scenario::toString(status->state),
+                   status->message.c_str(), status->score.total);
+      writeResult(*status);
+    }
+  }
+
+  // One JSON object per session next to its bag: what a training record needs (issue 13 stores it).
+  void writeResult(const scenario::Status& status) {
+    if (result_file_.empty() || result_written_) return;
+    result_written_ = true;
+    std::ostringstream out;
+    out << std::setprecision(10);
+    auto quoted = [](const std::string& text) {
+      std::string escaped = "\"";
+      for (char c : text) {
+        if (c == '"' || c == '\\') escaped += '\\';
+        escaped += (static_cast<unsigned char>(c) < 0x20) ? ' ' : c;
+      }
+      return escaped + "\"";
+    };
+    const world::World& world = session_->world();
+    char hash[24];
+    std::snprintf(hash, sizeof(hash), "0x%016llx", static_cast<unsigned long long>(world.stateHash()));
+    out << "{\"scene\": " << quoted(world.scene().name) << ", \"scene_file\": " << quoted(world.scene().source_file)
+        << ", \"scenario\": " << quoted(status.type) << ", \"difficulty\": " << quoted(status.difficulty)
+        << ", \"seed\": " << (session_->loads() > 0 ? session_->seed() : seed_)
+        << ", \"state\": " << quoted(scenario::toString(status.state)) << ", \"timed_out\": "
+        << (status.timed_out ? "true" : "false") << ", \"message\": " << quoted(status.message)
+        << ", \"start_stamp\": " << (status.start_time ? *status.start_time : 0.0)
+        << ", \"end_stamp\": " << (status.end_time ? *status.end_time : 0.0) << ", \"elapsed\": " << status.elapsed
+        << ", \"total\": " << status.score.total << ", \"items\": [";
+    for (std::size_t i = 0; i < status.score.items.size(); ++i) {
+      const scenario::ScoreItem& item = status.score.items[i];
+      out << (i ? ", " : "") << "{\"name\": " << quoted(item.name) << ", \"value\": " << item.value
+          << ", \"unit\": " << quoted(item.unit) << ", \"weight\": " << item.weight << ", \"points\": " << item.points
+          << "}";
+    }
+    out << "], \"final_state_hash\": \"" << hash << "\", \"frames\": " << world.statistics().frames
+        << ", \"bag\": " << (bag_path_.empty() ? "null" : quoted(bag_path_)) << "}\n";
+    std::ofstream file(result_file_);
+    file << out.str();
+    if (!file) {
+      NODELET_ERROR("scenario_manager: cannot write the result file %s", result_file_.c_str());
+    } else {
+      NODELET_INFO("scenario_manager: result written to %s", result_file_.c_str());
+    }
+  }
+
+  // A status line every ~5 s of frames: what the simulation is doing, for the console and the launch log.
+  void logProgress(const world::FrameResult& frame) {
+    if (frame.frame % 250 != 0) return;
+    const world::WorldStatistics& statistics = session_->world().statistics();
+    std::string tissues;
+    for (const world::TissueReport& tissue : frame.tissues) {
+      char line[200];
+      std::snprintf(line, sizeof(line), " %s: v%lu grasped %zu strain %.2f lift %.2f mm %s;", tissue.object.c_str(),
+                    static_cast<unsigned long>(tissue.version), tissue.grasped_nodes, tissue.max_strain,
+                    1e3 * tissue.max_lift, world::toString(tissue.outcome));
+      tissues += line;
+    }
+    NODELET_INFO(
+        "scenario_manager: frame %lu, %lu tissue meshes published,%s retina contacts %zu; frame %.2f ms mean, "
+        "%.2f ms max",
+        static_cast<unsigned long>(frame.frame), static_cast<unsigned long>(meshes_published_), tissues.c_str(),
+        frame.injuries.empty() ? 0 : frame.injuries.front().contacts,
+        1e3 * statistics.total_frame_wall_time / std::max<std::uint64_t>(statistics.frames, 1),
+        1e3 * statistics.max_frame_wall_time);
+  }
+
+  const std::string& frameName(const std::string& core_frame) const {
+    return core_frame == "world" ? world_frame_ : eye_frame_;
+  }
+
+  std::unique_ptr<world::Session> session_;
+  std::mutex mutex_;
+  std::string result_file_, bag_path_;
+  std::uint32_t seed_ = 0;
+  bool result_written_ = false;
+  std::optional<scenario::State> last_state_;
+  std::string last_message_;
+  ros::Time last_status_stamp_;
+  std::string eye_frame_, world_frame_;
+  bool reports_wanted_ = false, markers_wanted_ = false;
+  std::uint64_t meshes_published_ = 0;
+  std::map<std::string, ros::Publisher> mesh_publishers_;
+  ros::Publisher state_publisher_, timing_publisher_, report_publisher_, marker_publisher_, status_publisher_,
+      score_publisher_;
+  ros::Subscriber eye_subscriber_, instrument_subscriber_, pedal_subscriber_, command_subscriber_;
+};
+
+}  // namespace vrm_sim
+
+PLUGINLIB_EXPORT_CLASS(vrm_sim::ScenarioManager, nodelet::Nodelet)
