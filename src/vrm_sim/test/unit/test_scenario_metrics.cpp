@@ -1,0 +1,213 @@
+// The scenario layer's measurements and scoring against hand-computed values, and the runner's timing edge cases.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "vrm_sim/scenario/metrics.h"
+#include "vrm_sim/scenario/runner.h"
+#include "vrm_sim/scene/scene_loader.h"
+
+namespace vrm_sim {
+namespace scenario {
+namespace {
+
+TEST(ScenarioMetrics, PathLengthOfAKnownPolyline) {
+  // 3-4-5 triangle legs plus a 12 mm vertical segment: 3 + 4 + 12 mm.
+  const std::vector<Eigen::Vector3d> points = {
+      {0, 0, 0}, {0.003, 0, 0}, {0.003, 0.004, 0}, {0.003, 0.004, 0.012}};
+  EXPECT_NEAR(pathLength(points), 0.019, 1e-15);
+  EXPECT_EQ(pathLength({}), 0.0);
+  EXPECT_EQ(pathLength({{1, 2, 3}}), 0.0);
+}
+
+TEST(ScenarioMetrics, BandPowerOfASyntheticTenHertzSine) {
+  // A = 20 µm on x at 10 Hz, 50 Hz sampling for 10 s (10 Hz is a DFT bin): one-sided power A^2 / 2 in [8, 12] Hz.
+  const double amplitude = 2e-5, rate = 50.0;
+  std::vector<Eigen::Vector3d> samples;
+  for (int i = 0; i < 500; ++i) {
+    const double t = i / rate;
+    samples.emplace_back(0.001 + amplitude * std::sin(2 * M_PI * 10.0 * t), 0.002, -0.01);
+  }
+  EXPECT_NEAR(bandPower(samples, rate, 8.0, 12.0), amplitude * amplitude / 2.0, 1e-6 * amplitude * amplitude);
+  // Outside the band: nothing; a band beyond Nyquist: nothing.
+  EXPECT_NEAR(bandPower(samples, rate, 2.0, 6.0), 0.0, 1e-9 * amplitude * amplitude);
+  EXPECT_EQ(bandPower(samples, rate, 30.0, 40.0), 0.0);
+  // A slow drift (1 Hz) of 1 mm does not leak into the tremor band.
+  for (int i = 0; i < 500; ++i) samples[i].y() += 1e-3 * std::sin(2 * M_PI * 1.0 * i / rate);
+  EXPECT_NEAR(bandPower(samples, rate, 8.0, 12.0), amplitude * amplitude / 2.0, 1e-6 * amplitude * amplitude);
+  // Degenerate input.
+  EXPECT_EQ(bandPower({}, rate, 8, 12), 0.0);
+  EXPECT_EQ(bandPower(samples, 0.0, 8, 12), 0.0);
+}
+
+TEST(ScenarioMetrics, RmsDistanceAndDeviationFromAKnownPath) {
+  EXPECT_NEAR(rmsDistance({{3, 0, 0}, {0, 4, 0}}, Eigen::Vector3d::Zero()), std::sqrt(12.5), 1e-12);
+  // An L-shaped path: 10 mm along x, then 10 mm along y.
+  const std::vector<Eigen::Vector3d> path = {{0, 0, 0}, {0.01, 0, 0}, {0.01, 0.01, 0}};
+  PolylineProjection p = projectOnPolyline(path, {0.004, 0.001, 0});
+  EXPECT_NEAR(p.distance, 0.001, 1e-15);
+  EXPECT_NEAR(p.arc, 0.004, 1e-15);
+  p = projectOnPolyline(path, {0.012, 0.006, 0.0005});
+  EXPECT_NEAR(p.distance, std::hypot(0.002, 0.0005), 1e-15);
+  EXPECT_NEAR(p.arc, 0.016, 1e-15);
+  p = projectOnPolyline(path, {-0.003, -0.004, 0});  // before the start: the first point
+  EXPECT_NEAR(p.distance, 0.005, 1e-15);
+  EXPECT_EQ(p.arc, 0.0);
+}
+
+TEST(ScenarioMetrics, RunningStatsAndContactHysteresis) {
+  RunningStats stats;
+  for (double v : {2.0, 4.0, 4.0, 4.0, 5.0, 5.0, 7.0, 9.0}) stats.add(v);
+  EXPECT_DOUBLE_EQ(stats.mean(), 5.0);
+  EXPECT_DOUBLE_EQ(stats.max(), 9.0);
+  EXPECT_NEAR(stats.coefficientOfVariation(), std::sqrt(32.0 / 7.0) / 5.0, 1e-12);
+  EXPECT_EQ(RunningStats{}.coefficientOfVariation(), 0.0);
+
+  ContactCounter counter;
+  // Tremor across the entry threshold (50 µm) within the exit threshold (100 µm) is one contact.
+  for (double distance : {2e-4, 4e-5, 6e-5, 4e-5, 9e-5, 1.5e-4, 3e-5, 2e-4}) counter.update(distance, 5e-5, 1e-4);
+  EXPECT_EQ(counter.count(), 2u);
+  EXPECT_FALSE(counter.inContact());
+}
+
+TEST(ScenarioScoring, ItemsAreLinearBetweenBestAndWorstAndClamped) {
+  scene::ScoringRule less_is_better{"time", 1.0, 20.0, 60.0, {}};
+  EXPECT_DOUBLE_EQ(itemPoints(less_is_better, 20.0), 100.0);
+  EXPECT_DOUBLE_EQ(itemPoints(less_is_better, 40.0), 50.0);
+  EXPECT_DOUBLE_EQ(itemPoints(less_is_better, 90.0), 0.0);
+  EXPECT_DOUBLE_EQ(itemPoints(less_is_better, 5.0), 100.0);
+  EXPECT_DOUBLE_EQ(itemPoints(less_is_better, std::nan("")), 0.0);
+  scene::ScoringRule more_is_better{"completed", 3.0, 1.0, 0.0, {}};
+  EXPECT_DOUBLE_EQ(itemPoints(more_is_better, 1.0), 100.0);
+  EXPECT_DOUBLE_EQ(itemPoints(more_is_better, 0.0), 0.0);
+  // Weighted mean: (1 * 50 + 3 * 100) / 4; unscored items are reported with weight 0.
+  const Score score = computeScore({less_is_better, more_is_better},
+                                   {{"time", 40.0, "s"}, {"completed", 1.0, "1"}, {"path_length", 0.02, "m"}});
+  EXPECT_DOUBLE_EQ(score.total, 87.5);
+  ASSERT_EQ(score.items.size(), 3u);
+  EXPECT_EQ(score.item("path_length")->weight, 0.0);
+  EXPECT_DOUBLE_EQ(score.item("time")->points, 50.0);
+}
+
+// A minimal steady-hold scenario, driven with hand-made frames.
+scene::SceneDescription holdScene(const std::string& extra = "") {
+  return scene::loadSceneFromString(R"(
+scene: {name: hold_test, kind: abstract}
+objects:
+  - {name: retina, role: retina, mesh: {generator: retina}, collision: {detector: none}}
+instruments:
+  - {slot: right, type: needle}
+simulations: []
+scenario:
+  type: steady_hold
+  time_limit: 20
+  params: {centre: [0.0, 0.0, -0.010], radius: 0.0001, hold_time: 5})" + extra + R"(
+  scoring:
+    time: {weight: 1, best: 5, worst: 20}
+)",
+                                    "hold_test.yaml");
+}
+
+FrameView frameAt(double time, const Eigen::Vector3d& tip) {
+  FrameView frame;
+  frame.time = time;
+  frame.dt = 0.02;
+  InstrumentView needle;
+  needle.slot = "right";
+  needle.type = scene::InstrumentType::kNeedle;
+  needle.valid = true;
+  needle.tip = tip;
+  frame.instruments.push_back(needle);
+  return frame;
+}
+
+TEST(ScenarioRunner, PausedTimeIsExcludedAndCommandsFollowTheStateMachine) {
+  ScenarioRunner runner(holdScene());
+  const Eigen::Vector3d outside(0.0, 0.0, -0.009);
+  EXPECT_EQ(runner.status().state, State::kIdle);
+  runner.frame(frameAt(0.5, outside));  // idle: time does not run
+  EXPECT_EQ(runner.status().elapsed, 0.0);
+  EXPECT_NE(runner.pause(0.6), "");  // nothing to pause
+  EXPECT_EQ(runner.start(1.0), "");
+  EXPECT_NE(runner.start(1.1).find("refused"), std::string::npos);  // START while running
+  runner.frame(frameAt(2.0, outside));
+  runner.frame(frameAt(3.0, outside));
+  EXPECT_EQ(runner.pause(3.5), "");
+  runner.frame(frameAt(4.0, outside));  // paused: excluded
+  runner.frame(frameAt(7.0, outside));
+  EXPECT_DOUBLE_EQ(runner.status().elapsed, 2.5);
+  EXPECT_EQ(runner.resume(8.0), "");
+  runner.frame(frameAt(9.0, outside));
+  EXPECT_DOUBLE_EQ(runner.status().elapsed, 3.5);
+  EXPECT_EQ(runner.stop(9.5), "");
+  EXPECT_EQ(runner.status().state, State::kFailed);
+  EXPECT_DOUBLE_EQ(runner.status().elapsed, 4.0);
+  EXPECT_NE(runner.start(10.0).find("RESET"), std::string::npos);  // an ended session needs a RESET
+  runner.reset();
+  EXPECT_EQ(runner.status().state, State::kIdle);
+  EXPECT_EQ(runner.status().elapsed, 0.0);
+}
+
+TEST(ScenarioRunner, HoldSucceedsAfterHoldTimeAndTimeLimitFails) {
+  ScenarioRunner runner(holdScene());
+  runner.start(0.0);
+  const Eigen::Vector3d centre(0.0, 0.0, -0.010);
+  double t = 0.0;
+  for (; t < 2.0; t += 0.02) runner.frame(frameAt(t, centre + Eigen::Vector3d(0, 0, 0.0005)));  // outside
+  for (; runner.running() && t < 10.0; t += 0.02) runner.frame(frameAt(t, centre + Eigen::Vector3d(2e-5, 0, 0)));
+  EXPECT_EQ(runner.status().state, State::kFinished);
+  EXPECT_NEAR(runner.status().elapsed, 7.0, 0.03);  // 2 s to get there + 5 s hold
+  EXPECT_NEAR(runner.status().score.item("tip_rms")->value, 2e-5, 1e-12);
+  EXPECT_EQ(runner.status().score.item("completed")->value, 1.0);
+
+  ScenarioRunner late(holdScene());
+  late.start(0.0);
+  for (t = 0.0; late.running() && t < 30.0; t += 0.02) late.frame(frameAt(t, centre + Eigen::Vector3d(0, 0, 0.001)));
+  EXPECT_EQ(late.status().state, State::kFailed);
+  EXPECT_TRUE(late.status().timed_out);
+  EXPECT_NEAR(late.status().elapsed, 20.0, 0.03);
+}
+
+TEST(ScenarioRunner, FailIfRuleEndsTheSession) {
+  ScenarioRunner runner(holdScene("\n  fail_if: {exits: 2}"));
+  runner.start(0.0);
+  const Eigen::Vector3d centre(0.0, 0.0, -0.010), away(0.0, 0.0, -0.009);
+  double t = 0.0;
+  for (int exit = 0; exit < 3 && runner.running(); ++exit) {
+    runner.frame(frameAt(t += 0.02, centre));
+    runner.frame(frameAt(t += 0.02, away));
+  }
+  EXPECT_EQ(runner.status().state, State::kFailed);
+  EXPECT_FALSE(runner.status().timed_out);
+  EXPECT_NE(runner.status().message.find("exits"), std::string::npos) << runner.status().message;
+}
+
+TEST(ScenarioRunner, RulesNamingUnknownItemsOrParamsAreErrorsWithTheirLocation) {
+  try {
+    ScenarioRunner runner(holdScene("\n  fail_if: {exitz: 2}"));
+    FAIL() << "accepted an unknown item";
+  } catch (const scene::SceneError& error) {
+    EXPECT_NE(std::string(error.what()).find("hold_test.yaml:"), std::string::npos) << error.what();
+    EXPECT_NE(std::string(error.what()).find("exitz"), std::string::npos) << error.what();
+  }
+  try {
+    ScenarioRunner runner(scene::loadSceneFromString(R"(
+scene: {name: hold_test, kind: abstract}
+objects: [{name: retina, role: retina, mesh: {generator: retina}}]
+instruments: [{slot: right, type: needle}]
+simulations: []
+scenario: {type: steady_hold, params: {centre: [0, 0, -0.01], holdtime: 3}}
+)",
+                                                     "typo.yaml"));
+    FAIL() << "accepted an unknown parameter";
+  } catch (const scene::SceneError& error) {
+    const std::string message = error.what();
+    EXPECT_NE(message.find("typo.yaml:6:"), std::string::npos) << message;
+    EXPECT_NE(message.find("scenario.params.holdtime"), std::string::npos) << message;
+    EXPECT_NE(message.find("hold_time"), std::string::npos) << message;  // what it has instead
+  }
+}
+
+}  // namespace
+}  // namespace scenario
+}  // namespace vrm_sim
