@@ -893,7 +893,7 @@ std::string applyDifficulty(YAML::Node root, const std::string& file, const std:
       const Field key_field(override_entry.first, level_field.path() + "." + path, file);
       if (path.rfind("scenario.difficulty", 0) == 0) key_field.fail("a level cannot change the levels");
       resolveOverride(root, key_field, path, true);
-      if (name == level) chosen.push_back({path, YAML::Clone(override_entry.second), key_field});
+      if (name == level) chosen.push_back({path, override_entry.second, key_field});  // not a Clone: keeps its mark
     }
   }
   for (const Override& override_value : chosen) {

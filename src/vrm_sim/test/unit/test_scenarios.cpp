@@ -1,0 +1,291 @@
+// Every shipped training scenario, played offline through the simulation core (what scenario_offline prints): the
+// scripted expert finishes with a higher total than the scripted novice, and the novice triggers the penalties it was
+// written to trigger. Plus the scenario section's loader errors, difficulty levels, LOAD at run time (world::Session)
+// and "model only what a scene needs" (no tissue stage in the navigation scenario).
+#include <gtest/gtest.h>
+
+#include <array>
+#include <cstdio>
+#include <fstream>
+#include <map>
+#include <memory>
+
+#include "vrm_sim/scene/scene_loader.h"
+#include "vrm_sim/world/offline.h"
+#include "vrm_sim/world/session.h"
+
+namespace vrm_sim {
+namespace {
+
+using scene::loadScene;
+using scene::shippedScenePath;
+
+const std::vector<std::string>& scenarioNames() {
+  static const std::vector<std::string> names = {"navigation",     "trajectory",  "pick_and_place", "steady_hold",
+                                                 "membrane_peeling", "ilm_peeling", "vitrectomy"};
+  return names;
+}
+
+double item(const world::ScenarioRunResult& result, const std::string& name) {
+  const scenario::ScoreItem* entry = result.score.item(name);
+  EXPECT_NE(entry, nullptr) << result.scenario << " has no item " << name;
+  return entry ? entry->value : std::nan("");
+}
+
+struct Runs {
+  world::ScenarioRunResult expert, novice;
+};
+
+const Runs& runs(const std::string& name) {
+  static std::map<std::string, Runs> cache;
+  auto found = cache.find(name);
+  if (found != cache.end()) return found->second;
+  const scene::SceneDescription scene = loadScene(shippedScenePath(name));
+  world::ScenarioRunOptions options;
+  Runs result;
+  options.script = "expert";
+  result.expert = world::runScenario(scene, options);
+  options.script = "novice";
+  result.novice = world::runScenario(scene, options);
+  return cache.emplace(name, result).first->second;
+}
+
+TEST(Scenarios, EveryShippedScenarioIsListedAndEveryDifficultyLevelLoads) {
+  std::vector<std::string> with_scenario;
+  for (const std::string& name : scene::shippedScenes()) {
+    const scene::SceneDescription scene = loadScene(shippedScenePath(name));
+    if (!scene.scenario) continue;
+    with_scenario.push_back(name);
+    ASSERT_GE(scene.scenario->difficulty_levels.size(), 3u) << name;
+    for (const std::string& level : scene.scenario->difficulty_levels) {
+      const scene::SceneDescription leveled = loadScene(shippedScenePath(name), level);
+      EXPECT_EQ(leveled.scenario->difficulty, level);
+      EXPECT_NO_THROW(world::World world(leveled)) << name << " at " << level;
+    }
+    EXPECT_EQ(scene.scenario->scripts.count("expert"), 1u) << name;
+    EXPECT_EQ(scene.scenario->scripts.count("novice"), 1u) << name;
+  }
+  std::sort(with_scenario.begin(), with_scenario.end());
+  std::vector<std::string> expected = scenarioNames();
+  std::sort(expected.begin(), expected.end());
+  EXPECT_EQ(with_scenario, expected);
+}
+
+class EveryScenario : public ::testing::TestWithParam<std::string> {};
+
+TEST_P(EveryScenario, ExpertFinishesAndOutscoresTheNovice) {
+  const Runs& result = runs(GetParam());
+  EXPECT_EQ(result.expert.state, "finished") << result.expert.json();
+  EXPECT_GT(result.expert.score.total, 0.0);
+  EXPECT_GT(result.expert.score.total, result.novice.score.total + 10.0)
+      << "expert " << result.expert.json() << "\nnovice " << result.novice.json();
+  EXPECT_EQ(item(result.expert, "completed"), 1.0);
+}
+
+TEST_P(EveryScenario, ReplayingTheSameScriptScoresIdentically) {
+  const scene::SceneDescription scene = loadScene(shippedScenePath(GetParam()));
+  const world::ScenarioRunResult again = world::runScenario(scene, world::ScenarioRunOptions{});
+  EXPECT_EQ(again.final_state_hash, runs(GetParam()).expert.final_state_hash);
+  EXPECT_EQ(again.score.total, runs(GetParam()).expert.score.total);
+}
+
+INSTANTIATE_TEST_SUITE_P(Shipped, EveryScenario, ::testing::ValuesIn(scenarioNames()));
+
+TEST(Scenarios, NovicesTriggerThePenaltiesTheyWereWrittenFor) {
+  const Runs& navigation = runs("navigation");
+  EXPECT_GE(item(navigation.novice, "wrong_touches"), 1.0);
+  EXPECT_GE(item(navigation.novice, "retina_contacts"), 1.0);
+  EXPECT_EQ(item(navigation.expert, "wrong_touches"), 0.0);
+  EXPECT_EQ(item(navigation.expert, "retina_contacts"), 0.0);
+
+  const Runs& trajectory = runs("trajectory");
+  EXPECT_GT(item(trajectory.novice, "mean_deviation"), 2.0 * item(trajectory.expert, "mean_deviation"));
+  EXPECT_GE(item(trajectory.novice, "retina_contacts"), 1.0);
+
+  const Runs& pick = runs("pick_and_place");
+  EXPECT_GE(item(pick.novice, "drops"), 1.0);
+  EXPECT_GE(item(pick.novice, "retina_contacts"), 1.0);
+  EXPECT_EQ(item(pick.expert, "drops"), 0.0);
+
+  const Runs& hold = runs("steady_hold");
+  EXPECT_GE(item(hold.novice, "exits"), 1.0);
+  EXPECT_GT(item(hold.novice, "tremor_band_power"), 10.0 * item(hold.expert, "tremor_band_power"));
+
+  const Runs& membrane = runs("membrane_peeling");
+  EXPECT_TRUE(item(membrane.novice, "torn_springs") >= 1.0 || item(membrane.novice, "retina_contacts") >= 1.0);
+  EXPECT_EQ(item(membrane.expert, "detached_fraction"), 1.0);
+
+  const Runs& ilm = runs("ilm_peeling");
+  EXPECT_TRUE(item(ilm.novice, "torn_springs") >= 1.0 || item(ilm.novice, "retina_contacts") >= 1.0);
+  EXPECT_GT(item(ilm.expert, "continuity"), item(ilm.novice, "continuity"));
+
+  const Runs& vitrectomy = runs("vitrectomy");
+  EXPECT_GE(item(vitrectomy.novice, "warnings"), 1.0);
+  EXPECT_GT(item(vitrectomy.novice, "retina_damage"), item(vitrectomy.expert, "retina_damage"));
+}
+
+// Model only what a scene needs: the abstract scenarios never run a mass-spring step or a tissue collision.
+TEST(Scenarios, NavigationRunsNoTissueStage) {
+  for (const std::string name : {"navigation", "trajectory", "pick_and_place", "steady_hold"}) {
+    const Runs& result = runs(name);
+    for (const world::ScenarioRunResult* run : {&result.expert, &result.novice}) {
+      EXPECT_EQ(std::count(run->simulations.begin(), run->simulations.end(), "tissue"), 0) << run->json();
+      EXPECT_EQ(run->ms_tissue, 0.0);
+      EXPECT_EQ(std::count(run->simulations.begin(), run->simulations.end(), "scenario"), 1) << run->json();
+    }
+  }
+  // And frame by frame, in the core itself.
+  world::World world(loadScene(shippedScenePath("navigation")));
+  bool tissue_stage = false;
+  std::uint64_t frames = 0;
+  world.setFrameObserver([&](const world::FrameResult& frame) {
+    ++frames;
+    for (const world::StageTime& stage : frame.stages) tissue_stage = tissue_stage || stage.stage.rfind("tissue", 0) == 0;
+  });
+  const scene::SceneDescription scripted = scene::withScript(world.scene(), "expert");
+  for (const world::InstrumentState& input : world::scriptedInputs(scripted, 50.0, 2.0)) world.handle(input);
+  world.flush();
+  EXPECT_EQ(frames, 101u);
+  EXPECT_FALSE(tissue_stage);
+  EXPECT_TRUE(world.tissueNames().empty());
+}
+
+TEST(ScenarioSection, StrictLoaderReportsFileLineColumnAndField) {
+  const std::string base = R"(scene: {name: t, kind: abstract}
+objects: [{name: retina, role: retina, mesh: {generator: retina, params: {ring_count: 30}}}]
+instruments: [{slot: right, type: needle}]
+simulations: []
+)";
+  auto error_of = [&](const std::string& scenario, const std::string& difficulty = "") -> std::string {
+    try {
+      scene::loadSceneFromString(base + scenario, "t.yaml", difficulty);
+    } catch (const scene::SceneError& error) {
+      return error.what();
+    }
+    return "";
+  };
+  std::string message = error_of("scenario: {type: steady_hold, timelimit: 3}\n");
+  EXPECT_NE(message.find("t.yaml:5:"), std::string::npos) << message;
+  EXPECT_NE(message.find("scenario.timelimit: unknown key (did you mean 'time_limit'?)"), std::string::npos) << message;
+  message = error_of("scenario: {type: steady_hold, time_limit: soon}\n");
+  EXPECT_NE(message.find("scenario.time_limit: expected a non-negative number, got 'soon'"), std::string::npos)
+      << message;
+  message = error_of("scenario: {type: steady_hol}\n");
+  EXPECT_NE(message.find("(did you mean 'steady_hold'?)"), std::string::npos) << message;
+  message = error_of("scenario:\n  type: steady_hold\n  scoring: {time: {weight: 1, best: 3, worst: 3}}\n");
+  EXPECT_NE(message.find("best and worst must differ"), std::string::npos) << message;
+  const std::string levels = R"(scenario:
+  type: steady_hold
+  params: {centre: [0, 0, -0.01]}
+  difficulty:
+    default: easy
+    levels:
+      easy: {scenario.params.radius: 0.0002}
+      hard: {scenario.params.radius: 0.00005, objects.retina.mesh.params.ring_count: 20}
+)";
+  EXPECT_EQ(error_of(levels), "");
+  EXPECT_EQ(error_of(levels, "hard"), "");
+  message = error_of(levels, "extreme");
+  EXPECT_NE(message.find("unknown difficulty level 'extreme'"), std::string::npos) << message;
+  EXPECT_NE(message.find("levels: easy, hard"), std::string::npos) << message;
+  // A level's path that does not resolve fails even while another level is loaded, at its own line.
+  message = error_of(levels + "      broken: {objects.retna.mesh.params.ring_count: 20}\n");
+  EXPECT_NE(message.find("t.yaml:13:"), std::string::npos) << message;
+  EXPECT_NE(message.find("no item named 'retna'"), std::string::npos) << message;
+  // An override whose value is wrong fails like the written value would, pointing at the override.
+  message = error_of(levels + "      bad: {objects.retina.mesh.params.ring_count: -3}\n", "bad");
+  EXPECT_NE(message.find("t.yaml:13:"), std::string::npos) << message;
+  EXPECT_NE(message.find("ring_count"), std::string::npos) << message;
+  message = error_of("", "easy");
+  EXPECT_NE(message.find("no scenario section"), std::string::npos) << message;
+}
+
+TEST(ScenarioSection, DifficultyOverridesTheSceneValues) {
+  const scene::SceneDescription medium = loadScene(shippedScenePath("membrane_peeling"));
+  const scene::SceneDescription hard = loadScene(shippedScenePath("membrane_peeling"), "hard");
+  EXPECT_EQ(medium.scenario->difficulty, "medium");
+  EXPECT_EQ(hard.scenario->difficulty, "hard");
+  const scene::ObjectDescription& soft = *medium.findObject("membrane");
+  const scene::ObjectDescription& stiff = *hard.findObject("membrane");
+  EXPECT_NE(soft.tissue.adhesion_stiffness, stiff.tissue.adhesion_stiffness);
+  EXPECT_NE(medium.scenario->time_limit, hard.scenario->time_limit);
+}
+
+TEST(Session, LoadSwitchesTheSceneAndABrokenLoadKeepsTheSession) {
+  std::vector<std::string> log;
+  world::WorldOptions options;
+  options.log = [&log](world::Severity, const std::string& message) { log.push_back(message); };
+  world::Session session(loadScene(shippedScenePath("membrane_peeling")), options);
+  ASSERT_FALSE(session.world().tissueNames().empty());
+  const scene::SceneDescription membrane_expert = scene::withScript(session.world().scene(), "expert");
+  for (const world::InstrumentState& input : world::scriptedInputs(membrane_expert, 50.0, 0.5)) session.handle(input);
+  const std::uint64_t frames = session.world().frame();
+  ASSERT_GT(frames, 10u);
+
+  // A broken YAML, an unknown scene, an unknown level: refused, the membrane session goes on untouched.
+  const std::string broken = std::string(VRM_SIM_SOURCE_DIR) + "/test/data/scenes/syntax_error.yaml";
+  for (const auto& [scene_name, level] : std::vector<std::pair<std::string, std::string>>{
+           {broken, ""}, {"no_such_scene", ""}, {"navigation", "impossible"}}) {
+    session.handle(world::ScenarioCommand{world::fromSeconds(0.6), world::ScenarioCommand::Type::kLoad, scene_name,
+                                          level, 7});
+    EXPECT_EQ(session.world().scene().name, "membrane_peeling");
+    ASSERT_NE(session.world().scenarioStatus(), nullptr);
+    EXPECT_NE(session.world().scenarioStatus()->message.find("refused"), std::string::npos)
+        << session.world().scenarioStatus()->message;
+  }
+  EXPECT_EQ(session.world().frame(), frames);
+  EXPECT_EQ(session.world().scenarioStatus()->state, scenario::State::kRunning);
+
+  // LOAD navigation (hard): a new world without tissue; nothing of the membrane runs.
+  int loaded = 0;
+  session.setLoadObserver([&loaded](world::World&) { ++loaded; });
+  session.handle(world::ScenarioCommand{world::fromSeconds(1.0), world::ScenarioCommand::Type::kLoad, "navigation",
+                                        "hard", 42});
+  EXPECT_EQ(loaded, 1);
+  EXPECT_EQ(session.seed(), 42u);
+  EXPECT_EQ(session.world().scene().name, "navigation");
+  EXPECT_EQ(session.world().scenarioStatus()->difficulty, "hard");
+  EXPECT_TRUE(session.world().tissueNames().empty());
+  EXPECT_EQ(session.world().frame(), 0u);
+}
+
+// The tool's interface (exit codes, one JSON line, file:line:col errors) as other tools rely on it.
+std::pair<int, std::string> run(const std::string& arguments) {
+  const std::string command = std::string(VRM_SCENARIO_OFFLINE_BINARY) + " " + arguments + " 2>&1";
+  FILE* pipe = popen(command.c_str(), "r");
+  std::string output;
+  std::array<char, 4096> buffer{};
+  while (fgets(buffer.data(), buffer.size(), pipe) != nullptr) output += buffer.data();
+  const int status = pclose(pipe);
+  return {WEXITSTATUS(status), output};
+}
+
+TEST(ScenarioOffline, InterfaceExitCodesAndJson) {
+  auto [code, output] = run("--scene navigation --script expert --seed 3");
+  EXPECT_EQ(code, 0) << output;
+  for (const char* field : {"\"scenario\": \"navigation\"", "\"difficulty\": ", "\"state\": \"finished\"",
+                            "\"total\": ", "\"items\": {", "\"final_state_hash\": \"0x", "\"sim_seconds\": ",
+                            "\"wall_seconds\": ", "\"seed\": 3"}) {
+    EXPECT_NE(output.find(field), std::string::npos) << field << " missing in " << output;
+  }
+  std::tie(code, output) = run("--list");
+  EXPECT_EQ(code, 0);
+  for (const std::string& name : scenarioNames()) EXPECT_NE(output.find(name + "\n"), std::string::npos) << output;
+  std::tie(code, output) = run("--scene " + std::string(VRM_SIM_SOURCE_DIR) + "/test/data/scenes/typo_in_tissue.yaml");
+  EXPECT_EQ(code, 1) << output;
+  EXPECT_NE(output.find("typo_in_tissue.yaml:"), std::string::npos) << output;
+  std::tie(code, output) = run("--scene navigation --difficulty impossible");
+  EXPECT_EQ(code, 1) << output;
+  std::tie(code, output) = run("--scene navigation --script nobody");
+  EXPECT_EQ(code, 1) << output;
+  EXPECT_NE(output.find("expert"), std::string::npos) << output;  // names the scripts it has
+  std::tie(code, output) = run("--scene");
+  EXPECT_EQ(code, 2) << output;
+  std::tie(code, output) = run("--bogus 1");
+  EXPECT_EQ(code, 2) << output;
+  std::tie(code, output) = run("");
+  EXPECT_EQ(code, 2) << output;
+}
+
+}  // namespace
+}  // namespace vrm_sim
