@@ -90,6 +90,7 @@ struct ScenarioRunResult {
   double wall_seconds = 0.0;  // the whole run (measurement only)
   // Mean CPU (wall) ms per frame, in total and by stage; which stages ran at all.
   double ms_per_frame = 0.0, ms_scenario = 0.0, ms_tissue = 0.0, ms_collision = 0.0, ms_bleeding = 0.0;
+  double ms_per_frame_max = 0.0;  // the worst frame
   std::vector<std::string> simulations;  // "tissue", "collision", "bleeding", "scenario" (stages that ran)
 
   // One JSON object (scenario_offline's output line; the hash as a "0x…" string).

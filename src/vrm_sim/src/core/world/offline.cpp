@@ -229,7 +229,8 @@ std::string ScenarioRunResult::json() const {
   }
   out << "}, \"final_state_hash\": \"" << hash << "\", \"frames\": " << frames
       << ", \"sim_seconds\": " << number(sim_seconds) << ", \"wall_seconds\": " << number(wall_seconds)
-      << ", \"ms_per_frame\": " << number(ms_per_frame) << ", \"ms_scenario\": " << number(ms_scenario)
+      << ", \"ms_per_frame\": " << number(ms_per_frame) << ", \"ms_per_frame_max\": " << number(ms_per_frame_max)
+      << ", \"ms_scenario\": " << number(ms_scenario)
       << ", \"ms_tissue\": " << number(ms_tissue) << ", \"ms_collision\": " << number(ms_collision)
       << ", \"ms_bleeding\": " << number(ms_bleeding) << ", \"simulations\": [";
   for (std::size_t i = 0; i < simulations.size(); ++i) out << (i ? ", " : "") << quoted(simulations[i]);
@@ -296,6 +297,7 @@ ScenarioRunResult runScenario(const scene::SceneDescription& scene, const Scenar
   result.final_state_hash = world.stateHash();
   const double frames = static_cast<double>(std::max<std::uint64_t>(result.frames, 1));
   result.ms_per_frame = 1e3 * world.statistics().total_frame_wall_time / frames;
+  result.ms_per_frame_max = 1e3 * world.statistics().max_frame_wall_time;
   result.ms_scenario = stage_ms["scenario"] / frames;
   result.ms_tissue = stage_ms["tissue"] / frames;
   result.ms_collision = stage_ms["collision"] / frames;

@@ -1,0 +1,188 @@
+// scenario_manager in a manager: LOAD -> START -> the scripted expert's instrument states -> FINISHED, the Score
+// message and the result file checked; refused commands (START while running, LOAD of a broken YAML) say why in the
+// status and leave the running scenario alone.
+#include <gtest/gtest.h>
+#include <ros/ros.h>
+
+#include <cstdio>
+#include <fstream>
+#include <map>
+#include <mutex>
+#include <sstream>
+#include <string>
+
+#include "vrm_msgs/InstrumentState.h"
+#include "vrm_msgs/ScenarioCommand.h"
+#include "vrm_msgs/ScenarioStatus.h"
+#include "vrm_msgs/Score.h"
+#include "vrm_msgs/SimulationState.h"
+#include "vrm_sim/conversions.h"
+#include "vrm_sim/scene/scene_loader.h"
+#include "vrm_sim/world/offline.h"
+
+namespace vrm_sim {
+namespace {
+
+template <typename Condition>
+bool waitFor(Condition condition, double seconds) {
+  const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(seconds);
+  while (ros::ok() && ros::WallTime::now() < deadline) {
+    if (condition()) return true;
+    ros::WallDuration(0.002).sleep();
+  }
+  return condition();
+}
+
+struct Observed {
+  std::mutex mutex;
+  vrm_msgs::ScenarioStatus status;
+  bool have_status = false;
+  std::vector<std::string> messages;
+  vrm_msgs::Score score;
+  bool have_score = false;
+  world::Stamp last_frame = -1;
+};
+
+TEST(ScenarioGraph, LoadStartPlayFinishScore) {
+  std::remove("/tmp/vrm_sim_scenario_test_result.json");
+  ros::NodeHandle nh;
+  Observed observed;
+  ros::Subscriber status_subscriber = nh.subscribe<vrm_msgs::ScenarioStatus>(
+      "scenario_status", 50, [&](const vrm_msgs::ScenarioStatus::ConstPtr& status) {
+        std::lock_guard<std::mutex> lock(observed.mutex);
+        observed.status = *status;
+        observed.have_status = true;
+        observed.messages.push_back(status->message);
+      });
+  ros::Subscriber score_subscriber =
+      nh.subscribe<vrm_msgs::Score>("score", 5, [&](const vrm_msgs::Score::ConstPtr& score) {
+        std::lock_guard<std::mutex> lock(observed.mutex);
+        observed.score = *score;
+        observed.have_score = true;
+      });
+  ros::Subscriber frames = nh.subscribe<vrm_msgs::SimulationState>(
+      "simulation_state", 100, [&](const vrm_msgs::SimulationState::ConstPtr& state) {
+        std::lock_guard<std::mutex> lock(observed.mutex);
+        observed.last_frame = toStamp(state->header.stamp);
+      });
+  ros::Publisher commands = nh.advertise<vrm_msgs::ScenarioCommand>("scenario_command", 10);
+  ros::Publisher instruments = nh.advertise<vrm_msgs::InstrumentState>("instrument_state", 100);
+  ros::AsyncSpinner spinner(2);
+  spinner.start();
+  auto status = [&] {
+    std::lock_guard<std::mutex> lock(observed.mutex);
+    return observed.status;
+  };
+  ASSERT_TRUE(waitFor(
+      [&] {
+        std::lock_guard<std::mutex> lock(observed.mutex);
+        return observed.have_status && commands.getNumSubscribers() > 0 && instruments.getNumSubscribers() > 0;
+      },
+      30.0))
+      << "scenario_manager did not come up";
+  EXPECT_EQ(status().scenario, "membrane_peeling");
+  EXPECT_EQ(status().state, vrm_msgs::ScenarioStatus::IDLE);  // auto_start false: waits for START
+
+  auto command = [&](std::uint8_t type, const std::string& scenario, const std::string& argument, double stamp) {
+    auto message = boost::make_shared<vrm_msgs::ScenarioCommand>();
+    message->header.stamp = ros::Time(stamp);
+    message->command = type;
+    message->scenario = scenario;
+    message->argument = argument;
+    message->seed = 5;
+    commands.publish(message);
+  };
+  // LOAD switches the scene at run time.
+  command(vrm_msgs::ScenarioCommand::LOAD, "navigation", "easy", 99.0);
+  ASSERT_TRUE(waitFor([&] { return status().scenario == "navigation"; }, 20.0)) << status().message;
+  EXPECT_EQ(status().difficulty, "easy");
+  EXPECT_EQ(status().state, vrm_msgs::ScenarioStatus::IDLE);
+
+  const scene::SceneDescription scene =
+      scene::withScript(scene::loadScene(scene::shippedScenePath("navigation"), "easy"), "expert");
+  const double start = 100.0;
+  command(vrm_msgs::ScenarioCommand::START, "", "", start);
+  std::map<world::Stamp, std::vector<world::InstrumentState>> ticks;
+  double script_end = 0.0;
+  for (const auto& instrument : scene.instruments) {
+    if (!instrument.path.empty()) script_end = std::max(script_end, instrument.path.back().t);
+  }
+  for (const auto& input : world::scriptedInputs(scene, 50.0, script_end + 2.0, world::fromSeconds(start))) {
+    ticks[input.stamp].push_back(input);
+  }
+  std::optional<world::Stamp> previous;
+  bool refused_start = false, refused_load = false;
+  std::size_t tick_index = 0;
+  for (const auto& [stamp, tick] : ticks) {
+    for (const auto& input : tick) instruments.publish(boost::make_shared<vrm_msgs::InstrumentState>(toMsg(input)));
+    if (previous) {
+      ASSERT_TRUE(waitFor(
+          [&] {
+            std::lock_guard<std::mutex> lock(observed.mutex);
+            return observed.last_frame >= *previous;
+          },
+          10.0))
+          << "no frame for stamp " << *previous;
+    }
+    previous = stamp;
+    if (++tick_index == 50) {
+      ASSERT_EQ(status().state, vrm_msgs::ScenarioStatus::RUNNING) << status().message;
+      command(vrm_msgs::ScenarioCommand::START, "", "", world::toSeconds(stamp));
+      command(vrm_msgs::ScenarioCommand::LOAD, std::string(VRM_SIM_SOURCE_DIR) + "/test/data/scenes/syntax_error.yaml",
+              "", world::toSeconds(stamp));
+    }
+    if (tick_index > 50 && !(refused_start && refused_load)) {
+      std::lock_guard<std::mutex> lock(observed.mutex);
+      for (const std::string& message : observed.messages) {
+        refused_start = refused_start || message.find("START refused") != std::string::npos;
+        refused_load = refused_load || message.find("syntax_error.yaml") != std::string::npos;
+      }
+    }
+    if (status().state == vrm_msgs::ScenarioStatus::FINISHED) break;
+  }
+  EXPECT_TRUE(refused_start) << "no status message for START while running";
+  EXPECT_TRUE(refused_load) << "no status message for the broken LOAD";
+  ASSERT_TRUE(waitFor([&] { return status().state == vrm_msgs::ScenarioStatus::FINISHED; }, 10.0))
+      << "state " << int(status().state) << ": " << status().message;
+  EXPECT_EQ(status().scenario, "navigation");  // the broken LOAD left it running
+  ASSERT_TRUE(waitFor(
+      [&] {
+        std::lock_guard<std::mutex> lock(observed.mutex);
+        return observed.have_score;
+      },
+      10.0));
+  vrm_msgs::Score score;
+  {
+    std::lock_guard<std::mutex> lock(observed.mutex);
+    score = observed.score;
+  }
+  EXPECT_GT(score.total, 50.0);
+  std::map<std::string, double> items;
+  for (const auto& item : score.items) items[item.name] = item.value;
+  EXPECT_EQ(items.at("completed"), 1.0);
+  EXPECT_GT(items.at("time"), 0.0);
+  EXPECT_EQ(items.at("targets_touched"), 4.0);
+
+  // The same inputs offline give the same score (one core).
+  world::ScenarioRunOptions options;
+  const world::ScenarioRunResult offline =
+      world::runScenario(scene::loadScene(scene::shippedScenePath("navigation"), "easy"), options);
+  EXPECT_NEAR(offline.score.total, score.total, 1e-9);
+
+  ASSERT_TRUE(waitFor([] { return std::ifstream("/tmp/vrm_sim_scenario_test_result.json").good(); }, 10.0));
+  std::stringstream text;
+  text << std::ifstream("/tmp/vrm_sim_scenario_test_result.json").rdbuf();
+  for (const char* field : {"\"scene\": \"navigation\"", "\"difficulty\": \"easy\"", "\"seed\": 5",
+                            "\"state\": \"finished\"", "\"start_stamp\": 100", "\"items\": [", "\"bag\": null"}) {
+    EXPECT_NE(text.str().find(field), std::string::npos) << field << " missing in " << text.str();
+  }
+}
+
+}  // namespace
+}  // namespace vrm_sim
+
+int main(int argc, char** argv) {
+  testing::InitGoogleTest(&argc, argv);
+  ros::init(argc, argv, "test_scenario");
+  return RUN_ALL_TESTS();
+}
