@@ -77,13 +77,15 @@ class ScenarioRunner {
 
  private:
   void refreshScore();
+  void advance(double time);
   void finish(State state, const std::string& message, double time);
 
   scene::SceneDescription scene_;
   scene::ScenarioDescription description_;
   std::unique_ptr<Scenario> scenario_;
   Status status_;
-  double last_time_ = 0.0;  // input time up to which `elapsed` counts
+  std::int64_t last_time_ = 0;   // ns: input time up to which `elapsed` counts
+  std::int64_t elapsed_ns_ = 0;  // running time
 };
 
 }  // namespace scenario

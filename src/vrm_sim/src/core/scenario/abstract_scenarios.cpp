@@ -315,7 +315,7 @@ class SteadyHold : public Scenario {
     inside_ = inside;
     if (!inside) return;
     samples_.push_back(tool->tip);
-    times_.push_back(frame.time);
+    times_.push_back(elapsed);  // running time: independent of where the stamps start
     longest_hold_ = std::max(longest_hold_, elapsed - hold_start_);
     held_ = longest_hold_ >= hold_time_;
     if (held_ || samples_.size() % 25 == 0) analyse();

@@ -58,6 +58,10 @@ Score computeScore(const std::vector<scene::ScoringRule>& rules, const std::vect
 
 namespace {
 
+// Running time is summed in integer nanoseconds of the input stamps, so it does not depend on where the stamps start
+// (a session at t = 0 offline and at t = 1.7e9 live give the same elapsed time, bit for bit).
+std::int64_t nanoseconds(double time) { return static_cast<std::int64_t>(std::llround(time * 1e9)); }
+
 std::string seconds(double value) {
   char text[32];
   std::snprintf(text, sizeof(text), "%.1f s", value);
@@ -110,7 +114,7 @@ std::string ScenarioRunner::start(double time) {
   status_.state = State::kRunning;
   status_.start_time = time;
   status_.message = "started";
-  last_time_ = time;
+  last_time_ = nanoseconds(time);
   return "";
 }
 
@@ -118,8 +122,7 @@ std::string ScenarioRunner::pause(double time) {
   if (status_.state != State::kRunning) {
     return "PAUSE refused: the scenario is " + std::string(toString(status_.state));
   }
-  status_.elapsed += std::max(0.0, time - last_time_);
-  last_time_ = time;
+  advance(time);
   status_.state = State::kPaused;
   status_.message = "paused";
   refreshScore();
@@ -130,7 +133,7 @@ std::string ScenarioRunner::resume(double time) {
   if (status_.state != State::kPaused) return "RESUME refused: the scenario is " + std::string(toString(status_.state));
   status_.state = State::kRunning;
   status_.message = "resumed";
-  last_time_ = time;
+  last_time_ = nanoseconds(time);
   return "";
 }
 
@@ -138,7 +141,7 @@ std::string ScenarioRunner::stop(double time) {
   if (status_.state != State::kRunning && status_.state != State::kPaused) {
     return "STOP refused: the scenario is " + std::string(toString(status_.state));
   }
-  if (status_.state == State::kRunning) status_.elapsed += std::max(0.0, time - last_time_);
+  if (status_.state == State::kRunning) advance(time);
   finish(State::kFailed, "stopped by the trainee", time);
   return "";
 }
@@ -150,7 +153,8 @@ void ScenarioRunner::reset() {
   status_.type = description_.type;
   status_.difficulty = description_.difficulty;
   status_.message = "reset";
-  last_time_ = 0.0;
+  last_time_ = 0;
+  elapsed_ns_ = 0;
   refreshScore();
 }
 
@@ -161,10 +165,16 @@ void ScenarioRunner::finish(State state, const std::string& message, double time
   refreshScore();
 }
 
+void ScenarioRunner::advance(double time) {
+  const std::int64_t now = nanoseconds(time);
+  elapsed_ns_ += std::max<std::int64_t>(0, now - last_time_);
+  last_time_ = std::max(last_time_, now);
+  status_.elapsed = 1e-9 * static_cast<double>(elapsed_ns_);
+}
+
 void ScenarioRunner::frame(const FrameView& frame) {
   if (status_.state != State::kRunning) return;
-  status_.elapsed += std::max(0.0, frame.time - last_time_);
-  last_time_ = frame.time;
+  advance(frame.time);
   scenario_->update(frame, status_.elapsed);
   status_.progress = scenario_->progress();
   if (scenario_->succeeded()) {
@@ -196,7 +206,7 @@ void ScenarioRunner::refreshScore() {
 
 void ScenarioRunner::hash(std::uint64_t& state) const {
   hashValue(state, static_cast<int>(status_.state));
-  hashValue(state, status_.elapsed);
+  hashValue(state, elapsed_ns_);
   scenario_->hash(state);
 }
 
