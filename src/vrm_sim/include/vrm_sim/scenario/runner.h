@@ -3,7 +3,8 @@
 // Scenario, its running time (pauses excluded; input stamps only), the time limit, the failure rules (`fail_if`) and
 // the score (`scoring`: every item linear between its best and worst value, weighted mean 0..100).
 //
-// Items every scenario reports besides its own: time (s, running), completed (1 once FINISHED, else 0).
+// Items every scenario reports besides its own: time (s, running; scores nothing for a failed session), completed (1
+// once FINISHED, else 0).
 
 #include <cstdint>
 #include <memory>

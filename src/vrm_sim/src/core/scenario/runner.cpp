@@ -202,6 +202,16 @@ void ScenarioRunner::refreshScore() {
   measurements.push_back({"time", status_.elapsed, "s"});
   measurements.push_back({"completed", status_.state == State::kFinished ? 1.0 : 0.0, "1"});
   status_.score = computeScore(description_.scoring, measurements);
+  // A failed session earns no points for being quick: `time` only scores a completed task.
+  if (status_.state == State::kFailed) {
+    double weighted = 0.0, weights = 0.0;
+    for (ScoreItem& item : status_.score.items) {
+      if (item.name == "time") item.points = 0.0;
+      weighted += item.weight * item.points;
+      weights += item.weight;
+    }
+    status_.score.total = weights > 0.0 ? weighted / weights : 0.0;
+  }
 }
 
 void ScenarioRunner::hash(std::uint64_t& state) const {

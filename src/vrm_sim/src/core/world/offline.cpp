@@ -298,10 +298,14 @@ ScenarioRunResult runScenario(const scene::SceneDescription& scene, const Scenar
   const double frames = static_cast<double>(std::max<std::uint64_t>(result.frames, 1));
   result.ms_per_frame = 1e3 * world.statistics().total_frame_wall_time / frames;
   result.ms_per_frame_max = 1e3 * world.statistics().max_frame_wall_time;
-  result.ms_scenario = stage_ms["scenario"] / frames;
-  result.ms_tissue = stage_ms["tissue"] / frames;
-  result.ms_collision = stage_ms["collision"] / frames;
-  result.ms_bleeding = stage_ms["bleeding"] / frames;
+  auto stage = [&stage_ms, frames](const char* kind) {
+    const auto found = stage_ms.find(kind);
+    return found == stage_ms.end() ? 0.0 : found->second / frames;
+  };
+  result.ms_scenario = stage("scenario");
+  result.ms_tissue = stage("tissue");
+  result.ms_collision = stage("collision");
+  result.ms_bleeding = stage("bleeding");
   for (const char* kind : {"tissue", "collision", "bleeding", "scenario"}) {
     if (stage_ms.count(kind) > 0) result.simulations.push_back(kind);
   }
