@@ -267,7 +267,7 @@ class ScenarioManager : public nodelet::Nodelet {
     if (result_file_.empty() || result_written_) return;
     result_written_ = true;
     std::ostringstream out;
-    out << std::setprecision(10);
+    out << std::setprecision(15);
     auto quoted = [](const std::string& text) {
       std::string escaped = "\"";
       for (char c : text) {
