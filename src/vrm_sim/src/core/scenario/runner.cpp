@@ -177,11 +177,8 @@ void ScenarioRunner::frame(const FrameView& frame) {
   advance(frame.time);
   scenario_->update(frame, status_.elapsed);
   status_.progress = scenario_->progress();
-  if (scenario_->succeeded()) {
-    finish(State::kFinished, "task completed in " + seconds(status_.elapsed), frame.time);
-    return;
-  }
   refreshScore();
+  // Failure first: a frame that completes the task and crosses a failure threshold is a failed session.
   for (const scene::FailureRule& rule : description_.fail_if) {
     const ScoreItem* item = status_.score.item(rule.item);
     if (item != nullptr && item->value >= rule.at_least) {
@@ -190,6 +187,10 @@ void ScenarioRunner::frame(const FrameView& frame) {
       finish(State::kFailed, "failed: " + rule.item + " reached " + value, frame.time);
       return;
     }
+  }
+  if (scenario_->succeeded()) {
+    finish(State::kFinished, "task completed in " + seconds(status_.elapsed), frame.time);
+    return;
   }
   if (description_.time_limit > 0.0 && status_.elapsed >= description_.time_limit) {
     status_.timed_out = true;

@@ -34,19 +34,26 @@ class Peel : public Scenario {
     if (tissue == nullptr) return;
     if (!initial_adhesions_) initial_adhesions_ = tissue->adhesion_points + tissue->released_adhesions;
     remaining_ = tissue->adhesion_points;
+    released_ = tissue->released_adhesions;
     torn_ = tissue->torn_springs;
     max_force_ = tissue->max_adhesion_force;
     lifted_fraction_ = tissue->lifted_fraction;
     updateShape(*tissue);
   }
 
-  bool succeeded() const override { return initial_adhesions_ && *initial_adhesions_ > 0 && remaining_ == 0; }
+  // Detached from every adhesion point: each one peeled off, or the rest cut free with the vitrector — a tear that
+  // isolates an adhesion point also removes it, but that is a torn membrane, not a detached one.
+  bool succeeded() const override {
+    if (!initial_adhesions_ || *initial_adhesions_ == 0) return false;
+    return released_ >= *initial_adhesions_ || (remaining_ == 0 && torn_ == 0);
+  }
 
   std::vector<Measurement> items() const override { return measurements(0.0); }
 
   std::vector<Measurement> measurements(double) const override {
     const double initial = initial_adhesions_ ? static_cast<double>(*initial_adhesions_) : 0.0;
-    return {{"detached_fraction", initial > 0.0 ? 1.0 - static_cast<double>(remaining_) / initial : 0.0, "1"},
+    const double detached = torn_ > 0 ? static_cast<double>(released_) : initial - static_cast<double>(remaining_);
+    return {{"detached_fraction", initial > 0.0 ? std::clamp(detached / initial, 0.0, 1.0) : 0.0, "1"},
             {"torn_springs", static_cast<double>(torn_), "1"},
             {"max_adhesion_force", max_force_, "N"},
             {"lifted_fraction", lifted_fraction_, "1"},
@@ -74,7 +81,7 @@ class Peel : public Scenario {
   std::string object_;
   std::optional<std::size_t> initial_adhesions_;
   std::size_t remaining_ = 0;
-  std::uint64_t torn_ = 0;
+  std::uint64_t released_ = 0, torn_ = 0;
   double max_force_ = 0.0, lifted_fraction_ = 0.0, bleeding_area_ = 0.0;
   RetinaContacts contacts_;
 };
@@ -89,8 +96,10 @@ class MembranePeeling : public Peel {
 };
 
 // ILM peeling: the thin, stiff layer on the retina is peeled in a circle (like a capsulorhexis). Besides the peel
-// items: the radius of the peeled region and its continuity — the fraction of 16 sectors around the ILM's centre in
-// which it is lifted. Success: the peel goes round (continuity) and frees at least the required fraction of nodes.
+// items: the radius of the peeled region (mean distance of the lifted nodes from the ILM's centre) and the peel's
+// continuity — the fraction of 16 sectors around the centre the forceps carried the flap through while holding it,
+// so a straight pull that lifts the sheet is not a round peel. Success: the peel went round (continuity) and freed
+// at least the required fraction of the ILM.
 class IlmPeeling : public Peel {
  public:
   IlmPeeling(const scene::SceneDescription& scene, Params&& params) : Peel(scene, params, "ilm") {
@@ -124,6 +133,19 @@ class IlmPeeling : public Peel {
  private:
   static constexpr int kSectors = 16;
 
+  void update(const FrameView& frame, double elapsed) override {
+    Peel::update(frame, elapsed);
+    const TissueView* tissue = frame.tissue(object_);
+    if (tissue == nullptr || tissue->grasped_nodes == 0 || !centre_) return;
+    for (const InstrumentView& instrument : frame.instruments) {
+      if (!instrument.valid || instrument.type != scene::InstrumentType::kForceps) continue;
+      const Eigen::Vector3d d = instrument.tip - *centre_;
+      const double angle = std::atan2(d.dot(v_), d.dot(u_));
+      visited_[std::clamp(static_cast<int>((angle + kPi) / (2.0 * kPi) * kSectors), 0, kSectors - 1)] = true;
+    }
+    continuity_ = static_cast<double>(std::count(visited_, visited_ + kSectors, true)) / kSectors;
+  }
+
   void updateShape(const TissueView& tissue) override {
     if (tissue.positions == nullptr || tissue.rest_positions == nullptr) return;
     const std::vector<Eigen::Vector3d>& rest = *tissue.rest_positions;
@@ -141,25 +163,21 @@ class IlmPeeling : public Peel {
     }
     const Eigen::Vector3d* x = tissue.positions;
     const std::size_t n = std::min(rest.size(), tissue.node_count);
-    bool covered[kSectors] = {};
     double radius_sum = 0.0;
     std::size_t lifted = 0;
     for (std::size_t i = 0; i < n; ++i) {
       if (!rest[i].allFinite() || (x[i] - rest[i]).norm() <= 1e-4) continue;
       const Eigen::Vector3d d = rest[i] - *centre_;
-      const double r = std::hypot(d.dot(u_), d.dot(v_));
-      const double angle = std::atan2(d.dot(v_), d.dot(u_));
-      covered[std::clamp(static_cast<int>((angle + kPi) / (2.0 * kPi) * kSectors), 0, kSectors - 1)] = true;
-      radius_sum += r;
+      radius_sum += std::hypot(d.dot(u_), d.dot(v_));
       ++lifted;
     }
-    continuity_ = static_cast<double>(std::count(covered, covered + kSectors, true)) / kSectors;
     radius_ = lifted > 0 ? radius_sum / static_cast<double>(lifted) : 0.0;
   }
 
   double required_continuity_ = 0.75, required_lift_ = 0.3;
   std::optional<Eigen::Vector3d> centre_;
   Eigen::Vector3d normal_, u_, v_;
+  bool visited_[kSectors] = {};
   double continuity_ = 0.0, radius_ = 0.0;
 };
 
