@@ -38,7 +38,7 @@ source "$ROOT/scripts/common.sh"
 
 out="$ROOT/build/sessions/$(date +%Y%m%d_%H%M%S)"
 # Stereo frames while the expert works: approach, grasp, peel (seconds after the first input).
-SNAPSHOT_TIMES=${SNAPSHOT_TIMES:-"1 3 6"}
+SNAPSHOT_TIMES=${SNAPSHOT_TIMES:-"2.5 4.3 5.9"}
 mkdir -p "$out"
 [[ -n $bag ]] || bag="$out/session.bag"
 echo "run.sh: headless simulator, simulated hardware, scenario '$scene'${difficulty:+ ($difficulty)}, scripted $script, ${duration} s, recording to $bag"
