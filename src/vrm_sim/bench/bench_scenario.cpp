@@ -34,8 +34,8 @@ int main(int argc, char** argv) {
   const int repeats = quick ? 1 : 3;  // the fastest of `repeats` identical runs: these machines are noisy
   std::printf("bench_scenario (%s): scripted sessions through world::World + scenario, 50 Hz inputs, best of %d\n",
               quick ? "quick" : "full", repeats);
-  std::printf("%-17s %-7s %-7s %-9s %6s %6s %9s %8s %8s %9s %8s %8s %8s  %s\n", "scenario", "level", "script",
-              "state", "total", "frames", "sim/wall", "ms/frm", "max_ms", "scenario", "tissue", "collide", "bleed",
+  std::printf("%-17s %-7s %-7s %-9s %6s %6s %9s %8s %8s %9s %8s %8s %8s  %s\n", "scenario", "level", "script", "state",
+              "total", "frames", "sim/wall", "ms/frm", "max_ms", "scenario", "tissue", "collide", "bleed",
               "simulations");
   std::string rows;
   double membrane_frame = 0.0, membrane_scenario = 0.0, navigation_frame = 0.0;
@@ -93,9 +93,8 @@ int main(int argc, char** argv) {
   std::printf("navigation frame / membrane frame: %.2f %% (target <= 10 %%)\n", 100.0 * navigation_ratio);
   std::ofstream out(out_path);
   out << "{\"suite\":\"scenario\",\"command\":\"./scripts/bench.sh" << (quick ? " --quick" : "")
-      << " scenario\",\"quick\":" << (quick ? "true" : "false")
-      << ",\"membrane_scenario_share\":" << scenario_share << ",\"navigation_over_membrane\":" << navigation_ratio
-      << ",\"rows\":[\n"
+      << " scenario\",\"quick\":" << (quick ? "true" : "false") << ",\"membrane_scenario_share\":" << scenario_share
+      << ",\"navigation_over_membrane\":" << navigation_ratio << ",\"rows\":[\n"
       << rows << "\n]}\n";
   return out ? 0 : 1;
 }

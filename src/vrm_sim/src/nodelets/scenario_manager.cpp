@@ -30,11 +30,11 @@
 #include <boost/make_shared.hpp>
 #include <fstream>
 #include <iomanip>
-#include <sstream>
 #include <map>
 #include <memory>
 #include <mutex>
 #include <pluginlib/class_list_macros.hpp>
+#include <sstream>
 
 #include "vrm_msgs/CollisionReport.h"
 #include "vrm_msgs/ScenarioStatus.h"
@@ -135,7 +135,8 @@ class ScenarioManager : public nodelet::Nodelet {
   void onLoaded(world::World& world) {
     ros::NodeHandle& nh = getNodeHandle();
     for (const std::string& name : world.tissueNames()) {
-      if (mesh_publishers_.count(name) == 0) mesh_publishers_[name] = nh.advertise<vrm_msgs::TissueMesh>("tissue/" + name, 2);
+      if (mesh_publishers_.count(name) == 0)
+        mesh_publishers_[name] = nh.advertise<vrm_msgs::TissueMesh>("tissue/" + name, 2);
     }
     for (const world::InjuryReport& injury : world.injuries()) {
       if (mesh_publishers_.count(injury.object) == 0) {
@@ -145,11 +146,12 @@ class ScenarioManager : public nodelet::Nodelet {
     last_state_.reset();
     result_written_ = false;
     const scenario::Status* status = world.scenarioStatus();
-    NODELET_INFO("scenario_manager: scene '%s'%s, %zu deformable objects, %zu bleeding surfaces%s",
-                 world.scene().name.c_str(),
-                 status ? (", scenario " + status->type + (status->difficulty.empty() ? "" : " (" + status->difficulty + ")")).c_str() : "",
-                 world.tissueNames().size(), world.injuries().size(),
-                 world.simulatesAnything() ? "" : "; nothing to simulate");
+    NODELET_INFO(
+        "scenario_manager: scene '%s'%s, %zu deformable objects, %zu bleeding surfaces%s", world.scene().name.c_str(),
+        status ? (", scenario " + status->type + (status->difficulty.empty() ? "" : " (" + status->difficulty + ")"))
+                     .c_str()
+               : "",
+        world.tissueNames().size(), world.injuries().size(), world.simulatesAnything() ? "" : "; nothing to simulate");
     publishStatus(ros::Time(0), true);
   }
 
@@ -256,8 +258,8 @@ class ScenarioManager : public nodelet::Nodelet {
       auto score = boost::make_shared<vrm_msgs::Score>();
       fillScore(status->score, *score);
       vrm_msgs::publishShared(score_publisher_, score);
-      NODELET_INFO("scenario '%s' %s: %s; score %.1f / 100", status->scenario.c_str(), scenario::toString(status->state),
-                   status->message.c_str(), status->score.total);
+      NODELET_INFO("scenario '%s' %s: %s; score %.1f / 100", status->scenario.c_str(),
+                   scenario::toString(status->state), status->message.c_str(), status->score.total);
       writeResult(*status);
     }
   }
@@ -282,8 +284,8 @@ class ScenarioManager : public nodelet::Nodelet {
     out << "{\"scene\": " << quoted(world.scene().name) << ", \"scene_file\": " << quoted(world.scene().source_file)
         << ", \"scenario\": " << quoted(status.type) << ", \"difficulty\": " << quoted(status.difficulty)
         << ", \"seed\": " << (session_->loads() > 0 ? session_->seed() : seed_)
-        << ", \"state\": " << quoted(scenario::toString(status.state)) << ", \"timed_out\": "
-        << (status.timed_out ? "true" : "false") << ", \"message\": " << quoted(status.message)
+        << ", \"state\": " << quoted(scenario::toString(status.state))
+        << ", \"timed_out\": " << (status.timed_out ? "true" : "false") << ", \"message\": " << quoted(status.message)
         << ", \"start_stamp\": " << (status.start_time ? *status.start_time : 0.0)
         << ", \"end_stamp\": " << (status.end_time ? *status.end_time : 0.0) << ", \"elapsed\": " << status.elapsed
         << ", \"total\": " << status.score.total << ", \"items\": [";

@@ -13,8 +13,7 @@ namespace {
 
 TEST(ScenarioMetrics, PathLengthOfAKnownPolyline) {
   // 3-4-5 triangle legs plus a 12 mm vertical segment: 3 + 4 + 12 mm.
-  const std::vector<Eigen::Vector3d> points = {
-      {0, 0, 0}, {0.003, 0, 0}, {0.003, 0.004, 0}, {0.003, 0.004, 0.012}};
+  const std::vector<Eigen::Vector3d> points = {{0, 0, 0}, {0.003, 0, 0}, {0.003, 0.004, 0}, {0.003, 0.004, 0.012}};
   EXPECT_NEAR(pathLength(points), 0.019, 1e-15);
   EXPECT_EQ(pathLength({}), 0.0);
   EXPECT_EQ(pathLength({{1, 2, 3}}), 0.0);
@@ -101,7 +100,8 @@ simulations: []
 scenario:
   type: steady_hold
   time_limit: 20
-  params: {centre: [0.0, 0.0, -0.010], radius: 0.0001, hold_time: 5})" + extra + R"(
+  params: {centre: [0.0, 0.0, -0.010], radius: 0.0001, hold_time: 5})" +
+                                        extra + R"(
   scoring:
     time: {weight: 1, best: 5, worst: 20}
 )",

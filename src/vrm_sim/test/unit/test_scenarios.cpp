@@ -21,7 +21,7 @@ using scene::loadScene;
 using scene::shippedScenePath;
 
 const std::vector<std::string>& scenarioNames() {
-  static const std::vector<std::string> names = {"navigation",     "trajectory",  "pick_and_place", "steady_hold",
+  static const std::vector<std::string> names = {"navigation",       "trajectory",  "pick_and_place", "steady_hold",
                                                  "membrane_peeling", "ilm_peeling", "vitrectomy"};
   return names;
 }
@@ -140,7 +140,8 @@ TEST(Scenarios, NavigationRunsNoTissueStage) {
   std::uint64_t frames = 0;
   world.setFrameObserver([&](const world::FrameResult& frame) {
     ++frames;
-    for (const world::StageTime& stage : frame.stages) tissue_stage = tissue_stage || stage.stage.rfind("tissue", 0) == 0;
+    for (const world::StageTime& stage : frame.stages)
+      tissue_stage = tissue_stage || stage.stage.rfind("tissue", 0) == 0;
   });
   const scene::SceneDescription scripted = scene::withScript(world.scene(), "expert");
   for (const world::InstrumentState& input : world::scriptedInputs(scripted, 50.0, 2.0)) world.handle(input);
@@ -226,8 +227,8 @@ TEST(Session, LoadSwitchesTheSceneAndABrokenLoadKeepsTheSession) {
   const std::string broken = std::string(VRM_SIM_SOURCE_DIR) + "/test/data/scenes/syntax_error.yaml";
   for (const auto& [scene_name, level] : std::vector<std::pair<std::string, std::string>>{
            {broken, ""}, {"no_such_scene", ""}, {"navigation", "impossible"}}) {
-    session.handle(world::ScenarioCommand{world::fromSeconds(0.6), world::ScenarioCommand::Type::kLoad, scene_name,
-                                          level, 7});
+    session.handle(
+        world::ScenarioCommand{world::fromSeconds(0.6), world::ScenarioCommand::Type::kLoad, scene_name, level, 7});
     EXPECT_EQ(session.world().scene().name, "membrane_peeling");
     ASSERT_NE(session.world().scenarioStatus(), nullptr);
     EXPECT_NE(session.world().scenarioStatus()->message.find("refused"), std::string::npos)
@@ -239,8 +240,8 @@ TEST(Session, LoadSwitchesTheSceneAndABrokenLoadKeepsTheSession) {
   // LOAD navigation (hard): a new world without tissue; nothing of the membrane runs.
   int loaded = 0;
   session.setLoadObserver([&loaded](world::World&) { ++loaded; });
-  session.handle(world::ScenarioCommand{world::fromSeconds(1.0), world::ScenarioCommand::Type::kLoad, "navigation",
-                                        "hard", 42});
+  session.handle(
+      world::ScenarioCommand{world::fromSeconds(1.0), world::ScenarioCommand::Type::kLoad, "navigation", "hard", 42});
   EXPECT_EQ(loaded, 1);
   EXPECT_EQ(session.seed(), 42u);
   EXPECT_EQ(session.world().scene().name, "navigation");
@@ -263,9 +264,9 @@ std::pair<int, std::string> run(const std::string& arguments) {
 TEST(ScenarioOffline, InterfaceExitCodesAndJson) {
   auto [code, output] = run("--scene navigation --script expert --seed 3");
   EXPECT_EQ(code, 0) << output;
-  for (const char* field : {"\"scenario\": \"navigation\"", "\"difficulty\": ", "\"state\": \"finished\"",
-                            "\"total\": ", "\"items\": {", "\"final_state_hash\": \"0x", "\"sim_seconds\": ",
-                            "\"wall_seconds\": ", "\"seed\": 3"}) {
+  for (const char* field :
+       {"\"scenario\": \"navigation\"", "\"difficulty\": ", "\"state\": \"finished\"", "\"total\": ", "\"items\": {",
+        "\"final_state_hash\": \"0x", "\"sim_seconds\": ", "\"wall_seconds\": ", "\"seed\": 3"}) {
     EXPECT_NE(output.find(field), std::string::npos) << field << " missing in " << output;
   }
   std::tie(code, output) = run("--list");

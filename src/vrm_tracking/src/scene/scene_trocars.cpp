@@ -206,14 +206,16 @@ SurgeonScript scenarioScript(const scene::SceneDescription& scene, const std::st
     InstrumentTrack track;
     track.slot = scene::toString(instrument.slot);
     const scene::Trocar* trocar = scene.findTrocar(instrument.trocar);
-    if (trocar == nullptr) throw std::invalid_argument("scene '" + scene.name + "': unknown trocar " + instrument.trocar);
+    if (trocar == nullptr)
+      throw std::invalid_argument("scene '" + scene.name + "': unknown trocar " + instrument.trocar);
     track.trocar = trocar->position_in_eye;
     std::vector<double> times;
     for (const scene::InstrumentWaypoint& waypoint : instrument.path) times.push_back(waypoint.t);
     if (instrument.tremor.amplitude > 0.0) {
       for (double t = 0.0; t < instrument.path.back().t; t += 0.005) times.push_back(t);
       std::sort(times.begin(), times.end());
-      times.erase(std::unique(times.begin(), times.end(), [](double a, double b) { return b - a < 1e-9; }), times.end());
+      times.erase(std::unique(times.begin(), times.end(), [](double a, double b) { return b - a < 1e-9; }),
+                  times.end());
     }
     for (double t : times) {
       const scene::InstrumentWaypoint sample = scene::samplePath(instrument.path, t);

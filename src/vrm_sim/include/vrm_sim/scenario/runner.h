@@ -45,8 +45,8 @@ struct Status {
   State state = State::kIdle;
   double elapsed = 0.0;  // s running
   bool timed_out = false;
-  std::string message;   // why it ended, or the last refused command
-  std::string progress;  // the scenario's own one-liner
+  std::string message;                         // why it ended, or the last refused command
+  std::string progress;                        // the scenario's own one-liner
   std::optional<double> start_time, end_time;  // s, input stamps
   Score score;
 };

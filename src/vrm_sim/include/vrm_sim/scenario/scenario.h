@@ -22,12 +22,12 @@ namespace scenario {
 struct InstrumentView {
   std::string slot;  // "left" | "right"
   scene::InstrumentType type = scene::InstrumentType::kLightPipe;
-  bool valid = false;                                 // tracked and interacting
-  Eigen::Vector3d tip = Eigen::Vector3d::Zero();      // m, eye frame
-  Eigen::Vector3d axis = -Eigen::Vector3d::UnitZ();   // unit, eye frame, from the handle towards the tip
-  double jaw_angle = 1.0;                             // rad
-  double suction = 0.0;                               // 0..1
-  double cut_rate = 0.0;                              // Hz
+  bool valid = false;                                // tracked and interacting
+  Eigen::Vector3d tip = Eigen::Vector3d::Zero();     // m, eye frame
+  Eigen::Vector3d axis = -Eigen::Vector3d::UnitZ();  // unit, eye frame, from the handle towards the tip
+  double jaw_angle = 1.0;                            // rad
+  double suction = 0.0;                              // 0..1
+  double cut_rate = 0.0;                             // Hz
 };
 
 struct PedalView {
@@ -46,9 +46,9 @@ struct TissueView {
   std::uint64_t torn_springs = 0;
   std::uint64_t cut_nodes = 0;
   std::uint64_t released_adhesions = 0;
-  std::size_t adhesion_points = 0;      // holding now
-  double max_adhesion_force = 0.0;      // N, largest pull on an adhesion point so far
-  std::size_t initial_node_count = 0;   // at the start (rest)
+  std::size_t adhesion_points = 0;             // holding now
+  double max_adhesion_force = 0.0;             // N, largest pull on an adhesion point so far
+  std::size_t initial_node_count = 0;          // at the start (rest)
   const Eigen::Vector3d* positions = nullptr;  // by node slot, valid during the frame
   std::size_t node_count = 0;
   const std::vector<Eigen::Vector3d>* rest_positions = nullptr;  // by node slot at the start (NaN: born later)

@@ -70,10 +70,10 @@ OfflineResult runOffline(const scene::SceneDescription& scene, const OfflineOpti
 // ---- scenario sessions (rosrun vrm_sim scenario_offline) ----
 
 struct ScenarioRunOptions {
-  std::string script = "expert";  // a scripted session of the scene's scenario (scenario.scripts)
+  std::string script = "expert";                        // a scripted session of the scene's scenario (scenario.scripts)
   std::vector<scene::ScriptedInstrument> script_parts;  // non-empty: this script instead (a script file)
-  double rate = 50.0;   // Hz: input ticks
-  double grace = 5.0;   // s after the script's last waypoint (instruments hold still) before the run ends
+  double rate = 50.0;                                   // Hz: input ticks
+  double grace = 5.0;      // s after the script's last waypoint (instruments hold still) before the run ends
   std::uint32_t seed = 0;  // recorded with the result (the scenario layer draws no random numbers)
   std::string detector;    // empty: the scene's collision detectors
 };
@@ -90,7 +90,7 @@ struct ScenarioRunResult {
   double wall_seconds = 0.0;  // the whole run (measurement only)
   // Mean CPU (wall) ms per frame, in total and by stage; which stages ran at all.
   double ms_per_frame = 0.0, ms_scenario = 0.0, ms_tissue = 0.0, ms_collision = 0.0, ms_bleeding = 0.0;
-  double ms_per_frame_max = 0.0;  // the worst frame
+  double ms_per_frame_max = 0.0;         // the worst frame
   std::vector<std::string> simulations;  // "tissue", "collision", "bleeding", "scenario" (stages that ran)
 
   // One JSON object (scenario_offline's output line; the hash as a "0x…" string).

@@ -354,8 +354,8 @@ class SteadyHold : public Scenario {
   void analyse() {
     rms_ = rmsDistance(samples_, centre_);
     const double span = times_.size() > 1 ? times_.back() - times_.front() : 0.0;
-    band_power_ = span > 0.0 ? bandPower(samples_, static_cast<double>(times_.size() - 1) / span, band_low_, band_high_)
-                             : 0.0;
+    band_power_ =
+        span > 0.0 ? bandPower(samples_, static_cast<double>(times_.size() - 1) / span, band_low_, band_high_) : 0.0;
   }
 
   Eigen::Vector3d centre_;

@@ -90,7 +90,8 @@ void Params::finish() const {
 Sphere sphereOf(const scene::ObjectDescription& object, Params& params, const std::string& parameter) {
   const auto* sphere = object.mesh.generator ? std::get_if<scene::SphereParams>(&*object.mesh.generator) : nullptr;
   if (sphere == nullptr) params.fail(parameter, "object '" + object.name + "' must be a sphere (generator sphere)");
-  if (object.frame != scene::ObjectFrame::kEye) params.fail(parameter, "object '" + object.name + "' must be in the eye frame");
+  if (object.frame != scene::ObjectFrame::kEye)
+    params.fail(parameter, "object '" + object.name + "' must be in the eye frame");
   return {object.name, object.pose.xyz, sphere->radius};
 }
 
@@ -101,7 +102,8 @@ void RetinaContacts::update(const FrameView& frame) {
     return;
   }
   for (const InstrumentView& instrument : frame.instruments) {
-    auto counter = std::find_if(tips_.begin(), tips_.end(), [&](const auto& entry) { return entry.first == instrument.slot; });
+    auto counter =
+        std::find_if(tips_.begin(), tips_.end(), [&](const auto& entry) { return entry.first == instrument.slot; });
     if (counter == tips_.end()) {
       tips_.emplace_back(instrument.slot, ContactCounter{});
       counter = tips_.end() - 1;

@@ -22,7 +22,8 @@ double bandPower(const std::vector<Eigen::Vector3d>& samples, double sample_rate
   mean /= static_cast<double>(n);
   const double resolution = sample_rate / static_cast<double>(n);
   const std::size_t first = static_cast<std::size_t>(std::max(1.0, std::ceil(low_hz / resolution - 1e-9)));
-  const std::size_t last = std::min<std::size_t>((n - 1) / 2, static_cast<std::size_t>(std::floor(high_hz / resolution + 1e-9)));
+  const std::size_t last =
+      std::min<std::size_t>((n - 1) / 2, static_cast<std::size_t>(std::floor(high_hz / resolution + 1e-9)));
   double power = 0.0;
   for (std::size_t k = first; k <= last; ++k) {
     // One DFT bin by direct summation (only the band's bins are needed; a few dozen at the scenarios' rates).

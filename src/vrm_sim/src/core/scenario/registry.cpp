@@ -32,11 +32,13 @@ void hashBytes(std::uint64_t& state, const void* data, std::size_t size) {
 std::unique_ptr<Scenario> makeScenario(const scene::SceneDescription& scene) {
   using Factory = std::function<std::unique_ptr<Scenario>(const scene::SceneDescription&)>;
   // Explicit, not self-registering: a static library drops object files nothing references.
-  static const std::map<std::string, Factory> factories = {
-      {"navigation", makeNavigation},          {"trajectory", makeTrajectory},
-      {"pick_and_place", makePickAndPlace},    {"steady_hold", makeSteadyHold},
-      {"membrane_peeling", makeMembranePeeling}, {"ilm_peeling", makeIlmPeeling},
-      {"vitrectomy", makeVitrectomy}};
+  static const std::map<std::string, Factory> factories = {{"navigation", makeNavigation},
+                                                           {"trajectory", makeTrajectory},
+                                                           {"pick_and_place", makePickAndPlace},
+                                                           {"steady_hold", makeSteadyHold},
+                                                           {"membrane_peeling", makeMembranePeeling},
+                                                           {"ilm_peeling", makeIlmPeeling},
+                                                           {"vitrectomy", makeVitrectomy}};
   if (!scene.scenario) {
     scene::SourceLocation where;
     where.file = scene.source_file;

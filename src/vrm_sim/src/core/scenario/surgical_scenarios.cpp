@@ -108,9 +108,7 @@ class IlmPeeling : public Peel {
     params.finish();
   }
 
-  bool succeeded() const override {
-    return continuity_ >= required_continuity_ && lifted_fraction_ >= required_lift_;
-  }
+  bool succeeded() const override { return continuity_ >= required_continuity_ && lifted_fraction_ >= required_lift_; }
 
   std::vector<Measurement> measurements(double elapsed) const override {
     std::vector<Measurement> items = Peel::measurements(elapsed);

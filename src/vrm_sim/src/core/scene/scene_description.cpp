@@ -1,8 +1,8 @@
 #include "vrm_sim/scene/scene_description.h"
 
 #include <algorithm>
-#include <stdexcept>
 #include <cmath>
+#include <stdexcept>
 
 #include "vrm_sim/scene/mesh_utils.h"
 
@@ -104,8 +104,8 @@ const std::vector<std::string>& knownScenarioTypes() {
 Eigen::Vector3d PathTremor::offset(double t) const {
   if (!(amplitude > 0.0)) return Eigen::Vector3d::Zero();
   const double phase = 2.0 * kPi * frequency_hz * t;
-  return amplitude * Eigen::Vector3d(std::sin(phase), std::sin(phase + 2.0 * kPi / 3.0),
-                                     std::sin(phase + 4.0 * kPi / 3.0));
+  return amplitude *
+         Eigen::Vector3d(std::sin(phase), std::sin(phase + 2.0 * kPi / 3.0), std::sin(phase + 4.0 * kPi / 3.0));
 }
 
 InstrumentWaypoint samplePath(const std::vector<InstrumentWaypoint>& path, double t) {

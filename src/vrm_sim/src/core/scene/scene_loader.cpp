@@ -862,7 +862,8 @@ std::string applyDifficulty(YAML::Node root, const std::string& file, const std:
   if (!scenario || !scenario.IsMap() || !scenario["difficulty"]) return requested;
   const YAML::Node difficulty = scenario["difficulty"];
   const Field difficulty_field(difficulty, "scenario.difficulty", file);
-  if (!difficulty.IsMap() || !difficulty["levels"] || !difficulty["levels"].IsMap()) return requested;  // reported later
+  if (!difficulty.IsMap() || !difficulty["levels"] || !difficulty["levels"].IsMap())
+    return requested;  // reported later
   const YAML::Node levels = difficulty["levels"];
   std::vector<std::string> names;
   for (const auto& entry : levels) names.push_back(entry.first.Scalar());

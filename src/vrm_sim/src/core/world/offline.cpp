@@ -2,9 +2,9 @@
 
 #include <algorithm>
 #include <chrono>
-#include <map>
 #include <cmath>
 #include <cstdio>
+#include <map>
 #include <sstream>
 #include <stdexcept>
 
@@ -214,8 +214,8 @@ std::string ScenarioRunResult::json() const {
   std::snprintf(hash, sizeof(hash), "0x%016llx", static_cast<unsigned long long>(final_state_hash));
   std::ostringstream out;
   out << "{\"scenario\": " << quoted(scenario) << ", \"type\": " << quoted(type)
-      << ", \"difficulty\": " << quoted(difficulty) << ", \"script\": " << quoted(script)
-      << ", \"seed\": " << seed << ", \"state\": " << quoted(state) << ", \"message\": " << quoted(message)
+      << ", \"difficulty\": " << quoted(difficulty) << ", \"script\": " << quoted(script) << ", \"seed\": " << seed
+      << ", \"state\": " << quoted(state) << ", \"message\": " << quoted(message)
       << ", \"total\": " << number(score.total) << ", \"items\": {";
   for (std::size_t i = 0; i < score.items.size(); ++i) {
     out << (i ? ", " : "") << quoted(score.items[i].name) << ": " << number(score.items[i].value);
@@ -230,9 +230,9 @@ std::string ScenarioRunResult::json() const {
   out << "}, \"final_state_hash\": \"" << hash << "\", \"frames\": " << frames
       << ", \"sim_seconds\": " << number(sim_seconds) << ", \"wall_seconds\": " << number(wall_seconds)
       << ", \"ms_per_frame\": " << number(ms_per_frame) << ", \"ms_per_frame_max\": " << number(ms_per_frame_max)
-      << ", \"ms_scenario\": " << number(ms_scenario)
-      << ", \"ms_tissue\": " << number(ms_tissue) << ", \"ms_collision\": " << number(ms_collision)
-      << ", \"ms_bleeding\": " << number(ms_bleeding) << ", \"simulations\": [";
+      << ", \"ms_scenario\": " << number(ms_scenario) << ", \"ms_tissue\": " << number(ms_tissue)
+      << ", \"ms_collision\": " << number(ms_collision) << ", \"ms_bleeding\": " << number(ms_bleeding)
+      << ", \"simulations\": [";
   for (std::size_t i = 0; i < simulations.size(); ++i) out << (i ? ", " : "") << quoted(simulations[i]);
   out << "]}";
   return out.str();
@@ -288,9 +288,10 @@ ScenarioRunResult runScenario(const scene::SceneDescription& scene, const Scenar
   }
   result.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
   const scenario::Status& status = *world.scenarioStatus();
-  result.state = status.timed_out || status.state == scenario::State::kRunning ? "timeout" : scenario::toString(status.state);
-  result.message = status.state == scenario::State::kRunning ? "the script ended without completing the task"
-                                                             : status.message;
+  result.state =
+      status.timed_out || status.state == scenario::State::kRunning ? "timeout" : scenario::toString(status.state);
+  result.message =
+      status.state == scenario::State::kRunning ? "the script ended without completing the task" : status.message;
   result.score = status.score;
   result.sim_seconds = status.elapsed;
   result.frames = world.statistics().frames;
