@@ -68,10 +68,8 @@ int main(int argc, char** argv) {
   }
   if (scene_argument.empty() || !have_seconds) return usage("--scene and --seconds are required");
   try {
-    // A bare name (no path, no extension) is a shipped scene.
-    const bool shipped = scene_argument.find('/') == std::string::npos && scene_argument.find('.') == std::string::npos;
-    const std::string path = shipped ? vrm_sim::scene::shippedScenePath(scene_argument) : scene_argument;
-    const vrm_sim::scene::SceneDescription scene = vrm_sim::scene::loadScene(path);
+    const vrm_sim::scene::SceneDescription scene =
+        vrm_sim::scene::loadScene(vrm_sim::scene::resolveScenePath(scene_argument));
     const vrm_sim::world::OfflineResult result = vrm_sim::world::runOffline(scene, options);
     std::printf("%s\n", result.json().c_str());
   } catch (const std::exception& error) {

@@ -34,7 +34,6 @@
 #include <boost/make_shared.hpp>
 #include <cstdio>
 #include <filesystem>
-#include <fstream>
 #include <map>
 #include <mutex>
 #include <pluginlib/class_list_macros.hpp>
@@ -146,9 +145,7 @@ class StereoRendererNodelet : public nodelet::Nodelet {
     const std::string scene_parameter = pnh.param<std::string>("scene", "membrane_peeling");
 
     try {
-      const std::string path =
-          std::ifstream(scene_parameter).good() ? scene_parameter : vrm_sim::scene::shippedScenePath(scene_parameter);
-      scene_ = vrm_sim::scene::loadScene(path);
+      scene_ = vrm_sim::scene::loadScene(vrm_sim::scene::resolveScenePath(scene_parameter));
       renderer_ = std::make_unique<StereoRenderer>(options);
     } catch (const std::exception& error) {
       NODELET_FATAL("stereo_renderer cannot start: %s", error.what());

@@ -11,7 +11,6 @@
 
 #include <boost/make_shared.hpp>
 #include <cmath>
-#include <fstream>
 #include <map>
 #include <memory>
 #include <pluginlib/class_list_macros.hpp>
@@ -61,8 +60,7 @@ class SceneManager : public nodelet::Nodelet {
     publish_pose_tf_ = private_nh.param("publish_pose_tf", true);
     const std::string scene_parameter = private_nh.param<std::string>("scene", "membrane_peeling");
 
-    const std::string scene_path =
-        std::ifstream(scene_parameter).good() ? scene_parameter : scene::shippedScenePath(scene_parameter);
+    const std::string scene_path = scene::resolveScenePath(scene_parameter);
     try {
       scene_ = scene::loadScene(scene_path);
       buildObjects();

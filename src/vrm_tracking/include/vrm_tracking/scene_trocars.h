@@ -18,8 +18,8 @@
 
 namespace vrm_tracking {
 
-// What the nodelets' `scene` parameter means, as in vrm_sim's scene_manager: an existing file, else the name of a
-// shipped scene (vrm_sim/config/scenes/NAME.yaml). Throws vrm_sim::scene::SceneError.
+// What the nodelets' `scene` parameter means: vrm_sim::scene::resolveScenePath (an existing file, else a shipped
+// scene by name), loaded. Throws vrm_sim::scene::SceneError.
 vrm_sim::scene::SceneDescription loadSceneSpec(const std::string& spec);
 
 // The trocar (eye frame, m) an instrument in tracking slot `slot` ("left" / "right") goes through in `scene`: the

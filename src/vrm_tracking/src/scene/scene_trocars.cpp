@@ -1,7 +1,6 @@
 #include "vrm_tracking/scene_trocars.h"
 
 #include <algorithm>
-#include <fstream>
 #include <map>
 #include <sstream>
 #include <stdexcept>
@@ -57,7 +56,7 @@ Eigen::Vector3d closestPointOnTriangle(const Eigen::Vector3d& p, const Eigen::Ve
 }  // namespace
 
 scene::SceneDescription loadSceneSpec(const std::string& spec) {
-  return scene::loadScene(std::ifstream(spec).good() ? spec : scene::shippedScenePath(spec));
+  return scene::loadScene(scene::resolveScenePath(spec));
 }
 
 Eigen::Vector3d sceneTrocarForSlot(const scene::SceneDescription& scene, const std::string& slot) {

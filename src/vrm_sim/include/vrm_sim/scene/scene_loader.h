@@ -41,7 +41,8 @@ std::vector<ScriptedInstrument> loadScript(const std::string& path);
 
 // Path of a shipped scene, e.g. shippedScenePath("navigation") -> <package>/config/scenes/navigation.yaml.
 std::string shippedScenePath(const std::string& scene_name);
-// What the nodes' and tools' `scene` arguments mean: an existing file, else the name of a shipped scene.
+// What the nodes' and tools' `scene` arguments mean: an existing file; else, for a bare name (no '/', no '.'), the
+// shipped scene of that name; else the path as written (loadScene then reports it missing).
 std::string resolveScenePath(const std::string& name_or_path);
 // Names of the shipped scenes (config/scenes/*.yaml), sorted.
 std::vector<std::string> shippedScenes();

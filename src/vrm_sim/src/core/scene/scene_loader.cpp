@@ -1062,9 +1062,8 @@ std::vector<ScriptedInstrument> loadScript(const std::string& path) {
 std::string resolveScenePath(const std::string& name_or_path) {
   std::error_code error;
   if (fs::is_regular_file(name_or_path, error)) return name_or_path;
-  if (name_or_path.find('/') != std::string::npos || name_or_path.find(".yaml") != std::string::npos) {
-    return name_or_path;  // meant as a path: loadScene reports it missing
-  }
+  // A path or a file name that does not exist stays itself, so loadScene reports it missing under its own name.
+  if (name_or_path.find('/') != std::string::npos || name_or_path.find('.') != std::string::npos) return name_or_path;
   return shippedScenePath(name_or_path);
 }
 
