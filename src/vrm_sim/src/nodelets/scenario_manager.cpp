@@ -46,6 +46,7 @@
 #include "vrm_sim/conversions.h"
 #include "vrm_sim/mge/membrane.h"
 #include "vrm_sim/scene/scene_loader.h"
+#include "vrm_sim/world/offline.h"
 #include "vrm_sim/world/session.h"
 
 namespace vrm_sim {
@@ -270,18 +271,9 @@ class ScenarioManager : public nodelet::Nodelet {
     result_written_ = true;
     std::ostringstream out;
     out << std::setprecision(15);
-    auto quoted = [](const std::string& text) {
-      std::string escaped = "\"";
-      for (char c : text) {
-        if (c == '"' || c == '\\') escaped += '\\';
-        escaped += (static_cast<unsigned char>(c) < 0x20) ? ' ' : c;
-      }
-      return escaped + "\"";
-    };
-    const world::World& world = session_->world();
-    char hash[24];
-    std::snprintf(hash, sizeof(hash), "0x%016llx", static_cast<unsigned long long>(world.stateHash()));
-    out << "{\"scene\": " << quoted(world.scene().name) << ", \"scene_file\": " << quoted(world.scene().source_file)
+    const auto quoted = world::jsonString;
+    const world::World& current = session_->world();
+    out << "{\"scene\": " << quoted(current.scene().name) << ", \"scene_file\": " << quoted(current.scene().source_file)
         << ", \"scenario\": " << quoted(status.type) << ", \"difficulty\": " << quoted(status.difficulty)
         << ", \"seed\": " << (session_->loads() > 0 ? session_->seed() : seed_)
         << ", \"state\": " << quoted(scenario::toString(status.state))
@@ -295,7 +287,8 @@ class ScenarioManager : public nodelet::Nodelet {
           << ", \"unit\": " << quoted(item.unit) << ", \"weight\": " << item.weight << ", \"points\": " << item.points
           << "}";
     }
-    out << "], \"final_state_hash\": \"" << hash << "\", \"frames\": " << world.statistics().frames
+    out << "], \"final_state_hash\": \"" << world::hashString(current.stateHash())
+        << "\", \"frames\": " << current.statistics().frames
         << ", \"bag\": " << (bag_path_.empty() ? "null" : quoted(bag_path_)) << "}\n";
     std::ofstream file(result_file_);
     file << out.str();

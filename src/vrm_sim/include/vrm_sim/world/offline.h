@@ -67,6 +67,11 @@ std::vector<InstrumentState> scriptedInputsAt(const scene::SceneDescription& sce
 // object, an unknown integrator) and std::invalid_argument for bad options.
 OfflineResult runOffline(const scene::SceneDescription& scene, const OfflineOptions& options);
 
+// JSON pieces of the tools' output lines and the session result file: a quoted, escaped string, and a 64-bit hash as
+// "0x" + 16 hex digits (JSON numbers lose 64-bit integers).
+std::string jsonString(const std::string& text);
+std::string hashString(std::uint64_t hash);
+
 // ---- scenario sessions (rosrun vrm_sim scenario_offline) ----
 
 struct ScenarioRunOptions {

@@ -42,9 +42,30 @@ std::string number(double value) {
 
 }  // namespace
 
+std::string jsonString(const std::string& text) {
+  std::string out = "\"";
+  for (char c : text) {
+    if (c == '"' || c == '\\') {
+      out += '\\';
+      out += c;
+    } else if (static_cast<unsigned char>(c) < 0x20) {
+      char escaped[8];
+      std::snprintf(escaped, sizeof(escaped), "\\u%04x", c);
+      out += escaped;
+    } else {
+      out += c;
+    }
+  }
+  return out + "\"";
+}
+
+std::string hashString(std::uint64_t hash) {
+  char text[24];
+  std::snprintf(text, sizeof(text), "0x%016llx", static_cast<unsigned long long>(hash));
+  return text;
+}
+
 std::string OfflineResult::json() const {
-  char hash[24];
-  std::snprintf(hash, sizeof(hash), "0x%016llx", static_cast<unsigned long long>(final_state_hash));
   std::ostringstream out;
   out << "{\"stable\": " << (stable ? "true" : "false") << ", \"frames\": " << frames << ", \"steps\": " << steps
       << ", \"ms_per_step\": " << number(ms_per_step) << ", \"ms_per_frame\": " << number(ms_per_frame)
@@ -58,7 +79,7 @@ std::string OfflineResult::json() const {
         << "\", \"torn_springs\": " << t.torn_springs << ", \"released_adhesions\": " << t.released_adhesions
         << ", \"topology_version\": " << t.topology_version << ", \"max_lift\": " << number(t.max_lift) << "}";
   }
-  out << "], \"final_state_hash\": \"" << hash << "\"}";
+  out << "], \"final_state_hash\": \"" << hashString(final_state_hash) << "\"}";
   return out.str();
 }
 
@@ -188,30 +209,8 @@ OfflineResult runOffline(const scene::SceneDescription& scene_in, const OfflineO
   return result;
 }
 
-namespace {
-
-std::string quoted(const std::string& text) {
-  std::string out = "\"";
-  for (char c : text) {
-    if (c == '"' || c == '\\') {
-      out += '\\';
-      out += c;
-    } else if (static_cast<unsigned char>(c) < 0x20) {
-      char escaped[8];
-      std::snprintf(escaped, sizeof(escaped), "\\u%04x", c);
-      out += escaped;
-    } else {
-      out += c;
-    }
-  }
-  return out + "\"";
-}
-
-}  // namespace
-
 std::string ScenarioRunResult::json() const {
-  char hash[24];
-  std::snprintf(hash, sizeof(hash), "0x%016llx", static_cast<unsigned long long>(final_state_hash));
+  const auto quoted = jsonString;
   std::ostringstream out;
   out << "{\"scenario\": " << quoted(scenario) << ", \"type\": " << quoted(type)
       << ", \"difficulty\": " << quoted(difficulty) << ", \"script\": " << quoted(script) << ", \"seed\": " << seed
@@ -227,7 +226,7 @@ std::string ScenarioRunResult::json() const {
     out << (first ? "" : ", ") << quoted(item.name) << ": " << number(item.points);
     first = false;
   }
-  out << "}, \"final_state_hash\": \"" << hash << "\", \"frames\": " << frames
+  out << "}, \"final_state_hash\": \"" << hashString(final_state_hash) << "\", \"frames\": " << frames
       << ", \"sim_seconds\": " << number(sim_seconds) << ", \"wall_seconds\": " << number(wall_seconds)
       << ", \"ms_per_frame\": " << number(ms_per_frame) << ", \"ms_per_frame_max\": " << number(ms_per_frame_max)
       << ", \"ms_scenario\": " << number(ms_scenario) << ", \"ms_tissue\": " << number(ms_tissue)
