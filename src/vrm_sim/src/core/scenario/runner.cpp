@@ -38,21 +38,31 @@ double itemPoints(const scene::ScoringRule& rule, double value) {
   return 100.0 * std::clamp(fraction, 0.0, 1.0);
 }
 
+namespace {
+
+double weightedTotal(const std::vector<ScoreItem>& items) {
+  double weighted = 0.0, weights = 0.0;
+  for (const ScoreItem& item : items) {
+    weighted += item.weight * item.points;
+    weights += item.weight;
+  }
+  return weights > 0.0 ? weighted / weights : 0.0;
+}
+
+}  // namespace
+
 Score computeScore(const std::vector<scene::ScoringRule>& rules, const std::vector<Measurement>& measurements) {
   Score score;
-  double weighted = 0.0, weights = 0.0;
   for (const Measurement& measurement : measurements) {
     ScoreItem item{measurement.name, measurement.value, measurement.unit, 0.0, 0.0};
     for (const scene::ScoringRule& rule : rules) {
       if (rule.item != measurement.name) continue;
       item.weight = rule.weight;
       item.points = itemPoints(rule, measurement.value);
-      weighted += rule.weight * item.points;
-      weights += rule.weight;
     }
     score.items.push_back(item);
   }
-  score.total = weights > 0.0 ? weighted / weights : 0.0;
+  score.total = weightedTotal(score.items);
   return score;
 }
 
@@ -86,18 +96,14 @@ ScenarioRunner::ScenarioRunner(const scene::SceneDescription& scene) : scene_(sc
   };
   std::string names;
   for (const Measurement& item : items) names += (names.empty() ? "" : ", ") + item.name;
-  for (const scene::ScoringRule& rule : description_.scoring) {
-    if (!known(rule.item)) {
-      throw scene::SceneError(rule.location, "scenario type '" + description_.type + "' has no score item '" +
-                                                 rule.item + "'; its items: " + names);
+  auto check = [&](const std::string& item, const scene::SourceLocation& location) {
+    if (!known(item)) {
+      throw scene::SceneError(location, "scenario type '" + description_.type + "' has no score item '" + item +
+                                            "'; its items: " + names);
     }
-  }
-  for (const scene::FailureRule& rule : description_.fail_if) {
-    if (!known(rule.item)) {
-      throw scene::SceneError(rule.location, "scenario type '" + description_.type + "' has no score item '" +
-                                                 rule.item + "'; its items: " + names);
-    }
-  }
+  };
+  for (const scene::ScoringRule& rule : description_.scoring) check(rule.item, rule.location);
+  for (const scene::FailureRule& rule : description_.fail_if) check(rule.item, rule.location);
   status_.scenario = scene.name;
   status_.type = description_.type;
   status_.difficulty = description_.difficulty;
@@ -205,13 +211,10 @@ void ScenarioRunner::refreshScore() {
   status_.score = computeScore(description_.scoring, measurements);
   // A failed session earns no points for being quick: `time` only scores a completed task.
   if (status_.state == State::kFailed) {
-    double weighted = 0.0, weights = 0.0;
     for (ScoreItem& item : status_.score.items) {
       if (item.name == "time") item.points = 0.0;
-      weighted += item.weight * item.points;
-      weights += item.weight;
     }
-    status_.score.total = weights > 0.0 ? weighted / weights : 0.0;
+    status_.score.total = weightedTotal(status_.score.items);
   }
 }
 

@@ -848,8 +848,8 @@ void World::advanceScenario(const FrameResult& result) {
     entry.torn_springs = report.torn_springs;
     entry.cut_nodes = report.cut_nodes;
     entry.released_adhesions = report.released_adhesions;
-    entry.adhesion_points = tissue->simulator->adhesionPoints();
-    entry.max_adhesion_force = tissue->simulator->statistics().max_adhesion_force;
+    entry.adhesion_points = report.adhesion_points;
+    entry.max_adhesion_force = report.max_adhesion_force;
     entry.initial_node_count = tissue->rest_by_id.size();
     entry.positions = tissue->membrane->positions();
     entry.node_count = tissue->membrane->nodeCount();
