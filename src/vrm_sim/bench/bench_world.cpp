@@ -42,14 +42,6 @@ scene::SceneDescription variant(const scene::SceneDescription& base, double spee
   return scene;
 }
 
-double pathSeconds(const scene::SceneDescription& scene) {
-  double end = 0.0;
-  for (const auto& instrument : scene.instruments) {
-    if (!instrument.path.empty()) end = std::max(end, instrument.path.back().t);
-  }
-  return end + 0.1;
-}
-
 Run run(const scene::SceneDescription& scene, const std::string& detector, double rate) {
   world::WorldOptions options;
   options.detector_override = detector;
@@ -64,7 +56,7 @@ Run run(const scene::SceneDescription& scene, const std::string& detector, doubl
       if (stage.stage.rfind("bleeding_", 0) == 0) result.bleeding_ms += ms;
     }
   });
-  const double seconds = pathSeconds(scene);
+  const double seconds = scene.scriptedDuration() + 0.1;
   const auto inputs = world::scriptedInputs(scene, rate, seconds);
   const auto start = std::chrono::steady_clock::now();
   for (const auto& input : inputs) world.handle(input);

@@ -1,5 +1,6 @@
 // The live graph and the offline tool run one simulation core (world::World): the same instrument sequence through
-// scenario_manager (as messages, in ticks) and through tissue_offline (library and process) ends in the same state hash.
+// scenario_manager (as messages, in ticks) and through tissue_offline (library and process) ends in the same state
+// hash.
 #include <gtest/gtest.h>
 #include <ros/ros.h>
 
@@ -8,6 +9,7 @@
 #include <mutex>
 #include <string>
 
+#include "graph_test_util.h"
 #include "vrm_msgs/InstrumentState.h"
 #include "vrm_msgs/SimulationState.h"
 #include "vrm_msgs/TissueMesh.h"
@@ -29,16 +31,6 @@ struct Observed {
   std::uint32_t max_grasped = 0;
   std::uint64_t meshes = 0;
 };
-
-template <typename Condition>
-bool waitFor(Condition condition, double seconds) {
-  const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(seconds);
-  while (ros::ok() && ros::WallTime::now() < deadline) {
-    if (condition()) return true;
-    ros::WallDuration(0.002).sleep();
-  }
-  return condition();
-}
 
 std::string offlineProcessHash() {
   const std::string command = std::string(VRM_TISSUE_OFFLINE_BINARY) + " --scene membrane_peeling --seconds " +
@@ -80,34 +72,10 @@ TEST(CoreEquivalence, TheGraphAndTheOfflineToolEndInTheSameState) {
   const scene::SceneDescription scene = scene::loadScene(scene::shippedScenePath("membrane_peeling"));
   const std::vector<world::InstrumentState> inputs =
       world::scriptedInputs(scene, kRate, kSeconds, world::fromSeconds(1000.0));
-  std::map<world::Stamp, std::vector<world::InstrumentState>> ticks;
-  for (const auto& input : inputs) ticks[input.stamp].push_back(input);
-  std::optional<world::Stamp> previous;
-  for (const auto& [stamp, tick] : ticks) {
-    for (const auto& input : tick) {
-      auto message = boost::make_shared<vrm_msgs::InstrumentState>(toMsg(input));
-      instruments.publish(message);
-    }
-    // A frame closes when all of its sources arrived or the next stamp does: wait for the one before, so no
-    // subscriber queue overflows and nothing is dropped.
-    if (previous) {
-      ASSERT_TRUE(waitFor(
-          [&] {
-            std::lock_guard<std::mutex> lock(observed.mutex);
-            return observed.last_stamp >= *previous;
-          },
-          10.0))
-          << "no frame for stamp " << *previous;
-    }
-    previous = stamp;
-  }
-  ASSERT_TRUE(waitFor(
-      [&] {
-        std::lock_guard<std::mutex> lock(observed.mutex);
-        return observed.last_stamp == *previous;
-      },
-      10.0))
-      << "the last tick's frame did not close";
+  ASSERT_TRUE(playTicks(instruments, inputs, [&] {
+    std::lock_guard<std::mutex> lock(observed.mutex);
+    return observed.last_stamp;
+  }));
 
   world::OfflineOptions options;
   options.seconds = kSeconds;

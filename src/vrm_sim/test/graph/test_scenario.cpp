@@ -11,6 +11,7 @@
 #include <sstream>
 #include <string>
 
+#include "graph_test_util.h"
 #include "vrm_msgs/InstrumentState.h"
 #include "vrm_msgs/ScenarioCommand.h"
 #include "vrm_msgs/ScenarioStatus.h"
@@ -22,16 +23,6 @@
 
 namespace vrm_sim {
 namespace {
-
-template <typename Condition>
-bool waitFor(Condition condition, double seconds) {
-  const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(seconds);
-  while (ros::ok() && ros::WallTime::now() < deadline) {
-    if (condition()) return true;
-    ros::WallDuration(0.002).sleep();
-  }
-  return condition();
-}
 
 struct Observed {
   std::mutex mutex;
@@ -102,44 +93,29 @@ TEST(ScenarioGraph, LoadStartPlayFinishScore) {
       scene::withScript(scene::loadScene(scene::shippedScenePath("navigation"), "easy"), "expert");
   const double start = 100.0;
   command(vrm_msgs::ScenarioCommand::START, "", "", start);
-  std::map<world::Stamp, std::vector<world::InstrumentState>> ticks;
-  double script_end = 0.0;
-  for (const auto& instrument : scene.instruments) {
-    if (!instrument.path.empty()) script_end = std::max(script_end, instrument.path.back().t);
-  }
-  for (const auto& input : world::scriptedInputs(scene, 50.0, script_end + 2.0, world::fromSeconds(start))) {
-    ticks[input.stamp].push_back(input);
-  }
-  std::optional<world::Stamp> previous;
+  const std::vector<world::InstrumentState> inputs =
+      world::scriptedInputs(scene, 50.0, scene.scriptedDuration() + 2.0, world::fromSeconds(start));
   bool refused_start = false, refused_load = false;
-  std::size_t tick_index = 0;
-  for (const auto& [stamp, tick] : ticks) {
-    for (const auto& input : tick) instruments.publish(boost::make_shared<vrm_msgs::InstrumentState>(toMsg(input)));
-    if (previous) {
-      ASSERT_TRUE(waitFor(
-          [&] {
-            std::lock_guard<std::mutex> lock(observed.mutex);
-            return observed.last_frame >= *previous;
-          },
-          10.0))
-          << "no frame for stamp " << *previous;
-    }
-    previous = stamp;
-    if (++tick_index == 50) {
-      ASSERT_EQ(status().state, vrm_msgs::ScenarioStatus::RUNNING) << status().message;
+  auto last_frame = [&] {
+    std::lock_guard<std::mutex> lock(observed.mutex);
+    return observed.last_frame;
+  };
+  ASSERT_TRUE(playTicks(instruments, inputs, last_frame, [&](world::Stamp stamp, std::size_t tick) {
+    if (tick == 50) {
+      EXPECT_EQ(status().state, vrm_msgs::ScenarioStatus::RUNNING) << status().message;
       command(vrm_msgs::ScenarioCommand::START, "", "", world::toSeconds(stamp));
       command(vrm_msgs::ScenarioCommand::LOAD, std::string(VRM_SIM_SOURCE_DIR) + "/test/data/scenes/syntax_error.yaml",
               "", world::toSeconds(stamp));
     }
-    if (tick_index > 50 && !(refused_start && refused_load)) {
+    if (tick > 50 && !(refused_start && refused_load)) {
       std::lock_guard<std::mutex> lock(observed.mutex);
       for (const std::string& message : observed.messages) {
         refused_start = refused_start || message.find("START refused") != std::string::npos;
         refused_load = refused_load || message.find("syntax_error.yaml") != std::string::npos;
       }
     }
-    if (status().state == vrm_msgs::ScenarioStatus::FINISHED) break;
-  }
+    return status().state != vrm_msgs::ScenarioStatus::FINISHED;
+  }));
   EXPECT_TRUE(refused_start) << "no status message for START while running";
   EXPECT_TRUE(refused_load) << "no status message for the broken LOAD";
   ASSERT_TRUE(waitFor([&] { return status().state == vrm_msgs::ScenarioStatus::FINISHED; }, 10.0))

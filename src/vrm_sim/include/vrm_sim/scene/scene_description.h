@@ -307,6 +307,8 @@ struct SceneDescription {
 
   // The loader guarantees: hasDeformableObjects() == simulates(Simulation::kTissue).
   bool hasDeformableObjects() const;
+  // s: the last waypoint of the instruments' scripted paths (0 without any).
+  double scriptedDuration() const;
   bool simulates(Simulation simulation) const { return simulations.count(simulation) > 0; }
   const ObjectDescription* findObject(const std::string& object_name) const;
   const Trocar* findTrocar(const std::string& trocar_name) const;

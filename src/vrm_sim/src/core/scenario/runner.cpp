@@ -98,8 +98,8 @@ ScenarioRunner::ScenarioRunner(const scene::SceneDescription& scene) : scene_(sc
   for (const Measurement& item : items) names += (names.empty() ? "" : ", ") + item.name;
   auto check = [&](const std::string& item, const scene::SourceLocation& location) {
     if (!known(item)) {
-      throw scene::SceneError(location, "scenario type '" + description_.type + "' has no score item '" + item +
-                                            "'; its items: " + names);
+      throw scene::SceneError(
+          location, "scenario type '" + description_.type + "' has no score item '" + item + "'; its items: " + names);
     }
   };
   for (const scene::ScoringRule& rule : description_.scoring) check(rule.item, rule.location);

@@ -168,6 +168,14 @@ bool SceneDescription::hasDeformableObjects() const {
                      [](const ObjectDescription& object) { return object.isDeformable(); });
 }
 
+double SceneDescription::scriptedDuration() const {
+  double end = 0.0;
+  for (const auto& instrument : instruments) {
+    if (!instrument.path.empty()) end = std::max(end, instrument.path.back().t);
+  }
+  return end;
+}
+
 const ObjectDescription* SceneDescription::findObject(const std::string& object_name) const {
   for (const auto& object : objects) {
     if (object.name == object_name) return &object;

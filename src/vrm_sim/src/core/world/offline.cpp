@@ -250,10 +250,6 @@ ScenarioRunResult runScenario(const scene::SceneDescription& scene, const Scenar
   const scene::SceneDescription scripted = options.script_parts.empty()
                                                ? scene::withScript(scene, options.script)
                                                : scene::withScript(scene, options.script_parts);
-  double script_end = 0.0;
-  for (const auto& instrument : scripted.instruments) {
-    if (!instrument.path.empty()) script_end = std::max(script_end, instrument.path.back().t);
-  }
   WorldOptions world_options;
   world_options.detector_override = options.detector;
   world_options.auto_start = true;
@@ -273,7 +269,7 @@ ScenarioRunResult runScenario(const scene::SceneDescription& scene, const Scenar
     }
   });
   const auto wall_start = std::chrono::steady_clock::now();
-  const double seconds = script_end + options.grace;
+  const double seconds = scripted.scriptedDuration() + options.grace;
   const long ticks = std::lround(seconds * options.rate);
   for (long tick = 0; tick <= ticks; ++tick) {
     const double t = static_cast<double>(tick) / options.rate;
