@@ -103,25 +103,32 @@ TEST(World, AFrameClosesWhenEverySourceOfThePreviousFrameHasDelivered) {
   const Eigen::Vector3d far(0.002, 0.0, -0.006);
   world.handle(instrumentAt(scene, "left", far, 0.0, 0));
   world.handle(instrumentAt(scene, "right", far, 0.3, 0));
-  EXPECT_TRUE(frames.empty()) << "the first frame cannot know its sources: it closes with the next stamp";
   world.handle(instrumentAt(scene, "left", far, 0.0, kTick));
-  ASSERT_EQ(frames.size(), 1u);
+  EXPECT_TRUE(frames.empty()) << "the first frame cannot know its sources: it waits for two later stamps";
+  world.handle(instrumentAt(scene, "right", far, 0.3, kTick));
+  world.handle(instrumentAt(scene, "left", far, 0.0, 2 * kTick));
+  // Frame 0 closes with two later stamps pending; frame 1 is complete then, too (both sources reached it).
+  ASSERT_EQ(frames.size(), 2u);
   EXPECT_EQ(frames[0].stamp, 0);
   EXPECT_EQ(frames[0].frame_time, 0.0);
-  world.handle(instrumentAt(scene, "right", far, 0.3, kTick));  // both sources of frame 1 delivered: closes now
-  ASSERT_EQ(frames.size(), 2u);
+  world.flush();
+  ASSERT_EQ(frames.size(), 3u);
   EXPECT_EQ(frames[1].stamp, kTick);
   EXPECT_NEAR(frames[1].frame_time, 0.02, 1e-12);
   EXPECT_EQ(frames[1].tissues.at(0).steps, 20);  // dt 1 ms
+  world.handle(instrumentAt(scene, "left", far, 0.0, 3 * kTick));
+  EXPECT_EQ(frames.size(), 3u) << "frame 3 waits for right";
+  world.handle(instrumentAt(scene, "right", far, 0.3, 3 * kTick));  // both sources delivered: closes now
+  ASSERT_EQ(frames.size(), 4u);
   // Late: a source older than the last frame changes the next one, it does not reopen a frame.
   world.handle(instrumentAt(scene, "left", far, 0.0, kTick / 2));
   EXPECT_EQ(world.statistics().late_inputs, 1u);
-  EXPECT_EQ(frames.size(), 2u);
+  EXPECT_EQ(frames.size(), 4u);
   // A long gap is capped (max_frame_time).
   world.handle(instrumentAt(scene, "left", far, 0.0, 100 * kTick));
   world.handle(instrumentAt(scene, "right", far, 0.3, 100 * kTick));
-  ASSERT_EQ(frames.size(), 3u);
-  EXPECT_NEAR(frames[2].frame_time, 0.05, 1e-12);
+  ASSERT_EQ(frames.size(), 5u);
+  EXPECT_NEAR(frames[4].frame_time, 0.05, 1e-12);
 }
 
 TEST(World, ArrivalOrderWithinAStampAndOfPedalsDoesNotChangeTheState) {
@@ -159,6 +166,116 @@ TEST(World, ArrivalOrderWithinAStampAndOfPedalsDoesNotChangeTheState) {
   const auto first = run(false);
   EXPECT_EQ(first, run(false));
   EXPECT_EQ(first, run(true));
+}
+
+// The inputs of one 50 Hz tick of a forceps descending onto the membrane (eye, left light pipe, right forceps).
+struct Tick {
+  EyeState eye;
+  InstrumentState left, right;
+};
+std::vector<Tick> descendingForceps(const scene::SceneDescription& scene, int ticks, Stamp start = 0) {
+  std::vector<Tick> sequence;
+  for (int k = 0; k < ticks; ++k) {
+    const double alpha = std::min(1.0, k / 40.0);
+    const Stamp stamp = start + k * kTick;
+    Tick tick;
+    tick.eye.stamp = stamp;
+    tick.eye.rotation = Eigen::AngleAxisd(0.01 * alpha, Eigen::Vector3d::UnitY());
+    tick.left = instrumentAt(scene, "left", Eigen::Vector3d(-0.003, 0.0, -0.004), 0.0, stamp);
+    tick.right = instrumentAt(scene, "right", (1 - alpha) * pole(0.0013) + alpha * pole(0.0001), 0.35, stamp);
+    sequence.push_back(tick);
+  }
+  return sequence;
+}
+
+TEST(World, FramesCloseInStampOrderWhateverOrderTheirSourcesArriveIn) {
+  const scene::SceneDescription scene = testScene();
+  const std::vector<Tick> sequence = descendingForceps(scene, 60);
+  auto run = [&](bool interleaved) {
+    World world(scene);
+    std::vector<Stamp> stamps;
+    world.setFrameObserver([&](const FrameResult& frame) { stamps.push_back(frame.stamp); });
+    for (std::size_t k = 0; k < sequence.size(); ++k) {
+      if (!interleaved) {
+        world.handle(sequence[k].eye);
+        world.handle(sequence[k].left);
+        world.handle(sequence[k].right);
+        continue;
+      }
+      // A callback thread runs ahead: the eye and the left instrument of tick k+1 arrive before the right
+      // instrument of tick k (each source still in its own order, as one topic delivers).
+      if (k == 0) {
+        world.handle(sequence[0].eye);
+        world.handle(sequence[0].left);
+      }
+      if (k + 1 < sequence.size()) {
+        world.handle(sequence[k + 1].eye);
+        world.handle(sequence[k + 1].left);
+      }
+      world.handle(sequence[k].right);
+    }
+    world.flush();
+    return std::make_tuple(world.stateHash(), stamps, world.statistics().late_inputs);
+  };
+  const auto [in_order_hash, in_order_stamps, in_order_late] = run(false);
+  const auto [interleaved_hash, interleaved_stamps, interleaved_late] = run(true);
+  EXPECT_EQ(interleaved_stamps, in_order_stamps);
+  EXPECT_EQ(in_order_late, 0u);
+  EXPECT_EQ(interleaved_late, 0u);
+  EXPECT_EQ(interleaved_hash, in_order_hash);
+}
+
+TEST(World, ASilentSourceHoldsFramesBackForAtMostTwoFramesThenIsNotWaitedFor) {
+  const scene::SceneDescription scene = testScene();
+  const std::vector<Tick> sequence = descendingForceps(scene, 12);
+  World world(scene);
+  std::vector<Stamp> closed;
+  world.setFrameObserver([&](const FrameResult& frame) { closed.push_back(frame.stamp); });
+  for (int k = 0; k < 12; ++k) {
+    world.handle(sequence[k].left);
+    if (k < 5) world.handle(sequence[k].right);  // the right instrument falls silent after tick 4
+    if (k >= 2 && k < 5) {                       // (the first frame waits for two later stamps)
+      ASSERT_EQ(closed.back(), sequence[k].left.stamp) << "a complete frame closes at once";
+    }
+    if (k == 5 || k == 6) EXPECT_EQ(closed.back(), sequence[4].left.stamp) << "tick " << k << " waits for right";
+    if (k >= 7) EXPECT_EQ(closed.back(), sequence[k].left.stamp) << "right is no longer waited for";
+  }
+  EXPECT_EQ(world.statistics().late_inputs, 0u);
+  // It comes back: waited for again, and nothing it sent was lost.
+  world.handle(sequence[11].right);
+  EXPECT_EQ(closed.back(), sequence[11].left.stamp);
+}
+
+TEST(World, ASessionsFinalStateDependsOnlyOnTheInputsBetweenStartAndStop) {
+  const scene::SceneDescription scene = testScene();
+  WorldOptions options;
+  options.auto_start = false;  // a recorded session: START and STOP frame it
+  const std::vector<Tick> before = descendingForceps(scene, 30, -30 * kTick);
+  const std::vector<Tick> during = descendingForceps(scene, 60);
+  auto run = [&](std::size_t ticks_before, bool inputs_after_stop) {
+    World world(scene, options);
+    auto feed = [&](const Tick& tick) {
+      world.handle(tick.eye);
+      world.handle(tick.left);
+      world.handle(tick.right);
+    };
+    for (std::size_t k = before.size() - ticks_before; k < before.size(); ++k) feed(before[k]);
+    world.handle(ScenarioCommand{during.front().eye.stamp, ScenarioCommand::Type::kStart});
+    for (const Tick& tick : during) feed(tick);
+    world.handle(ScenarioCommand{during.back().eye.stamp, ScenarioCommand::Type::kStop});
+    if (inputs_after_stop) {
+      for (const Tick& tick : descendingForceps(scene, 20, during.back().eye.stamp + kTick)) feed(tick);
+    }
+    world.flush();
+    EXPECT_FALSE(world.simulating());
+    return std::make_pair(world.stateHash(), world.statistics().simulated_frames);
+  };
+  const auto reference = run(1, false);
+  EXPECT_EQ(reference.second, 60u) << "from the frame at START's stamp to the last one, which closed before STOP came";
+  EXPECT_EQ(run(30, false), reference);
+  EXPECT_EQ(run(1, true), reference);
+  EXPECT_EQ(run(12, true), reference);
+  EXPECT_NE(reference.first, World(scene, options).stateHash()) << "the session moved the membrane";
 }
 
 class ForcepsPush : public ::testing::TestWithParam<std::tuple<std::string, double>> {};

@@ -62,8 +62,9 @@ class ScenarioRunner {
   std::string start(double time);
   std::string pause(double time);
   std::string resume(double time);
-  std::string stop(double time);  // ends a running or paused session as failed ("stopped")
-  void reset();                   // back to IDLE with a fresh scenario (the world resets its tissues alongside)
+  // Ends a running or paused session as failed; `reason` is its message ("" = "stopped by the trainee").
+  std::string stop(double time, const std::string& reason = "");
+  void reset();  // back to IDLE with a fresh scenario (the world resets its tissues alongside)
   // A note for the trainee in status().message, e.g. why a command was refused (the state is unchanged).
   void setMessage(const std::string& message) { status_.message = message; }
 

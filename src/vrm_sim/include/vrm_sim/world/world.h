@@ -7,15 +7,26 @@
 //
 // Frames. Inputs carry their stamps (ns, from header.stamp; nothing here reads a clock for the simulation):
 //   * eye and instrument states are *frame sources*: all of them that carry the same stamp S belong to the frame at
-//     S. The frame closes (collision → tissue step → bleeding → hash → observer) as soon as every source that
-//     contributed to the previous frame has delivered at S, or when an input with a later stamp arrives, or on
-//     flush(). A source state with a stamp older than the pending frame is late: it is applied to the next frame and
-//     counted (statistics().late_inputs).
+//     S. Inputs are buffered per frame and applied when the frame closes, so frames close in stamp order whatever
+//     order their inputs arrive in (callbacks on several threads, a frame arriving while a step runs). Every source
+//     delivers in stamp order (one topic is one FIFO), so frame S is complete — and closes (inputs applied →
+//     collision → tissue step → bleeding → scenario → hash → observer) — as soon as every known source has
+//     delivered at S or later. A source that falls silent holds frames back for at most kReorderFrames later
+//     frames; then the oldest frame closes without it and it stops being waited for until it delivers again. The
+//     very first frame, whose sources are not known yet, waits for kReorderFrames later frames; flush() closes
+//     whatever is pending.
+//     A source state older than the last closed frame is late: it takes effect in the next frame and is counted
+//     (statistics().late_inputs).
 //   * pedal states and scenario commands are *state inputs*: buffered and applied, in stamp order, when the first
 //     frame with a stamp >= theirs closes, so their arrival order relative to the poses does not matter.
 // The simulated time of a frame is the stamp difference to the previous frame (capped by max_frame_time); tissue
-// steps are fixed-Δt substeps of it. With the default options no wall clock enters the result, so the same input
-// sequence gives the same state bit for bit (stateHash()), live or offline.
+// steps are fixed-Δt substeps of it (the time budget is a step count, never wall time, unless wall_clock_budget is
+// set). With the default options no wall clock enters the result, so the same input sequence gives the same state
+// bit for bit (stateHash()), live, replayed from a bag or offline.
+// The world advances only while its session runs: a scenario from START (or the first frame with auto_start) until
+// it finishes, fails or is stopped; a scene without a scenario from the start (or START without auto_start) until
+// STOP. Frames outside that window are still assembled (instruments move, collisions can be reported) but change no
+// hashed state, so the final state of a session does not depend on how long its inputs went on before or after it.
 //
 // Frames of reference: each object lives in the eye or the world frame (scene `frame`); instrument poses arrive in
 // "eye" or "world" and are moved into each object's frame with the eye pose of the frame they belong to.
@@ -89,7 +100,7 @@ struct ScenarioCommand {
   Stamp stamp = 0;
   Type command = Type::kStart;
   std::string scenario;  // kLoad
-  std::string argument;  // kSelectInstrument: "slot:type", e.g. "right:vitrector"
+  std::string argument;  // kSelectInstrument: "slot:type", e.g. "right:vitrector"; kLoad: difficulty; kStop: reason
   std::uint32_t seed = 0;
 };
 
@@ -167,8 +178,9 @@ struct FrameResult {
 struct WorldStatistics {
   std::uint64_t frames = 0;
   std::uint64_t inputs = 0;
-  std::uint64_t late_inputs = 0;      // frame sources older than the pending frame
-  std::uint64_t rejected_inputs = 0;  // non-finite values, unknown slot or frame
+  std::uint64_t simulated_frames = 0;  // frames in which the world advanced (the session ran)
+  std::uint64_t late_inputs = 0;       // frame sources older than the last closed frame
+  std::uint64_t rejected_inputs = 0;   // non-finite values, unknown slot or frame
   std::uint64_t tissue_steps = 0;
   double max_strain = 0.0;
   std::size_t max_grasped_nodes = 0;
@@ -263,9 +275,18 @@ class World {
   // Repeated warnings (same key) at most every kLogEveryFrames frames; an empty key is never throttled.
   void log(Severity severity, const std::string& key, const std::string& message);
 
-  bool acceptSource(Stamp stamp, const std::string& source);
-  void closeFrameIfComplete();
-  void closeFrame();
+  // The inputs of one frame, applied when it closes (eye first, then the instruments by slot).
+  struct FrameInputs {
+    std::optional<EyeState> eye;
+    std::map<std::string, InstrumentState> instruments;  // by slot
+  };
+  // Buffers a frame source's input (nullptr: the source delivered, but nothing valid to apply) and closes the frames
+  // that are complete.
+  void acceptSource(Stamp stamp, const std::string& source, const EyeState* eye, const InstrumentState* instrument);
+  void closeReadyFrames();
+  void closeFrame(Stamp stamp, const FrameInputs& inputs);
+  void applyInputs(const FrameInputs& inputs);
+  void applyInstrument(const InstrumentState& state);
   void applyStateInputs(Stamp up_to);
   void apply(const ScenarioCommand& command);
   void setInstrumentType(Instrument& instrument, scene::InstrumentType type);
@@ -287,17 +308,19 @@ class World {
   Eigen::Isometry3d world_from_eye_ = Eigen::Isometry3d::Identity();
 
   // Frame assembly (see the top of the file).
-  std::optional<Stamp> pending_stamp_;
-  std::vector<std::string> pending_sources_;
-  std::vector<std::string> expected_sources_;
+  static constexpr std::size_t kReorderFrames = 2;
+  std::map<Stamp, FrameInputs> pending_;        // frames not closed yet, by stamp
+  std::map<std::string, Stamp> known_sources_;  // the newest stamp each source delivered
+  FrameInputs late_;                            // inputs older than the last frame, for the next one
   std::optional<Stamp> last_frame_stamp_;
-  std::optional<Stamp> first_stamp_;
+  std::optional<Stamp> simulation_origin_;  // stamp of the first frame the world advanced in (bleeding's clock)
   std::map<std::string, std::uint64_t> logged_at_frame_;
   std::vector<PedalState> buffered_pedals_;
   std::vector<ScenarioCommand> buffered_commands_;
   PedalState pedals_;
   bool paused_ = false;
   bool running_ = true;
+  bool started_ = true;  // a scene without a scenario: START seen (or auto_start)
   bool rigid_reports_ = false;
   std::unique_ptr<scenario::ScenarioRunner> runner_;
   bool auto_started_ = false;

@@ -143,12 +143,12 @@ std::string ScenarioRunner::resume(double time) {
   return "";
 }
 
-std::string ScenarioRunner::stop(double time) {
+std::string ScenarioRunner::stop(double time, const std::string& reason) {
   if (status_.state != State::kRunning && status_.state != State::kPaused) {
     return "STOP refused: the scenario is " + std::string(toString(status_.state));
   }
   if (status_.state == State::kRunning) advance(time);
-  finish(State::kFailed, "stopped by the trainee", time);
+  finish(State::kFailed, reason.empty() ? "stopped by the trainee" : reason, time);
   return "";
 }
 

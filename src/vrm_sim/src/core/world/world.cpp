@@ -125,6 +125,7 @@ World::World(scene::SceneDescription scene, WorldOptions options)
     };
   }
   if (!(options_.max_frame_time > 0.0)) throw std::invalid_argument("world: max_frame_time must be positive");
+  started_ = options_.auto_start;
   buildInstruments();
   buildTissues();
   buildRigidObjects();
@@ -152,7 +153,7 @@ bool World::simulatesAnything() const {
 
 bool World::simulating() const {
   if (paused_ || !running_) return false;
-  return !runner_ || runner_->status().state != scenario::State::kIdle;
+  return runner_ ? runner_->status().state == scenario::State::kRunning : started_;
 }
 
 std::optional<World::Collider> World::makeCollider(const scene::ObjectDescription& object) const {
@@ -300,49 +301,72 @@ std::optional<Eigen::Isometry3d> World::transform(const std::string& target, con
 
 // ---- frame assembly ----
 
-bool World::acceptSource(Stamp stamp, const std::string& source) {
+void World::acceptSource(Stamp stamp, const std::string& source, const EyeState* eye,
+                         const InstrumentState* instrument) {
   ++statistics_.inputs;
-  if (pending_stamp_ && stamp > *pending_stamp_) closeFrame();
-  if (!pending_stamp_) {
-    if (last_frame_stamp_ && stamp <= *last_frame_stamp_) {
-      ++statistics_.late_inputs;  // its state takes effect in the next frame
-      return false;
-    }
-    pending_stamp_ = stamp;
-    pending_sources_.clear();
-  } else if (stamp < *pending_stamp_) {
-    ++statistics_.late_inputs;
-    return false;
+  Stamp& latest = known_sources_[source];
+  latest = std::max(latest, stamp);
+  if (last_frame_stamp_ && stamp <= *last_frame_stamp_) {
+    ++statistics_.late_inputs;  // its state takes effect in the next frame
+    if (eye) late_.eye = *eye;
+    if (instrument) late_.instruments[instrument->slot] = *instrument;
+  } else {
+    FrameInputs& frame = pending_[stamp];
+    if (eye) frame.eye = *eye;
+    if (instrument) frame.instruments[instrument->slot] = *instrument;
   }
-  if (std::find(pending_sources_.begin(), pending_sources_.end(), source) == pending_sources_.end()) {
-    pending_sources_.push_back(source);
-  }
-  return true;
+  closeReadyFrames();
 }
 
-void World::closeFrameIfComplete() {
-  if (!pending_stamp_ || expected_sources_.empty()) return;
-  for (const std::string& source : expected_sources_) {
-    if (std::find(pending_sources_.begin(), pending_sources_.end(), source) == pending_sources_.end()) return;
+void World::closeReadyFrames() {
+  while (!pending_.empty()) {
+    const Stamp stamp = pending_.begin()->first;
+    bool ready;
+    if (!last_frame_stamp_) {
+      // The first frame cannot know its sources yet: it waits as long as a silent source would hold a frame.
+      ready = pending_.size() > kReorderFrames;
+    } else {
+      ready = std::all_of(known_sources_.begin(), known_sources_.end(),
+                          [stamp](const auto& source) { return source.second >= stamp; });
+    }
+    if (!ready && pending_.size() > kReorderFrames) {
+      // A source fell silent: do not hold the view back for it any longer.
+      ready = true;
+      for (auto source = known_sources_.begin(); source != known_sources_.end();) {
+        if (source->second < stamp) {
+          log(Severity::kWarning, "silent:" + source->first,
+              source->first + " stopped delivering; frames close without it until it is back");
+          source = known_sources_.erase(source);
+        } else {
+          ++source;
+        }
+      }
+    }
+    if (!ready) return;
+    const FrameInputs inputs = std::move(pending_.begin()->second);
+    pending_.erase(pending_.begin());
+    closeFrame(stamp, inputs);
   }
-  closeFrame();
 }
 
 void World::flush() {
-  if (pending_stamp_) closeFrame();
+  while (!pending_.empty()) {
+    const Stamp stamp = pending_.begin()->first;
+    const FrameInputs inputs = std::move(pending_.begin()->second);
+    pending_.erase(pending_.begin());
+    closeFrame(stamp, inputs);
+  }
 }
 
 void World::handle(const EyeState& eye) {
   const bool finite = eye.rotation.coeffs().allFinite() && eye.rotation_center.allFinite() &&
                       std::abs(eye.rotation.norm() - 1.0) < 1e-3;
-  acceptSource(eye.stamp, "eye");
   if (!finite) {
     ++statistics_.rejected_inputs;
     log(Severity::kWarning, "eye:nonfinite", "eye_state with a non-finite or non-unit rotation ignored");
-  } else if (eye.valid) {
-    world_from_eye_ = Eigen::Translation3d(eye.rotation_center) * eye.rotation.normalized();
   }
-  closeFrameIfComplete();
+  // A rejected eye state still counts as delivered, so its frame does not wait for it.
+  acceptSource(eye.stamp, "eye", finite ? &eye : nullptr, nullptr);
 }
 
 void World::handle(const InstrumentState& state) {
@@ -360,7 +384,6 @@ void World::handle(const InstrumentState& state) {
             "' ignored (eye or world expected)");
     return;
   }
-  acceptSource(state.stamp, sourceName("instrument", state.slot));
   const double norm = state.tip_orientation.norm();
   const bool finite = state.tip_position.allFinite() && std::isfinite(norm) && norm > 1e-9 &&
                       std::isfinite(state.jaw_angle) && std::isfinite(state.suction) && std::isfinite(state.cut_rate);
@@ -368,10 +391,19 @@ void World::handle(const InstrumentState& state) {
     ++statistics_.rejected_inputs;
     log(Severity::kWarning, "nonfinite:" + state.slot,
         "instrument_state '" + state.slot + "' with non-finite values ignored");
-    closeFrameIfComplete();
-    return;
   }
-  Instrument& instrument = *slot->second;
+  acceptSource(state.stamp, sourceName("instrument", state.slot), nullptr, finite ? &state : nullptr);
+}
+
+void World::applyInputs(const FrameInputs& inputs) {
+  if (inputs.eye && inputs.eye->valid) {
+    world_from_eye_ = Eigen::Translation3d(inputs.eye->rotation_center) * inputs.eye->rotation.normalized();
+  }
+  for (const auto& [slot, state] : inputs.instruments) applyInstrument(state);
+}
+
+void World::applyInstrument(const InstrumentState& state) {
+  Instrument& instrument = *instruments_.at(state.slot);
   // Invalid tracking: the instrument keeps its last pose but stops interacting (no phantom grasps).
   instrument.pose = state.pose();
   instrument.frame_id = state.frame_id.empty() ? "eye" : state.frame_id;
@@ -382,7 +414,6 @@ void World::handle(const InstrumentState& state) {
   instrument.cut_rate = state.valid ? state.cut_rate : 0.0;
   instrument.cutting = state.valid && instrument.current.type == scene::InstrumentType::kVitrector &&
                        state.suction > 0.0 && state.cut_rate > 0.0;
-  closeFrameIfComplete();
 }
 
 void World::handle(const PedalState& pedals) {
@@ -393,13 +424,13 @@ void World::handle(const PedalState& pedals) {
     return;
   }
   buffered_pedals_.push_back(pedals);
-  if (last_frame_stamp_ && pedals.stamp <= *last_frame_stamp_ && !pending_stamp_) applyStateInputs(*last_frame_stamp_);
+  if (last_frame_stamp_ && pedals.stamp <= *last_frame_stamp_ && pending_.empty()) applyStateInputs(*last_frame_stamp_);
 }
 
 void World::handle(const ScenarioCommand& command) {
   ++statistics_.inputs;
   buffered_commands_.push_back(command);
-  if (last_frame_stamp_ && command.stamp <= *last_frame_stamp_ && !pending_stamp_) {
+  if (last_frame_stamp_ && command.stamp <= *last_frame_stamp_ && pending_.empty()) {
     applyStateInputs(*last_frame_stamp_);
   }
 }
@@ -439,11 +470,12 @@ void World::apply(const ScenarioCommand& command) {
       if (refused.empty()) {
         running_ = true;
         paused_ = false;
+        started_ = true;
       }
       break;
     case Type::kStop:
       if (runner_) {
-        refused = runner_->stop(time);
+        refused = runner_->stop(time, command.argument);
       } else {
         running_ = false;
       }
@@ -455,6 +487,8 @@ void World::apply(const ScenarioCommand& command) {
       }
       paused_ = false;
       running_ = true;
+      started_ = options_.auto_start;
+      simulation_origin_.reset();
       if (runner_) runner_->reset();
       auto_started_ = false;
       break;
@@ -494,26 +528,26 @@ void World::apply(const ScenarioCommand& command) {
 
 // ---- one frame ----
 
-void World::closeFrame() {
-  const Stamp stamp = *pending_stamp_;
+void World::closeFrame(Stamp stamp, const FrameInputs& inputs) {
   double frame_time = 0.0;
   if (last_frame_stamp_) frame_time = std::min(toSeconds(stamp - *last_frame_stamp_), options_.max_frame_time);
-  expected_sources_ = pending_sources_;
-  pending_stamp_.reset();
-  pending_sources_.clear();
+  applyInputs(late_);
+  late_ = FrameInputs{};
+  applyInputs(inputs);
   applyStateInputs(stamp);
-  if (!first_stamp_) first_stamp_ = stamp;
   last_frame_stamp_ = stamp;
   if (runner_ && options_.auto_start && !auto_started_ && runner_->status().state == scenario::State::kIdle) {
     auto_started_ = true;
     runner_->start(toSeconds(stamp));
   }
+  if (simulating() && !simulation_origin_) simulation_origin_ = stamp;
 
   FrameResult result;
   result.stamp = stamp;
   result.frame = ++statistics_.frames;
   result.frame_time = frame_time;
   result.paused = !simulating();
+  if (!result.paused) ++statistics_.simulated_frames;
   const double start = now();
   for (auto& [name, tissue] : tissues_) {
     if (result.paused) {
@@ -687,7 +721,7 @@ void World::stepTissue(Tissue& tissue, double frame_time, FrameResult& result) {
 
 void World::bleed(RigidObject& object, FrameResult& result) {
   const double start = now();
-  const double time = toSeconds(result.stamp - *first_stamp_);
+  const double time = toSeconds(result.stamp - *simulation_origin_);
   const collision::SurfaceView surface = collision::SurfaceView::of(object.mesh);
   BleedingField& field = *object.bleeding;
   for (auto& [slot, instrument] : instruments_) {
@@ -810,7 +844,8 @@ std::uint64_t World::stateHash() const {
     const std::vector<float>& field = rigid->bleeding->field();
     hash = tissue::hashBytes(hash, field.data(), field.size() * sizeof(float));
   }
-  const std::uint8_t flags[] = {static_cast<std::uint8_t>(paused_), static_cast<std::uint8_t>(running_)};
+  const std::uint8_t flags[] = {static_cast<std::uint8_t>(paused_), static_cast<std::uint8_t>(running_),
+                                static_cast<std::uint8_t>(started_)};
   hash = tissue::hashBytes(hash, flags, sizeof(flags));
   if (runner_) runner_->hash(hash);
   return hash;
