@@ -21,8 +21,10 @@
 // (override for every object), max_frame_time (s, default 0.05), collision_max_pixel_size (m), wall_clock_budget
 // (default false: deterministic frames; true: each tissue stops at its scene time_budget_ms of wall time, as EyeSi
 // did), auto_start (default true: the scenario starts with the first input; false: on START), result_file (the
-// session's result JSON, written when the scenario ends; "" = none), bag (the session bag's path, recorded in the
-// result file), seed, eye_frame / world_frame names.
+// session's result JSON; "" = none), bag (the session bag's path: the result also goes next to it as
+// <bag without .bag>.result.json), seed, eye_frame / world_frame names. The result (final_state_hash, scene, seed,
+// frames, score, ...) is written when the session ends (scenario finished / failed / stopped, STOP of a scene
+// without a scenario) and, if it never ended, when the nodelet shuts down.
 #include <nodelet/nodelet.h>
 #include <ros/ros.h>
 #include <visualization_msgs/MarkerArray.h>
@@ -76,6 +78,13 @@ class ScenarioManager : public nodelet::Nodelet {
     world_frame_ = private_nh.param<std::string>("world_frame", "world");
     result_file_ = private_nh.param<std::string>("result_file", "");
     bag_path_ = private_nh.param<std::string>("bag", "");
+    if (!bag_path_.empty()) {
+      const std::string stem = bag_path_.size() > 4 && bag_path_.compare(bag_path_.size() - 4, 4, ".bag") == 0
+                                   ? bag_path_.substr(0, bag_path_.size() - 4)
+                                   : bag_path_;
+      result_files_.push_back(stem + ".result.json");
+    }
+    if (!result_file_.empty()) result_files_.push_back(result_file_);
     seed_ = static_cast<std::uint32_t>(private_nh.param("seed", 0));
     try {
       session_ = std::make_unique<world::Session>(world::Session::loadByName(scene_parameter, difficulty), options);
@@ -100,6 +109,12 @@ class ScenarioManager : public nodelet::Nodelet {
     NODELET_INFO("scenario_manager: deterministic frames: %s, scenario start: %s",
                  options.wall_clock_budget ? "no (wall-clock budget)" : "yes",
                  options.auto_start ? "with the first input" : "on START");
+  }
+
+  // A session that never ended (Ctrl-C, a crash of another node) still leaves its result.
+  ~ScenarioManager() override {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (session_) writeResult();
   }
 
  private:
@@ -237,6 +252,8 @@ class ScenarioManager : public nodelet::Nodelet {
     fillSimulationState(frame, session_->world().statistics().late_inputs, *state);
     vrm_msgs::publishShared(state_publisher_, state);
     publishStatus(stamp, false);
+    // A scene without a scenario ends with STOP (a scenario's end is handled with its status).
+    if (!session_->world().scenarioStatus() && session_->world().sessionEnded()) writeResult();
     logProgress(frame);
   }
 
@@ -261,41 +278,64 @@ class ScenarioManager : public nodelet::Nodelet {
       vrm_msgs::publishShared(score_publisher_, score);
       NODELET_INFO("scenario '%s' %s: %s; score %.1f / 100", status->scenario.c_str(),
                    scenario::toString(status->state), status->message.c_str(), status->score.total);
-      writeResult(*status);
+      writeResult();
     }
   }
 
-  // One JSON object per session next to its bag: what a training record needs (issue 13 stores it).
-  void writeResult(const scenario::Status& status) {
-    if (result_file_.empty() || result_written_) return;
+  // One JSON object per session, next to its bag and/or at result_file: what a training record needs (issue 13
+  // stores it) and what a replay must reproduce (final_state_hash).
+  void writeResult() {
+    if (result_written_) return;
     result_written_ = true;
+    NODELET_INFO("scenario_manager: session %s after %lu frames; final state %s",
+                 session_->world().sessionEnded() ? "over" : "interrupted",
+                 static_cast<unsigned long>(session_->world().statistics().frames),
+                 world::hashString(session_->world().stateHash()).c_str());
+    if (result_files_.empty()) return;
     std::ostringstream out;
     out << std::setprecision(15);
     const auto quoted = world::jsonString;
     const world::World& current = session_->world();
+    const scenario::Status* status = current.scenarioStatus();
     out << "{\"scene\": " << quoted(current.scene().name) << ", \"scene_file\": " << quoted(current.scene().source_file)
-        << ", \"scenario\": " << quoted(status.type) << ", \"difficulty\": " << quoted(status.difficulty)
+        << ", \"scenario\": " << (status ? quoted(status->type) : "null")
+        << ", \"difficulty\": " << (status ? quoted(status->difficulty) : "null")
         << ", \"seed\": " << (session_->loads() > 0 ? session_->seed() : seed_)
-        << ", \"state\": " << quoted(scenario::toString(status.state))
-        << ", \"timed_out\": " << (status.timed_out ? "true" : "false") << ", \"message\": " << quoted(status.message)
-        << ", \"start_stamp\": " << (status.start_time ? *status.start_time : 0.0)
-        << ", \"end_stamp\": " << (status.end_time ? *status.end_time : 0.0) << ", \"elapsed\": " << status.elapsed
-        << ", \"total\": " << status.score.total << ", \"items\": [";
-    for (std::size_t i = 0; i < status.score.items.size(); ++i) {
-      const scenario::ScoreItem& item = status.score.items[i];
-      out << (i ? ", " : "") << "{\"name\": " << quoted(item.name) << ", \"value\": " << item.value
-          << ", \"unit\": " << quoted(item.unit) << ", \"weight\": " << item.weight << ", \"points\": " << item.points
-          << "}";
-    }
-    out << "], \"final_state_hash\": \"" << world::hashString(current.stateHash())
-        << "\", \"frames\": " << current.statistics().frames
-        << ", \"bag\": " << (bag_path_.empty() ? "null" : quoted(bag_path_)) << "}\n";
-    std::ofstream file(result_file_);
-    file << out.str();
-    if (!file) {
-      NODELET_ERROR("scenario_manager: cannot write the result file %s", result_file_.c_str());
+        << ", \"state\": " << (status ? quoted(scenario::toString(status->state)) : "null")
+        << ", \"session_ended\": " << (current.sessionEnded() ? "true" : "false");
+    if (status) {
+      out << ", \"timed_out\": " << (status->timed_out ? "true" : "false")
+          << ", \"message\": " << quoted(status->message)
+          << ", \"start_stamp\": " << (status->start_time ? *status->start_time : 0.0)
+          << ", \"end_stamp\": " << (status->end_time ? *status->end_time : 0.0) << ", \"elapsed\": " << status->elapsed
+          << ", \"total\": " << status->score.total << ", \"items\": [";
+      for (std::size_t i = 0; i < status->score.items.size(); ++i) {
+        const scenario::ScoreItem& item = status->score.items[i];
+        out << (i ? ", " : "") << "{\"name\": " << quoted(item.name) << ", \"value\": " << item.value
+            << ", \"unit\": " << quoted(item.unit) << ", \"weight\": " << item.weight << ", \"points\": " << item.points
+            << "}";
+      }
+      out << "]";
     } else {
-      NODELET_INFO("scenario_manager: result written to %s", result_file_.c_str());
+      out << ", \"total\": null";
+    }
+    const auto last_stamp = current.lastFrameStamp();
+    out << ", \"final_state_hash\": \"" << world::hashString(current.stateHash())
+        << "\", \"frames\": " << current.statistics().frames
+        << ", \"simulated_frames\": " << current.statistics().simulated_frames
+        << ", \"late_inputs\": " << current.statistics().late_inputs
+        << ", \"last_frame_stamp\": " << (last_stamp ? world::toSeconds(*last_stamp) : 0.0)
+        << ", \"software_version\": " << quoted(VRM_SIM_VERSION)
+        << ", \"bag\": " << (bag_path_.empty() ? "null" : quoted(bag_path_)) << "}\n";
+    for (const std::string& path : result_files_) {
+      std::ofstream file(path);
+      file << out.str();
+      if (!file) {
+        NODELET_ERROR("scenario_manager: cannot write the result file %s", path.c_str());
+      } else {
+        NODELET_INFO("scenario_manager: result written to %s (final state %s)", path.c_str(),
+                     world::hashString(current.stateHash()).c_str());
+      }
     }
   }
 
@@ -327,6 +367,7 @@ class ScenarioManager : public nodelet::Nodelet {
   std::unique_ptr<world::Session> session_;
   std::mutex mutex_;
   std::string result_file_, bag_path_;
+  std::vector<std::string> result_files_;
   std::uint32_t seed_ = 0;
   bool result_written_ = false;
   std::optional<scenario::State> last_state_;

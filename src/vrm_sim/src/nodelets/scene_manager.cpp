@@ -88,9 +88,13 @@ class SceneManager : public nodelet::Nodelet {
       info->header.stamp = ros::Time::now();  // the session's start: a source stamp, recorded with the inputs
       info->scene = scene_.name;
       info->scene_file = scene_path;
+      info->difficulty = private_nh.param<std::string>("difficulty", "");
+      info->collision_detector = private_nh.param<std::string>("collision_detector", "");
+      info->auto_start = private_nh.param("auto_start", true);
+      info->duration = private_nh.param("duration", 0.0);
       info->simulated_hardware = private_nh.param("simulated_hardware", true);
       info->seed = static_cast<std::uint32_t>(private_nh.param("seed", 1));
-      info->software_version = "0.1.0";
+      info->software_version = VRM_SIM_VERSION;
       vrm_msgs::publishShared(session_publisher_, info);
     } else {
       // Replay: the recorded session_info arrives from the bag.

@@ -260,6 +260,9 @@ class World {
   }
   // Whether the world advances (tissue, bleeding) in the next frame: not while paused or before the scenario starts.
   bool simulating() const;
+  // The session is over: its scenario finished or failed (a STOP included), or a scene without a scenario was
+  // stopped. Nothing changes the state any more until a RESET.
+  bool sessionEnded() const;
 
  private:
   struct Instrument;

@@ -156,6 +156,12 @@ bool World::simulating() const {
   return runner_ ? runner_->status().state == scenario::State::kRunning : started_;
 }
 
+bool World::sessionEnded() const {
+  if (!runner_) return !running_;
+  const scenario::State state = runner_->status().state;
+  return state == scenario::State::kFinished || state == scenario::State::kFailed;
+}
+
 std::optional<World::Collider> World::makeCollider(const scene::ObjectDescription& object) const {
   const std::string name = options_.detector_override.empty() ? object.collision.detector : options_.detector_override;
   if (name == "none") return std::nullopt;

@@ -1,0 +1,55 @@
+#pragma once
+// Offline replay of a recorded session (rosrun vrm_sim session_replay): the bag's inputs, in bag order, through the
+// simulation core the scenario_manager nodelet wraps (world::Session), as fast as the CPU allows — cartographer_ros'
+// offline node pattern: one handler path for live and recorded input, so the replay ends in the live session's
+// final state hash bit for bit.
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "vrm_sim/bag/session_bag.h"
+
+namespace vrm_sim {
+namespace bag {
+
+// How the VR part is set up for a bag: from its session_info, unless overridden.
+struct SessionSetup {
+  std::string scene;       // what scene::resolveScenePath takes (the recorded file if it exists, else the name)
+  std::string scene_name;  // as recorded (or the override)
+  std::string difficulty;
+  std::string collision_detector;
+  bool auto_start = true;
+  std::uint32_t seed = 0;
+  std::vector<std::string> warnings;  // different scene or software version, no session_info, ...
+};
+
+// Throws BagError when the bag has no session_info and no override is given.
+SessionSetup resolveSession(const PreparedBag& bag, const std::string& scene_override = "");
+
+struct ReplayResult {
+  SessionSetup setup;
+  std::uint64_t frames = 0;            // frames assembled
+  std::uint64_t simulated_frames = 0;  // frames in which the world advanced
+  std::uint64_t inputs = 0;            // input messages fed
+  std::uint64_t late_inputs = 0;
+  std::uint64_t rejected_inputs = 0;
+  std::uint64_t final_state_hash = 0;
+  std::optional<double> score_total;  // nullopt: the scene has no scenario
+  std::string scenario_state;         // idle | running | paused | finished | failed ("" without a scenario)
+  double input_seconds = 0.0;         // input stamps, first to last
+  double wall_seconds = 0.0;
+  double speedup = 0.0;  // input_seconds / wall_seconds
+
+  // One JSON object: frames, simulated_frames, final_state_hash ("0x…"), score_total (null without a scenario),
+  // state, scene, difficulty, seed, inputs, late_inputs, wall_seconds, speedup, recovered_messages,
+  // recovered_seconds, warnings.
+  std::string json(const PreparedBag& bag) const;
+};
+
+// Replays every input of `bag` (bag time order). Throws scene::SceneError for a scene that does not load.
+ReplayResult replaySession(const PreparedBag& bag, const SessionSetup& setup);
+
+}  // namespace bag
+}  // namespace vrm_sim

@@ -1,0 +1,424 @@
+#include "vrm_sim/bag/session_bag.h"
+
+#include <ros/serialization.h>
+#include <rosbag/bag.h>
+#include <rosbag/exceptions.h>
+#include <rosbag/view.h>
+#include <topic_tools/shape_shifter.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <boost/make_shared.hpp>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "vrm_msgs/EyeState.h"
+#include "vrm_msgs/InstrumentState.h"
+#include "vrm_msgs/PedalState.h"
+#include "vrm_msgs/ScenarioCommand.h"
+
+namespace vrm_sim {
+namespace bag {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr char kMagic[] = "#ROSBAG V2.0\n";
+constexpr std::size_t kMagicLength = sizeof(kMagic) - 1;
+constexpr std::uint8_t kOpMessageData = 0x02;
+constexpr std::uint8_t kOpChunk = 0x05;
+constexpr std::uint8_t kOpConnection = 0x07;
+// A record header is a handful of short fields (a connection's is the longest: topic + type + definition are in the
+// data, not the header); anything larger is a broken length.
+constexpr std::uint32_t kMaxHeaderLength = 1 << 16;
+
+std::uint32_t readU32(const std::uint8_t* bytes) {
+  std::uint32_t value;
+  std::memcpy(&value, bytes, 4);  // rosbag is little-endian, like every machine this runs on
+  return value;
+}
+
+// "name=value" fields of a record header or of a connection's data.
+using Fields = std::map<std::string, std::string>;
+bool parseFields(const std::uint8_t* bytes, std::size_t length, Fields& fields) {
+  std::size_t at = 0;
+  while (at < length) {
+    if (length - at < 4) return false;
+    const std::uint32_t field_length = readU32(bytes + at);
+    at += 4;
+    if (field_length > length - at) return false;
+    const std::string field(reinterpret_cast<const char*>(bytes + at), field_length);
+    const auto equals = field.find('=');
+    if (equals == std::string::npos || equals == 0) return false;
+    fields[field.substr(0, equals)] = field.substr(equals + 1);
+    at += field_length;
+  }
+  return true;
+}
+
+struct Record {
+  std::uint8_t op = 0;
+  Fields header;
+  std::uint64_t data_offset = 0;  // in the buffer
+  std::uint32_t data_length = 0;
+  bool data_complete = false;  // data_length bytes are there
+};
+
+// The record at `at` of `bytes[0, end)`: nullopt when its header is not well-formed or not complete.
+std::optional<Record> readRecord(const std::vector<std::uint8_t>& bytes, std::uint64_t at, std::uint64_t end) {
+  if (end < at + 4) return std::nullopt;
+  const std::uint32_t header_length = readU32(bytes.data() + at);
+  if (header_length == 0 || header_length > kMaxHeaderLength || end - at - 4 < header_length + 4ull) {
+    return std::nullopt;
+  }
+  Record record;
+  if (!parseFields(bytes.data() + at + 4, header_length, record.header)) return std::nullopt;
+  const auto op = record.header.find("op");
+  if (op == record.header.end() || op->second.size() != 1) return std::nullopt;
+  record.op = static_cast<std::uint8_t>(op->second[0]);
+  record.data_length = readU32(bytes.data() + at + 4 + header_length);
+  record.data_offset = at + 8 + header_length;
+  record.data_complete = record.data_offset + record.data_length <= end;
+  return record;
+}
+
+std::vector<std::uint8_t> readFile(const std::string& path) {
+  std::ifstream file(path, std::ios::binary);
+  if (!file) throw BagError(path + ": cannot open (" + std::strerror(errno) + ")");
+  return std::vector<std::uint8_t>(std::istreambuf_iterator<char>(file), {});
+}
+
+struct Connection {
+  std::string topic;
+  boost::shared_ptr<ros::M_string> header;  // type, md5sum, message_definition, callerid, latching
+};
+
+struct RawMessage {
+  std::uint32_t connection = 0;
+  ros::Time time;
+  std::uint64_t offset = 0;
+  std::uint32_t length = 0;
+};
+
+struct Scan {
+  std::map<std::uint32_t, Connection> connections;
+  std::vector<RawMessage> messages;
+  std::uint64_t end_offset = 0;
+  std::uint64_t lost_compressed_chunks = 0;
+  std::string stop_reason;
+};
+
+void addConnection(const std::vector<std::uint8_t>& bytes, const Record& record, Scan& scan) {
+  const auto id = record.header.find("conn");
+  const auto topic = record.header.find("topic");
+  if (id == record.header.end() || id->second.size() != 4 || topic == record.header.end()) return;
+  Fields fields;
+  if (!parseFields(bytes.data() + record.data_offset, record.data_length, fields)) return;
+  Connection connection;
+  connection.topic = topic->second;
+  connection.header = boost::make_shared<ros::M_string>(fields.begin(), fields.end());
+  (*connection.header)["topic"] = topic->second;
+  scan.connections[readU32(reinterpret_cast<const std::uint8_t*>(id->second.data()))] = connection;
+}
+
+// The records inside one uncompressed chunk, [begin, end): every complete message and connection record; stops at
+// the first one that is cut off or not well-formed (the open chunk of a killed recorder ends that way).
+std::uint64_t scanChunk(const std::vector<std::uint8_t>& bytes, std::uint64_t begin, std::uint64_t end, Scan& scan) {
+  std::uint64_t at = begin;
+  while (at < end) {
+    const std::optional<Record> record = readRecord(bytes, at, end);
+    if (!record || !record->data_complete) break;
+    if (record->op == kOpConnection) {
+      addConnection(bytes, *record, scan);
+    } else if (record->op == kOpMessageData) {
+      const auto id = record->header.find("conn");
+      const auto time = record->header.find("time");
+      if (id == record->header.end() || id->second.size() != 4 || time == record->header.end() ||
+          time->second.size() != 8) {
+        break;
+      }
+      const auto* time_bytes = reinterpret_cast<const std::uint8_t*>(time->second.data());
+      RawMessage message;
+      message.connection = readU32(reinterpret_cast<const std::uint8_t*>(id->second.data()));
+      message.time = ros::Time(readU32(time_bytes), readU32(time_bytes + 4));
+      message.offset = record->data_offset;
+      message.length = record->data_length;
+      scan.messages.push_back(message);
+    } else {
+      break;  // nothing else lives inside a chunk
+    }
+    at = record->data_offset + record->data_length;
+  }
+  return at;
+}
+
+Scan scanBag(const std::vector<std::uint8_t>& bytes) {
+  Scan scan;
+  std::uint64_t at = kMagicLength;
+  const std::uint64_t size = bytes.size();
+  while (at < size) {
+    const std::optional<Record> record = readRecord(bytes, at, size);
+    if (!record) {
+      scan.stop_reason = "the record at byte " + std::to_string(at) + " is not well-formed";
+      break;
+    }
+    if (record->op == kOpChunk) {
+      const auto compression = record->header.find("compression");
+      const bool plain = compression != record->header.end() && compression->second == "none";
+      // An open chunk (killed recorder) still has its placeholder length 0; a cut-off one points past the end.
+      const bool open = record->data_length == 0 || !record->data_complete;
+      if (!plain) {
+        ++scan.lost_compressed_chunks;
+        if (open) {
+          scan.stop_reason = "a compressed chunk at byte " + std::to_string(at) + " has no end";
+          break;
+        }
+      } else {
+        const std::uint64_t chunk_end = open ? size : record->data_offset + record->data_length;
+        const std::uint64_t scanned = scanChunk(bytes, record->data_offset, chunk_end, scan);
+        if (open) {
+          at = scanned;
+          if (scanned < size) scan.stop_reason = "the records end at byte " + std::to_string(scanned);
+          break;
+        }
+      }
+    } else if (record->op == kOpConnection && record->data_complete) {
+      addConnection(bytes, *record, scan);
+    }
+    if (!record->data_complete) {
+      scan.stop_reason = "the record at byte " + std::to_string(at) + " is cut off";
+      break;
+    }
+    at = record->data_offset + record->data_length;
+  }
+  scan.end_offset = std::min<std::uint64_t>(at, size);
+  return scan;
+}
+
+std::string recoveredCopyPath(const std::string& original, const std::string& directory) {
+  std::string name = fs::path(original).filename().string();
+  for (const std::string suffix : {".active", ".bag"}) {
+    if (name.size() > suffix.size() && name.compare(name.size() - suffix.size(), suffix.size(), suffix) == 0) {
+      name.erase(name.size() - suffix.size());
+    }
+  }
+  name += ".recovered.bag";
+  if (!directory.empty()) return (fs::path(directory) / name).string();
+  const fs::path beside = fs::absolute(original).parent_path();
+  if (access(beside.c_str(), W_OK) == 0) return (beside / name).string();
+  return (fs::temp_directory_path() / name).string();
+}
+
+std::string describeTopics(const std::map<std::string, std::uint64_t>& topics) {
+  if (topics.empty()) return "no messages at all";
+  std::ostringstream out;
+  bool first = true;
+  for (const auto& [topic, count] : topics) {
+    out << (first ? "" : ", ") << topic << " (" << count << ")";
+    first = false;
+  }
+  return out.str();
+}
+
+std::string join(const std::vector<std::string>& items) {
+  std::string text;
+  for (const std::string& item : items) text += (text.empty() ? "" : " ") + item;
+  return text;
+}
+
+// Deserializes one message of an input topic (a structural error in its bytes throws).
+void verify(const rosbag::MessageInstance& message) {
+  const std::string& type = message.getDataType();
+  if (type == "vrm_msgs/EyeState") {
+    message.instantiate<vrm_msgs::EyeState>();
+  } else if (type == "vrm_msgs/InstrumentState") {
+    message.instantiate<vrm_msgs::InstrumentState>();
+  } else if (type == "vrm_msgs/PedalState") {
+    message.instantiate<vrm_msgs::PedalState>();
+  } else if (type == "vrm_msgs/ScenarioCommand") {
+    message.instantiate<vrm_msgs::ScenarioCommand>();
+  } else if (type == "vrm_msgs/SessionInfo") {
+    message.instantiate<vrm_msgs::SessionInfo>();
+  }
+}
+
+}  // namespace
+
+const std::vector<std::string>& inputTopics() {
+  static const std::vector<std::string> topics = {"/eye_state", "/instrument_state", "/pedals", "/scenario_command"};
+  return topics;
+}
+
+const std::vector<std::string>& sessionTopics() {
+  static const std::vector<std::string> topics = [] {
+    std::vector<std::string> all = inputTopics();
+    all.push_back("/microscope");
+    all.push_back("/session_info");
+    return all;
+  }();
+  return topics;
+}
+
+std::string softwareVersion() { return VRM_SIM_VERSION; }
+
+std::optional<std::uint64_t> firstBrokenRecord(const std::string& path) {
+  const std::vector<std::uint8_t> bytes = readFile(path);
+  if (bytes.size() < kMagicLength || std::memcmp(bytes.data(), kMagic, kMagicLength) != 0) return 0;
+  std::uint64_t at = kMagicLength;
+  while (at < bytes.size()) {
+    const std::optional<Record> record = readRecord(bytes, at, bytes.size());
+    if (!record || !record->data_complete) return at;
+    if (record->op == kOpChunk) {
+      const auto compression = record->header.find("compression");
+      if (compression != record->header.end() && compression->second == "none") {
+        Scan scan;
+        const std::uint64_t end = record->data_offset + record->data_length;
+        const std::uint64_t scanned = scanChunk(bytes, record->data_offset, end, scan);
+        if (scanned != end) return scanned;
+      }
+    }
+    at = record->data_offset + record->data_length;
+  }
+  return std::nullopt;
+}
+
+RecoveryReport recoverBag(const std::string& broken, const std::string& copy) {
+  const std::vector<std::uint8_t> bytes = readFile(broken);
+  if (bytes.size() < kMagicLength || std::memcmp(bytes.data(), kMagic, kMagicLength) != 0) {
+    throw BagError(broken + ": not a ROS bag (no '#ROSBAG V2.0' header)");
+  }
+  Scan scan = scanBag(bytes);
+  RecoveryReport report;
+  report.file_size = bytes.size();
+  report.end_offset = scan.end_offset;
+  report.lost_compressed_chunks = scan.lost_compressed_chunks;
+  report.stop_reason = scan.stop_reason;
+  // Bag time order, as rosbag plays (records of one chunk are in write order already; chunks may interleave).
+  std::stable_sort(scan.messages.begin(), scan.messages.end(),
+                   [](const RawMessage& a, const RawMessage& b) { return a.time < b.time; });
+  rosbag::Bag out;
+  try {
+    out.open(copy, rosbag::bagmode::Write);
+    for (const RawMessage& raw : scan.messages) {
+      const auto connection = scan.connections.find(raw.connection);
+      if (connection == scan.connections.end() || raw.time.isZero()) continue;
+      const ros::M_string& header = *connection->second.header;
+      auto field = [&header](const char* name) {
+        const auto found = header.find(name);
+        return found == header.end() ? std::string() : found->second;
+      };
+      topic_tools::ShapeShifter message;
+      message.morph(field("md5sum"), field("type"), field("message_definition"), field("latching"));
+      ros::serialization::IStream stream(const_cast<std::uint8_t*>(bytes.data() + raw.offset), raw.length);
+      message.read(stream);
+      out.write(connection->second.topic, raw.time, message, connection->second.header);
+      ++report.messages;
+    }
+    out.close();
+  } catch (const rosbag::BagException& error) {
+    throw BagError(broken + ": cannot write the recovered copy " + copy + ": " + error.what());
+  }
+  if (report.messages == 0) {
+    std::error_code ignored;
+    fs::remove(copy, ignored);
+    throw BagError(broken + ": nothing to recover (" + (scan.stop_reason.empty() ? "no messages" : scan.stop_reason) +
+                   ")");
+  }
+  ros::Time first, last;
+  bool any = false;
+  for (const RawMessage& raw : scan.messages) {
+    if (scan.connections.count(raw.connection) == 0 || raw.time.isZero()) continue;
+    if (!any) first = raw.time;
+    last = raw.time;
+    any = true;
+  }
+  report.seconds = (last - first).toSec();
+  return report;
+}
+
+PreparedBag prepareSessionBag(const std::string& path, const PrepareOptions& options) {
+  PreparedBag prepared;
+  prepared.original = path;
+  prepared.usable = path;
+  std::error_code error_code;
+  if (!fs::is_regular_file(path, error_code)) {
+    // A recorder still running or killed leaves <name>.bag.active.
+    if (fs::is_regular_file(path + ".active", error_code)) {
+      throw BagError(path + ": no such file, but " + path + ".active exists (an unfinished recording); replay that");
+    }
+    throw BagError(path + ": no such file");
+  }
+  rosbag::Bag bag;
+  bool needs_recovery = path.size() > 7 && path.compare(path.size() - 7, 7, ".active") == 0;
+  std::string open_error;
+  if (!needs_recovery) {
+    try {
+      bag.open(path, rosbag::bagmode::Read);
+    } catch (const rosbag::BagException& error) {
+      needs_recovery = true;
+      open_error = error.what();
+    }
+  }
+  if (needs_recovery) {
+    const std::string copy = recoveredCopyPath(path, options.recovery_dir);
+    try {
+      prepared.recovery = recoverBag(path, copy);
+    } catch (const BagError& error) {
+      throw BagError(std::string(error.what()) + (open_error.empty() ? "" : "; rosbag: " + open_error));
+    }
+    prepared.usable = copy;
+    try {
+      bag.open(copy, rosbag::bagmode::Read);
+    } catch (const rosbag::BagException& error) {
+      throw BagError(path + ": the recovered copy " + copy + " does not open: " + error.what());
+    }
+  }
+
+  rosbag::View view(bag);
+  std::uint64_t index = 0;
+  std::string last_topic;
+  ros::Time first, last;
+  try {
+    for (const rosbag::MessageInstance& message : view) {
+      last_topic = message.getTopic();
+      if (index == 0) first = message.getTime();
+      last = message.getTime();
+      ++prepared.topics[message.getTopic()];
+      if (options.verify_messages) verify(message);
+      if (message.getTopic() == "/session_info" && !prepared.session_info) {
+        if (auto info = message.instantiate<vrm_msgs::SessionInfo>()) prepared.session_info = *info;
+      }
+      ++index;
+    }
+  } catch (const std::exception& error) {
+    std::string where = "after " + std::to_string(index) + " intact messages";
+    if (index > 0) {
+      char seconds[32];
+      std::snprintf(seconds, sizeof(seconds), "%.3f", (last - first).toSec());
+      where += " (the last on " + last_topic + " at +" + seconds + " s)";
+    }
+    std::string position;
+    try {
+      if (const auto broken = firstBrokenRecord(prepared.usable)) {
+        position = ", record structure broken at byte " + std::to_string(*broken);
+      }
+    } catch (const std::exception&) {
+    }
+    throw BagError(path + ": corrupt: " + error.what() + " " + where + position);
+  }
+  prepared.messages = index;
+  prepared.seconds = index > 0 ? (last - first).toSec() : 0.0;
+  const bool has_input = std::any_of(inputTopics().begin(), inputTopics().end(),
+                                     [&](const std::string& topic) { return prepared.topics.count(topic) > 0; });
+  if (!has_input) {
+    throw BagError(path + ": none of the simulator's input topics (expected " + join(inputTopics()) +
+                   "); the bag has " + describeTopics(prepared.topics));
+  }
+  return prepared;
+}
+
+}  // namespace bag
+}  // namespace vrm_sim

@@ -1,0 +1,139 @@
+#include "vrm_sim/bag/session_replay.h"
+
+#include <rosbag/bag.h>
+#include <rosbag/view.h>
+
+#include <chrono>
+#include <filesystem>
+#include <sstream>
+
+#include "vrm_msgs/EyeState.h"
+#include "vrm_msgs/InstrumentState.h"
+#include "vrm_msgs/PedalState.h"
+#include "vrm_msgs/ScenarioCommand.h"
+#include "vrm_sim/conversions.h"
+#include "vrm_sim/scene/scene_loader.h"
+#include "vrm_sim/world/offline.h"
+#include "vrm_sim/world/session.h"
+
+namespace vrm_sim {
+namespace bag {
+
+namespace {
+
+// "0.1.0" of "vrm_sim 0.1.0": what a version comparison looks at.
+std::string versionNumber(const std::string& version) {
+  const auto space = version.rfind(' ');
+  return space == std::string::npos ? version : version.substr(space + 1);
+}
+
+}  // namespace
+
+SessionSetup resolveSession(const PreparedBag& bag, const std::string& scene_override) {
+  SessionSetup setup;
+  if (!bag.session_info) {
+    if (scene_override.empty()) {
+      throw BagError(bag.original + ": no /session_info (which scene was this?); give the scene (--scene / scene:=)");
+    }
+    setup.warnings.push_back("no /session_info in the bag: scene '" + scene_override +
+                             "' as given, default difficulty, the scenario starting with the first input");
+    setup.scene = setup.scene_name = scene_override;
+    return setup;
+  }
+  const vrm_msgs::SessionInfo& info = *bag.session_info;
+  setup.scene_name = info.scene;
+  setup.difficulty = info.difficulty;
+  setup.collision_detector = info.collision_detector;
+  setup.auto_start = info.auto_start;
+  setup.seed = info.seed;
+  std::error_code error;
+  setup.scene = !info.scene_file.empty() && std::filesystem::is_regular_file(info.scene_file, error) ? info.scene_file
+                                                                                                     : info.scene;
+  if (!scene_override.empty() && scene_override != info.scene && scene_override != info.scene_file) {
+    setup.warnings.push_back("the bag was recorded with scene '" + info.scene + "'; replaying it with scene '" +
+                             scene_override + "' as asked (the state will differ from the recording)");
+    setup.scene = setup.scene_name = scene_override;
+  }
+  if (versionNumber(info.software_version) != versionNumber(softwareVersion())) {
+    setup.warnings.push_back(
+        "the bag was recorded by " +
+        (info.software_version.empty() ? std::string("an unknown version") : "'" + info.software_version + "'") +
+        ", this is '" + softwareVersion() + "': the replay may not reproduce its state");
+  }
+  return setup;
+}
+
+ReplayResult replaySession(const PreparedBag& prepared, const SessionSetup& setup) {
+  const auto wall_start = std::chrono::steady_clock::now();
+  world::WorldOptions options;
+  options.detector_override = setup.collision_detector;
+  options.auto_start = setup.auto_start;
+  options.log = [](world::Severity, const std::string&) {};  // the counts are in the result
+  world::Session session(world::Session::loadByName(setup.scene, setup.difficulty), options);
+
+  ReplayResult result;
+  result.setup = setup;
+  rosbag::Bag bag(prepared.usable, rosbag::bagmode::Read);
+  rosbag::View view(bag, rosbag::TopicQuery(inputTopics()));
+  std::optional<world::Stamp> first, last;
+  auto note = [&](world::Stamp stamp) {
+    if (!first || stamp < *first) first = stamp;
+    if (!last || stamp > *last) last = stamp;
+  };
+  for (const rosbag::MessageInstance& message : view) {
+    ++result.inputs;
+    if (auto eye = message.instantiate<vrm_msgs::EyeState>()) {
+      note(toStamp(eye->header.stamp));
+      session.handle(toWorld(*eye));
+    } else if (auto instrument = message.instantiate<vrm_msgs::InstrumentState>()) {
+      note(toStamp(instrument->header.stamp));
+      session.handle(toWorld(*instrument));
+    } else if (auto pedals = message.instantiate<vrm_msgs::PedalState>()) {
+      session.handle(toWorld(*pedals));
+    } else if (auto command = message.instantiate<vrm_msgs::ScenarioCommand>()) {
+      if (auto converted = toWorld(*command)) session.handle(*converted);
+    }
+  }
+  session.flush();
+  const world::World& world = session.world();
+  result.frames = world.statistics().frames;
+  result.simulated_frames = world.statistics().simulated_frames;
+  result.late_inputs = world.statistics().late_inputs;
+  result.rejected_inputs = world.statistics().rejected_inputs;
+  result.final_state_hash = world.stateHash();
+  if (const scenario::Status* status = world.scenarioStatus()) {
+    result.score_total = status->score.total;
+    result.scenario_state = scenario::toString(status->state);
+    result.setup.difficulty = status->difficulty;  // the level in effect (the recorded "" is the default)
+  }
+  result.input_seconds = first ? world::toSeconds(*last - *first) : 0.0;
+  result.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
+  result.speedup = result.wall_seconds > 0.0 ? result.input_seconds / result.wall_seconds : 0.0;
+  return result;
+}
+
+std::string ReplayResult::json(const PreparedBag& bag) const {
+  std::ostringstream out;
+  out.precision(15);
+  const auto quoted = world::jsonString;
+  out << "{\"bag\": " << quoted(bag.original) << ", \"replayed\": " << quoted(bag.usable)
+      << ", \"scene\": " << quoted(setup.scene_name) << ", \"difficulty\": " << quoted(setup.difficulty)
+      << ", \"seed\": " << setup.seed << ", \"frames\": " << frames << ", \"simulated_frames\": " << simulated_frames
+      << ", \"final_state_hash\": \"" << world::hashString(final_state_hash) << "\", \"score_total\": ";
+  if (score_total) {
+    out << *score_total;
+  } else {
+    out << "null";
+  }
+  out << ", \"state\": " << (scenario_state.empty() ? "null" : quoted(scenario_state)) << ", \"inputs\": " << inputs
+      << ", \"late_inputs\": " << late_inputs << ", \"rejected_inputs\": " << rejected_inputs
+      << ", \"input_seconds\": " << input_seconds << ", \"wall_seconds\": " << wall_seconds
+      << ", \"speedup\": " << speedup << ", \"recovered_messages\": " << (bag.recovery ? bag.recovery->messages : 0)
+      << ", \"recovered_seconds\": " << (bag.recovery ? bag.recovery->seconds : 0.0) << ", \"warnings\": [";
+  for (std::size_t i = 0; i < setup.warnings.size(); ++i) out << (i ? ", " : "") << quoted(setup.warnings[i]);
+  out << "]}";
+  return out.str();
+}
+
+}  // namespace bag
+}  // namespace vrm_sim

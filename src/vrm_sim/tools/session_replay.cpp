@@ -1,0 +1,118 @@
+// session_replay: replays a recorded session headless, without a ROS master (thesis §2.4.2: a session is its
+// recorded inputs), through the simulation core the scenario_manager nodelet wraps, as fast as the CPU allows, and
+// prints one JSON line (session_replay.h: frames, final_state_hash, score_total, wall_seconds, speedup,
+// recovered_messages, recovered_seconds, ...). The scene, difficulty, collision detector and start mode come from
+// the bag's session_info unless --scene overrides the scene. Unfinished (.active) or cut-off bags are recovered into
+// a copy first; the original is never modified.
+//
+// Usage: rosrun vrm_sim session_replay --bag FILE [--scene NAME_OR_PATH]
+//        rosrun vrm_sim session_replay --bag FILE [--scene NAME_OR_PATH] --prepare
+//            checks (and if needed recovers) the bag and prints the path to play (replay.launch runs this before it
+//            starts anything, so a bag it cannot use stops the launch with the reason)
+//        rosrun vrm_sim session_replay --bag FILE [--scene NAME_OR_PATH] --print scene|difficulty|collision_detector|
+//            auto_start|seed      one value of the session's set-up (replay.launch's node parameters)
+// Exit status: 0 success (also after a recovery), 1 a bag or scene it cannot use (reason on stderr), 2 usage.
+#include "vrm_sim/bag/session_replay.h"
+
+#include <cstdio>
+#include <exception>
+#include <string>
+
+#include "vrm_sim/bag/session_bag.h"
+#include "vrm_sim/scene/scene_loader.h"
+
+namespace {
+
+int usage(const std::string& problem) {
+  std::fprintf(stderr,
+               "session_replay: %s\nusage: session_replay --bag FILE [--scene NAME_OR_PATH] "
+               "[--prepare | --print scene|difficulty|collision_detector|auto_start|seed]\n",
+               problem.c_str());
+  return 2;
+}
+
+void reportRecovery(const vrm_sim::bag::PreparedBag& bag) {
+  if (!bag.recovery) return;
+  const vrm_sim::bag::RecoveryReport& recovery = *bag.recovery;
+  std::fprintf(stderr,
+               "session_replay: %s was not closed properly (no index); recovered %llu messages, %.2f s, into %s "
+               "(intact up to byte %llu of %llu%s%s)\n",
+               bag.original.c_str(), static_cast<unsigned long long>(recovery.messages), recovery.seconds,
+               bag.usable.c_str(), static_cast<unsigned long long>(recovery.end_offset),
+               static_cast<unsigned long long>(recovery.file_size), recovery.stop_reason.empty() ? "" : "; ",
+               recovery.stop_reason.c_str());
+  if (recovery.lost_compressed_chunks > 0) {
+    std::fprintf(stderr, "session_replay: %llu compressed chunks could not be recovered\n",
+                 static_cast<unsigned long long>(recovery.lost_compressed_chunks));
+  }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string bag_path, scene, print;
+  bool prepare_only = false;
+  for (int i = 1; i < argc; ++i) {
+    const std::string flag = argv[i];
+    if (flag == "-h" || flag == "--help") return usage("help");
+    if (flag == "--prepare") {
+      prepare_only = true;
+      continue;
+    }
+    if (i + 1 >= argc) return usage("missing value after " + flag);
+    const std::string value = argv[++i];
+    if (flag == "--bag") {
+      bag_path = value;
+    } else if (flag == "--scene") {
+      scene = value;
+    } else if (flag == "--print") {
+      if (value != "scene" && value != "difficulty" && value != "collision_detector" && value != "auto_start" &&
+          value != "seed") {
+        return usage("--print takes scene, difficulty, collision_detector, auto_start or seed");
+      }
+      print = value;
+    } else {
+      return usage("unknown option " + flag);
+    }
+  }
+  if (bag_path.empty()) return usage("--bag is required");
+  if (prepare_only && !print.empty()) return usage("--prepare and --print exclude each other");
+  try {
+    vrm_sim::bag::PrepareOptions options;
+    options.verify_messages = print.empty();  // --print follows a --prepare that verified already
+    const vrm_sim::bag::PreparedBag bag = vrm_sim::bag::prepareSessionBag(bag_path, options);
+    if (!print.empty()) {
+      const vrm_sim::bag::SessionSetup setup = vrm_sim::bag::resolveSession(bag, scene);
+      if (print == "scene") std::printf("%s", setup.scene.c_str());
+      if (print == "difficulty") std::printf("%s", setup.difficulty.c_str());
+      if (print == "collision_detector") std::printf("%s", setup.collision_detector.c_str());
+      if (print == "auto_start") std::printf("%s", setup.auto_start ? "true" : "false");
+      if (print == "seed") std::printf("%u", setup.seed);
+      return 0;
+    }
+    reportRecovery(bag);
+    const vrm_sim::bag::SessionSetup setup = vrm_sim::bag::resolveSession(bag, scene);
+    for (const std::string& warning : setup.warnings) {
+      std::fprintf(stderr, "session_replay: warning: %s: %s\n", bag_path.c_str(), warning.c_str());
+    }
+    if (prepare_only) {
+      std::fprintf(stderr, "session_replay: %s: %llu messages, %.2f s, scene '%s'%s\n", bag_path.c_str(),
+                   static_cast<unsigned long long>(bag.messages), bag.seconds, setup.scene_name.c_str(),
+                   setup.difficulty.empty() ? "" : (" (" + setup.difficulty + ")").c_str());
+      std::printf("%s", bag.usable.c_str());
+      return 0;
+    }
+    const vrm_sim::bag::ReplayResult result = vrm_sim::bag::replaySession(bag, setup);
+    std::printf("%s\n", result.json(bag).c_str());
+    return 0;
+  } catch (const vrm_sim::bag::BagError& error) {
+    std::fprintf(stderr, "session_replay: %s\n", error.what());
+    return 1;
+  } catch (const vrm_sim::scene::SceneError& error) {
+    std::fprintf(stderr, "session_replay: %s: %s\n", bag_path.c_str(), error.what());
+    return 1;
+  } catch (const std::exception& error) {
+    std::fprintf(stderr, "session_replay: %s: %s\n", bag_path.c_str(), error.what());
+    return 1;
+  }
+}
