@@ -351,12 +351,12 @@ PreparedBag prepareSessionBag(const std::string& path, const PrepareOptions& opt
     }
     throw BagError(path + ": no such file");
   }
-  rosbag::Bag bag;
   bool needs_recovery = path.size() > 7 && path.compare(path.size() - 7, 7, ".active") == 0;
   std::string open_error;
   if (!needs_recovery) {
+    rosbag::Bag probe;  // a Bag whose open() threw stays unusable
     try {
-      bag.open(path, rosbag::bagmode::Read);
+      probe.open(path, rosbag::bagmode::Read);
     } catch (const rosbag::BagException& error) {
       needs_recovery = true;
       open_error = error.what();
@@ -370,11 +370,13 @@ PreparedBag prepareSessionBag(const std::string& path, const PrepareOptions& opt
       throw BagError(std::string(error.what()) + (open_error.empty() ? "" : "; rosbag: " + open_error));
     }
     prepared.usable = copy;
-    try {
-      bag.open(copy, rosbag::bagmode::Read);
-    } catch (const rosbag::BagException& error) {
-      throw BagError(path + ": the recovered copy " + copy + " does not open: " + error.what());
-    }
+  }
+  rosbag::Bag bag;
+  try {
+    bag.open(prepared.usable, rosbag::bagmode::Read);
+  } catch (const rosbag::BagException& error) {
+    throw BagError(path + ": " + (prepared.recovery ? "the recovered copy " + prepared.usable + " " : std::string()) +
+                   "does not open: " + error.what());
   }
 
   rosbag::View view(bag);

@@ -1,0 +1,253 @@
+// Session bags as users hand them over (issue 12): every committed reference bag replays to its expected final state
+// and score (scripts/update_reference_bags.sh regenerates them when a change is meant to change a session), and bags
+// that are unfinished, cut off, corrupt, foreign or from another scene give a clear answer — recovered, refused with
+// the reason, or warned about — without a crash or a hang, and without touching the original.
+#include <gtest/gtest.h>
+#include <rosbag/bag.h>
+#include <rosbag/view.h>
+#include <std_msgs/String.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <regex>
+#include <string>
+
+#include "vrm_msgs/EyeState.h"
+#include "vrm_msgs/InstrumentState.h"
+#include "vrm_msgs/SessionInfo.h"
+#include "vrm_sim/bag/session_bag.h"
+#include "vrm_sim/bag/session_replay.h"
+#include "vrm_sim/world/offline.h"
+
+namespace vrm_sim {
+namespace bag {
+namespace {
+
+namespace fs = std::filesystem;
+
+const fs::path kBags = fs::path(VRM_SIM_SOURCE_DIR) / "test" / "bags";
+
+std::string readText(const fs::path& path) {
+  std::ifstream file(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(file), {});
+}
+
+// The value of "key" in a flat JSON object (string or number, as written).
+std::string jsonField(const std::string& json, const std::string& key) {
+  const std::regex pattern("\"" + key + "\": *(\"[^\"]*\"|[^,}\\s]+)");
+  std::smatch match;
+  if (!std::regex_search(json, match, pattern)) return "";
+  std::string value = match[1];
+  if (value.size() >= 2 && value.front() == '"') value = value.substr(1, value.size() - 2);
+  return value;
+}
+
+struct Process {
+  int status = -1;
+  std::string out, err;
+};
+Process run(const std::string& arguments) {
+  const fs::path err_file = fs::temp_directory_path() / ("vrm_session_bags_err_" + std::to_string(getpid()));
+  Process process;
+  FILE* pipe =
+      popen((std::string(VRM_SESSION_REPLAY_BINARY) + " " + arguments + " 2>" + err_file.string()).c_str(), "r");
+  if (pipe == nullptr) return process;
+  char buffer[4096];
+  while (std::fgets(buffer, sizeof(buffer), pipe) != nullptr) process.out += buffer;
+  const int status = pclose(pipe);
+  process.status = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  process.err = readText(err_file);
+  fs::remove(err_file);
+  return process;
+}
+
+class WorkFolder : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    work_ = fs::temp_directory_path() / ("vrm_session_bags_" + std::to_string(getpid()) + "_" +
+                                         ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(work_);
+    fs::create_directories(work_);
+  }
+  void TearDown() override { fs::remove_all(work_); }
+  fs::path work_;
+};
+
+// ---- every bag a regression test ----
+
+class ReferenceBag : public ::testing::TestWithParam<std::string> {};
+
+TEST_P(ReferenceBag, ReplaysToTheExpectedFinalStateAndScore) {
+  const fs::path bag = kBags / (GetParam() + ".bag");
+  const std::string expected = readText(kBags / (GetParam() + ".expected.json"));
+  ASSERT_FALSE(expected.empty()) << "no " << GetParam() << ".expected.json (scripts/update_reference_bags.sh)";
+  const PreparedBag prepared = prepareSessionBag(bag.string());
+  const ReplayResult result = replaySession(prepared, resolveSession(prepared));
+  const std::string why = " (if the change is intended: scripts/update_reference_bags.sh)";
+  EXPECT_EQ(world::hashString(result.final_state_hash), jsonField(expected, "final_state_hash")) << why;
+  ASSERT_TRUE(result.score_total.has_value());
+  EXPECT_NEAR(*result.score_total, std::stod(jsonField(expected, "score_total")), 1e-9) << why;
+  EXPECT_EQ(result.scenario_state, jsonField(expected, "state")) << why;
+  EXPECT_EQ(std::to_string(result.simulated_frames), jsonField(expected, "simulated_frames")) << why;
+  EXPECT_EQ(result.late_inputs, 0u);
+  // And the live session that recorded the bag ended in that state, too (its result file beside the bag).
+  const std::string live = readText(kBags / (GetParam() + ".result.json"));
+  if (!live.empty() && jsonField(live, "software_version") == softwareVersion()) {
+    EXPECT_EQ(jsonField(live, "final_state_hash"), jsonField(expected, "final_state_hash"))
+        << "the expected values no longer match the recording's live session";
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Committed, ReferenceBag,
+                         ::testing::Values("navigation_expert", "membrane_peeling_novice", "vitrectomy_expert"));
+
+TEST(SessionReplayTool, PrintsOneJsonLineWithTheFieldsOtherToolsReadAndExitsZero) {
+  const Process process = run("--bag " + (kBags / "vitrectomy_expert.bag").string());
+  ASSERT_EQ(process.status, 0) << process.err;
+  EXPECT_EQ(std::count(process.out.begin(), process.out.end(), '\n'), 1) << process.out;
+  for (const char* key : {"frames", "final_state_hash", "score_total", "wall_seconds", "speedup", "recovered_messages",
+                          "recovered_seconds"}) {
+    EXPECT_FALSE(jsonField(process.out, key).empty()) << key << " missing in " << process.out;
+  }
+  EXPECT_GT(std::stod(jsonField(process.out, "speedup")), 1.0) << "offline replay runs faster than real time";
+  EXPECT_EQ(run("--scene vitrectomy").status, 2) << "usage: no --bag";
+  EXPECT_EQ(run("--bag").status, 2);
+}
+
+// ---- robust bag handling ----
+
+TEST_F(WorkFolder, ABagFromAnotherRobotIsRefusedNamingTheExpectedAndThePresentTopics) {
+  const fs::path foreign = work_ / "turtle.bag";
+  {
+    rosbag::Bag bag(foreign.string(), rosbag::bagmode::Write);
+    std_msgs::String message;
+    message.data = "hello";
+    for (int i = 0; i < 5; ++i) bag.write("/chatter", ros::Time(100 + i), message);
+  }
+  try {
+    prepareSessionBag(foreign.string());
+    FAIL() << "a bag without input topics was accepted";
+  } catch (const BagError& error) {
+    const std::string what = error.what();
+    EXPECT_NE(what.find("/eye_state"), std::string::npos) << what;
+    EXPECT_NE(what.find("/instrument_state"), std::string::npos) << what;
+    EXPECT_NE(what.find("/chatter (5)"), std::string::npos) << what;
+  }
+  const Process process = run("--bag " + foreign.string());
+  EXPECT_EQ(process.status, 1);
+  EXPECT_NE(process.err.find("/chatter (5)"), std::string::npos) << process.err;
+  EXPECT_EQ(run("--bag " + (work_ / "missing.bag").string()).status, 1);
+}
+
+TEST_F(WorkFolder, AGarbageFileIsNotABag) {
+  const fs::path garbage = work_ / "garbage.bag";
+  std::ofstream(garbage) << "this is a text file, not a recording\n";
+  const Process process = run("--bag " + garbage.string());
+  EXPECT_EQ(process.status, 1);
+  EXPECT_NE(process.err.find("not a ROS bag"), std::string::npos) << process.err;
+}
+
+// A recorder killed mid-session (SIGKILL: nothing closed, stdio buffers lost): written in a child process that
+// exits without closing the bag, exactly as rosbag record leaves <name>.bag.active.
+TEST_F(WorkFolder, AnUnfinishedBagIsRecoveredIntoACopyAndTheOriginalIsLeftAlone) {
+  const fs::path active = work_ / "killed.bag.active";
+  const PreparedBag reference = prepareSessionBag((kBags / "membrane_peeling_novice.bag").string());
+  const pid_t child = fork();
+  ASSERT_GE(child, 0);
+  if (child == 0) {
+    rosbag::Bag source(reference.usable, rosbag::bagmode::Read);
+    rosbag::Bag out(active.string(), rosbag::bagmode::Write);
+    rosbag::View view(source);
+    for (const rosbag::MessageInstance& message : view) out.write(message.getTopic(), message.getTime(), message);
+    _exit(0);  // no close: no index, the last chunk open
+  }
+  int status = 0;
+  waitpid(child, &status, 0);
+  ASSERT_TRUE(fs::exists(active));
+  const std::string original_bytes = readText(active);
+  {
+    rosbag::Bag bag;
+    EXPECT_THROW(bag.open(active.string(), rosbag::bagmode::Read), rosbag::BagException) << "it really is unindexed";
+  }
+  const PreparedBag prepared = prepareSessionBag(active.string());
+  ASSERT_TRUE(prepared.recovery.has_value());
+  EXPECT_NE(prepared.usable, prepared.original);
+  EXPECT_EQ(readText(active), original_bytes) << "the original must not be modified";
+  EXPECT_GT(prepared.recovery->messages, reference.messages / 2);
+  EXPECT_LE(prepared.recovery->messages, reference.messages);
+  EXPECT_GT(prepared.recovery->seconds, 1.0);
+  // The tool replays what was recovered, says so, and exits 0.
+  const Process process = run("--bag " + active.string());
+  EXPECT_EQ(process.status, 0) << process.err;
+  EXPECT_NE(process.err.find("recovered"), std::string::npos) << process.err;
+  EXPECT_EQ(jsonField(process.out, "recovered_messages"), std::to_string(prepared.recovery->messages));
+  EXPECT_GT(std::stoi(jsonField(process.out, "simulated_frames")), 0);
+}
+
+TEST_F(WorkFolder, ABagCutOffInTheMiddleReplaysItsIntactPart) {
+  const std::string bytes = readText(kBags / "navigation_expert.bag");
+  const fs::path cut = work_ / "cut.bag";
+  std::ofstream(cut, std::ios::binary) << bytes.substr(0, bytes.size() * 6 / 10);
+  const PreparedBag prepared = prepareSessionBag(cut.string());
+  ASSERT_TRUE(prepared.recovery.has_value());
+  EXPECT_GT(prepared.recovery->messages, 100u);
+  EXPECT_LT(prepared.recovery->seconds, 7.0);
+  const ReplayResult result = replaySession(prepared, resolveSession(prepared));
+  EXPECT_GT(result.simulated_frames, 50u);
+  EXPECT_LT(result.simulated_frames, 350u);
+}
+
+TEST_F(WorkFolder, CorruptBytesInTheMiddleGiveAClearErrorWithThePosition) {
+  std::string bytes = readText(kBags / "vitrectomy_expert.bag");
+  const std::size_t middle = bytes.size() / 2;
+  for (std::size_t i = middle; i < middle + 4096 && i < bytes.size(); ++i) bytes[i] = '\xff';
+  const fs::path corrupt = work_ / "corrupt.bag";
+  std::ofstream(corrupt, std::ios::binary) << bytes;
+  const Process process = run("--bag " + corrupt.string());
+  EXPECT_EQ(process.status, 1) << process.out;
+  EXPECT_NE(process.err.find(corrupt.string()), std::string::npos) << process.err;
+  EXPECT_NE(process.err.find("corrupt"), std::string::npos) << process.err;
+  EXPECT_NE(process.err.find("byte"), std::string::npos) << process.err;
+  const auto broken = firstBrokenRecord(corrupt.string());
+  ASSERT_TRUE(broken.has_value());
+  EXPECT_LE(*broken, middle + 4096);
+  EXPECT_FALSE(firstBrokenRecord((kBags / "vitrectomy_expert.bag").string()).has_value());
+}
+
+TEST_F(WorkFolder, ABagOfAnotherSceneOrVersionIsReplayedWithItsOwnSceneAndAWarning) {
+  const PreparedBag reference = prepareSessionBag((kBags / "navigation_expert.bag").string());
+  const fs::path old_version = work_ / "old.bag";
+  {
+    rosbag::Bag source(reference.usable, rosbag::bagmode::Read);
+    rosbag::Bag out(old_version.string(), rosbag::bagmode::Write);
+    for (const rosbag::MessageInstance& message : rosbag::View(source)) {
+      if (auto info = message.instantiate<vrm_msgs::SessionInfo>()) {
+        info->software_version = "vrm_sim 0.0.9";
+        out.write(message.getTopic(), message.getTime(), *info);
+      } else {
+        out.write(message.getTopic(), message.getTime(), message);
+      }
+    }
+  }
+  const PreparedBag prepared = prepareSessionBag(old_version.string());
+  const SessionSetup setup = resolveSession(prepared);
+  EXPECT_EQ(setup.scene_name, "navigation") << "the bag's scene is used";
+  ASSERT_EQ(setup.warnings.size(), 1u);
+  EXPECT_NE(setup.warnings[0].find("0.0.9"), std::string::npos) << setup.warnings[0];
+  // The user overrides the scene: done, with a warning that the state will differ.
+  const SessionSetup overridden = resolveSession(prepared, "membrane_peeling");
+  EXPECT_EQ(overridden.scene, "membrane_peeling");
+  ASSERT_EQ(overridden.warnings.size(), 2u);
+  EXPECT_NE(overridden.warnings[0].find("recorded with scene 'navigation'"), std::string::npos);
+  const Process process = run("--bag " + old_version.string() + " --print scene");
+  EXPECT_EQ(process.status, 0);
+  EXPECT_NE(process.out.find("navigation"), std::string::npos) << process.out;
+}
+
+}  // namespace
+}  // namespace bag
+}  // namespace vrm_sim
