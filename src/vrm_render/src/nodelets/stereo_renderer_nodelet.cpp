@@ -1,23 +1,43 @@
 // Thin ROS wrapper of vrm_render::StereoRenderer (thesis §6, §7.4.2): collects the latest scene meshes, eye and
-// instrument poses and microscope knobs, renders when an input changed (at most `rate` Hz) and publishes left/right
-// rgb8 images with CameraInfo. Stamps are the newest input stamp the frame reflects; nothing reads a clock for them.
+// instrument poses and microscope knobs, renders a stereo frame and publishes left/right rgb8 images with CameraInfo.
+// Stamps are the input stamp the frame reflects; nothing reads a clock for them.
+//
+// When a frame starts (~trigger, the synchronisation patterns of thesis §2.5.2, Fig. 2.6; issue 12):
+//   simulation (default; sequential, eq. 2.3) — when the simulation finished the frame of a new input stamp S
+//     (simulation_state), drawn with the poses of S: instruments and the tissue they deform belong to one input.
+//     Without a running simulation (no simulation_state for ~simulation_timeout s) the poses trigger, as in `input`.
+//   input (pipelined / interleaved, eq. 2.7) — as soon as every pose source delivered stamp S, drawn with the newest
+//     tissue (the simulation of S runs meanwhile, so the tissue is one input tick older than the instruments).
+//   timer (parallel asynchronous, eq. 2.4; the behaviour before issue 12) — on a ~rate Hz timer when an input
+//     changed, with the newest inputs.
+// Frames are rendered on the nodelet's own thread, always from the newest inputs: while a frame renders, newer
+// triggers replace the pending one (no queue grows when rendering is slow); each replaced trigger counts as dropped.
+// ~max_rate (event triggers, Hz, 0 = none) bounds the frame rate. ~max_input_age (event triggers, s, default 0.005):
+// a trigger that waited longer than this for the previous frame is skipped when the next input is due within the
+// tick, so frames start when their input arrives (latency before frame rate, eq. 2.5). Only images that are watched
+// (a subscriber on stereo/*/image_raw) or a snapshot due cause a frame: a headless session keeps its cores for
+// tracking and simulation.
 //
 // Subscribes (node handle namespace): meshes/<object> (vrm_msgs/TissueMesh, latched, one per scene object; for
-// deformable objects, and the retina of a scene that simulates bleeding, also tissue/<object> from tissue_sim),
-//   eye_state, instrument_state (pose, instrument type: the drawn mesh switches; forceps jaw angle: the jaws open),
-//   microscope, and with ~ghost_instruments the replayed instructor's instruments on ~ghost_topic (default
-//   ghost/instrument_state), drawn translucent.
+//   deformable objects, and the retina of a scene that simulates bleeding, also tissue/<object> from the simulation),
+//   simulation_state (frame done), eye_state, instrument_state (pose, instrument type: the drawn mesh switches;
+//   forceps jaw angle: the jaws open), microscope, and with ~ghost_instruments the replayed instructor's instruments
+//   on ~ghost_topic (default ghost/instrument_state), drawn translucent.
 // Publishes: stereo/left/image_raw + camera_info, stereo/right/image_raw + camera_info (image_transport; frame ids
-//   <camera_frame>_left_optical / _right_optical), render_timing (vrm_msgs/StageTiming), and on tf with each frame's
-//   stamp: world -> <camera_frame> (the objective; REP-103 body axes: x along the optical axis, z up) ->
+//   <camera_frame>_left_optical / _right_optical); render_timing (vrm_msgs/StageTiming: render_<pass>, render,
+//   image_published, and simulation_input = the input stamp of the simulation frame shown, as start = end);
+//   /diagnostics (frames, dropped, fps; wall-clock period); and on tf with each frame's stamp: world ->
+//   <camera_frame> (the objective; REP-103 body axes: x along the optical axis, z up) ->
 //   <camera_frame>_{left,right}_optical (REP-103 optical: z forward, x right, y down). Default camera_frame:
 //   microscope.
 // Service: ~save_snapshot (std_srvs/Trigger): writes the last rendered frame (left, right) as PNGs into
 //   ~snapshot_dir (/tmp when empty) and returns the path prefix.
 
 #include <cv_bridge/cv_bridge.h>
+#include <diagnostic_msgs/DiagnosticArray.h>
 #include <image_transport/image_transport.h>
 #include <nodelet/nodelet.h>
+#include <pthread.h>
 #include <ros/ros.h>
 #include <sensor_msgs/CameraInfo.h>
 #include <sensor_msgs/Image.h>
@@ -26,18 +46,25 @@
 #include <vrm_msgs/EyeState.h>
 #include <vrm_msgs/InstrumentState.h>
 #include <vrm_msgs/MicroscopeSettings.h>
+#include <vrm_msgs/SimulationState.h>
 #include <vrm_msgs/StageTiming.h>
 #include <vrm_msgs/TissueMesh.h>
 #include <vrm_msgs/publish.h>
 
 #include <algorithm>
+#include <atomic>
 #include <boost/make_shared.hpp>
+#include <chrono>
+#include <condition_variable>
 #include <cstdio>
+#include <deque>
 #include <filesystem>
 #include <map>
 #include <mutex>
 #include <pluginlib/class_list_macros.hpp>
 #include <sstream>
+#include <stdexcept>
+#include <thread>
 
 #include "vrm_render/image_io.h"
 #include "vrm_render/scene_setup.h"
@@ -106,10 +133,50 @@ MeshView toMeshView(const vrm_msgs::TissueMesh& msg) {
   return view;
 }
 
+enum class Trigger { kSimulation, kInput, kTimer };
+
+Trigger parseTrigger(const std::string& name) {
+  if (name == "simulation") return Trigger::kSimulation;
+  if (name == "input") return Trigger::kInput;
+  if (name == "timer") return Trigger::kTimer;
+  throw std::invalid_argument("trigger '" + name + "' (expected simulation, input or timer)");
+}
+
+// Ticks of input history kept per source, so a frame can show the inputs of its own stamp although newer ones
+// arrived while the simulation computed it (8 ticks = 160 ms at 50 Hz).
+constexpr std::size_t kHistory = 8;
+// A pose source silent for this long no longer holds back a tick (an instrument taken out of the tracked volume).
+const ros::Duration kStaleSource(0.1);
+
+template <class M>
+void remember(std::deque<boost::shared_ptr<const M>>* history, const boost::shared_ptr<const M>& message) {
+  if (!history->empty() && message->header.stamp < history->back()->header.stamp) return;  // late: never shown
+  history->push_back(message);
+  while (history->size() > kHistory) history->pop_front();
+}
+
+// The newest message stamped no later than `limit` (else the oldest kept).
+template <class M>
+boost::shared_ptr<const M> newestUpTo(const std::deque<boost::shared_ptr<const M>>& history, const ros::Time& limit) {
+  for (auto it = history.rbegin(); it != history.rend(); ++it) {
+    if ((*it)->header.stamp <= limit) return *it;
+  }
+  return history.empty() ? nullptr : history.front();
+}
+
 }  // namespace
 
 class StereoRendererNodelet : public nodelet::Nodelet {
  public:
+  ~StereoRendererNodelet() override {
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      stop_ = true;
+    }
+    wake_.notify_all();
+    if (thread_.joinable()) thread_.join();
+  }
+
   void onInit() override {
     ros::NodeHandle& nh = getNodeHandle();
     ros::NodeHandle& pnh = getPrivateNodeHandle();
@@ -127,6 +194,9 @@ class StereoRendererNodelet : public nodelet::Nodelet {
     // glFinish between passes: exact per-pass StageTiming, at the cost of some llvmpipe overlap (bench_render).
     pnh.param("time_passes", options.time_passes, options.time_passes);
     pnh.param("rate", rate_, 30.0);
+    pnh.param("max_rate", max_rate_, 0.0);
+    pnh.param("max_input_age", max_input_age_, 0.005);
+    pnh.param("simulation_timeout", simulation_timeout_, 0.5);
     pnh.param("snapshot_dir", snapshot_dir_, std::string());
     pnh.param("snapshot_count", snapshot_count_, 0);
     pnh.param("snapshot_every", snapshot_every_, 10);
@@ -143,8 +213,10 @@ class StereoRendererNodelet : public nodelet::Nodelet {
     // llvmpipe's per-draw buffers would otherwise cost ~3,000 page faults per frame (see retainFreedHeapMemory).
     if (pnh.param("retain_heap_memory", true)) retainFreedHeapMemory();
     const std::string scene_parameter = pnh.param<std::string>("scene", "membrane_peeling");
+    const std::string trigger_name = pnh.param<std::string>("trigger", "simulation");
 
     try {
+      trigger_ = parseTrigger(trigger_name);
       scene_ = vrm_sim::scene::loadScene(vrm_sim::scene::resolveScenePath(scene_parameter));
       renderer_ = std::make_unique<StereoRenderer>(options);
     } catch (const std::exception& error) {
@@ -156,8 +228,8 @@ class StereoRendererNodelet : public nodelet::Nodelet {
       mesh_subscribers_.push_back(nh.subscribe<vrm_msgs::TissueMesh>(
           "meshes/" + object.name, 2,
           boost::bind(&StereoRendererNodelet::onMesh, this, object.name, boost::placeholders::_1)));
-      // Deformable objects: the scene manager's latched rest shape first, then tissue_sim's deformed versions; the
-      // retina of a bleeding scene: tissue_sim's copy carries the injury field (bleeding colour, thesis §6).
+      // Deformable objects: the scene manager's latched rest shape first, then the simulation's deformed versions;
+      // the retina of a bleeding scene: the simulation's copy carries the injury field (bleeding colour, thesis §6).
       const bool bleeds = object.role == vrm_sim::scene::ObjectRole::kRetina &&
                           scene_.simulates(vrm_sim::scene::Simulation::kBleeding) &&
                           scene_.simulates(vrm_sim::scene::Simulation::kCollision);
@@ -173,8 +245,10 @@ class StereoRendererNodelet : public nodelet::Nodelet {
       // The instructor's instrument in the same slot, replayed (e.g. from a recorded session), translucent.
       if (ghost_instruments_) ghost_slots_[slot_name] = makeSlot(instrument, "ghost_" + slot_name, true);
     }
+    // Queues hold one tick of every source: the newest input wins (a slow frame must not make them grow).
     eye_sub_ = nh.subscribe("eye_state", 5, &StereoRendererNodelet::onEyeState, this);
     instrument_sub_ = nh.subscribe("instrument_state", 10, &StereoRendererNodelet::onInstrumentState, this);
+    simulation_sub_ = nh.subscribe("simulation_state", 5, &StereoRendererNodelet::onSimulationState, this);
     if (ghost_instruments_) {
       ghost_sub_ = nh.subscribe(ghost_topic_, 10, &StereoRendererNodelet::onGhostState, this);
     }
@@ -184,11 +258,17 @@ class StereoRendererNodelet : public nodelet::Nodelet {
     left_pub_ = it.advertiseCamera("stereo/left/image_raw", 1);
     if (options.stereo) right_pub_ = it.advertiseCamera("stereo/right/image_raw", 1);
     timing_pub_ = nh.advertise<vrm_msgs::StageTiming>("render_timing", 5);
+    diagnostics_pub_ = nh.advertise<diagnostic_msgs::DiagnosticArray>("/diagnostics", 5);
     snapshot_srv_ = pnh.advertiseService("save_snapshot", &StereoRendererNodelet::onSaveSnapshot, this);
-    timer_ = nh.createTimer(ros::Duration(1.0 / std::max(1.0, rate_)), &StereoRendererNodelet::onTimer, this);
-    NODELET_INFO("stereo_renderer: scene '%s', %dx%d %s, passes shadow=%d dof=%d, up to %.1f Hz", scene_.name.c_str(),
+    if (trigger_ == Trigger::kTimer) {
+      timer_ = nh.createTimer(ros::Duration(1.0 / std::max(1.0, rate_)), &StereoRendererNodelet::onTimer, this);
+    }
+    diagnostic_timer_ = nh.createWallTimer(ros::WallDuration(1.0), &StereoRendererNodelet::publishDiagnostics, this);
+    last_diagnostics_ = ros::WallTime::now();
+    thread_ = std::thread(&StereoRendererNodelet::renderLoop, this);
+    NODELET_INFO("stereo_renderer: scene '%s', %dx%d %s, passes shadow=%d dof=%d, frames %s", scene_.name.c_str(),
                  options.width, options.height, options.stereo ? "stereo" : "mono", options.shadow_pass,
-                 options.dof_pass, rate_);
+                 options.dof_pass, describeTrigger().c_str());
   }
 
  private:
@@ -196,11 +276,29 @@ class StereoRendererNodelet : public nodelet::Nodelet {
     vrm_sim::scene::InstrumentDescription description;  // as configured in the scene
     std::string object_id;
     bool ghost = false;
-    vrm_msgs::InstrumentState::ConstPtr state;  // newest input (guarded by mutex_)
+    std::deque<vrm_msgs::InstrumentState::ConstPtr> states;  // newest inputs (guarded by mutex_)
     // What the renderer shows (render thread): type and jaw step of the uploaded mesh.
     vrm_sim::scene::InstrumentType shown_type = vrm_sim::scene::InstrumentType::kLightPipe;
     int shown_jaw_deg = 0;
   };
+
+  std::string describeTrigger() const {
+    char text[160];
+    switch (trigger_) {
+      case Trigger::kSimulation:
+        std::snprintf(text, sizeof(text), "when the simulation finished an input frame (sequential)%s",
+                      max_rate_ > 0.0 ? ", rate-limited" : "");
+        break;
+      case Trigger::kInput:
+        std::snprintf(text, sizeof(text), "when a pose input arrives (pipelined)%s",
+                      max_rate_ > 0.0 ? ", rate-limited" : "");
+        break;
+      case Trigger::kTimer:
+        std::snprintf(text, sizeof(text), "on a %.1f Hz timer when an input changed (parallel asynchronous)", rate_);
+        break;
+    }
+    return text;
+  }
 
   Slot makeSlot(const vrm_sim::scene::InstrumentDescription& instrument, const std::string& id, bool ghost) {
     Slot slot;
@@ -226,10 +324,43 @@ class StereoRendererNodelet : public nodelet::Nodelet {
     slot->shown_jaw_deg = jaw;
   }
 
+  // --- inputs (manager threads; mutex_) ---
+
   void noteStamp(const ros::Time& stamp) {
     if (first_stamp_.isZero() && !stamp.isZero()) first_stamp_ = stamp;
     if (stamp > newest_stamp_) newest_stamp_ = stamp;
     dirty_ = true;
+  }
+
+  bool simulationRunning() const {
+    return !simulation_wall_.isZero() && (ros::WallTime::now() - simulation_wall_).toSec() < simulation_timeout_;
+  }
+
+  // A frame could start for input stamp `stamp`. A frame offered earlier and not yet started is superseded: the
+  // render thread always takes the newest, and the replaced one is counted as dropped (while somebody watches).
+  void offer(const ros::Time& stamp) {
+    if (stamp <= last_offered_) return;
+    last_offered_ = stamp;
+    ++offered_;
+    if (!pending_stamp_.isZero() && watched_) ++dropped_;
+    pending_stamp_ = stamp;
+    const ros::WallTime now = ros::WallTime::now();
+    const double interval = pending_wall_.isZero() ? 0.0 : (now - pending_wall_).toSec();
+    if (interval > 0.0 && interval < 0.5)
+      offer_interval_ = offer_interval_ > 0.0 ? 0.9 * offer_interval_ + 0.1 * interval : interval;
+    pending_wall_ = now;
+    if (trigger_ != Trigger::kTimer) wake_.notify_one();
+  }
+
+  // Pose tick complete: every live pose source (eye, each instrument slot) has delivered `stamp`.
+  void notePose(const std::string& source, const ros::Time& stamp) {
+    ros::Time& newest = pose_sources_[source];
+    if (stamp > newest) newest = stamp;
+    if (stamp <= last_offered_) return;
+    for (const auto& entry : pose_sources_) {
+      if (entry.second < stamp && entry.second + kStaleSource >= stamp) return;
+    }
+    if (trigger_ == Trigger::kInput || !simulationRunning()) offer(stamp);
   }
 
   void onMesh(const std::string& name, const vrm_msgs::TissueMesh::ConstPtr& mesh) {
@@ -244,28 +375,48 @@ class StereoRendererNodelet : public nodelet::Nodelet {
   void onEyeState(const vrm_msgs::EyeState::ConstPtr& eye) {
     if (!eye->valid) return;
     std::lock_guard<std::mutex> lock(mutex_);
-    eye_ = eye;
+    remember(&eyes_, eye);
     noteStamp(eye->header.stamp);
+    notePose("eye", eye->header.stamp);
   }
   void onInstrumentState(const vrm_msgs::InstrumentState::ConstPtr& state) {
     std::lock_guard<std::mutex> lock(mutex_);
     auto slot = slots_.find(state->instrument_id);
     if (slot == slots_.end()) return;
-    slot->second.state = state;
+    remember(&slot->second.states, state);
     noteStamp(state->header.stamp);
+    notePose("instrument " + state->instrument_id, state->header.stamp);
+  }
+  // The simulation finished the frame of this input stamp (its tissue meshes were published before, so they are
+  // already here: one callback queue, in publishing order).
+  void onSimulationState(const vrm_msgs::SimulationState::ConstPtr& state) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    simulation_wall_ = ros::WallTime::now();
+    if (!simulation_stamps_.empty() && state->header.stamp <= simulation_stamps_.back()) return;
+    simulation_stamps_.push_back(state->header.stamp);
+    while (simulation_stamps_.size() > kHistory) simulation_stamps_.pop_front();
+    if (trigger_ != Trigger::kInput) offer(state->header.stamp);
   }
   // Replayed ghost instruments: shown with the next frame, but their (recorded) stamps do not stamp the frame.
   void onGhostState(const vrm_msgs::InstrumentState::ConstPtr& state) {
     std::lock_guard<std::mutex> lock(mutex_);
     auto slot = ghost_slots_.find(state->instrument_id);
     if (slot == ghost_slots_.end()) return;
-    slot->second.state = state;
+    slot->second.states.clear();
+    slot->second.states.push_back(state);
     dirty_ = true;
   }
   void onMicroscope(const vrm_msgs::MicroscopeSettings::ConstPtr& settings) {
     std::lock_guard<std::mutex> lock(mutex_);
-    microscope_ = settings;
+    remember(&microscopes_, settings);
     noteStamp(settings->header.stamp);
+  }
+
+  void onTimer(const ros::TimerEvent&) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (!dirty_) return;
+    timer_due_ = true;
+    wake_.notify_one();
   }
 
   bool onSaveSnapshot(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& response) {
@@ -275,7 +426,7 @@ class StereoRendererNodelet : public nodelet::Nodelet {
       return true;
     }
     try {
-      response.message = saveSnapshot(last_frame_, last_stamp_);
+      response.message = saveSnapshot(last_frame_, last_frame_stamp_);
       response.success = true;
     } catch (const std::exception& error) {
       response.message = error.what();
@@ -294,39 +445,104 @@ class StereoRendererNodelet : public nodelet::Nodelet {
     return dir + name;
   }
 
-  // Collects the inputs that arrived since the last frame; false when there is nothing new to show.
-  bool takeInputs(std::map<std::string, vrm_msgs::TissueMesh::ConstPtr>* meshes, ros::Time* stamp) {
+  // --- the render thread ---
+
+  // Waits for a frame to start (a trigger, the timer, or — event triggers — inputs that changed without a trigger for
+  // a while, e.g. only the microscope knobs), then renders it from the newest inputs.
+  void renderLoop() {
+    pthread_setname_np(pthread_self(), "vrm_render");
+    const auto idle_refresh = std::chrono::milliseconds(100);
+    std::unique_lock<std::mutex> lock(mutex_);
+    while (!stop_) {
+      const bool triggered = wake_.wait_for(lock, idle_refresh, [this] {
+        return stop_ || (trigger_ == Trigger::kTimer ? timer_due_ : !pending_stamp_.isZero());
+      });
+      if (stop_) break;
+      if (!triggered && (trigger_ == Trigger::kTimer || !dirty_ || newest_stamp_ <= last_stamp_)) continue;
+      if (triggered && max_rate_ > 0.0 && trigger_ != Trigger::kTimer && !last_frame_wall_.isZero()) {
+        // Rate-limited: wait out the minimum frame interval, then take whatever trigger is newest by then.
+        const ros::WallTime earliest = last_frame_wall_ + ros::WallDuration(1.0 / max_rate_);
+        for (ros::WallTime now = ros::WallTime::now(); !stop_ && now < earliest; now = ros::WallTime::now()) {
+          wake_.wait_for(lock, std::chrono::nanoseconds((earliest - now).toNSec()));
+        }
+        if (stop_) break;
+      }
+      if (triggered && trigger_ != Trigger::kTimer && max_input_age_ > 0.0 && watched_) {
+        // Latency before throughput (thesis §2.5.2, eq. 2.5): a trigger that arrived while the previous frame was
+        // rendering is already `age` old. If the next input is due within the tick, that one starts a frame on its
+        // arrival instead (the stale trigger counts as dropped); if none comes, the stale one is shown.
+        const double age = (ros::WallTime::now() - pending_wall_).toSec();
+        if (age > max_input_age_ && offer_interval_ > 0.0 && age < offer_interval_) {
+          const ros::Time stale = pending_stamp_;
+          wake_.wait_for(lock, std::chrono::duration<double>(1.25 * offer_interval_ - age),
+                         [&] { return stop_ || pending_stamp_ != stale; });
+          if (stop_) break;
+        }
+      }
+      // Event triggers show the inputs of the triggering stamp; the timer and idle refreshes the newest of all.
+      const ros::Time limit = triggered && trigger_ != Trigger::kTimer ? pending_stamp_ : ros::TIME_MAX;
+      pending_stamp_ = ros::Time();
+      timer_due_ = false;
+      lock.unlock();
+      renderFrame(limit);
+      lock.lock();
+    }
+  }
+
+  // Collects the inputs up to `limit` (the frame's stamp; TIME_MAX = the newest stamp of any input); false when there
+  // is nothing new to show.
+  bool takeInputs(const ros::Time& limit, std::map<std::string, vrm_msgs::TissueMesh::ConstPtr>* meshes,
+                  ros::Time* stamp, ros::Time* simulation_shown) {
     std::lock_guard<std::mutex> lock(mutex_);
-    if (!dirty_ || newest_stamp_ <= last_stamp_) return false;
-    dirty_ = false;
-    meshes->swap(pending_meshes_);
-    *stamp = newest_stamp_;
-    eye_in_use_ = eye_;
-    microscope_in_use_ = microscope_;
+    const bool newest = limit == ros::TIME_MAX;
+    *stamp = newest ? newest_stamp_ : limit;
+    if (*stamp <= last_stamp_ || (newest && !dirty_)) return false;
+    last_stamp_ = *stamp;
+    if (*stamp >= newest_stamp_) dirty_ = false;
+    for (auto it = pending_meshes_.begin(); it != pending_meshes_.end();) {
+      if (it->second->header.stamp > *stamp) {
+        ++it;  // a newer simulation frame's mesh: for the next frame
+        continue;
+      }
+      (*meshes)[it->first] = it->second;
+      it = pending_meshes_.erase(it);
+    }
+    eye_in_use_ = newestUpTo(eyes_, *stamp);
+    microscope_in_use_ = newestUpTo(microscopes_, *stamp);
     slot_states_.clear();
-    for (const auto& entry : slots_) slot_states_[entry.first] = entry.second.state;
+    for (const auto& entry : slots_) slot_states_[entry.first] = newestUpTo(entry.second.states, *stamp);
     ghost_states_.clear();
-    for (const auto& entry : ghost_slots_) ghost_states_[entry.first] = entry.second.state;
+    for (const auto& entry : ghost_slots_) {
+      ghost_states_[entry.first] = entry.second.states.empty() ? nullptr : entry.second.states.back();
+    }
+    *simulation_shown = ros::Time();
+    for (auto it = simulation_stamps_.rbegin(); it != simulation_stamps_.rend(); ++it) {
+      if (*it <= *stamp) {
+        *simulation_shown = *it;
+        break;
+      }
+    }
     return true;
   }
 
-  void onTimer(const ros::TimerEvent&) {
+  void renderFrame(const ros::Time& limit) {
     std::lock_guard<std::mutex> render_lock(render_mutex_);
-    // Render only what somebody sees: with no image or timing subscriber and no snapshot due, the frame is skipped
-    // (a headless session keeps its cores for tracking and simulation). Inputs stay queued as the latest state.
+    // Render only what somebody sees: with no image subscriber and no snapshot due, the frame is skipped (a headless
+    // session keeps its cores for tracking and simulation). Inputs stay as the latest state.
     bool snapshot_due = snapshot_count_ > 0 && !snapshot_dir_.empty() && snapshots_saved_ < snapshot_count_;
     if (snapshot_due && !snapshot_times_.empty()) {
       std::lock_guard<std::mutex> lock(mutex_);
       snapshot_due = !first_stamp_.isZero() && (newest_stamp_ - first_stamp_).toSec() >=
                                                    snapshot_times_[static_cast<std::size_t>(snapshots_saved_)];
     }
-    const bool watched =
-        left_pub_.getNumSubscribers() > 0 || right_pub_.getNumSubscribers() > 0 || timing_pub_.getNumSubscribers() > 0;
+    const bool watched = left_pub_.getNumSubscribers() > 0 || right_pub_.getNumSubscribers() > 0;
+    watched_ = watched;
     if (!snapshot_due && !watched) return;
     std::map<std::string, vrm_msgs::TissueMesh::ConstPtr> meshes;
-    ros::Time stamp;
-    if (!takeInputs(&meshes, &stamp)) return;
-    const ros::Time start = ros::Time::now();
+    ros::Time stamp, simulation_shown;
+    if (!takeInputs(limit, &meshes, &stamp, &simulation_shown)) return;
+    last_frame_wall_ = ros::WallTime::now();
+    const ros::Time start = ros::Time::now();  // measurement only (render_timing)
     for (const auto& entry : meshes) {
       try {
         renderer_->updateMesh(entry.first, toMeshView(*entry.second), entry.second->version);
@@ -400,7 +616,14 @@ class StereoRendererNodelet : public nodelet::Nodelet {
     }
     const ros::Time end = ros::Time::now();
     ++frame_count_;
-    last_stamp_ = stamp;
+    ++frames_since_diagnostics_;
+    last_frame_stamp_ = stamp;
+    publishFrames(stamp);
+    publishEye(0, left_pub_, stamp);
+    if (renderer_->options().stereo) publishEye(1, right_pub_, stamp);
+    const ros::Time published = ros::Time::now();
+    publishTiming(stamp, start, end, published, simulation_shown);
+    // Snapshots after the images: a PNG takes longer than the frame and must not delay what is watched.
     const bool every_nth = snapshot_times_.empty() && frame_count_ % std::max(1, snapshot_every_) == 0;
     if (snapshot_count_ > 0 && !snapshot_dir_.empty() && snapshots_saved_ < snapshot_count_ &&
         (snapshot_due && !snapshot_times_.empty() ? true : every_nth)) {
@@ -411,10 +634,6 @@ class StereoRendererNodelet : public nodelet::Nodelet {
         NODELET_WARN_THROTTLE(5.0, "snapshot failed: %s", error.what());
       }
     }
-    publishFrames(stamp);
-    publishEye(0, left_pub_, stamp);
-    if (renderer_->options().stereo) publishEye(1, right_pub_, stamp);
-    publishTiming(stamp, start, end);
   }
 
   std::string opticalFrame(int eye) const { return camera_frame_ + (eye == 0 ? "_left_optical" : "_right_optical"); }
@@ -470,7 +689,8 @@ class StereoRendererNodelet : public nodelet::Nodelet {
     publisher.publish(image, info);
   }
 
-  void publishTiming(const ros::Time& stamp, const ros::Time& start, const ros::Time& end) {
+  void publishTiming(const ros::Time& stamp, const ros::Time& start, const ros::Time& end, const ros::Time& published,
+                     const ros::Time& simulation_shown) {
     auto timing = boost::make_shared<vrm_msgs::StageTiming>();
     timing->header.stamp = stamp;
     timing->frame = frame_count_;
@@ -487,23 +707,87 @@ class StereoRendererNodelet : public nodelet::Nodelet {
       s.end = cursor;
       timing->stages.push_back(s);
     }
-    vrm_msgs::StageStamp total;
-    total.stage = "render";
-    total.start = start;
-    total.end = end;
-    timing->stages.push_back(total);
+    auto add = [&timing](const char* name, const ros::Time& from, const ros::Time& to) {
+      vrm_msgs::StageStamp s;
+      s.stage = name;
+      s.start = from;
+      s.end = to;
+      timing->stages.push_back(s);
+    };
+    add("render", start, end);
+    add("image_published", end, published);
+    if (!simulation_shown.isZero()) add("simulation_input", simulation_shown, simulation_shown);
     vrm_msgs::publishShared(timing_pub_, timing);
+  }
+
+  // Frames, drops and rate of the last period (wall clock: the live health of the view).
+  void publishDiagnostics(const ros::WallTimerEvent&) {
+    namespace d = diagnostic_msgs;
+    const ros::WallTime now = ros::WallTime::now();
+    const double period = std::max(1e-3, (now - last_diagnostics_).toSec());
+    last_diagnostics_ = now;
+    std::uint64_t frames = 0, dropped = 0, offered = 0, dropped_total = 0;
+    {
+      std::lock_guard<std::mutex> lock(render_mutex_);
+      frames = frames_since_diagnostics_;
+      frames_since_diagnostics_ = 0;
+    }
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      dropped = dropped_ - dropped_reported_;
+      offered = offered_ - offered_reported_;
+      dropped_reported_ = dropped_;
+      offered_reported_ = offered_;
+      dropped_total = dropped_;
+    }
+    d::DiagnosticStatus status;
+    status.name = getName() + ": frames";
+    status.hardware_id = "stereo_view";
+    auto value = [&status](const std::string& key, const std::string& text) {
+      d::KeyValue entry;
+      entry.key = key;
+      entry.value = text;
+      status.values.push_back(entry);
+    };
+    char text[64];
+    std::snprintf(text, sizeof(text), "%.3g", frames / period);
+    value("fps", text);
+    value("frames", std::to_string(frames));
+    value("dropped", std::to_string(dropped));
+    value("frames offered", std::to_string(offered));
+    value("dropped total", std::to_string(dropped_total));
+    value("trigger", describeTrigger());
+    const bool watched = watched_;
+    value("watched", watched ? "yes" : "no");
+    status.level = d::DiagnosticStatus::OK;
+    if (!watched) {
+      status.message = "not watched: no frames (snapshots only)";
+    } else if (frames == 0 && offered > 0) {
+      status.level = d::DiagnosticStatus::WARN;
+      status.message = "inputs arrive but no frame was rendered";
+    } else {
+      std::snprintf(text, sizeof(text), "%.1f fps, %llu dropped", frames / period,
+                    static_cast<unsigned long long>(dropped));
+      status.message = text;
+    }
+    auto array = boost::make_shared<d::DiagnosticArray>();
+    array->header.stamp = ros::Time::now();
+    array->status.push_back(status);
+    vrm_msgs::publishShared(diagnostics_pub_, array);
   }
 
   vrm_sim::scene::SceneDescription scene_;
   std::unique_ptr<StereoRenderer> renderer_;
   bool ghost_instruments_ = false;
+  Trigger trigger_ = Trigger::kSimulation;
   double rate_ = 30.0;
+  double max_rate_ = 0.0;
+  double max_input_age_ = 0.005;
+  double simulation_timeout_ = 0.5;
   std::string snapshot_dir_;
   int snapshot_count_ = 0;
   int snapshot_every_ = 10;
   std::vector<double> snapshot_times_;  // s after first_stamp_
-  ros::Time first_stamp_;
   int snapshots_saved_ = 0;
   std::string world_frame_;
   std::string eye_frame_;
@@ -511,33 +795,52 @@ class StereoRendererNodelet : public nodelet::Nodelet {
   std::string ghost_topic_;
   std::uint64_t instrument_mesh_version_ = 0;
 
-  std::mutex mutex_;  // inputs
+  std::mutex mutex_;  // inputs and triggers
+  std::condition_variable wake_;
+  bool stop_ = false;
   std::map<std::string, vrm_msgs::TissueMesh::ConstPtr> pending_meshes_;
+  std::map<std::string, std::uint64_t> newest_mesh_version_;
   std::map<std::string, Slot> slots_;        // live instruments by slot ("left", "right")
   std::map<std::string, Slot> ghost_slots_;  // replayed ones (with ~ghost_instruments)
-  vrm_msgs::EyeState::ConstPtr eye_;
-  vrm_msgs::MicroscopeSettings::ConstPtr microscope_;
+  std::deque<vrm_msgs::EyeState::ConstPtr> eyes_;
+  std::deque<vrm_msgs::MicroscopeSettings::ConstPtr> microscopes_;
+  std::deque<ros::Time> simulation_stamps_;  // newest simulation frames
+  ros::WallTime simulation_wall_;            // when the newest simulation_state arrived
+  std::map<std::string, ros::Time> pose_sources_;
+  ros::Time first_stamp_;
   ros::Time newest_stamp_;
   bool dirty_ = false;
+  ros::Time last_offered_;
+  ros::Time pending_stamp_;      // offered, not started yet (zero: none)
+  ros::WallTime pending_wall_;   // when the newest trigger arrived
+  double offer_interval_ = 0.0;  // s between triggers (running mean): the input tick
+  bool timer_due_ = false;
+  std::uint64_t offered_ = 0, dropped_ = 0, offered_reported_ = 0, dropped_reported_ = 0;
+  std::atomic<bool> watched_{false};
 
-  std::mutex render_mutex_;  // renderer and last frame
+  std::mutex render_mutex_;  // renderer and last frame (render thread, snapshot service)
   std::map<std::string, std::string> mesh_frames_;
   std::map<std::string, vrm_msgs::InstrumentState::ConstPtr> slot_states_;
   std::map<std::string, vrm_msgs::InstrumentState::ConstPtr> ghost_states_;
   vrm_msgs::EyeState::ConstPtr eye_in_use_;
   vrm_msgs::MicroscopeSettings::ConstPtr microscope_in_use_;
   StereoFrame last_frame_;
-  ros::Time last_stamp_;
+  ros::Time last_stamp_;        // of the newest frame taken (written with both mutexes held)
+  ros::Time last_frame_stamp_;  // of last_frame_
+  ros::WallTime last_frame_wall_;
   std::uint64_t frame_count_ = 0;
+  std::uint64_t frames_since_diagnostics_ = 0;
+  ros::WallTime last_diagnostics_;
 
   std::vector<ros::Subscriber> mesh_subscribers_;
-  std::map<std::string, std::uint64_t> newest_mesh_version_;
-  ros::Subscriber eye_sub_, instrument_sub_, ghost_sub_, microscope_sub_;
+  ros::Subscriber eye_sub_, instrument_sub_, simulation_sub_, ghost_sub_, microscope_sub_;
   tf2_ros::TransformBroadcaster broadcaster_;
   image_transport::CameraPublisher left_pub_, right_pub_;
-  ros::Publisher timing_pub_;
+  ros::Publisher timing_pub_, diagnostics_pub_;
   ros::ServiceServer snapshot_srv_;
   ros::Timer timer_;
+  ros::WallTimer diagnostic_timer_;
+  std::thread thread_;
 };
 
 }  // namespace vrm_render

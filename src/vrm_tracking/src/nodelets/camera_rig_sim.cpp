@@ -2,7 +2,8 @@
 // truth and publishes what real cameras would — sensor_msgs/Image + CameraInfo per camera through image_transport —
 // plus, for evaluation only, the exact projected centroids (<camera>/markers_exact, the ideal FPGA output).
 // A frame is rendered when the eye state and every instrument of one stamp have arrived; the images carry that
-// stamp (the exposure midpoint), never the wall clock.
+// stamp (the exposure midpoint), never the wall clock. The wall time the triple took goes to tracking_timing
+// (vrm_msgs/StageTiming, stage "camera"; issue 12): the share of the tracking latency a real rig would not spend.
 // Calibration mode (calibration_views > 0): instead of markers, each camera shows a chessboard target from
 // `calibration_views` seeded poses in turn on <camera>/image_raw (+ camera_info), and the target on the world
 // fixture, latched, on <camera>/fixture/image_raw — what rig_calibrator (and a person with a real target) uses.
@@ -16,6 +17,7 @@
 #include <vrm_msgs/EyeState.h>
 #include <vrm_msgs/InstrumentState.h>
 #include <vrm_msgs/MarkerObservations.h>
+#include <vrm_msgs/StageTiming.h>
 #include <vrm_msgs/publish.h>
 
 #include <algorithm>
@@ -93,8 +95,13 @@ class CameraRigSim : public nodelet::Nodelet {
       NODELET_INFO("camera_rig_sim: calibration mode, %d target views per camera", calibration_views_);
       return;
     }
-    eye_sub_ = nh.subscribe("ground_truth/eye_state", 10, &CameraRigSim::onEye, this);
-    instrument_sub_ = nh.subscribe("ground_truth/instrument_state", 20, &CameraRigSim::onInstrument, this);
+    timing_pub_ = nh.advertise<vrm_msgs::StageTiming>("tracking_timing", 10);
+    // Queues of about one tick: a camera exposes the present, so a slow render skips ticks instead of queueing them
+    // (the tracker and the latency monitor see the gap).
+    eye_sub_ = nh.subscribe("ground_truth/eye_state", 2, &CameraRigSim::onEye, this);
+    instrument_sub_ = nh.subscribe("ground_truth/instrument_state",
+                                   static_cast<std::uint32_t>(2 * std::max<std::size_t>(1, expected_slots_.size())),
+                                   &CameraRigSim::onInstrument, this);
     NODELET_INFO("camera_rig_sim: %zu cameras, %zu instrument slots, seed %d", rig_.size(), expected_slots_.size(),
                  seed);
   }
@@ -161,6 +168,7 @@ class CameraRigSim : public nodelet::Nodelet {
     previous_scene_ = scene;
     previous_stamp_ = truth_header.stamp;
 
+    const ros::Time start = ros::Time::now();  // measurement only (tracking_timing)
     for (std::size_t c = 0; c < rig_.size(); ++c) {
       if (static_cast<int>(c) == stop_camera_ && frame_ >= static_cast<std::uint64_t>(stop_after_)) continue;
       const CameraModel& cam = rig_.cameras[c];
@@ -194,7 +202,20 @@ class CameraRigSim : public nodelet::Nodelet {
 
       publishExact(c, header, truth);
     }
+    publishTiming(truth_header.stamp, start, ros::Time::now());
     ++frame_;
+  }
+
+  void publishTiming(const ros::Time& stamp, const ros::Time& start, const ros::Time& end) {
+    auto timing = boost::make_shared<vrm_msgs::StageTiming>();
+    timing->header.stamp = stamp;
+    timing->frame = frame_;
+    vrm_msgs::StageStamp stage;
+    stage.stage = "camera";
+    stage.start = start;
+    stage.end = end;
+    timing->stages.push_back(stage);
+    vrm_msgs::publishShared(timing_pub_, timing);
   }
 
   sensor_msgs::ImagePtr renderTargetImage(const CameraModel& cam, const Eigen::Isometry3d& pose,
@@ -262,6 +283,7 @@ class CameraRigSim : public nodelet::Nodelet {
   std::string frame_suffix_;
   std::vector<image_transport::CameraPublisher> camera_pubs_;
   std::vector<ros::Publisher> exact_pubs_;
+  ros::Publisher timing_pub_;
   ros::Subscriber eye_sub_, instrument_sub_;
   std::mutex mutex_;
   vrm_msgs::EyeState::ConstPtr pending_eye_;

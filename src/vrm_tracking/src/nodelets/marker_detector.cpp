@@ -5,6 +5,8 @@
 // /diagnostics (wall-clock period `diagnostic_period`): ERROR when a camera never delivered or stopped (no image
 // for `stale_timeout` s) or every frame of the period was rejected; WARN for rejected frames (bad encoding, empty,
 // truncated) or a missing CameraInfo; values: rate, rejections and why, colour classes found per frame.
+// Per image, the wall time of its detection goes to tracking_timing (vrm_msgs/StageTiming, stage
+// "detection_<camera>", header.stamp = the exposure stamp; issue 12).
 
 #include "vrm_tracking/marker_detector.h"
 
@@ -16,6 +18,7 @@
 #include <sensor_msgs/CameraInfo.h>
 #include <sensor_msgs/image_encodings.h>
 #include <vrm_msgs/MarkerObservations.h>
+#include <vrm_msgs/StageTiming.h>
 #include <vrm_msgs/publish.h>
 
 #include <algorithm>
@@ -88,7 +91,8 @@ class MarkerDetectorNodelet : public nodelet::Nodelet {
       cam->roi = std::make_unique<RoiTracker>(detector_.get(), roi);
       cam->markers_pub = nh.advertise<vrm_msgs::MarkerObservations>(name + "/markers", 5);
       Camera* raw = cam.get();
-      cam->image_sub = it.subscribe(name + "/image_raw", 2,
+      // One image deep: the newest exposure wins when detection falls behind (no queue grows).
+      cam->image_sub = it.subscribe(name + "/image_raw", 1,
                                     [this, raw](const sensor_msgs::ImageConstPtr& msg) { onImage(raw, msg); });
       cam->info_sub = nh.subscribe<sensor_msgs::CameraInfo>(name + "/camera_info", 2,
                                                             [raw](const sensor_msgs::CameraInfoConstPtr&) {
@@ -97,6 +101,7 @@ class MarkerDetectorNodelet : public nodelet::Nodelet {
                                                             });
       cameras_.push_back(std::move(cam));
     }
+    timing_pub_ = nh.advertise<vrm_msgs::StageTiming>("tracking_timing", 10);
     start_wall_ = last_diag_wall_ = ros::WallTime::now();
     diagnostics_pub_ = nh.advertise<diagnostic_msgs::DiagnosticArray>("/diagnostics", 10);
     diagnostic_timer_ =
@@ -148,6 +153,7 @@ class MarkerDetectorNodelet : public nodelet::Nodelet {
       reject(cam, std::string("cannot read image: ") + e.what());
       return;
     }
+    const ros::Time start = ros::Time::now();  // measurement only (tracking_timing)
     auto out = boost::make_shared<vrm_msgs::MarkerObservations>();
     out->header = msg->header;  // the exposure stamp travels on unchanged
     out->camera_name = cam->name;
@@ -162,6 +168,15 @@ class MarkerDetectorNodelet : public nodelet::Nodelet {
       cam->last_image = ros::WallTime::now();
     }
     vrm_msgs::publishShared(cam->markers_pub, out);
+    auto timing = boost::make_shared<vrm_msgs::StageTiming>();
+    timing->header.stamp = msg->header.stamp;
+    timing->frame = msg->header.seq;
+    vrm_msgs::StageStamp stage;
+    stage.stage = "detection_" + cam->name;
+    stage.start = start;
+    stage.end = ros::Time::now();
+    timing->stages.push_back(stage);
+    vrm_msgs::publishShared(timing_pub_, timing);
   }
 
   // One status per camera; counters cover the period since the last report.
@@ -228,6 +243,7 @@ class MarkerDetectorNodelet : public nodelet::Nodelet {
 
   MarkerLayout layout_;
   std::unique_ptr<MarkerDetector> detector_;
+  ros::Publisher timing_pub_;
   ros::Publisher diagnostics_pub_;
   ros::WallTimer diagnostic_timer_;
   ros::WallTime start_wall_, last_diag_wall_;

@@ -9,7 +9,9 @@
 // run with publish_pose_tf:=false (one publisher per transform); with publish_tf:=false scene_manager broadcasts them
 // from the states published here. Optional pose filter (`filter`: none | one_euro | alpha_beta, pose_filter.h).
 // Diagnostics (/diagnostics, wall-clock period): frames and cameras per frame, stale cameras, reprojection
-// residuals, eye/instrument validity — OK / WARN / ERROR.
+// residuals, eye/instrument validity — OK / WARN / ERROR. Per frame, the wall time from reconstruction start to the
+// poses published goes to tracking_timing (vrm_msgs/StageTiming, stage "reconstruction", header.stamp = the
+// cameras' stamp; its end is "tracking done" for the latency monitor, issue 12).
 
 #include <diagnostic_msgs/DiagnosticArray.h>
 #include <geometry_msgs/TransformStamped.h>
@@ -20,6 +22,7 @@
 #include <vrm_msgs/EyeState.h>
 #include <vrm_msgs/InstrumentState.h>
 #include <vrm_msgs/MarkerObservations.h>
+#include <vrm_msgs/StageTiming.h>
 #include <vrm_msgs/publish.h>
 
 #include <algorithm>
@@ -96,6 +99,7 @@ class Tracker : public nodelet::Nodelet {
     eye_pub_ = nh.advertise<vrm_msgs::EyeState>("eye_state", 10);
     instrument_pub_ = nh.advertise<vrm_msgs::InstrumentState>("instrument_state", 20);
     sensor_sub_ = nh.subscribe("instrument_sensors", 20, &Tracker::onSensors, this);
+    timing_pub_ = nh.advertise<vrm_msgs::StageTiming>("tracking_timing", 10);
     const CameraRig& rig = tracker_->rig();
     last_seen_.assign(rig.size(), ros::Time());
     last_wall_.assign(rig.size(), ros::WallTime());
@@ -156,6 +160,7 @@ class Tracker : public nodelet::Nodelet {
   }
 
   void flush(std::map<ros::Time, Pending>::iterator it) {
+    const ros::Time start = ros::Time::now();  // measurement only (tracking_timing)
     Pending frame = std::move(it->second);
     pending_.erase(it);
     last_processed_ = frame.header.stamp;
@@ -208,7 +213,17 @@ class Tracker : public nodelet::Nodelet {
       if (!est.valid) NODELET_WARN_THROTTLE(5.0, "tracker: instrument '%s' not seen", est.slot.c_str());
       vrm_msgs::publishShared(instrument_pub_, msg);
     }
+    const ros::Time end = ros::Time::now();
     if (!frames.empty()) broadcaster_.sendTransform(frames);
+    auto timing = boost::make_shared<vrm_msgs::StageTiming>();
+    timing->header.stamp = frame.header.stamp;
+    timing->frame = frame.header.seq;
+    vrm_msgs::StageStamp stage;
+    stage.stage = "reconstruction";
+    stage.start = start;
+    stage.end = end;
+    timing->stages.push_back(stage);
+    vrm_msgs::publishShared(timing_pub_, timing);
   }
 
   void accumulateDiagnostics(const Pending& frame, const TrackingResult& result) {
@@ -335,7 +350,7 @@ class Tracker : public nodelet::Nodelet {
   std::unique_ptr<PoseTracker> tracker_;
   std::vector<ros::Subscriber> marker_subs_;
   ros::Subscriber sensor_sub_;
-  ros::Publisher eye_pub_, instrument_pub_;
+  ros::Publisher eye_pub_, instrument_pub_, timing_pub_;
   tf2_ros::TransformBroadcaster broadcaster_;
   tf2_ros::StaticTransformBroadcaster static_broadcaster_;
   std::mutex mutex_;
