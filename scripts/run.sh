@@ -4,9 +4,11 @@
 # tracking, pedals, knobs; the scenario manager (simulation core: collision, tissue, bleeding, scenario and score);
 # the renderer. It runs for a bounded time, records the session's inputs to a bag, saves three stereo frames and
 # writes the session's result JSON, then prints a summary of what was recorded and of what the simulation did
-# (outputs.bag) and the score table.
+# (outputs.bag) and the score table, and replays the bag offline (session_replay) to show the replay ends in the
+# live session's final state, bit for bit.
 # With --check the exit status says whether the session did its job: simulation frames were produced, in a scene
-# with tissue the tissue was published deformed and grasped, and the scenario finished (CI runs the short form).
+# with tissue the tissue was published deformed and grasped, the scenario finished, and the replay of the bag ended
+# in the live final state hash (CI runs the short form).
 # Usage: scripts/run.sh [--duration SECONDS] [--scenario NAME] [--difficulty LEVEL] [--script expert|novice]
 #                       [--bag PATH] [--check] [roslaunch args...]
 # (--scene is a synonym of --scenario; scenario_offline --list names the scenarios.)
@@ -57,4 +59,24 @@ status=0
 echo "stereo frames: $(find "$out" -name '*.png' | wc -l) PNGs in $out"
 /usr/bin/python3 "$ROOT/scripts/session_summary.py" "${check[@]}" "$out/outputs.bag" || status=1
 if [[ -f $out/result.json ]]; then echo "result: $out/result.json"; else echo "result: none (the scenario did not end within ${duration} s)"; fi
+# The session is its recorded inputs (thesis §2.4.2): the offline replay must end where the live session did.
+live_result=${bag%.bag}.result.json
+if [[ -f $live_result ]]; then
+  live_hash=$(/usr/bin/python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["final_state_hash"])' "$live_result")
+  if replay=$(rosrun vrm_sim session_replay --bag "$bag"); then
+    replay_hash=$(/usr/bin/python3 -c 'import json,sys; d=json.loads(sys.argv[1]); print(d["final_state_hash"], "in %.2f s (%.0fx real time)" % (d["wall_seconds"], d["speedup"]))' "$replay")
+    if [[ ${replay_hash%% *} == "$live_hash" ]]; then
+      echo "replay: rosrun vrm_sim session_replay --bag $bag -> final state $replay_hash = live $live_hash (bit for bit)"
+    else
+      echo "replay: final state ${replay_hash%% *} DIFFERS from the live session's $live_hash" >&2
+      status=1
+    fi
+  else
+    echo "replay: session_replay could not replay $bag" >&2
+    status=1
+  fi
+else
+  echo "replay: no live result next to the bag ($live_result)" >&2
+  status=1
+fi
 exit $status

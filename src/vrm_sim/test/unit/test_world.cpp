@@ -103,14 +103,14 @@ TEST(World, AFrameClosesWhenEverySourceOfThePreviousFrameHasDelivered) {
   const Eigen::Vector3d far(0.002, 0.0, -0.006);
   world.handle(instrumentAt(scene, "left", far, 0.0, 0));
   world.handle(instrumentAt(scene, "right", far, 0.3, 0));
+  EXPECT_TRUE(frames.empty()) << "the first frame cannot know its sources: it closes with the next stamp";
   world.handle(instrumentAt(scene, "left", far, 0.0, kTick));
-  EXPECT_TRUE(frames.empty()) << "the first frame cannot know its sources: it waits for two later stamps";
-  world.handle(instrumentAt(scene, "right", far, 0.3, kTick));
-  world.handle(instrumentAt(scene, "left", far, 0.0, 2 * kTick));
-  // Frame 0 closes with two later stamps pending; frame 1 is complete then, too (both sources reached it).
-  ASSERT_EQ(frames.size(), 2u);
+  ASSERT_EQ(frames.size(), 1u);
   EXPECT_EQ(frames[0].stamp, 0);
   EXPECT_EQ(frames[0].frame_time, 0.0);
+  world.handle(instrumentAt(scene, "right", far, 0.3, kTick));  // both sources delivered: frame 1 closes now
+  ASSERT_EQ(frames.size(), 2u);
+  world.handle(instrumentAt(scene, "left", far, 0.0, 2 * kTick));
   world.flush();
   ASSERT_EQ(frames.size(), 3u);
   EXPECT_EQ(frames[1].stamp, kTick);
@@ -202,11 +202,16 @@ TEST(World, FramesCloseInStampOrderWhateverOrderTheirSourcesArriveIn) {
         world.handle(sequence[k].right);
         continue;
       }
-      // A callback thread runs ahead: the eye and the left instrument of tick k+1 arrive before the right
-      // instrument of tick k (each source still in its own order, as one topic delivers).
+      // Tick 0 arrives whole (the first frame cannot know which sources will join it). From then on a callback
+      // thread runs ahead: the eye and the left instrument of tick k+1 arrive before the right instrument of tick
+      // k (each source still in its own order, as one topic delivers).
       if (k == 0) {
         world.handle(sequence[0].eye);
         world.handle(sequence[0].left);
+        world.handle(sequence[0].right);
+        world.handle(sequence[1].eye);
+        world.handle(sequence[1].left);
+        continue;
       }
       if (k + 1 < sequence.size()) {
         world.handle(sequence[k + 1].eye);

@@ -13,8 +13,8 @@
 //     collision → tissue step → bleeding → scenario → hash → observer) — as soon as every known source has
 //     delivered at S or later. A source that falls silent holds frames back for at most kReorderFrames later
 //     frames; then the oldest frame closes without it and it stops being waited for until it delivers again. The
-//     very first frame, whose sources are not known yet, waits for kReorderFrames later frames; flush() closes
-//     whatever is pending.
+//     very first frame, whose sources are not known yet, closes when a later stamp arrives; flush() closes whatever
+//     is pending.
 //     A source state older than the last closed frame is late: it takes effect in the next frame and is counted
 //     (statistics().late_inputs).
 //   * pedal states and scenario commands are *state inputs*: buffered and applied, in stamp order, when the first

@@ -329,8 +329,8 @@ void World::closeReadyFrames() {
     const Stamp stamp = pending_.begin()->first;
     bool ready;
     if (!last_frame_stamp_) {
-      // The first frame cannot know its sources yet: it waits as long as a silent source would hold a frame.
-      ready = pending_.size() > kReorderFrames;
+      // The first frame cannot know its sources yet: it closes when a later stamp arrives.
+      ready = pending_.size() > 1;
     } else {
       ready = std::all_of(known_sources_.begin(), known_sources_.end(),
                           [stamp](const auto& source) { return source.second >= stamp; });
