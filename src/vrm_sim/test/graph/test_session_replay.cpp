@@ -17,6 +17,7 @@
 #include <string>
 #include <vector>
 
+#include "../test_files.h"
 #include "child_process.h"
 #include "vrm_msgs/SimulationState.h"
 #include "vrm_sim/world/offline.h"
@@ -26,19 +27,8 @@ namespace {
 
 namespace fs = std::filesystem;
 
-std::string readText(const fs::path& path) {
-  std::ifstream file(path, std::ios::binary);
-  return std::string(std::istreambuf_iterator<char>(file), {});
-}
-
-std::string jsonField(const std::string& json, const std::string& key) {
-  const std::regex pattern("\"" + key + "\": *(\"[^\"]*\"|[^,}\\s]+)");
-  std::smatch match;
-  if (!std::regex_search(json, match, pattern)) return "";
-  std::string value = match[1];
-  if (value.size() >= 2 && value.front() == '"') value = value.substr(1, value.size() - 2);
-  return value;
-}
+using test::jsonField;
+using test::readText;
 
 std::string command(const std::string& line) {
   std::string output;

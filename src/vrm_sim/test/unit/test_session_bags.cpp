@@ -16,6 +16,7 @@
 #include <regex>
 #include <string>
 
+#include "../test_files.h"
 #include "vrm_msgs/EyeState.h"
 #include "vrm_msgs/InstrumentState.h"
 #include "vrm_msgs/SessionInfo.h"
@@ -31,20 +32,8 @@ namespace fs = std::filesystem;
 
 const fs::path kBags = fs::path(VRM_SIM_SOURCE_DIR) / "test" / "bags";
 
-std::string readText(const fs::path& path) {
-  std::ifstream file(path, std::ios::binary);
-  return std::string(std::istreambuf_iterator<char>(file), {});
-}
-
-// The value of "key" in a flat JSON object (string or number, as written).
-std::string jsonField(const std::string& json, const std::string& key) {
-  const std::regex pattern("\"" + key + "\": *(\"[^\"]*\"|[^,}\\s]+)");
-  std::smatch match;
-  if (!std::regex_search(json, match, pattern)) return "";
-  std::string value = match[1];
-  if (value.size() >= 2 && value.front() == '"') value = value.substr(1, value.size() - 2);
-  return value;
-}
+using test::jsonField;
+using test::readText;
 
 struct Process {
   int status = -1;
