@@ -12,7 +12,8 @@
 //   parallel_async  render_trigger:=timer       the renderer samples on its own 30 Hz clock (eq. 2.4)
 //   pipelined       render_trigger:=input       a frame starts with a tick's poses and the previous tissue (eq. 2.7)
 // each with tracking:=false (scripted poses) and tracking:=true (rig twin renders three cameras, detection, tracker).
-// Usage: bench_latency [--quick] [--out FILE] [--seconds S] [--only CONFIG_SUBSTRING]
+// Usage: bench_latency [--quick] [--out FILE] [--seconds S] [--only CONFIG_SUBSTRING] [--param /NODE/NAME=VALUE ...]
+// (--param: an experiment, e.g. --param /stereo_renderer/render_nice=0; a launch file's own value wins.)
 #include <fcntl.h>
 #include <netinet/in.h>
 #include <ros/ros.h>
@@ -38,6 +39,7 @@
 #include <thread>
 #include <vector>
 
+#include "vrm_sim/scene/scene_loader.h"
 #include "vrm_sim/world/latency.h"
 
 namespace {
@@ -166,8 +168,11 @@ std::vector<pid_t> childrenOf(pid_t parent) {
 
 // CPU seconds of the manager's threads by role, of the manager, of the rest of the launch and of this viewer.
 struct CpuSample {
-  double render_thread = 0.0, llvmpipe = 0.0, manager = 0.0, launch_rest = 0.0, viewer = 0.0;
+  double render_thread = 0.0, llvmpipe = 0.0, manager = 0.0, launch_rest = 0.0, viewer = 0.0, master = 0.0;
 };
+
+// The bench's roscore (rosmaster, rosout): its pid, set once.
+pid_t g_roscore = 0;
 
 CpuSample sampleCpu(pid_t manager, pid_t launch) {
   CpuSample sample;
@@ -183,6 +188,10 @@ CpuSample sampleCpu(pid_t manager, pid_t launch) {
       sample.launch_rest += task.seconds;
   }
   if (readStat("/proc/self/stat", &task)) sample.viewer = task.seconds;
+  if (g_roscore > 0 && readStat("/proc/" + std::to_string(g_roscore) + "/stat", &task)) sample.master += task.seconds;
+  for (pid_t child : g_roscore > 0 ? childrenOf(g_roscore) : std::vector<pid_t>{}) {
+    if (readStat("/proc/" + std::to_string(child) + "/stat", &task)) sample.master += task.seconds;
+  }
   return sample;
 }
 
@@ -199,6 +208,7 @@ struct Collected {
   Nanoseconds from = 0;  // input stamps from here on count
   w::StageChain chain;
   std::map<std::string, std::vector<double>> time, latency;  // by canonical stage, ms
+  std::map<std::string, std::vector<double>> passes;         // the renderer's passes and the simulation's stages, ms
   std::vector<double> viewer;                                // input stamp → both eyes arrived, ms
   std::map<Nanoseconds, int> eyes;                           // eyes arrived per image stamp
   std::set<Nanoseconds> ticks, ground_truth, cameras, tracked, simulated, shown, rendered;
@@ -225,6 +235,13 @@ void onTiming(Collected* c, const vrm_msgs::StageTiming::ConstPtr& timing) {
   }
   for (const w::StageSpan& span : spans) {
     if (span.stage == w::kSimulationInputMarker) c->shown.insert(span.start);
+    // Where a frame's time goes: the renderer's passes (render_upload, render_shadow, render_scene, render_dof,
+    // render_readback) and the simulation's stages (tissue_<object> against its scene time budget, collision_,
+    // bleeding_, scenario).
+    if (span.stage.rfind("render_", 0) == 0 || span.stage.rfind("tissue_", 0) == 0 ||
+        span.stage.rfind("collision_", 0) == 0 || span.stage.rfind("bleeding_", 0) == 0 || span.stage == "scenario") {
+      c->passes[span.stage].push_back(1e-6 * static_cast<double>(span.end - span.start));
+    }
   }
 }
 
@@ -262,9 +279,13 @@ struct Result {
   std::vector<StageRow> rows;
   double t_s = 0.0, t_b = 0.0, t_r = 0.0;  // p50 stage times used for the predictions (ms)
   double frame_compute_ms = 0.0;           // simulation + render (p50)
-  double cpu_manager = 0.0, cpu_render = 0.0, cpu_workers = 0.0, cpu_launch_rest = 0.0, cpu_viewer = 0.0;  // %
-  std::map<std::string, double> busy;                      // % of one core spent in the stage (wall time)
-  std::vector<int> histogram_end_to_end, histogram_world;  // 1 ms bins
+  double cpu_manager = 0.0, cpu_render = 0.0, cpu_workers = 0.0, cpu_launch_rest = 0.0, cpu_viewer = 0.0,
+         cpu_master = 0.0;             // %
+  std::map<std::string, double> busy;  // % of one core spent in the stage (wall time)
+  std::map<std::string, LatencySummary> passes;
+  // Per tissue: its scene time budget (ms, thesis §5.1) and the share of frames whose tissue stage exceeded it.
+  std::map<std::string, std::pair<double, double>> tissue_budget;  // the renderer's passes and the simulation's stages
+  std::vector<int> histogram_end_to_end, histogram_world;          // 1 ms bins
   std::uint64_t ticks = 0, frames = 0;
   bool ok = false;
 };
@@ -288,7 +309,7 @@ double sum(const std::vector<double>& values) {
 }
 
 Result runConfig(const Config& config, ros::NodeHandle& nh, Collected& collected, const std::string& log_dir,
-                 double seconds, double warmup) {
+                 double seconds, double warmup, const vrm_sim::scene::SceneDescription& scene) {
   Result result;
   result.config = config;
   const std::string log =
@@ -419,6 +440,14 @@ Result runConfig(const Config& config, ros::NodeHandle& nh, Collected& collected
   viewer.fps = static_cast<double>(viewer.summary.count) / wall;
   viewer.dropped = frame_drops;
   result.rows.push_back(viewer);
+  for (const auto& entry : collected.passes) result.passes[entry.first] = summary(entry.second);
+  for (const auto& object : scene.objects) {
+    if (!object.isDeformable()) continue;
+    const std::vector<double>& steps = collected.passes["tissue_" + object.name];
+    const double budget = object.tissue.time_budget_ms;
+    const auto over = std::count_if(steps.begin(), steps.end(), [budget](double ms) { return ms > budget; });
+    result.tissue_budget[object.name] = {budget, steps.empty() ? 0.0 : static_cast<double>(over) / steps.size()};
+  }
   result.histogram_end_to_end = histogram(collected.latency[w::kEndToEndStage], 250);
   result.histogram_world = histogram(collected.latency[w::kEndToEndWorldStage], 250);
 
@@ -427,6 +456,7 @@ Result runConfig(const Config& config, ros::NodeHandle& nh, Collected& collected
   result.cpu_render = percent(cpu_start.render_thread + cpu_start.llvmpipe, cpu_end.render_thread + cpu_end.llvmpipe);
   result.cpu_workers = result.cpu_manager - result.cpu_render;
   result.cpu_launch_rest = percent(cpu_start.launch_rest, cpu_end.launch_rest);
+  result.cpu_master = percent(cpu_start.master, cpu_end.master);
   result.cpu_viewer = percent(cpu_start.viewer, cpu_end.viewer);
   result.ok = manager > 0 && result.frames > 0;
 
@@ -434,6 +464,7 @@ Result runConfig(const Config& config, ros::NodeHandle& nh, Collected& collected
   collected.chain = w::StageChain();
   collected.time.clear();
   collected.latency.clear();
+  collected.passes.clear();
   collected.viewer.clear();
   collected.eyes.clear();
   for (auto* set : {&collected.ticks, &collected.ground_truth, &collected.cameras, &collected.tracked,
@@ -463,6 +494,7 @@ int main(int argc, char** argv) {
   std::string out_path = "bench/results/latency.json";
   double seconds = 60.0;
   std::string only;
+  std::vector<std::string> params;  // experiments: /node/param=value set on the master before every launch
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
     if (arg == "--quick") {
@@ -473,8 +505,13 @@ int main(int argc, char** argv) {
       seconds = std::stod(argv[++i]);
     } else if (arg == "--only" && i + 1 < argc) {
       only = argv[++i];
+    } else if (arg == "--param" && i + 1 < argc) {
+      params.push_back(argv[++i]);
     } else {
-      std::fprintf(stderr, "usage: %s [--quick] [--out FILE] [--seconds S] [--only CONFIG_SUBSTRING]\n", argv[0]);
+      std::fprintf(
+          stderr,
+          "usage: %s [--quick] [--out FILE] [--seconds S] [--only CONFIG_SUBSTRING] [--param /NODE/NAME=VALUE]\n",
+          argv[0]);
       return 2;
     }
   }
@@ -505,6 +542,7 @@ int main(int argc, char** argv) {
   setenv("ROS_MASTER_URI", master.c_str(), 1);
   if (!getenv("ROS_HOSTNAME")) setenv("ROS_HOSTNAME", "localhost", 1);
   const pid_t roscore = spawn({"roscore", "-p", std::to_string(port)}, (out_dir / "latency_roscore.log").string());
+  g_roscore = roscore;
   ros::init(argc, argv, "bench_latency", ros::init_options::NoSigintHandler | ros::init_options::AnonymousName);
   for (int i = 0; i < 200 && !ros::master::check(); ++i) ros::WallDuration(0.1).sleep();
   if (!ros::master::check()) {
@@ -515,6 +553,26 @@ int main(int argc, char** argv) {
   std::printf("bench_latency (%s): %zu configurations, %.0f s each at %.0f Hz input, stereo view watched; master %s\n",
               quick ? "quick" : "full", configs.size(), seconds, kInputRateHz, master.c_str());
 
+  for (const std::string& param : params) {
+    const auto equals = param.find('=');
+    if (equals == std::string::npos) continue;
+    const std::string name = param.substr(0, equals), text = param.substr(equals + 1);
+    char* end = nullptr;
+    const long integer = std::strtol(text.c_str(), &end, 10);
+    const bool is_integer = end && *end == '\0' && !text.empty();
+    const double value = std::strtod(text.c_str(), &end);
+    if (is_integer) {
+      ros::param::set(name, static_cast<int>(integer));
+    } else if (end && *end == '\0' && !text.empty()) {
+      ros::param::set(name, value);
+    } else {
+      ros::param::set(name, text);
+    }
+    std::printf("parameter %s = %s (before every launch)\n", name.c_str(), text.c_str());
+  }
+  // The scene the launch runs (simulator.launch's default): its tissues' time budgets.
+  const vrm_sim::scene::SceneDescription scene =
+      vrm_sim::scene::loadScene(vrm_sim::scene::shippedScenePath("membrane_peeling"));
   Collected collected;
   ros::NodeHandle nh;
   std::vector<ros::Subscriber> subscribers;
@@ -538,17 +596,29 @@ int main(int argc, char** argv) {
 
   std::vector<Result> results;
   for (const Config& config : configs) {
-    Result result = runConfig(config, nh, collected, out_dir.string(), seconds, warmup);
+    Result result = runConfig(config, nh, collected, out_dir.string(), seconds, warmup, scene);
     if (!result.ok) {
       std::fprintf(stderr, "bench_latency: %s failed\n", config.name().c_str());
       continue;
     }
     std::printf(
         "%-30s %5.1f s, %lu input ticks, %lu frames; T_S %.2f  T_B %.2f  T_R %.2f ms; CPU manager %.0f %% "
-        "(renderer %.0f %%, other threads %.0f %%), viewer %.0f %%\n",
+        "(renderer %.0f %%, other threads %.0f %%), viewer %.0f %%, master %.0f %%, rest of the launch %.0f %%\n",
         config.name().c_str(), result.seconds, static_cast<unsigned long>(result.ticks),
         static_cast<unsigned long>(result.frames), result.t_s, result.t_b, result.t_r, result.cpu_manager,
-        result.cpu_render, result.cpu_workers, result.cpu_viewer);
+        result.cpu_render, result.cpu_workers, result.cpu_viewer, result.cpu_master, result.cpu_launch_rest);
+    for (const auto& entry : result.tissue_budget) {
+      std::printf("  tissue %s: %.1f %% of frames over its %.1f ms time budget\n", entry.first.c_str(),
+                  100.0 * entry.second.second, entry.second.first);
+    }
+    std::printf("  busy (wall time in the stage, %% of a core):");
+    for (const auto& entry : result.busy) std::printf(" %s %.1f", entry.first.c_str(), entry.second);
+    std::printf("\n");
+    std::printf("  passes and simulation stages p50 / p99 ms:");
+    for (const auto& entry : result.passes) {
+      std::printf(" %s %.2f / %.2f", entry.first.c_str(), entry.second.p50, entry.second.p99);
+    }
+    std::printf("\n");
     std::printf("  %-19s %8s %8s %8s %8s %7s %7s %9s %9s\n", "stage", "p50", "p95", "p99", "max", "fps", "dropped",
                 "predicted", "(eq.)");
     for (const StageRow& row : result.rows) {
@@ -589,6 +659,16 @@ int main(int argc, char** argv) {
               ",\"samples\":" + std::to_string(row.summary.count) + ",\"fps\":" + number(row.fps) +
               ",\"dropped\":" + std::to_string(row.dropped) + extra + "}";
     }
+    std::string passes;
+    for (const auto& entry : result.passes) {
+      passes += (passes.empty() ? "\"" : ",\"") + entry.first + "\":{\"p50_ms\":" + number(entry.second.p50) +
+                ",\"p99_ms\":" + number(entry.second.p99) + "}";
+    }
+    std::string budgets;
+    for (const auto& entry : result.tissue_budget) {
+      budgets += (budgets.empty() ? "\"" : ",\"") + entry.first + "\":{\"budget_ms\":" + number(entry.second.first) +
+                 ",\"over_budget_fraction\":" + number(entry.second.second) + "}";
+    }
     std::string busy;
     for (const auto& entry : result.busy)
       busy += (busy.empty() ? "" : ",") + ("\"" + entry.first + "\":" + number(entry.second));
@@ -604,8 +684,9 @@ int main(int argc, char** argv) {
         ",\"cpu_manager_pct\":" + number(result.cpu_manager) + ",\"cpu_renderer_pct\":" + number(result.cpu_render) +
         ",\"cpu_other_manager_threads_pct\":" + number(result.cpu_workers) +
         ",\"cpu_launch_other_pct\":" + number(result.cpu_launch_rest) +
-        ",\"cpu_viewer_pct\":" + number(result.cpu_viewer) + ",\"busy_pct_of_a_core\":{" + busy + "}" +
-        ",\"histogram_bin_ms\":1,\"histogram_end_to_end\":[" + intList(result.histogram_end_to_end) +
+        ",\"cpu_master_pct\":" + number(result.cpu_master) + ",\"cpu_viewer_pct\":" + number(result.cpu_viewer) +
+        ",\"busy_pct_of_a_core\":{" + busy + "},\"tissue_time_budget\":{" + budgets + "},\"raw_stages\":{" + passes +
+        "}" + ",\"histogram_bin_ms\":1,\"histogram_end_to_end\":[" + intList(result.histogram_end_to_end) +
         "],\"histogram_end_to_end_world\":[" + intList(result.histogram_world) + "]}";
   }
   std::ofstream out(out_path);
