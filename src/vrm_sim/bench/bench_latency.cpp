@@ -423,8 +423,10 @@ Result runConfig(const Config& config, ros::NodeHandle& nh, Collected& collected
       } else if (config.pattern == "parallel_async") {
         row.predicted_eq = "2.4";
         row.predicted_ms = eq24;
-        // With the graph's clocks: the renderer samples at 30 Hz, so its sync latency is eq. 2.2 of that rate.
-        row.predicted_graph_ms = eq23 + 1e3 * w::syncLatencyMean(kTimerRateHz);
+        // With the graph's clocks: eq. 2.4's T_sync is half the period of each producer the next module samples
+        // (½ T_S + ½ T_B for free-running modules). Here the simulation runs on the tracker's tick (no sync wait)
+        // and the renderer samples its results, produced every input tick: eq. 2.2 at the input rate.
+        row.predicted_graph_ms = eq23 + 1e3 * w::syncLatencyMean(kInputRateHz);
       } else {
         row.predicted_eq = "2.7";
         row.predicted_ms = eq27;
