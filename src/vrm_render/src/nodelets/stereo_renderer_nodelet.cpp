@@ -14,9 +14,10 @@
 // triggers replace the pending one (no queue grows when rendering is slow); each replaced trigger counts as dropped.
 // ~max_rate (event triggers, Hz, 0 = none) bounds the frame rate. ~max_input_age (event triggers, s, default 0.005):
 // a trigger that waited longer than this for the previous frame is skipped when the next input is due within the
-// tick, so frames start when their input arrives (latency before frame rate, eq. 2.5). Only images that are watched
-// (a subscriber on stereo/*/image_raw) or a snapshot due cause a frame: a headless session keeps its cores for
-// tracking and simulation.
+// tick, so frames start when their input arrives (latency before frame rate, eq. 2.5). The render thread and its
+// llvmpipe threads run at ~render_nice (default 10): inputs, tracking and simulation go first. Only images that are
+// watched (a subscriber on stereo/*/image_raw) or a snapshot due cause a frame: a headless session keeps its cores
+// for tracking and simulation.
 //
 // Subscribes (node handle namespace): meshes/<object> (vrm_msgs/TissueMesh, latched, one per scene object; for
 //   deformable objects, and the retina of a scene that simulates bleeding, also tissue/<object> from the simulation),
@@ -42,7 +43,10 @@
 #include <sensor_msgs/CameraInfo.h>
 #include <sensor_msgs/Image.h>
 #include <std_srvs/Trigger.h>
+#include <sys/resource.h>
+#include <sys/syscall.h>
 #include <tf2_ros/transform_broadcaster.h>
+#include <unistd.h>
 #include <vrm_msgs/EyeState.h>
 #include <vrm_msgs/InstrumentState.h>
 #include <vrm_msgs/MicroscopeSettings.h>
@@ -59,11 +63,14 @@
 #include <cstdio>
 #include <deque>
 #include <filesystem>
+#include <fstream>
 #include <map>
 #include <mutex>
 #include <pluginlib/class_list_macros.hpp>
+#include <set>
 #include <sstream>
 #include <stdexcept>
+#include <string>
 #include <thread>
 
 #include "vrm_render/image_io.h"
@@ -164,6 +171,23 @@ boost::shared_ptr<const M> newestUpTo(const std::deque<boost::shared_ptr<const M
   return history.empty() ? nullptr : history.front();
 }
 
+// The threads of this process (Linux: /proc/self/task).
+std::set<pid_t> processThreads() {
+  std::set<pid_t> threads;
+  std::error_code error;
+  for (const auto& entry : std::filesystem::directory_iterator("/proc/self/task", error)) {
+    threads.insert(static_cast<pid_t>(std::stol(entry.path().filename().string())));
+  }
+  return threads;
+}
+
+std::string threadName(pid_t thread) {
+  std::ifstream file("/proc/self/task/" + std::to_string(thread) + "/comm");
+  std::string name;
+  std::getline(file, name);
+  return name;
+}
+
 }  // namespace
 
 class StereoRendererNodelet : public nodelet::Nodelet {
@@ -196,6 +220,7 @@ class StereoRendererNodelet : public nodelet::Nodelet {
     pnh.param("rate", rate_, 30.0);
     pnh.param("max_rate", max_rate_, 0.0);
     pnh.param("max_input_age", max_input_age_, 0.005);
+    pnh.param("render_nice", render_nice_, 10);
     pnh.param("simulation_timeout", simulation_timeout_, 0.5);
     pnh.param("snapshot_dir", snapshot_dir_, std::string());
     pnh.param("snapshot_count", snapshot_count_, 0);
@@ -218,7 +243,14 @@ class StereoRendererNodelet : public nodelet::Nodelet {
     try {
       trigger_ = parseTrigger(trigger_name);
       scene_ = vrm_sim::scene::loadScene(vrm_sim::scene::resolveScenePath(scene_parameter));
+      const std::set<pid_t> threads_before = processThreads();
       renderer_ = std::make_unique<StereoRenderer>(options);
+      // The rasteriser threads llvmpipe started for this context run at the render thread's priority.
+      for (pid_t thread : processThreads()) {
+        if (threads_before.count(thread) == 0 && threadName(thread).rfind("llvmpipe", 0) == 0) {
+          render_threads_.push_back(thread);
+        }
+      }
     } catch (const std::exception& error) {
       NODELET_FATAL("stereo_renderer cannot start: %s", error.what());
       throw;
@@ -266,9 +298,14 @@ class StereoRendererNodelet : public nodelet::Nodelet {
     diagnostic_timer_ = nh.createWallTimer(ros::WallDuration(1.0), &StereoRendererNodelet::publishDiagnostics, this);
     last_diagnostics_ = ros::WallTime::now();
     thread_ = std::thread(&StereoRendererNodelet::renderLoop, this);
-    NODELET_INFO("stereo_renderer: scene '%s', %dx%d %s, passes shadow=%d dof=%d, frames %s", scene_.name.c_str(),
-                 options.width, options.height, options.stereo ? "stereo" : "mono", options.shadow_pass,
-                 options.dof_pass, describeTrigger().c_str());
+    // Rendering yields to the input side (tracking, simulation): a slower frame still shows the newest input, while
+    // a delayed input delays every stage after it (thesis §2.5.3: never more busy threads than cores).
+    for (pid_t thread : render_threads_) setpriority(PRIO_PROCESS, static_cast<id_t>(thread), render_nice_);
+    NODELET_INFO(
+        "stereo_renderer: scene '%s', %dx%d %s, passes shadow=%d dof=%d, frames %s; render thread and %zu "
+        "llvmpipe threads at nice %d",
+        scene_.name.c_str(), options.width, options.height, options.stereo ? "stereo" : "mono", options.shadow_pass,
+        options.dof_pass, describeTrigger().c_str(), render_threads_.size(), render_nice_);
   }
 
  private:
@@ -451,6 +488,7 @@ class StereoRendererNodelet : public nodelet::Nodelet {
   // a while, e.g. only the microscope knobs), then renders it from the newest inputs.
   void renderLoop() {
     pthread_setname_np(pthread_self(), "vrm_render");
+    if (render_nice_ > 0) setpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid)), render_nice_);
     const auto idle_refresh = std::chrono::milliseconds(100);
     std::unique_lock<std::mutex> lock(mutex_);
     while (!stop_) {
@@ -783,6 +821,8 @@ class StereoRendererNodelet : public nodelet::Nodelet {
   double rate_ = 30.0;
   double max_rate_ = 0.0;
   double max_input_age_ = 0.005;
+  int render_nice_ = 10;               // nice value of the render thread and its llvmpipe threads
+  std::vector<pid_t> render_threads_;  // llvmpipe's rasteriser threads of this renderer's context
   double simulation_timeout_ = 0.5;
   std::string snapshot_dir_;
   int snapshot_count_ = 0;
