@@ -11,8 +11,8 @@
 //   drop_horizon (s, 1.0: a frame not used by the next stage this long after a newer one was offered is dropped),
 //   and per stage <stage>/warn_ms, <stage>/error_ms (on <stage>/statistic: p50 | p95 | p99 | max | mean, default
 //   p99, of the latency since the input stamp, or of the compute time with <stage>/of_time), <stage>/min_fps.
-//   Defaults: end_to_end p99 WARN above 57 ms (EyeSi's membrane scene, thesis §7.4.2), ERROR above 150 ms (criticised by
-//   every test user, §1.3), WARN below 20 fps (§1.3).
+//   Defaults: end_to_end p99 WARN above 57 ms (EyeSi's membrane scene, thesis §7.4.2), ERROR above 150 ms (criticised
+//   by every test user, §1.3), WARN below 20 fps (§1.3).
 #include <diagnostic_msgs/DiagnosticArray.h>
 #include <nodelet/nodelet.h>
 #include <ros/ros.h>
