@@ -21,6 +21,7 @@
 #include <string>
 #include <vector>
 
+#include "bench_cli.h"
 #include "vrm_sim/mge/elements.h"
 #include "vrm_sim/mge/graph.h"
 #include "vrm_sim/mge/labels.h"
@@ -292,21 +293,12 @@ double find(const std::vector<Row>& rows, const std::string& kind, std::size_t e
 }  // namespace
 
 int main(int argc, char** argv) {
-  bool quick = false;
-  std::string out_path;
   std::string command;
   for (int i = 0; i < argc; ++i) command += (i ? " " : "") + std::string(argv[i]);
-  for (int i = 1; i < argc; ++i) {
-    const std::string arg = argv[i];
-    if (arg == "--quick") {
-      quick = true;
-    } else if (arg == "--out" && i + 1 < argc) {
-      out_path = argv[++i];
-    } else {
-      std::fprintf(stderr, "usage: %s [--quick] [--out FILE]\n", argv[0]);
-      return 2;
-    }
-  }
+  const auto args = vrm_sim::bench::parseBenchArgs(argc, argv, "");
+  if (!args) return 2;
+  const bool quick = args->quick;
+  const std::string out_path = args->out_path;
 
   const std::vector<std::size_t> sizes =
       quick ? std::vector<std::size_t>{1000, 10000} : std::vector<std::size_t>{1000, 10000, 100000, 1000000};

@@ -12,25 +12,17 @@
 #include <string>
 #include <vector>
 
+#include "bench_cli.h"
 #include "vrm_sim/scene/scene_loader.h"
 #include "vrm_sim/world/offline.h"
 
 using namespace vrm_sim;
 
 int main(int argc, char** argv) {
-  bool quick = false;
-  std::string out_path = "bench/results/scenario.json";
-  for (int i = 1; i < argc; ++i) {
-    const std::string arg = argv[i];
-    if (arg == "--quick") {
-      quick = true;
-    } else if (arg == "--out" && i + 1 < argc) {
-      out_path = argv[++i];
-    } else {
-      std::fprintf(stderr, "usage: %s [--quick] [--out FILE]\n", argv[0]);
-      return 2;
-    }
-  }
+  const auto args = bench::parseBenchArgs(argc, argv, "bench/results/scenario.json");
+  if (!args) return 2;
+  const bool quick = args->quick;
+  const std::string out_path = args->out_path;
   const int repeats = quick ? 1 : 3;  // the fastest of `repeats` identical runs: these machines are noisy
   std::printf("bench_scenario (%s): scripted sessions through world::World + scenario, 50 Hz inputs, best of %d\n",
               quick ? "quick" : "full", repeats);

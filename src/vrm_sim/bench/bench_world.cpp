@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "bench_cli.h"
 #include "vrm_sim/mge/membrane.h"
 #include "vrm_sim/scene/scene_loader.h"
 #include "vrm_sim/world/offline.h"
@@ -83,19 +84,10 @@ double percentile(std::vector<double> values, double fraction) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  bool quick = false;
-  std::string out_path = "bench/results/world.json";
-  for (int i = 1; i < argc; ++i) {
-    const std::string arg = argv[i];
-    if (arg == "--quick") {
-      quick = true;
-    } else if (arg == "--out" && i + 1 < argc) {
-      out_path = argv[++i];
-    } else {
-      std::fprintf(stderr, "usage: %s [--quick] [--out FILE]\n", argv[0]);
-      return 2;
-    }
-  }
+  const auto args = bench::parseBenchArgs(argc, argv, "bench/results/world.json");
+  if (!args) return 2;
+  const bool quick = args->quick;
+  const std::string out_path = args->out_path;
   const scene::SceneDescription base = scene::loadScene(scene::shippedScenePath("membrane_peeling"));
   const double rate = 50.0;
   const std::vector<std::string> detectors =
