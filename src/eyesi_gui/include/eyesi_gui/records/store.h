@@ -1,0 +1,140 @@
+// Training records (thesis §2.4, §7.3: who trained what, how well, and the recorded inputs to replay it): a SQLite
+// store of users, sessions and score items, shared by the console (eyesi_gui), its `records` command-line tool and
+// the tests. ROS-free and Qt-free.
+//
+// CONTRACT (written before the implementation; the implementation may add, not change):
+// - One database file (WAL journal, foreign keys on, schema version in PRAGMA user_version, forward migrations from
+//   version 0 = empty file to kSchemaVersion).
+// - Users: name (unique), role, PIN stored as a salted PBKDF2-HMAC-SHA256 hash (never plain). A built-in "guest"
+//   trainee without PIN always exists.
+// - Sessions: one row per session, written with its score items in one transaction; a session is identified by its
+//   result (scene, seed, start/end stamp, final state hash, frames), so importing the same result twice gives one row.
+// - A database that is not SQLite, cut off or has a bad page: StoreError with what() naming the file and the
+//   integrity_check report; the file is never modified in that case.
+#pragma once
+
+#include <cstdint>
+#include <iosfwd>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace eyesi_gui::records {
+
+enum class Role { kTrainee, kInstructor };
+const char* toString(Role role);  // "trainee" / "instructor"
+
+struct User {
+  std::int64_t id = 0;
+  std::string name;
+  Role role = Role::kTrainee;
+  bool has_pin = false;
+};
+
+struct ScoreItemRecord {
+  std::string name;
+  double value = 0.0;
+  std::string unit;
+  double weight = 0.0;
+  double points = 0.0;  // 0..1 of the item's weight earned
+};
+
+struct SessionRecord {
+  std::int64_t id = 0;  // 0 until stored
+  std::string user;     // user name ("guest" for a result without one)
+  std::string scene, scenario, difficulty;
+  std::uint32_t seed = 0;
+  std::string state;             // "finished" / "failed" / "stopped" / "running" (interrupted) / ...
+  std::string message;           // the scenario's last message
+  double total = 0.0;            // 0..100
+  bool passed = false;           // state == finished
+  double elapsed = 0.0;          // s of simulated time
+  double start_stamp = 0.0;      // input time (s) of the session's start and end
+  double end_stamp = 0.0;
+  std::string recorded_at;       // wall time the row was written, ISO-8601 UTC ("2026-11-24T10:00:00Z")
+  std::string bag_path;          // the session's input bag ("" = not recorded)
+  std::string result_path;       // the result JSON it was imported from ("" = live)
+  std::string software_version;
+  std::string final_state_hash;
+  std::uint64_t frames = 0;
+  std::string station;           // host name of the simulator that ran it
+  std::string annotation;        // instructor's note
+  std::vector<ScoreItemRecord> items;
+};
+
+struct SessionFilter {
+  std::string user;   // "" = every user
+  std::string scene;  // "" = every scene
+};
+
+// A per-scene summary for the scenario screen.
+struct SceneSummary {
+  std::string scene;
+  int sessions = 0;
+  double best = 0.0;
+  double last = 0.0;
+  std::string last_recorded_at;
+};
+
+class StoreError : public std::runtime_error {
+ public:
+  StoreError(const std::string& what, std::string integrity_report = "")
+      : std::runtime_error(what), integrity_report_(std::move(integrity_report)) {}
+  const std::string& integrityReport() const { return integrity_report_; }
+
+ private:
+  std::string integrity_report_;
+};
+
+struct ImportResult {
+  std::int64_t session_id = 0;
+  bool inserted = false;  // false: the session was already stored
+};
+
+class Store {
+ public:
+  static constexpr int kSchemaVersion = 2;
+
+  // Opens (creating parent folders and the file if missing) and migrates. Throws StoreError.
+  explicit Store(const std::string& path);
+  ~Store();
+  Store(const Store&) = delete;
+  Store& operator=(const Store&) = delete;
+
+  const std::string& path() const;
+  int schemaVersion() const;
+
+  // Users. addUser throws StoreError on a duplicate name or an empty name.
+  User addUser(const std::string& name, Role role, const std::string& pin);
+  std::vector<User> users() const;
+  std::optional<User> findUser(const std::string& name) const;
+  bool checkPin(const std::string& name, const std::string& pin) const;  // guest: always true
+
+  // Sessions. recordSession is idempotent (see above); returns the row's id.
+  ImportResult recordSession(const SessionRecord& session);
+  // A scenario_manager result JSON (the file next to a bag, or the session_result topic's text). `user` overrides
+  // the file's "user" field when not empty. Throws StoreError on malformed JSON (naming the file).
+  ImportResult importResultJson(const std::string& json_text, const std::string& origin, const std::string& user = "");
+  ImportResult importResultFile(const std::string& path, const std::string& user = "");
+  // Every *.result.json under `folder` (recursively); malformed ones are reported in `errors`, not thrown.
+  std::vector<ImportResult> importFolder(const std::string& folder, std::vector<std::string>* errors = nullptr);
+
+  std::vector<SessionRecord> sessions(const SessionFilter& filter = {}) const;  // oldest first, with items
+  std::optional<SessionRecord> session(std::int64_t id) const;
+  std::vector<SceneSummary> summaries(const std::string& user) const;
+  void annotate(std::int64_t session_id, const std::string& text);
+
+  // CSV (RFC 4180): one line per score item of every matching session, with a header line.
+  void exportCsv(std::ostream& out, const SessionFilter& filter = {}) const;
+
+  // PRAGMA integrity_check of a database file, opened read-only ("ok" when sound). Throws StoreError if the file
+  // cannot be opened at all.
+  static std::string integrityCheck(const std::string& path);
+
+ private:
+  struct Impl;
+  Impl* impl_;
+};
+
+}  // namespace eyesi_gui::records
