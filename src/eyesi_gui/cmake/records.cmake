@@ -1,1 +1,26 @@
-# Placeholder until the records store lands (helper).
+# The training-records store (ROS-free, Qt-free), its command-line tool and its tests. Included from
+# src/eyesi_gui/CMakeLists.txt after find_package(SQLite3 OpenSSL nlohmann_json).
+
+file(GLOB EYESI_RECORDS_SOURCES CONFIGURE_DEPENDS ${CMAKE_CURRENT_SOURCE_DIR}/src/core/records/*.cpp)
+add_library(eyesi_records STATIC ${EYESI_RECORDS_SOURCES})
+# PIC: the console's nodelet/shared objects link this static library.
+set_target_properties(eyesi_records PROPERTIES POSITION_INDEPENDENT_CODE ON)
+target_include_directories(eyesi_records PUBLIC ${CMAKE_CURRENT_SOURCE_DIR}/include)
+target_link_libraries(eyesi_records PUBLIC SQLite::SQLite3 OpenSSL::Crypto nlohmann_json::nlohmann_json)
+target_compile_options(eyesi_records PRIVATE -Wall -Wextra)
+
+add_executable(records tools/records.cpp)
+target_link_libraries(records eyesi_records)
+install(TARGETS records RUNTIME DESTINATION ${CATKIN_PACKAGE_BIN_DESTINATION})
+install(TARGETS eyesi_records ARCHIVE DESTINATION ${CATKIN_PACKAGE_LIB_DESTINATION})
+
+if(CATKIN_ENABLE_TESTING)
+  catkin_add_gtest(test_records test/test_records.cpp)
+  if(TARGET test_records)
+    target_link_libraries(test_records eyesi_records gtest_main)
+    # The simulator's reference results (real scenario_manager output) and the tool, run as a subprocess.
+    target_compile_definitions(test_records PRIVATE EYESI_TEST_BAGS="${CMAKE_CURRENT_SOURCE_DIR}/../vrm_sim/test/bags"
+                                                    EYESI_RECORDS_TOOL="$<TARGET_FILE:records>")
+    add_dependencies(test_records records)
+  endif()
+endif()

@@ -45,21 +45,21 @@ struct SessionRecord {
   std::string user;     // user name ("guest" for a result without one)
   std::string scene, scenario, difficulty;
   std::uint32_t seed = 0;
-  std::string state;             // "finished" / "failed" / "stopped" / "running" (interrupted) / ...
-  std::string message;           // the scenario's last message
-  double total = 0.0;            // 0..100
-  bool passed = false;           // state == finished
-  double elapsed = 0.0;          // s of simulated time
-  double start_stamp = 0.0;      // input time (s) of the session's start and end
+  std::string state;         // "finished" / "failed" / "stopped" / "running" (interrupted) / ...
+  std::string message;       // the scenario's last message
+  double total = 0.0;        // 0..100
+  bool passed = false;       // state == finished
+  double elapsed = 0.0;      // s of simulated time
+  double start_stamp = 0.0;  // input time (s) of the session's start and end
   double end_stamp = 0.0;
-  std::string recorded_at;       // wall time the row was written, ISO-8601 UTC ("2026-11-24T10:00:00Z")
-  std::string bag_path;          // the session's input bag ("" = not recorded)
-  std::string result_path;       // the result JSON it was imported from ("" = live)
+  std::string recorded_at;  // wall time the row was written, ISO-8601 UTC ("2026-11-24T10:00:00Z")
+  std::string bag_path;     // the session's input bag ("" = not recorded)
+  std::string result_path;  // the result JSON it was imported from ("" = live)
   std::string software_version;
   std::string final_state_hash;
   std::uint64_t frames = 0;
-  std::string station;           // host name of the simulator that ran it
-  std::string annotation;        // instructor's note
+  std::string station;     // host name of the simulator that ran it
+  std::string annotation;  // instructor's note
   std::vector<ScoreItemRecord> items;
 };
 
@@ -110,6 +110,9 @@ class Store {
   std::vector<User> users() const;
   std::optional<User> findUser(const std::string& name) const;
   bool checkPin(const std::string& name, const std::string& pin) const;  // guest: always true
+  // Added to the contract: sets or (empty pin) clears a user's PIN, e.g. for a trainee created by an import from
+  // another station. A user without a PIN accepts only the empty PIN in checkPin. Throws for guest or an unknown user.
+  void setPin(const std::string& name, const std::string& pin);
 
   // Sessions. recordSession is idempotent (see above); returns the row's id.
   ImportResult recordSession(const SessionRecord& session);
@@ -119,6 +122,8 @@ class Store {
   ImportResult importResultFile(const std::string& path, const std::string& user = "");
   // Every *.result.json under `folder` (recursively); malformed ones are reported in `errors`, not thrown.
   std::vector<ImportResult> importFolder(const std::string& folder, std::vector<std::string>* errors = nullptr);
+  // Added to the contract: the *.result.json files importFolder would import, sorted. Throws if `folder` is not one.
+  static std::vector<std::string> findResultFiles(const std::string& folder);
 
   std::vector<SessionRecord> sessions(const SessionFilter& filter = {}) const;  // oldest first, with items
   std::optional<SessionRecord> session(std::int64_t id) const;

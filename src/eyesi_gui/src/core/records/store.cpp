@@ -1,0 +1,704 @@
+#include "eyesi_gui/records/store.h"
+
+#include <sqlite3.h>
+
+#include <algorithm>
+#include <cctype>
+#include <cerrno>
+#include <chrono>
+#include <cstring>
+#include <ctime>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <mutex>
+#include <ostream>
+#include <sstream>
+
+#include "eyesi_gui/records/csv.h"
+#include "eyesi_gui/records/pin_hash.h"
+#include "eyesi_gui/records/result_json.h"
+#include "eyesi_gui/records/schema.h"
+
+namespace eyesi_gui::records {
+namespace fs = std::filesystem;
+
+namespace {
+
+constexpr int kBusyTimeoutMs = 5000;
+constexpr const char* kGuest = "guest";
+
+bool isDamageCode(int code) {
+  const int primary = code & 0xff;
+  // IOERR covers the short read of a file cut off mid-write.
+  return primary == SQLITE_CORRUPT || primary == SQLITE_NOTADB || primary == SQLITE_IOERR;
+}
+
+struct CloseDb {
+  void operator()(sqlite3* db) const { sqlite3_close_v2(db); }
+};
+using DbHandle = std::unique_ptr<sqlite3, CloseDb>;
+
+// Read-only, never created: the checks below must not write a byte to a file that may be damaged (no journal
+// rollback, no WAL checkpoint — a read-only connection does neither).
+DbHandle openReadOnly(const std::string& path) {
+  sqlite3* raw = nullptr;
+  const int rc = sqlite3_open_v2(path.c_str(), &raw, SQLITE_OPEN_READONLY, nullptr);
+  DbHandle db(raw);
+  if (rc != SQLITE_OK) {
+    throw StoreError(path + ": cannot open the database: " + (raw ? sqlite3_errmsg(raw) : sqlite3_errstr(rc)));
+  }
+  sqlite3_extended_result_codes(raw, 1);
+  sqlite3_busy_timeout(raw, kBusyTimeoutMs);
+  return db;
+}
+
+// The rows of a single-column query (a PRAGMA); returns the SQLite result code, `error` holding its message.
+int queryColumn(sqlite3* db, const char* sql, std::vector<std::string>* rows, std::string* error) {
+  sqlite3_stmt* stmt = nullptr;
+  int rc = sqlite3_prepare_v2(db, sql, -1, &stmt, nullptr);
+  while (rc == SQLITE_OK && (rc = sqlite3_step(stmt)) == SQLITE_ROW) {
+    const auto* text = reinterpret_cast<const char*>(sqlite3_column_text(stmt, 0));
+    rows->push_back(text ? text : "");
+    rc = SQLITE_OK;
+  }
+  if (rc == SQLITE_DONE) rc = SQLITE_OK;
+  if (rc != SQLITE_OK) *error = sqlite3_errmsg(db);
+  sqlite3_finalize(stmt);
+  return rc;
+}
+
+std::string joinLines(const std::vector<std::string>& lines) {
+  std::string joined;
+  for (const auto& line : lines) joined += (joined.empty() ? "" : "\n") + line;
+  return joined;
+}
+
+std::string damagedMessage(const std::string& path, const std::string& report) {
+  // One line (the tool prints what() as its error line); the whole report is in integrityReport().
+  std::istringstream lines(report);
+  std::string line, summary;
+  int shown = 0, more = 0;
+  while (std::getline(lines, line)) {
+    if (shown < 3) {
+      summary += (shown++ ? "; " : "") + line;
+    } else {
+      ++more;
+    }
+  }
+  if (more > 0) summary += "; ... " + std::to_string(more) + " more";
+  return path + ": the database is damaged (integrity_check: " + summary + "); the file was left untouched";
+}
+
+std::string nowIso8601() {
+  const std::time_t now = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
+  std::tm utc{};
+  gmtime_r(&now, &utc);
+  char buffer[32];
+  std::strftime(buffer, sizeof(buffer), "%Y-%m-%dT%H:%M:%SZ", &utc);
+  return buffer;
+}
+
+Role roleFromString(const std::string& text) { return text == "instructor" ? Role::kInstructor : Role::kTrainee; }
+
+bool isBlank(const std::string& text) {
+  return std::all_of(text.begin(), text.end(), [](unsigned char c) { return std::isspace(c) != 0; });
+}
+
+}  // namespace
+
+const char* toString(Role role) { return role == Role::kInstructor ? "instructor" : "trainee"; }
+
+std::string Store::integrityCheck(const std::string& path) {
+  const DbHandle db = openReadOnly(path);
+  std::vector<std::string> rows;
+  std::string error;
+  if (queryColumn(db.get(), "PRAGMA integrity_check", &rows, &error) != SQLITE_OK) {
+    // "file is not a database", or a page so broken that the check itself stops: still a report, not "ok".
+    rows.push_back("integrity_check failed: " + error);
+  }
+  return joinLines(rows);
+}
+
+struct Store::Impl {
+  std::string path;
+  sqlite3* db = nullptr;
+  int version = 0;
+  // One connection, so one transaction at a time: the mutex makes a Store safe to share between threads.
+  mutable std::mutex mutex;
+
+  ~Impl() {
+    // The last connection to close checkpoints the WAL into the file and removes it.
+    if (db != nullptr) sqlite3_close_v2(db);
+  }
+
+  [[noreturn]] void fail(const std::string& what, int code) const {
+    if (isDamageCode(code)) {
+      std::string report;
+      try {
+        report = integrityCheck(path);
+      } catch (const StoreError& e) {
+        report = e.what();
+      }
+      throw StoreError(damagedMessage(path, report), report);
+    }
+    throw StoreError(path + ": " + what + ": " + sqlite3_errmsg(db));
+  }
+
+  void exec(const char* sql, const char* what) const {
+    char* message = nullptr;
+    const int rc = sqlite3_exec(db, sql, nullptr, nullptr, &message);
+    if (rc != SQLITE_OK) {
+      const std::string text = message ? message : sqlite3_errstr(rc);
+      sqlite3_free(message);
+      if (isDamageCode(rc)) fail(what, rc);
+      throw StoreError(path + ": " + what + ": " + text);
+    }
+  }
+
+  // A prepared statement with typed binds and column reads; errors name the database file.
+  class Statement {
+   public:
+    Statement(const Impl& impl, const char* sql) : impl_(impl) {
+      const int rc = sqlite3_prepare_v2(impl.db, sql, -1, &stmt_, nullptr);
+      if (rc != SQLITE_OK) impl.fail("cannot prepare a query", rc);
+    }
+    ~Statement() { sqlite3_finalize(stmt_); }
+    Statement(const Statement&) = delete;
+    Statement& operator=(const Statement&) = delete;
+
+    Statement& text(int index, const std::string& value) {
+      sqlite3_bind_text(stmt_, index, value.data(), static_cast<int>(value.size()), SQLITE_TRANSIENT);
+      return *this;
+    }
+    Statement& real(int index, double value) {
+      sqlite3_bind_double(stmt_, index, value);
+      return *this;
+    }
+    Statement& integer(int index, std::int64_t value) {
+      sqlite3_bind_int64(stmt_, index, value);
+      return *this;
+    }
+    Statement& blob(int index, const std::vector<unsigned char>& value) {
+      sqlite3_bind_blob(stmt_, index, value.data(), static_cast<int>(value.size()), SQLITE_TRANSIENT);
+      return *this;
+    }
+    Statement& null(int index) {
+      sqlite3_bind_null(stmt_, index);
+      return *this;
+    }
+
+    // true: a row is ready; false: done.
+    bool step() {
+      const int rc = sqlite3_step(stmt_);
+      if (rc == SQLITE_ROW) return true;
+      if (rc == SQLITE_DONE) return false;
+      impl_.fail("query failed", rc);
+    }
+    void reset() {
+      sqlite3_reset(stmt_);
+      sqlite3_clear_bindings(stmt_);
+    }
+
+    std::string textAt(int column) const {
+      const auto* value = reinterpret_cast<const char*>(sqlite3_column_text(stmt_, column));
+      return value ? std::string(value, static_cast<std::size_t>(sqlite3_column_bytes(stmt_, column))) : "";
+    }
+    double realAt(int column) const { return sqlite3_column_double(stmt_, column); }
+    std::int64_t integerAt(int column) const { return sqlite3_column_int64(stmt_, column); }
+    std::vector<unsigned char> blobAt(int column) const {
+      const auto* data = static_cast<const unsigned char*>(sqlite3_column_blob(stmt_, column));
+      return data ? std::vector<unsigned char>(data, data + sqlite3_column_bytes(stmt_, column))
+                  : std::vector<unsigned char>();
+    }
+    bool isNull(int column) const { return sqlite3_column_type(stmt_, column) == SQLITE_NULL; }
+
+   private:
+    const Impl& impl_;
+    sqlite3_stmt* stmt_ = nullptr;
+  };
+
+  // BEGIN ... COMMIT, rolled back when left without commit() (an exception on the way).
+  class Transaction {
+   public:
+    // Writers take the write lock up front (IMMEDIATE): a deferred read that later upgrades can fail with
+    // SQLITE_BUSY at once, without the busy timeout ever being applied.
+    Transaction(const Impl& impl, bool write) : impl_(impl) {
+      impl.exec(write ? "BEGIN IMMEDIATE" : "BEGIN", "cannot begin a transaction");
+    }
+    ~Transaction() {
+      if (!done_) sqlite3_exec(impl_.db, "ROLLBACK", nullptr, nullptr, nullptr);
+    }
+    void commit() {
+      impl_.exec("COMMIT", "cannot commit");
+      done_ = true;
+    }
+
+   private:
+    const Impl& impl_;
+    bool done_ = false;
+  };
+
+  int userVersion() const {
+    Statement stmt(*this, "PRAGMA user_version");
+    return stmt.step() ? static_cast<int>(stmt.integerAt(0)) : 0;
+  }
+
+  std::int64_t tableCount() const {
+    Statement stmt(*this, "SELECT count(*) FROM sqlite_master WHERE type = 'table'");
+    return stmt.step() ? stmt.integerAt(0) : 0;
+  }
+
+  void migrate() {
+    for (;;) {
+      Transaction tx(*this, true);
+      // Read inside the write lock: another process may have migrated since this one looked.
+      const int current = userVersion();
+      if (current > Store::kSchemaVersion) {
+        throw StoreError(path + ": schema version " + std::to_string(current) + " is newer than this software (" +
+                         std::to_string(Store::kSchemaVersion) + "); update the console");
+      }
+      if (current == Store::kSchemaVersion) {
+        tx.commit();
+        version = current;
+        return;
+      }
+      if (current == 0 && tableCount() > 0) {
+        throw StoreError(path + ": holds tables but no records schema version; not a training-records database");
+      }
+      exec(migrationSql(current + 1), "schema migration failed");
+      exec(("PRAGMA user_version = " + std::to_string(current + 1)).c_str(), "schema migration failed");
+      tx.commit();
+    }
+  }
+
+  std::optional<std::int64_t> userId(const std::string& name) const {
+    Statement stmt(*this, "SELECT id FROM users WHERE name = ?1");
+    stmt.text(1, name);
+    if (!stmt.step()) return std::nullopt;
+    return stmt.integerAt(0);
+  }
+
+  std::int64_t insertUser(const std::string& name, Role role, const std::optional<PinHash>& pin) {
+    Statement stmt(*this,
+                   "INSERT INTO users (name, role, pin_salt, pin_hash, iterations, created_at) "
+                   "VALUES (?1, ?2, ?3, ?4, ?5, ?6)");
+    stmt.text(1, name).text(2, toString(role)).text(6, nowIso8601());
+    if (pin) {
+      stmt.blob(3, pin->salt).blob(4, pin->hash).integer(5, pin->iterations);
+    } else {
+      stmt.null(3).null(4).integer(5, 0);
+    }
+    stmt.step();
+    return sqlite3_last_insert_rowid(db);
+  }
+
+  void ensureGuest() {
+    if (userId(kGuest)) return;  // the usual case writes nothing
+    Transaction tx(*this, true);
+    if (!userId(kGuest)) insertUser(kGuest, Role::kTrainee, std::nullopt);
+    tx.commit();
+  }
+
+  static constexpr const char* kSessionColumns =
+      "SELECT s.id, u.name, s.scene, s.scenario, s.difficulty, s.seed, s.state, s.message, s.total, s.passed, "
+      "s.elapsed, s.start_stamp, s.end_stamp, s.recorded_at, s.bag_path, s.result_path, s.software_version, "
+      "s.final_state_hash, s.frames, s.station, s.annotation FROM sessions s JOIN users u ON u.id = s.user_id ";
+
+  static SessionRecord sessionFromRow(const Statement& row) {
+    SessionRecord s;
+    s.id = row.integerAt(0);
+    s.user = row.textAt(1);
+    s.scene = row.textAt(2);
+    s.scenario = row.textAt(3);
+    s.difficulty = row.textAt(4);
+    s.seed = static_cast<std::uint32_t>(row.integerAt(5));
+    s.state = row.textAt(6);
+    s.message = row.textAt(7);
+    s.total = row.realAt(8);
+    s.passed = row.integerAt(9) != 0;
+    s.elapsed = row.realAt(10);
+    s.start_stamp = row.realAt(11);
+    s.end_stamp = row.realAt(12);
+    s.recorded_at = row.textAt(13);
+    s.bag_path = row.textAt(14);
+    s.result_path = row.textAt(15);
+    s.software_version = row.textAt(16);
+    s.final_state_hash = row.textAt(17);
+    s.frames = static_cast<std::uint64_t>(row.integerAt(18));
+    s.station = row.textAt(19);
+    s.annotation = row.textAt(20);
+    return s;
+  }
+
+  void loadItems(std::vector<SessionRecord>* sessions) const {
+    Statement stmt(*this,
+                   "SELECT name, value, unit, weight, points FROM score_items WHERE session_id = ?1 ORDER BY position");
+    for (auto& s : *sessions) {
+      stmt.reset();
+      stmt.integer(1, s.id);
+      while (stmt.step()) {
+        s.items.push_back({stmt.textAt(0), stmt.realAt(1), stmt.textAt(2), stmt.realAt(3), stmt.realAt(4)});
+      }
+    }
+  }
+};
+
+Store::Store(const std::string& path) : impl_(nullptr) {
+  auto impl = std::make_unique<Impl>();
+  impl->path = path;
+  if (path.empty()) throw StoreError("records database: empty path");
+
+  std::error_code ec;
+  const auto status = fs::status(path, ec);
+  if (fs::exists(status)) {
+    if (fs::is_directory(status)) throw StoreError(path + ": is a folder, not a records database");
+    if (fs::file_size(path, ec) > 0 && !ec) {
+      // Check read-only before the read-write open: switching to WAL, rolling back a journal or checkpointing
+      // would write into a damaged file and could destroy what is left to rescue.
+      const DbHandle ro = openReadOnly(path);
+      std::vector<std::string> rows;
+      std::string error;
+      const int rc = queryColumn(ro.get(), "PRAGMA quick_check", &rows, &error);
+      if (rc != SQLITE_OK && !isDamageCode(rc)) throw StoreError(path + ": cannot read the database: " + error);
+      if (rc != SQLITE_OK || rows != std::vector<std::string>{"ok"}) {
+        const std::string report = integrityCheck(path);
+        throw StoreError(damagedMessage(path, report), report);
+      }
+      rows.clear();
+      if (queryColumn(ro.get(), "SELECT count(*) FROM sqlite_master WHERE type = 'table'", &rows, &error) ==
+              SQLITE_OK &&
+          rows.size() == 1 && rows[0] != "0") {
+        rows.clear();
+        queryColumn(ro.get(), "PRAGMA user_version", &rows, &error);
+        if (rows.size() == 1 && rows[0] == "0") {
+          throw StoreError(path + ": an SQLite database of another program (no records schema version); not opened");
+        }
+      }
+    }
+  } else {
+    const fs::path parent = fs::path(path).parent_path();
+    if (!parent.empty()) {
+      fs::create_directories(parent, ec);
+      if (ec) throw StoreError(path + ": cannot create the folder " + parent.string() + ": " + ec.message());
+    }
+  }
+
+  const int rc = sqlite3_open_v2(path.c_str(), &impl->db,
+                                 SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_NOMUTEX, nullptr);
+  if (rc != SQLITE_OK) {
+    throw StoreError(path +
+                     ": cannot open the database: " + (impl->db ? sqlite3_errmsg(impl->db) : sqlite3_errstr(rc)));
+  }
+  sqlite3_extended_result_codes(impl->db, 1);
+  sqlite3_busy_timeout(impl->db, kBusyTimeoutMs);
+  impl->exec("PRAGMA foreign_keys = ON", "cannot enable foreign keys");
+  {
+    // WAL: readers (the console, the records tool, a backup) see a consistent snapshot while a session is written.
+    Impl::Statement stmt(*impl, "PRAGMA journal_mode = WAL");
+    const std::string mode = stmt.step() ? stmt.textAt(0) : "";
+    if (mode != "wal") {
+      throw StoreError(path + ": the file system does not support the WAL journal (journal mode \"" + mode + "\")");
+    }
+  }
+  impl->migrate();
+  impl->ensureGuest();
+  impl_ = impl.release();
+}
+
+Store::~Store() { delete impl_; }
+
+const std::string& Store::path() const { return impl_->path; }
+
+int Store::schemaVersion() const { return impl_->version; }
+
+User Store::addUser(const std::string& name, Role role, const std::string& pin) {
+  if (isBlank(name)) throw StoreError(impl_->path + ": a user needs a name");
+  // PBKDF2 takes tens of milliseconds; hash before taking the lock.
+  std::optional<PinHash> hash;
+  if (!pin.empty()) hash = hashPin(pin);
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  Impl::Transaction tx(*impl_, true);
+  if (impl_->userId(name)) throw StoreError(impl_->path + ": user \"" + name + "\" already exists");
+  User user;
+  user.id = impl_->insertUser(name, role, hash);
+  tx.commit();
+  user.name = name;
+  user.role = role;
+  user.has_pin = hash.has_value();
+  return user;
+}
+
+void Store::setPin(const std::string& name, const std::string& pin) {
+  if (name == kGuest) throw StoreError(impl_->path + ": guest has no PIN");
+  std::optional<PinHash> hash;
+  if (!pin.empty()) hash = hashPin(pin);
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  Impl::Statement stmt(*impl_, "UPDATE users SET pin_salt = ?2, pin_hash = ?3, iterations = ?4 WHERE name = ?1");
+  stmt.text(1, name);
+  if (hash) {
+    stmt.blob(2, hash->salt).blob(3, hash->hash).integer(4, hash->iterations);
+  } else {
+    stmt.null(2).null(3).integer(4, 0);
+  }
+  stmt.step();
+  if (sqlite3_changes(impl_->db) == 0) throw StoreError(impl_->path + ": no user \"" + name + "\"");
+}
+
+std::vector<User> Store::users() const {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  Impl::Statement stmt(*impl_, "SELECT id, name, role, pin_hash IS NOT NULL FROM users ORDER BY name");
+  std::vector<User> users;
+  while (stmt.step()) {
+    users.push_back({stmt.integerAt(0), stmt.textAt(1), roleFromString(stmt.textAt(2)), stmt.integerAt(3) != 0});
+  }
+  return users;
+}
+
+std::optional<User> Store::findUser(const std::string& name) const {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  Impl::Statement stmt(*impl_, "SELECT id, name, role, pin_hash IS NOT NULL FROM users WHERE name = ?1");
+  stmt.text(1, name);
+  if (!stmt.step()) return std::nullopt;
+  return User{stmt.integerAt(0), stmt.textAt(1), roleFromString(stmt.textAt(2)), stmt.integerAt(3) != 0};
+}
+
+bool Store::checkPin(const std::string& name, const std::string& pin) const {
+  if (name == kGuest) return true;
+  PinHash stored;
+  {
+    std::lock_guard<std::mutex> lock(impl_->mutex);
+    Impl::Statement stmt(*impl_, "SELECT pin_salt, pin_hash, iterations FROM users WHERE name = ?1");
+    stmt.text(1, name);
+    if (!stmt.step()) return false;
+    // A user without a PIN (created by an import from another station) logs in with an empty PIN only.
+    if (stmt.isNull(1)) return pin.empty();
+    stored = {stmt.blobAt(0), stmt.blobAt(1), static_cast<int>(stmt.integerAt(2))};
+  }
+  return verifyPin(pin, stored);
+}
+
+ImportResult Store::recordSession(const SessionRecord& session) {
+  if (session.scene.empty()) throw StoreError(impl_->path + ": a session needs a scene");
+  const std::string key = sessionKey(session);
+  const std::string recorded_at = session.recorded_at.empty() ? nowIso8601() : session.recorded_at;
+  const std::string user = session.user.empty() ? kGuest : session.user;
+
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  Impl::Transaction tx(*impl_, true);
+  {
+    Impl::Statement existing(*impl_, "SELECT id FROM sessions WHERE session_key = ?1");
+    existing.text(1, key);
+    if (existing.step()) {
+      const ImportResult result{existing.integerAt(0), false};
+      tx.commit();
+      return result;
+    }
+  }
+  // A result from another station may name a user this one does not know; keep the session, create the trainee.
+  std::optional<std::int64_t> user_id = impl_->userId(user);
+  if (!user_id) user_id = impl_->insertUser(user, Role::kTrainee, std::nullopt);
+
+  Impl::Statement insert(*impl_,
+                         "INSERT INTO sessions (session_key, user_id, scene, scenario, difficulty, seed, state, "
+                         "message, total, passed, elapsed, start_stamp, end_stamp, recorded_at, bag_path, "
+                         "result_path, software_version, final_state_hash, frames, station, annotation) VALUES "
+                         "(?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18, ?19, "
+                         "?20, ?21)");
+  insert.text(1, key)
+      .integer(2, *user_id)
+      .text(3, session.scene)
+      .text(4, session.scenario)
+      .text(5, session.difficulty)
+      .integer(6, session.seed)
+      .text(7, session.state)
+      .text(8, session.message)
+      .real(9, session.total)
+      .integer(10, session.passed ? 1 : 0)
+      .real(11, session.elapsed)
+      .real(12, session.start_stamp)
+      .real(13, session.end_stamp)
+      .text(14, recorded_at)
+      .text(15, session.bag_path)
+      .text(16, session.result_path)
+      .text(17, session.software_version)
+      .text(18, session.final_state_hash)
+      .integer(19, static_cast<std::int64_t>(session.frames))
+      .text(20, session.station)
+      .text(21, session.annotation);
+  insert.step();
+  const std::int64_t id = sqlite3_last_insert_rowid(impl_->db);
+
+  Impl::Statement item(*impl_,
+                       "INSERT INTO score_items (session_id, position, name, value, unit, weight, points) "
+                       "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7)");
+  for (std::size_t i = 0; i < session.items.size(); ++i) {
+    const ScoreItemRecord& it = session.items[i];
+    item.reset();
+    item.integer(1, id)
+        .integer(2, static_cast<std::int64_t>(i))
+        .text(3, it.name)
+        .real(4, it.value)
+        .text(5, it.unit)
+        .real(6, it.weight)
+        .real(7, it.points);
+    item.step();
+  }
+  tx.commit();
+  return {id, true};
+}
+
+ImportResult Store::importResultJson(const std::string& json_text, const std::string& origin, const std::string& user) {
+  SessionRecord session = parseResultJson(json_text, origin);
+  if (!user.empty()) session.user = user;
+  return recordSession(session);
+}
+
+ImportResult Store::importResultFile(const std::string& path, const std::string& user) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw StoreError(path + ": cannot read the result file: " + std::strerror(errno));
+  std::ostringstream text;
+  text << in.rdbuf();
+  SessionRecord session = parseResultJson(text.str(), path);
+  std::error_code ec;
+  const fs::path absolute = fs::absolute(path, ec);
+  // Absolute, so the console can find the file again whatever folder the import ran in.
+  session.result_path = ec ? path : absolute.lexically_normal().string();
+  if (!user.empty()) session.user = user;
+  return recordSession(session);
+}
+
+std::vector<std::string> Store::findResultFiles(const std::string& folder) {
+  std::error_code ec;
+  if (!fs::is_directory(folder, ec)) throw StoreError(folder + ": not a folder");
+  std::vector<std::string> files;
+  const std::string suffix = ".result.json";
+  for (fs::recursive_directory_iterator it(folder, fs::directory_options::skip_permission_denied, ec), end;
+       !ec && it != end; it.increment(ec)) {
+    const std::string name = it->path().filename().string();
+    if (it->is_regular_file(ec) && name.size() > suffix.size() &&
+        name.compare(name.size() - suffix.size(), suffix.size(), suffix) == 0) {
+      files.push_back(it->path().string());
+    }
+  }
+  if (ec) throw StoreError(folder + ": cannot list the folder: " + ec.message());
+  std::sort(files.begin(), files.end());  // a stable order: ids follow the file names
+  return files;
+}
+
+std::vector<ImportResult> Store::importFolder(const std::string& folder, std::vector<std::string>* errors) {
+  std::vector<ImportResult> results;
+  for (const std::string& file : findResultFiles(folder)) {
+    try {
+      results.push_back(importResultFile(file));
+    } catch (const StoreError& e) {
+      if (errors != nullptr) errors->push_back(e.what());
+    }
+  }
+  return results;
+}
+
+std::vector<SessionRecord> Store::sessions(const SessionFilter& filter) const {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  // One read transaction: the sessions and their items come from the same snapshot even while another
+  // connection writes.
+  Impl::Transaction tx(*impl_, false);
+  Impl::Statement stmt(
+      *impl_, (std::string(Impl::kSessionColumns) + "WHERE (?1 = '' OR u.name = ?1) AND (?2 = '' OR s.scene = ?2) "
+                                                    "ORDER BY s.start_stamp, s.id")
+                  .c_str());
+  stmt.text(1, filter.user).text(2, filter.scene);
+  std::vector<SessionRecord> sessions;
+  while (stmt.step()) sessions.push_back(Impl::sessionFromRow(stmt));
+  impl_->loadItems(&sessions);
+  tx.commit();
+  return sessions;
+}
+
+std::optional<SessionRecord> Store::session(std::int64_t id) const {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  Impl::Transaction tx(*impl_, false);
+  Impl::Statement stmt(*impl_, (std::string(Impl::kSessionColumns) + "WHERE s.id = ?1").c_str());
+  stmt.integer(1, id);
+  if (!stmt.step()) return std::nullopt;
+  std::vector<SessionRecord> one{Impl::sessionFromRow(stmt)};
+  impl_->loadItems(&one);
+  tx.commit();
+  return one.front();
+}
+
+std::vector<SceneSummary> Store::summaries(const std::string& user) const {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  Impl::Transaction tx(*impl_, false);
+  Impl::Statement stmt(*impl_,
+                       "SELECT s.scene, count(*), max(s.total) FROM sessions s JOIN users u ON u.id = s.user_id "
+                       "WHERE (?1 = '' OR u.name = ?1) GROUP BY s.scene ORDER BY s.scene");
+  stmt.text(1, user);
+  std::vector<SceneSummary> summaries;
+  while (stmt.step()) {
+    SceneSummary summary;
+    summary.scene = stmt.textAt(0);
+    summary.sessions = static_cast<int>(stmt.integerAt(1));
+    summary.best = stmt.realAt(2);
+    summaries.push_back(summary);
+  }
+  // "last" is the latest session in input time, the same order sessions() lists them in.
+  Impl::Statement last(*impl_,
+                       "SELECT s.total, s.recorded_at FROM sessions s JOIN users u ON u.id = s.user_id "
+                       "WHERE (?1 = '' OR u.name = ?1) AND s.scene = ?2 ORDER BY s.start_stamp DESC, s.id DESC "
+                       "LIMIT 1");
+  for (auto& summary : summaries) {
+    last.reset();
+    last.text(1, user).text(2, summary.scene);
+    if (last.step()) {
+      summary.last = last.realAt(0);
+      summary.last_recorded_at = last.textAt(1);
+    }
+  }
+  tx.commit();
+  return summaries;
+}
+
+void Store::annotate(std::int64_t session_id, const std::string& text) {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  Impl::Statement stmt(*impl_, "UPDATE sessions SET annotation = ?2 WHERE id = ?1");
+  stmt.integer(1, session_id).text(2, text);
+  stmt.step();
+  if (sqlite3_changes(impl_->db) == 0) {
+    throw StoreError(impl_->path + ": no session " + std::to_string(session_id) + " to annotate");
+  }
+}
+
+void Store::exportCsv(std::ostream& out, const SessionFilter& filter) const {
+  writeCsvRow(out, {"session_id", "user", "scene", "scenario", "difficulty", "seed", "state", "passed", "total",
+                    "elapsed", "recorded_at", "bag", "item", "value", "unit", "weight", "points"});
+  for (const SessionRecord& s : sessions(filter)) {
+    const std::vector<std::string> session_fields{std::to_string(s.id),
+                                                  s.user,
+                                                  s.scene,
+                                                  s.scenario,
+                                                  s.difficulty,
+                                                  std::to_string(s.seed),
+                                                  s.state,
+                                                  s.passed ? "1" : "0",
+                                                  formatNumber(s.total),
+                                                  formatNumber(s.elapsed),
+                                                  s.recorded_at,
+                                                  s.bag_path};
+    if (s.items.empty()) {
+      // A session without items (no scenario) still appears in the export.
+      std::vector<std::string> row = session_fields;
+      row.insert(row.end(), 5, "");
+      writeCsvRow(out, row);
+    }
+    for (const ScoreItemRecord& item : s.items) {
+      std::vector<std::string> row = session_fields;
+      row.insert(row.end(), {item.name, formatNumber(item.value), item.unit, formatNumber(item.weight),
+                             formatNumber(item.points)});
+      writeCsvRow(out, row);
+    }
+  }
+  if (!out) throw StoreError(impl_->path + ": writing the CSV export failed");
+}
+
+}  // namespace eyesi_gui::records

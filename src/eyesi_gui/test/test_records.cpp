@@ -1,0 +1,763 @@
+// The training-records store without ROS: users and PINs, migrations, sessions, imports of real scenario results,
+// concurrency, damaged files, the CSV export and the command-line tool.
+#include <gtest/gtest.h>
+#include <sqlite3.h>
+#include <sys/wait.h>
+
+#include <atomic>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <nlohmann/json.hpp>
+#include <random>
+#include <sstream>
+#include <thread>
+
+#include "eyesi_gui/records/csv.h"
+#include "eyesi_gui/records/schema.h"
+#include "eyesi_gui/records/store.h"
+
+namespace eyesi_gui::records {
+namespace {
+
+namespace fs = std::filesystem;
+
+// A fresh folder per test, removed afterwards.
+class TempDir {
+ public:
+  TempDir() {
+    std::string pattern = testing::TempDir() + "eyesi_records_XXXXXX";
+    if (mkdtemp(pattern.data()) == nullptr) throw std::runtime_error("mkdtemp failed");
+    path_ = pattern;
+  }
+  ~TempDir() {
+    std::error_code ec;
+    fs::remove_all(path_, ec);
+  }
+  std::string file(const std::string& name) const { return (path_ / name).string(); }
+  const fs::path& path() const { return path_; }
+
+ private:
+  fs::path path_;
+};
+
+std::string readBytes(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::ostringstream bytes;
+  bytes << in.rdbuf();
+  return bytes.str();
+}
+
+// Compares without printing two whole database files when they differ.
+::testing::AssertionResult sameBytes(const std::string& actual, const std::string& expected) {
+  if (actual == expected) return ::testing::AssertionSuccess();
+  std::size_t first = 0;
+  while (first < actual.size() && first < expected.size() && actual[first] == expected[first]) ++first;
+  return ::testing::AssertionFailure() << "sizes " << actual.size() << " vs " << expected.size()
+                                       << ", first difference at byte " << first;
+}
+
+void writeBytes(const std::string& path, const std::string& bytes) {
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  out << bytes;
+}
+
+// A plain sqlite3 connection, to look at what the store wrote (or to write what an older release wrote).
+class RawDb {
+ public:
+  explicit RawDb(const std::string& path) {
+    if (sqlite3_open(path.c_str(), &db_) != SQLITE_OK) throw std::runtime_error(sqlite3_errmsg(db_));
+    sqlite3_busy_timeout(db_, 5000);
+  }
+  ~RawDb() { sqlite3_close(db_); }
+  void exec(const std::string& sql) {
+    char* error = nullptr;
+    if (sqlite3_exec(db_, sql.c_str(), nullptr, nullptr, &error) != SQLITE_OK) {
+      const std::string message = error ? error : "?";
+      sqlite3_free(error);
+      throw std::runtime_error(message + " in: " + sql);
+    }
+  }
+  // Every column of every row as text (blobs as their raw bytes).
+  std::vector<std::vector<std::string>> rows(const std::string& sql) {
+    sqlite3_stmt* stmt = nullptr;
+    if (sqlite3_prepare_v2(db_, sql.c_str(), -1, &stmt, nullptr) != SQLITE_OK) {
+      throw std::runtime_error(sqlite3_errmsg(db_));
+    }
+    std::vector<std::vector<std::string>> result;
+    int rc;
+    while ((rc = sqlite3_step(stmt)) == SQLITE_ROW) {
+      std::vector<std::string> row;
+      for (int c = 0; c < sqlite3_column_count(stmt); ++c) {
+        const auto* data = static_cast<const char*>(sqlite3_column_blob(stmt, c));
+        row.emplace_back(data ? std::string(data, sqlite3_column_bytes(stmt, c)) : "");
+      }
+      result.push_back(row);
+    }
+    sqlite3_finalize(stmt);
+    if (rc != SQLITE_DONE) throw std::runtime_error(sqlite3_errmsg(db_));
+    return result;
+  }
+  std::string value(const std::string& sql) {
+    const auto result = rows(sql);
+    return result.empty() || result[0].empty() ? "" : result[0][0];
+  }
+
+ private:
+  sqlite3* db_ = nullptr;
+};
+
+// Fails unless `action` throws a StoreError whose what() contains every one of `parts`.
+void expectStoreError(const std::function<void()>& action, const std::vector<std::string>& parts,
+                      StoreError* caught = nullptr) {
+  try {
+    action();
+    ADD_FAILURE() << "no StoreError";
+  } catch (const StoreError& e) {
+    for (const auto& part : parts) EXPECT_NE(std::string(e.what()).find(part), std::string::npos) << e.what();
+    if (caught) *caught = e;
+  }
+}
+
+SessionRecord makeSession(const std::string& user, const std::string& scene, double start, double total) {
+  SessionRecord s;
+  s.user = user;
+  s.scene = scene;
+  s.scenario = scene;
+  s.difficulty = "medium";
+  s.seed = 7;
+  s.state = total >= 50 ? "finished" : "failed";
+  s.passed = s.state == "finished";
+  s.message = "done";
+  s.total = total;
+  s.elapsed = 12.5;
+  s.start_stamp = start;
+  s.end_stamp = start + 12.5;
+  s.final_state_hash = "0x" + std::to_string(static_cast<long long>(start * 1000));
+  s.frames = 700;
+  s.items = {{"completed", 1, "", 3, 100}, {"time", 12.5, "s", 1, 80}};
+  return s;
+}
+
+// A database of several pages (long messages), closed so the WAL is checkpointed into the file.
+void fillDatabase(const std::string& path, int sessions) {
+  Store store(path);
+  for (int i = 0; i < sessions; ++i) {
+    SessionRecord s = makeSession("anna", "navigation", 1000 + i, 50 + i % 50);
+    s.message = std::string(400, static_cast<char>('a' + i % 26));
+    store.recordSession(s);
+  }
+}
+
+std::vector<std::vector<std::string>> parseCsv(const std::string& text) {
+  std::vector<std::vector<std::string>> rows;
+  std::vector<std::string> row;
+  std::string field;
+  bool quoted = false, in_row = false;
+  for (std::size_t i = 0; i < text.size(); ++i) {
+    const char c = text[i];
+    if (quoted) {
+      if (c != '"') {
+        field += c;
+      } else if (i + 1 < text.size() && text[i + 1] == '"') {
+        field += '"';
+        ++i;
+      } else {
+        quoted = false;
+      }
+      continue;
+    }
+    in_row = true;
+    if (c == '"' && field.empty()) {
+      quoted = true;
+    } else if (c == ',') {
+      row.push_back(field);
+      field.clear();
+    } else if (c == '\r' || c == '\n') {
+      if (c == '\r' && i + 1 < text.size() && text[i + 1] == '\n') ++i;
+      row.push_back(field);
+      rows.push_back(row);
+      row.clear();
+      field.clear();
+      in_row = false;
+    } else {
+      field += c;
+    }
+  }
+  if (in_row) {
+    row.push_back(field);
+    rows.push_back(row);
+  }
+  return rows;
+}
+
+std::vector<std::string> referenceResults() {
+  std::vector<std::string> files = Store::findResultFiles(EYESI_TEST_BAGS);
+  return files;
+}
+
+TEST(RecordsUsers, PinsAreSaltedHashesAndGuestAlwaysExists) {
+  TempDir dir;
+  const std::string path = dir.file("records.sqlite");
+  {
+    Store store(path);
+    ASSERT_EQ(store.users().size(), 1u);
+    EXPECT_EQ(store.users()[0].name, "guest");
+    EXPECT_EQ(store.users()[0].role, Role::kTrainee);
+    EXPECT_FALSE(store.users()[0].has_pin);
+    EXPECT_TRUE(store.checkPin("guest", "anything"));
+    EXPECT_TRUE(store.checkPin("guest", ""));
+
+    const User anna = store.addUser("anna", Role::kTrainee, "482915");
+    EXPECT_GT(anna.id, 0);
+    EXPECT_TRUE(anna.has_pin);
+    const User doc = store.addUser("dr. who", Role::kInstructor, "482915");
+    EXPECT_EQ(doc.role, Role::kInstructor);
+    EXPECT_TRUE(store.checkPin("anna", "482915"));
+    EXPECT_FALSE(store.checkPin("anna", "482916"));
+    EXPECT_FALSE(store.checkPin("anna", ""));
+    EXPECT_FALSE(store.checkPin("nobody", "482915"));
+    EXPECT_TRUE(store.checkPin("dr. who", "482915"));
+
+    expectStoreError([&] { store.addUser("anna", Role::kInstructor, "1"); }, {"anna", "already exists"});
+    expectStoreError([&] { store.addUser("guest", Role::kTrainee, ""); }, {"guest", "already exists"});
+    expectStoreError([&] { store.addUser("", Role::kTrainee, "1"); }, {"name"});
+
+    const auto found = store.findUser("dr. who");
+    ASSERT_TRUE(found.has_value());
+    EXPECT_EQ(found->id, doc.id);
+    EXPECT_EQ(found->role, Role::kInstructor);
+    EXPECT_FALSE(store.findUser("nobody").has_value());
+    EXPECT_EQ(store.users().size(), 3u);
+
+    // A PIN-less user (as an import creates them) accepts only the empty PIN, until one is set.
+    store.addUser("ben", Role::kTrainee, "");
+    EXPECT_TRUE(store.checkPin("ben", ""));
+    EXPECT_FALSE(store.checkPin("ben", "0000"));
+    store.setPin("ben", "2468");
+    EXPECT_TRUE(store.checkPin("ben", "2468"));
+    EXPECT_FALSE(store.checkPin("ben", ""));
+    expectStoreError([&] { store.setPin("guest", "1"); }, {"guest"});
+    expectStoreError([&] { store.setPin("nobody", "1"); }, {"nobody"});
+
+    // Neither the file nor its WAL holds the PIN in plain text, in any encoding a column could use.
+    for (const std::string& file : {path, path + "-wal"}) {
+      EXPECT_EQ(readBytes(file).find("482915"), std::string::npos) << file;
+    }
+  }
+  RawDb raw(path);
+  const auto rows = raw.rows(
+      "SELECT name, pin_salt, pin_hash, iterations, hex(pin_hash), created_at FROM users "
+      "WHERE name IN ('anna', 'dr. who') ORDER BY name");
+  ASSERT_EQ(rows.size(), 2u);
+  for (const auto& row : rows) {
+    EXPECT_EQ(row[1].size(), 16u);
+    EXPECT_EQ(row[2].size(), 32u);
+    EXPECT_EQ(row[3], "100000");
+    for (const auto& column : row) EXPECT_EQ(column.find("482915"), std::string::npos) << row[0];
+  }
+  // Same PIN, different salts: different hashes.
+  EXPECT_NE(rows[0][1], rows[1][1]);
+  EXPECT_NE(rows[0][2], rows[1][2]);
+  EXPECT_EQ(raw.value("SELECT pin_hash IS NULL FROM users WHERE name = 'guest'"), "1");
+}
+
+TEST(RecordsSchema, MigratesAnEmptyFileToTheCurrentVersion) {
+  TempDir dir;
+  const std::string path = dir.file("empty.sqlite");
+  writeBytes(path, "");
+  {
+    Store store(path);
+    EXPECT_EQ(store.schemaVersion(), Store::kSchemaVersion);
+    EXPECT_EQ(store.path(), path);
+  }
+  RawDb raw(path);
+  EXPECT_EQ(raw.value("PRAGMA user_version"), "2");
+  EXPECT_EQ(raw.value("PRAGMA journal_mode"), "wal");
+  EXPECT_EQ(raw.value("SELECT count(*) FROM pragma_table_info('sessions') WHERE name IN ('annotation', 'station')"),
+            "2");
+  EXPECT_EQ(raw.value("SELECT count(*) FROM sqlite_master WHERE name = 'sessions_user_scene'"), "1");
+  EXPECT_EQ(raw.value("SELECT role FROM users WHERE name = 'guest'"), "trainee");
+}
+
+TEST(RecordsSchema, CreatesMissingFoldersAndFile) {
+  TempDir dir;
+  const std::string path = dir.file("a/b/records.sqlite");
+  Store store(path);
+  EXPECT_TRUE(fs::exists(path));
+  EXPECT_EQ(store.schemaVersion(), 2);
+}
+
+TEST(RecordsSchema, MigratesVersion1KeepingTheRows) {
+  TempDir dir;
+  const std::string path = dir.file("v1.sqlite");
+  SessionRecord old = makeSession("bob", "vitrectomy", 500.25, 66.5);
+  {
+    // Exactly what the version-1 release left on disk (rollback journal, no annotation/station columns).
+    RawDb raw(path);
+    raw.exec(std::string("BEGIN;") + migrationSql(1) + "PRAGMA user_version = 1; COMMIT;");
+    raw.exec(
+        "INSERT INTO users (name, role, iterations, created_at) VALUES ('bob', 'trainee', 0, '2025-01-01T00:00:00Z')");
+    raw.exec(
+        "INSERT INTO sessions (session_key, user_id, scene, scenario, difficulty, seed, state, message, total, "
+        "passed, elapsed, start_stamp, end_stamp, recorded_at, bag_path, result_path, software_version, "
+        "final_state_hash, frames) SELECT '" +
+        sessionKey(old) +
+        "', id, 'vitrectomy', 'vitrectomy', 'medium', 7, 'finished', 'done', 66.5, 1, 12.5, 500.25, 512.75, "
+        "'2025-01-02T03:04:05Z', '/b.bag', '/b.result.json', 'vrm_sim 0.0.9', '" +
+        old.final_state_hash + "', 700 FROM users WHERE name = 'bob'");
+    raw.exec("INSERT INTO score_items SELECT id, 0, 'completed', 1, '', 3, 100 FROM sessions");
+    raw.exec("INSERT INTO score_items SELECT id, 1, 'time', 12.5, 's', 1, 80 FROM sessions");
+    ASSERT_EQ(raw.value("PRAGMA user_version"), "1");
+  }
+  Store store(path);
+  EXPECT_EQ(store.schemaVersion(), 2);
+  const auto sessions = store.sessions();
+  ASSERT_EQ(sessions.size(), 1u);
+  const SessionRecord& s = sessions[0];
+  EXPECT_EQ(s.user, "bob");
+  EXPECT_EQ(s.scene, "vitrectomy");
+  EXPECT_DOUBLE_EQ(s.total, 66.5);
+  EXPECT_TRUE(s.passed);
+  EXPECT_EQ(s.recorded_at, "2025-01-02T03:04:05Z");
+  EXPECT_EQ(s.bag_path, "/b.bag");
+  EXPECT_EQ(s.software_version, "vrm_sim 0.0.9");
+  EXPECT_EQ(s.frames, 700u);
+  EXPECT_EQ(s.annotation, "");
+  EXPECT_EQ(s.station, "");
+  ASSERT_EQ(s.items.size(), 2u);
+  EXPECT_EQ(s.items[0].name, "completed");
+  EXPECT_EQ(s.items[1].name, "time");
+  EXPECT_DOUBLE_EQ(s.items[1].points, 80);
+
+  // The migrated row keeps its identity: recording the same session again finds it.
+  const ImportResult again = store.recordSession(old);
+  EXPECT_FALSE(again.inserted);
+  EXPECT_EQ(again.session_id, s.id);
+  store.annotate(s.id, "steady hands");
+  EXPECT_EQ(store.session(s.id)->annotation, "steady hands");
+  expectStoreError([&] { store.annotate(s.id + 100, "x"); }, {"no session"});
+
+  RawDb raw(path);
+  EXPECT_EQ(raw.value("PRAGMA user_version"), "2");
+  EXPECT_EQ(raw.value("SELECT count(*) FROM sqlite_master WHERE name = 'sessions_user_scene'"), "1");
+}
+
+TEST(RecordsSchema, RefusesANewerSchemaAndForeignDatabases) {
+  TempDir dir;
+  const std::string newer = dir.file("newer.sqlite");
+  { Store store(newer); }
+  RawDb(newer).exec("PRAGMA user_version = 3");
+  expectStoreError([&] { Store store(newer); }, {newer, "newer"});
+
+  const std::string foreign = dir.file("foreign.sqlite");
+  RawDb(foreign).exec("CREATE TABLE notes (x TEXT); INSERT INTO notes VALUES ('keep me')");
+  const std::string before = readBytes(foreign);
+  expectStoreError([&] { Store store(foreign); }, {foreign});
+  EXPECT_TRUE(sameBytes(readBytes(foreign), before));
+}
+
+TEST(RecordsSessions, RecordsAndReadsBackEveryFieldAndTheItemsInOrder) {
+  TempDir dir;
+  Store store(dir.file("r.sqlite"));
+  SessionRecord s = makeSession("carla", "membrane_peeling", 1700000000.5, 81.5);
+  s.items = {{"zeta", 3, "1", 2, 50}, {"alpha", 0.25, "m", 1, 100}, {"mid", -1, "", 0, 0}};
+  s.bag_path = "/root/s.bag";
+  s.software_version = "vrm_sim 0.1.0";
+  s.station = "sim1";
+  s.recorded_at = "2026-01-02T03:04:05Z";
+  const ImportResult first = store.recordSession(s);
+  EXPECT_TRUE(first.inserted);
+  EXPECT_GT(first.session_id, 0);
+
+  // The unknown user was created as a PIN-less trainee rather than the session dropped.
+  const auto carla = store.findUser("carla");
+  ASSERT_TRUE(carla.has_value());
+  EXPECT_EQ(carla->role, Role::kTrainee);
+  EXPECT_FALSE(carla->has_pin);
+
+  const auto back = store.session(first.session_id);
+  ASSERT_TRUE(back.has_value());
+  EXPECT_EQ(back->id, first.session_id);
+  EXPECT_EQ(back->user, "carla");
+  EXPECT_EQ(back->scene, "membrane_peeling");
+  EXPECT_EQ(back->seed, 7u);
+  EXPECT_EQ(back->state, "finished");
+  EXPECT_TRUE(back->passed);
+  EXPECT_EQ(back->message, "done");
+  EXPECT_DOUBLE_EQ(back->total, 81.5);
+  EXPECT_DOUBLE_EQ(back->start_stamp, 1700000000.5);
+  EXPECT_DOUBLE_EQ(back->end_stamp, 1700000013.0);
+  EXPECT_EQ(back->recorded_at, "2026-01-02T03:04:05Z");
+  EXPECT_EQ(back->bag_path, "/root/s.bag");
+  EXPECT_EQ(back->station, "sim1");
+  EXPECT_EQ(back->final_state_hash, s.final_state_hash);
+  ASSERT_EQ(back->items.size(), 3u);
+  EXPECT_EQ(back->items[0].name, "zeta");
+  EXPECT_EQ(back->items[1].name, "alpha");
+  EXPECT_EQ(back->items[2].name, "mid");
+  EXPECT_DOUBLE_EQ(back->items[1].value, 0.25);
+  EXPECT_EQ(back->items[1].unit, "m");
+  EXPECT_DOUBLE_EQ(back->items[0].weight, 2);
+  EXPECT_DOUBLE_EQ(back->items[0].points, 50);
+  EXPECT_DOUBLE_EQ(back->items[2].value, -1);
+  EXPECT_FALSE(store.session(first.session_id + 1).has_value());
+
+  // A second, older session: sessions() lists by start stamp, not by insertion.
+  SessionRecord earlier = makeSession("", "navigation", 1600000000, 40);
+  const ImportResult second = store.recordSession(earlier);
+  ASSERT_TRUE(second.inserted);
+  const auto all = store.sessions();
+  ASSERT_EQ(all.size(), 2u);
+  EXPECT_EQ(all[0].id, second.session_id);
+  EXPECT_EQ(all[0].user, "guest");
+  EXPECT_EQ(all[0].recorded_at.size(), 20u);  // written now, ISO-8601 UTC
+  EXPECT_EQ(all[0].recorded_at.back(), 'Z');
+  EXPECT_EQ(all[1].id, first.session_id);
+  EXPECT_EQ(all[1].items.size(), 3u);
+  EXPECT_EQ(store.sessions({"carla", ""}).size(), 1u);
+  EXPECT_EQ(store.sessions({"", "navigation"}).size(), 1u);
+  EXPECT_EQ(store.sessions({"carla", "navigation"}).size(), 0u);
+}
+
+TEST(RecordsImport, SameResultFileTwiceGivesOneRow) {
+  TempDir dir;
+  Store store(dir.file("r.sqlite"));
+  const std::string result = dir.file("anna.result.json");
+  writeBytes(result,
+             R"({"scene": "membrane_peeling", "scene_file": "/x/membrane_peeling.yaml", "scenario": "membrane_peeling",
+  "difficulty": "medium", "seed": 1, "state": "finished", "session_ended": true, "timed_out": false,
+  "message": "membrane peeled", "start_stamp": 1700000000.5, "end_stamp": 1700000020.1, "elapsed": 19.6,
+  "total": 81.5, "items": [{"name": "completed", "value": 1, "unit": "", "weight": 3, "points": 1},
+  {"name": "time", "value": 19.6, "unit": "s", "weight": 1, "points": 0.93}], "final_state_hash": "9f86d081884c7d65",
+  "frames": 1000, "simulated_frames": 980, "late_inputs": 0, "last_frame_stamp": 1700000020.1,
+  "software_version": "vrm_sim 0.1.0", "bag": "/root/s.bag", "user": "anna", "station": "sim1"})");
+  const ImportResult first = store.importResultFile(result);
+  const ImportResult second = store.importResultFile(result);
+  EXPECT_TRUE(first.inserted);
+  EXPECT_FALSE(second.inserted);
+  EXPECT_EQ(second.session_id, first.session_id);
+  // The same result arriving live (session_result topic) is the same session too.
+  const ImportResult live = store.importResultJson(readBytes(result), "session_result");
+  EXPECT_FALSE(live.inserted);
+  EXPECT_EQ(live.session_id, first.session_id);
+
+  const auto sessions = store.sessions();
+  ASSERT_EQ(sessions.size(), 1u);
+  EXPECT_EQ(sessions[0].user, "anna");
+  EXPECT_EQ(sessions[0].station, "sim1");
+  EXPECT_TRUE(sessions[0].passed);
+  EXPECT_EQ(sessions[0].message, "membrane peeled");
+  EXPECT_EQ(sessions[0].result_path, result);
+  EXPECT_EQ(sessions[0].frames, 1000u);
+  ASSERT_EQ(sessions[0].items.size(), 2u);
+  EXPECT_DOUBLE_EQ(sessions[0].items[1].points, 0.93);
+  RawDb raw(dir.file("r.sqlite"));
+  EXPECT_EQ(raw.value("SELECT count(*) FROM sessions"), "1");
+  EXPECT_EQ(raw.value("SELECT count(*) FROM score_items"), "2");
+}
+
+TEST(RecordsImport, ShippedReferenceResults) {
+  TempDir dir;
+  Store store(dir.file("r.sqlite"));
+  const std::vector<std::string> files = referenceResults();
+  ASSERT_GE(files.size(), 3u) << EYESI_TEST_BAGS;
+  for (const std::string& file : files) {
+    SCOPED_TRACE(file);
+    const auto expected = nlohmann::json::parse(readBytes(file));
+    const ImportResult result = store.importResultFile(file, "tester");
+    ASSERT_TRUE(result.inserted);
+    const auto s = store.session(result.session_id);
+    ASSERT_TRUE(s.has_value());
+    EXPECT_EQ(s->user, "tester");
+    EXPECT_EQ(s->scene, expected["scene"].get<std::string>());
+    EXPECT_EQ(s->scenario, expected["scenario"].get<std::string>());
+    EXPECT_EQ(s->state, expected["state"].get<std::string>());
+    EXPECT_EQ(s->passed, expected["state"] == "finished");
+    EXPECT_DOUBLE_EQ(s->total, expected["total"].get<double>());
+    EXPECT_DOUBLE_EQ(s->start_stamp, expected["start_stamp"].get<double>());
+    EXPECT_EQ(s->final_state_hash, expected["final_state_hash"].get<std::string>());
+    EXPECT_EQ(s->frames, expected["frames"].get<std::uint64_t>());
+    EXPECT_EQ(s->bag_path, expected["bag"].get<std::string>());
+    EXPECT_EQ(s->result_path, fs::absolute(file).lexically_normal().string());
+    ASSERT_EQ(s->items.size(), expected["items"].size());
+    for (std::size_t i = 0; i < s->items.size(); ++i) {
+      EXPECT_EQ(s->items[i].name, expected["items"][i]["name"].get<std::string>());
+      EXPECT_DOUBLE_EQ(s->items[i].value, expected["items"][i]["value"].get<double>());
+      EXPECT_DOUBLE_EQ(s->items[i].points, expected["items"][i]["points"].get<double>());
+    }
+  }
+  EXPECT_EQ(store.sessions().size(), files.size());
+}
+
+TEST(RecordsImport, FolderReportsTheMalformedFileAndImportsTheOthers) {
+  TempDir dir;
+  Store store(dir.file("r.sqlite"));
+  const fs::path results = dir.path() / "usb";
+  fs::create_directories(results / "day2");
+  const auto references = referenceResults();
+  ASSERT_GE(references.size(), 2u);
+  fs::copy_file(references[0], results / "a.result.json");
+  fs::copy_file(references[1], results / "day2" / "b.result.json");
+  writeBytes((results / "day2" / "broken.result.json").string(), "{\"scene\": \"navigation\", \"total\": ");
+  writeBytes((results / "notes.json").string(), "not a result, not looked at");
+  std::vector<std::string> errors;
+  const auto imported = store.importFolder(results.string(), &errors);
+  EXPECT_EQ(imported.size(), 2u);
+  for (const auto& r : imported) EXPECT_TRUE(r.inserted);
+  ASSERT_EQ(errors.size(), 1u);
+  EXPECT_NE(errors[0].find("broken.result.json"), std::string::npos) << errors[0];
+  EXPECT_EQ(store.sessions().size(), 2u);
+  EXPECT_EQ(Store::findResultFiles(results.string()).size(), 3u);
+  expectStoreError([&] { store.importFolder(dir.file("missing")); }, {"missing"});
+}
+
+TEST(RecordsImport, MalformedResultsNameTheOriginAndTheField) {
+  TempDir dir;
+  Store store(dir.file("r.sqlite"));
+  const std::string file = dir.file("bad.result.json");
+  writeBytes(file, "{\"scene\": \"navigation\",");
+  expectStoreError([&] { store.importResultFile(file); }, {file, "malformed"});
+  expectStoreError([&] { store.importResultFile(dir.file("absent.result.json")); }, {"absent.result.json"});
+  expectStoreError([&] { store.importResultJson("[1, 2]", "station2"); }, {"station2", "not an object"});
+  expectStoreError([&] { store.importResultJson(R"({"total": 3})", "station2"); }, {"station2", "scene"});
+  expectStoreError([&] { store.importResultJson(R"({"scene": 4})", "o"); }, {"scene", "not a string"});
+  expectStoreError([&] { store.importResultJson(R"({"scene": "n", "total": "high"})", "o"); }, {"total"});
+  expectStoreError([&] { store.importResultJson(R"({"scene": "n", "seed": -1})", "o"); }, {"seed"});
+  expectStoreError([&] { store.importResultJson(R"({"scene": "n", "items": {}})", "o"); }, {"items"});
+  expectStoreError([&] { store.importResultJson(R"({"scene": "n", "items": [{"name": "t", "value": "x"}]})", "o"); },
+                   {"items[0].", "value"});
+  EXPECT_TRUE(store.sessions().empty());
+
+  // Nulls are "unknown", not errors; no scenario → no items; no user → guest.
+  const ImportResult ok = store.importResultJson(
+      R"({"scene": "free", "scenario": null, "seed": null, "state": "stopped", "total": null, "bag": null,
+          "items": null, "user": ""})",
+      "o");
+  const auto s = store.session(ok.session_id);
+  ASSERT_TRUE(s.has_value());
+  EXPECT_EQ(s->user, "guest");
+  EXPECT_EQ(s->scenario, "");
+  EXPECT_EQ(s->bag_path, "");
+  EXPECT_FALSE(s->passed);
+  EXPECT_TRUE(s->items.empty());
+  EXPECT_EQ(s->result_path, "");
+}
+
+TEST(RecordsConcurrency, AReaderSeesConsistentSnapshotsWhileAWriterWrites) {
+  TempDir dir;
+  const std::string path = dir.file("r.sqlite");
+  Store writer(path);
+  Store reader(path);
+  constexpr int kSessions = 200;
+  std::atomic<bool> done{false};
+  std::string writer_error, reader_error;
+  std::thread write_thread([&] {
+    try {
+      for (int i = 0; i < kSessions; ++i) writer.recordSession(makeSession("anna", "navigation", 1000 + i, i % 100));
+    } catch (const std::exception& e) {
+      writer_error = e.what();
+    }
+    done = true;
+  });
+  std::size_t last_count = 0;
+  int reads = 0;
+  try {
+    RawDb raw(path);
+    while (!done || last_count < kSessions) {
+      const auto sessions = reader.sessions();
+      if (sessions.size() < last_count) reader_error = "count went down";
+      for (const auto& s : sessions) {
+        // Session and items are one transaction: a reader never sees one without the other.
+        if (s.items.size() != 2u) reader_error = "session " + std::to_string(s.id) + " without its items";
+      }
+      last_count = sessions.size();
+      // A plain connection too, in one statement: sessions and items counts agree in every snapshot.
+      const auto counts = raw.rows("SELECT (SELECT count(*) FROM sessions), (SELECT count(*) FROM score_items)");
+      if (std::stoi(counts[0][1]) != 2 * std::stoi(counts[0][0])) reader_error = "raw counts disagree";
+      ++reads;
+      if (done && last_count < kSessions && !writer_error.empty()) break;
+    }
+  } catch (const std::exception& e) {
+    reader_error = e.what();
+  }
+  write_thread.join();
+  EXPECT_EQ(writer_error, "");
+  EXPECT_EQ(reader_error, "");
+  EXPECT_EQ(last_count, static_cast<std::size_t>(kSessions));
+  EXPECT_GT(reads, 1);
+}
+
+TEST(RecordsDamage, TruncatedDatabaseIsReportedAndLeftUntouched) {
+  TempDir dir;
+  const std::string path = dir.file("cut.sqlite");
+  fillDatabase(path, 120);
+  ASSERT_EQ(Store::integrityCheck(path), "ok");
+  const std::string whole = readBytes(path);
+  ASSERT_GT(whole.size(), 16u * 4096u);
+  // Cut off mid-write: half the file, not on a page boundary.
+  writeBytes(path, whole.substr(0, whole.size() / 2 + 1234));
+  const std::string before = readBytes(path);
+
+  StoreError error("");
+  expectStoreError([&] { Store store(path); }, {path, "damaged"}, &error);
+  EXPECT_FALSE(error.integrityReport().empty());
+  EXPECT_NE(error.integrityReport(), "ok");
+  EXPECT_NE(Store::integrityCheck(path), "ok");
+  EXPECT_TRUE(sameBytes(readBytes(path), before));
+}
+
+TEST(RecordsDamage, GarbagePageIsReportedAndLeftUntouched) {
+  for (const bool random : {false, true}) {
+    SCOPED_TRACE(random ? "random bytes in a middle page" : "0xFF over page 2");
+    TempDir dir;
+    const std::string path = dir.file("bad_page.sqlite");
+    fillDatabase(path, 120);
+    const int page_size = std::stoi(RawDb(path).value("PRAGMA page_size"));
+    std::string bytes = readBytes(path);
+    const std::size_t pages = bytes.size() / page_size;
+    ASSERT_GE(pages, 8u);
+    const std::size_t page = random ? pages / 2 : 2;  // 1-based page numbers
+    std::mt19937 rng(42);
+    for (int i = 0; i < page_size; ++i) {
+      bytes[(page - 1) * page_size + i] = random ? static_cast<char>(rng()) : static_cast<char>(0xFF);
+    }
+    writeBytes(path, bytes);
+
+    StoreError error("");
+    expectStoreError([&] { Store store(path); }, {path, "damaged"}, &error);
+    EXPECT_NE(error.integrityReport(), "ok");
+    EXPECT_FALSE(error.integrityReport().empty());
+    EXPECT_NE(Store::integrityCheck(path), "ok");
+    EXPECT_TRUE(sameBytes(readBytes(path), bytes));
+  }
+}
+
+TEST(RecordsDamage, NotADatabaseIsRefusedAndLeftUntouched) {
+  TempDir dir;
+  const std::string path = dir.file("notes.sqlite");
+  std::string text;
+  for (int i = 0; i < 100; ++i) text += "line " + std::to_string(i) + " of a text file, not a database\n";
+  writeBytes(path, text);
+  StoreError error("");
+  expectStoreError([&] { Store store(path); }, {path, "damaged"}, &error);
+  EXPECT_NE(error.integrityReport().find("not a database"), std::string::npos) << error.integrityReport();
+  EXPECT_NE(Store::integrityCheck(path), "ok");
+  EXPECT_TRUE(sameBytes(readBytes(path), text));
+  expectStoreError([&] { Store::integrityCheck(dir.file("missing.sqlite")); }, {"missing.sqlite"});
+  EXPECT_FALSE(fs::exists(dir.file("missing.sqlite")));
+}
+
+TEST(RecordsExport, CsvQuotesFieldsAndParsesBack) {
+  TempDir dir;
+  Store store(dir.file("r.sqlite"));
+  const std::string awkward_user = "O'Neil, \"Doc\"";
+  SessionRecord s = makeSession(awkward_user, "navigation", 100, 75.25);
+  s.items = {{"wrong, \"touches\"", 2, "1", 2, 50}, {"path\nlength", 0.0206, "m", 1, 100}};
+  s.bag_path = "/bags/a,b.bag";
+  const auto id = store.recordSession(s).session_id;
+  SessionRecord bare = makeSession("guest", "free", 200, 0);
+  bare.items.clear();
+  const auto bare_id = store.recordSession(bare).session_id;
+
+  std::ostringstream out;
+  store.exportCsv(out);
+  const std::string csv = out.str();
+  EXPECT_NE(csv.find("\"O'Neil, \"\"Doc\"\"\""), std::string::npos) << csv;
+  const auto rows = parseCsv(csv);
+  ASSERT_EQ(rows.size(), 4u) << csv;
+  EXPECT_EQ(rows[0], (std::vector<std::string>{"session_id", "user", "scene", "scenario", "difficulty", "seed", "state",
+                                               "passed", "total", "elapsed", "recorded_at", "bag", "item", "value",
+                                               "unit", "weight", "points"}));
+  for (const auto& row : rows) ASSERT_EQ(row.size(), 17u);
+  EXPECT_EQ(rows[1][0], std::to_string(id));
+  EXPECT_EQ(rows[1][1], awkward_user);
+  EXPECT_EQ(rows[1][7], "1");
+  EXPECT_EQ(rows[1][8], "75.25");
+  EXPECT_EQ(rows[1][11], "/bags/a,b.bag");
+  EXPECT_EQ(rows[1][12], "wrong, \"touches\"");
+  EXPECT_EQ(rows[1][15], "2");
+  EXPECT_EQ(rows[2][12], "path\nlength");
+  EXPECT_EQ(rows[2][13], "0.0206");
+  EXPECT_EQ(rows[3][0], std::to_string(bare_id));
+  EXPECT_EQ(rows[3][7], "0");
+  for (int c = 12; c < 17; ++c) EXPECT_EQ(rows[3][c], "");
+
+  std::ostringstream filtered;
+  store.exportCsv(filtered, {awkward_user, ""});
+  EXPECT_EQ(parseCsv(filtered.str()).size(), 3u);
+  EXPECT_EQ(csvField("plain"), "plain");
+  EXPECT_EQ(csvField("a\"b"), "\"a\"\"b\"");
+}
+
+TEST(RecordsSummaries, BestAndLastPerScene) {
+  TempDir dir;
+  Store store(dir.file("r.sqlite"));
+  auto record = [&](const std::string& user, const std::string& scene, double start, double total,
+                    const std::string& at) {
+    SessionRecord s = makeSession(user, scene, start, total);
+    s.recorded_at = at;
+    store.recordSession(s);
+  };
+  // Inserted out of order: "last" follows the session's start stamp, not the insertion.
+  record("anna", "navigation", 300, 60, "2026-01-03T00:00:00Z");
+  record("anna", "navigation", 100, 50, "2026-01-01T00:00:00Z");
+  record("anna", "navigation", 200, 80, "2026-01-02T00:00:00Z");
+  record("anna", "vitrectomy", 150, 42, "2026-01-04T00:00:00Z");
+  record("bob", "navigation", 400, 99, "2026-01-05T00:00:00Z");
+
+  const auto anna = store.summaries("anna");
+  ASSERT_EQ(anna.size(), 2u);
+  EXPECT_EQ(anna[0].scene, "navigation");
+  EXPECT_EQ(anna[0].sessions, 3);
+  EXPECT_DOUBLE_EQ(anna[0].best, 80);
+  EXPECT_DOUBLE_EQ(anna[0].last, 60);
+  EXPECT_EQ(anna[0].last_recorded_at, "2026-01-03T00:00:00Z");
+  EXPECT_EQ(anna[1].scene, "vitrectomy");
+  EXPECT_EQ(anna[1].sessions, 1);
+  EXPECT_DOUBLE_EQ(anna[1].best, 42);
+  EXPECT_DOUBLE_EQ(anna[1].last, 42);
+
+  const auto bob = store.summaries("bob");
+  ASSERT_EQ(bob.size(), 1u);
+  EXPECT_DOUBLE_EQ(bob[0].best, 99);
+  EXPECT_TRUE(store.summaries("nobody").empty());
+}
+
+int run(const std::string& command) {
+  const int status = std::system(command.c_str());
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+TEST(RecordsTool, ImportCheckExportAndExitCodes) {
+  TempDir dir;
+  const std::string tool = EYESI_RECORDS_TOOL;
+  const std::string db = dir.file("tool.sqlite");
+  const std::string quiet = " >/dev/null 2>&1";
+  EXPECT_EQ(run(tool + " --db " + db + " import " + EYESI_TEST_BAGS + " --user anna" + quiet), 0);
+  EXPECT_EQ(run(tool + " --db " + db + " add-user dr --role instructor --pin 1357" + quiet), 0);
+  EXPECT_EQ(run(tool + " --db " + db + " add-user dr --role instructor --pin 1357" + quiet), 1);
+  EXPECT_EQ(run(tool + " --db " + db + " add-user x --role boss" + quiet), 2);
+  EXPECT_EQ(run(tool + " --db " + db + " frobnicate" + quiet), 2);
+  EXPECT_EQ(run(tool + " --db " + db + " list --user anna" + quiet), 0);
+  EXPECT_EQ(run(tool + " --db " + db + " check" + quiet), 0);
+  const std::string csv = dir.file("out.csv");
+  EXPECT_EQ(run(tool + " --db " + db + " export-csv --user anna --out " + csv + quiet), 0);
+  std::size_t items = 0;
+  for (const auto& file : referenceResults()) items += nlohmann::json::parse(readBytes(file))["items"].size();
+  EXPECT_EQ(parseCsv(readBytes(csv)).size(), 1u + items);  // the header and one line per item
+  {
+    Store store(db);
+    EXPECT_TRUE(store.checkPin("dr", "1357"));
+    EXPECT_EQ(store.sessions({"anna", ""}).size(), 3u);
+  }
+  const std::string junk = dir.file("junk.sqlite");
+  writeBytes(junk, std::string(5000, 'x'));
+  EXPECT_EQ(run(tool + " --db " + junk + " check" + quiet), 1);
+  EXPECT_EQ(run(tool + " --db " + junk + " list" + quiet), 1);
+  EXPECT_TRUE(sameBytes(readBytes(junk), std::string(5000, 'x')));
+}
+
+}  // namespace
+}  // namespace eyesi_gui::records

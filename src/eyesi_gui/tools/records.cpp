@@ -1,0 +1,235 @@
+// records: the training-records database from the command line (import results from another station or a USB
+// stick, export for a spreadsheet, check a database after a crash, add users). ROS-free; `rosrun eyesi_gui records`.
+#include <algorithm>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "eyesi_gui/records/store.h"
+
+namespace {
+
+namespace records = eyesi_gui::records;
+
+constexpr const char* kUsage =
+    "usage: records [--db PATH] COMMAND [ARGS]\n"
+    "  import FILE_OR_FOLDER... [--user NAME]   import scenario result JSON files (folders: every *.result.json)\n"
+    "  export-csv [--user U] [--scene S] [--out FILE]   score items as CSV (RFC 4180; stdout by default)\n"
+    "  check                                    integrity report of the database (exit 0 ok, 1 damaged)\n"
+    "  add-user NAME --role trainee|instructor [--pin PIN]   (--pin - reads the PIN from stdin)\n"
+    "  set-pin NAME --pin PIN                   set (or with an empty PIN clear) a user's PIN\n"
+    "  list [--user U]                          sessions, oldest first\n"
+    "  users                                    users and roles\n"
+    "--db defaults to $HOME/.ros/eyesi/records.sqlite\n";
+
+struct UsageError {
+  std::string message;
+};
+
+struct Arguments {
+  std::string command;
+  std::vector<std::string> positional;
+  std::map<std::string, std::string> options;  // "--user" → value
+
+  std::string option(const std::string& name) const {
+    const auto it = options.find(name);
+    return it == options.end() ? "" : it->second;
+  }
+  bool has(const std::string& name) const { return options.count(name) != 0; }
+};
+
+Arguments parse(int argc, char** argv) {
+  static const std::vector<std::string> kValued{"--db", "--user", "--scene", "--out", "--role", "--pin"};
+  Arguments args;
+  for (int i = 1; i < argc; ++i) {
+    const std::string arg = argv[i];
+    if (arg.size() > 2 && arg.compare(0, 2, "--") == 0) {
+      const auto eq = arg.find('=');
+      const std::string name = arg.substr(0, eq);
+      if (std::find(kValued.begin(), kValued.end(), name) == kValued.end()) throw UsageError{"unknown option " + name};
+      if (eq != std::string::npos) {
+        args.options[name] = arg.substr(eq + 1);
+      } else if (i + 1 < argc) {
+        args.options[name] = argv[++i];
+      } else {
+        throw UsageError{name + " needs a value"};
+      }
+    } else if (args.command.empty()) {
+      args.command = arg;
+    } else {
+      args.positional.push_back(arg);
+    }
+  }
+  if (args.command.empty()) throw UsageError{"no command"};
+  return args;
+}
+
+void allowOnly(const Arguments& args, const std::vector<std::string>& allowed) {
+  for (const auto& [name, value] : args.options) {
+    if (name != "--db" && std::find(allowed.begin(), allowed.end(), name) == allowed.end()) {
+      throw UsageError{args.command + " does not take " + name};
+    }
+  }
+}
+
+std::string defaultDatabase() {
+  const char* home = std::getenv("HOME");
+  if (home == nullptr || *home == '\0') throw records::StoreError("HOME is not set; pass --db PATH");
+  return std::string(home) + "/.ros/eyesi/records.sqlite";
+}
+
+// "-" reads the PIN from stdin, so it need not appear in the shell history or the process list.
+std::string pinArgument(const Arguments& args) {
+  std::string pin = args.option("--pin");
+  if (pin == "-") {
+    if (!std::getline(std::cin, pin)) pin.clear();
+  }
+  return pin;
+}
+
+int runImport(records::Store& store, const Arguments& args) {
+  if (args.positional.empty()) throw UsageError{"import needs at least one file or folder"};
+  const std::string user = args.option("--user");
+  int inserted = 0, existing = 0, failed = 0;
+  for (const std::string& target : args.positional) {
+    std::vector<std::string> files{target};
+    std::error_code ec;
+    if (std::filesystem::is_directory(target, ec)) {
+      files = records::Store::findResultFiles(target);
+      if (files.empty()) std::cerr << "records: " << target << ": no *.result.json files\n";
+    }
+    for (const std::string& file : files) {
+      try {
+        const records::ImportResult result = store.importResultFile(file, user);
+        std::cout << (result.inserted ? "inserted " : "already stored ") << result.session_id << ' ' << file << '\n';
+        ++(result.inserted ? inserted : existing);
+      } catch (const records::StoreError& e) {
+        std::cerr << "records: " << e.what() << '\n';
+        ++failed;
+      }
+    }
+  }
+  std::cout << inserted << " inserted, " << existing << " already stored, " << failed << " failed\n";
+  return failed == 0 ? 0 : 1;
+}
+
+int runExport(const records::Store& store, const Arguments& args) {
+  if (!args.positional.empty()) throw UsageError{"export-csv takes no positional arguments"};
+  const records::SessionFilter filter{args.option("--user"), args.option("--scene")};
+  if (!args.has("--out") || args.option("--out") == "-") {
+    store.exportCsv(std::cout, filter);
+    return 0;
+  }
+  const std::string out_path = args.option("--out");
+  std::ofstream out(out_path, std::ios::binary);
+  if (!out) throw records::StoreError(out_path + ": cannot write the CSV file");
+  store.exportCsv(out, filter);
+  out.close();
+  if (!out) throw records::StoreError(out_path + ": writing the CSV file failed");
+  return 0;
+}
+
+int runCheck(const std::string& db, const Arguments& args) {
+  if (!args.positional.empty()) throw UsageError{"check takes no arguments"};
+  // Not through Store: opening a Store would create a missing file and migrate an old one.
+  std::error_code ec;
+  if (!std::filesystem::exists(db, ec)) throw records::StoreError(db + ": no such database file");
+  const std::string report = records::Store::integrityCheck(db);
+  std::cout << report << '\n';
+  if (report == "ok") return 0;
+  std::cerr << "records: " << db << ": the database is damaged (see the report above)\n";
+  return 1;
+}
+
+int runAddUser(records::Store& store, const Arguments& args) {
+  if (args.positional.size() != 1) throw UsageError{"add-user needs exactly one NAME"};
+  const std::string role_text = args.option("--role");
+  if (role_text != "trainee" && role_text != "instructor") throw UsageError{"--role must be trainee or instructor"};
+  const records::Role role = role_text == "instructor" ? records::Role::kInstructor : records::Role::kTrainee;
+  const records::User user = store.addUser(args.positional[0], role, pinArgument(args));
+  std::cout << "added " << records::toString(user.role) << ' ' << user.name << " (id " << user.id << ", "
+            << (user.has_pin ? "with PIN" : "no PIN") << ")\n";
+  return 0;
+}
+
+int runSetPin(records::Store& store, const Arguments& args) {
+  if (args.positional.size() != 1) throw UsageError{"set-pin needs exactly one NAME"};
+  if (!args.has("--pin")) throw UsageError{"set-pin needs --pin"};
+  store.setPin(args.positional[0], pinArgument(args));
+  std::cout << "PIN of " << args.positional[0] << " updated\n";
+  return 0;
+}
+
+int runList(const records::Store& store, const Arguments& args) {
+  if (!args.positional.empty()) throw UsageError{"list takes no positional arguments"};
+  const auto sessions = store.sessions({args.option("--user"), ""});
+  std::printf("%6s  %-20s  %-12s  %-18s  %-8s  %-9s  %6s  %5s\n", "id", "recorded_at", "user", "scene", "level",
+              "state", "total", "items");
+  for (const auto& s : sessions) {
+    std::printf("%6lld  %-20s  %-12s  %-18s  %-8s  %-9s  %6.1f  %5zu\n", static_cast<long long>(s.id),
+                s.recorded_at.c_str(), s.user.c_str(), s.scene.c_str(), s.difficulty.c_str(), s.state.c_str(), s.total,
+                s.items.size());
+  }
+  std::printf("%zu sessions\n", sessions.size());
+  return 0;
+}
+
+int runUsers(const records::Store& store, const Arguments& args) {
+  if (!args.positional.empty()) throw UsageError{"users takes no arguments"};
+  for (const auto& user : store.users()) {
+    std::printf("%6lld  %-20s  %-10s  %s\n", static_cast<long long>(user.id), user.name.c_str(),
+                records::toString(user.role), user.has_pin ? "PIN" : "no PIN");
+  }
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  for (int i = 1; i < argc; ++i) {
+    const std::string arg = argv[i];
+    if (arg == "-h" || arg == "--help" || arg == "help") {
+      std::cout << kUsage;
+      return 0;
+    }
+  }
+  try {
+    const Arguments args = parse(argc, argv);
+    const std::string db = args.has("--db") ? args.option("--db") : defaultDatabase();
+    const std::string& command = args.command;
+    if (command == "check") {
+      allowOnly(args, {});
+      return runCheck(db, args);
+    }
+    static const std::vector<std::string> kCommands{"import", "export-csv", "add-user", "set-pin", "list", "users"};
+    if (std::find(kCommands.begin(), kCommands.end(), command) == kCommands.end()) {
+      throw UsageError{"unknown command " + command};
+    }
+    if (command == "import") allowOnly(args, {"--user"});
+    if (command == "export-csv") allowOnly(args, {"--user", "--scene", "--out"});
+    if (command == "add-user") allowOnly(args, {"--role", "--pin"});
+    if (command == "set-pin") allowOnly(args, {"--pin"});
+    if (command == "list") allowOnly(args, {"--user"});
+    if (command == "users") allowOnly(args, {});
+
+    records::Store store(db);
+    if (command == "import") return runImport(store, args);
+    if (command == "export-csv") return runExport(store, args);
+    if (command == "add-user") return runAddUser(store, args);
+    if (command == "set-pin") return runSetPin(store, args);
+    if (command == "list") return runList(store, args);
+    return runUsers(store, args);
+  } catch (const UsageError& e) {
+    std::cerr << "records: " << e.message << " (records --help for usage)\n";
+    return 2;
+  } catch (const std::exception& e) {
+    std::cerr << "records: " << e.what() << '\n';
+    return 1;
+  }
+}
