@@ -21,7 +21,8 @@
 // (override for every object), max_frame_time (s, default 0.05), collision_max_pixel_size (m), wall_clock_budget
 // (default false: deterministic frames; true: each tissue stops at its scene time_budget_ms of wall time, as EyeSi
 // did), auto_start (default true: the scenario starts with the first input; false: on START), result_file (the
-// session's result JSON; "" = none), bag (the session bag's path: the result also goes next to it as
+// session's result JSON; "" = none; also published latched on session_result), user / station (the trainee and the
+// simulator's host, written into the result; station defaults to the host name), bag (the session bag's path: the result also goes next to it as
 // <bag without .bag>.result.json), seed, eye_frame / world_frame names. The result (final_state_hash, scene, seed,
 // frames, score, ...) is written when the session ends (scenario finished / failed / stopped, STOP of a scene
 // without a scenario) and, if it never ended, when the nodelet shuts down.
@@ -37,10 +38,12 @@
 #include <mutex>
 #include <pluginlib/class_list_macros.hpp>
 #include <sstream>
+#include <unistd.h>
 
 #include "vrm_msgs/CollisionReport.h"
 #include "vrm_msgs/ScenarioStatus.h"
 #include "vrm_msgs/Score.h"
+#include "vrm_msgs/SessionResult.h"
 #include "vrm_msgs/SimulationState.h"
 #include "vrm_msgs/StageTiming.h"
 #include "vrm_msgs/TissueMesh.h"
@@ -86,6 +89,9 @@ class ScenarioManager : public nodelet::Nodelet {
     }
     if (!result_file_.empty()) result_files_.push_back(result_file_);
     seed_ = static_cast<std::uint32_t>(private_nh.param("seed", 0));
+    user_ = private_nh.param<std::string>("user", "");
+    char host[256] = {0};
+    station_ = private_nh.param<std::string>("station", gethostname(host, sizeof(host) - 1) == 0 ? host : "");
     try {
       session_ = std::make_unique<world::Session>(world::Session::loadByName(scene_parameter, difficulty), options);
     } catch (const std::exception& error) {
@@ -99,6 +105,7 @@ class ScenarioManager : public nodelet::Nodelet {
     marker_publisher_ = nh.advertise<visualization_msgs::MarkerArray>("collision_markers", 2);
     status_publisher_ = nh.advertise<vrm_msgs::ScenarioStatus>("scenario_status", 5, true);
     score_publisher_ = nh.advertise<vrm_msgs::Score>("score", 2, true);
+    result_publisher_ = nh.advertise<vrm_msgs::SessionResult>("session_result", 1, true);
     session_->setFrameObserver([this](const world::FrameResult& frame) { publish(frame); });
     session_->setLoadObserver([this](world::World& world) { onLoaded(world); });
     onLoaded(session_->world());
@@ -291,7 +298,6 @@ class ScenarioManager : public nodelet::Nodelet {
                  session_->world().sessionEnded() ? "over" : "interrupted",
                  static_cast<unsigned long>(session_->world().statistics().frames),
                  world::hashString(session_->world().stateHash()).c_str());
-    if (result_files_.empty()) return;
     std::ostringstream out;
     out << std::setprecision(15);
     const auto quoted = world::jsonString;
@@ -326,7 +332,17 @@ class ScenarioManager : public nodelet::Nodelet {
         << ", \"late_inputs\": " << current.statistics().late_inputs
         << ", \"last_frame_stamp\": " << (last_stamp ? world::toSeconds(*last_stamp) : 0.0)
         << ", \"software_version\": " << quoted(VRM_SIM_VERSION)
-        << ", \"bag\": " << (bag_path_.empty() ? "null" : quoted(bag_path_)) << "}\n";
+        << ", \"bag\": " << (bag_path_.empty() ? "null" : quoted(bag_path_))
+        << ", \"user\": " << (user_.empty() ? "null" : quoted(user_)) << ", \"station\": " << quoted(station_)
+        << "}\n";
+    // The console imports this text (training records) whether or not a file is written, so a result reaches a
+    // console on another host too.
+    auto result = boost::make_shared<vrm_msgs::SessionResult>();
+    result->header.stamp = last_stamp ? toRosTime(*last_stamp) : ros::Time(0);
+    result->json = out.str();
+    result->final_state_hash = world::hashString(current.stateHash());
+    result->result_files = result_files_;
+    if (ros::ok()) vrm_msgs::publishShared(result_publisher_, result);  // not from the destructor at shutdown
     for (const std::string& path : result_files_) {
       std::ofstream file(path);
       file << out.str();
@@ -378,7 +394,8 @@ class ScenarioManager : public nodelet::Nodelet {
   std::uint64_t meshes_published_ = 0;
   std::map<std::string, ros::Publisher> mesh_publishers_;
   ros::Publisher state_publisher_, timing_publisher_, report_publisher_, marker_publisher_, status_publisher_,
-      score_publisher_;
+      score_publisher_, result_publisher_;
+  std::string user_, station_;
   ros::Subscriber eye_subscriber_, instrument_subscriber_, pedal_subscriber_, command_subscriber_;
 };
 

@@ -1,6 +1,8 @@
 // Microscope knob twin (thesis §7: focus, zoom, ambient light knobs): plays the script's microscope track, and the
 // zoom/focus buttons of whatever publishes `pedals` (pedals_sim or a real pedal unit) move zoom and focus within
-// their limits.
+// their limits. A console (eyesi_gui) sets the knobs on `microscope_setpoint`: its values replace the scripted track
+// from then on (the pedal buttons move on from there), the way a touchscreen sets the real microscope's motors, so the
+// recorded input stays this node's `microscope`.
 
 #include <nodelet/nodelet.h>
 #include <ros/ros.h>
@@ -9,7 +11,9 @@
 #include <vrm_msgs/publish.h>
 
 #include <boost/make_shared.hpp>
+#include <cmath>
 #include <memory>
+#include <optional>
 #include <mutex>
 #include <pluginlib/class_list_macros.hpp>
 #include <string>
@@ -54,6 +58,7 @@ class MicroscopeSim : public nodelet::Nodelet {
 
     pub_ = nh.advertise<vrm_msgs::MicroscopeSettings>("microscope", 10);
     pedal_sub_ = nh.subscribe("pedals", 10, &MicroscopeSim::onPedals, this);
+    setpoint_sub_ = nh.subscribe("microscope_setpoint", 5, &MicroscopeSim::onSetpoint, this);
     timer_ = nh.createTimer(ros::Duration(1.0 / rate), &MicroscopeSim::onTick, this);
     NODELET_INFO("microscope track of '%s' at %.1f Hz; zoom [%.2f, %.2f], focus [%.3f, %.3f] m",
                  script_->name().c_str(), rate, limits.zoom_min, limits.zoom_max, limits.focus_min, limits.focus_max);
@@ -65,6 +70,22 @@ class MicroscopeSim : public nodelet::Nodelet {
     buttons_received_ = ros::Time::now();
   }
 
+  void onSetpoint(const vrm_msgs::MicroscopeSettings::ConstPtr& msg) {
+    if (!std::isfinite(msg->zoom) || !std::isfinite(msg->focus_distance) || !std::isfinite(msg->ambient_light) ||
+        !std::isfinite(msg->disparity_scale)) {
+      NODELET_WARN_THROTTLE(1.0, "microscope_setpoint with non-finite values ignored");
+      return;
+    }
+    MicroscopeSample setpoint;
+    setpoint.zoom = msg->zoom;
+    setpoint.focus_distance = msg->focus_distance;
+    setpoint.ambient_light = msg->ambient_light;
+    setpoint.disparity_scale = msg->disparity_scale;
+    std::lock_guard<std::mutex> lock(mutex_);
+    setpoint_ = setpoint;
+    knobs_->reset();  // the console set absolute values: earlier pedal offsets no longer apply
+  }
+
   void onTick(const ros::TimerEvent& event) {
     ros::Time stamp = event.current_expected;
     if (stamp.isZero()) stamp = ros::Time::now();
@@ -74,13 +95,15 @@ class MicroscopeSim : public nodelet::Nodelet {
     last_tick_ = stamp;
 
     PedalSample buttons;
+    MicroscopeSample baseline;
     {
       std::lock_guard<std::mutex> lock(mutex_);
       if (!buttons_received_.isZero() && (ros::Time::now() - buttons_received_).toSec() <= pedal_timeout_) {
         buttons = buttons_;
       }
+      baseline = setpoint_ ? *setpoint_ : script_->sample((stamp - start_).toSec()).microscope;
     }
-    const MicroscopeSample settings = knobs_->update(script_->sample((stamp - start_).toSec()).microscope, buttons, dt);
+    const MicroscopeSample settings = knobs_->update(baseline, buttons, dt);
 
     auto msg = boost::make_shared<vrm_msgs::MicroscopeSettings>();
     msg->header.stamp = stamp;
@@ -93,7 +116,7 @@ class MicroscopeSim : public nodelet::Nodelet {
   std::unique_ptr<MicroscopeKnobs> knobs_;
   double pedal_timeout_ = 0.5;
   ros::Publisher pub_;
-  ros::Subscriber pedal_sub_;
+  ros::Subscriber pedal_sub_, setpoint_sub_;
   ros::Timer timer_;
   ros::Time start_;
   ros::Time last_tick_;
@@ -101,6 +124,7 @@ class MicroscopeSim : public nodelet::Nodelet {
   std::mutex mutex_;
   PedalSample buttons_;
   ros::Time buttons_received_;
+  std::optional<MicroscopeSample> setpoint_;
 };
 
 }  // namespace vrm_tracking

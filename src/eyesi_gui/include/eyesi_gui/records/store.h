@@ -37,7 +37,7 @@ struct ScoreItemRecord {
   double value = 0.0;
   std::string unit;
   double weight = 0.0;
-  double points = 0.0;  // 0..1 of the item's weight earned
+  double points = 0.0;  // 0..100: how much of the item was earned (the scenario runner's score; total = weighted mean)
 };
 
 struct SessionRecord {

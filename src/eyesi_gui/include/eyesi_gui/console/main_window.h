@@ -1,0 +1,178 @@
+// The trainee and instructor console (thesis §2.4, §7.3): login, scenario choice, the live session, its result,
+// the history of sessions and the instructor's tools, as touch-sized screens in one window. It talks to the
+// simulator only through a SimulatorLink and keeps the training records in a records::Store.
+#pragma once
+
+#include <QFutureWatcher>
+#include <QMainWindow>
+#include <QMap>
+#include <QPointer>
+#include <memory>
+#include <optional>
+
+#include "eyesi_gui/console/simulator_link.h"
+#include "eyesi_gui/records/store.h"
+
+class QComboBox;
+class QLabel;
+class QLineEdit;
+class QListWidget;
+class QPlainTextEdit;
+class QProgressBar;
+class QPushButton;
+class QSlider;
+class QStackedWidget;
+class QTableWidget;
+class QCheckBox;
+
+namespace QtCharts {
+class QChartView;
+}
+
+namespace eyesi_gui {
+
+class StereoView;
+
+struct ConsoleOptions {
+  QString database;            // the records store (opened by the caller)
+  QString import_dir;          // result files to import at start (a crashed or absent console's sessions)
+  QString export_dir;          // where CSV exports go ("" = ask with a file dialog)
+  QString view_mode = "side_by_side";  // or "anaglyph"
+  // Autopilot (demos, README screenshots and the real-window test): log in, load the scene, press START, wait for
+  // the result, visit every screen, save a screenshot of each into screenshot_dir, then quit (exit status 0 only if
+  // the session's result reached the records store).
+  QString autopilot_scene;
+  QString autopilot_user = "guest";
+  QString autopilot_pin;
+  QString screenshot_dir;
+  double autopilot_timeout = 240.0;  // s
+};
+
+class MainWindow : public QMainWindow {
+  Q_OBJECT
+
+ public:
+  enum Screen { kLogin = 0, kScenarios, kSession, kResult, kHistory, kInstructor };
+
+  MainWindow(SimulatorLink* link, records::Store* store, ConsoleOptions options, QWidget* parent = nullptr);
+  ~MainWindow() override;
+
+  Screen screen() const;
+  QString currentUser() const { return user_ ? QString::fromStdString(user_->name) : QString(); }
+  std::int64_t lastStoredSession() const { return last_stored_session_; }
+  int autopilotExitCode() const { return autopilot_exit_code_; }
+  // Saves what the window shows (the X server's framebuffer under a real display, the widget under offscreen).
+  bool saveScreenshot(const QString& path);
+
+ public slots:
+  void showScreen(eyesi_gui::MainWindow::Screen screen);
+  void startOrPause();  // Space
+  void stopSession();   // Esc
+
+ signals:
+  void autopilotFinished(int exit_code);
+
+ private slots:
+  void onScenes(const QVector<eyesi_gui::SceneInfo>& scenes, const QStringList& errors);
+  void onStationStatus(const eyesi_gui::StationState& state);
+  void onScenarioStatus(const eyesi_gui::ScenarioState& state);
+  void onSessionResult(const QString& json);
+  void onLoadAnswered(bool accepted, const QString& message, quint32 seed);
+  void onLinkProblem(const QString& message);
+  void autopilotStep();
+
+ private:
+  QWidget* buildTopBar();
+  QWidget* buildLogin();
+  QWidget* buildScenarios();
+  QWidget* buildSession();
+  QWidget* buildResult();
+  QWidget* buildHistory();
+  QWidget* buildInstructor();
+
+  void refreshUsers();
+  void login(const records::User& user);
+  void logout();
+  void refreshScenarioList();
+  void showSceneDetails();
+  const SceneInfo* selectedScene() const;
+  const SceneInfo* sceneNamed(const QString& name) const;
+  void loadSelectedScene(bool record);
+  void loadSession(const SessionRequest& request);
+  void updateSessionControls();
+  void rebuildInstrumentChoices(const SceneInfo* scene);
+  void sendMicroscope();
+  void showResult(std::int64_t session_id);
+  void refreshHistory();
+  void refreshInstructor();
+  void exportCsv();
+  void importFolderInBackground(const QString& folder);
+  void replaySelected();
+  void note(const QString& message);
+
+  SimulatorLink* link_;
+  records::Store* store_;
+  ConsoleOptions options_;
+  std::optional<records::User> user_;
+  QVector<SceneInfo> scenes_;
+  StationState station_;
+  ScenarioState scenario_;
+  SessionRequest current_request_;
+  QString pending_difficulty_override_;
+  std::int64_t last_stored_session_ = 0;
+  QString replay_expected_hash_;
+  QStringList result_jsons_seen_;
+  int stereo_frames_ = 0;
+
+  // Widgets (object names are the tests' handles).
+  QStackedWidget* stack_ = nullptr;
+  QLabel* top_label_ = nullptr;
+  QPushButton *nav_scenarios_ = nullptr, *nav_history_ = nullptr, *nav_instructor_ = nullptr, *nav_logout_ = nullptr;
+  QLabel* status_line_ = nullptr;
+  // login
+  QListWidget* user_list_ = nullptr;
+  QLineEdit* pin_edit_ = nullptr;
+  QLineEdit* new_user_edit_ = nullptr;
+  // scenarios
+  QListWidget* scenario_list_ = nullptr;
+  QLabel* scenario_details_ = nullptr;
+  QComboBox* difficulty_box_ = nullptr;
+  QCheckBox* record_check_ = nullptr;
+  QPushButton* load_button_ = nullptr;
+  // session
+  StereoView* stereo_view_ = nullptr;
+  QComboBox* view_mode_box_ = nullptr;
+  QLabel* session_title_ = nullptr;
+  QLabel* session_state_ = nullptr;
+  QLabel* session_clock_ = nullptr;
+  QLabel* session_message_ = nullptr;
+  QProgressBar* progress_bar_ = nullptr;
+  QPushButton *start_button_ = nullptr, *pause_button_ = nullptr, *stop_button_ = nullptr, *reset_button_ = nullptr;
+  QCheckBox* session_record_check_ = nullptr;
+  QMap<QString, QComboBox*> instrument_boxes_;
+  QWidget* instrument_panel_ = nullptr;
+  QSlider *zoom_slider_ = nullptr, *focus_slider_ = nullptr, *light_slider_ = nullptr;
+  // result
+  QLabel* result_title_ = nullptr;
+  QLabel* result_total_ = nullptr;
+  QTableWidget* result_table_ = nullptr;
+  QLabel* result_comparison_ = nullptr;
+  // history
+  QComboBox* history_scene_box_ = nullptr;
+  QtCharts::QChartView* history_chart_ = nullptr;
+  QTableWidget* history_table_ = nullptr;
+  QProgressBar* history_progress_ = nullptr;
+  // instructor
+  QTableWidget* instructor_table_ = nullptr;
+  QComboBox* override_box_ = nullptr;
+  QPlainTextEdit* annotation_edit_ = nullptr;
+  QFutureWatcher<QString> background_;
+
+  // autopilot
+  int autopilot_stage_ = -1;
+  double autopilot_elapsed_ = 0.0;
+  int autopilot_exit_code_ = 1;
+  QTimer* autopilot_timer_ = nullptr;
+};
+
+}  // namespace eyesi_gui
