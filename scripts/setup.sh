@@ -13,7 +13,7 @@ PACKAGES=(
   libgtest-dev libbenchmark-dev libosmesa6-dev
   libassimp-dev libyaml-cpp-dev libfcl-dev libsqlite3-dev libbullet-dev
   python3-matplotlib
-  qtbase5-dev libqt5charts5-dev nlohmann-json3-dev libssl-dev xvfb xauth
+  qtbase5-dev libqt5charts5-dev nlohmann-json3-dev libssl-dev xvfb xauth python3-pil
 )
 
 missing=()

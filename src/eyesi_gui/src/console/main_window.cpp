@@ -797,6 +797,7 @@ void MainWindow::refreshHistory() {
   for (QtCharts::QAbstractAxis* axis : chart->axes(Qt::Horizontal)) {
     axis->setRange(0.5, std::max<int>(2, sessions.size()) + 0.5);
     axis->setTitleText("session");
+    if (auto* values = qobject_cast<QtCharts::QValueAxis*>(axis)) values->setLabelFormat("%d");
   }
   QtCharts::QChart* old = history_chart_->chart();
   history_chart_->setChart(chart);

@@ -86,6 +86,12 @@ class ChildProcess {
     if (pid_ < 0) throw std::runtime_error(std::string("fork: ") + std::strerror(errno));
     if (pid_ == 0) {
       ::setpgid(0, 0);
+      // A ROS thread forked us with signals blocked: roslaunch must see SIGINT to shut its nodes down (else they are
+      // orphaned and rosbag never closes its bag).
+      sigset_t none;
+      sigemptyset(&none);
+      ::sigprocmask(SIG_SETMASK, &none, nullptr);
+      for (int signal_number : {SIGINT, SIGTERM, SIGHUP, SIGPIPE}) ::signal(signal_number, SIG_DFL);
       const int log = ::open(log_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
       if (log >= 0) {
         ::dup2(log, STDOUT_FILENO);
