@@ -23,6 +23,24 @@ echo "$main_job" | tail -n 4
 printf '<?xml version="1.0"?>\n<testsuite name="main_job" tests="1" failures="%s" errors="0"><testcase classname="run_sh" name="default_session_grasps_and_peels">%s</testcase></testsuite>\n' \
   "$failures" "$failure" >"$ROOT/build/test_results/main_job/TEST-main_job.xml"
 
+# Script tests (a real X window under Xvfb, a console on a second ROS host): each a JUnit case.
+script_test() {  # script_test SUITE CASE COMMAND...
+  local suite=$1 name=$2 failure="" failed=0 output
+  shift 2
+  echo "test.sh: $*"
+  mkdir -p "$ROOT/build/test_results/$suite"
+  if ! output=$("$@" 2>&1); then
+    failed=1 failure="<failure message=\"$* failed\"><![CDATA[$(echo "$output" | tail -n 30)]]></failure>"
+  fi
+  echo "$output" | grep -E '^(PASS|FAIL|SKIP|remote-host)|: PASS|FAILED' | tail -n 30
+  printf '<?xml version="1.0"?>\n<testsuite name="%s" tests="1" failures="%s" errors="0"><testcase classname="%s" name="%s">%s</testcase></testsuite>\n' \
+    "$suite" "$failed" "$suite" "$name" "$failure" >"$ROOT/build/test_results/$suite/TEST-$suite.xml"
+}
+script_test console_real_window console_runs_a_session_in_a_real_window \
+  "$ROOT/src/eyesi_gui/test/console_real_window.sh"
+script_test console_remote_station console_on_a_second_host \
+  "$ROOT/src/eyesi_gui/test/remote/console_remote_station.sh"
+
 set +e
 summary=$(catkin_test_results "$ROOT/build/test_results" --all 2>&1)
 verdict=$?

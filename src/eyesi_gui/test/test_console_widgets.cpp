@@ -1,0 +1,270 @@
+// The console's widgets, offscreen (QT_QPA_PLATFORM=offscreen) with a fake simulator link and a real records store:
+// log in → choose a scenario → load → START is sent → a scenario_status and the session's result arrive → the result
+// screen shows the items → the row is in the database; plus PINs, keyboard shortcuts, the stereo view and export.
+#include <gtest/gtest.h>
+
+#include <QApplication>
+#include <QCheckBox>
+#include <QComboBox>
+#include <QDir>
+#include <QFile>
+#include <QLabel>
+#include <QLineEdit>
+#include <QListWidget>
+#include <QPushButton>
+#include <QTableWidget>
+#include <QTemporaryDir>
+#include <QtTest/QTest>
+#include <fstream>
+
+#include "eyesi_gui/console/main_window.h"
+#include "../src/console/stereo_view.h"
+
+namespace eyesi_gui {
+namespace {
+
+class FakeLink : public SimulatorLink {
+ public:
+  QString stationName() const override { return "fake"; }
+  void requestScenes() override {
+    SceneInfo scene;
+    scene.name = "membrane_peeling";
+    scene.description = "Peel an epiretinal membrane";
+    scene.scenario = "membrane_peeling";
+    scene.scenario_description = "Grasp the edge and peel";
+    scene.difficulties = QStringList{"easy", "medium", "hard"};
+    scene.default_difficulty = "medium";
+    scene.time_limit = 120;
+    scene.score_items = QStringList{"completed", "time"};
+    scene.score_weights = {3, 1};
+    scene.instruments = {InstrumentSlotInfo{"left", "light_pipe", {}},
+                         InstrumentSlotInfo{"right", "forceps", {"vitrector"}}};
+    SceneInfo plain;
+    plain.name = "viewer";  // no scenario: not listed
+    emit scenesListed({scene, plain}, {});
+  }
+  void loadSession(const SessionRequest& request) override { loads.push_back(request); }
+  void endSession() override { ++ends; }
+  void playGhost(const QString& bag, double) override { ghosts << bag; }
+  void sendCommand(Command command, const QString& argument) override { commands.push_back({command, argument}); }
+  void setMicroscope(const MicroscopeSetting& setting) override { microscope.push_back(setting); }
+
+  void station(int state, double progress = 0.0) {
+    StationState status;
+    status.state = state;
+    status.progress = progress;
+    status.station = "fake";
+    status.mode = "session";
+    status.scene = "membrane_peeling";
+    status.recording = true;
+    emit stationStatus(status);
+  }
+  void scenario(int state, double elapsed, const QString& message) {
+    ScenarioState status;
+    status.scenario = "membrane_peeling";
+    status.difficulty = "hard";
+    status.state = state;
+    status.elapsed = elapsed;
+    status.message = message;
+    emit scenarioStatus(status);
+  }
+
+  std::vector<SessionRequest> loads;
+  std::vector<std::pair<Command, QString>> commands;
+  std::vector<MicroscopeSetting> microscope;
+  QStringList ghosts;
+  int ends = 0;
+};
+
+const char* kResult = R"({"scene": "membrane_peeling", "scene_file": "/x.yaml", "scenario": "membrane_peeling",
+  "difficulty": "hard", "seed": 7, "state": "finished", "session_ended": true, "timed_out": false,
+  "message": "membrane peeled", "start_stamp": 100.5, "end_stamp": 130.25, "elapsed": 29.75, "total": 87.5,
+  "items": [{"name": "completed", "value": 1, "unit": "", "weight": 3, "points": 100},
+            {"name": "time", "value": 29.75, "unit": "s", "weight": 1, "points": 50}],
+  "final_state_hash": "0x00000000deadbeef", "frames": 1500, "simulated_frames": 1480, "late_inputs": 0,
+  "last_frame_stamp": 130.25, "software_version": "vrm_sim 0.1.0", "bag": "/records/s.bag", "user": "anna",
+  "station": "fake"})";
+
+template <typename T>
+T* child(QWidget& window, const char* name) {
+  T* widget = window.findChild<T*>(name);
+  EXPECT_NE(widget, nullptr) << name;
+  return widget;
+}
+
+class ConsoleTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    ASSERT_TRUE(dir_.isValid());
+    store_ = std::make_unique<records::Store>(dir_.filePath("records.sqlite").toStdString());
+    store_->addUser("anna", records::Role::kTrainee, "1357");
+    options_.export_dir = dir_.path();
+  }
+  std::unique_ptr<MainWindow> makeWindow() {
+    auto window = std::make_unique<MainWindow>(&link_, store_.get(), options_);
+    window->show();
+    return window;
+  }
+  void loginAnna(MainWindow& window) {
+    auto* users = child<QListWidget>(window, "userList");
+    for (int i = 0; i < users->count(); ++i)
+      if (users->item(i)->data(Qt::UserRole).toString() == "anna") users->setCurrentRow(i);
+    child<QLineEdit>(window, "pinEdit")->setText("1357");
+    child<QPushButton>(window, "loginButton")->click();
+  }
+
+  QTemporaryDir dir_;
+  std::unique_ptr<records::Store> store_;
+  ConsoleOptions options_;
+  FakeLink link_;
+};
+
+TEST_F(ConsoleTest, WholeSessionFromLoginToTheStoredResult) {
+  auto window = makeWindow();
+  EXPECT_EQ(window->screen(), MainWindow::kLogin);
+  loginAnna(*window);
+  ASSERT_EQ(window->screen(), MainWindow::kScenarios);
+  EXPECT_EQ(window->currentUser(), "anna");
+
+  auto* scenarios = child<QListWidget>(*window, "scenarioList");
+  ASSERT_EQ(scenarios->count(), 1);  // the scene without a scenario is not offered
+  scenarios->setCurrentRow(0);
+  auto* difficulty = child<QComboBox>(*window, "difficultyBox");
+  EXPECT_EQ(difficulty->currentText(), "medium");  // the scenario's default
+  difficulty->setCurrentText("hard");
+  child<QPushButton>(*window, "loadButton")->click();
+  ASSERT_EQ(link_.loads.size(), 1u);
+  EXPECT_EQ(link_.loads[0].scene, "membrane_peeling");
+  EXPECT_EQ(link_.loads[0].difficulty, "hard");
+  EXPECT_EQ(link_.loads[0].user, "anna");
+  EXPECT_TRUE(link_.loads[0].record);
+  EXPECT_EQ(window->screen(), MainWindow::kSession);
+
+  auto* start = child<QPushButton>(*window, "startButton");
+  link_.station(StationState::kLoading, 0.4);
+  EXPECT_FALSE(start->isEnabled()) << "START before the station is ready";
+  link_.station(StationState::kReady, 1.0);
+  link_.scenario(ScenarioState::kIdle, 0.0, "press START");
+  ASSERT_TRUE(start->isEnabled());
+  start->click();
+  ASSERT_EQ(link_.commands.size(), 1u);
+  EXPECT_EQ(link_.commands[0].first, SimulatorLink::kStart);
+
+  // Instrument choice per hand from the scene's alternatives.
+  auto* right = child<QComboBox>(*window, "instrument_right");
+  right->setCurrentText("vitrector");
+  ASSERT_EQ(link_.commands.size(), 2u);
+  EXPECT_EQ(link_.commands[1].first, SimulatorLink::kSelectInstrument);
+  EXPECT_EQ(link_.commands[1].second, "right:vitrector");
+  EXPECT_FALSE(child<QComboBox>(*window, "instrument_left")->isEnabled()) << "no alternatives for the light pipe";
+
+  link_.scenario(ScenarioState::kRunning, 12.0, "3 of 7 adhesion points detached");
+  EXPECT_EQ(child<QLabel>(*window, "sessionClock")->text(), "0:12");
+  EXPECT_TRUE(child<QLabel>(*window, "sessionMessage")->text().contains("3 of 7"));
+  link_.scenario(ScenarioState::kFinished, 29.75, "membrane peeled");
+  emit link_.sessionResult(kResult);
+  ASSERT_EQ(window->screen(), MainWindow::kResult);
+
+  auto* table = child<QTableWidget>(*window, "resultTable");
+  ASSERT_EQ(table->rowCount(), 2);
+  EXPECT_EQ(table->item(0, 0)->text(), "completed");
+  EXPECT_EQ(table->item(1, 0)->text(), "time");
+  EXPECT_EQ(table->item(1, 1)->text(), "29.75");
+  EXPECT_EQ(table->item(1, 3)->text(), "1");
+  EXPECT_EQ(table->item(1, 4)->text(), "50 / 100");
+  EXPECT_TRUE(child<QLabel>(*window, "resultTotal")->text().startsWith("87.5 / 100"));
+  EXPECT_TRUE(child<QLabel>(*window, "resultTotal")->text().contains("PASSED"));
+
+  const auto sessions = store_->sessions({"anna", "membrane_peeling"});
+  ASSERT_EQ(sessions.size(), 1u);
+  EXPECT_EQ(sessions[0].id, window->lastStoredSession());
+  EXPECT_DOUBLE_EQ(sessions[0].total, 87.5);
+  EXPECT_EQ(sessions[0].difficulty, "hard");
+  EXPECT_EQ(sessions[0].bag_path, "/records/s.bag");
+  EXPECT_EQ(sessions[0].items.size(), 2u);
+
+  // The latched result again (a reconnect): still one row.
+  emit link_.sessionResult(kResult);
+  EXPECT_EQ(store_->sessions({"anna", ""}).size(), 1u);
+
+  // History: the session in the table; the scenario list shows best/last.
+  window->showScreen(MainWindow::kHistory);
+  EXPECT_EQ(child<QTableWidget>(*window, "historyTable")->rowCount(), 1);
+  window->showScreen(MainWindow::kScenarios);
+  EXPECT_TRUE(scenarios->item(0)->text().contains("best 87.5"));
+}
+
+TEST_F(ConsoleTest, WrongPinKeepsTheLoginScreenAndGuestNeedsNone) {
+  auto window = makeWindow();
+  auto* users = child<QListWidget>(*window, "userList");
+  for (int i = 0; i < users->count(); ++i)
+    if (users->item(i)->data(Qt::UserRole).toString() == "anna") users->setCurrentRow(i);
+  child<QLineEdit>(*window, "pinEdit")->setText("0000");
+  child<QPushButton>(*window, "loginButton")->click();
+  EXPECT_EQ(window->screen(), MainWindow::kLogin);
+  EXPECT_TRUE(child<QLineEdit>(*window, "pinEdit")->text().isEmpty());
+  child<QPushButton>(*window, "guestButton")->click();
+  EXPECT_EQ(window->screen(), MainWindow::kScenarios);
+  EXPECT_EQ(window->currentUser(), "guest");
+  // A trainee is not an instructor: that screen stays closed.
+  window->showScreen(MainWindow::kInstructor);
+  EXPECT_EQ(window->screen(), MainWindow::kScenarios);
+}
+
+TEST_F(ConsoleTest, SpaceStartsAndPausesEscapeStops) {
+  auto window = makeWindow();
+  loginAnna(*window);
+  child<QPushButton>(*window, "loadButton")->click();
+  link_.station(StationState::kReady, 1.0);
+  link_.scenario(ScenarioState::kIdle, 0.0, "");
+  window->activateWindow();
+  ASSERT_TRUE(QTest::qWaitForWindowActive(window.get()));
+  QTest::keyClick(window.get(), Qt::Key_Space);
+  ASSERT_EQ(link_.commands.size(), 1u);
+  EXPECT_EQ(link_.commands.back().first, SimulatorLink::kStart);
+  link_.scenario(ScenarioState::kRunning, 1.0, "");
+  QTest::keyClick(window.get(), Qt::Key_Space);
+  EXPECT_EQ(link_.commands.back().first, SimulatorLink::kPause);
+  link_.scenario(ScenarioState::kPaused, 1.0, "");
+  QTest::keyClick(window.get(), Qt::Key_Space);
+  EXPECT_EQ(link_.commands.back().first, SimulatorLink::kResume);
+  link_.scenario(ScenarioState::kRunning, 2.0, "");
+  QTest::keyClick(window.get(), Qt::Key_Escape);
+  EXPECT_EQ(link_.commands.back().first, SimulatorLink::kStop);
+  EXPECT_EQ(link_.commands.size(), 4u);
+}
+
+TEST_F(ConsoleTest, ExportWritesTheUsersCsvWithoutBlockingTheUi) {
+  store_->importResultJson(kResult, "test", "anna");
+  auto window = makeWindow();
+  loginAnna(*window);
+  window->showScreen(MainWindow::kHistory);
+  child<QPushButton>(*window, "exportButton")->click();
+  const QString path = QDir(dir_.path()).filePath("eyesi_anna.csv");
+  ASSERT_TRUE(QTest::qWaitFor([&] { return QFile::exists(path) && QFile(path).size() > 0; }, 5000));
+  QTest::qWait(100);
+  QFile file(path);
+  ASSERT_TRUE(file.open(QIODevice::ReadOnly));
+  const QStringList lines = QString::fromUtf8(file.readAll()).split('\n', Qt::SkipEmptyParts);
+  ASSERT_EQ(lines.size(), 3);  // header + two items
+  EXPECT_TRUE(lines[1].contains("membrane_peeling"));
+}
+
+TEST(StereoView, AnaglyphTakesRedFromTheLeftEyeAndCyanFromTheRight) {
+  QImage left(4, 2, QImage::Format_RGB888), right(4, 2, QImage::Format_RGB888);
+  left.fill(QColor(200, 10, 20));
+  right.fill(QColor(30, 150, 250));
+  const QImage composed = StereoView::anaglyph(left, right);
+  ASSERT_EQ(composed.size(), left.size());
+  EXPECT_EQ(composed.pixelColor(1, 1), QColor(200, 150, 250));
+}
+
+}  // namespace
+}  // namespace eyesi_gui
+
+int main(int argc, char** argv) {
+  qputenv("QT_QPA_PLATFORM", "offscreen");
+  QApplication app(argc, argv);
+  ::testing::InitGoogleTest(&argc, argv);
+  return RUN_ALL_TESTS();
+}
