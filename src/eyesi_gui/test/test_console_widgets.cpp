@@ -17,8 +17,8 @@
 #include <QtTest/QTest>
 #include <fstream>
 
-#include "eyesi_gui/console/main_window.h"
 #include "../src/console/stereo_view.h"
+#include "eyesi_gui/console/main_window.h"
 
 namespace eyesi_gui {
 namespace {
@@ -232,6 +232,21 @@ TEST_F(ConsoleTest, SpaceStartsAndPausesEscapeStops) {
   QTest::keyClick(window.get(), Qt::Key_Escape);
   EXPECT_EQ(link_.commands.back().first, SimulatorLink::kStop);
   EXPECT_EQ(link_.commands.size(), 4u);
+}
+
+TEST_F(ConsoleTest, AStartThatIsNotAcknowledgedIsSentAgain) {
+  auto window = makeWindow();
+  loginAnna(*window);
+  child<QPushButton>(*window, "loadButton")->click();
+  link_.station(StationState::kReady, 1.0);
+  link_.scenario(ScenarioState::kIdle, 0.0, "");
+  child<QPushButton>(*window, "startButton")->click();
+  ASSERT_EQ(link_.commands.size(), 1u);
+  ASSERT_TRUE(QTest::qWaitFor([&] { return link_.commands.size() == 2u; }, 5000)) << "no second START";
+  EXPECT_EQ(link_.commands.back().first, SimulatorLink::kStart);
+  link_.scenario(ScenarioState::kRunning, 0.5, "");  // acknowledged: no more
+  QTest::qWait(3500);
+  EXPECT_EQ(link_.commands.size(), 2u);
 }
 
 TEST_F(ConsoleTest, ExportWritesTheUsersCsvWithoutBlockingTheUi) {

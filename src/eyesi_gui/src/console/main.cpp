@@ -34,7 +34,8 @@ int main(int argc, char** argv) {
 
   ros::NodeHandle nh, private_nh("~");
   eyesi_gui::ConsoleOptions options;
-  options.database = expandHome(QString::fromStdString(private_nh.param<std::string>("database", "~/.ros/eyesi/records.sqlite")));
+  options.database =
+      expandHome(QString::fromStdString(private_nh.param<std::string>("database", "~/.ros/eyesi/records.sqlite")));
   options.import_dir = expandHome(QString::fromStdString(private_nh.param<std::string>("import_dir", "")));
   options.export_dir = expandHome(QString::fromStdString(private_nh.param<std::string>("export_dir", "")));
   options.view_mode = QString::fromStdString(private_nh.param<std::string>("view", "side_by_side"));
@@ -66,7 +67,8 @@ int main(int argc, char** argv) {
     store = std::make_unique<eyesi_gui::records::Store>(options.database.toStdString());
   } catch (const eyesi_gui::records::StoreError& error) {
     // A damaged store is never modified: say what is wrong and stop, so the records can be rescued.
-    const QString text = QString("%1\n\nintegrity check:\n%2").arg(error.what(), QString::fromStdString(error.integrityReport()));
+    const QString text =
+        QString("%1\n\nintegrity check:\n%2").arg(error.what(), QString::fromStdString(error.integrityReport()));
     std::fprintf(stderr, "eyesi_gui: %s\n", qPrintable(text));
     if (options.autopilot_scene.isEmpty()) QMessageBox::critical(nullptr, "Training records damaged", text);
     return 1;

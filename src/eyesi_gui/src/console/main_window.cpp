@@ -6,6 +6,7 @@
 #include <QDateTime>
 #include <QDir>
 #include <QFileDialog>
+#include <QFileInfo>
 #include <QGridLayout>
 #include <QGroupBox>
 #include <QHBoxLayout>
@@ -28,7 +29,6 @@
 #include <QTimer>
 #include <QVBoxLayout>
 #include <QWindow>
-#include <QFileInfo>
 #include <QtCharts/QChartView>
 #include <QtCharts/QLineSeries>
 #include <QtCharts/QScatterSeries>
@@ -217,9 +217,8 @@ QWidget* MainWindow::buildLogin() {
   auto* add = bigButton("Add trainee", "addUserButton");
   connect(add, &QPushButton::clicked, this, [this] {
     try {
-      const records::User user =
-          store_->addUser(new_user_edit_->text().trimmed().toStdString(), records::Role::kTrainee,
-                          pin_edit_->text().toStdString());
+      const records::User user = store_->addUser(new_user_edit_->text().trimmed().toStdString(),
+                                                 records::Role::kTrainee, pin_edit_->text().toStdString());
       new_user_edit_->clear();
       refreshUsers();
       note("trainee " + q(user.name) + " added");
@@ -298,8 +297,8 @@ void MainWindow::onScenes(const QVector<SceneInfo>& scenes, const QStringList& e
 }
 
 void MainWindow::refreshScenarioList() {
-  const QString selected = scenario_list_->currentItem() ? scenario_list_->currentItem()->data(Qt::UserRole).toString()
-                                                         : QString();
+  const QString selected =
+      scenario_list_->currentItem() ? scenario_list_->currentItem()->data(Qt::UserRole).toString() : QString();
   std::map<std::string, records::SceneSummary> summaries;
   if (user_)
     for (const auto& summary : store_->summaries(user_->name)) summaries[summary.scene] = summary;
@@ -346,8 +345,9 @@ void MainWindow::showSceneDetails() {
     text += QString("%1%2 (weight %3)").arg(i ? ", " : "", scene->score_items[i]).arg(scene->score_weights.value(i));
   text += "</p><p><b>Instruments:</b> ";
   for (const auto& slot : scene->instruments)
-    text += QString("%1: %2%3; ")
-                .arg(slot.slot, slot.type, slot.alternatives.isEmpty() ? "" : " (or " + slot.alternatives.join(", ") + ")");
+    text +=
+        QString("%1: %2%3; ")
+            .arg(slot.slot, slot.type, slot.alternatives.isEmpty() ? "" : " (or " + slot.alternatives.join(", ") + ")");
   if (user_) {
     for (const auto& summary : store_->summaries(user_->name)) {
       if (q(summary.scene) != scene->name) continue;
@@ -361,7 +361,8 @@ void MainWindow::showSceneDetails() {
   scenario_details_->setText(text + "</p>");
   difficulty_box_->clear();
   for (const QString& level : scene->difficulties) difficulty_box_->addItem(level);
-  const QString wanted = pending_difficulty_override_.isEmpty() ? scene->default_difficulty : pending_difficulty_override_;
+  const QString wanted =
+      pending_difficulty_override_.isEmpty() ? scene->default_difficulty : pending_difficulty_override_;
   difficulty_box_->setCurrentText(wanted);
   difficulty_box_->setEnabled(!scene->difficulties.isEmpty());
 }
@@ -383,8 +384,9 @@ void MainWindow::loadSession(const SessionRequest& request) {
   replay_expected_hash_.clear();
   stereo_view_->clear(request.mode == "replay" ? "starting the replay ..." : "loading " + request.scene + " ...");
   rebuildInstrumentChoices(request.mode == "replay" ? nullptr : sceneNamed(request.scene));
-  session_title_->setText(request.mode == "replay" ? "Replay of " + QFileInfo(request.bag).fileName()
-                                                   : request.scene + (request.difficulty.isEmpty() ? "" : " · " + request.difficulty));
+  session_title_->setText(request.mode == "replay"
+                              ? "Replay of " + QFileInfo(request.bag).fileName()
+                              : request.scene + (request.difficulty.isEmpty() ? "" : " · " + request.difficulty));
   session_record_check_->blockSignals(true);
   session_record_check_->setChecked(request.record);
   session_record_check_->blockSignals(false);
@@ -468,7 +470,7 @@ QWidget* MainWindow::buildSession() {
     });
     return s;
   };
-  zoom_slider_ = slider("Zoom", "zoomSlider", 0, 10, 40, 10);     // x0.1: 1..4 (the knob twin's limits)
+  zoom_slider_ = slider("Zoom", "zoomSlider", 0, 10, 40, 10);        // x0.1: 1..4 (the knob twin's limits)
   focus_slider_ = slider("Focus", "focusSlider", 1, 150, 250, 200);  // mm: 150..250
   light_slider_ = slider("Light", "lightSlider", 2, 0, 100, 50);     // %
   right->addWidget(microscope);
@@ -484,7 +486,26 @@ QWidget* MainWindow::buildSession() {
   layout->addLayout(right, 1);
 
   connect(start_button_, &QPushButton::clicked, this, [this] {
-    link_->sendCommand(scenario_.state == ScenarioState::kPaused ? SimulatorLink::kResume : SimulatorLink::kStart);
+    const bool resume = scenario_.state == ScenarioState::kPaused;
+    link_->sendCommand(resume ? SimulatorLink::kResume : SimulatorLink::kStart);
+    if (!resume) {
+      start_retries_ = 0;
+      start_retry_timer_->start();
+    }
+  });
+  // A command is one unlatched message: if the simulator's subscription was not connected yet it is lost, and the
+  // scenario stays idle. START is sent again (a surplus START is refused by a running scenario, and recorded like
+  // any command, so a replay still ends in the same state).
+  start_retry_timer_ = new QTimer(this);
+  start_retry_timer_->setInterval(3000);
+  start_retry_timer_->setSingleShot(true);
+  connect(start_retry_timer_, &QTimer::timeout, this, [this] {
+    if (scenario_.state != ScenarioState::kIdle || station_.state != StationState::kReady || start_retries_ >= 3)
+      return;
+    ++start_retries_;
+    note(QString("START not acknowledged by the simulator; sent again (%1)").arg(start_retries_));
+    link_->sendCommand(SimulatorLink::kStart);
+    start_retry_timer_->start();
   });
   connect(pause_button_, &QPushButton::clicked, this, [this] { link_->sendCommand(SimulatorLink::kPause); });
   connect(stop_button_, &QPushButton::clicked, this, &MainWindow::stopSession);
@@ -572,8 +593,7 @@ void MainWindow::onStationStatus(const StationState& state) {
     progress_bar_->hide();
   }
   session_state_->setText(state.mode == "replay" ? "replay " + stationStateName(state.state)
-                                                 : stationStateName(state.state) +
-                                                       (state.recording ? "  ● REC" : ""));
+                                                 : stationStateName(state.state) + (state.recording ? "  ● REC" : ""));
   if (state.state == StationState::kFailed) session_message_->setText(state.message);
   if (state.state == StationState::kLoading || state.state == StationState::kReady)
     session_message_->setText(state.message);
@@ -583,7 +603,8 @@ void MainWindow::onStationStatus(const StationState& state) {
 }
 
 void MainWindow::onScenarioStatus(const ScenarioState& state) {
-  if (!current_request_.scene.isEmpty() && current_request_.mode != "replay" && state.scenario != current_request_.scene)
+  if (!current_request_.scene.isEmpty() && current_request_.mode != "replay" &&
+      state.scenario != current_request_.scene)
     return;  // the previous graph's latched status
   scenario_ = state;
   session_clock_->setText(clock(state.elapsed));
@@ -606,9 +627,8 @@ void MainWindow::onSessionResult(const QString& json) {
   }
   if (!user_ || result.value("scene").toString() != current_request_.scene) return;
   try {
-    const records::ImportResult stored =
-        store_->importResultJson(json.toStdString(), "live from station " + link_->stationName().toStdString(),
-                                 user_->name);
+    const records::ImportResult stored = store_->importResultJson(
+        json.toStdString(), "live from station " + link_->stationName().toStdString(), user_->name);
     last_stored_session_ = stored.session_id;
     showResult(stored.session_id);
   } catch (const std::exception& error) {
@@ -679,8 +699,8 @@ void MainWindow::showResult(std::int64_t session_id) {
   result_total_->setText(QString("%1 / 100   %2   (%3)")
                              .arg(session->total, 0, 'f', 1)
                              .arg(session->passed ? "PASSED" : "NOT PASSED", q(session->message)));
-  result_total_->setStyleSheet(QString("font-size: 34px; font-weight: bold; color: %1;")
-                                   .arg(session->passed ? "#1b7f2a" : "#b3261e"));
+  result_total_->setStyleSheet(
+      QString("font-size: 34px; font-weight: bold; color: %1;").arg(session->passed ? "#1b7f2a" : "#b3261e"));
   result_table_->setRowCount(static_cast<int>(session->items.size()));
   for (int row = 0; row < static_cast<int>(session->items.size()); ++row) {
     const records::ScoreItemRecord& item = session->items[row];
@@ -700,14 +720,14 @@ void MainWindow::showResult(std::int64_t session_id) {
     sum += other.total;
     ++earlier;
   }
-  result_comparison_->setText(
-      earlier == 0 ? "Your first session of this scenario."
-                   : QString("Your %1 earlier sessions: best %2, mean %3 — this one is %4 the mean%5.")
-                         .arg(earlier)
-                         .arg(best, 0, 'f', 1)
-                         .arg(sum / earlier, 0, 'f', 1)
-                         .arg(session->total >= sum / earlier ? "above" : "below")
-                         .arg(session->total > best ? " and your new best" : ""));
+  result_comparison_->setText(earlier == 0
+                                  ? "Your first session of this scenario."
+                                  : QString("Your %1 earlier sessions: best %2, mean %3 — this one is %4 the mean%5.")
+                                        .arg(earlier)
+                                        .arg(best, 0, 'f', 1)
+                                        .arg(sum / earlier, 0, 'f', 1)
+                                        .arg(session->total >= sum / earlier ? "above" : "below")
+                                        .arg(session->total > best ? " and your new best" : ""));
   showScreen(kResult);
 }
 
@@ -770,7 +790,8 @@ void MainWindow::refreshHistory() {
   const auto sessions = store_->sessions({user_->name, scene.toStdString()});
   history_table_->setRowCount(static_cast<int>(sessions.size()));
   auto* chart = new QtCharts::QChart;
-  chart->setTitle(QString("%1 — score per session (%2)").arg(q(user_->name), scene.isEmpty() ? "all scenarios" : scene));
+  chart->setTitle(
+      QString("%1 — score per session (%2)").arg(q(user_->name), scene.isEmpty() ? "all scenarios" : scene));
   std::map<std::string, QtCharts::QLineSeries*> lines;
   for (int row = 0; row < static_cast<int>(sessions.size()); ++row) {
     const records::SessionRecord& session = sessions[row];
@@ -867,8 +888,9 @@ void MainWindow::importFolderInBackground(const QString& folder) {
 QWidget* MainWindow::buildInstructor() {
   auto* page = new QWidget;
   auto* layout = new QVBoxLayout(page);
-  layout->addWidget(new QLabel("Recorded sessions of every trainee: play one as ghost instruments over the running "
-                               "session, annotate it, or set the difficulty of the next session."));
+  layout->addWidget(
+      new QLabel("Recorded sessions of every trainee: play one as ghost instruments over the running "
+                 "session, annotate it, or set the difficulty of the next session."));
   instructor_table_ = new QTableWidget(0, 7);
   instructor_table_->setObjectName("instructorTable");
   instructor_table_->setHorizontalHeaderLabels({"#", "user", "scenario", "difficulty", "score", "bag", "annotation"});

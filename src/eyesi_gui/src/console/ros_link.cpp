@@ -177,7 +177,8 @@ void RosLink::onScenarioStatus(const vrm_msgs::ScenarioStatus::ConstPtr& status)
   state.state = status->state;
   state.elapsed = status->elapsed;
   state.total = status->score.total;
-  for (const auto& item : status->score.items) state.items << ScoreItemInfo{q(item.name), q(item.unit), item.value, item.weight};
+  for (const auto& item : status->score.items)
+    state.items << ScoreItemInfo{q(item.name), q(item.unit), item.value, item.weight};
   emit scenarioStatus(state);
 }
 

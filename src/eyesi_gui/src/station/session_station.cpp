@@ -15,9 +15,9 @@
 //   logs; default ~/.ros/eyesi/sessions), launch_args (extra roslaunch arguments for every session graph, e.g.
 //   "sim:=true tracking:=false"), script (scripted surgeon of a simulated session, default scenario:expert),
 //   load_timeout (s, default 90), end_tail (s of wall time recorded after the session's end, default 1.0).
+#include <fcntl.h>
 #include <ros/master.h>
 #include <ros/ros.h>
-#include <fcntl.h>
 #include <signal.h>
 #include <std_srvs/Trigger.h>
 #include <sys/stat.h>
@@ -140,8 +140,7 @@ std::string lastLines(const std::string& path, std::size_t count) {
   for (std::string line; std::getline(file, line);)
     if (!line.empty()) lines.push_back(line);
   std::string out;
-  for (std::size_t i = lines.size() > count ? lines.size() - count : 0; i < lines.size(); ++i)
-    out += lines[i] + "\n";
+  for (std::size_t i = lines.size() > count ? lines.size() - count : 0; i < lines.size(); ++i) out += lines[i] + "\n";
   return out;
 }
 
@@ -249,8 +248,8 @@ class SessionStation {
     const std::time_t now = std::time(nullptr);
     std::strftime(stamp, sizeof(stamp), "%Y%m%d-%H%M%S", std::gmtime(&now));
     const std::string user = request.user.empty() ? "guest" : request.user;
-    const std::string stem = records_dir_ + "/" + stamp + "_" + fileSafe(user) + "_" +
-                             fileSafe(replay ? "replay" : request.scene);
+    const std::string stem =
+        records_dir_ + "/" + stamp + "_" + fileSafe(user) + "_" + fileSafe(replay ? "replay" : request.scene);
     std::vector<std::string> argv = {"roslaunch", "--skip-log-check"};
     vrm_msgs::StationStatus next;
     next.station = status_.station;
@@ -263,11 +262,11 @@ class SessionStation {
       next.bag = request.bag;
     } else {
       argv.push_back(simulator_launch_);
-      for (const std::string& arg : std::vector<std::string>{
-               "headless:=true", "auto_start:=false", "ghosts:=true", "scene:=" + request.scene,
-            "difficulty:=" + request.difficulty, "seed:=" + std::to_string(seed), "user:=" + user,
-            "script:=" + (request.script.empty() ? script_ : request.script),
-            std::string("record:=") + (request.record ? "true" : "false")})
+      for (const std::string& arg :
+           std::vector<std::string>{"headless:=true", "auto_start:=false", "ghosts:=true", "scene:=" + request.scene,
+                                    "difficulty:=" + request.difficulty, "seed:=" + std::to_string(seed),
+                                    "user:=" + user, "script:=" + (request.script.empty() ? script_ : request.script),
+                                    std::string("record:=") + (request.record ? "true" : "false")})
         argv.push_back(arg);
       next.mode = "session";
       next.scene = request.scene;
@@ -398,8 +397,8 @@ class SessionStation {
         publishStatus(status_.mode == "replay" ? "replay finished" : "session over");
       } else {
         status_.state = vrm_msgs::StationStatus::FAILED;
-        publishStatus("the session graph ended (exit " + std::to_string(*exit_status) + "): " +
-                      lastLines(log_path_, 3));
+        publishStatus("the session graph ended (exit " + std::to_string(*exit_status) +
+                      "): " + lastLines(log_path_, 3));
       }
       return;
     }
@@ -414,7 +413,8 @@ class SessionStation {
     if (status_.state != vrm_msgs::StationStatus::LOADING) return;
     const bool recorder_ready = !status_.recording || recorderListens();
     const float progress = 0.05f + 0.25f * seen_info_ + 0.3f * seen_idle_ + 0.3f * seen_frame_ + 0.1f * recorder_ready;
-    const bool ready = status_.mode == "replay" ? seen_frame_ : seen_info_ && seen_idle_ && seen_frame_ && recorder_ready;
+    const bool ready =
+        status_.mode == "replay" ? seen_frame_ : seen_info_ && seen_idle_ && seen_frame_ && recorder_ready;
     if (ready) {
       status_.state = status_.mode == "replay" ? vrm_msgs::StationStatus::RUNNING : vrm_msgs::StationStatus::READY;
       status_.progress = 1.0f;
@@ -422,8 +422,8 @@ class SessionStation {
     } else if ((ros::WallTime::now() - launched_at_).toSec() > load_timeout_) {
       stopGraph();
       status_.state = vrm_msgs::StationStatus::FAILED;
-      publishStatus("the session graph did not get ready within " + std::to_string(int(load_timeout_)) + " s: " +
-                    lastLines(log_path_, 3));
+      publishStatus("the session graph did not get ready within " + std::to_string(int(load_timeout_)) +
+                    " s: " + lastLines(log_path_, 3));
     } else {
       status_.progress = progress;
       publishStatus(std::string("loading ") + status_.scene + (seen_frame_ ? ": waiting for the recorder" : ""));

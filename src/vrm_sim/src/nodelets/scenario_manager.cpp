@@ -22,12 +22,13 @@
 // (default false: deterministic frames; true: each tissue stops at its scene time_budget_ms of wall time, as EyeSi
 // did), auto_start (default true: the scenario starts with the first input; false: on START), result_file (the
 // session's result JSON; "" = none; also published latched on session_result), user / station (the trainee and the
-// simulator's host, written into the result; station defaults to the host name), bag (the session bag's path: the result also goes next to it as
-// <bag without .bag>.result.json), seed, eye_frame / world_frame names. The result (final_state_hash, scene, seed,
-// frames, score, ...) is written when the session ends (scenario finished / failed / stopped, STOP of a scene
-// without a scenario) and, if it never ended, when the nodelet shuts down.
+// simulator's host, written into the result; station defaults to the host name), bag (the session bag's path: the
+// result also goes next to it as <bag without .bag>.result.json), seed, eye_frame / world_frame names. The result
+// (final_state_hash, scene, seed, frames, score, ...) is written when the session ends (scenario finished / failed /
+// stopped, STOP of a scene without a scenario) and, if it never ended, when the nodelet shuts down.
 #include <nodelet/nodelet.h>
 #include <ros/ros.h>
+#include <unistd.h>
 #include <visualization_msgs/MarkerArray.h>
 
 #include <boost/make_shared.hpp>
@@ -38,7 +39,6 @@
 #include <mutex>
 #include <pluginlib/class_list_macros.hpp>
 #include <sstream>
-#include <unistd.h>
 
 #include "vrm_msgs/CollisionReport.h"
 #include "vrm_msgs/ScenarioStatus.h"
@@ -333,8 +333,7 @@ class ScenarioManager : public nodelet::Nodelet {
         << ", \"last_frame_stamp\": " << (last_stamp ? world::toSeconds(*last_stamp) : 0.0)
         << ", \"software_version\": " << quoted(VRM_SIM_VERSION)
         << ", \"bag\": " << (bag_path_.empty() ? "null" : quoted(bag_path_))
-        << ", \"user\": " << (user_.empty() ? "null" : quoted(user_)) << ", \"station\": " << quoted(station_)
-        << "}\n";
+        << ", \"user\": " << (user_.empty() ? "null" : quoted(user_)) << ", \"station\": " << quoted(station_) << "}\n";
     // The console imports this text (training records) whether or not a file is written, so a result reaches a
     // console on another host too.
     auto result = boost::make_shared<vrm_msgs::SessionResult>();

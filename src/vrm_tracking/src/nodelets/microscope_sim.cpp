@@ -13,8 +13,8 @@
 #include <boost/make_shared.hpp>
 #include <cmath>
 #include <memory>
-#include <optional>
 #include <mutex>
+#include <optional>
 #include <pluginlib/class_list_macros.hpp>
 #include <string>
 

@@ -24,6 +24,7 @@ class QSlider;
 class QStackedWidget;
 class QTableWidget;
 class QCheckBox;
+class QTimer;
 
 namespace QtCharts {
 class QChartView;
@@ -34,9 +35,9 @@ namespace eyesi_gui {
 class StereoView;
 
 struct ConsoleOptions {
-  QString database;            // the records store (opened by the caller)
-  QString import_dir;          // result files to import at start (a crashed or absent console's sessions)
-  QString export_dir;          // where CSV exports go ("" = ask with a file dialog)
+  QString database;                    // the records store (opened by the caller)
+  QString import_dir;                  // result files to import at start (a crashed or absent console's sessions)
+  QString export_dir;                  // where CSV exports go ("" = ask with a file dialog)
   QString view_mode = "side_by_side";  // or "anaglyph"
   // Autopilot (demos, README screenshots and the real-window test): log in, load the scene, press START, wait for
   // the result, visit every screen, save a screenshot of each into screenshot_dir, then quit (exit status 0 only if
@@ -123,6 +124,8 @@ class MainWindow : public QMainWindow {
   QString replay_expected_hash_;
   QStringList result_jsons_seen_;
   int stereo_frames_ = 0;
+  QTimer* start_retry_timer_ = nullptr;
+  int start_retries_ = 0;
 
   // Widgets (object names are the tests' handles).
   QStackedWidget* stack_ = nullptr;
