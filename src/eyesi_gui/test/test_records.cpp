@@ -2,6 +2,7 @@
 // concurrency, damaged files, the CSV export and the command-line tool.
 #include <gtest/gtest.h>
 #include <sqlite3.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 
 #include <atomic>
@@ -287,6 +288,52 @@ TEST(RecordsSchema, CreatesMissingFoldersAndFile) {
   Store store(path);
   EXPECT_TRUE(fs::exists(path));
   EXPECT_EQ(store.schemaVersion(), 2);
+}
+
+// Permission bits of a file or folder (0777 part).
+unsigned modeOf(const std::string& path) {
+  struct stat info {};
+  if (::stat(path.c_str(), &info) != 0) return 01000;  // "missing": never equal to a permission set
+  return info.st_mode & 0777;
+}
+
+// SECURITY.md: the records (names, scores, PIN hashes) are readable by their owner only, whatever the umask.
+TEST(RecordsPermissions, NewDatabaseItsWalAndShmAndNewFoldersAreOwnerOnly) {
+  TempDir dir;
+  struct Umask {  // the usual umask: SQLite alone would create 0644 files
+    mode_t previous = ::umask(022);
+    ~Umask() { ::umask(previous); }
+  } umask_022;
+  const std::string path = dir.file("eyesi/sessions/records.sqlite");
+  {
+    Store store(path);
+    store.addUser("anna", Role::kTrainee, "482915");
+    // Open connection after a write: the WAL and the shared-memory index exist now.
+    ASSERT_TRUE(fs::exists(path + "-wal"));
+    ASSERT_TRUE(fs::exists(path + "-shm"));
+    EXPECT_EQ(modeOf(path), 0600u) << std::oct << modeOf(path);
+    EXPECT_EQ(modeOf(path + "-wal"), 0600u) << std::oct << modeOf(path + "-wal");
+    EXPECT_EQ(modeOf(path + "-shm"), 0600u) << std::oct << modeOf(path + "-shm");
+  }
+  EXPECT_EQ(modeOf(path), 0600u);
+  EXPECT_EQ(modeOf(dir.file("eyesi")), 0700u) << std::oct << modeOf(dir.file("eyesi"));
+  EXPECT_EQ(modeOf(dir.file("eyesi/sessions")), 0700u);
+}
+
+TEST(RecordsPermissions, AnOlderWorldReadableDatabaseIsTightenedAndAnExistingFolderKept) {
+  TempDir dir;
+  const std::string path = dir.file("records.sqlite");
+  { Store store(path); }
+  ASSERT_EQ(::chmod(path.c_str(), 0644), 0);
+  ASSERT_EQ(::chmod(dir.path().c_str(), 0755), 0);
+  {
+    Store store(path);
+    store.addUser("ben", Role::kTrainee, "2468");
+    EXPECT_EQ(modeOf(path), 0600u) << std::oct << modeOf(path);
+    EXPECT_EQ(modeOf(path + "-wal"), 0600u);
+    EXPECT_EQ(modeOf(path + "-shm"), 0600u);
+  }
+  EXPECT_EQ(modeOf(dir.path().string()), 0755u);  // a folder the store did not create is not its to change
 }
 
 TEST(RecordsSchema, MigratesVersion1KeepingTheRows) {

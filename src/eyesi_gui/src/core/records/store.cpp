@@ -1,6 +1,9 @@
 #include "eyesi_gui/records/store.h"
 
+#include <fcntl.h>
 #include <sqlite3.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cctype>
@@ -103,6 +106,37 @@ Role roleFromString(const std::string& text) { return text == "instructor" ? Rol
 
 bool isBlank(const std::string& text) {
   return std::all_of(text.begin(), text.end(), [](unsigned char c) { return std::isspace(c) != 0; });
+}
+
+// Trainee names, scores and PIN hashes are personal data (SECURITY.md): the database is readable by its owner only.
+// SQLite creates a new database with 0644 & ~umask, and its -wal and -shm files with the database file's mode, so
+// the file is created here with 0600 before SQLite opens it, and files of an older version are tightened to 0600.
+// Best effort for files of another owner (chmod is refused; the store still opens them).
+void restrictToOwner(const std::string& path) {
+  for (const std::string& file : {path, path + "-wal", path + "-shm", path + "-journal"}) {
+    struct stat info {};
+    if (::stat(file.c_str(), &info) == 0 && S_ISREG(info.st_mode) && (info.st_mode & 0077) != 0) {
+      ::chmod(file.c_str(), info.st_mode & 0600);
+    }
+  }
+}
+
+// The folders the store creates (e.g. ~/.ros/eyesi) are private too: 0700. Existing folders are left as they are.
+void createPrivateFolders(const fs::path& folder) {
+  if (folder.empty() || fs::exists(folder)) return;
+  createPrivateFolders(folder.parent_path());
+  if (::mkdir(folder.c_str(), 0700) != 0 && errno != EEXIST) {
+    throw StoreError(folder.string() + ": cannot create the folder: " + std::strerror(errno));
+  }
+}
+
+void createPrivateFile(const std::string& path) {
+  const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC | O_NOFOLLOW, 0600);
+  if (fd >= 0) {
+    ::close(fd);
+  } else if (errno != EEXIST) {  // another process may have created it meanwhile: then SQLite opens that one
+    throw StoreError(path + ": cannot create the database file: " + std::strerror(errno));
+  }
 }
 
 }  // namespace
@@ -377,12 +411,14 @@ Store::Store(const std::string& path) : impl_(nullptr) {
       }
     }
   } else {
-    const fs::path parent = fs::path(path).parent_path();
-    if (!parent.empty()) {
-      fs::create_directories(parent, ec);
-      if (ec) throw StoreError(path + ": cannot create the folder " + parent.string() + ": " + ec.message());
+    try {
+      createPrivateFolders(fs::path(path).parent_path());
+    } catch (const StoreError& error) {
+      throw StoreError(path + ": " + error.what());
     }
+    createPrivateFile(path);
   }
+  restrictToOwner(path);
 
   const int rc = sqlite3_open_v2(path.c_str(), &impl->db,
                                  SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_NOMUTEX, nullptr);
