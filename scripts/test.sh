@@ -1,8 +1,12 @@
 #!/usr/bin/env bash
 # Set-up + build, then every unit test (plain gtest) and every rostest (nodelet graphs), with the real verdict:
 # catkin's run_tests target exits 0 even when tests fail, so catkin_test_results decides.
+# scripts/test.sh --sanitize: the same tests built with ASan + UBSan in build_asan/ (scripts/sanitizers/run_tests.sh).
 set -euo pipefail
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+if [[ ${1:-} == --sanitize ]]; then
+  exec "$ROOT/scripts/sanitizers/run_tests.sh"
+fi
 "$ROOT/scripts/setup.sh"
 source "$ROOT/scripts/common.sh"
 

@@ -1,0 +1,87 @@
+#!/usr/bin/env bash
+# scripts/test.sh --sanitize: every unit test and rostest of the workspace, built with AddressSanitizer (+ LeakSanitizer)
+# and UndefinedBehaviorSanitizer in build_asan/ — the same `tests` and `run_tests` targets as the plain run, judged by
+# catkin_test_results, plus one JUnit case that fails when any process wrote a sanitizer report.
+#
+# Not run here: the main job (scripts/run.sh --check) and the script tests (console under Xvfb, remote station). They
+# start the Release build in build/ through scripts/common.sh, and the nodelets they exercise are the ones the
+# rostests load here; under ASan their wall-clock checks (frames in N seconds) would measure the sanitizer.
+#
+# Usage: scripts/test.sh --sanitize          (run it with `nice -n 10` on a shared machine)
+# Environment: VRM_ASAN_BUILD (default <ws>/build_asan), VRM_SANITIZE_JOBS (default nproc).
+set -euo pipefail
+ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)
+BUILD=${VRM_ASAN_BUILD:-$ROOT/build_asan}
+JOBS=${VRM_SANITIZE_JOBS:-$(nproc)}
+"$ROOT/scripts/setup.sh" --no-build
+# A pyenv python3 may come first on PATH and lacks catkin_pkg: catkin must use the system interpreter.
+export PATH="/usr/bin:$PATH"
+
+# RelWithDebInfo with -O1: fast enough for the graph tests, still precise stacks; -fno-omit-frame-pointer for ASan's
+# fast unwinder. NDEBUG as in the Release build, so the tests check the code that ships.
+SAN="-fsanitize=address,undefined -fno-omit-frame-pointer"
+if [[ ! -f "$BUILD/CMakeCache.txt" ]]; then
+  cmake -S "$ROOT" -B "$BUILD" -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+    -DCMAKE_C_FLAGS="$SAN" -DCMAKE_CXX_FLAGS="$SAN" \
+    -DCMAKE_C_FLAGS_RELWITHDEBINFO="-O1 -g -DNDEBUG" -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g -DNDEBUG" \
+    -DCMAKE_EXE_LINKER_FLAGS="-fsanitize=address,undefined" \
+    -DCMAKE_SHARED_LINKER_FLAGS="-fsanitize=address,undefined" \
+    -DCMAKE_MODULE_LINKER_FLAGS="-fsanitize=address,undefined" \
+    -DPYTHON_EXECUTABLE=/usr/bin/python3 -DPython3_EXECUTABLE=/usr/bin/python3 >"$ROOT/build_asan.configure.log" 2>&1 \
+    || { cat "$ROOT/build_asan.configure.log"; echo "test.sh --sanitize: cmake configure failed" >&2; exit 1; }
+  mv "$ROOT/build_asan.configure.log" "$BUILD/configure.log"
+fi
+start=$(date +%s)
+cmake --build "$BUILD" -j"$JOBS"
+cmake --build "$BUILD" --target tests -j"$JOBS"
+echo "test.sh --sanitize: build $(($(date +%s) - start)) s"
+
+# The Debian nodelet binary hosts our ASan-built nodelet libraries: it needs the ASan runtime preloaded (see the
+# wrapper's comment). catkin_find looks in this devel space before /usr, so roslaunch starts the wrapper.
+install -D -m 755 "$ROOT/scripts/sanitizers/nodelet" "$BUILD/devel/lib/nodelet/nodelet"
+
+set +u
+# shellcheck disable=SC1091
+source "$BUILD/devel/setup.bash"
+set -u
+export ROS_HOSTNAME=${ROS_HOSTNAME:-localhost}
+export ROS_LOG_DIR="$BUILD/ros_log"
+# shellcheck source=env.sh
+source "$ROOT/scripts/sanitizers/env.sh" "$BUILD"
+rm -rf "$SANITIZER_REPORTS" "$BUILD/test_results"
+mkdir -p "$SANITIZER_REPORTS"
+
+start=$(date +%s)
+# One test at a time: rostests start their own masters and the machine has two cores.
+cmake --build "$BUILD" --target run_tests -j1 || true
+echo "test.sh --sanitize: tests $(($(date +%s) - start)) s"
+
+# Sanitizer reports as one JUnit case: a report from a process no test checks (a nodelet manager at its exit, a helper
+# node) still fails the run. Each file is named <asan|ubsan>.<pid>.
+mkdir -p "$BUILD/test_results/sanitizers"
+reports=("$SANITIZER_REPORTS"/*)
+[[ -e ${reports[0]} ]] || reports=()
+failure=""
+if ((${#reports[@]})); then
+  echo "test.sh --sanitize: ${#reports[@]} sanitizer report(s) in $SANITIZER_REPORTS:"
+  for report in "${reports[@]}"; do
+    echo "== $report"
+    grep -E 'ERROR|SUMMARY|runtime error|^    #[0-9] ' "$report" | head -n 12
+  done
+  failure="<failure message=\"${#reports[@]} sanitizer report(s) in $SANITIZER_REPORTS\"><![CDATA[$(
+    for report in "${reports[@]}"; do echo "== $report"; grep -E 'ERROR|SUMMARY|runtime error' "$report" | head -n 5; done
+  )]]></failure>"
+fi
+printf '<?xml version="1.0"?>\n<testsuite name="sanitizers" tests="1" failures="%s" errors="0"><testcase classname="sanitizers" name="no_asan_lsan_ubsan_reports">%s</testcase></testsuite>\n' \
+  "$((${#reports[@]} > 0))" "$failure" >"$BUILD/test_results/sanitizers/TEST-sanitizers.xml"
+
+set +e
+summary=$(catkin_test_results "$BUILD/test_results" --all 2>&1)
+verdict=$?
+set -e
+echo "$summary" | grep -vE '^(Skipping|$)' | tail -n 40
+if ! /usr/bin/python3 "$ROOT/scripts/test_summary.py" "$BUILD/test_results"; then
+  echo "test.sh --sanitize: no test results found" >&2
+  exit 1
+fi
+exit $verdict
