@@ -56,10 +56,12 @@ std::string expandHome(const std::string& path) {
   return std::string(home ? home : "/tmp") + path.substr(1);
 }
 
+// Folders it creates are private (0700): the sessions' bags, results and logs name the trainee (SECURITY.md).
+// Existing folders keep their mode.
 void makeDirectories(const std::string& path) {
   for (std::size_t slash = path.find('/', 1); slash != std::string::npos; slash = path.find('/', slash + 1))
-    ::mkdir(path.substr(0, slash).c_str(), 0755);
-  ::mkdir(path.c_str(), 0755);
+    ::mkdir(path.substr(0, slash).c_str(), 0700);
+  ::mkdir(path.c_str(), 0700);
 }
 
 // Names safe in a file name: letters, digits, '-', '_'.
