@@ -1,0 +1,88 @@
+#!/usr/bin/env bash
+# Soak test (issue 14 §4): the whole product graph for N minutes — launch/simulator.launch headless with the
+# simulated hardware, the optical tracking (tracking:=true), the membrane_peeling scene (tissue, collision, bleeding),
+# the stereo renderer watched by a viewer in its own process, the session's inputs recorded into a bag — while the
+# scenario is cycled STOP/LOAD/START every minute as the console does it. scripts/soak_monitor.py samples once a
+# second and writes one row per minute: RSS and CPU of the nodelet manager and of the whole graph, message rates
+# (/eye_state, /instrument_state, /simulation_state, both eyes' images, /tissue/*), the renderer's dropped frames,
+# per-stage and end-to-end latency p99 (/diagnostics), crashes (a process of the graph that died or came back with
+# another pid). Verdict (JSON and exit status): manager RSS growth <= 5 % from minute 5 to the end, no rate below
+# 90 % of minute 5's, zero crashes, every scenario cycle acknowledged. Fewer than 6 minutes = smoke mode: minute 1 is
+# the baseline, and the results go to soak.quick.json / soak.quick.png instead of soak.json / soak.png.
+# Runs on its own ROS master port (default 11751), so it never meets another graph.
+# Usage: scripts/soak.sh [--minutes N] [--port PORT] [--out DIR] [--results DIR] [roslaunch args...]
+#   --out      the run's folder: bag, launch log, ROS logs (default build/soak/<UTC time>)
+#   --results  where soak.json and soak.png go (default bench/results)
+#   --tree     another checkout's launch files and packages (ROS_PACKAGE_PATH=TREE/src) with this build, e.g. a
+#              `git worktree` of the last commit while the working tree's launch files wait for a rebuild
+set -euo pipefail
+ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+minutes=30
+port=11751
+out=""
+results="$ROOT/bench/results"
+extra=()
+tree=$ROOT
+while (($#)); do
+  case $1 in
+    --minutes) minutes=$2; shift 2 ;;
+    --port) port=$2; shift 2 ;;
+    --out) out=$2; shift 2 ;;
+    --results) results=$2; shift 2 ;;
+    --tree) tree=$(cd "$2" && pwd); shift 2 ;;
+    -h | --help) sed -n '2,18p' "$0"; exit 0 ;;
+    *) extra+=("$1"); shift ;;
+  esac
+done
+[[ $minutes =~ ^[1-9][0-9]*$ ]] || { echo "soak.sh: --minutes must be a positive whole number" >&2; exit 2; }
+[[ $port =~ ^[0-9]+$ ]] || { echo "soak.sh: --port must be a number" >&2; exit 2; }
+
+source "$ROOT/scripts/common.sh"
+[[ $tree == "$ROOT" ]] || export ROS_PACKAGE_PATH="$tree/src"
+[[ -n $out ]] || out="$ROOT/build/soak/$(date -u +%Y%m%d_%H%M%S)"
+mkdir -p "$out" "$results"
+export ROS_MASTER_URI=http://localhost:$port ROS_LOG_DIR="$out/ros_log"
+if ss -ltn "sport = :$port" | grep -q LISTEN; then
+  echo "soak.sh: port $port is in use (another soak?); choose another with --port" >&2
+  exit 2
+fi
+suffix=""
+((minutes < 6)) && suffix=".quick"
+json="$results/soak$suffix.json"
+png="$results/soak$suffix.png"
+bag="$out/soak.bag"
+
+echo "soak.sh: ${minutes} min$([[ -n $suffix ]] && echo " (smoke mode: baseline minute 1)"), master port $port," \
+  "scene membrane_peeling, tracking, recording to $bag; run folder $out"
+# duration:=0: session_control starts the session once the recorder listens and never stops it; the monitor's
+# cycles are the session's STOP/LOAD/START (recorded inputs, like the console's).
+setsid roslaunch -p "$port" "$tree/launch/simulator.launch" headless:=true sim:=true tracking:=true record:=true \
+  duration:=0 "bag:=$bag" scene:=membrane_peeling "${extra[@]}" >"$out/launch.log" 2>&1 &
+launch_pid=$!
+stop_graph() {
+  if kill -0 "$launch_pid" 2>/dev/null; then
+    kill -INT "$launch_pid" 2>/dev/null || true
+    for _ in $(seq 60); do kill -0 "$launch_pid" 2>/dev/null || break; sleep 0.5; done
+    kill -0 "$launch_pid" 2>/dev/null && kill -TERM "$launch_pid" 2>/dev/null || true
+  fi
+  wait "$launch_pid" 2>/dev/null || true
+}
+trap stop_graph EXIT
+trap 'exit 130' INT TERM
+
+set +e
+/usr/bin/python3 "$ROOT/scripts/soak_monitor.py" --minutes "$minutes" --launch-pid "$launch_pid" --bag "$bag" \
+  --out "$json" 2>&1 | tee "$out/monitor.log"
+status=${PIPESTATUS[0]}
+set -e
+stop_graph
+trap - EXIT
+
+grep -hE "FATAL|ERROR|REQUIRED process|has died" "$out/launch.log" | sed -E 's/\x1b\[[0-9;]*m//g' | head -n 10 || true
+echo "launch log: $out/launch.log"
+if [[ -f $json ]]; then
+  /usr/bin/python3 "$ROOT/scripts/soak_table.py" --png "$png" "$json" || true
+  echo "results: $json, $png"
+fi
+ls "$out"/*.bag >/dev/null 2>&1 && echo "bag: $(du -ch "$out"/*.bag | tail -1 | cut -f1) in $(ls "$out"/*.bag | wc -l) file(s) under $out"
+exit "$status"
