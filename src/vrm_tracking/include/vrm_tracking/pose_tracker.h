@@ -56,7 +56,7 @@ struct EyeEstimate {
 
 struct InstrumentEstimate {
   std::string slot;
-  bool valid = false;
+  bool valid = false;  // false: the pose is held from the last valid frame (or zeros before the first)
   Eigen::Vector3d tip = Eigen::Vector3d::Zero();     // eye frame, m
   Eigen::Vector3d trocar = Eigen::Vector3d::Zero();  // eye frame, m
   Eigen::Vector3d shaft_axis = Eigen::Vector3d::UnitZ();
@@ -89,7 +89,8 @@ class PoseTracker {
   MarkerLayout layout_;
   TrackerConfig config_;
   EyeEstimate last_eye_;
-  std::vector<PointFilter> filters_;  // per colour class (index as layout_.classes)
+  std::vector<InstrumentEstimate> last_instruments_;  // last valid estimate per layout instrument
+  std::vector<PointFilter> filters_;                  // per colour class (index as layout_.classes)
   double last_stamp_ = 0.0;
 };
 

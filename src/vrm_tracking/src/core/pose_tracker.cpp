@@ -26,6 +26,7 @@ void PoseTracker::reset() {
   last_eye_ = EyeEstimate();
   last_eye_.rotation_center = layout_.rotation_center;
   filters_.assign(layout_.classes.size(), PointFilter(config_.filter));
+  last_instruments_.assign(layout_.instruments.size(), InstrumentEstimate());
   last_stamp_ = 0.0;
 }
 
@@ -150,7 +151,8 @@ TrackingResult PoseTracker::update(const std::vector<CameraObservations>& frame,
 
   // Instruments use the eye rotation of this frame, or the last valid one when the eye markers are hidden.
   const Eigen::Quaterniond q = eye.rotation.normalized();
-  for (const InstrumentMarker& slot : layout_.instruments) {
+  for (std::size_t i = 0; i < layout_.instruments.size(); ++i) {
+    const InstrumentMarker& slot = layout_.instruments[i];
     InstrumentEstimate inst;
     inst.slot = slot.slot;
     inst.trocar = slot.trocar;
@@ -164,6 +166,15 @@ TrackingResult PoseTracker::update(const std::vector<CameraObservations>& frame,
         inst.valid = true;
         inst.quality = m->quality * (eye.valid ? 1.0 : 0.5);
       }
+    }
+    if (inst.valid) {
+      last_instruments_[i] = inst;
+    } else if (last_instruments_[i].valid) {
+      // Not seen: the last valid pose, marked invalid (issue 14). The VR part keeps showing the instrument where it
+      // was and stops its interaction; a pose of zeros would put the tip at the eye centre.
+      inst = last_instruments_[i];
+      inst.valid = false;
+      inst.quality = 0.0;
     }
     result.instruments.push_back(inst);
   }

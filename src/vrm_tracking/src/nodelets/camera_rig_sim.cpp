@@ -7,6 +7,9 @@
 // Calibration mode (calibration_views > 0): instead of markers, each camera shows a chessboard target from
 // `calibration_views` seeded poses in turn on <camera>/image_raw (+ camera_info), and the target on the world
 // fixture, latched, on <camera>/fixture/image_raw — what rig_calibrator (and a person with a real target) uses.
+// Fault injection (tests, issue 14): `stop_camera`/`stop_after` stop one camera for good after a frame count;
+// ~fault (std_msgs/String, camera_fault.h) stops cameras for a wall duration or resumes them while running, e.g.
+// "stop camera_1 2.0", "stop all 2.0", "resume". A stopped camera publishes nothing (images, markers_exact).
 
 #include <image_transport/image_transport.h>
 #include <nodelet/nodelet.h>
@@ -14,6 +17,7 @@
 #include <sensor_msgs/CameraInfo.h>
 #include <sensor_msgs/Image.h>
 #include <sensor_msgs/image_encodings.h>
+#include <std_msgs/String.h>
 #include <vrm_msgs/EyeState.h>
 #include <vrm_msgs/InstrumentState.h>
 #include <vrm_msgs/MarkerObservations.h>
@@ -23,6 +27,8 @@
 #include <algorithm>
 #include <boost/make_shared.hpp>
 #include <cmath>
+#include <cstdint>
+#include <limits>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -31,6 +37,7 @@
 #include <vector>
 
 #include "vrm_tracking/calibration.h"
+#include "vrm_tracking/camera_fault.h"
 #include "vrm_tracking/conversions.h"
 #include "vrm_tracking/rig_renderer.h"
 
@@ -66,6 +73,8 @@ class CameraRigSim : public nodelet::Nodelet {
     // Fault injection for tests: camera `stop_camera` stops publishing after `stop_after` frames.
     pnh.param("stop_camera", stop_camera_, -1);
     pnh.param("stop_after", stop_after_, 0);
+    stopped_until_.assign(rig_.size(), ros::WallTime());
+    fault_sub_ = pnh.subscribe("fault", 10, &CameraRigSim::onFault, this);
     renderer_ = std::make_unique<RigRenderer>(rig_, layout_, config);
 
     std::vector<std::string> slots;
@@ -104,6 +113,39 @@ class CameraRigSim : public nodelet::Nodelet {
                                    &CameraRigSim::onInstrument, this);
     NODELET_INFO("camera_rig_sim: %zu cameras, %zu instrument slots, seed %d", rig_.size(), expected_slots_.size(),
                  seed);
+  }
+
+  void onFault(const std_msgs::String::ConstPtr& msg) {
+    std::vector<std::string> names;
+    for (const CameraModel& cam : rig_.cameras) names.push_back(cam.name);
+    CameraFault fault;
+    try {
+      fault = parseCameraFault(msg->data, names);
+    } catch (const std::invalid_argument& e) {
+      NODELET_WARN("camera_rig_sim: %s; ignored", e.what());
+      return;
+    }
+    std::lock_guard<std::mutex> lock(mutex_);
+    // Wall time: the fault is what a person pulling a cable does, whatever the input stamps say.
+    const ros::WallTime until = fault.action == CameraFault::Action::kResume ? ros::WallTime()
+                                : fault.seconds > 0.0 ? ros::WallTime::now() + ros::WallDuration(fault.seconds)
+                                                      : ros::WallTime(std::numeric_limits<std::int32_t>::max(), 0);
+    const std::string what = fault.action == CameraFault::Action::kResume ? "resumed"
+                             : fault.seconds > 0.0 ? "stopped for " + std::to_string(fault.seconds) + " s (wall)"
+                                                   : "stopped until resumed";
+    for (std::size_t c : fault.cameras) {
+      stopped_until_[c] = until;
+      NODELET_INFO("camera_rig_sim: %s %s", rig_.cameras[c].name.c_str(), what.c_str());
+    }
+  }
+
+  bool stopped(std::size_t c, const ros::WallTime& now) {
+    if (static_cast<int>(c) == stop_camera_ && frame_ >= static_cast<std::uint64_t>(stop_after_)) return true;
+    if (stopped_until_[c].isZero()) return false;
+    if (now < stopped_until_[c]) return true;
+    stopped_until_[c] = ros::WallTime();
+    NODELET_INFO("camera_rig_sim: %s publishing again", rig_.cameras[c].name.c_str());
+    return false;
   }
 
   void onEye(const vrm_msgs::EyeState::ConstPtr& msg) {
@@ -169,8 +211,9 @@ class CameraRigSim : public nodelet::Nodelet {
     previous_stamp_ = truth_header.stamp;
 
     const ros::Time start = ros::Time::now();  // measurement only (tracking_timing)
+    const ros::WallTime wall_now = ros::WallTime::now();
     for (std::size_t c = 0; c < rig_.size(); ++c) {
-      if (static_cast<int>(c) == stop_camera_ && frame_ >= static_cast<std::uint64_t>(stop_after_)) continue;
+      if (stopped(c, wall_now)) continue;
       const CameraModel& cam = rig_.cameras[c];
       std_msgs::Header header;
       header.stamp = truth_header.stamp;
@@ -284,7 +327,7 @@ class CameraRigSim : public nodelet::Nodelet {
   std::vector<image_transport::CameraPublisher> camera_pubs_;
   std::vector<ros::Publisher> exact_pubs_;
   ros::Publisher timing_pub_;
-  ros::Subscriber eye_sub_, instrument_sub_;
+  ros::Subscriber eye_sub_, instrument_sub_, fault_sub_;
   std::mutex mutex_;
   vrm_msgs::EyeState::ConstPtr pending_eye_;
   bool rendered_pending_ = false;
@@ -294,6 +337,7 @@ class CameraRigSim : public nodelet::Nodelet {
   std::uint64_t frame_ = 0;
   int stop_camera_ = -1;
   int stop_after_ = 0;
+  std::vector<ros::WallTime> stopped_until_;  // per camera; zero = running (~fault)
   // Calibration mode.
   int calibration_views_ = 0;
   ChessboardTarget target_;

@@ -12,6 +12,10 @@
 // residuals, eye/instrument validity — OK / WARN / ERROR. Per frame, the wall time from reconstruction start to the
 // poses published goes to tracking_timing (vrm_msgs/StageTiming, stage "reconstruction", header.stamp = the
 // cameras' stamp; its end is "tracking done" for the latency monitor, issue 12).
+// Camera dropout (issue 14, camera_watchdog.h): a camera silent for `dropout_timeout` (wall) is missing — WARN
+// naming it, the others go on; with none delivering, a watchdog timer at `camera_rate` publishes the last valid
+// poses marked invalid (quality 0) — ERROR — until frames return; the frames a returning camera needs until all
+// cameras are used again are logged and reported.
 
 #include <diagnostic_msgs/DiagnosticArray.h>
 #include <geometry_msgs/TransformStamped.h>
@@ -28,14 +32,17 @@
 #include <algorithm>
 #include <boost/make_shared.hpp>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <pluginlib/class_list_macros.hpp>
 #include <string>
 #include <vector>
 
+#include "vrm_tracking/camera_watchdog.h"
 #include "vrm_tracking/conversions.h"
 #include "vrm_tracking/pose_tracker.h"
 #include "vrm_tracking/scene_trocars.h"
@@ -66,6 +73,13 @@ class Tracker : public nodelet::Nodelet {
     pnh.param<std::string>("world_frame", world_frame_, "world");
     pnh.param<std::string>("eye_frame", eye_frame_, "eye");
     pnh.param("stale_timeout", stale_timeout_, 1.0);
+    double camera_rate = 50.0;  // nominal: the rig's frame rate (the surgeon twin's tick in simulation)
+    pnh.param("camera_rate", camera_rate, camera_rate);
+    if (!(camera_rate > 0.0)) camera_rate = 50.0;
+    CameraWatchdogConfig watchdog_config;
+    watchdog_config.period_ns = static_cast<StampNs>(std::llround(1e9 / camera_rate));
+    watchdog_config.timeout = 3.0 / camera_rate;
+    pnh.param("dropout_timeout", watchdog_config.timeout, watchdog_config.timeout);
     double diagnostic_period = 1.0;
     pnh.param("diagnostic_period", diagnostic_period, diagnostic_period);
     std::string filter;
@@ -92,6 +106,7 @@ class Tracker : public nodelet::Nodelet {
                      m.trocar.y(), m.trocar.z());
       }
       tracker_ = std::make_unique<PoseTracker>(rig, layout, config);
+      watchdog_ = std::make_unique<CameraWatchdog>(rig.size(), watchdog_config);
     } catch (const std::exception& e) {
       NODELET_FATAL("tracker: %s", e.what());
       throw;
@@ -107,6 +122,7 @@ class Tracker : public nodelet::Nodelet {
     diagnostics_pub_ = nh.advertise<diagnostic_msgs::DiagnosticArray>("/diagnostics", 10);
     diagnostic_timer_ = nh.createWallTimer(ros::WallDuration(diagnostic_period), &Tracker::publishDiagnostics, this);
     start_wall_ = last_diag_wall_ = ros::WallTime::now();
+    watchdog_timer_ = nh.createWallTimer(ros::WallDuration(1.0 / camera_rate), &Tracker::onWatchdogTick, this);
     for (std::size_t c = 0; c < rig.size(); ++c) {
       const std::string topic = rig.cameras[c].name + "/" + markers_topic;
       marker_subs_.push_back(nh.subscribe<vrm_msgs::MarkerObservations>(
@@ -124,9 +140,10 @@ class Tracker : public nodelet::Nodelet {
       }
       static_broadcaster_.sendTransform(trocars);
     }
-    NODELET_INFO("tracker: %zu cameras (%s), %zu instruments, tf %s, filter %s", rig.size(), markers_topic.c_str(),
-                 tracker_->layout().instruments.size(), publish_tf_ ? "on" : "off (scene_manager broadcasts)",
-                 toString(config.filter.type).c_str());
+    NODELET_INFO("tracker: %zu cameras (%s), %zu instruments, tf %s, filter %s, dropout after %.0f ms", rig.size(),
+                 markers_topic.c_str(), tracker_->layout().instruments.size(),
+                 publish_tf_ ? "on" : "off (scene_manager broadcasts)", toString(config.filter.type).c_str(),
+                 1e3 * watchdog_config.timeout);
   }
 
   void onSensors(const vrm_msgs::InstrumentState::ConstPtr& msg) {
@@ -137,13 +154,21 @@ class Tracker : public nodelet::Nodelet {
   void onMarkers(std::size_t camera, const vrm_msgs::MarkerObservations::ConstPtr& msg) {
     std::lock_guard<std::mutex> lock(mutex_);
     const ros::Time stamp = msg->header.stamp;
+    const ros::WallTime now = ros::WallTime::now();
+    watchdog_->onCameraFrame(camera, static_cast<StampNs>(stamp.toNSec()), now.toSec());
+    last_seen_[camera] = stamp;
+    last_wall_[camera] = now;
+    if (!last_held_.isZero() && stamp <= last_held_) {
+      NODELET_INFO_THROTTLE(1.0, "tracker: %s frame at %.3f exposed during the hold; dropped (outputs stay monotonic)",
+                            tracker_->rig().cameras[camera].name.c_str(), stamp.toSec());
+      return;
+    }
     if (!last_processed_.isZero() && stamp <= last_processed_) {
       NODELET_WARN_THROTTLE(2.0, "tracker: %s frame at %.3f arrived after its frame was reconstructed; dropped",
                             tracker_->rig().cameras[camera].name.c_str(), stamp.toSec());
       return;
     }
-    last_seen_[camera] = stamp;
-    last_wall_[camera] = ros::WallTime::now();
+    if (holding_) endHold(now);
     Pending& frame = pending_[stamp];
     frame.header = msg->header;
     frame.header.frame_id = world_frame_;
@@ -178,17 +203,35 @@ class Tracker : public nodelet::Nodelet {
     for (auto& entry : frame.cameras) observations.push_back(std::move(entry.second));
     const TrackingResult result = tracker_->update(observations, frame.header.stamp.toSec());
     accumulateDiagnostics(frame, result);
+    publishResult(frame.header, result, true);
+    watchdog_->onFrameReconstructed(static_cast<StampNs>(frame.header.stamp.toNSec()), frame.cameras.size());
+    reportRecoveries();
+    const ros::Time end = ros::Time::now();
+    auto timing = boost::make_shared<vrm_msgs::StageTiming>();
+    timing->header.stamp = frame.header.stamp;
+    timing->frame = frame.header.seq;
+    vrm_msgs::StageStamp stage;
+    stage.stage = "reconstruction";
+    stage.start = start;
+    stage.end = end;
+    timing->stages.push_back(stage);
+    vrm_msgs::publishShared(timing_pub_, timing);
+  }
 
+  // eye_state, one instrument_state per layout instrument, and (measured poses only) tf.
+  void publishResult(const std_msgs::Header& header, const TrackingResult& result, bool measured) {
     auto eye = boost::make_shared<vrm_msgs::EyeState>();
-    eye->header = frame.header;
+    eye->header = header;
     toMsg(result.eye, eye.get());
     vrm_msgs::publishShared(eye_pub_, eye);
-    if (!result.eye.valid) NODELET_WARN_THROTTLE(5.0, "tracker: eye markers not reconstructed; holding the rotation");
+    if (!result.eye.valid && measured) {
+      NODELET_WARN_THROTTLE(5.0, "tracker: eye markers not reconstructed; holding the rotation");
+    }
 
     std::vector<geometry_msgs::TransformStamped> frames;
     if (publish_tf_ && result.eye.valid) {
       geometry_msgs::TransformStamped t;
-      t.header = frame.header;
+      t.header = header;
       t.child_frame_id = eye_frame_;
       t.transform.translation = toVector3Msg(result.eye.rotation_center);
       t.transform.rotation = eye->rotation;
@@ -196,7 +239,7 @@ class Tracker : public nodelet::Nodelet {
     }
     for (const InstrumentEstimate& est : result.instruments) {
       auto msg = boost::make_shared<vrm_msgs::InstrumentState>();
-      msg->header = frame.header;
+      msg->header = header;
       msg->header.frame_id = eye_frame_;
       const auto sensor = sensors_.find(est.slot);
       toMsg(est, sensor == sensors_.end() ? nullptr : sensor->second.get(), msg.get());
@@ -210,20 +253,65 @@ class Tracker : public nodelet::Nodelet {
         t.transform.rotation = msg->tip_pose.orientation;
         frames.push_back(t);
       }
-      if (!est.valid) NODELET_WARN_THROTTLE(5.0, "tracker: instrument '%s' not seen", est.slot.c_str());
+      if (!est.valid && measured) NODELET_WARN_THROTTLE(5.0, "tracker: instrument '%s' not seen", est.slot.c_str());
       vrm_msgs::publishShared(instrument_pub_, msg);
     }
-    const ros::Time end = ros::Time::now();
     if (!frames.empty()) broadcaster_.sendTransform(frames);
-    auto timing = boost::make_shared<vrm_msgs::StageTiming>();
-    timing->header.stamp = frame.header.stamp;
-    timing->frame = frame.header.seq;
-    vrm_msgs::StageStamp stage;
-    stage.stage = "reconstruction";
-    stage.start = start;
-    stage.end = end;
-    timing->stages.push_back(stage);
-    vrm_msgs::publishShared(timing_pub_, timing);
+  }
+
+  // No camera frame for dropout_timeout (wall): publish the last valid poses, marked invalid with quality 0, once
+  // per camera period. The VR part closes a frame per input stamp: without these it would stop stepping and the
+  // view and tissue would freeze; with valid=false it keeps the instruments where they were and stops their
+  // interaction (no grasp or cut with a stale pose). Stamps continue the cameras' (the last exposure stamp
+  // advanced by the elapsed wall time, on the camera period grid) instead of the wall clock: the VR part's inputs
+  // stay monotonic on one time base, and a replay of the recorded eye_state/instrument_state — held frames
+  // included — steps the same frames and stays deterministic.
+  void onWatchdogTick(const ros::WallTimerEvent&) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    const ros::WallTime now = ros::WallTime::now();
+    if (!watchdog_->holding(now.toSec())) return;
+    if (!holding_) {
+      // The frames still assembling can no longer complete: reconstruct them with what they have, first.
+      while (!pending_.empty()) flush(pending_.begin());
+      holding_ = true;
+      hold_start_ = now;
+      hold_frames_ = 0;
+      NODELET_ERROR("tracker: no camera frame for %.0f ms: holding the last poses, marked invalid",
+                    1e3 * watchdog_->silence(now.toSec()));
+      publishDiagnosticsLocked(now);  // the ERROR now, not at the next period
+    }
+    const std::optional<StampNs> next = watchdog_->nextHoldStamp(now.toSec());
+    if (!next) return;
+    std_msgs::Header header;
+    header.stamp.fromNSec(static_cast<std::uint64_t>(*next));
+    header.frame_id = world_frame_;
+    // No observations: the core returns the held eye rotation and instrument poses, all invalid, quality 0.
+    const TrackingResult held = tracker_->update({}, header.stamp.toSec());
+    publishResult(header, held, false);
+    watchdog_->onHeldFrame(*next);
+    last_held_ = header.stamp;
+    ++hold_frames_;
+    ++diag_held_;
+  }
+
+  void endHold(const ros::WallTime& now) {
+    holding_ = false;
+    NODELET_WARN("tracker: camera frames again after %.2f s; %zu frames held", (now - hold_start_).toSec(),
+                 hold_frames_);
+  }
+
+  void reportRecoveries() {
+    const std::vector<CameraRecovery>& all = watchdog_->recoveries();
+    for (; reported_recoveries_ < all.size(); ++reported_recoveries_) {
+      const CameraRecovery& r = all[reported_recoveries_];
+      const std::string& name = tracker_->rig().cameras[r.camera].name;
+      char text[128];
+      std::snprintf(text, sizeof(text), "%d frame(s) after %.2f s silent (back at %.3f)", r.frames, r.silent_s,
+                    1e-9 * static_cast<double>(r.returned));
+      last_recovery_[r.camera] = text;
+      NODELET_INFO("tracker: %s back after %.2f s silent; all cameras used again after %d frame(s)", name.c_str(),
+                   r.silent_s, r.frames);
+    }
   }
 
   void accumulateDiagnostics(const Pending& frame, const TrackingResult& result) {
@@ -249,10 +337,13 @@ class Tracker : public nodelet::Nodelet {
     }
   }
 
-  // One status per period; counters cover the period since the last one.
+  // One status per period (and one when a hold starts); counters cover the period since the last one.
   void publishDiagnostics(const ros::WallTimerEvent&) {
     std::lock_guard<std::mutex> lock(mutex_);
-    const ros::WallTime now = ros::WallTime::now();
+    publishDiagnosticsLocked(ros::WallTime::now());
+  }
+
+  void publishDiagnosticsLocked(const ros::WallTime& now) {
     diagnostic_msgs::DiagnosticStatus status;
     status.name = getName() + ": pose reconstruction";
     status.hardware_id = "tracking_rig";
@@ -278,22 +369,30 @@ class Tracker : public nodelet::Nodelet {
         std::any_of(last_wall_.begin(), last_wall_.end(), [](const ros::WallTime& t) { return !t.isZero(); });
     const std::size_t n = tracker_->rig().size();
     int cameras_live = 0;
+    const bool holding = watchdog_->holding(now.toSec());
     for (std::size_t c = 0; c < n; ++c) {
       const std::string& name = tracker_->rig().cameras[c].name;
       const double age = last_wall_[c].isZero() ? (now - start_wall_).toSec() : (now - last_wall_[c]).toSec();
       kv(name + " last markers age s", last_wall_[c].isZero() ? "never" : fmt(age));
       kv(name + " frames missing", std::to_string(diag_missing_[c]));
-      if (age > stale_timeout_) {
-        if (started) {
+      if (last_recovery_.count(c)) kv(name + " last recovery", last_recovery_.at(c));
+      if (last_wall_[c].isZero()) {
+        // Start-up: cameras connect one by one; a camera that never delivered is reported after stale_timeout.
+        if (started && age > stale_timeout_)
+          raise(diagnostic_msgs::DiagnosticStatus::WARN, name + " never delivered markers");
+      } else if (age > watchdog_->config().timeout) {
+        if (!holding) {
           raise(diagnostic_msgs::DiagnosticStatus::WARN,
-                name +
-                    (last_wall_[c].isZero() ? " never delivered markers" : " stale (stopped?) for " + fmt(age) + " s"));
+                name + " missing for " + fmt(age) + " s (tracking with the others)");
         }
       } else {
         ++cameras_live;
       }
     }
-    if (!started) {
+    if (holding) {
+      raise(diagnostic_msgs::DiagnosticStatus::ERROR, "no camera frame for " + fmt(watchdog_->silence(now.toSec())) +
+                                                          " s: holding the last poses, marked invalid");
+    } else if (!started) {
       const double waited = (now - start_wall_).toSec();
       raise(
           waited > stale_timeout_ ? diagnostic_msgs::DiagnosticStatus::ERROR : diagnostic_msgs::DiagnosticStatus::WARN,
@@ -301,6 +400,10 @@ class Tracker : public nodelet::Nodelet {
     } else if (cameras_live < 2) {
       raise(diagnostic_msgs::DiagnosticStatus::ERROR,
             std::to_string(cameras_live) + " camera(s) live: no reconstruction possible");
+    }
+    if (diag_held_ > 0 && !holding) {
+      raise(diagnostic_msgs::DiagnosticStatus::WARN,
+            std::to_string(diag_held_) + " frames held (no camera), now tracking again");
     }
     if (diag_frames_ > 0) {
       if (diag_no_reconstruction_ > 0) {
@@ -311,9 +414,13 @@ class Tracker : public nodelet::Nodelet {
                   " frames with fewer than 2 cameras (late or missing)");
       }
       if (diag_partial_ > 0) {
-        raise(diagnostic_msgs::DiagnosticStatus::WARN, std::to_string(diag_partial_) + " of " +
-                                                           std::to_string(diag_frames_) + " frames with " +
-                                                           "a camera missing (continuing with the others)");
+        std::string which;
+        for (std::size_t c = 0; c < n; ++c) {
+          if (diag_missing_[c] > 0) which += (which.empty() ? " (" : ", ") + tracker_->rig().cameras[c].name;
+        }
+        raise(diagnostic_msgs::DiagnosticStatus::WARN,
+              std::to_string(diag_partial_) + " of " + std::to_string(diag_frames_) + " frames with a camera missing" +
+                  (which.empty() ? "" : which + ")") + ", continuing with the others");
       }
       if (diag_eye_valid_ < 0.9 * diag_frames_) {
         raise(diagnostic_msgs::DiagnosticStatus::WARN, "eye markers reconstructed in " +
@@ -322,6 +429,7 @@ class Tracker : public nodelet::Nodelet {
       }
     }
     kv("frames", std::to_string(diag_frames_));
+    kv("held frames", std::to_string(diag_held_));
     kv("rate hz", fmt(diag_frames_ / period));
     kv("cameras live", std::to_string(cameras_live) + " of " + std::to_string(n));
     kv("cameras used per marker (mean)",
@@ -342,12 +450,20 @@ class Tracker : public nodelet::Nodelet {
     vrm_msgs::publishShared(diagnostics_pub_, array);
     last_diag_wall_ = now;
     diag_frames_ = diag_no_reconstruction_ = diag_partial_ = diag_markers_ = diag_cameras_used_ = 0;
-    diag_eye_valid_ = diag_instruments_ = diag_instruments_valid_ = 0;
+    diag_eye_valid_ = diag_instruments_ = diag_instruments_valid_ = diag_held_ = 0;
     diag_residual_sum_ = diag_residual_max_ = 0.0;
     std::fill(diag_missing_.begin(), diag_missing_.end(), 0);
   }
 
   std::unique_ptr<PoseTracker> tracker_;
+  std::unique_ptr<CameraWatchdog> watchdog_;
+  ros::WallTimer watchdog_timer_;
+  bool holding_ = false;
+  ros::WallTime hold_start_;
+  std::size_t hold_frames_ = 0;
+  ros::Time last_held_;  // stamp of the newest held frame
+  std::size_t reported_recoveries_ = 0;
+  std::map<std::size_t, std::string> last_recovery_;  // per camera, for diagnostics
   std::vector<ros::Subscriber> marker_subs_;
   ros::Subscriber sensor_sub_;
   ros::Publisher eye_pub_, instrument_pub_, timing_pub_;
@@ -365,7 +481,7 @@ class Tracker : public nodelet::Nodelet {
   std::vector<ros::WallTime> last_wall_;
   std::vector<int> diag_missing_;
   int diag_frames_ = 0, diag_no_reconstruction_ = 0, diag_partial_ = 0, diag_markers_ = 0, diag_cameras_used_ = 0;
-  int diag_eye_valid_ = 0, diag_instruments_ = 0, diag_instruments_valid_ = 0;
+  int diag_eye_valid_ = 0, diag_instruments_ = 0, diag_instruments_valid_ = 0, diag_held_ = 0;
   double diag_residual_sum_ = 0.0, diag_residual_max_ = 0.0;
   double stale_timeout_ = 1.0;
   double sync_window_ = 0.03;

@@ -130,12 +130,23 @@ TEST_F(Pipeline, ExactCentroidsGiveExactPoses) {
   EXPECT_LT((two.instruments[0].tip - snap_.instruments[0].tip).norm(), 1e-9);
   for (const MarkerEstimate& m : two.markers) EXPECT_EQ(m.cameras, 2);
 
-  // Only one camera: nothing valid, the eye rotation is held from the last frame.
+  // Only one camera: nothing valid, the eye rotation and the instrument poses are held from the last valid frame
+  // (issue 14: the VR part keeps them where they were and stops their interaction), with quality 0.
   frame.resize(1);
   const TrackingResult one = tracker.update(frame);
   EXPECT_FALSE(one.eye.valid);
   EXPECT_LT(one.eye.rotation.angularDistance(snap_.eye_rotation), 1e-9);
-  EXPECT_FALSE(one.instruments[0].valid);
+  for (std::size_t i = 0; i < 2; ++i) {
+    EXPECT_FALSE(one.instruments[i].valid);
+    EXPECT_EQ(one.instruments[i].quality, 0.0);
+    EXPECT_EQ(one.instruments[i].tip, two.instruments[i].tip);
+    EXPECT_EQ(one.instruments[i].shaft_axis, two.instruments[i].shaft_axis);
+    EXPECT_EQ(one.instruments[i].insertion_depth, two.instruments[i].insertion_depth);
+  }
+  // No camera at all: still the held poses; after reset() nothing is held.
+  EXPECT_EQ(tracker.update({}).instruments[1].tip, two.instruments[1].tip);
+  tracker.reset();
+  EXPECT_EQ(tracker.update({}).instruments[1].tip, Eigen::Vector3d::Zero());
 }
 
 TEST_F(Pipeline, DistractorsAreRejectedOrOutvoted) {
