@@ -12,7 +12,7 @@ PACKAGES=(
   libcv-bridge-dev libimage-transport-dev libopencv-dev libeigen3-dev
   libgtest-dev libbenchmark-dev libosmesa6-dev
   libassimp-dev libyaml-cpp-dev libfcl-dev libsqlite3-dev libbullet-dev
-  python3-matplotlib
+  python3-matplotlib python3-diagnostic-msgs python3-sensor-msgs
   qtbase5-dev libqt5charts5-dev nlohmann-json3-dev libssl-dev xvfb xauth python3-pil
 )
 
