@@ -8,18 +8,37 @@
 // Parameters (private): recorder (node name, default /session_recorder), topics (list the recorder must subscribe
 // to), duration (s of input time; 0 = until Ctrl-C), start (default true; false: a console sends START),
 // start_delay (s of input time between the newest frame and START, default 0.5), tail (s of input time recorded
-// after STOP, default 1.0).
+// after STOP, default 1.0), bag (the first part's path; empty = no part report).
+//
+// Faults (issue 14). A simulation that comes back after a crash of its nodelet manager (a new process publishes
+// scenario_status) gets the scenario restarted cleanly: LOAD of the same scene, difficulty and seed, then START,
+// both recorded, so a replay of the bag resets its world where the live one was restarted (the interrupted session's
+// result is kept, marked interrupted, by scenario_manager). A recorder that dies (its process no longer answers) is
+// respawned by the launch into the next bag part; the gap is logged while it lasts, and at the end the killed parts
+// are recovered (indexed copies at their own names) and <bag without .bag>.recording.json lists every part with its
+// first and last message stamps, the gaps between them and the restarts of the simulation.
 #include <ros/master.h>
+#include <ros/network.h>
 #include <ros/ros.h>
+#include <ros/xmlrpc_manager.h>
+#include <rosbag/bag.h>
+#include <rosbag/view.h>
 
 #include <boost/make_shared.hpp>
 #include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iomanip>
+#include <set>
+#include <sstream>
 #include <string>
 #include <vector>
 
 #include "vrm_msgs/ScenarioCommand.h"
 #include "vrm_msgs/ScenarioStatus.h"
+#include "vrm_msgs/SessionInfo.h"
 #include "vrm_msgs/SimulationState.h"
+#include "vrm_sim/bag/session_bag.h"
 
 namespace {
 
@@ -38,6 +57,49 @@ std::map<std::string, std::vector<std::string>> subscribersByTopic() {
   return result;
 }
 
+// A node's XML-RPC URI according to the master ("" = not registered).
+std::string lookupNode(const std::string& node) {
+  XmlRpc::XmlRpcValue request, response, payload;
+  request[0] = ros::this_node::getName();
+  request[1] = node;
+  if (!ros::master::execute("lookupNode", request, response, payload, false)) return "";
+  return payload.getType() == XmlRpc::XmlRpcValue::TypeString ? static_cast<std::string>(payload) : "";
+}
+
+// Whether the process behind `uri` still answers (the master keeps a killed node registered until it is replaced).
+bool answers(const std::string& uri) {
+  std::string host, path;
+  std::uint32_t port = 0;
+  if (!ros::network::splitURI(uri, host, port)) return false;
+  XmlRpc::XmlRpcClient client(host.c_str(), static_cast<int>(port), "/");
+  XmlRpc::XmlRpcValue request, response;
+  request[0] = ros::this_node::getName();
+  const bool ok = client.execute("getPid", request, response) && !client.isFault();
+  client.close();
+  return ok;
+}
+
+// The URIs of the processes publishing `topic`.
+std::set<std::string> publisherUris(const std::string& topic) {
+  std::set<std::string> uris;
+  XmlRpc::XmlRpcValue request, response, payload;
+  request[0] = ros::this_node::getName();
+  if (!ros::master::execute("getSystemState", request, response, payload, false)) return uris;
+  const XmlRpc::XmlRpcValue& publications = payload[0];
+  for (int i = 0; i < publications.size(); ++i) {
+    if (static_cast<std::string>(publications[i][0]) != topic) continue;
+    for (int j = 0; j < publications[i][1].size(); ++j) {
+      const std::string uri = lookupNode(static_cast<std::string>(publications[i][1][j]));
+      if (!uri.empty()) uris.insert(uri);
+    }
+  }
+  return uris;
+}
+
+struct Gap {
+  ros::Time from, to;  // input time: the newest frame when the recorder was found dead / listening again
+};
+
 class SessionControl {
  public:
   SessionControl() : private_nh_("~") {
@@ -47,6 +109,9 @@ class SessionControl {
     send_start_ = private_nh_.param("start", true);
     start_delay_ = ros::Duration(private_nh_.param("start_delay", 0.5));
     tail_ = ros::Duration(private_nh_.param("tail", 1.0));
+    bag_ = private_nh_.param<std::string>("bag", "");
+    info_subscriber_ = nh_.subscribe("session_info", 1, &SessionControl::onSessionInfo, this);
+    health_timer_ = nh_.createWallTimer(ros::WallDuration(0.5), &SessionControl::checkHealth, this);
     command_publisher_ = nh_.advertise<vrm_msgs::ScenarioCommand>("scenario_command", 5);
     state_subscriber_ = nh_.subscribe("simulation_state", 50, &SessionControl::onFrame, this);
     status_subscriber_ = nh_.subscribe("scenario_status", 5, &SessionControl::onStatus, this);
@@ -71,8 +136,64 @@ class SessionControl {
     }
     if (newest_ >= end + tail_) {
       ROS_INFO("session_control: session over (%.1f s from START); ending the recording", duration_);
+      reportParts();
       ros::shutdown();
     }
+  }
+
+  void onSessionInfo(const vrm_msgs::SessionInfo::ConstPtr& info) { info_ = info; }
+
+  // The simulation's process (a manager restart) and the recorder's (a respawn), twice a second.
+  void checkHealth(const ros::WallTimerEvent&) {
+    const std::set<std::string> simulation = publisherUris(status_subscriber_.getTopic());
+    if (!simulation.empty()) {
+      if (!simulation_uris_.empty() && simulation != simulation_uris_ && started_ && !session_over_) restartScenario();
+      simulation_uris_ = simulation;
+    }
+    ros::param::get(recorder_ + "/part", next_part_);
+    if (!started_) return;
+    const std::string recorder_uri = lookupNode(recorder_);
+    const bool recording = !recorder_uri.empty() && answers(recorder_uri) && recorderListens();
+    if (!recording && !gap_open_) {
+      gap_open_ = true;
+      gaps_.push_back({newest_, ros::Time()});
+      ROS_WARN(
+          "session_control: the recorder %s is gone at input time %.3f; inputs from now on are not recorded "
+          "until it is back (a respawned recorder writes the next bag part)",
+          recorder_.c_str(), newest_.toSec());
+    } else if (recording && gap_open_) {
+      gap_open_ = false;
+      gaps_.back().to = newest_;
+      ROS_WARN("session_control: the recorder is back; %.2f s of input time (%.3f .. %.3f) were not recorded",
+               (gaps_.back().to - gaps_.back().from).toSec(), gaps_.back().from.toSec(), gaps_.back().to.toSec());
+    }
+  }
+
+  bool recorderListens() const {
+    const auto subscribers = subscribersByTopic();
+    for (const std::string& topic : topics_) {
+      const auto nodes = subscribers.find(topic);
+      if (nodes == subscribers.end() ||
+          std::find(nodes->second.begin(), nodes->second.end(), recorder_) == nodes->second.end()) {
+        return false;
+      }
+    }
+    return true;
+  }
+
+  // A new simulation process (its manager crashed and was restarted) starts from a fresh world: the scenario starts
+  // again, with a recorded LOAD first so that a replay's world (which saw the old session's inputs) is fresh too.
+  void restartScenario() {
+    ++restarts_;
+    ROS_WARN(
+        "session_control: the simulation restarted (a new process publishes %s); its interrupted session keeps "
+        "its result, marked interrupted; the scenario starts again (restart %u)",
+        status_subscriber_.getTopic().c_str(), restarts_);
+    started_ = false;
+    stop_sent_ = false;
+    scenario_ended_ = false;
+    reload_ = true;
+    newest_ = ros::Time();
   }
 
   void onStatus(const vrm_msgs::ScenarioStatus::ConstPtr& status) {
@@ -107,7 +228,11 @@ class SessionControl {
     }
     started_ = true;
     start_ = newest_ + start_delay_;
-    if (send_start_) {
+    if (reload_) {
+      reload_ = false;
+      send(vrm_msgs::ScenarioCommand::LOAD, newest_, info_ ? info_->difficulty : "");
+      send(vrm_msgs::ScenarioCommand::START, start_, "");
+    } else if (send_start_) {
       send(vrm_msgs::ScenarioCommand::START, start_, "");
     } else {
       ROS_INFO("session_control: recording; the session starts with the console's START");
@@ -119,12 +244,84 @@ class SessionControl {
     message->header.stamp = stamp;
     message->command = command;
     message->argument = argument;
+    if (command == vrm_msgs::ScenarioCommand::LOAD && info_) message->seed = info_->seed;
     command_publisher_.publish(message);
-    ROS_INFO("session_control: %s at input time %.3f%s%s",
-             command == vrm_msgs::ScenarioCommand::START ? "START" : "STOP", stamp.toSec(),
-             argument.empty() ? "" : ": ", argument.c_str());
+    const char* name = command == vrm_msgs::ScenarioCommand::START  ? "START"
+                       : command == vrm_msgs::ScenarioCommand::LOAD ? "LOAD (the same scene)"
+                                                                    : "STOP";
+    ROS_INFO("session_control: %s at input time %.3f%s%s", name, stamp.toSec(), argument.empty() ? "" : ": ",
+             argument.c_str());
   }
 
+ public:
+  // After the session: the parts the (respawned) recorder wrote, the killed ones recovered, and the gaps between
+  // them, in <bag without .bag>.recording.json. Runs while the current recorder still writes its part.
+  void reportParts() {
+    if (session_over_ || bag_.empty()) return;
+    session_over_ = true;
+    namespace fs = std::filesystem;
+    const std::string stem =
+        bag_.size() > 4 && bag_.compare(bag_.size() - 4, 4, ".bag") == 0 ? bag_.substr(0, bag_.size() - 4) : bag_;
+    const int current = std::max(1, next_part_ - 1);
+    std::ostringstream json;
+    json << std::setprecision(15) << "{\"bag\": \"" << bag_ << "\", \"parts\": [";
+    std::vector<std::string> lines;
+    for (int part = 1; part <= current; ++part) {
+      const std::string path = part == 1 ? bag_ : stem + ".part" + std::to_string(part) + ".bag";
+      std::string state = "recording";  // the current part: its recorder closes it when the launch ends
+      std::error_code error;
+      double first = 0.0, last = 0.0;
+      std::uint64_t messages = 0;
+      if (part < current) {
+        state = "complete";
+        if (!fs::exists(path, error) && fs::exists(path + ".active", error)) {
+          try {
+            const vrm_sim::bag::RecoveryReport report = vrm_sim::bag::recoverBag(path + ".active", path);
+            state = "recovered";
+            ROS_WARN("session_control: part %d was cut off by its recorder's crash; %lu messages recovered into %s",
+                     part, static_cast<unsigned long>(report.messages), path.c_str());
+          } catch (const std::exception& failure) {
+            state = "lost";
+            ROS_ERROR("session_control: part %d (%s.active) cannot be recovered: %s", part, path.c_str(),
+                      failure.what());
+          }
+        }
+        if (state != "lost") {
+          try {
+            rosbag::Bag bag(path, rosbag::bagmode::Read);
+            rosbag::View view(bag);
+            messages = view.size();
+            if (messages > 0) {
+              first = view.getBeginTime().toSec();
+              last = view.getEndTime().toSec();
+            }
+          } catch (const std::exception& failure) {
+            state = "unreadable";
+          }
+        }
+      }
+      std::ostringstream line;
+      line << std::setprecision(15) << "{\"part\": " << part << ", \"path\": \"" << path << "\", \"state\": \"" << state
+           << "\", \"messages\": " << messages << ", \"first_stamp\": " << first << ", \"last_stamp\": " << last << "}";
+      lines.push_back(line.str());
+    }
+    for (std::size_t i = 0; i < lines.size(); ++i) json << (i ? ", " : "") << lines[i];
+    json << "], \"gaps\": [";
+    for (std::size_t i = 0; i < gaps_.size(); ++i) {
+      json << (i ? ", " : "") << "{\"from\": " << gaps_[i].from.toSec()
+           << ", \"to\": " << (gaps_[i].to.isZero() ? newest_.toSec() : gaps_[i].to.toSec())
+           << ", \"seconds\": " << ((gaps_[i].to.isZero() ? newest_ : gaps_[i].to) - gaps_[i].from).toSec() << "}";
+    }
+    json << "], \"simulation_restarts\": " << restarts_ << "}\n";
+    const std::string report = stem + ".recording.json";
+    std::ofstream(report) << json.str();
+    if (current > 1 || !gaps_.empty() || restarts_ > 0) {
+      ROS_WARN("session_control: %d bag parts, %zu recording gaps, %u simulation restarts: %s", current, gaps_.size(),
+               restarts_, report.c_str());
+    }
+  }
+
+ private:
   ros::NodeHandle nh_, private_nh_;
   std::string recorder_;
   std::vector<std::string> topics_;
@@ -132,8 +329,15 @@ class SessionControl {
   bool send_start_ = true;
   ros::Duration start_delay_, tail_;
   ros::Publisher command_publisher_;
-  ros::Subscriber state_subscriber_, status_subscriber_;
-  ros::WallTimer timer_;
+  ros::Subscriber state_subscriber_, status_subscriber_, info_subscriber_;
+  ros::WallTimer timer_, health_timer_;
+  std::string bag_;
+  vrm_msgs::SessionInfo::ConstPtr info_;
+  std::set<std::string> simulation_uris_;
+  std::vector<Gap> gaps_;
+  bool gap_open_ = false, reload_ = false, session_over_ = false;
+  unsigned restarts_ = 0;
+  int next_part_ = 2;  // the recorder's ~part: the part its next start records into
   ros::WallTime last_note_;
   ros::Time newest_, start_;
   bool started_ = false, stop_sent_ = false, scenario_ended_ = false;
@@ -145,5 +349,6 @@ int main(int argc, char** argv) {
   ros::init(argc, argv, "session_control");
   SessionControl control;
   ros::spin();
+  control.reportParts();
   return 0;
 }

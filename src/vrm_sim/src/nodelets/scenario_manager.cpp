@@ -26,12 +26,22 @@
 // result also goes next to it as <bag without .bag>.result.json), seed, eye_frame / world_frame names. The result
 // (final_state_hash, scene, seed, frames, score, ...) is written when the session ends (scenario finished / failed /
 // stopped, STOP of a scene without a scenario) and, if it never ended, when the nodelet shuts down.
+// Crash safety (issue 14): while the scenario runs, the result files hold a provisional result ("in_progress":
+// true, the score so far), rewritten every second of input time; every write goes to a temporary file that is then
+// renamed, so a crash never leaves half a file. A scenario_manager that starts and finds a provisional result (its
+// manager died mid-session) keeps it as <stem>.interrupted[-N].result.json with "state": "interrupted", so the
+// interrupted session is in the records, not missing.
+// Diagnostics (/diagnostics, 1 Hz wall clock): frames, inputs, rejected inputs (non-finite or implausible values,
+// unknown slot or frame, stamps far ahead) and late inputs per second; WARN while inputs are being rejected.
+#include <diagnostic_msgs/DiagnosticArray.h>
 #include <nodelet/nodelet.h>
 #include <ros/ros.h>
 #include <unistd.h>
 #include <visualization_msgs/MarkerArray.h>
 
 #include <boost/make_shared.hpp>
+#include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <iomanip>
 #include <map>
@@ -88,6 +98,7 @@ class ScenarioManager : public nodelet::Nodelet {
       result_files_.push_back(stem + ".result.json");
     }
     if (!result_file_.empty()) result_files_.push_back(result_file_);
+    keepInterruptedResults();
     seed_ = static_cast<std::uint32_t>(private_nh.param("seed", 0));
     user_ = private_nh.param<std::string>("user", "");
     char host[256] = {0};
@@ -113,6 +124,8 @@ class ScenarioManager : public nodelet::Nodelet {
     instrument_subscriber_ = nh.subscribe("instrument_state", 20, &ScenarioManager::onInstrumentState, this);
     pedal_subscriber_ = nh.subscribe("pedals", 20, &ScenarioManager::onPedals, this);
     command_subscriber_ = nh.subscribe("scenario_command", 10, &ScenarioManager::onScenarioCommand, this);
+    diagnostics_publisher_ = nh.advertise<diagnostic_msgs::DiagnosticArray>("/diagnostics", 5);
+    diagnostics_timer_ = nh.createWallTimer(ros::WallDuration(1.0), &ScenarioManager::publishDiagnostics, this);
     NODELET_INFO("scenario_manager: deterministic frames: %s, scenario start: %s",
                  options.wall_clock_budget ? "no (wall-clock budget)" : "yes",
                  options.auto_start ? "with the first input" : "on START");
@@ -168,6 +181,7 @@ class ScenarioManager : public nodelet::Nodelet {
     }
     last_state_.reset();
     result_written_ = false;
+    last_provisional_ = ros::Time();
     const scenario::Status* status = world.scenarioStatus();
     NODELET_INFO(
         "scenario_manager: scene '%s'%s, %zu deformable objects, %zu bleeding surfaces%s", world.scene().name.c_str(),
@@ -269,6 +283,11 @@ class ScenarioManager : public nodelet::Nodelet {
   void publishStatus(const ros::Time& stamp, bool force) {
     const scenario::Status* status = session_->world().scenarioStatus();
     if (status == nullptr) return;
+    if (status->state == scenario::State::kRunning && !result_written_ &&
+        (last_provisional_.isZero() || (stamp - last_provisional_).toSec() >= 1.0)) {
+      last_provisional_ = stamp;
+      writeResultFiles(resultJson(/*in_progress=*/true));
+    }
     const bool changed = !last_state_ || *last_state_ != status->state;
     const bool due = status->state == scenario::State::kRunning && (stamp - last_status_stamp_).toSec() >= 0.1;
     if (!force && !changed && !due && status->message == last_message_) return;
@@ -298,6 +317,76 @@ class ScenarioManager : public nodelet::Nodelet {
                  session_->world().sessionEnded() ? "over" : "interrupted",
                  static_cast<unsigned long>(session_->world().statistics().frames),
                  world::hashString(session_->world().stateHash()).c_str());
+    const std::string json = resultJson(/*in_progress=*/false);
+    const world::World& current = session_->world();
+    const auto last_stamp = current.lastFrameStamp();
+    // The console imports this text (training records) whether or not a file is written, so a result reaches a
+    // console on another host too.
+    auto result = boost::make_shared<vrm_msgs::SessionResult>();
+    result->header.stamp = last_stamp ? toRosTime(*last_stamp) : ros::Time(0);
+    result->json = json;
+    result->final_state_hash = world::hashString(current.stateHash());
+    result->result_files = result_files_;
+    if (ros::ok()) vrm_msgs::publishShared(result_publisher_, result);  // not from the destructor at shutdown
+    writeResultFiles(json);
+  }
+
+  // Temporary file + rename: a crash in the middle of a write leaves the previous version, never half a file.
+  void writeResultFiles(const std::string& json) {
+    for (const std::string& path : result_files_) {
+      const std::string temporary = path + ".tmp";
+      {
+        std::ofstream file(temporary);
+        file << json;
+        file.flush();
+        if (!file) {
+          NODELET_ERROR("scenario_manager: cannot write the result file %s", temporary.c_str());
+          continue;
+        }
+      }
+      if (std::rename(temporary.c_str(), path.c_str()) != 0) {
+        NODELET_ERROR("scenario_manager: cannot write the result file %s", path.c_str());
+      } else if (json.find("\"in_progress\": true") == std::string::npos) {
+        NODELET_INFO("scenario_manager: result written to %s (final state %s)", path.c_str(),
+                     world::hashString(session_->world().stateHash()).c_str());
+      }
+    }
+  }
+
+  // A provisional result left by a session whose process died: kept under its own name, marked interrupted.
+  void keepInterruptedResults() {
+    namespace fs = std::filesystem;
+    for (const std::string& path : result_files_) {
+      std::ifstream in(path);
+      if (!in) continue;
+      std::string json((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+      in.close();
+      const std::string marker = "\"in_progress\": true";
+      const std::size_t at = json.find(marker);
+      if (at == std::string::npos) continue;
+      json.replace(at, marker.size(), "\"in_progress\": false, \"interrupted\": true");
+      const std::string running = "\"state\": \"running\"";
+      const std::size_t state = json.find(running);
+      if (state != std::string::npos) json.replace(state, running.size(), "\"state\": \"interrupted\"");
+      const std::string suffix = ".result.json";
+      const std::string stem =
+          path.size() > suffix.size() && path.compare(path.size() - suffix.size(), suffix.size(), suffix) == 0
+              ? path.substr(0, path.size() - suffix.size())
+              : path;
+      std::string kept = stem + ".interrupted.result.json";
+      std::error_code error;
+      for (int n = 2; fs::exists(kept, error); ++n) kept = stem + ".interrupted-" + std::to_string(n) + ".result.json";
+      std::ofstream(kept + ".tmp") << json;
+      fs::rename(kept + ".tmp", kept, error);
+      fs::remove(path, error);
+      NODELET_WARN(
+          "scenario_manager: the previous session at %s was interrupted (its process died); its last "
+          "provisional result is kept as %s",
+          path.c_str(), kept.c_str());
+    }
+  }
+
+  std::string resultJson(bool in_progress) const {
     std::ostringstream out;
     out << std::setprecision(15);
     const auto quoted = world::jsonString;
@@ -333,25 +422,54 @@ class ScenarioManager : public nodelet::Nodelet {
         << ", \"last_frame_stamp\": " << (last_stamp ? world::toSeconds(*last_stamp) : 0.0)
         << ", \"software_version\": " << quoted(VRM_SIM_VERSION)
         << ", \"bag\": " << (bag_path_.empty() ? "null" : quoted(bag_path_))
-        << ", \"user\": " << (user_.empty() ? "null" : quoted(user_)) << ", \"station\": " << quoted(station_) << "}\n";
-    // The console imports this text (training records) whether or not a file is written, so a result reaches a
-    // console on another host too.
-    auto result = boost::make_shared<vrm_msgs::SessionResult>();
-    result->header.stamp = last_stamp ? toRosTime(*last_stamp) : ros::Time(0);
-    result->json = out.str();
-    result->final_state_hash = world::hashString(current.stateHash());
-    result->result_files = result_files_;
-    if (ros::ok()) vrm_msgs::publishShared(result_publisher_, result);  // not from the destructor at shutdown
-    for (const std::string& path : result_files_) {
-      std::ofstream file(path);
-      file << out.str();
-      if (!file) {
-        NODELET_ERROR("scenario_manager: cannot write the result file %s", path.c_str());
-      } else {
-        NODELET_INFO("scenario_manager: result written to %s (final state %s)", path.c_str(),
-                     world::hashString(current.stateHash()).c_str());
-      }
-    }
+        << ", \"user\": " << (user_.empty() ? "null" : quoted(user_)) << ", \"station\": " << quoted(station_)
+        << ", \"in_progress\": " << (in_progress ? "true" : "false") << "}\n";
+    return out.str();
+  }
+
+  // Rejected and late inputs per second: a flood of hostile or broken messages shows here, not only in the log.
+  void publishDiagnostics(const ros::WallTimerEvent&) {
+    namespace d = diagnostic_msgs;
+    std::lock_guard<std::mutex> lock(mutex_);
+    const world::WorldStatistics& statistics = session_->world().statistics();
+    const ros::WallTime now = ros::WallTime::now();
+    const double period = last_diagnostics_.isZero() ? 1.0 : std::max(1e-3, (now - last_diagnostics_).toSec());
+    last_diagnostics_ = now;
+    // A LOAD replaces the world and its statistics start at zero again.
+    const auto since = [](std::uint64_t now_count, std::uint64_t before) {
+      return now_count >= before ? now_count - before : now_count;
+    };
+    const std::uint64_t rejected = since(statistics.rejected_inputs, reported_.rejected_inputs);
+    const std::uint64_t frames = since(statistics.frames, reported_.frames);
+    const std::uint64_t inputs = since(statistics.inputs, reported_.inputs);
+    reported_ = statistics;
+    auto array = boost::make_shared<d::DiagnosticArray>();
+    array->header.stamp = ros::Time::now();  // diagnostics describe the live graph, not one frame
+    d::DiagnosticStatus status;
+    status.name = "vrm_sim: " + getName();
+    status.hardware_id = station_;
+    status.level = rejected > 0 ? d::DiagnosticStatus::WARN : d::DiagnosticStatus::OK;
+    status.message = rejected > 0 ? std::to_string(rejected) + " inputs rejected in the last " +
+                                        std::to_string(static_cast<int>(period + 0.5)) + " s"
+                                  : "inputs ok";
+    const auto add = [&status](const std::string& key, const std::string& value) {
+      d::KeyValue entry;
+      entry.key = key;
+      entry.value = value;
+      status.values.push_back(entry);
+    };
+    char rate[32];
+    std::snprintf(rate, sizeof(rate), "%.1f", frames / period);
+    add("frames_per_s", rate);
+    std::snprintf(rate, sizeof(rate), "%.1f", inputs / period);
+    add("inputs_per_s", rate);
+    std::snprintf(rate, sizeof(rate), "%.1f", rejected / period);
+    add("rejected_per_s", rate);
+    add("rejected_total", std::to_string(statistics.rejected_inputs));
+    add("late_total", std::to_string(statistics.late_inputs));
+    add("frames_total", std::to_string(statistics.frames));
+    array->status.push_back(status);
+    vrm_msgs::publishShared(diagnostics_publisher_, array);
   }
 
   // A status line every ~5 s of frames: what the simulation is doing, for the console and the launch log.
@@ -396,6 +514,11 @@ class ScenarioManager : public nodelet::Nodelet {
       score_publisher_, result_publisher_;
   std::string user_, station_;
   ros::Subscriber eye_subscriber_, instrument_subscriber_, pedal_subscriber_, command_subscriber_;
+  ros::Time last_provisional_;
+  ros::Publisher diagnostics_publisher_;
+  ros::WallTimer diagnostics_timer_;
+  ros::WallTime last_diagnostics_;
+  world::WorldStatistics reported_;
 };
 
 }  // namespace vrm_sim

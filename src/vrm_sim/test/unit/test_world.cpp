@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 #include <string>
 
 #include "vrm_sim/mge/membrane.h"
@@ -129,6 +130,71 @@ TEST(World, AFrameClosesWhenEverySourceOfThePreviousFrameHasDelivered) {
   world.handle(instrumentAt(scene, "right", far, 0.3, 100 * kTick));
   ASSERT_EQ(frames.size(), 5u);
   EXPECT_NEAR(frames[4].frame_time, 0.05, 1e-12);
+}
+
+// Hostile or broken inputs (issue 14): rejected and counted, and none of them stalls or moves the world.
+TEST(World, ImplausibleInputsAreRejectedAndCounted) {
+  World world(testScene());
+  std::vector<FrameResult> frames;
+  world.setFrameObserver([&](const FrameResult& frame) { frames.push_back(frame); });
+  const scene::SceneDescription& scene = world.scene();
+  const Eigen::Vector3d far(0.002, 0.0, -0.006);
+  for (int tick = 0; tick < 5; ++tick) {
+    world.handle(instrumentAt(scene, "left", far, 0.0, tick * kTick));
+    world.handle(instrumentAt(scene, "right", far, 0.3, tick * kTick));
+  }
+  const std::size_t frames_before = frames.size();
+  const std::uint64_t rejected_before = world.statistics().rejected_inputs;
+  InstrumentState huge = instrumentAt(scene, "left", far, 0.0, 5 * kTick);
+  huge.tip_position.x() = 1e300;
+  world.handle(huge);
+  InstrumentState skewed = instrumentAt(scene, "left", far, 0.0, 5 * kTick);
+  skewed.tip_orientation.coeffs() *= 3.0;
+  world.handle(skewed);
+  InstrumentState nan = instrumentAt(scene, "right", far, 0.0, 5 * kTick);
+  nan.jaw_angle = std::numeric_limits<double>::quiet_NaN();
+  world.handle(nan);
+  InstrumentState suction = instrumentAt(scene, "right", far, 0.0, 5 * kTick);
+  suction.suction = 1e9;
+  world.handle(suction);
+  EyeState eye;
+  eye.stamp = 5 * kTick;
+  eye.rotation_center = Eigen::Vector3d(1e300, 0.0, 0.0);
+  world.handle(eye);
+  EXPECT_EQ(world.statistics().rejected_inputs - rejected_before, 5u);
+  // Past and future stamps: 100 s behind is stale; 100 s ahead from one source is held back and dropped when the
+  // other sources go on normally, so it never closes a frame out there.
+  world.handle(instrumentAt(scene, "left", far, 0.0, 5 * kTick - 100 * 1000000000LL));
+  world.handle(instrumentAt(scene, "left", far, 0.0, 5 * kTick + 100 * 1000000000LL));
+  for (int tick = 6; tick < 10; ++tick) {
+    world.handle(instrumentAt(scene, "left", far, 0.0, tick * kTick));
+    world.handle(instrumentAt(scene, "right", far, 0.3, tick * kTick));
+  }
+  EXPECT_EQ(world.statistics().rejected_inputs - rejected_before, 7u);
+  ASSERT_GE(frames.size(), frames_before + 4) << "the world kept closing frames";
+  EXPECT_LT(frames.back().stamp, 11 * kTick) << "no frame at the future stamp";
+  for (const FrameResult& frame : frames) EXPECT_TRUE(std::isfinite(frame.frame_time));
+}
+
+// A real gap (the input paused, a device restarted): every source jumps, and the world follows after one frame.
+TEST(World, AGapInEverySourceIsFollowed) {
+  World world(testScene());
+  std::vector<FrameResult> frames;
+  world.setFrameObserver([&](const FrameResult& frame) { frames.push_back(frame); });
+  const scene::SceneDescription& scene = world.scene();
+  const Eigen::Vector3d far(0.002, 0.0, -0.006);
+  for (int tick = 0; tick < 3; ++tick) {
+    world.handle(instrumentAt(scene, "left", far, 0.0, tick * kTick));
+    world.handle(instrumentAt(scene, "right", far, 0.3, tick * kTick));
+  }
+  const Stamp later = 30LL * 1000000000LL;
+  for (int tick = 0; tick < 3; ++tick) {
+    world.handle(instrumentAt(scene, "left", far, 0.0, later + tick * kTick));
+    world.handle(instrumentAt(scene, "right", far, 0.3, later + tick * kTick));
+  }
+  EXPECT_EQ(world.statistics().rejected_inputs, 0u);
+  ASSERT_FALSE(frames.empty());
+  EXPECT_EQ(frames.back().stamp, later + 2 * kTick) << "every frame after the gap closes";
 }
 
 TEST(World, ArrivalOrderWithinAStampAndOfPedalsDoesNotChangeTheState) {

@@ -37,6 +37,7 @@
 #include <map>
 #include <memory>
 #include <optional>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -197,6 +198,11 @@ struct WorldOptions {
   std::string detector_override;  // non-empty: this collision detector for every object
   double collision_max_pixel_size = 0.0;
   double max_frame_time = 0.05;  // s: a longer gap between stamps (start, pause of the input) is capped
+  // s: a frame source whose stamp is this far ahead of every source's newest is held back as implausible (one
+  // future stamp would otherwise close a frame there and make every real input late) until every known source has
+  // jumped likewise (a real gap: the input paused, a device restarted); one this far behind the last frame is
+  // rejected as stale (issue 14).
+  double max_stamp_jump = 1.0;
   // Measurement only (stage times, frame wall time); the default is a steady clock. Never decides a result unless
   // wall_clock_budget is set.
   Clock clock;
@@ -286,6 +292,11 @@ class World {
   // Buffers a frame source's input (nullptr: the source delivered, but nothing valid to apply) and closes the frames
   // that are complete.
   void acceptSource(Stamp stamp, const std::string& source, const EyeState* eye, const InstrumentState* instrument);
+  void assembleSource(Stamp stamp, const std::string& source, const EyeState* eye, const InstrumentState* instrument);
+  // Stale (far behind the last frame; rejected), ahead (far ahead of every source; held back), a gap (every source
+  // has jumped ahead: the held inputs and this one are accepted) or normal.
+  enum class StampCheck { kNormal, kStale, kAhead, kGap };
+  StampCheck classifyStamp(Stamp stamp, const std::string& source);
   void closeReadyFrames();
   void closeFrame(Stamp stamp, const FrameInputs& inputs);
   void applyInputs(const FrameInputs& inputs);
@@ -314,7 +325,16 @@ class World {
   static constexpr std::size_t kReorderFrames = 2;
   std::map<Stamp, FrameInputs> pending_;        // frames not closed yet, by stamp
   std::map<std::string, Stamp> known_sources_;  // the newest stamp each source delivered
-  FrameInputs late_;                            // inputs older than the last frame, for the next one
+  std::set<std::string> jumped_sources_;        // sources that delivered a stamp far ahead since the last normal one
+  struct HeldInput {
+    Stamp stamp;
+    std::string source;
+    std::optional<EyeState> eye;
+    std::optional<InstrumentState> instrument;
+  };
+  static constexpr std::size_t kMaxHeldBack = 64;
+  std::vector<HeldInput> held_back_;  // inputs far ahead, until every source has jumped or a normal one arrives
+  FrameInputs late_;                  // inputs older than the last frame, for the next one
   std::optional<Stamp> last_frame_stamp_;
   std::optional<Stamp> simulation_origin_;  // stamp of the first frame the world advanced in (bleeding's clock)
   std::map<std::string, std::uint64_t> logged_at_frame_;

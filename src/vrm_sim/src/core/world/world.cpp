@@ -22,6 +22,11 @@ constexpr double kRadToDeg = 180.0 / M_PI;
 constexpr double kLiftThreshold = 1e-4;         // m: a node this far from its rest position counts as lifted
 constexpr double kPeelLift = 5e-4;              // m: a grasped membrane lifted this far is peeling
 constexpr std::uint64_t kLogEveryFrames = 250;  // a repeated message at most every ~5 s at 50 Hz
+// Plausibility of the device inputs (issue 14): anything outside is a broken or hostile message, not a pose.
+constexpr double kMaxInputDistance = 1.0;  // m from the eye (or the world origin) — the eye is 24 mm across
+constexpr double kUnitTolerance = 1e-3;    // |‖q‖ − 1| of a rotation quaternion
+constexpr double kMaxJawAngle = M_PI;      // rad
+constexpr double kMaxCutRate = 1e4;        // Hz (vitrectors cut at up to ~170 Hz)
 
 // The detectors whose deformation vectors drive the tissue response (thesis §4.2.2); the others report only and the
 // tissue's own exact capsule test is the response.
@@ -310,6 +315,41 @@ std::optional<Eigen::Isometry3d> World::transform(const std::string& target, con
 void World::acceptSource(Stamp stamp, const std::string& source, const EyeState* eye,
                          const InstrumentState* instrument) {
   ++statistics_.inputs;
+  switch (classifyStamp(stamp, source)) {
+    case StampCheck::kStale:
+      return;
+    case StampCheck::kAhead:
+      held_back_.push_back({stamp, source, eye ? std::optional<EyeState>(*eye) : std::nullopt,
+                            instrument ? std::optional<InstrumentState>(*instrument) : std::nullopt});
+      if (held_back_.size() > kMaxHeldBack) {
+        ++statistics_.rejected_inputs;
+        held_back_.erase(held_back_.begin());
+      }
+      return;
+    case StampCheck::kGap: {
+      // Every source jumped: the inputs held back so far are the first of the new stretch.
+      std::vector<HeldInput> held;
+      held.swap(held_back_);
+      for (const HeldInput& input : held) {
+        assembleSource(input.stamp, input.source, input.eye ? &*input.eye : nullptr,
+                       input.instrument ? &*input.instrument : nullptr);
+      }
+      break;
+    }
+    case StampCheck::kNormal:
+      if (!held_back_.empty()) {
+        statistics_.rejected_inputs += held_back_.size();
+        log(Severity::kWarning, "stamp:ahead",
+            std::to_string(held_back_.size()) + " inputs with stamps far ahead of the others ignored");
+        held_back_.clear();
+      }
+      break;
+  }
+  assembleSource(stamp, source, eye, instrument);
+}
+
+void World::assembleSource(Stamp stamp, const std::string& source, const EyeState* eye,
+                           const InstrumentState* instrument) {
   Stamp& latest = known_sources_[source];
   latest = std::max(latest, stamp);
   if (last_frame_stamp_ && stamp <= *last_frame_stamp_) {
@@ -322,6 +362,38 @@ void World::acceptSource(Stamp stamp, const std::string& source, const EyeState*
     if (instrument) frame.instruments[instrument->slot] = *instrument;
   }
   closeReadyFrames();
+}
+
+World::StampCheck World::classifyStamp(Stamp stamp, const std::string& source) {
+  const Stamp jump = fromSeconds(options_.max_stamp_jump);
+  if (last_frame_stamp_ && stamp < *last_frame_stamp_ - jump) {
+    ++statistics_.rejected_inputs;
+    log(Severity::kWarning, "stamp:stale:" + source,
+        source + " delivered a stamp " + std::to_string(toSeconds(*last_frame_stamp_ - stamp)) +
+            " s older than the last frame; ignored");
+    return StampCheck::kStale;
+  }
+  if (known_sources_.empty()) return StampCheck::kNormal;
+  Stamp newest = known_sources_.begin()->second;
+  for (const auto& known : known_sources_) newest = std::max(newest, known.second);
+  if (stamp <= newest + jump) {
+    jumped_sources_.clear();
+    return StampCheck::kNormal;
+  }
+  jumped_sources_.insert(source);
+  const bool every_source_jumped = std::all_of(known_sources_.begin(), known_sources_.end(), [this](const auto& known) {
+    return jumped_sources_.count(known.first) > 0;
+  });
+  if (every_source_jumped) {
+    jumped_sources_.clear();
+    log(Severity::kInfo, "stamp:gap",
+        "the input resumed " + std::to_string(toSeconds(stamp - newest)) + " s later (every source jumped)");
+    return StampCheck::kGap;
+  }
+  log(Severity::kWarning, "stamp:ahead:" + source,
+      source + " delivered a stamp " + std::to_string(toSeconds(stamp - newest)) +
+          " s ahead of the other inputs; held back until every source has jumped likewise");
+  return StampCheck::kAhead;
 }
 
 void World::closeReadyFrames() {
@@ -366,7 +438,8 @@ void World::flush() {
 
 void World::handle(const EyeState& eye) {
   const bool finite = eye.rotation.coeffs().allFinite() && eye.rotation_center.allFinite() &&
-                      std::abs(eye.rotation.norm() - 1.0) < 1e-3;
+                      eye.rotation_center.norm() < kMaxInputDistance &&
+                      std::abs(eye.rotation.norm() - 1.0) < kUnitTolerance;
   if (!finite) {
     ++statistics_.rejected_inputs;
     log(Severity::kWarning, "eye:nonfinite", "eye_state with a non-finite or non-unit rotation ignored");
@@ -391,12 +464,17 @@ void World::handle(const InstrumentState& state) {
     return;
   }
   const double norm = state.tip_orientation.norm();
-  const bool finite = state.tip_position.allFinite() && std::isfinite(norm) && norm > 1e-9 &&
-                      std::isfinite(state.jaw_angle) && std::isfinite(state.suction) && std::isfinite(state.cut_rate);
+  // Finite and physically possible: within a metre of the eye, a unit quaternion, controls in their ranges (a
+  // 1e300 position is finite, and would put the instrument's collision geometry anywhere).
+  const bool finite = state.tip_position.allFinite() && state.tip_position.norm() < kMaxInputDistance &&
+                      std::isfinite(norm) && std::abs(norm - 1.0) < kUnitTolerance && std::isfinite(state.jaw_angle) &&
+                      std::abs(state.jaw_angle) <= kMaxJawAngle && std::isfinite(state.suction) &&
+                      state.suction >= 0.0 && state.suction <= 1.0 && std::isfinite(state.cut_rate) &&
+                      state.cut_rate >= 0.0 && state.cut_rate <= kMaxCutRate;
   if (!finite) {
     ++statistics_.rejected_inputs;
     log(Severity::kWarning, "nonfinite:" + state.slot,
-        "instrument_state '" + state.slot + "' with non-finite values ignored");
+        "instrument_state '" + state.slot + "' with non-finite or implausible values ignored");
   }
   acceptSource(state.stamp, sourceName("instrument", state.slot), nullptr, finite ? &state : nullptr);
 }
@@ -424,7 +502,7 @@ void World::applyInstrument(const InstrumentState& state) {
 
 void World::handle(const PedalState& pedals) {
   ++statistics_.inputs;
-  if (!std::isfinite(pedals.travel)) {
+  if (!std::isfinite(pedals.travel) || std::abs(pedals.travel) > 1.5) {
     ++statistics_.rejected_inputs;
     log(Severity::kWarning, "pedals:nonfinite", "pedals with a non-finite travel ignored");
     return;

@@ -1,0 +1,492 @@
+#!/usr/bin/env python3
+"""Runtime faults of the product graph (issue 14), each against launch/simulator.launch as a user starts it.
+
+  manager_crash   kill -9 of the nodelet manager in a recorded session: the supervisor restarts it, every nodelet is
+                  loaded again, the scenario restarts (recorded LOAD + START), the interrupted session's result is
+                  kept marked "interrupted", the bag holds every input seen before the crash, and the bag replays
+                  offline to the restarted session's final state.
+  recorder_crash  kill -9 of the recorder: the simulation keeps its rate, a respawned recorder writes part 2, the
+                  killed part is recovered at the end, the gap is reported in <bag>.recording.json.
+  hostile_flood   instrument_state / eye_state with NaN, Inf, 1e300, non-unit quaternions, stamps 100 s in the
+                  past and future, at 10x the normal rate for 8 s: rejected and counted (scenario_manager's
+                  /diagnostics), no crash, the simulation and the renderer keep >= 90 % of their rate, nothing
+                  non-finite in the published simulation state or tissue.
+  slow_consumer   a TCPROS subscriber of the stereo images that never reads: the manager's RSS stays bounded.
+
+Every wait is on a condition with a timeout. Prints PASS/FAIL lines and exits 1 on any failure.
+Usage: graph_faults.py CASE [--port N] [--out DIR]   (run with the workspace sourced: scripts/common.sh)
+"""
+import argparse
+import json
+import math
+import os
+import signal
+import socket
+import struct
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+import xmlrpc.client
+
+ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", "..", "..", ".."))
+FAILURES = []
+
+
+def check(name, ok, detail=""):
+    print(("PASS: " if ok else "FAIL: ") + name + ("" if ok or not detail else " (" + str(detail) + ")"), flush=True)
+    if not ok:
+        FAILURES.append(name)
+    return ok
+
+
+def wait_for(condition, timeout, step=0.1):
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        value = condition()
+        if value:
+            return value
+        time.sleep(step)
+    return condition()
+
+
+class Graph:
+    """roslaunch of the product graph on its own master, and this process as a ROS node in it."""
+
+    def __init__(self, out, port, launch_args, timeout):
+        self.out = out
+        self.port = port
+        os.environ["ROS_MASTER_URI"] = "http://localhost:%d" % port
+        os.environ.setdefault("ROS_HOSTNAME", "localhost")
+        os.environ["ROS_LOG_DIR"] = os.path.join(out, "ros_log")
+        self.log = open(os.path.join(out, "launch.log"), "w")
+        command = ["timeout", "-k", "10", str(timeout), "roslaunch", "-p", str(port),
+                   os.path.join(ROOT, "launch", "simulator.launch")] + launch_args
+        print("graph_faults: " + " ".join(command), flush=True)
+        self.process = subprocess.Popen(command, stdout=self.log, stderr=subprocess.STDOUT, start_new_session=True)
+        self.master = xmlrpc.client.ServerProxy(os.environ["ROS_MASTER_URI"])
+        if not wait_for(self._master_up, 30, 0.2):
+            raise RuntimeError("no ROS master on port %d" % port)
+        import rospy  # after ROS_MASTER_URI is set
+        rospy.init_node("graph_faults", anonymous=True, disable_signals=True)
+
+    def _master_up(self):
+        try:
+            return self.master.getSystemState("/graph_faults")[0] == 1
+        except OSError:
+            return False
+
+    def uri(self, node):
+        try:
+            code, _, uri = self.master.lookupNode("/graph_faults", node)
+            return uri if code == 1 else ""
+        except OSError:
+            return ""
+
+    def pid(self, node):
+        uri = self.uri(node)
+        if not uri:
+            return None
+        try:
+            code, _, pid = xmlrpc.client.ServerProxy(uri).getPid("/graph_faults")
+            return pid if code == 1 else None
+        except (OSError, xmlrpc.client.Error):
+            return None
+
+    def wait_exit(self, timeout):
+        try:
+            return self.process.wait(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            return None
+
+    def stop(self):
+        if self.process.poll() is None:
+            os.killpg(self.process.pid, signal.SIGINT)
+            if self.wait_exit(30) is None:
+                os.killpg(self.process.pid, signal.SIGKILL)
+                self.process.wait()
+        self.log.close()
+
+
+class Watch:
+    """Subscribes to the graph's outputs and counts what arrives (thread-safe enough for counters)."""
+
+    def __init__(self, images=False):
+        import rospy
+        from diagnostic_msgs.msg import DiagnosticArray
+        from vrm_msgs.msg import InstrumentState, ScenarioStatus, SimulationState
+        self.rospy = rospy
+        self.lock = threading.Lock()
+        self.status = None
+        self.status_history = []
+        self.frames = []  # (wall, stamp)
+        self.instrument_stamps = []  # (wall, stamp, slot)
+        self.images = []  # wall
+        self.non_finite = 0
+        self.diagnostics = {}
+        self.levels_seen = set()  # scenario_manager's diagnostic levels
+        self.subscribers = [
+            rospy.Subscriber("/scenario_status", ScenarioStatus, self._on_status, queue_size=50),
+            rospy.Subscriber("/simulation_state", SimulationState, self._on_frame, queue_size=200),
+            rospy.Subscriber("/instrument_state", InstrumentState, self._on_instrument, queue_size=500),
+            rospy.Subscriber("/diagnostics", DiagnosticArray, self._on_diagnostics, queue_size=50),
+        ]
+        if images:
+            from sensor_msgs.msg import Image
+            self.subscribers.append(rospy.Subscriber("/stereo/left/image_raw", Image, self._on_image, queue_size=1,
+                                                     buff_size=1 << 24))
+
+    def _on_status(self, message):
+        with self.lock:
+            self.status = message
+            self.status_history.append((time.monotonic(), message.state, message.header.stamp.to_sec()))
+
+    def _on_frame(self, message):
+        values = [message.header.stamp.to_sec(), message.frame_time, message.max_injury]
+        for tissue in message.tissues:
+            values += [tissue.max_strain, tissue.max_lift, tissue.lifted_fraction]
+        with self.lock:
+            self.frames.append((time.monotonic(), message.header.stamp.to_sec()))
+            self.non_finite += sum(1 for v in values if not math.isfinite(v))
+
+    def _on_instrument(self, message):
+        with self.lock:
+            self.instrument_stamps.append((time.monotonic(), message.header.stamp.to_sec(), message.instrument_id))
+
+    def _on_image(self, _message):
+        with self.lock:
+            self.images.append(time.monotonic())
+
+    def _on_diagnostics(self, message):
+        with self.lock:
+            for status in message.status:
+                if "scenario_manager" in status.name:
+                    self.levels_seen.add(ord(status.level) if isinstance(status.level, bytes) else status.level)
+                self.diagnostics[status.name] = (time.monotonic(), status.level, status.message,
+                                                 {kv.key: kv.value for kv in status.values})
+
+    def state(self):
+        with self.lock:
+            return self.status.state if self.status else None
+
+    def rate(self, series, start, end):
+        with self.lock:
+            count = sum(1 for entry in series if start <= (entry[0] if isinstance(entry, tuple) else entry) < end)
+        return count / max(end - start, 1e-3)
+
+    def scenario_diagnostics(self):
+        with self.lock:
+            for name, entry in self.diagnostics.items():
+                if name.startswith("vrm_sim: ") and "scenario_manager" in name:
+                    return entry
+        return None
+
+
+def running_state():
+    from vrm_msgs.msg import ScenarioStatus
+    return ScenarioStatus.RUNNING
+
+
+def read_json(path):
+    try:
+        with open(path) as handle:
+            return json.load(handle)
+    except (OSError, ValueError):
+        return None
+
+
+def bag_messages(path, topics):
+    import rosbag
+    with rosbag.Bag(path) as bag:
+        return [(topic, message, t) for topic, message, t in bag.read_messages(topics=topics)]
+
+
+def replay_hash(bag_path):
+    result = subprocess.run(["rosrun", "vrm_sim", "session_replay", "--bag", bag_path], capture_output=True, text=True,
+                            timeout=600)
+    try:
+        return json.loads(result.stdout.strip().splitlines()[-1]).get("final_state_hash"), result.stderr
+    except (ValueError, IndexError):
+        return None, result.stderr + result.stdout
+
+
+# --- cases -----------------------------------------------------------------------------------------------------------
+
+def manager_crash(args):
+    bag = os.path.join(args.out, "session.bag")
+    graph = Graph(args.out, args.port, ["record:=true", "duration:=40", "bag:=" + bag, "render:=false",
+                                        "script:=scenario:expert", "latency_monitor:=false"], timeout=300)
+    try:
+        watch = Watch()
+        RUN = running_state()
+        check("the recorded session runs", wait_for(lambda: watch.state() == RUN, 90), watch.state())
+        wait_for(lambda: len(watch.frames) > 150, 30)
+        old_uri = graph.uri("/vrm_manager")
+        pid = graph.pid("/vrm_manager")
+        if not check("the manager's pid from the master", pid is not None):
+            return
+        with watch.lock:
+            seen_before = [(stamp, slot) for _, stamp, slot in watch.instrument_stamps]
+        kill_wall = time.monotonic()
+        os.kill(pid, signal.SIGKILL)
+        print("graph_faults: kill -9 %d (the nodelet manager) after %d instrument states" % (pid, len(seen_before)))
+        restarted = wait_for(lambda: graph.uri("/vrm_manager") not in ("", old_uri), 30)
+        check("the supervisor restarts the manager", bool(restarted))
+        running_again = wait_for(lambda: any(w > kill_wall and s == RUN for w, s, _ in list(watch.status_history)), 90)
+        check("the scenario runs again after the restart (nodelets reloaded, LOAD + START)", bool(running_again),
+              "states after the kill: %s" % [s for w, s, _ in watch.status_history if w > kill_wall][:10])
+        if running_again:
+            restart_seconds = min(w for w, s, _ in watch.status_history if w > kill_wall and s == RUN) - kill_wall
+            print("graph_faults: the scenario ran again %.1f s after the kill" % restart_seconds)
+        code = graph.wait_exit(200)
+        check("the launch ends by itself after the session", code is not None, code)
+    finally:
+        graph.stop()
+    stem = bag[:-4]
+    interrupted = read_json(stem + ".interrupted.result.json")
+    check("the interrupted session's result is kept, marked interrupted",
+          interrupted is not None and interrupted.get("state") == "interrupted" and interrupted.get("interrupted"),
+          interrupted)
+    if interrupted:
+        check("... with the frames it ran", interrupted.get("frames", 0) > 100, interrupted.get("frames"))
+    final = read_json(stem + ".result.json")
+    check("the restarted session's final result", final is not None and final.get("in_progress") is False, final)
+    recording = read_json(stem + ".recording.json")
+    check("recording.json counts one simulation restart",
+          recording is not None and recording.get("simulation_restarts") == 1, recording)
+    messages = bag_messages(bag, ["/instrument_state", "/scenario_command"])
+    in_bag = {(round(m.header.stamp.to_sec(), 6), m.instrument_id) for topic, m, _ in messages
+              if topic == "/instrument_state"}
+    # From the recorder's first message on (it connects to the publisher a moment after this test may have); the
+    # last few ms before the kill may sit in the dead manager's outgoing queue for the recorder.
+    newest = max(stamp for stamp, _ in seen_before)
+    first_recorded = min(stamp for stamp, _ in in_bag) if in_bag else newest
+    seen_before = [entry for entry in seen_before if entry[0] >= first_recorded]
+    missing = [entry for entry in seen_before if (round(entry[0], 6), entry[1]) not in in_bag]
+    missing_old = [entry for entry in missing if entry[0] < newest - 0.05]
+    check("the bag holds every input seen before the crash (%d; %d of the last 50 ms missing)" %
+          (len(seen_before), len(missing)), not missing_old, missing_old[:5])
+    commands = [m.command for topic, m, _ in messages if topic == "/scenario_command"]
+    from vrm_msgs.msg import ScenarioCommand
+    check("the bag records START, then LOAD + START of the restart",
+          commands[:1] == [ScenarioCommand.START] and commands[1:3] == [ScenarioCommand.LOAD, ScenarioCommand.START],
+          commands)
+    if final:
+        replayed, log = replay_hash(bag)
+        check("the bag replays offline to the restarted session's final state",
+              replayed == final.get("final_state_hash"), "%s vs %s %s" % (replayed, final.get("final_state_hash"),
+                                                                            log[-300:]))
+
+
+def recorder_crash(args):
+    bag = os.path.join(args.out, "session.bag")
+    graph = Graph(args.out, args.port, ["record:=true", "duration:=30", "bag:=" + bag, "render:=false",
+                                        "latency_monitor:=false"], timeout=240)
+    try:
+        watch = Watch()
+        RUN = running_state()
+        check("the recorded session runs", wait_for(lambda: watch.state() == RUN, 90), watch.state())
+        wait_for(lambda: len(watch.frames) > 100, 30)
+        old_uri = graph.uri("/session_recorder")
+        pid = graph.pid("/session_recorder")
+        if not check("the recorder's pid from the master", pid is not None):
+            return
+        manager_uri = graph.uri("/vrm_manager")
+        before = time.monotonic()
+        rate_before = watch.rate(watch.frames, before - 3, before)
+        os.kill(pid, signal.SIGKILL)
+        kill_wall = time.monotonic()
+        back = wait_for(lambda: graph.uri("/session_recorder") not in ("", old_uri), 30)
+        check("the recorder is respawned", bool(back))
+        time.sleep(0)  # the rate window below is measured, not waited for
+        wait_for(lambda: time.monotonic() > kill_wall + 3, 5)
+        rate_during = watch.rate(watch.frames, kill_wall, kill_wall + 3)
+        check("the simulation keeps its rate while the recorder is down (%.1f vs %.1f frames/s)" %
+              (rate_during, rate_before), rate_during >= 0.9 * rate_before)
+        check("the manager was not touched", graph.uri("/vrm_manager") == manager_uri)
+        code = graph.wait_exit(150)
+        check("the launch ends by itself after the session", code is not None, code)
+    finally:
+        graph.stop()
+    stem = bag[:-4]
+    recording = read_json(stem + ".recording.json")
+    check("recording.json lists two parts", recording is not None and len(recording.get("parts", [])) == 2, recording)
+    if recording and len(recording.get("parts", [])) == 2:
+        first = recording["parts"][0]
+        check("the killed part is recovered (%s, %d messages)" % (first["state"], first["messages"]),
+              first["state"] == "recovered" and first["messages"] > 100)
+        gaps = recording.get("gaps", [])
+        check("the gap is reported (%s)" % gaps, len(gaps) == 1 and 0.0 < gaps[0]["seconds"] < 10.0)
+    check("part 1 exists as an indexed bag", os.path.isfile(bag))
+    check("part 2 was written", os.path.isfile(stem + ".part2.bag"))
+    final = read_json(stem + ".result.json")
+    check("the session's result is written", final is not None and final.get("in_progress") is False, final)
+    if os.path.isfile(bag) and os.path.isfile(stem + ".part2.bag"):
+        first_part = bag_messages(bag, ["/instrument_state"])
+        second_part = bag_messages(stem + ".part2.bag", ["/instrument_state"])
+        if first_part and second_part:
+            gap = second_part[0][1].header.stamp.to_sec() - first_part[-1][1].header.stamp.to_sec()
+            print("graph_faults: input time not recorded between the parts: %.2f s" % gap)
+
+
+def hostile_flood(args):
+    graph = Graph(args.out, args.port, ["render:=true", "latency_monitor:=false"], timeout=240)
+    try:
+        import rospy
+        from geometry_msgs.msg import Quaternion
+        from vrm_msgs.msg import EyeState, InstrumentState
+        watch = Watch(images=True)
+        RUN = running_state()
+        check("the session runs", wait_for(lambda: watch.state() == RUN, 90), watch.state())
+        check("the renderer renders for a watcher", wait_for(lambda: len(watch.images) > 10, 60), len(watch.images))
+        manager_uri = graph.uri("/vrm_manager")
+        instrument_pub = rospy.Publisher("/instrument_state", InstrumentState, queue_size=1000)
+        eye_pub = rospy.Publisher("/eye_state", EyeState, queue_size=1000)
+        wait_for(lambda: instrument_pub.get_num_connections() > 0 and eye_pub.get_num_connections() > 0, 20)
+        time.sleep(0)  # the baseline window below ends now
+        start = time.monotonic()
+        wait_for(lambda: time.monotonic() > start + 6, 7)
+        baseline_frames = watch.rate(watch.frames, start, start + 6)
+        baseline_images = watch.rate(watch.images, start, start + 6)
+        diagnostics_before = watch.scenario_diagnostics()
+        rejected_before = int(diagnostics_before[3].get("rejected_total", 0)) if diagnostics_before else 0
+
+        # 10x the scripted surgeon's 50 Hz per slot, for both slots and the eye: 1,500 hostile messages per second.
+        kinds = ["nan", "inf", "huge", "quaternion", "past", "future"]
+        sent = {kind: 0 for kind in kinds}
+        flood_start = time.monotonic()
+        period = 1.0 / 500.0
+        index = 0
+        while time.monotonic() < flood_start + 8.0:
+            kind = kinds[index % len(kinds)]
+            index += 1
+            with watch.lock:
+                newest = watch.instrument_stamps[-1][1] if watch.instrument_stamps else time.time()
+            stamp = newest + {"past": -100.0, "future": 100.0}.get(kind, 0.0)
+            for slot in ("left", "right"):
+                message = InstrumentState()
+                message.header.stamp = rospy.Time.from_sec(stamp)
+                message.header.frame_id = "eye"
+                message.instrument_id = slot
+                message.type = InstrumentState.FORCEPS
+                message.tip_pose.position.x = {"nan": float("nan"), "inf": float("inf"), "huge": 1e300}.get(kind, 0.0)
+                message.tip_pose.orientation = Quaternion(0, 0, 0, 3.0 if kind == "quaternion" else 1.0)
+                message.shaft_axis.z = 1.0
+                message.jaw_angle = 0.0
+                message.valid = True
+                message.tracking_quality = 1.0
+                instrument_pub.publish(message)
+            eye = EyeState()
+            eye.header.stamp = rospy.Time.from_sec(stamp)
+            eye.header.frame_id = "world"
+            eye.rotation = Quaternion(0, 0, 0, 3.0 if kind == "quaternion" else 1.0)
+            eye.rotation_center.x = {"nan": float("nan"), "inf": float("inf"), "huge": 1e300}.get(kind, 0.0)
+            eye.valid = True
+            eye_pub.publish(eye)
+            sent[kind] += 3
+            next_time = flood_start + index * period
+            delay = next_time - time.monotonic()
+            if delay > 0:
+                time.sleep(delay)
+        flood_end = time.monotonic()
+        total = sum(sent.values())
+        print("graph_faults: %d hostile messages in %.1f s (%.0f/s): %s" % (total, flood_end - flood_start,
+                                                                            total / (flood_end - flood_start), sent))
+        flood_frames = watch.rate(watch.frames, flood_start + 1, flood_end)
+        flood_images = watch.rate(watch.images, flood_start + 1, flood_end)
+        check("the simulation keeps >= 90 %% of its rate under the flood (%.1f vs %.1f frames/s)" %
+              (flood_frames, baseline_frames), flood_frames >= 0.9 * baseline_frames)
+        check("the renderer keeps >= 90 %% of its rate under the flood (%.1f vs %.1f frames/s)" %
+              (flood_images, baseline_images), flood_images >= 0.9 * baseline_images)
+        diagnosed = wait_for(lambda: (watch.scenario_diagnostics() or (0, 0, "", {}))[0] > flood_end + 0.5, 5)
+        entry = watch.scenario_diagnostics()
+        rejected = int(entry[3].get("rejected_total", 0)) - rejected_before if entry else 0
+        check("the rejected inputs are counted on /diagnostics (%d of %d sent)" % (rejected, total),
+              entry is not None and rejected >= 0.95 * total)
+        check("no crash: the manager is the same process", graph.uri("/vrm_manager") == manager_uri)
+        check("nothing non-finite in the published simulation state", watch.non_finite == 0, watch.non_finite)
+        check("the session still runs", watch.state() == RUN, watch.state())
+        check("/diagnostics said so while it lasted (scenario_manager WARN)", bool(diagnosed) and any(
+            level == 1 for level in watch.levels_seen), watch.levels_seen)
+    finally:
+        graph.stop()
+
+
+def slow_consumer(args):
+    graph = Graph(args.out, args.port, ["render:=true", "latency_monitor:=false"], timeout=240)
+    try:
+        watch = Watch(images=False)
+        RUN = running_state()
+        check("the session runs", wait_for(lambda: watch.state() == RUN, 90), watch.state())
+        pid = graph.pid("/vrm_manager")
+        topic = "/stereo/left/image_raw"
+        # Register as a subscriber, ask the renderer's process for a TCPROS connection, read its header, then never
+        # read again: the kernel's buffers fill and the publisher's queue must drop, not grow.
+        caller = "/never_reads"
+        code, _, publishers = graph.master.registerSubscriber(caller, topic, "sensor_msgs/Image",
+                                                              "http://localhost:1/")
+        uri = wait_for(lambda: (graph.master.registerSubscriber(caller, topic, "sensor_msgs/Image",
+                                                                "http://localhost:1/")[2] or [None])[0], 30)
+        if not check("the stereo image publisher", bool(uri)):
+            return
+        code, _, protocol = xmlrpc.client.ServerProxy(uri).requestTopic(caller, topic, [["TCPROS"]])
+        connection = socket.create_connection((protocol[1], protocol[2]))
+        connection.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+        fields = {"callerid": caller, "topic": topic, "type": "sensor_msgs/Image", "md5sum": "*",
+                  "tcp_nodelay": "0"}
+        body = b"".join(struct.pack("<I", len(f)) + f for f in (("%s=%s" % kv).encode() for kv in fields.items()))
+        connection.sendall(struct.pack("<I", len(body)) + body)
+        header_length = struct.unpack("<I", connection.recv(4))[0]
+        remaining = header_length
+        while remaining > 0:
+            remaining -= len(connection.recv(remaining))
+
+        def rss():
+            with open("/proc/%d/status" % pid) as status:
+                for line in status:
+                    if line.startswith("VmRSS:"):
+                        return int(line.split()[1]) / 1024.0
+            return 0.0
+
+        # Let the socket buffers fill, then watch the manager's memory for 20 s while the renderer keeps rendering.
+        wait_for(lambda: False, 5)
+        samples = []
+        start = time.monotonic()
+        while time.monotonic() < start + 20:
+            samples.append(rss())
+            time.sleep(1.0)
+        growth = samples[-1] - samples[0]
+        print("graph_faults: manager RSS %.1f -> %.1f MiB over 20 s with a subscriber that never reads (max %.1f)" %
+              (samples[0], samples[-1], max(samples)))
+        frame = 800 * 600 * 3 / 1048576.0
+        check("the manager's memory stays bounded (growth %.1f MiB < 3 frames of %.1f MiB)" % (growth, frame),
+              growth < 3 * frame)
+        check("the session still runs", watch.state() == RUN, watch.state())
+        connection.close()
+    finally:
+        graph.stop()
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("case", choices=["manager_crash", "recorder_crash", "hostile_flood", "slow_consumer"])
+    parser.add_argument("--port", type=int, default=11900 + os.getpid() % 90)
+    parser.add_argument("--out", default="")
+    args = parser.parse_args()
+    args.out = args.out or tempfile.mkdtemp(prefix="vrm_fault_%s." % args.case)
+    os.makedirs(args.out, exist_ok=True)
+    print("graph_faults: %s, output in %s" % (args.case, args.out), flush=True)
+    try:
+        globals()[args.case](args)
+    except Exception as error:  # a broken test run is a failure with its reason, not a traceback only
+        check("the %s case ran to its end" % args.case, False, repr(error))
+        raise
+    finally:
+        print("graph_faults: %s: %s" % (args.case, "FAILED (%s)" % ", ".join(FAILURES) if FAILURES else "PASS"),
+              flush=True)
+        os._exit(1 if FAILURES else 0)
+
+
+if __name__ == "__main__":
+    main()
