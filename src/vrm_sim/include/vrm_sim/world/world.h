@@ -325,14 +325,15 @@ class World {
   static constexpr std::size_t kReorderFrames = 2;
   std::map<Stamp, FrameInputs> pending_;        // frames not closed yet, by stamp
   std::map<std::string, Stamp> known_sources_;  // the newest stamp each source delivered
-  std::set<std::string> jumped_sources_;        // sources that delivered a stamp far ahead since the last normal one
+  // Sources that delivered stamps far ahead since the last normal input: the first and last such stamp.
+  std::map<std::string, std::pair<Stamp, Stamp>> jumped_sources_;
   struct HeldInput {
     Stamp stamp;
     std::string source;
     std::optional<EyeState> eye;
     std::optional<InstrumentState> instrument;
   };
-  static constexpr std::size_t kMaxHeldBack = 64;
+  static constexpr std::size_t kMaxHeldBack = 256;
   std::vector<HeldInput> held_back_;  // inputs far ahead, until every source has jumped or a normal one arrives
   FrameInputs late_;                  // inputs older than the last frame, for the next one
   std::optional<Stamp> last_frame_stamp_;

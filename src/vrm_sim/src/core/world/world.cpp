@@ -27,6 +27,7 @@ constexpr double kMaxInputDistance = 1.0;  // m from the eye (or the world origi
 constexpr double kUnitTolerance = 1e-3;    // |‖q‖ − 1| of a rotation quaternion
 constexpr double kMaxJawAngle = M_PI;      // rad
 constexpr double kMaxCutRate = 1e4;        // Hz (vitrectors cut at up to ~170 Hz)
+constexpr double kGapConfirmation = 0.25;  // s of input time every source must go on after a jump far ahead
 
 // The detectors whose deformation vectors drive the tissue response (thesis §4.2.2); the others report only and the
 // tissue's own exact capsule test is the response.
@@ -380,9 +381,18 @@ World::StampCheck World::classifyStamp(Stamp stamp, const std::string& source) {
     jumped_sources_.clear();
     return StampCheck::kNormal;
   }
-  jumped_sources_.insert(source);
-  const bool every_source_jumped = std::all_of(known_sources_.begin(), known_sources_.end(), [this](const auto& known) {
-    return jumped_sources_.count(known.first) > 0;
+  // A real gap (the input paused, a device restarted) moves every source, and each goes on at its rate from there;
+  // garbage stamps interleave with the devices' normal ones, which clear the count. So the jump is followed once
+  // every known source has delivered far-ahead stamps spanning kGapConfirmation of input time, none normal between.
+  auto [span, inserted] = jumped_sources_.try_emplace(source, stamp, stamp);
+  if (!inserted) {
+    span->second.first = std::min(span->second.first, stamp);
+    span->second.second = std::max(span->second.second, stamp);
+  }
+  const Stamp confirmation = fromSeconds(kGapConfirmation);
+  const bool every_source_jumped = std::all_of(known_sources_.begin(), known_sources_.end(), [&](const auto& known) {
+    const auto jumped = jumped_sources_.find(known.first);
+    return jumped != jumped_sources_.end() && jumped->second.second - jumped->second.first >= confirmation;
   });
   if (every_source_jumped) {
     jumped_sources_.clear();
