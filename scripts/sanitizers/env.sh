@@ -1,3 +1,4 @@
+# shellcheck shell=bash
 # Sourced by scripts/test.sh --sanitize (and by hand for one test: `source scripts/sanitizers/env.sh build_asan`):
 # the runtime options of the ASan + UBSan build. Argument: the build folder; reports go to <build>/sanitizer_reports.
 _san_dir=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)

@@ -46,7 +46,7 @@ source "$BUILD/devel/setup.bash"
 set -u
 export ROS_HOSTNAME=${ROS_HOSTNAME:-localhost}
 export ROS_LOG_DIR="$BUILD/ros_log"
-# shellcheck source=env.sh
+# shellcheck source=scripts/sanitizers/env.sh disable=SC1091
 source "$ROOT/scripts/sanitizers/env.sh" "$BUILD"
 rm -rf "$SANITIZER_REPORTS" "$BUILD/test_results"
 mkdir -p "$SANITIZER_REPORTS"
