@@ -13,6 +13,8 @@
 # Usage: scripts/soak.sh [--minutes N] [--port PORT] [--out DIR] [--results DIR] [roslaunch args...]
 #   --out      the run's folder: bag, launch log, ROS logs (default build/soak/<UTC time>)
 #   --results  where soak.json and soak.png go (default bench/results)
+#   --no-cycle a control run: the scenario is never cycled
+#   --minute-seconds S   rows (and cycles) every S s instead of 60 (development: many cycles in a short run)
 #   --tree     another checkout's launch files and packages (ROS_PACKAGE_PATH=TREE/src) with this build, e.g. a
 #              `git worktree` of the last commit while the working tree's launch files wait for a rebuild
 set -euo pipefail
@@ -22,6 +24,7 @@ port=11751
 out=""
 results="$ROOT/bench/results"
 extra=()
+monitor_args=()
 tree=$ROOT
 while (($#)); do
   case $1 in
@@ -30,7 +33,9 @@ while (($#)); do
     --out) out=$2; shift 2 ;;
     --results) results=$2; shift 2 ;;
     --tree) tree=$(cd "$2" && pwd); shift 2 ;;
-    -h | --help) sed -n '2,18p' "$0"; exit 0 ;;
+    --no-cycle) monitor_args+=(--no-cycle); shift ;;
+    --minute-seconds) monitor_args+=(--minute "$2"); shift 2 ;;
+    -h | --help) sed -n '2,20p' "$0"; exit 0 ;;
     *) extra+=("$1"); shift ;;
   esac
 done
@@ -72,7 +77,7 @@ trap 'exit 130' INT TERM
 
 set +e
 /usr/bin/python3 "$ROOT/scripts/soak_monitor.py" --minutes "$minutes" --launch-pid "$launch_pid" --bag "$bag" \
-  --out "$json" 2>&1 | tee "$out/monitor.log"
+  --out "$json" "${monitor_args[@]}" 2>&1 | tee "$out/monitor.log"
 status=${PIPESTATUS[0]}
 set -e
 stop_graph

@@ -109,6 +109,7 @@ class Graph:
         self.manager = manager
         self.pids = {}  # name -> (pid, starttime)
         self.crashes = []  # {"t", "node", "old_pid", "new_pid"}
+        self.supervisors = set()  # pids of processes whose child has their name (supervised_manager, rosbag)
 
     def processes(self):
         found = {}  # pid -> (name, parent name)
@@ -119,11 +120,11 @@ class Graph:
             if name:
                 found[pid] = (name, parent)
             stack += [(child, name) for child in children(pid)]
-        supervisors = {parent for name, parent in found.values() if parent == name}
-        named = {}
+        supervised = {parent for name, parent in found.values() if parent == name}
         for pid, (name, parent) in found.items():
-            named[f"{name} (supervisor)" if name in supervisors and parent != name else name] = pid
-        return named
+            if name in supervised and parent != name:
+                self.supervisors.add(pid)  # stays one while its child is down between restarts
+        return {f"{name} (supervisor)" if pid in self.supervisors else name: pid for pid, (name, _) in found.items()}
 
     def scan(self, t):
         found = {}
@@ -131,13 +132,17 @@ class Graph:
             sample = read_proc(pid)
             if sample:
                 found[name] = (pid, sample[2], sample)
+        alive = {(pid, start) for pid, start, _ in found.values()}
         for name, (pid, start) in list(self.pids.items()):
+            if (pid, start) in alive:
+                continue  # still running (perhaps under another label: a supervisor's child appeared)
+            sample = read_proc(pid)
+            if sample and sample[2] == start:
+                continue  # alive, though no longer under roslaunch's tree this instant
             now = found.get(name)
-            if now is None or (now[0], now[1]) != (pid, start):
-                self.crashes.append({"t": round(t, 1), "node": name, "old_pid": pid,
-                                     "new_pid": now[0] if now else None})
-                if now is None:
-                    del self.pids[name]
+            self.crashes.append({"t": round(t, 1), "node": name, "old_pid": pid,
+                                 "new_pid": now[0] if now and now[0] != pid else None})
+            del self.pids[name]
         for name, (pid, start, _) in found.items():
             self.pids[name] = (pid, start)
         return {name: sample for name, (_, _, sample) in found.items()}
@@ -271,6 +276,7 @@ def main():
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--minute", type=float, default=60.0, help="s per row (tests: shorter)")
     parser.add_argument("--warmup-timeout", type=float, default=180.0)
+    parser.add_argument("--no-cycle", action="store_true", help="never cycle the scenario (a control run)")
     parser.add_argument("--bag", default="")
     parser.add_argument("--out", required=True)
     args = parser.parse_args()
@@ -327,7 +333,7 @@ def main():
             if not samples or not os.path.exists(f"/proc/{args.launch_pid}"):
                 graph_alive = False
                 break
-            if not cycled and time.monotonic() - minute_start >= args.minute / 2:
+            if not cycled and not args.no_cycle and time.monotonic() - minute_start >= args.minute / 2:
                 cycled = True
                 steps = monitor.cycle()
                 steps["minute"] = minute
@@ -424,8 +430,10 @@ def verdict(rows, graph, cycles, args, baseline, smoke):
         "scene": args.scene,
         "bag": args.bag,
         "graph": "launch/simulator.launch headless:=true sim:=true tracking:=true record:=true render watched "
-                 "(this monitor subscribes to both eyes), built-in demo script looping, scenario STOP/LOAD/START "
-                 "every minute",
+                 "(this monitor subscribes to both eyes), built-in demo script looping, " +
+                 ("scenario never cycled (--no-cycle control run)" if args.no_cycle else
+                  "scenario STOP/LOAD/START every minute"),
+        "cycled": not args.no_cycle,
         "judged_topics": JUDGED_TOPICS,
         "notes": "rates in Hz over each minute (/tissue/* reported, not judged: published only when the tissue "
                  "changed); CPU in % of one core; load_average = the host's 1-min load at the end of the minute; latency_p99_ms per stage = max and median of "
