@@ -120,10 +120,12 @@ class ScenarioManager : public nodelet::Nodelet {
     session_->setFrameObserver([this](const world::FrameResult& frame) { publish(frame); });
     session_->setLoadObserver([this](world::World& world) { onLoaded(world); });
     onLoaded(session_->world());
-    eye_subscriber_ = nh.subscribe("eye_state", 10, &ScenarioManager::onEyeState, this);
-    instrument_subscriber_ = nh.subscribe("instrument_state", 20, &ScenarioManager::onInstrumentState, this);
-    pedal_subscriber_ = nh.subscribe("pedals", 20, &ScenarioManager::onPedals, this);
-    command_subscriber_ = nh.subscribe("scenario_command", 10, &ScenarioManager::onScenarioCommand, this);
+    // Deep queues (pointers only, zero copy): on a loaded machine an input dropped here would be missing from the
+    // live session but present in its bag, and the replay would differ. Two seconds of every input at 50 Hz.
+    eye_subscriber_ = nh.subscribe("eye_state", 100, &ScenarioManager::onEyeState, this);
+    instrument_subscriber_ = nh.subscribe("instrument_state", 200, &ScenarioManager::onInstrumentState, this);
+    pedal_subscriber_ = nh.subscribe("pedals", 100, &ScenarioManager::onPedals, this);
+    command_subscriber_ = nh.subscribe("scenario_command", 50, &ScenarioManager::onScenarioCommand, this);
     diagnostics_publisher_ = nh.advertise<diagnostic_msgs::DiagnosticArray>("/diagnostics", 5);
     diagnostics_timer_ = nh.createWallTimer(ros::WallDuration(1.0), &ScenarioManager::publishDiagnostics, this);
     NODELET_INFO("scenario_manager: deterministic frames: %s, scenario start: %s",

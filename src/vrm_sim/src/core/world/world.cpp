@@ -498,9 +498,13 @@ void World::applyInputs(const FrameInputs& inputs) {
 
 void World::applyInstrument(const InstrumentState& state) {
   Instrument& instrument = *instruments_.at(state.slot);
-  // Invalid tracking: the instrument keeps its last pose but stops interacting (no phantom grasps).
-  instrument.pose = state.pose();
-  instrument.frame_id = state.frame_id.empty() ? "eye" : state.frame_id;
+  // Invalid tracking: the instrument keeps its last pose but stops interacting (no phantom grasps). The pose of an
+  // invalid state is not used: whatever its sender put there (the tracker holds the last valid one, another source
+  // may send zeros) is not a measurement.
+  if (state.valid) {
+    instrument.pose = state.pose();
+    instrument.frame_id = state.frame_id.empty() ? "eye" : state.frame_id;
+  }
   instrument.jaw_angle = state.valid ? state.jaw_angle : 1.0;
   instrument.active = state.valid;
   instrument.suction = state.valid ? state.suction : 0.0;
