@@ -44,6 +44,10 @@ script_test console_real_window console_runs_a_session_in_a_real_window \
   "$ROOT/src/eyesi_gui/test/console_real_window.sh"
 script_test console_remote_station console_on_a_second_host \
   "$ROOT/src/eyesi_gui/test/remote/console_remote_station.sh"
+# Runtime faults of the product graph (issue 14): crashes, a hostile flood, a consumer that never reads.
+for fault in manager_crash recorder_crash hostile_flood slow_consumer; do
+  script_test "fault_$fault" "$fault" /usr/bin/python3 "$ROOT/src/vrm_sim/test/faults/graph_faults.py" "$fault"
+done
 
 set +e
 summary=$(catkin_test_results "$ROOT/build/test_results" --all 2>&1)
