@@ -42,6 +42,7 @@ done
 [[ $minutes =~ ^[1-9][0-9]*$ ]] || { echo "soak.sh: --minutes must be a positive whole number" >&2; exit 2; }
 [[ $port =~ ^[0-9]+$ ]] || { echo "soak.sh: --port must be a number" >&2; exit 2; }
 
+# shellcheck disable=SC1091
 source "$ROOT/scripts/common.sh"
 [[ $tree == "$ROOT" ]] || export ROS_PACKAGE_PATH="$tree/src"
 [[ -n $out ]] || out="$ROOT/build/soak/$(date -u +%Y%m%d_%H%M%S)"
@@ -68,7 +69,7 @@ stop_graph() {
   if kill -0 "$launch_pid" 2>/dev/null; then
     kill -INT "$launch_pid" 2>/dev/null || true
     for _ in $(seq 60); do kill -0 "$launch_pid" 2>/dev/null || break; sleep 0.5; done
-    kill -0 "$launch_pid" 2>/dev/null && kill -TERM "$launch_pid" 2>/dev/null || true
+    if kill -0 "$launch_pid" 2>/dev/null; then kill -TERM "$launch_pid" 2>/dev/null || true; fi
   fi
   wait "$launch_pid" 2>/dev/null || true
 }

@@ -86,7 +86,7 @@ where=$(address_of <<<"$launch_lines" | paste -sd' ')
 [[ -n $launch_lines ]] && ! grep -vqE '^\S+\s+\S+\s+\S+\s+(127\.[0-9.]+|\[::1\]):' <<<"$launch_lines"
 check "roslaunch's XML-RPC server listens on loopback only: $where" $?
 node_ports=" $(awk '{print $2}' "$OUT/node_uris.txt" | paste -sd' ') "
-tcpros=0 tcpros_sample="" tcpros_exposed=() xmlrpc_loopback=0 xmlrpc_exposed=() other_exposed=()
+tcpros=0 tcpros_sample="" tcpros_exposed=() xmlrpc_loopback=0 xmlrpc_exposed=()
 while read -r line; do
   local_address=$(awk '{print $4}' <<<"$line")
   port=${local_address##*:}
