@@ -44,6 +44,9 @@ script_test console_real_window console_runs_a_session_in_a_real_window \
   "$ROOT/src/eyesi_gui/test/console_real_window.sh"
 script_test console_remote_station console_on_a_second_host \
   "$ROOT/src/eyesi_gui/test/remote/console_remote_station.sh"
+# The security defaults SECURITY.md claims, and its firewall rules in a network-namespace pair (issue 14).
+script_test security_defaults security_defaults_hold "$ROOT/src/eyesi_gui/test/security_defaults.sh"
+script_test security_firewall firewall_rules_in_netns "$ROOT/src/eyesi_gui/test/security_firewall.sh"
 # Runtime faults of the product graph (issue 14): crashes, a hostile flood, a consumer that never reads.
 for fault in manager_crash recorder_crash hostile_flood slow_consumer; do
   script_test "fault_$fault" "$fault" /usr/bin/python3 "$ROOT/src/vrm_sim/test/faults/graph_faults.py" "$fault"

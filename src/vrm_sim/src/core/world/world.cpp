@@ -357,11 +357,11 @@ void World::assembleSource(Stamp stamp, const std::string& source, const EyeStat
     ++statistics_.late_inputs;  // its state takes effect in the next frame
     if (eye) late_.eye = *eye;
     if (instrument) late_.instruments[instrument->slot] = *instrument;
-  } else {
+  } else if (eye || instrument || pending_.count(stamp) > 0) {
     FrameInputs& frame = pending_[stamp];
     if (eye) frame.eye = *eye;
     if (instrument) frame.instruments[instrument->slot] = *instrument;
-  }
+  }  // a rejected input at a new stamp opens no frame: a flood of garbage must not make the world step for it
   closeReadyFrames();
 }
 
