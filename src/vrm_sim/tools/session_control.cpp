@@ -8,7 +8,8 @@
 // Parameters (private): recorder (node name, default /session_recorder), topics (list the recorder must subscribe
 // to), duration (s of input time; 0 = until Ctrl-C), start (default true; false: a console sends START),
 // start_delay (s of input time between the newest frame and START, default 0.5), tail (s of input time recorded
-// after STOP, default 1.0), bag (the first part's path; empty = no part report).
+// after STOP, default 1.0), bag (the first part's path; empty = no part report), recorder_timeout (s of wall time
+// after the first simulated frame; a recorder that does not listen by then ends the session, default 30).
 //
 // Faults (issue 14). A simulation that comes back after a crash of its nodelet manager (a new process publishes
 // scenario_status) gets the scenario restarted cleanly: LOAD of the same scene, difficulty and seed, then START,
@@ -110,6 +111,7 @@ class SessionControl {
     start_delay_ = ros::Duration(private_nh_.param("start_delay", 0.5));
     tail_ = ros::Duration(private_nh_.param("tail", 1.0));
     bag_ = private_nh_.param<std::string>("bag", "");
+    recorder_timeout_ = private_nh_.param("recorder_timeout", 30.0);
     info_subscriber_ = nh_.subscribe("session_info", 1, &SessionControl::onSessionInfo, this);
     health_timer_ = nh_.createWallTimer(ros::WallDuration(0.5), &SessionControl::checkHealth, this);
     command_publisher_ = nh_.advertise<vrm_msgs::ScenarioCommand>("scenario_command", 5);
@@ -216,6 +218,19 @@ class SessionControl {
     const auto command_subscribers = subscribers.find(command_publisher_.getTopic());
     const std::size_t expected = command_subscribers == subscribers.end() ? 0 : command_subscribers->second.size();
     const bool connected = expected >= 2 && command_publisher_.getNumSubscribers() >= expected;
+    // A recorder that never listens (an unwritable bag: it exits and is respawned in vain) ends the session with a
+    // reason instead of leaving it waiting for ever.
+    if (!newest_.isZero() && !missing.empty() && !restarts_) {
+      if (first_frame_wall_.isZero()) first_frame_wall_ = ros::WallTime::now();
+      if ((ros::WallTime::now() - first_frame_wall_).toSec() > recorder_timeout_) {
+        ROS_FATAL(
+            "session_control: %s did not subscribe to%s within %.0f s of the first simulated frame (see its "
+            "log: is the bag's folder writable?); ending the session",
+            recorder_.c_str(), missing.c_str(), recorder_timeout_);
+        ros::shutdown();
+        return;
+      }
+    }
     if (!missing.empty() || !connected || newest_.isZero()) {
       if ((ros::WallTime::now() - last_note_).toSec() > 5.0) {
         last_note_ = ros::WallTime::now();
@@ -337,7 +352,9 @@ class SessionControl {
   std::vector<Gap> gaps_;
   bool gap_open_ = false, reload_ = false, session_over_ = false;
   unsigned restarts_ = 0;
-  int next_part_ = 2;  // the recorder's ~part: the part its next start records into
+  int next_part_ = 2;
+  double recorder_timeout_ = 30.0;
+  ros::WallTime first_frame_wall_;  // the recorder's ~part: the part its next start records into
   ros::WallTime last_note_;
   ros::Time newest_, start_;
   bool started_ = false, stop_sent_ = false, scenario_ended_ = false;
