@@ -254,6 +254,14 @@ def manager_crash(args):
         check("... with the frames it ran", interrupted.get("frames", 0) > 100, interrupted.get("frames"))
     final = read_json(stem + ".result.json")
     check("the restarted session's final result", final is not None and final.get("in_progress") is False, final)
+    # The training records take both, the interrupted one as such (what the console imports from the sessions folder).
+    database = os.path.join(args.out, "records.sqlite")
+    subprocess.run(["rosrun", "eyesi_gui", "records", "--db", database, "import", args.out], capture_output=True,
+                   timeout=60)
+    listing = subprocess.run(["rosrun", "eyesi_gui", "records", "--db", database, "list"], capture_output=True,
+                             text=True, timeout=60).stdout
+    check("the records store holds the interrupted and the finished session",
+          " interrupted " in listing and " finished " in listing, listing[-400:])
     recording = read_json(stem + ".recording.json")
     check("recording.json counts one simulation restart",
           recording is not None and recording.get("simulation_restarts") == 1, recording)
