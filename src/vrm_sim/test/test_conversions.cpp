@@ -38,6 +38,17 @@ TEST(Conversions, TissueMeshPacksPositionsTrianglesAndNormals) {
   EXPECT_DOUBLE_EQ(marker.points[5].y, 1.0);
 }
 
+// A TissueMesh off the wire may lie about its sizes (found by fuzzing, src/vrm_fuzz/regressions/sim_messages).
+TEST(Conversions, TriangleListMarkerLeavesOutTrianglesThatIndexBeyondThePositions) {
+  vrm_msgs::TissueMesh message;
+  message.positions = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+  message.triangles = {0, 1, 2, 0, 1, 4000000000u, 2, 1};  // one good, one out of range, one partial
+  visualization_msgs::Marker marker;
+  fillTriangleListMarker(message, {1, 0, 0, 1}, marker);
+  ASSERT_EQ(marker.points.size(), 3u);
+  EXPECT_DOUBLE_EQ(marker.points[2].y, 1.0);
+}
+
 TEST(Conversions, SelectedTrianglesMarkerHasOnlyThoseTriangles) {
   const std::vector<Eigen::Vector3d> positions = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}};
   const std::vector<std::array<std::uint32_t, 3>> triangles = {{0, 1, 2}, {0, 2, 3}};

@@ -81,12 +81,24 @@ void fillTriangleListMarker(const vrm_msgs::TissueMesh& mesh, const std::array<f
   marker.color.g = rgba[1];
   marker.color.b = rgba[2];
   marker.color.a = rgba[3];
-  marker.points.resize(mesh.triangles.size());
-  for (std::size_t i = 0; i < mesh.triangles.size(); ++i) {
-    const std::size_t vertex = mesh.triangles[i];
-    marker.points[i].x = mesh.positions[3 * vertex];
-    marker.points[i].y = mesh.positions[3 * vertex + 1];
-    marker.points[i].z = mesh.positions[3 * vertex + 2];
+  // The mesh may come off the wire: a triangle with an index beyond the positions (or a trailing partial one) is
+  // left out instead of read out of bounds (found by fuzzing, src/vrm_fuzz/regressions/sim_messages).
+  const std::size_t vertex_count = mesh.positions.size() / 3;
+  marker.points.clear();
+  marker.points.reserve(mesh.triangles.size() - mesh.triangles.size() % 3);
+  for (std::size_t t = 0; t + 3 <= mesh.triangles.size(); t += 3) {
+    if (mesh.triangles[t] >= vertex_count || mesh.triangles[t + 1] >= vertex_count ||
+        mesh.triangles[t + 2] >= vertex_count) {
+      continue;
+    }
+    for (std::size_t corner = 0; corner < 3; ++corner) {
+      const std::size_t vertex = mesh.triangles[t + corner];
+      geometry_msgs::Point point;
+      point.x = mesh.positions[3 * vertex];
+      point.y = mesh.positions[3 * vertex + 1];
+      point.z = mesh.positions[3 * vertex + 2];
+      marker.points.push_back(point);
+    }
   }
 }
 
