@@ -264,25 +264,56 @@ const std::vector<std::string>& sessionTopics() {
 
 std::string softwareVersion() { return VRM_SIM_VERSION; }
 
-std::optional<std::uint64_t> firstBrokenRecord(const std::string& path) {
-  const std::vector<std::uint8_t> bytes = readFile(path);
-  if (bytes.size() < kMagicLength || std::memcmp(bytes.data(), kMagic, kMagicLength) != 0) return 0;
+namespace {
+
+struct Break {
+  std::uint64_t offset = 0;
+  bool cut_off = false;  // the file ends inside this record (truncated or unfinished), rather than garbage in it
+};
+
+// Whether the record at `at` that readRecord() refused or found incomplete is cut off by the end of the file: its
+// lengths are plausible but point past the end.
+bool cutOffAt(const std::vector<std::uint8_t>& bytes, std::uint64_t at) {
+  const std::uint64_t end = bytes.size();
+  if (end < at + 4) return true;
+  const std::uint32_t header_length = readU32(bytes.data() + at);
+  if (header_length == 0 || header_length > kMaxHeaderLength) return false;
+  if (end - at - 4 < header_length + 4ull) return true;
+  const std::optional<Record> record = readRecord(bytes, at, end);
+  return record && !record->data_complete;
+}
+
+std::optional<Break> findBreak(const std::vector<std::uint8_t>& bytes) {
   std::uint64_t at = kMagicLength;
   while (at < bytes.size()) {
     const std::optional<Record> record = readRecord(bytes, at, bytes.size());
-    if (!record || !record->data_complete) return at;
+    if (!record || !record->data_complete) return Break{at, cutOffAt(bytes, at)};
     if (record->op == kOpChunk) {
       const auto compression = record->header.find("compression");
       if (compression != record->header.end() && compression->second == "none") {
         Scan scan;
         const std::uint64_t end = record->data_offset + record->data_length;
         const std::uint64_t scanned = scanChunk(bytes, record->data_offset, end, scan);
-        if (scanned != end) return scanned;
+        if (scanned != end) return Break{scanned, false};
       }
     }
     at = record->data_offset + record->data_length;
   }
   return std::nullopt;
+}
+
+bool hasMagic(const std::vector<std::uint8_t>& bytes) {
+  return bytes.size() >= kMagicLength && std::memcmp(bytes.data(), kMagic, kMagicLength) == 0;
+}
+
+}  // namespace
+
+std::optional<std::uint64_t> firstBrokenRecord(const std::string& path) {
+  const std::vector<std::uint8_t> bytes = readFile(path);
+  if (!hasMagic(bytes)) return 0;
+  const std::optional<Break> broken = findBreak(bytes);
+  if (!broken) return std::nullopt;
+  return broken->offset;
 }
 
 RecoveryReport recoverBag(const std::string& broken, const std::string& copy) {
@@ -353,6 +384,21 @@ PreparedBag prepareSessionBag(const std::string& path, const PrepareOptions& opt
   }
   bool needs_recovery = path.size() > 7 && path.compare(path.size() - 7, 7, ".active") == 0;
   std::string open_error;
+  if (!needs_recovery) {
+    // rosbag trusts the length fields of the records it reads: a corrupt one makes it allocate gigabytes and abort on
+    // an assert (found by fuzzing: src/vrm_fuzz/regressions/session_bag). So rosbag only opens a file whose record
+    // structure is intact or merely cut off at the end (that one it refuses cleanly, and recovery reads it with the
+    // scanner above); garbage inside the records is refused here with its position.
+    const std::vector<std::uint8_t> bytes = readFile(path);
+    if (!hasMagic(bytes)) throw BagError(path + ": not a ROS bag (no '#ROSBAG V2.0' header)");
+    if (const std::optional<Break> broken = findBreak(bytes)) {
+      if (!broken->cut_off) {
+        throw BagError(path + ": corrupt: record structure broken at byte " + std::to_string(broken->offset));
+      }
+      needs_recovery = true;
+      open_error = "cut off at byte " + std::to_string(broken->offset);
+    }
+  }
   if (!needs_recovery) {
     rosbag::Bag probe;  // a Bag whose open() threw stays unusable
     try {
