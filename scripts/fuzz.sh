@@ -1,0 +1,148 @@
+#!/usr/bin/env bash
+# Builds the fuzz targets of src/vrm_fuzz (clang 14 + libFuzzer, ASan + UBSan, build folder build_fuzz/) and runs
+# each for N seconds, one at a time at nice 10, from its seed corpus (src/vrm_fuzz/corpus/<target>/, regenerated
+# from the shipped files by src/vrm_fuzz/scripts/make_seeds.py). Writes bench/results/fuzz.json (one row per
+# target: executions, exec/s, coverage = libFuzzer's edges `cov:`, features `ft:`, crashes) and the table in
+# BENCHMARKS.md's "Fuzzing" section; copies every crash input to src/vrm_fuzz/regressions/<target>/.
+# Usage: scripts/fuzz.sh [--seconds N | --runs N] [--no-build] [target ...]   (default: 300 s, all targets)
+set -euo pipefail
+ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+export PATH="/usr/bin:$PATH"
+seconds=300 runs="" build=1 targets=()
+command_line="scripts/fuzz.sh $*"
+while (($#)); do
+  case $1 in
+    --seconds) seconds=$2; shift 2 ;;
+    --runs) runs=$2; shift 2 ;;
+    --no-build) build=0; shift ;;
+    -h | --help) sed -n '2,7p' "$0"; exit 0 ;;
+    *) targets+=("$1"); shift ;;
+  esac
+done
+PKG="$ROOT/src/vrm_fuzz"
+BUILD="$ROOT/build_fuzz"
+all_targets=($(cd "$PKG/fuzz" && ls *.cpp | sed 's/\.cpp$//' | grep -v '^fuzz_support$' | sort))
+((${#targets[@]})) || targets=("${all_targets[@]}")
+for t in "${targets[@]}"; do
+  [[ " ${all_targets[*]} " == *" $t "* ]] || { echo "fuzz.sh: unknown target '$t' (have: ${all_targets[*]})" >&2; exit 2; }
+done
+
+# Per-target input caps: images and bags are large inputs; a cap keeps one execution short (see BENCHMARKS.md).
+declare -A max_len=([marker_detector]=8192 [session_bag]=32768 [sim_messages]=4096 [tracking_messages]=4096
+                    [scene_yaml]=16384 [mesh_import]=8192 [surgeon_script]=8192)
+
+if ((build)); then
+  mkdir -p "$BUILD"
+  flags="-fsanitize=fuzzer-no-link,address,undefined -fno-sanitize-recover=undefined -fno-omit-frame-pointer"
+  CC=clang CXX=clang++ nice -n 10 cmake -S "$ROOT" -B "$BUILD" -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+    -DCMAKE_C_FLAGS_RELWITHDEBINFO="-O2 -gline-tables-only" -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O2 -gline-tables-only" \
+    -DCMAKE_C_FLAGS="$flags" -DCMAKE_CXX_FLAGS="$flags" \
+    -DCMAKE_EXE_LINKER_FLAGS="-fsanitize=address,undefined" -DCMAKE_SHARED_LINKER_FLAGS="-fsanitize=address,undefined" \
+    -DCATKIN_ENABLE_TESTING=OFF -DVRM_FUZZ_LIBFUZZER=ON \
+    -DPYTHON_EXECUTABLE=/usr/bin/python3 -DPython3_EXECUTABLE=/usr/bin/python3 >"$BUILD/configure.log" 2>&1 ||
+    { tail -n 30 "$BUILD/configure.log"; exit 1; }
+  nice -n 10 cmake --build "$BUILD" -j2 --target $(printf 'fuzz_%s ' "${targets[@]}")
+fi
+
+# A fuzzed array length may ask for gigabytes: such an allocation fails (std::bad_alloc, handled like a message
+# roscpp cannot read) instead of counting as an out-of-memory crash.
+export ASAN_OPTIONS="max_allocation_size_mb=1024:allocator_may_return_null=1:detect_odr_violation=0:${ASAN_OPTIONS:-}"
+export LSAN_OPTIONS="suppressions=$PKG/lsan.supp:${LSAN_OPTIONS:-}"
+export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1:${UBSAN_OPTIONS:-}"
+export ROS_HOSTNAME=localhost
+
+mkdir -p "$BUILD/fuzz_runs" "$ROOT/bench/results"
+results="$BUILD/fuzz_runs/results.tsv"
+: >"$results"
+for t in "${targets[@]}"; do
+  work="$BUILD/fuzz_runs/$t"
+  rm -rf "$work" && mkdir -p "$work/corpus" "$work/artifacts"
+  limit=(-max_total_time="$seconds")
+  [[ -n $runs ]] && limit=(-runs="$runs")
+  len=()
+  [[ -n ${max_len[$t]:-} ]] && len=(-max_len="${max_len[$t]}")
+  echo "== fuzz_$t (${limit[*]}${len:+ ${len[*]}})"
+  start=$(date +%s.%N)
+  set +e
+  (cd "$work" && nice -n 10 "$BUILD/fuzz/fuzz_$t" "${limit[@]}" "${len[@]}" -timeout=20 -rss_limit_mb=3072 \
+    -print_final_stats=1 -artifact_prefix="$work/artifacts/" "$work/corpus" "$PKG/corpus/$t") >"$work/log" 2>&1
+  rc=$?
+  set -e
+  end=$(date +%s.%N)
+  crashes=0
+  for artifact in "$work"/artifacts/{crash,leak,timeout,oom}-*; do
+    [[ -f $artifact ]] || continue
+    crashes=$((crashes + 1))
+    mkdir -p "$PKG/regressions/$t"
+    cp "$artifact" "$PKG/regressions/$t/"
+    echo "   crash input -> src/vrm_fuzz/regressions/$t/$(basename "$artifact")"
+  done
+  if ((rc != 0 && crashes == 0)); then crashes=1; echo "   fuzzer exited $rc without an artifact (see $work/log)"; fi
+  grep -E '^#[0-9]+' "$work/log" | tail -n 1 | sed 's/^/   /' || true
+  printf '%s\t%s\t%s\t%s\t%s\n' "$t" "$(echo "$end - $start" | bc)" "$crashes" "${max_len[$t]:-}" "$work/log" >>"$results"
+done
+
+/usr/bin/python3 - "$results" "$ROOT" "$command_line" "$seconds" "${runs:-}" <<'PY'
+import datetime, json, os, pathlib, platform, re, subprocess, sys
+results, root, command, seconds, runs = sys.argv[1:6]
+root = pathlib.Path(root)
+out = root / "bench" / "results" / "fuzz.json"
+doc = json.loads(out.read_text()) if out.exists() else {}
+rows = {r["target"]: r for r in doc.get("rows", [])}
+clang = subprocess.run(["clang", "--version"], capture_output=True, text=True).stdout.splitlines()[0]
+cpu = next((l.split(":", 1)[1].strip() for l in open("/proc/cpuinfo") if l.startswith("model name")), platform.machine())
+machine = "%s, %d cores (%s)" % (cpu, os.cpu_count(), platform.machine())
+date = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+for line in open(results):
+    target, wall, crashes, max_len, log = line.rstrip("\n").split("\t")
+    text = open(log, errors="replace").read()
+    stat = dict(re.findall(r"^stat::(\w+):\s+(\d+)", text, re.M))
+    status = [l for l in text.splitlines() if re.match(r"^#\d+\s", l)]
+    last = status[-1] if status else ""
+    cov = re.search(r"cov: (\d+)", last)
+    ft = re.search(r"ft: (\d+)", last)
+    corp = re.search(r"corp: (\d+)", last)
+    executions = int(stat.get("number_of_executed_units", 0))
+    wall = float(wall)
+    rows[target] = {
+        "suite": "fuzz", "target": target, "executions": executions,
+        "executions_per_s": round(executions / wall, 1) if wall > 0 else None,
+        "libfuzzer_exec_per_s": int(stat.get("average_exec_per_sec", 0)),
+        "coverage": int(cov.group(1)) if cov else 0, "coverage_measure": "edges (libFuzzer cov:)",
+        "features": int(ft.group(1)) if ft else 0, "corpus": int(corp.group(1)) if corp else 0,
+        "crashes": int(crashes), "seconds": round(wall, 1), "max_len": int(max_len) if max_len else None,
+        "peak_rss_mb": int(stat.get("peak_rss_mb", 0)), "reached_1M": executions >= 1_000_000,
+        "date": date, "clang": clang, "machine": machine, "command": command,
+    }
+doc = {"suite": "fuzz", "command": command, "quick": False, "date": date, "clang": clang, "machine": machine,
+       "seconds_per_target": None if runs else float(seconds), "runs_per_target": int(runs) if runs else None,
+       "coverage": "edges: libFuzzer's cov: of the last status line (ft: = features, also given)",
+       "sanitizers": "address, undefined (-fsanitize=fuzzer-no-link,address,undefined on all workspace code)",
+       "rows": [rows[k] for k in sorted(rows)]}
+out.write_text(json.dumps(doc, indent=1) + "\n")
+
+# The table in BENCHMARKS.md between the fuzz markers (appended as a section the first time).
+table = ["| target | executions | exec/s | coverage (edges) | features | crashes | seconds | max_len | date |",
+         "|---|---:|---:|---:|---:|---:|---:|---:|---|"]
+for r in doc["rows"]:
+    table.append("| %s | %s | %s | %d | %d | %d | %.0f | %s | %s |" % (
+        r["target"], f'{r["executions"]:,}', f'{r["executions_per_s"]:,.0f}' if r["executions_per_s"] else "-",
+        r["coverage"], r["features"], r["crashes"], r["seconds"], r["max_len"] or "default", r["date"]))
+block = "<!-- fuzz:table:begin (scripts/fuzz.sh writes this table) -->\n%s\n\n%s; %s; command of the last run: `%s`.\n<!-- fuzz:table:end -->" % (
+    "\n".join(table), clang, machine, command)
+md = root / "BENCHMARKS.md"
+text = md.read_text()
+if "<!-- fuzz:table:begin" in text:
+    text = re.sub(r"<!-- fuzz:table:begin.*?<!-- fuzz:table:end -->", lambda m: block, text, flags=re.S)
+else:
+    text = text.rstrip("\n") + "\n\n## Fuzzing (issue 14)\n\n" + block + "\n"
+md.write_text(text)
+print("fuzz.sh: %s and BENCHMARKS.md (Fuzzing) updated" % out.relative_to(root))
+for r in doc["rows"]:
+    print("  %-20s %12s execs %8s exec/s  cov %5d  ft %6d  crashes %d" % (
+        r["target"], f'{r["executions"]:,}', f'{r["executions_per_s"]:,.0f}' if r["executions_per_s"] else "-",
+        r["coverage"], r["features"], r["crashes"]))
+PY
+status=0
+awk -F'\t' '$3 != 0 { bad = 1 } END { exit bad }' "$results" || status=1
+exit $status

@@ -1,0 +1,183 @@
+#!/usr/bin/env python3
+"""Writes the seed corpora of the fuzz targets (corpus/<target>/) from the shipped files: scenes, meshes, scripts,
+rig and layout YAML, the reference session bags (their messages, and short bags cut from them), plus synthetic
+marker images and marker observations projected through the default rig. Run from anywhere; needs the vrm_msgs
+Python messages of a built workspace on PYTHONPATH (scripts/fuzz.sh sets it). Deterministic: same files, same seeds.
+
+Usage: make_seeds.py [--check]   (--check: exit 1 if a seed would change, write nothing)"""
+import io
+import pathlib
+import shutil
+import struct
+import sys
+
+import rosbag
+import yaml
+
+import vrm_msgs.msg as vm
+
+PKG = pathlib.Path(__file__).resolve().parent.parent
+SRC = PKG.parent
+SIM = SRC / "vrm_sim"
+TRK = SRC / "vrm_tracking"
+CORPUS = PKG / "corpus"
+seeds = {}  # path -> bytes
+
+
+def seed(target, name, data):
+    seeds[CORPUS / target / name] = bytes(data)
+
+
+def ser(msg):
+    b = io.BytesIO()
+    msg.serialize(b)
+    return b.getvalue()
+
+
+def frame(kind, payload):
+    return struct.pack("<BH", kind, len(payload)) + payload
+
+
+def ros_string(s):
+    s = s.encode()
+    return struct.pack("<I", len(s)) + s
+
+
+def camera_info(width, height, K, D):
+    header = struct.pack("<III", 0, 0, 0) + ros_string("camera_0")
+    out = header + struct.pack("<II", height, width) + ros_string("plumb_bob")
+    out += struct.pack("<I", len(D)) + struct.pack("<%dd" % len(D), *D)
+    out += struct.pack("<9d", *K) + struct.pack("<9d", 1, 0, 0, 0, 1, 0, 0, 0, 1)
+    out += struct.pack("<12d", K[0], 0, K[2], 0, 0, K[4], K[5], 0, 0, 0, 1, 0)
+    out += struct.pack("<II", 0, 0) + struct.pack("<IIIIB", 0, 0, 0, 0, 0)
+    return out
+
+
+# --- files ---
+for p in sorted((SIM / "config" / "scenes").glob("*.yaml")) + sorted((SIM / "test" / "data" / "scenes").glob("*.yaml")):
+    seed("scene_yaml", p.parent.parent.name + "_" + p.name if "test" in p.parts else p.name, p.read_bytes())
+ext = {".obj": 0, ".ply": 1, ".stl": 2}
+for p in sorted((SIM / "test" / "data" / "meshes").iterdir()):
+    if p.suffix in ext:
+        seed("mesh_import", p.name, bytes([ext[p.suffix], 1]) + p.read_bytes())
+for p in sorted((TRK / "config" / "trajectories").glob("*.yaml")):
+    seed("surgeon_script", p.name, p.read_bytes())
+seed("rig_yaml", "rig_default.yaml", (TRK / "config" / "rig_default.yaml").read_bytes())
+seed("marker_layout_yaml", "markers_default.yaml", (TRK / "config" / "markers_default.yaml").read_bytes())
+rig = yaml.safe_load((TRK / "config" / "rig_default.yaml").read_text())
+for i, cam in enumerate(rig["cameras"]):
+    seed("camera_yaml", "camera_%d.yaml" % i, yaml.safe_dump(cam, sort_keys=False).encode())
+
+# --- marker images: [u16 w][u16 h][u8 enc][u8 flags][i16 x4 region][u8 class][f64 u v r] pixels ---
+layout = yaml.safe_load((TRK / "config" / "markers_default.yaml").read_text())
+colours = [c["bgr"] for c in layout["classes"]]
+
+
+def image(w, h, blobs, enc=0, flags=0):
+    px = bytearray()
+    for y in range(h):
+        for x in range(w):
+            c = [90, 90, 90]
+            for (bx, by, r, col) in blobs:
+                if (x - bx) ** 2 + (y - by) ** 2 <= r * r:
+                    c = col
+            px += bytes(c if enc == 0 else (c[::-1]))
+    head = struct.pack("<HHBBhhhhB3d", w, h, enc, flags, 0, 0, w, h, 0, w / 2, h / 2, 3.0)
+    return head + px
+
+
+seed("marker_detector", "four_markers_bgr8", image(48, 40, [(10, 10, 3, colours[0]), (30, 12, 3, colours[1]),
+                                                         (12, 30, 3, colours[2]), (36, 30, 4, colours[3])]))
+seed("marker_detector", "two_markers_rgb8", image(32, 24, [(8, 8, 3, colours[2]), (22, 14, 3, colours[3])], enc=1))
+seed("marker_detector", "grey_bgra8", struct.pack("<HHBBhhhhB3d", 16, 8, 2, 0, -4, -4, 40, 40, 1, 1.0, 1.0, 2.0) +
+     bytes([90, 90, 90, 255]))
+
+# --- messages of the reference bags (vrm_sim topics) ---
+KIND = {"/eye_state": 0, "/instrument_state": 1, "/pedals": 2, "/scenario_command": 3, "/microscope": 4,
+        "/session_info": 5}
+for bag_name, scene_index in (("navigation_expert", 0), ("membrane_peeling_novice", 1), ("vitrectomy_expert", 2)):
+    with rosbag.Bag(str(SIM / "test" / "bags" / (bag_name + ".bag"))) as bag:
+        frames = []
+        for topic, raw, _ in bag.read_messages(raw=True):
+            if topic in KIND and len(frames) < 40:
+                frames.append(frame(KIND[topic], raw[1]))
+        seed("sim_messages", bag_name, bytes([scene_index]) + b"".join(frames))
+        seed("sim_conversions", bag_name, bytes([scene_index]) + b"".join(frames))
+        # A short bag of the first messages (and a cut-off copy, which only recovery can read).
+        short = io.BytesIO()
+        out_path = PKG / ("_tmp_%s.bag" % bag_name)
+        with rosbag.Bag(str(out_path), "w") as out:
+            n = 0
+            for topic, raw, t in bag.read_messages(raw=True):
+                if n >= 24:
+                    break
+                out.write(topic, raw, t, raw=True)
+                n += 1
+        data = out_path.read_bytes()
+        out_path.unlink()
+        seed("session_bag", bag_name + "_first24", data)
+        seed("session_bag", bag_name + "_first24_cut", data[: len(data) * 2 // 3])
+
+mesh = vm.TissueMesh()
+mesh.tissue_id = "membrane"
+mesh.positions = [0, 0, 0, 0.001, 0, 0, 0, 0.001, 0]
+mesh.triangles = [0, 1, 2]
+settings = vm.MicroscopeSettings(focus_distance=0.2, zoom=1.5, ambient_light=0.5, disparity_scale=1.0)
+seed("sim_messages", "tissue_mesh_and_microscope", bytes([0]) + frame(6, ser(mesh)) + frame(4, ser(settings)))
+seed("sim_conversions", "tissue_mesh_and_microscope", bytes([0]) + frame(6, ser(mesh)) + frame(4, ser(settings)))
+
+# --- tracking: marker observations projected through the default rig ---
+import math
+
+
+def project(cam, p):
+    R = cam["world_to_camera"]["rotation"]["data"]
+    t = cam["world_to_camera"]["translation"]
+    K = cam["camera_matrix"]["data"]
+    c = [sum(R[3 * i + j] * p[j] for j in range(3)) + t[i] for i in range(3)]
+    return K[0] * c[0] / c[2] + K[2], K[4] * c[1] / c[2] + K[5]
+
+
+points = [m["position"] for m in layout["eye_markers"]] + [[-0.002, 0.001, -0.004], [0.002, 0.001, -0.004]]
+frames = []
+for stamp in range(3):
+    for ci, cam in enumerate(rig["cameras"]):
+        obs = vm.MarkerObservations()
+        obs.header.stamp.secs = 100
+        obs.header.stamp.nsecs = stamp * 20000000
+        obs.camera_name = cam["camera_name"]
+        obs.image_width, obs.image_height = cam["image_width"], cam["image_height"]
+        for cls, p in enumerate(points):
+            u, v = project(cam, p)
+            obs.markers.append(vm.MarkerObservation(class_id=cls, u=u, v=v, area=30.0, quality=0.9))
+        frames.append(frame(8 * ci, ser(obs)))
+sensors = vm.InstrumentState(instrument_id="left", type=1, jaw_angle=0.3, valid=True)
+sensors.tip_pose.orientation.w = 1.0
+frames.append(frame(2, ser(sensors)))
+eye = vm.EyeState(valid=True)
+eye.rotation.w = 1.0
+frames.append(frame(3, ser(eye)))
+cam0 = rig["cameras"][0]
+frames.append(frame(4, camera_info(640, 480, cam0["camera_matrix"]["data"], [0, 0, 0, 0, 0])))
+frames.append(frame(5, ser(vm.PedalState(zoom_in=True))))
+frames.append(frame(6, ser(settings)))
+timing = vm.StageTiming()
+timing.header.stamp.secs = 100
+for name, a, b in (("camera", 0, 1), ("detection_camera_0", 1, 3), ("reconstruction", 3, 4), ("simulation", 4, 9)):
+    st = vm.StageStamp(stage=name)
+    st.start.secs = st.end.secs = 100
+    st.start.nsecs, st.end.nsecs = a * 1000000, b * 1000000
+    timing.stages.append(st)
+frames.append(frame(7, ser(timing)))
+seed("tracking_messages", "three_camera_frames", bytes([0]) + b"".join(frames))
+seed("tracking_messages", "one_euro_filter", bytes([1]) + b"".join(frames))
+
+check = "--check" in sys.argv
+changed = [p for p, d in seeds.items() if not p.exists() or p.read_bytes() != d]
+if check:
+    print("\n".join(str(p) for p in changed) or "seeds up to date")
+    sys.exit(1 if changed else 0)
+for p, d in seeds.items():
+    p.parent.mkdir(parents=True, exist_ok=True)
+    p.write_bytes(d)
+print("%d seeds in %s (%d written)" % (len(seeds), CORPUS, len(changed)))
