@@ -248,7 +248,8 @@ TEST(SurgeonScript, BuiltinDemo) {
   double closest = 1.0;
   double first_closed = -1.0;
   for (double t = 0.0; t < demo.duration(); t += 0.05) {
-    const InstrumentSample& f = demo.sample(t).instruments[1];
+    const SurgeonSnapshot snapshot = demo.sample(t);  // named: a reference into the temporary would dangle
+    const InstrumentSample& f = snapshot.instruments[1];
     const double gap = demo.definition().eye.radius - f.tip.norm();
     closest = std::min(closest, gap);
     if (first_closed < 0.0 && f.jaw_angle == 0.0) {
