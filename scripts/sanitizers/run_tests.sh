@@ -66,10 +66,10 @@ if ((${#reports[@]})); then
   echo "test.sh --sanitize: ${#reports[@]} sanitizer report(s) in $SANITIZER_REPORTS:"
   for report in "${reports[@]}"; do
     echo "== $report"
-    grep -E 'ERROR|SUMMARY|runtime error|^    #[0-9] ' "$report" | head -n 12
+    grep -E 'ERROR|WARNING|SUMMARY|runtime error|^    #[0-9] ' "$report" | head -n 12 || true
   done
   failure="<failure message=\"${#reports[@]} sanitizer report(s) in $SANITIZER_REPORTS\"><![CDATA[$(
-    for report in "${reports[@]}"; do echo "== $report"; grep -E 'ERROR|SUMMARY|runtime error' "$report" | head -n 5; done
+    for report in "${reports[@]}"; do echo "== $report"; grep -E 'ERROR|WARNING|SUMMARY|runtime error' "$report" | head -n 5 || true; done
   )]]></failure>"
 fi
 printf '<?xml version="1.0"?>\n<testsuite name="sanitizers" tests="1" failures="%s" errors="0"><testcase classname="sanitizers" name="no_asan_lsan_ubsan_reports">%s</testcase></testsuite>\n' \
