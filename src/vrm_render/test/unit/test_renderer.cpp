@@ -273,7 +273,8 @@ TEST(Renderer, GhostInstrumentsAreTranslucent) {
   renderer.setStyle("instrument", instrument);
   renderer.updateMesh("instrument", makeSphere({0, 0, kFocalZ + 0.003f}, 0.002f).view(), 1);
   const Eigen::Vector2f centre = pixelOf(renderer, {0, 0, kFocalZ + 0.005f});
-  const std::uint8_t* solid = renderFrame(renderer).images[0].pixel(int(centre.x()), int(centre.y()));
+  const StereoFrame opaque = renderFrame(renderer);  // named: a pixel pointer into a temporary frame would dangle
+  const std::uint8_t* solid = opaque.images[0].pixel(int(centre.x()), int(centre.y()));
   EXPECT_GT(solid[0], 240);
   EXPECT_LT(solid[2], 10);
   instrument.ghost = true;
