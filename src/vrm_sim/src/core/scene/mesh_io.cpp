@@ -54,8 +54,20 @@ std::string plyHeaderProblem(const std::string& path) {
   if (head.compare(0, 3, "ply") != 0) return "";
   const std::size_t end = head.find("end_header");
   if (end == std::string::npos) return "PLY header without end_header in its first 64 KiB";
-  // Nor does it return on a header that declares no element (second fuzz_mesh_import timeout).
+  // Nor does it return on a header that declares no element, or has a line it does not know (a misspelt
+  // "property"): the second and third fuzz_mesh_import timeouts. Every header line must be one of the PLY keywords.
   if (head.find("\nelement ") > end) return "PLY header declares no element";
+  std::size_t line = head.find('\n');
+  while (line != std::string::npos && line + 1 < end) {
+    const std::size_t next = head.find('\n', line + 1);
+    const std::string text = head.substr(line + 1, (next == std::string::npos ? end : next) - line - 1);
+    bool known = false;
+    for (const char* keyword : {"format ", "comment", "obj_info", "element ", "property ", "end_header"}) {
+      known = known || text.compare(0, std::strlen(keyword), keyword) == 0;
+    }
+    if (!known && !text.empty() && text != "\r") return "PLY header line '" + text.substr(0, 40) + "' is not PLY";
+    line = next;
+  }
   for (std::size_t i = 0; i < end; ++i) {
     const unsigned char c = static_cast<unsigned char>(head[i]);
     if (c < 0x20 && c != '\n' && c != '\r' && c != '\t') {
