@@ -44,9 +44,9 @@ if ((build)); then
   nice -n 10 cmake --build "$BUILD" -j2 --target $(printf 'fuzz_%s ' "${targets[@]}")
 fi
 
-# A fuzzed array length may ask for gigabytes: such an allocation fails (std::bad_alloc, handled like a message
+# A fuzzed array length may ask for gigabytes: an allocation over 128 MB fails (std::bad_alloc, handled like a message
 # roscpp cannot read) instead of counting as an out-of-memory crash.
-export ASAN_OPTIONS="max_allocation_size_mb=1024:allocator_may_return_null=1:detect_odr_violation=0:${ASAN_OPTIONS:-}"
+export ASAN_OPTIONS="max_allocation_size_mb=128:allocator_may_return_null=1:detect_odr_violation=0:${ASAN_OPTIONS:-}"
 export LSAN_OPTIONS="suppressions=$PKG/lsan.supp:${LSAN_OPTIONS:-}"
 export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1:${UBSAN_OPTIONS:-}"
 export ROS_HOSTNAME=localhost
