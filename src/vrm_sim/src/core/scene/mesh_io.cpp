@@ -46,6 +46,23 @@ void joinIdenticalVertices(TriangleMesh& mesh) {
 // 136-byte file kept it busy for over a minute; found by fuzz_mesh_import, issue 14 §1). A PLY file must start with
 // a text header that declares its elements and ends in "end_header"; one that does not is refused here, before
 // assimp sees it.
+bool plyType(const std::string& type) {
+  for (const char* known : {"char", "uchar", "short", "ushort", "int", "uint", "float", "double", "int8", "uint8",
+                            "int16", "uint16", "int32", "uint32", "float32", "float64"}) {
+    if (type == known) return true;
+  }
+  return false;
+}
+
+// "property TYPE NAME" or "property list COUNT_TYPE ITEM_TYPE NAME".
+bool plyPropertyKnown(const std::string& line) {
+  std::istringstream words(line);
+  std::string keyword, type, second, third, rest;
+  words >> keyword >> type >> second >> third >> rest;
+  if (type == "list") return plyType(second) && plyType(third) && !rest.empty() && !(words >> rest);
+  return plyType(type) && !second.empty() && third.empty();
+}
+
 std::string plyHeaderProblem(const std::string& path) {
   std::FILE* file = std::fopen(path.c_str(), "rb");
   if (!file) return "";  // assimp reports unreadable files
@@ -77,6 +94,10 @@ std::string plyHeaderProblem(const std::string& path) {
       known = known || text.compare(0, std::strlen(keyword), keyword) == 0;
     }
     if (!known && !text.empty() && text != "\r") return "PLY header line '" + text.substr(0, 40) + "' is not PLY";
+    // A property of an unknown type ("property fii 1.0") reaches an ai_assert in assimp's triangulation.
+    if (text.compare(0, 9, "property ") == 0 && !plyPropertyKnown(text)) {
+      return "PLY header line '" + text.substr(0, 40) + "' declares a property of an unknown type";
+    }
     line = next;
   }
   // An ASCII PLY has no control bytes in its body either (assimp's triangulation asserts on some).
