@@ -14,6 +14,18 @@
 #include <memory>
 #include <sstream>
 
+// assimp 5.2 as Debian builds it keeps its ai_assert checks, and a failed one calls Assimp::aiAssertViolation, which
+// aborts: one malformed mesh file would end the nodelet manager (fuzz_mesh_import found several PLY files that reach
+// TriangulateProcess's assert). The function is exported and called through the PLT, so this definition takes its
+// place in every process that links vrm_scene, and a failed assert becomes an exception that assimp's ReadFile turns
+// into an import error (or that reaches importMesh), like any other broken file.
+namespace Assimp {
+[[noreturn]] void aiAssertViolation(const char* failed, const char* file, int line) {
+  throw std::runtime_error(std::string("assimp internal check failed: ") + failed + " (" + file + ":" +
+                           std::to_string(line) + ")");
+}
+}  // namespace Assimp
+
 namespace vrm_sim {
 namespace scene {
 namespace {
@@ -131,8 +143,13 @@ TriangleMesh importMesh(const std::string& path, const MeshImportOptions& option
 
   Assimp::Importer importer;
   // ValidateDataStructure turns out-of-range indices into an import error instead of a crash later on.
-  const aiScene* scene =
-      importer.ReadFile(path, aiProcess_Triangulate | aiProcess_PreTransformVertices | aiProcess_ValidateDataStructure);
+  const aiScene* scene = nullptr;
+  try {
+    scene = importer.ReadFile(path,
+                              aiProcess_Triangulate | aiProcess_PreTransformVertices | aiProcess_ValidateDataStructure);
+  } catch (const std::exception& failure) {
+    throw MeshIoError(path, std::string("cannot import: ") + failure.what());
+  }
   if (scene == nullptr) throw MeshIoError(path, std::string("cannot import: ") + importer.GetErrorString());
 
   TriangleMesh mesh;
