@@ -92,8 +92,11 @@ std::string plyHeaderProblem(const std::string& path) {
     }
     return "";
   }
-  const std::size_t end = head.find("end_header");
-  if (end == std::string::npos) return "PLY header without end_header in its first 64 KiB";
+  std::size_t end = head.find("\nend_header\n");
+  if (end == std::string::npos) end = head.find("\nend_header\r\n");
+  if (end == std::string::npos) return "PLY header without an end_header line in its first 64 KiB";
+  ++end;  // at "end_header"
+  if (head.find("\nelement vertex ") > end) return "PLY header declares no vertex element";
   // Nor does it return on a header that declares no element, or has a line it does not know (a misspelt
   // "property"): the second and third fuzz_mesh_import timeouts. Every header line must be one of the PLY keywords.
   if (head.find("\nelement ") > end) return "PLY header declares no element";
@@ -117,8 +120,9 @@ std::string plyHeaderProblem(const std::string& path) {
   const std::size_t checked = ascii ? head.size() : end;
   for (std::size_t i = 0; i < checked; ++i) {
     const unsigned char c = static_cast<unsigned char>(head[i]);
-    if (c < 0x20 && c != '\n' && c != '\r' && c != '\t') {
-      return std::string(i < end ? "PLY header" : "ASCII PLY") + " with a control byte at offset " + std::to_string(i);
+    if ((c < 0x20 && c != '\n' && c != '\r' && c != '\t') || (ascii && c > 0x7e)) {
+      return std::string(i < end ? "PLY header" : "ASCII PLY") + " with a control or non-ASCII byte at offset " +
+             std::to_string(i);
     }
   }
   return "";
