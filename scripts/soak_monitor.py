@@ -109,6 +109,9 @@ class Graph:
         self.manager = manager
         self.pids = {}  # name -> (pid, starttime)
         self.crashes = []  # {"t", "node", "old_pid", "new_pid"}
+        # Scans each (pid, start) was seen in: a process seen once is a shell's command substitution (it carries the
+        # script's command line, __name:= included, e.g. session_recorder's $(rosparam get ...)), not a node.
+        self.seen = {}
         self.supervisors = set()  # pids of processes whose child has their name (supervised_manager, rosbag)
 
     def processes(self):
@@ -140,11 +143,13 @@ class Graph:
             if sample and sample[2] == start:
                 continue  # alive, though no longer under roslaunch's tree this instant
             now = found.get(name)
-            self.crashes.append({"t": round(t, 1), "node": name, "old_pid": pid,
-                                 "new_pid": now[0] if now and now[0] != pid else None})
+            if self.seen.get((pid, start), 0) >= 2:
+                self.crashes.append({"t": round(t, 1), "node": name, "old_pid": pid,
+                                     "new_pid": now[0] if now and now[0] != pid else None})
             del self.pids[name]
         for name, (pid, start, _) in found.items():
             self.pids[name] = (pid, start)
+            self.seen[(pid, start)] = self.seen.get((pid, start), 0) + 1
         return {name: sample for name, (_, _, sample) in found.items()}
 
 
