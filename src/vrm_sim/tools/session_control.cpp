@@ -155,7 +155,8 @@ class SessionControl {
     ros::param::get(recorder_ + "/part", next_part_);
     if (!started_) return;
     const std::string recorder_uri = lookupNode(recorder_);
-    const bool recording = !recorder_uri.empty() && answers(recorder_uri) && recorderListens();
+    const bool recording =
+        !recorder_uri.empty() && answers(recorder_uri) && topicsRecorderMisses(subscribersByTopic()).empty();
     if (!recording && !gap_open_) {
       gap_open_ = true;
       gaps_.push_back({newest_, ros::Time()});
@@ -171,16 +172,17 @@ class SessionControl {
     }
   }
 
-  bool recorderListens() const {
-    const auto subscribers = subscribersByTopic();
+  // The recorded topics the recorder does not subscribe to according to the master (" /a /b"; "" = it listens).
+  std::string topicsRecorderMisses(const std::map<std::string, std::vector<std::string>>& subscribers) const {
+    std::string missing;
     for (const std::string& topic : topics_) {
       const auto nodes = subscribers.find(topic);
       if (nodes == subscribers.end() ||
           std::find(nodes->second.begin(), nodes->second.end(), recorder_) == nodes->second.end()) {
-        return false;
+        missing += " " + topic;
       }
     }
-    return true;
+    return missing;
   }
 
   // A new simulation process (its manager crashed and was restarted) starts from a fresh world: the scenario starts
@@ -206,14 +208,7 @@ class SessionControl {
   void onTimer(const ros::WallTimerEvent&) {
     if (started_) return;
     const auto subscribers = subscribersByTopic();
-    std::string missing;
-    for (const std::string& topic : topics_) {
-      const auto nodes = subscribers.find(topic);
-      if (nodes == subscribers.end() ||
-          std::find(nodes->second.begin(), nodes->second.end(), recorder_) == nodes->second.end()) {
-        missing += " " + topic;
-      }
-    }
+    const std::string missing = topicsRecorderMisses(subscribers);
     // Every subscriber the master knows of /scenario_command (recorder, simulation) must be connected to us.
     const auto command_subscribers = subscribers.find(command_publisher_.getTopic());
     const std::size_t expected = command_subscribers == subscribers.end() ? 0 : command_subscribers->second.size();
