@@ -18,16 +18,11 @@
 #include <string>
 #include <vector>
 
+#include "master_queries.h"
+
 namespace {
 
-// The manager's XML-RPC URI according to the master ("" = not registered).
-std::string lookupNode(const std::string& node) {
-  XmlRpc::XmlRpcValue request, response, payload;
-  request[0] = ros::this_node::getName();
-  request[1] = node;
-  if (!ros::master::execute("lookupNode", request, response, payload, false)) return "";
-  return payload.getType() == XmlRpc::XmlRpcValue::TypeString ? static_cast<std::string>(payload) : "";
-}
+using vrm_sim::tools::lookupNode;
 
 class Keeper {
  public:

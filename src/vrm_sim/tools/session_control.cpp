@@ -35,6 +35,7 @@
 #include <string>
 #include <vector>
 
+#include "master_queries.h"
 #include "vrm_msgs/ScenarioCommand.h"
 #include "vrm_msgs/ScenarioStatus.h"
 #include "vrm_msgs/SessionInfo.h"
@@ -42,6 +43,8 @@
 #include "vrm_sim/bag/session_bag.h"
 
 namespace {
+
+using vrm_sim::tools::lookupNode;
 
 // Subscribers of each topic according to the master.
 std::map<std::string, std::vector<std::string>> subscribersByTopic() {
@@ -56,15 +59,6 @@ std::map<std::string, std::vector<std::string>> subscribersByTopic() {
       nodes.push_back(static_cast<std::string>(subscriptions[i][1][j]));
   }
   return result;
-}
-
-// A node's XML-RPC URI according to the master ("" = not registered).
-std::string lookupNode(const std::string& node) {
-  XmlRpc::XmlRpcValue request, response, payload;
-  request[0] = ros::this_node::getName();
-  request[1] = node;
-  if (!ros::master::execute("lookupNode", request, response, payload, false)) return "";
-  return payload.getType() == XmlRpc::XmlRpcValue::TypeString ? static_cast<std::string>(payload) : "";
 }
 
 // Whether the process behind `uri` still answers (the master keeps a killed node registered until it is replaced).
