@@ -18,6 +18,10 @@ namespace tissue {
 struct IntegratorOptions {
   int cg_max_iterations = 30;  // implicit_euler
   double cg_tolerance = 1e-8;  // relative residual |r| / |b|
+  // implicit_euler: "jacobi" (diagonal of A), "block_jacobi" (3x3 node blocks of A) or "none".
+  std::string cg_preconditioner = "jacobi";
+  // implicit_euler: start CG from the previous step's Δv (scaled to this dt) instead of 0.
+  bool cg_warm_start = false;
   int xpbd_iterations = 10;    // constraint sweeps per step
 };
 
@@ -29,6 +33,8 @@ class Integrator {
   virtual void step(const SystemView& system, const ForceModel& forces, double dt) = 0;
   // Work done in the last step, for benchmarks: CG or constraint iterations (1 for one-shot methods).
   virtual int lastIterations() const { return 1; }
+  // Relative residual |r| / |b| the last step's linear solve ended with (0 for methods without one).
+  virtual double lastResidual() const { return 0.0; }
 };
 
 const std::vector<std::string>& integratorNames();
