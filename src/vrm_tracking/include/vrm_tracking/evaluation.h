@@ -35,7 +35,8 @@ struct EvalResult {
   double tip_rms_um = 0.0;  // world-frame tip marker error (what triangulation determines)
   double tip_max_um = 0.0;
   double tip_eye_rms_um = 0.0;  // eye-frame tip error (adds the eye-rotation error)
-  double eye_err_deg = 0.0;     // RMS angular error of the eye rotation
+  double tip_eye_max_um = 0.0;
+  double eye_err_deg = 0.0;  // RMS angular error of the eye rotation
   double eye_err_max_deg = 0.0;
   double detect_rate = 0.0;      // visible (marker, camera) pairs with a centroid within 3 px
   double track_rate = 0.0;       // instrument-frames with a valid pose
@@ -59,5 +60,25 @@ double idealFloorUm(const CameraRig& rig, const std::vector<Eigen::Vector3d>& po
 // The benchmark's parametric surgeon: tips circling at `speed` (m/s) on 3 mm circles in the vitreous, the eye
 // rotating a few degrees. speed 0: the tips jump to a new static position every sample (no motion blur).
 std::function<SurgeonSnapshot(double)> circlingSurgeon(const MarkerLayout& layout, double speed);
+
+// The benchmark's hard case (issue 15): everything fast at once, with the tips at the back of the eye.
+//   * eye: tilted by ±eye_amplitude about x and about y in quadrature (a cone), so its angular speed is
+//     eye_amplitude · 2π · eye_frequency at every instant instead of passing through zero at the turning points;
+//   * tips: 1.5 mm either side of the optical axis at eye-frame z = tip_depth, 1.6–2 mm in front of the 12 mm retina
+//     at the posterior pole (the longest shafts, the tips farthest from the trocars; with the cameras below the eye
+//     the pole faces them), sweeping ±sweep_half_length along y in antiphase at a constant `sweep_speed` (m/s, a
+//     triangle wave). With the default leg the reversals fall half a 50 Hz frame from the sample instants: the
+//     renderer smears a marker along its velocity at the stamp, which a reversal inside the exposure is not.
+struct FastSurgeonConfig {
+  double eye_amplitude = 12.0 * 3.14159265358979323846 / 180.0;  // rad, per axis
+  double eye_frequency = 0.65;                                   // Hz
+  double sweep_speed = 0.050;                                    // m/s
+  double sweep_half_length = 0.0025;                             // m: a 100 ms leg, five 50 Hz frames
+  double tip_depth = -0.010;                                     // m, eye frame z of the tips
+};
+std::function<SurgeonSnapshot(double)> fastPosteriorSurgeon(const MarkerLayout& layout,
+                                                            const FastSurgeonConfig& config = FastSurgeonConfig());
+// Angular speed (rad/s) of a surgeon's eye rotation at t, by a central difference over ±dt.
+double eyeAngularSpeed(const std::function<SurgeonSnapshot(double)>& truth, double t, double dt = 1e-4);
 
 }  // namespace vrm_tracking

@@ -42,6 +42,39 @@ std::function<SurgeonSnapshot(double)> circlingSurgeon(const MarkerLayout& layou
   };
 }
 
+std::function<SurgeonSnapshot(double)> fastPosteriorSurgeon(const MarkerLayout& layout,
+                                                            const FastSurgeonConfig& config) {
+  return [layout, config](double t) {
+    SurgeonSnapshot s;
+    s.rotation_center = layout.rotation_center;
+    const double w = 2.0 * kPi * config.eye_frequency;
+    s.eye_rotation = Eigen::AngleAxisd(config.eye_amplitude * std::sin(w * t), Eigen::Vector3d::UnitX()) *
+                     Eigen::AngleAxisd(config.eye_amplitude * std::cos(w * t), Eigen::Vector3d::UnitY());
+    const double leg = 2.0 * config.sweep_half_length / std::max(1e-9, config.sweep_speed);  // s per one-way pass
+    for (std::size_t i = 0; i < layout.instruments.size(); ++i) {
+      const double sign = i % 2 == 0 ? -1.0 : 1.0;
+      // Triangle wave in [0, 1) per period 2·leg, shifted by 10 ms so the reversals fall between 50 Hz samples.
+      const double phase = (t - 0.010) / (2.0 * leg) + (i % 2 == 0 ? 0.0 : 0.5);
+      const double frac = phase - std::floor(phase);
+      const double tri = frac < 0.5 ? 4.0 * frac - 1.0 : 3.0 - 4.0 * frac;  // -1 .. 1, slope ±4 per period
+      InstrumentSample inst;
+      inst.slot = layout.instruments[i].slot;
+      inst.trocar = layout.instruments[i].trocar;
+      inst.tip = Eigen::Vector3d(sign * 0.0015, config.sweep_half_length * tri, config.tip_depth);
+      inst.shaft_axis = (inst.tip - inst.trocar).normalized();
+      inst.insertion_depth = (inst.tip - inst.trocar).norm();
+      inst.orientation = shaftOrientation(inst.trocar, inst.shaft_axis, 0.0);
+      s.instruments.push_back(inst);
+    }
+    return s;
+  };
+}
+
+double eyeAngularSpeed(const std::function<SurgeonSnapshot(double)>& truth, double t, double dt) {
+  const Eigen::Quaterniond a = truth(t - dt).eye_rotation.normalized(), b = truth(t + dt).eye_rotation.normalized();
+  return a.angularDistance(b) / (2.0 * dt);
+}
+
 EvalResult evaluate(const CameraRig& rig, const MarkerLayout& layout,
                     const std::function<SurgeonSnapshot(double)>& truth, const std::vector<double>& times,
                     const EvalOptions& options) {
@@ -129,6 +162,7 @@ EvalResult evaluate(const CameraRig& rig, const MarkerLayout& layout,
         tip2 += ew * ew;
         tip_eye2 += ee * ee;
         result.tip_max_um = std::max(result.tip_max_um, ew);
+        result.tip_eye_max_um = std::max(result.tip_eye_max_um, ee);
       }
     }
   }
