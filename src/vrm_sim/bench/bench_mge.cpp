@@ -4,8 +4,14 @@
 //               graph, §3.3 "Speicherfragmentierung"), visited through a vector of pointers in grid order.
 //   navigation: Laplacian-like sum over each node's neighbours. mge = ListAccess over the tissue's node list and
 //               over each node's neighbour lists (label and reference label), positions through the ArrayManager;
-//               csr = offsets + indices into a position vector; pointer_per_node = neighbour pointers.
-// Reports the median ns per node over several repetitions. Usage: bench_mge [--quick] [--out FILE]
+//               mge_neighbour_slots = the same neighbourhoods through NeighbourSlots (the MGE's derived slot array,
+//               rebuilt from ListAccess on topology change, issue 15); csr = offsets + indices into a position vector;
+//               pointer_per_node = neighbour pointers.
+//   neighbour_slots_build: one NeighbourSlots rebuild (what a topology change costs), ns per node.
+// Sweep: median ns per node over several timed samples. Navigation: kNavigationRepetitions repetitions in one run,
+// all implementations measured back to back inside each repetition (drifting load on a shared machine hits them
+// alike); each repetition is the median of a few samples; reported are the median over the repetitions, their
+// spread (min, max) and the per-repetition ratio mge/csr. Usage: bench_mge [--quick] [--out FILE]
 
 #include <Eigen/Core>
 #include <algorithm>
@@ -15,6 +21,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
+#include <functional>
 #include <memory>
 #include <numeric>
 #include <random>
@@ -26,12 +33,14 @@
 #include "vrm_sim/mge/graph.h"
 #include "vrm_sim/mge/labels.h"
 #include "vrm_sim/mge/list_access.h"
+#include "vrm_sim/mge/neighbour_slots.h"
 
 namespace {
 
 using Eigen::Vector3d;
 using vrm_sim::mge::Graph;
 using vrm_sim::mge::ListAccess;
+using vrm_sim::mge::NeighbourSlots;
 using vrm_sim::mge::Node;
 using vrm_sim::mge::NodeArrays;
 using vrm_sim::mge::Tissue;
@@ -41,6 +50,23 @@ constexpr vrm_sim::mge::Label kMeshNeighbour = vrm_sim::mge::labels::kFirstUserL
 // Results flow into this sink so the compiler cannot drop the measured work.
 volatile double g_sink = 0.0;
 
+struct Spread {
+  double median = NAN;
+  double min = NAN;
+  double max = NAN;
+};
+
+Spread spreadOf(std::vector<double> values) {
+  Spread spread;
+  if (values.empty()) return spread;
+  std::sort(values.begin(), values.end());
+  spread.min = values.front();
+  spread.max = values.back();
+  const std::size_t n = values.size();
+  spread.median = n % 2 ? values[n / 2] : 0.5 * (values[n / 2 - 1] + values[n / 2]);
+  return spread;
+}
+
 struct Row {
   std::string kind;
   std::size_t elements;
@@ -49,7 +75,12 @@ struct Row {
   std::size_t edges;
   int repetitions;
   int passes;
+  Spread spread;        // navigation: over the repetitions (ns per node)
+  Spread ratio_to_csr;  // navigation: per-repetition ns / csr ns
 };
+
+constexpr int kNavigationRepetitions = 5;
+constexpr int kSamplesPerRepetition = 3;
 
 // w×w grid, edges right, up and diagonal (the triangulation of the membrane tests): interior degree 6.
 struct GridGraph {
@@ -68,6 +99,14 @@ struct GridGraph {
   }
   Vector3d position(std::uint32_t v) const { return Vector3d(v % width, v / width, 0.01 * (v % 7)); }
 };
+
+template <typename Kernel>
+double sampleNsPerElement(Kernel& kernel, std::size_t elements, int passes) {
+  const auto start = std::chrono::steady_clock::now();
+  for (int p = 0; p < passes; ++p) kernel();
+  const auto stop = std::chrono::steady_clock::now();
+  return std::chrono::duration<double, std::nano>(stop - start).count() / (static_cast<double>(elements) * passes);
+}
 
 template <typename Kernel>
 double medianNsPerElement(Kernel kernel, std::size_t elements, int repetitions, int passes) {
@@ -211,6 +250,21 @@ __attribute__((noinline)) double navigateMge(MgeGraph& mge) {
   return laplacian[0].x() + laplacian[mge.laplacian.size() / 2].y();
 }
 
+__attribute__((noinline)) double navigateNeighbourSlots(MgeGraph& mge, NeighbourSlots<Node>& view) {
+  view.refresh(mge.graph, mge.arrays);  // a version check per sweep; rebuilds only after a topology change
+  const Vector3d* positions = mge.arrays.data<vrm_sim::mge::kNodePosition>();
+  Vector3d* laplacian = mge.laplacian.data();
+  const std::size_t n = view.size();
+  for (std::size_t k = 0; k < n; ++k) {
+    const std::uint32_t slot = view.slot(k);
+    const Vector3d& center = positions[slot];
+    Vector3d sum = Vector3d::Zero();
+    for (std::uint32_t neighbour : view.neighbours(k)) sum += positions[neighbour] - center;
+    laplacian[slot] = sum;
+  }
+  return laplacian[0].x() + laplacian[mge.laplacian.size() / 2].y();
+}
+
 __attribute__((noinline)) double navigateCsr(CsrGraph& csr) {
   const std::size_t n = csr.positions.size();
   const Vector3d* positions = csr.positions.data();
@@ -252,42 +306,84 @@ void runSize(std::size_t target, bool quick, std::vector<Row>& rows) {
   // Enough passes that one sample is ≥ ~4·10^6 node visits (well above the clock resolution).
   const int passes = static_cast<int>(std::max<std::size_t>(1, (quick ? 1000000 : 4000000) / n));
   auto add = [&](const char* kind, const char* impl, double ns) {
-    rows.push_back(Row{kind, n, impl, ns, edges, repetitions, passes});
+    rows.push_back(Row{kind, n, impl, ns, edges, repetitions, passes, Spread{}, Spread{}});
   };
 
-  {
-    auto mge = buildMge(grid);
-    add("sweep", "mge",
-        medianNsPerElement(
-            [&] { g_sink = g_sink + sweepArray(mge->arrays.data<vrm_sim::mge::kNodePosition>(), mge->arrays.size()); },
-            n, repetitions, passes));
-    add("navigation", "mge", medianNsPerElement([&] { g_sink = g_sink + navigateMge(*mge); }, n, repetitions, passes));
+  auto mge = buildMge(grid);
+  std::vector<Vector3d> positions;
+  for (std::uint32_t v = 0; v < n; ++v) positions.push_back(grid.position(v));
+  CsrGraph csr = buildCsr(grid);
+  PointerGraph pointers = buildPointerGraph(grid, 12345u + static_cast<std::uint32_t>(n));
+
+  add("sweep", "mge",
+      medianNsPerElement(
+          [&] { g_sink = g_sink + sweepArray(mge->arrays.data<vrm_sim::mge::kNodePosition>(), mge->arrays.size()); }, n,
+          repetitions, passes));
+  add("sweep", "std_vector",
+      medianNsPerElement([&] { g_sink = g_sink + sweepArray(positions.data(), positions.size()); }, n, repetitions,
+                         passes));
+  add("sweep", "pointer_per_node",
+      medianNsPerElement([&] { g_sink = g_sink + sweepPointers(pointers.nodes); }, n, repetitions, passes));
+
+  struct Navigation {
+    const char* impl;
+    std::function<void()> kernel;
+    std::vector<double> samples;  // one per repetition
+  };
+  std::vector<Navigation> navigations;
+  navigations.push_back({"mge", [&] { g_sink = g_sink + navigateMge(*mge); }, {}});
+  NeighbourSlots<Node> view(*mge->tissue, vrm_sim::mge::labels::kNodeList, {kMeshNeighbour, -kMeshNeighbour});
+  navigations.push_back({"mge_neighbour_slots", [&] { g_sink = g_sink + navigateNeighbourSlots(*mge, view); }, {}});
+  navigations.push_back({"csr", [&] { g_sink = g_sink + navigateCsr(csr); }, {}});
+  navigations.push_back({"pointer_per_node", [&] { g_sink = g_sink + navigatePointers(pointers); }, {}});
+  for (Navigation& navigation : navigations) navigation.kernel();  // warm-up
+  for (int r = 0; r < kNavigationRepetitions; ++r) {
+    for (Navigation& navigation : navigations) {
+      std::vector<double> samples;
+      for (int s = 0; s < kSamplesPerRepetition; ++s)
+        samples.push_back(sampleNsPerElement(navigation.kernel, n, passes));
+      navigation.samples.push_back(spreadOf(samples).median);
+    }
   }
-  {
-    std::vector<Vector3d> positions;
-    for (std::uint32_t v = 0; v < n; ++v) positions.push_back(grid.position(v));
-    add("sweep", "std_vector",
-        medianNsPerElement([&] { g_sink = g_sink + sweepArray(positions.data(), positions.size()); }, n, repetitions,
-                           passes));
-  }
-  {
-    CsrGraph csr = buildCsr(grid);
-    add("navigation", "csr", medianNsPerElement([&] { g_sink = g_sink + navigateCsr(csr); }, n, repetitions, passes));
-  }
-  {
-    PointerGraph pointers = buildPointerGraph(grid, 12345u + static_cast<std::uint32_t>(n));
-    add("sweep", "pointer_per_node",
-        medianNsPerElement([&] { g_sink = g_sink + sweepPointers(pointers.nodes); }, n, repetitions, passes));
-    add("navigation", "pointer_per_node",
-        medianNsPerElement([&] { g_sink = g_sink + navigatePointers(pointers); }, n, repetitions, passes));
+  const std::vector<double>& csr_samples = navigations[2].samples;
+  // A rebuild, as after a cut: a fresh view builds on its first refresh.
+  add("neighbour_slots_build", "mge",
+      medianNsPerElement(
+          [&] {
+            NeighbourSlots<Node> fresh(*mge->tissue, vrm_sim::mge::labels::kNodeList,
+                                       {kMeshNeighbour, -kMeshNeighbour});
+            fresh.refresh(mge->graph, mge->arrays);
+            g_sink = g_sink + fresh.neighbours(fresh.size() / 2).size();
+          },
+          n, repetitions, std::max(1, passes / 10)));
+  for (const Navigation& navigation : navigations) {
+    Row row{"navigation", n, navigation.impl, 0.0, edges, kNavigationRepetitions, passes, spreadOf(navigation.samples),
+            Spread{}};
+    row.ns_per_element = row.spread.median;
+    std::vector<double> ratios;
+    for (int r = 0; r < kNavigationRepetitions; ++r) ratios.push_back(navigation.samples[r] / csr_samples[r]);
+    row.ratio_to_csr = spreadOf(ratios);
+    rows.push_back(row);
   }
 }
 
-double find(const std::vector<Row>& rows, const std::string& kind, std::size_t elements, const std::string& impl) {
+const Row* findRow(const std::vector<Row>& rows, const std::string& kind, std::size_t elements,
+                   const std::string& impl) {
   for (const Row& row : rows) {
-    if (row.kind == kind && row.elements == elements && row.impl == impl) return row.ns_per_element;
+    if (row.kind == kind && row.elements == elements && row.impl == impl) return &row;
   }
-  return NAN;
+  return nullptr;
+}
+
+double find(const std::vector<Row>& rows, const std::string& kind, std::size_t elements, const std::string& impl) {
+  const Row* row = findRow(rows, kind, elements, impl);
+  return row == nullptr ? NAN : row->ns_per_element;
+}
+
+void jsonSpread(std::ostream& out, const char* name, const Spread& spread) {
+  if (std::isnan(spread.median)) return;
+  out << ",\"" << name << "\":{\"median\":" << spread.median << ",\"min\":" << spread.min << ",\"max\":" << spread.max
+      << "}";
 }
 
 }  // namespace
@@ -320,6 +416,21 @@ int main(int argc, char** argv) {
                   ptr, mge / vec, ptr / mge, mge / csr);
     }
   }
+  std::printf("\nnavigation, %d repetitions in this run (each the median of %d samples): median [min, max]\n",
+              kNavigationRepetitions, kSamplesPerRepetition);
+  std::printf("%9s %-20s %27s %27s\n", "elements", "impl", "ns per node", "ratio to csr (per repetition)");
+  for (const Row& row : rows) {
+    if (row.kind != "navigation") continue;
+    std::printf("%9zu %-20s %9.3f [%7.3f, %7.3f] %9.3f [%7.3f, %7.3f]\n", row.elements, row.impl.c_str(),
+                row.spread.median, row.spread.min, row.spread.max, row.ratio_to_csr.median, row.ratio_to_csr.min,
+                row.ratio_to_csr.max);
+  }
+  for (const Row& row : rows) {
+    if (row.kind != "neighbour_slots_build") continue;
+    std::printf("NeighbourSlots rebuild at %zu elements: %.3f ns per node (%.1f navigation sweeps of the view)\n",
+                row.elements, row.ns_per_element,
+                row.ns_per_element / find(rows, "navigation", row.elements, "mge_neighbour_slots"));
+  }
   std::printf("(checksum %g)\n", static_cast<double>(g_sink));
 
   if (!out_path.empty()) {
@@ -334,7 +445,10 @@ int main(int argc, char** argv) {
       const Row& row = rows[i];
       out << (i ? "," : "") << "\n  {\"suite\":\"mge\",\"case\":\"" << row.kind << "\",\"elements\":" << row.elements
           << ",\"impl\":\"" << row.impl << "\",\"ns_per_element\":" << row.ns_per_element << ",\"edges\":" << row.edges
-          << ",\"repetitions\":" << row.repetitions << ",\"passes\":" << row.passes << "}";
+          << ",\"repetitions\":" << row.repetitions << ",\"passes\":" << row.passes;
+      jsonSpread(out, "ns_spread", row.spread);
+      jsonSpread(out, "ratio_to_csr", row.ratio_to_csr);
+      out << "}";
     }
     out << "\n]}\n";
   }

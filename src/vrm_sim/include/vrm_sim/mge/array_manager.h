@@ -92,6 +92,9 @@ class ArrayManager {
   Element* ownerAt(std::size_t slot) const { return owners_[slot]; }
 
   void setRelocationListener(RelocationListener listener) { on_relocated_ = std::move(listener); }
+  // Changes whenever a slot is taken or freed (a removal moves the last entry): views that cache slot indices
+  // (NeighbourSlots) compare it to know when to rebuild.
+  std::uint64_t slotVersion() const { return slot_version_; }
 
   // kDual: instance copies → arrays. No-op in kArray mode (the array is the only copy).
   void sync() {
@@ -135,6 +138,7 @@ class ArrayManager {
       locals_.resize(std::min(locals_.size(), slot));
       throw;
     }
+    ++slot_version_;
     return static_cast<std::uint32_t>(slot);
   }
 
@@ -158,6 +162,7 @@ class ArrayManager {
     connectors_.pop_back();
     owners_.pop_back();
     if (!locals_.empty()) locals_.pop_back();
+    ++slot_version_;
     if (slot != last && on_relocated_) on_relocated_(slot);
   }
 
@@ -176,6 +181,7 @@ class ArrayManager {
   std::vector<Element*> owners_;        // slot → owning element (kept here, not in the connector: smaller elements)
   std::vector<std::unique_ptr<Values>> locals_;  // slot → instance copy (kDual mode only; stable addresses)
   RelocationListener on_relocated_;
+  std::uint64_t slot_version_ = 0;
 };
 
 // Member of an attributed element; its link to one ArrayManager (thesis Fig. 3.4/3.5). Not copyable or movable:

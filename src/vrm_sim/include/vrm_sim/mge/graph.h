@@ -141,6 +141,9 @@ class Graph {
   const std::vector<Element*>& elements() const { return elements_; }
   // Number of edges, each edge counted once together with its reference edge.
   std::size_t edgeCount() const;
+  // Changes whenever an edge is inserted or removed (also by destroy() and clear()): views derived from the
+  // adjacency (NeighbourSlots) compare it to know when to rebuild.
+  std::uint64_t edgeVersion() const { return edge_version_; }
 
   // Checks: registry consistent; label ranges disjoint and inside each adjacency vector; no label 0; no dangling
   // neighbour pointers; every edge has its reference edge with the same multiplicity. O(E log E).
@@ -162,6 +165,7 @@ class Graph {
   std::unordered_map<std::type_index, std::unique_ptr<PoolBase>> pools_;
   std::vector<Element*> elements_;
   std::uint64_t next_id_ = 1;
+  std::uint64_t edge_version_ = 0;
   // Exact-size adjacency blocks of all elements, packed by shrinkToFit() in element order (see element.h). Elements
   // are destroyed (clear() in ~Graph) before it goes.
   std::unique_ptr<std::uint64_t[]> arena_;

@@ -94,8 +94,8 @@ void Element::growRange(std::uint32_t range_index) {
   if (current.capacity >= 0x7fffffffu) throw std::length_error("MGE adjacency list too long");
   const std::uint32_t new_capacity = std::max<std::uint32_t>(2, current.capacity * 2);
   const bool last = current.begin + current.capacity == block_->size;
-  const std::uint64_t needed = last ? std::uint64_t{current.begin} + new_capacity
-                                    : std::uint64_t{block_->size} + new_capacity;
+  const std::uint64_t needed =
+      last ? std::uint64_t{current.begin} + new_capacity : std::uint64_t{block_->size} + new_capacity;
   if (needed > 0xffffffffu) throw std::length_error("MGE adjacency too large");
   if (needed > block_->capacity || block_in_arena_) {
     // Geometric growth of the whole block (arena blocks are exact-size: they always move back to the heap).
@@ -207,6 +207,7 @@ std::string InvariantReport::summary() const {
 Graph::~Graph() { clear(); }
 
 void Graph::clear() {
+  ++edge_version_;
   for (Element* element : elements_) poolOf(*element).destroy(element);
   elements_.clear();
   arena_.reset();  // only the elements just destroyed had blocks in it
@@ -236,6 +237,7 @@ void Graph::requireMember(const Element& element) const {
 
 void Graph::destroy(Element& element) {
   requireMember(element);
+  ++edge_version_;
   // Remove the reference edges in the neighbours; the element's own lists die with it.
   for (std::uint32_t r = 0; r < element.rangeCount(); ++r) {
     const Element::LabelRange& range = element.range(r);
@@ -277,6 +279,7 @@ void Graph::insertEdgeAt(Element& from, std::size_t position, Element& to, Label
     to.removeNeighbour(to_range, &from);
     throw;
   }
+  ++edge_version_;
 }
 
 bool Graph::removeEdge(Element& from, Element& to, Label label) {
@@ -288,6 +291,7 @@ bool Graph::removeEdge(Element& from, Element& to, Label label) {
   const bool removed = to.removeNeighbour(to.findRange(referenceLabel(label)), &from);
   assert(removed && "missing MGE reference edge");
   (void)removed;
+  ++edge_version_;
   return true;
 }
 
