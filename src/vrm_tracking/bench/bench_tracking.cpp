@@ -52,6 +52,7 @@ struct Row {
   int occluded_camera = -1;
   double eye_speed_min = 0.0, eye_speed_max = 0.0;  // rad/s over the sampled frames
   double ratio_to_three_cameras = 0.0;              // occluded fast rows: tip RMS / the three-camera row's
+  double camera_skew_ms = 0.0;                      // camera_1 exposes this late (sensitivity rows)
 };
 
 std::string num(double v) {
@@ -85,7 +86,8 @@ std::string toJson(const Row& row) {
       o << ", \"eye_speed_min_rad_s\": " << num(row.eye_speed_min)
         << ", \"eye_speed_max_rad_s\": " << num(row.eye_speed_max)
         << ", \"tip_eye_max_um\": " << num(row.r.tip_eye_max_um) << ", \"ratio_to_three_cameras\": "
-        << (row.ratio_to_three_cameras > 0 ? num(row.ratio_to_three_cameras) : "null");
+        << (row.ratio_to_three_cameras > 0 ? num(row.ratio_to_three_cameras) : "null")
+        << ", \"camera_skew_ms\": " << num(row.camera_skew_ms);
     }
   }
   o << "}";
@@ -317,6 +319,26 @@ int main(int argc, char** argv) {
       row.r = evaluate(rig, layout, truth, times, opt);
       if (occluded < 0) three_cam_rms = row.r.tip_rms_um;
       if (occluded >= 0 && three_cam_rms > 0) row.ratio_to_three_cameras = row.r.tip_rms_um / three_cam_rms;
+      rows.push_back(row);
+    }
+    // Sensitivity, not a target: the rig twin exposes all cameras at one stamp, as EyeSi's synchronised cameras do.
+    // One camera exposing late shows how much of the budget a trigger skew would take at this speed.
+    for (double skew : {0.25e-3, 1e-3}) {
+      Row row;
+      row.source = "rendered";
+      row.label = name + ", camera_1 exposed " + num(1e3 * skew) + " ms late";
+      if (!wanted(row.label)) continue;
+      row.motion = "fast_posterior";
+      row.speed_mm_s = 1e3 * fast.sweep_speed;
+      row.eye_speed_min = speed_min;
+      row.eye_speed_max = speed_max;
+      row.camera_skew_ms = 1e3 * skew;
+      EvalOptions opt;
+      opt.rendered = true;
+      opt.camera_time_offset = {0.0, skew, 0.0};
+      opt.seed = 23;
+      opt.clock = now;
+      row.r = evaluate(rig, layout, truth, times, opt);
       rows.push_back(row);
     }
   }

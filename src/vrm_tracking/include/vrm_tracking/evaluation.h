@@ -26,7 +26,10 @@ struct EvalOptions {
   RoiTrackerConfig roi;      // rendered mode
   TrackerConfig tracker;
   std::uint32_t seed = 1;
-  bool motion = true;             // pass marker velocities to the renderer (motion blur)
+  bool motion = true;  // pass marker velocities to the renderer (motion blur)
+  // Rendered mode: camera c exposes at t + camera_time_offset[c] (s) while the tracker takes the frame as one instant
+  // t (an unsynchronised rig); missing entries are 0. The accuracy is still judged against the truth at t.
+  std::vector<double> camera_time_offset;
   std::function<double()> clock;  // seconds, monotonic; empty: no timing
 };
 

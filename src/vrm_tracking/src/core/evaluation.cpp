@@ -119,8 +119,17 @@ EvalResult evaluate(const CameraRig& rig, const MarkerLayout& layout,
         }
       } else {
         std::vector<ProjectedMarker> projected;
+        const double offset = c < options.camera_time_offset.size() ? options.camera_time_offset[c] : 0.0;
+        WorldScene late;
+        if (offset != 0.0) {
+          late = worldSceneFromSnapshot(truth(t + offset), layout);
+          if (options.motion) {
+            setVelocities(worldSceneFromSnapshot(truth(t + offset - 1e-3), layout),
+                          worldSceneFromSnapshot(truth(t + offset + 1e-3), layout), 2e-3, &late);
+          }
+        }
         const double r0 = options.clock ? options.clock() : 0.0;
-        renderer.render(c, scene, f, &image, &projected);
+        renderer.render(c, offset != 0.0 ? late : scene, f, &image, &projected);
         if (options.clock) t_render += options.clock() - r0;
         DetectionStats stats;
         const double t0 = options.clock ? options.clock() : 0.0;
