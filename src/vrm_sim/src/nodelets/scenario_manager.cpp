@@ -61,6 +61,7 @@
 #include "vrm_sim/conversions.h"
 #include "vrm_sim/mge/membrane.h"
 #include "vrm_sim/scene/scene_loader.h"
+#include "vrm_sim/tissue/tissue_simulator.h"
 #include "vrm_sim/world/offline.h"
 #include "vrm_sim/world/session.h"
 
@@ -215,6 +216,7 @@ class ScenarioManager : public nodelet::Nodelet {
       mesh->tissue_id = tissue.object;
       mesh->version = tissue.version;
       mesh->topology_version = tissue.topology_version;
+      mesh->integrator = tissue.integrator;
       vrm_msgs::publishShared(mesh_publishers_[tissue.object], mesh);
       ++meshes_published_;
     }
@@ -470,6 +472,12 @@ class ScenarioManager : public nodelet::Nodelet {
     add("rejected_total", std::to_string(statistics.rejected_inputs));
     add("late_total", std::to_string(statistics.late_inputs));
     add("frames_total", std::to_string(statistics.frames));
+    // The integrator each membrane runs (with "auto", the one chosen for its stiffness, masses and dt).
+    for (const std::string& name : session_->world().tissueNames()) {
+      if (const auto* simulator = session_->world().tissueSimulator(name)) {
+        add("integrator_" + name, simulator->integratorLabel());
+      }
+    }
     array->status.push_back(status);
     vrm_msgs::publishShared(diagnostics_publisher_, array);
   }

@@ -74,7 +74,7 @@ TEST(SceneLoader, MembranePeelingScene) {
   const ObjectDescription* membrane = scene.findObject("membrane");
   ASSERT_NE(membrane, nullptr);
   EXPECT_EQ(membrane->tissue.model, TissueModel::kMassSpring);
-  EXPECT_EQ(membrane->tissue.integrator, "quasi_static_euler");
+  EXPECT_EQ(membrane->tissue.integrator, "auto");
   EXPECT_DOUBLE_EQ(membrane->tissue.stiffness, 2.0);
   EXPECT_DOUBLE_EQ(membrane->tissue.strain_limit, 1.1);
   EXPECT_DOUBLE_EQ(membrane->tissue.adhesion_stiffness, 5.0);

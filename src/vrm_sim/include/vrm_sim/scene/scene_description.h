@@ -34,7 +34,7 @@
 //       material: {diffuse: [r, g, b, a], specular: [r, g, b], shininess: 16}
 //       tissue:                              # absent or model: none = rigid
 //         model: mass_spring                 # required: none | mass_spring | chainmail
-//         integrator: quasi_static_euler     # knownIntegrators()
+//         integrator: auto                   # knownIntegrators(); auto = chosen per membrane (default)
 //         stiffness: 2.0                     # and the other TissueParameters fields by name
 //         tear_strain: 1.5                   # > 1: springs longer than 1.5 x rest length tear; 0 = off
 //         adhesion_break_force: 1.0e-3       # N: an adhesion spring pulled harder lets go (peels off); 0 = never
@@ -153,7 +153,7 @@ struct RefinementParameters {
 // membrane patch. Only meaningful when model != kNone.
 struct TissueParameters {
   TissueModel model = TissueModel::kNone;
-  std::string integrator = "quasi_static_euler";
+  std::string integrator = "auto";
   double stiffness = 2.0;             // N/m, per spring (k in eq. 5.2)
   double damping = 0.01;              // N s/m
   double node_mass = 1e-5;            // kg per node

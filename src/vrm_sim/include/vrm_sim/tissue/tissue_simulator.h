@@ -18,6 +18,7 @@
 #include "vrm_sim/tissue/chainmail.h"
 #include "vrm_sim/tissue/contact.h"
 #include "vrm_sim/tissue/integrator.h"
+#include "vrm_sim/tissue/integrator_choice.h"
 #include "vrm_sim/tissue/refinement.h"
 #include "vrm_sim/tissue/strain_limit.h"
 #include "vrm_sim/tissue/system.h"
@@ -45,8 +46,11 @@ struct TissueConfig {
   // links drag neighbours within the `chainmail` limits; no integration).
   std::string model = "mass_spring";
   ChainMailConfig chainmail;
+  // A name of integratorNames(), or "auto" (integrator_choice.h): chosen per membrane from its stiffness, masses,
+  // damping and dt, and chosen again when a grasp or a topology change alters them.
   std::string integrator = "quasi_static_euler";
   IntegratorOptions integrator_options;
+  AutoIntegratorOptions auto_integrator;
   double dt = 1e-3;             // s per step (fixed)
   double time_budget_ms = 2.0;  // wall time per frame
   int max_steps_per_frame = 1000;
@@ -168,6 +172,12 @@ class TissueSimulator {
   const SimulatorStatistics& statistics() const { return statistics_; }
   const TissueConfig& config() const { return config_; }
   const Integrator& integrator() const { return *integrator_; }
+  // The integrator in use and why (for "auto" the latest choice; otherwise the configured one, 1 substep).
+  const IntegratorChoice& integratorChoice() const { return choice_; }
+  // Increases whenever "auto" changed its choice (integrator or substeps), so a caller can log each change once.
+  std::uint64_t integratorChoiceChanges() const { return choice_changes_; }
+  // "symplectic_euler", "symplectic_euler x2", "implicit_euler" — the integrator and its substeps per dt.
+  std::string integratorLabel() const;
   ForceModel& forceModel() { return forces_; }
   SystemView view() { return viewOf(*membrane_, constrained_.data()); }
   double maxStrain();
@@ -181,6 +191,8 @@ class TissueSimulator {
 
  private:
   void rebuildConstraints();
+  // "auto": chooses the integrator for the current masses, springs, anchors and free nodes.
+  void chooseIntegratorNow();
   void updateInstruments(double alpha);
   void updateGrasp(std::size_t index, const InstrumentInput& instrument, const Eigen::Isometry3d& pose,
                    const Eigen::Isometry3d& previous_pose, double dt);
@@ -213,6 +225,10 @@ class TissueSimulator {
   TissueConfig config_;
   std::unique_ptr<Integrator> integrator_;
   std::unique_ptr<Integrator> implicit_fallback_;
+  bool auto_integrator_ = false;
+  IntegratorChoice choice_;
+  std::uint64_t choice_changes_ = 0;
+  std::vector<double> choice_scratch_;
   ForceModel forces_;
   std::vector<std::uint8_t> constrained_;
   std::vector<std::uint8_t> grasped_;

@@ -46,6 +46,8 @@ struct OfflineResult {
   std::size_t max_grasped_nodes = 0;
   double energy_drift = 0.0;    // J: total energy (kinetic + potential) at the end minus at the start
   std::uint64_t fallbacks = 0;  // watchdog rollbacks
+  // Per deformable object "<object>: <integrator>" as in use at the end (with "auto" the one it chose).
+  std::vector<std::string> integrator_chosen;
   std::size_t retina_contacts = 0;
   double max_injury = 0.0;
   std::vector<OfflineTissueResult> tissues;

@@ -117,6 +117,7 @@ struct TissueReport {
   const mge::Membrane* membrane = nullptr;
   int steps = 0;            // this frame
   int fallbacks = 0;        // watchdog rollbacks this frame
+  std::string integrator;   // in use, with its substeps per dt ("symplectic_euler x2"; TissueSimulator::integratorLabel)
   double max_strain = 0.0;  // after this frame
   std::size_t grasped_nodes = 0;
   bool changed = false;                  // positions or topology changed this frame

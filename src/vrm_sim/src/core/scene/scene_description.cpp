@@ -82,8 +82,9 @@ const char* toString(Simulation simulation) {
 }
 
 const std::vector<std::string>& knownIntegrators() {
-  static const std::vector<std::string> names = {"explicit_euler", "quasi_static_euler", "rk2",
-                                                 "implicit_euler", "symplectic_euler",   "xpbd"};
+  // "auto" (tissue/integrator_choice.h) first: the default.
+  static const std::vector<std::string> names = {"auto",           "explicit_euler",   "quasi_static_euler", "rk2",
+                                                 "implicit_euler", "symplectic_euler", "xpbd"};
   return names;
 }
 

@@ -49,7 +49,11 @@ TissueSimulator::TissueSimulator(mge::Membrane& membrane, const TissueConfig& co
   if (!(config_.dt > 0.0) || !std::isfinite(config_.dt)) {
     throw std::invalid_argument("tissue: dt must be positive, got " + std::to_string(config_.dt));
   }
-  integrator_ = makeIntegrator(config_.integrator, config_.integrator_options);
+  auto_integrator_ = config_.integrator == kAutoIntegrator;
+  // "auto" starts with the explicit candidate; onTopologyChanged() below decides.
+  integrator_ = makeIntegrator(auto_integrator_ ? "symplectic_euler" : config_.integrator, config_.integrator_options);
+  choice_.integrator = integrator_->name();
+  choice_.reason = "configured";
   IntegratorOptions fallback_options = config_.integrator_options;
   fallback_options.cg_max_iterations = std::max(fallback_options.cg_max_iterations, 50);
   implicit_fallback_ = makeIntegrator("implicit_euler", fallback_options);
@@ -133,6 +137,22 @@ void TissueSimulator::rebuildConstraints() {
   for (std::size_t i = 0; i < n; ++i) {
     if (grasped_[i]) grasped_nodes_.push_back(static_cast<std::uint32_t>(i));
   }
+  if (auto_integrator_) chooseIntegratorNow();
+}
+
+void TissueSimulator::chooseIntegratorNow() {
+  IntegratorChoice choice = chooseIntegrator(view(), forces_, config_.dt, config_.auto_integrator, &choice_scratch_);
+  const bool changed =
+      choice.integrator != choice_.integrator || choice.substeps != choice_.substeps || choice_changes_ == 0;
+  if (choice.integrator != integrator_->name()) {
+    integrator_ = makeIntegrator(choice.integrator, config_.integrator_options);
+  }
+  choice_ = std::move(choice);
+  if (changed) ++choice_changes_;
+}
+
+std::string TissueSimulator::integratorLabel() const {
+  return choice_.substeps > 1 ? choice_.integrator + " x" + std::to_string(choice_.substeps) : choice_.integrator;
 }
 
 void TissueSimulator::setInstruments(const std::vector<InstrumentInput>& instruments) {
@@ -387,7 +407,7 @@ bool TissueSimulator::step() {
   }
   topologyBeforeStep();
   if (!config_.watchdog.enabled) {
-    rawStep(*integrator_, config_.dt);
+    for (int k = 0; k < choice_.substeps; ++k) rawStep(*integrator_, config_.dt / choice_.substeps);
     topologyAfterStep();
     ++statistics_.steps;
     return true;
@@ -412,7 +432,7 @@ bool TissueSimulator::step() {
       ++statistics_.fallbacks;
     }
     if (level <= config_.watchdog.max_halvings) {
-      const int substeps = 1 << level;
+      const int substeps = choice_.substeps << level;
       for (int k = 0; k < substeps; ++k) rawStep(*integrator_, config_.dt / substeps);
     } else {
       ++statistics_.implicit_fallbacks;

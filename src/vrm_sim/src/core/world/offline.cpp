@@ -11,6 +11,7 @@
 #include "vrm_sim/mge/membrane.h"
 #include "vrm_sim/scene/scene_loader.h"
 #include "vrm_sim/tissue/integrator.h"
+#include "vrm_sim/tissue/integrator_choice.h"
 #include "vrm_sim/tissue/offline_run.h"
 #include "vrm_sim/tissue/tissue_simulator.h"
 
@@ -72,7 +73,11 @@ std::string OfflineResult::json() const {
       << ", \"ms_per_frame_max\": " << number(ms_per_frame_max) << ", \"max_strain\": " << number(max_strain)
       << ", \"max_grasped_nodes\": " << max_grasped_nodes << ", \"energy_drift\": " << number(energy_drift)
       << ", \"fallbacks\": " << fallbacks << ", \"retina_contacts\": " << retina_contacts
-      << ", \"max_injury\": " << number(max_injury) << ", \"tissues\": [";
+      << ", \"max_injury\": " << number(max_injury) << ", \"integrator_chosen\": [";
+  for (std::size_t i = 0; i < integrator_chosen.size(); ++i) {
+    out << (i ? ", " : "") << jsonString(integrator_chosen[i]);
+  }
+  out << "], \"tissues\": [";
   for (std::size_t i = 0; i < tissues.size(); ++i) {
     const OfflineTissueResult& t = tissues[i];
     out << (i ? ", " : "") << "{\"object\": \"" << t.object << "\", \"outcome\": \"" << toString(t.outcome)
@@ -129,7 +134,8 @@ OfflineResult runOffline(const scene::SceneDescription& scene_in, const OfflineO
     throw std::invalid_argument("tissue_offline: --rate must be positive");
   }
   if (!options.integrator.empty()) {
-    const auto& known = tissue::integratorNames();
+    std::vector<std::string> known = tissue::integratorNames();
+    known.insert(known.begin(), tissue::kAutoIntegrator);
     if (std::find(known.begin(), known.end(), options.integrator) == known.end()) {
       std::string names;
       for (const auto& name : known) names += (names.empty() ? "" : ", ") + name;
@@ -191,6 +197,7 @@ OfflineResult runOffline(const scene::SceneDescription& scene_in, const OfflineO
     mge::Membrane& membrane = *world.membrane(name);
     const tissue::SimulatorStatistics& stats = simulator.statistics();
     result.fallbacks += stats.fallbacks;
+    result.integrator_chosen.push_back(name + ": " + simulator.integratorLabel());
     bool finite = true;
     for (std::size_t i = 0; i < membrane.nodeCount(); ++i) {
       finite = finite && membrane.positions()[i].allFinite() && membrane.velocities()[i].allFinite();

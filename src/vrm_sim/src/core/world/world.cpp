@@ -112,6 +112,7 @@ struct World::Tissue {
   double peak_lift = 0.0;
   bool peels = false;         // membrane / ILM
   bool reset_pending = true;  // rebuilt (start, RESET): the next frame publishes it even if nothing moves
+  std::uint64_t logged_integrator_choice = 0;  // TissueSimulator::integratorChoiceChanges() already logged
 };
 
 struct World::RigidObject {
@@ -753,10 +754,19 @@ void World::stepTissue(Tissue& tissue, double frame_time, FrameResult& result) {
             " steps (total " + std::to_string(tissue.simulator->statistics().fallbacks) + ")");
   }
   statistics_.tissue_steps += static_cast<std::uint64_t>(frame.steps);
+  if (tissue.simulator->integratorChoiceChanges() != tissue.logged_integrator_choice) {
+    tissue.logged_integrator_choice = tissue.simulator->integratorChoiceChanges();
+    if (tissue.object->tissue.integrator == tissue::kAutoIntegrator) {
+      log(Severity::kInfo, "",
+          "tissue '" + tissue.object->name + "': integrator " + tissue.simulator->integratorLabel() +
+              " (auto: " + tissue.simulator->integratorChoice().reason + ")");
+    }
+  }
 
   mge::Membrane& membrane = *tissue.membrane;
   const tissue::SimulatorStatistics& stats = tissue.simulator->statistics();
   TissueReport& report = tissue.report;
+  report.integrator = tissue.simulator->integratorLabel();
   const std::uint64_t topology_version = 1 + stats.topology_changes;
   const std::size_t n = membrane.nodeCount();
   const bool moved = tissue.last_positions.size() != n ||

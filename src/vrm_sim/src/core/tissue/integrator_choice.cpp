@@ -1,0 +1,98 @@
+#include "vrm_sim/tissue/integrator_choice.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <vector>
+
+namespace vrm_sim {
+namespace tissue {
+
+namespace {
+
+// Per free node: the stiffest spring or anchor at it (eq. 5.6's k0, per node) and its mass.
+template <typename Visit>
+void forEachFreeNode(const SystemView& system, const ForceModel& forces, std::vector<double>* scratch, Visit visit) {
+  const std::size_t n = system.node_count;
+  std::vector<double> local;
+  std::vector<double>& stiffest = scratch != nullptr ? *scratch : local;
+  stiffest.assign(n, 0.0);
+  for (std::size_t s = 0; s < system.spring_count; ++s) {
+    const double k = system.stiffnesses[s];
+    for (std::uint32_t end : system.springs[s]) stiffest[end] = std::max(stiffest[end], k);
+  }
+  for (const Anchor& anchor : forces.anchors) {
+    if (anchor.node < n) stiffest[anchor.node] = std::max(stiffest[anchor.node], anchor.stiffness);
+  }
+  for (std::size_t i = 0; i < n; ++i) {
+    if (system.isFree(i) && system.masses[i] > 0.0) visit(system.masses[i], stiffest[i]);
+  }
+}
+
+// ω of eq. 5.6 for one node: 2/ω is the thesis' bound 0.4π·sqrt(m/k).
+double omegaSquared(double mass, double stiffness) { return stiffness / (mass * (0.2 * M_PI) * (0.2 * M_PI)); }
+
+}  // namespace
+
+double dampedExplicitBound(const SystemView& system, const ForceModel& forces, std::vector<double>* scratch) {
+  const double damping = std::max(forces.params.damping, 0.0);
+  double bound = std::numeric_limits<double>::infinity();
+  forEachFreeNode(system, forces, scratch, [&](double mass, double stiffness) {
+    const double omega2 = omegaSquared(mass, stiffness);
+    const double gamma = damping / mass;
+    if (omega2 > 0.0) {
+      bound = std::min(bound, (-gamma + std::sqrt(gamma * gamma + 4.0 * omega2)) / omega2);
+    } else if (gamma > 0.0) {
+      bound = std::min(bound, 2.0 / gamma);
+    }
+  });
+  return bound;
+}
+
+double quasiStaticBound(const SystemView& system, const ForceModel& forces, std::vector<double>* scratch) {
+  double bound = std::numeric_limits<double>::infinity();
+  forEachFreeNode(system, forces, scratch, [&](double mass, double stiffness) {
+    if (stiffness > 0.0) bound = std::min(bound, 2.0 / std::sqrt(omegaSquared(mass, stiffness)));
+  });
+  return bound;
+}
+
+IntegratorChoice chooseIntegrator(const SystemView& system, const ForceModel& forces, double dt,
+                                  const AutoIntegratorOptions& options, std::vector<double>* scratch) {
+  const auto substepsFor = [dt](double bound) {
+    return std::isfinite(bound) ? std::max(1.0, std::ceil(dt / bound - 1e-9)) : 1.0;
+  };
+  const double symplectic_bound = options.margin * dampedExplicitBound(system, forces, scratch);
+  const double quasi_static_bound = options.margin * quasiStaticBound(system, forces, scratch);
+  const double symplectic_steps = substepsFor(symplectic_bound);
+  const double quasi_static_steps = substepsFor(quasi_static_bound);
+  IntegratorChoice choice;
+  // Equal cost per step: symplectic Euler follows the dynamics (second-order energy behaviour), quasi-static Euler
+  // relaxes towards equilibrium and ignores the damping, so it wins only when it needs fewer substeps (heavily damped
+  // light nodes, where symplectic Euler's velocity damping overshoots).
+  const bool quasi_static = quasi_static_steps < symplectic_steps;
+  const double needed = quasi_static ? quasi_static_steps : symplectic_steps;
+  choice.bound = quasi_static ? quasi_static_bound : symplectic_bound;
+  char line[240];
+  if (needed <= std::max(1.0, options.implicit_cost)) {
+    choice.integrator = quasi_static ? "quasi_static_euler" : "symplectic_euler";
+    choice.substeps = static_cast<int>(needed);
+    std::snprintf(
+        line, sizeof line,
+        "explicit bound %.3g ms (symplectic %.3g, quasi-static %.3g; margin %.2f), dt %.3g ms: %s, %d substep%s",
+        1e3 * choice.bound, 1e3 * symplectic_bound, 1e3 * quasi_static_bound, options.margin, 1e3 * dt,
+        choice.integrator.c_str(), choice.substeps, choice.substeps > 1 ? "s" : "");
+  } else {
+    choice.integrator = "implicit_euler";
+    std::snprintf(line, sizeof line,
+                  "explicit bound %.3g ms (margin %.2f) needs %.0f substeps of dt %.3g ms, more than one implicit step "
+                  "costs (%.1f): implicit_euler",
+                  1e3 * choice.bound, options.margin, needed, 1e3 * dt, options.implicit_cost);
+  }
+  choice.reason = line;
+  return choice;
+}
+
+}  // namespace tissue
+}  // namespace vrm_sim
