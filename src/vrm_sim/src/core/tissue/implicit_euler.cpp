@@ -1,8 +1,15 @@
 #include <Eigen/Core>
+#include <algorithm>
+#include <array>
 #include <cmath>
+#include <cstring>
+#include <limits>
+#include <stdexcept>
+#include <string>
+#include <utility>
+#include <vector>
 
 #include "integrators_impl.h"
-#include "spring_kernels.h"
 
 namespace vrm_sim {
 namespace tissue {
@@ -10,247 +17,526 @@ namespace {
 
 // Implicit (backward) Euler, eqs. 5.7-5.10, linearised as in Baraff & Witkin (1998):
 //   (M + Δt·c·I + Δt²·S) Δv = Δt·(F⁰ − Δt·S v⁰),   x += Δt (v⁰ + Δv)
-// with S = −∂F/∂x, solved by Jacobi-preconditioned conjugate gradients, matrix-free. Per step:
-//  1. one pass over the springs computes each spring's 3×3 block B_s = Δt²k(t·I + (1 − t)·uuᵀ) (t = max(0,
-//     1 − l/|d|)) as its direction u and two scalars, packs them with the spring's ends into one 56-byte record
-//     (read by every CG sweep), scatters the blocks' diagonals into the Jacobi preconditioner and forms Δt²·S v⁰
-//     for the right-hand side;
-//  2. each CG iteration is one sweep over the packed springs, t_s = B_s (p_a − p_b) added to a and subtracted from b,
-//     on top of the per-node term (M + Δt·c + Δt²·k_anchor)·p. The sweep also accumulates p·Ap as
-//     Σ_i m'_i|p_i|² + Σ_s w_sᵀB_s w_s (w_s = p_a − p_b), so an iteration touches the node vectors in two loops.
-// The CG vectors are 4 doubles per node (the 4th is 0), so a node is one 256-bit load/store with AVX2; with that
-// and the packed records a sweep took ~0.6× the time of the previous 3-double/separate-array form in a micro
-// benchmark at 10k nodes (30k springs). Tried there and not faster: gather-only products (CSR/ELL rows per node,
-// no scatter), single-precision records, interleaved spring order (to break store-to-load chains), 4 springs per
-// AVX2 register with transposes — the sweep is bound by its per-spring gathers and read-modify-write scatters.
-// Constrained nodes (pinned or grasped) are handled by the filtered CG of Baraff & Witkin §5.3: their Δv
-// components are projected to zero in every iterate (zero preconditioner entries keep p and Δv at zero there, the
-// residual is filtered), which is the "infinite mass" of the thesis without ill-conditioning. The transverse part
-// of a compressed spring's block is dropped (clamped at zero) so the system stays positive definite — CG needs that,
-// and it only removes buckling stiffness. A step allocates nothing once the buffers have their size.
+// with S = −∂F/∂x, solved by preconditioned conjugate gradients, matrix-free. Spring s contributes the block
+// B_s = Δt²k(t·I + (1 − t)·uuᵀ) = a_s·I + v_s v_sᵀ (t = max(0, 1 − l/|d|), a_s = Δt²k·t, v_s = sqrt(Δt²k(1 − t))·u):
+// four numbers instead of nine. The transverse part of a compressed spring's block is clamped at zero so A stays
+// positive definite — CG needs that, and it only removes buckling stiffness.
+//
+// Layout, chosen for the product A·p that every CG iteration runs once (issue 15):
+//  - node vectors are structure of arrays [x…|y…|z…], the node count padded to a multiple of 4;
+//  - the product gathers instead of scattering: nodes are taken 4 at a time (one SIMD lane each), and the springs
+//    of those 4 nodes are stored slot by slot (sliced ELLPACK: slot k holds the k-th spring of each of the 4 nodes,
+//    padded with zero blocks to the group's largest degree), each slot one 128-byte record (v_x, v_y, v_z, a for the
+//    4 lanes) plus the 4 neighbour indices. A sweep then reads the records in order, gathers 3×4 neighbour values and
+//    writes each q_i once — no read-modify-write chains through memory and no horizontal sums. Every spring is stored
+//    twice (once per end); that costs a second copy of the block, not a second square root.
+// Measured at 10k nodes (bench_implicit, same run): the previous form (one packed record per spring, Vec4 per node,
+// scatter to both ends) took ~0.25 ms per iteration.
+// Constrained nodes (pinned or grasped) are handled by the filtered CG of Baraff & Witkin §5.3: A·p is masked to zero
+// there and the preconditioner is zero there, so p, Δv and r stay zero on them — the "infinite mass" of the thesis
+// without ill-conditioning. A step allocates nothing once the buffers have their size.
 
 // Built for AVX2 and the baseline and picked at load time, like spring_kernels.cpp. The two builds may round
-// differently (vector vs scalar sums); the implicit solve is iterative and not part of any bit-exact contract.
+// differently; the implicit solve is iterative and not part of any bit-exact contract.
 #if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
-#define VRM_IMPLICIT_KERNEL __attribute__((target_clones("avx2", "default")))
+#define VRM_IMPLICIT_KERNEL __attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
 #else
 #define VRM_IMPLICIT_KERNEL
 #endif
 
-// One node's vector (x, y, z, 0) in a GCC/Clang vector register; unaligned, aliases double.
-typedef double Vec4 __attribute__((vector_size(32), aligned(8), may_alias));
+constexpr std::size_t kLanes = 8;
+// kLanes doubles (one AVX-512 register, two AVX2 ones); unaligned loads and stores through this type alias double.
+typedef double Lanes __attribute__((vector_size(8 * kLanes), aligned(8), may_alias));
 
-inline Vec4& at(double* base, std::size_t i) { return *reinterpret_cast<Vec4*>(base + 4 * i); }
-inline const Vec4& at(const double* base, std::size_t i) { return *reinterpret_cast<const Vec4*>(base + 4 * i); }
-inline double sum3(const Vec4& v) { return v[0] + v[1] + v[2]; }
+inline Lanes& lanes(double* base) { return *reinterpret_cast<Lanes*>(base); }
+inline const Lanes& lanes(const double* base) { return *reinterpret_cast<const Lanes*>(base); }
+inline double sum(const Lanes& v) {
+  double total = 0.0;
+  for (std::size_t lane = 0; lane < kLanes; ++lane) total += v[lane];
+  return total;
+}
 
-struct PackedSpring {
-  double u[4];  // direction, u[3] = 0
-  double isotropic, axial;
-  std::uint32_t a, b;
+// The kLanes values base[index[lane]].
+inline Lanes gather(const double* base, const std::uint32_t* index) {
+  Lanes values;
+  for (std::size_t lane = 0; lane < kLanes; ++lane) values[lane] = base[index[lane]];
+  return values;
+}
+
+// One slot of a 4-node group: the k-th spring of each node.
+struct SlotBlocks {
+  double vx[kLanes], vy[kLanes], vz[kLanes], a[kLanes];
 };
 
-// q += Σ_s ±B_s (in_a − in_b); returns Σ_s w_sᵀ B_s w_s.
-inline double addSpringProduct(std::size_t m, const PackedSpring* springs, const double* in, double* out) {
-  Vec4 energy = {0.0, 0.0, 0.0, 0.0};  // w_sᵀ t_s summed per lane, one horizontal sum at the end
-  for (std::size_t s = 0; s < m; ++s) {
-    const PackedSpring& spring = springs[s];
-    const Vec4 u = *reinterpret_cast<const Vec4*>(spring.u);
-    const Vec4 w = at(in, spring.a) - at(in, spring.b);
-    const double along = sum3(u * w);
-    const double axial_along = spring.axial * along;
-    const Vec4 t = spring.isotropic * w + axial_along * u;
-    energy += w * t;
-    at(out, spring.a) += t;
-    at(out, spring.b) -= t;
-  }
-  return sum3(energy);
-}
+// The node-ordered spring structure; depends on the topology only. Nodes are renumbered internally (order[k] = the
+// node in internal slot k): by degree, then by index. Same-degree nodes then share groups (little ELLPACK padding:
+// the grid membrane alternates degree 8 and 4 along its rows), and each node's springs are sorted by the index offset
+// of their other end, so in a regular patch slot k of a group points the same way for all 4 lanes and its 4
+// neighbours are 4 consecutive internal nodes — one vector load per component instead of a 4-way gather.
+struct Structure {
+  std::size_t nodes = 0, padded = 0, springs = 0;
+  std::vector<std::array<std::uint32_t, 2>> ends;  // copy of the spring ends it was built from
+  std::vector<std::uint32_t> order;                // internal → node (padded: order[k] = nodes for k ≥ nodes)
+  std::vector<std::uint32_t> internal;             // node → internal
+  std::vector<std::uint32_t> group_slots;          // first slot of group g; group_slots[groups] = slot count
+  std::vector<std::int32_t> first_neighbour;       // per slot: internal neighbour of lane 0 if the 4 are consecutive
+  std::vector<std::uint32_t> neighbour;            // 4 per slot: internal other end (the node itself in padding)
+  std::vector<std::uint32_t> spring;               // 4 per slot: the spring (springs = the zero block in padding)
 
-// Computes and packs the blocks B_s = scale·k(t·I + (1 − t)·uuᵀ) from the positions (t = max(0, 1 − l/|d|), zero
-// block for springs shorter than kMinSpringLength), adds their diagonals to `diagonal` and Σ_s ±B_s (in_a − in_b)
-// to `out`. One pass: at 10k nodes the step is limited by memory traffic, not by the square roots.
-VRM_IMPLICIT_KERNEL
-void packBlocks(std::size_t m, const std::array<std::uint32_t, 2>* ends, const Eigen::Vector3d* x,
-                const double* stiffnesses, const double* rest_lengths, double scale, PackedSpring* packed,
-                const double* in, double* diagonal, double* out) {
-  for (std::size_t s = 0; s < m; ++s) {
-    const std::uint32_t a = ends[s][0];
-    const std::uint32_t b = ends[s][1];
-    const Vec4 d = Vec4{x[b].x(), x[b].y(), x[b].z(), 0.0} - Vec4{x[a].x(), x[a].y(), x[a].z(), 0.0};
-    const double length = std::sqrt(sum3(d * d));
-    const bool degenerate = length < kMinSpringLength;
-    const double inverse_length = 1.0 / (degenerate ? kMinSpringLength : length);
-    const double transverse = std::max(0.0, 1.0 - rest_lengths[s] * inverse_length);
-    const double k = degenerate ? 0.0 : scale * stiffnesses[s];
-    const Vec4 u = d * (degenerate ? 0.0 : inverse_length);
-    PackedSpring& spring = packed[s];
-    *reinterpret_cast<Vec4*>(spring.u) = u;
-    spring.isotropic = k * transverse;
-    spring.axial = k * (1.0 - transverse);
-    spring.a = a;
-    spring.b = b;
-    Vec4 block_diagonal = spring.isotropic + spring.axial * (u * u);
-    block_diagonal[3] = 0.0;
-    at(diagonal, a) += block_diagonal;
-    at(diagonal, b) += block_diagonal;
-    const Vec4 w = at(in, a) - at(in, b);
-    const double axial_along = spring.axial * sum3(u * w);
-    const Vec4 t = spring.isotropic * w + axial_along * u;
-    at(out, a) += t;
-    at(out, b) -= t;
+  bool matches(const SystemView& system) const {
+    return system.node_count == nodes && system.spring_count == springs &&
+           (springs == 0 || std::memcmp(ends.data(), system.springs, springs * sizeof(ends[0])) == 0);
   }
-}
 
-// Filtered Jacobi-preconditioned CG from Δv = 0. On entry r = b (filtered), inverse_diagonal filtered (0 on
-// constrained nodes and in the 4th lane). Returns the iterations done; dv holds the solution.
-VRM_IMPLICIT_KERNEL
-int solve(std::size_t n, std::size_t m, const PackedSpring* springs, const double* node_term, const double* free_mask,
-          const double* inverse_diagonal, double* r, double* p, double* q, double* dv, int max_iterations,
-          double tolerance) {
-  constexpr Vec4 kZero = {0.0, 0.0, 0.0, 0.0};
-  // Dot products are summed per lane (4th lane 0) with one horizontal sum per loop.
-  Vec4 b_norm2_lanes = kZero;
-  Vec4 rz_lanes = kZero;
-  for (std::size_t i = 0; i < n; ++i) {
-    const Vec4 ri = at(r, i);
-    const Vec4 zi = ri * at(inverse_diagonal, i);
-    at(p, i) = zi;
-    at(dv, i) = kZero;
-    b_norm2_lanes += ri * ri;
-    rz_lanes += ri * zi;
-  }
-  const double b_norm2 = sum3(b_norm2_lanes);
-  double rz = sum3(rz_lanes);
-  const double tolerance2 = tolerance * tolerance * b_norm2;
-  int iterations = 0;
-  double r_norm2 = b_norm2;
-  double beta = 0.0;
-  while (iterations < max_iterations && r_norm2 > tolerance2 && b_norm2 > 0.0) {
-    // p = z + β·p (on the first iteration p already holds z), q = A·p, pq = p·A·p.
-    Vec4 pq_lanes = kZero;
-    if (iterations > 0) {
-      for (std::size_t i = 0; i < n; ++i) {
-        const Vec4 pi = at(r, i) * at(inverse_diagonal, i) + beta * at(p, i);
-        at(p, i) = pi;
-        at(q, i) = node_term[i] * pi;
-        pq_lanes += pi * at(q, i);
-      }
-    } else {
-      for (std::size_t i = 0; i < n; ++i) {
-        const Vec4 pi = at(p, i);
-        at(q, i) = node_term[i] * pi;
-        pq_lanes += pi * at(q, i);
+  void build(const SystemView& system) {
+    nodes = system.node_count;
+    springs = system.spring_count;
+    padded = (nodes + kLanes - 1) / kLanes * kLanes;
+    ends.assign(system.springs, system.springs + springs);
+    std::vector<std::uint32_t> degree(nodes, 0);
+    for (const auto& e : ends) {
+      ++degree[e[0]];
+      ++degree[e[1]];
+    }
+    std::vector<std::uint32_t> start(nodes + 1, 0);
+    for (std::size_t i = 0; i < nodes; ++i) start[i + 1] = start[i] + degree[i];
+    std::vector<std::uint32_t> fill(start.begin(), start.end() - 1);
+    std::vector<std::uint32_t> adjacent_spring(2 * springs);
+    for (std::size_t s = 0; s < springs; ++s) {
+      adjacent_spring[fill[ends[s][0]]++] = static_cast<std::uint32_t>(s);
+      adjacent_spring[fill[ends[s][1]]++] = static_cast<std::uint32_t>(s);
+    }
+    auto other = [this](std::uint32_t s, std::size_t i) { return ends[s][0] == i ? ends[s][1] : ends[s][0]; };
+    for (std::size_t i = 0; i < nodes; ++i) {
+      std::sort(adjacent_spring.begin() + start[i], adjacent_spring.begin() + start[i + 1],
+                [&](std::uint32_t s, std::uint32_t t) { return other(s, i) < other(t, i); });
+    }
+    order.resize(padded);
+    for (std::size_t k = 0; k < padded; ++k) order[k] = static_cast<std::uint32_t>(std::min(k, nodes));
+    std::stable_sort(order.begin(), order.begin() + nodes,
+                     [&](std::uint32_t i, std::uint32_t j) { return degree[i] > degree[j]; });
+    internal.assign(nodes, 0);
+    for (std::size_t k = 0; k < nodes; ++k) internal[order[k]] = static_cast<std::uint32_t>(k);
+
+    const std::size_t groups = padded / kLanes;
+    auto degreeAt = [&](std::size_t k) { return k < nodes ? degree[order[k]] : 0u; };
+    group_slots.assign(groups + 1, 0);
+    for (std::size_t g = 0; g < groups; ++g) {
+      std::uint32_t width = 0;
+      for (std::size_t lane = 0; lane < kLanes; ++lane) width = std::max(width, degreeAt(g * kLanes + lane));
+      group_slots[g + 1] = group_slots[g] + width;
+    }
+    const std::size_t slots = group_slots[groups];
+    neighbour.assign(kLanes * slots, 0);
+    spring.assign(kLanes * slots, static_cast<std::uint32_t>(springs));
+    first_neighbour.assign(slots, -1);
+    for (std::size_t g = 0; g < groups; ++g) {
+      for (std::uint32_t slot = group_slots[g]; slot < group_slots[g + 1]; ++slot) {
+        const std::uint32_t k = slot - group_slots[g];
+        bool consecutive = true;
+        for (std::size_t lane = 0; lane < kLanes; ++lane) {
+          const std::size_t node_internal = g * kLanes + lane;
+          const std::size_t e = kLanes * slot + lane;
+          if (k < degreeAt(node_internal)) {
+            const std::size_t i = order[node_internal];
+            const std::uint32_t s = adjacent_spring[start[i] + k];
+            spring[e] = s;
+            neighbour[e] = internal[other(s, i)];
+          } else {
+            neighbour[e] = static_cast<std::uint32_t>(node_internal);  // w = p_i − p_i = 0 with a zero block
+          }
+          consecutive = consecutive && neighbour[e] == neighbour[kLanes * slot] + lane;
+        }
+        if (consecutive) first_neighbour[slot] = static_cast<std::int32_t>(neighbour[kLanes * slot]);
       }
     }
-    const double pq = sum3(pq_lanes) + addSpringProduct(m, springs, p, q);
+  }
+};
+
+// Per spring: a_s and v_s of B_s = a_s·I + v_s v_sᵀ for the current positions (slot `springs` stays zero: padding).
+// Two loops, like kernels::hookeForces: the gather is scalar, the square roots and divisions then fill SIMD lanes.
+VRM_IMPLICIT_KERNEL
+void springBlocks(std::size_t m, const std::array<std::uint32_t, 2>* ends, const Eigen::Vector3d* x,
+                  const double* stiffnesses, const double* rest_lengths, double scale, double* a, double* vx,
+                  double* vy, double* vz) {
+  for (std::size_t s = 0; s < m; ++s) {
+    const Eigen::Vector3d& xa = x[ends[s][0]];
+    const Eigen::Vector3d& xb = x[ends[s][1]];
+    vx[s] = xb.x() - xa.x();
+    vy[s] = xb.y() - xa.y();
+    vz[s] = xb.z() - xa.z();
+  }
+  for (std::size_t s = 0; s < m; ++s) {
+    const double dx = vx[s], dy = vy[s], dz = vz[s];
+    const double length = std::sqrt(dx * dx + dy * dy + dz * dz);
+    const double inverse_length = 1.0 / std::max(length, kMinSpringLength);
+    const double k = length < kMinSpringLength ? 0.0 : scale * stiffnesses[s];
+    const double transverse = std::max(0.0, 1.0 - rest_lengths[s] * inverse_length);
+    a[s] = k * transverse;
+    const double along = std::sqrt(k * (1.0 - transverse)) * inverse_length;
+    vx[s] = along * dx;
+    vy[s] = along * dy;
+    vz[s] = along * dz;
+  }
+}
+
+// Copies the spring blocks into the node-ordered slots and adds them to the 3×3 node blocks of A (diagonal dxx, dyy,
+// dzz and off-diagonal dxy, dxz, dyz; these hold the node term m + Δt·c + Δt²·k_anchor on entry).
+VRM_IMPLICIT_KERNEL
+void fillSlots(std::size_t groups, const std::uint32_t* group_slots, const std::uint32_t* spring, const double* a,
+               const double* vx, const double* vy, const double* vz, SlotBlocks* blocks, double* dxx, double* dyy,
+               double* dzz, double* dxy, double* dxz, double* dyz) {
+  for (std::size_t g = 0; g < groups; ++g) {
+    const std::size_t i = kLanes * g;
+    Lanes xx = lanes(dxx + i), yy = lanes(dyy + i), zz = lanes(dzz + i);
+    Lanes xy = lanes(dxy + i), xz = lanes(dxz + i), yz = lanes(dyz + i);
+    for (std::uint32_t slot = group_slots[g]; slot < group_slots[g + 1]; ++slot) {
+      const std::uint32_t* s = spring + kLanes * slot;
+      SlotBlocks& block = blocks[slot];
+      const Lanes bx = gather(vx, s), by = gather(vy, s), bz = gather(vz, s), ba = gather(a, s);
+      lanes(block.vx) = bx;
+      lanes(block.vy) = by;
+      lanes(block.vz) = bz;
+      lanes(block.a) = ba;
+      xx += ba + bx * bx;
+      yy += ba + by * by;
+      zz += ba + bz * bz;
+      xy += bx * by;
+      xz += bx * bz;
+      yz += by * bz;
+    }
+    lanes(dxx + i) = xx;
+    lanes(dyy + i) = yy;
+    lanes(dzz + i) = zz;
+    lanes(dxy + i) = xy;
+    lanes(dxz + i) = xz;
+    lanes(dyz + i) = yz;
+  }
+}
+
+// q = mask·(node_term·p + Σ_s B_s (p_i − p_j)) over node-ordered slots; returns p·q. Vectors are [x|y|z] with
+// stride n (padded).
+VRM_IMPLICIT_KERNEL
+double product(std::size_t n, const std::uint32_t* group_slots, const std::int32_t* first_neighbour,
+               const std::uint32_t* neighbour, const SlotBlocks* blocks, const double* node_term, const double* mask,
+               const double* p, double* q) {
+  const double* px = p;
+  const double* py = p + n;
+  const double* pz = p + 2 * n;
+  Lanes pq = {};
+  for (std::size_t g = 0; g < n / kLanes; ++g) {
+    const std::size_t i = kLanes * g;
+    const Lanes pix = lanes(px + i), piy = lanes(py + i), piz = lanes(pz + i);
+    const Lanes term = lanes(node_term + i);
+    Lanes qx = term * pix, qy = term * piy, qz = term * piz;
+    for (std::uint32_t slot = group_slots[g]; slot < group_slots[g + 1]; ++slot) {
+      Lanes wx, wy, wz;
+      const std::int32_t first = first_neighbour[slot];
+      if (first >= 0) {
+        wx = pix - lanes(px + first);
+        wy = piy - lanes(py + first);
+        wz = piz - lanes(pz + first);
+      } else {
+        const std::uint32_t* j = neighbour + kLanes * slot;
+        wx = pix - gather(px, j);
+        wy = piy - gather(py, j);
+        wz = piz - gather(pz, j);
+      }
+      const SlotBlocks& block = blocks[slot];
+      const Lanes vx = lanes(block.vx), vy = lanes(block.vy), vz = lanes(block.vz), a = lanes(block.a);
+      const Lanes along = vx * wx + vy * wy + vz * wz;
+      qx += a * wx + along * vx;
+      qy += a * wy + along * vy;
+      qz += a * wz + along * vz;
+    }
+    const Lanes free = lanes(mask + i);
+    qx *= free;
+    qy *= free;
+    qz *= free;
+    lanes(q + i) = qx;
+    lanes(q + n + i) = qy;
+    lanes(q + 2 * n + i) = qz;
+    pq += pix * qx + piy * qy + piz * qz;
+  }
+  return sum(pq);
+}
+
+enum class Preconditioner { kNone, kJacobi, kBlockJacobi };
+
+Preconditioner preconditionerNamed(const std::string& name) {
+  if (name == "none") return Preconditioner::kNone;
+  if (name == "jacobi") return Preconditioner::kJacobi;
+  if (name == "block_jacobi") return Preconditioner::kBlockJacobi;
+  throw std::invalid_argument("unknown CG preconditioner '" + name + "' (known: none, jacobi, block_jacobi)");
+}
+
+// The filtered preconditioner from the node blocks (in place): none → mask; Jacobi → mask / diagonal (dxx, dyy,
+// dzz); block-Jacobi → mask · inverse of the symmetric 3×3 block (all six entries, by cofactors).
+VRM_IMPLICIT_KERNEL
+void invertNodeBlocks(std::size_t n, Preconditioner kind, const double* mask, double* dxx, double* dyy, double* dzz,
+                      double* dxy, double* dxz, double* dyz) {
+  for (std::size_t i = 0; i < n; ++i) {
+    // The padding lanes and constrained nodes get 0 (their blocks may be singular: padding has none).
+    const double free = mask[i];
+    if (free == 0.0) {
+      dxx[i] = dyy[i] = dzz[i] = dxy[i] = dxz[i] = dyz[i] = 0.0;
+    } else if (kind == Preconditioner::kNone) {
+      dxx[i] = dyy[i] = dzz[i] = 1.0;
+      dxy[i] = dxz[i] = dyz[i] = 0.0;
+    } else if (kind == Preconditioner::kJacobi) {
+      dxx[i] = 1.0 / dxx[i];
+      dyy[i] = 1.0 / dyy[i];
+      dzz[i] = 1.0 / dzz[i];
+      dxy[i] = dxz[i] = dyz[i] = 0.0;
+    } else {
+      const double a = dxx[i], b = dyy[i], c = dzz[i], d = dxy[i], e = dxz[i], f = dyz[i];
+      const double cxx = b * c - f * f, cyy = a * c - e * e, czz = a * b - d * d;
+      const double cxy = e * f - d * c, cxz = d * f - b * e, cyz = d * e - a * f;
+      const double scale = 1.0 / (a * cxx + d * cxy + e * cxz);
+      dxx[i] = scale * cxx;
+      dyy[i] = scale * cyy;
+      dzz[i] = scale * czz;
+      dxy[i] = scale * cxy;
+      dxz[i] = scale * cxz;
+      dyz[i] = scale * cyz;
+    }
+  }
+}
+
+// The preconditioner's node blocks: xx, yy, zz (all kinds) and xy, xz, yz (block-Jacobi only).
+struct NodeBlocks {
+  const double* xx;
+  const double* yy;
+  const double* zz;
+  const double* xy;
+  const double* xz;
+  const double* yz;
+};
+
+// r −= α·q, z = P·r over all nodes; returns (r·z, r·r). One pass, the preconditioner's kind fixed at compile time so
+// the loop reads only the arrays it needs (the CG vector passes are bound by memory traffic like the product).
+template <Preconditioner kKind>
+__attribute__((always_inline)) inline std::pair<double, double> updateResidual(std::size_t n, double alpha,
+                                                                               const NodeBlocks& inverse,
+                                                                               const double* q, double* r, double* z) {
+  Lanes rz_lanes = {};
+  Lanes rr_lanes = rz_lanes;
+  for (std::size_t i = 0; i < n; i += kLanes) {
+    const Lanes rx = lanes(r + i) - alpha * lanes(q + i);
+    const Lanes ry = lanes(r + n + i) - alpha * lanes(q + n + i);
+    const Lanes rz = lanes(r + 2 * n + i) - alpha * lanes(q + 2 * n + i);
+    lanes(r + i) = rx;
+    lanes(r + n + i) = ry;
+    lanes(r + 2 * n + i) = rz;
+    Lanes zx, zy, zz;
+    if (kKind == Preconditioner::kBlockJacobi) {
+      const Lanes xy = lanes(inverse.xy + i), xz = lanes(inverse.xz + i), yz = lanes(inverse.yz + i);
+      zx = lanes(inverse.xx + i) * rx + xy * ry + xz * rz;
+      zy = xy * rx + lanes(inverse.yy + i) * ry + yz * rz;
+      zz = xz * rx + yz * ry + lanes(inverse.zz + i) * rz;
+    } else if (kKind == Preconditioner::kJacobi) {
+      zx = lanes(inverse.xx + i) * rx;
+      zy = lanes(inverse.yy + i) * ry;
+      zz = lanes(inverse.zz + i) * rz;
+    } else {  // the mask (in xx): the filter of the unpreconditioned CG
+      const Lanes free = lanes(inverse.xx + i);
+      zx = free * rx;
+      zy = free * ry;
+      zz = free * rz;
+    }
+    lanes(z + i) = zx;
+    lanes(z + n + i) = zy;
+    lanes(z + 2 * n + i) = zz;
+    rz_lanes += rx * zx + ry * zy + rz * zz;
+    rr_lanes += rx * rx + ry * ry + rz * rz;
+  }
+  return {sum(rz_lanes), sum(rr_lanes)};
+}
+
+struct SolveResult {
+  int iterations = 0;
+  double residual = 0.0;  // |r| / |b|
+};
+
+// Filtered preconditioned CG. On entry r = b − A·Δv₀ (filtered), dv = Δv₀, b_norm2 = |b|². Vectors [x|y|z], stride n.
+// Per iteration: the product (p → q, p·q), one pass for r and z = P·r with both dot products, one pass for Δv and p.
+template <Preconditioner kKind>
+__attribute__((always_inline)) inline SolveResult conjugateGradients(
+    std::size_t n, const std::uint32_t* group_slots, const std::int32_t* first_neighbour,
+    const std::uint32_t* neighbour, const SlotBlocks* blocks, const double* node_term, const double* mask,
+    const NodeBlocks& inverse, double b_norm2, double* r, double* z, double* p, double* q, double* dv,
+    int max_iterations, double tolerance) {
+  auto [rz, r_norm2] = updateResidual<kKind>(n, 0.0, inverse, q, r, z);
+  std::memcpy(p, z, 3 * n * sizeof(double));
+  const double tolerance2 = tolerance * tolerance * b_norm2;
+  SolveResult result;
+  // NaN in b or A fails every comparison below, so a poisoned system ends the loop instead of spinning.
+  while (result.iterations < max_iterations && r_norm2 > tolerance2 && b_norm2 > 0.0) {
+    const double pq = product(n, group_slots, first_neighbour, neighbour, blocks, node_term, mask, p, q);
     if (!(pq > 0.0)) break;
     const double alpha = rz / pq;
-    Vec4 rz_new_lanes = kZero;
-    Vec4 r_norm2_lanes = kZero;
-    for (std::size_t i = 0; i < n; ++i) {
-      at(dv, i) += alpha * at(p, i);
-      const Vec4 ri = at(r, i) - (alpha * free_mask[i]) * at(q, i);
-      at(r, i) = ri;
-      rz_new_lanes += ri * ri * at(inverse_diagonal, i);
-      r_norm2_lanes += ri * ri;
-    }
-    const double rz_new = sum3(rz_new_lanes);
-    r_norm2 = sum3(r_norm2_lanes);
-    beta = rz_new / rz;
+    const auto [rz_new, rr_new] = updateResidual<kKind>(n, alpha, inverse, q, r, z);
+    r_norm2 = rr_new;
+    const double beta = rz_new / rz;
     rz = rz_new;
-    ++iterations;
+    for (std::size_t k = 0; k < 3 * n; k += kLanes) {
+      const Lanes pk = lanes(p + k);
+      lanes(dv + k) += alpha * pk;
+      lanes(p + k) = lanes(z + k) + beta * pk;
+    }
+    ++result.iterations;
   }
-  return iterations;
+  result.residual = b_norm2 > 0.0 ? std::sqrt(r_norm2 / b_norm2) : 0.0;
+  return result;
 }
 
-// The per-node terms: p = v⁰, q = anchor_term·v⁰ (the anchors' part of h²·S v⁰), node_term = m + h·c + anchor_term
-// (node_term holds h²·k_anchor on entry), the diagonal initialised to node_term, free_mask = 1 on free nodes.
 VRM_IMPLICIT_KERNEL
-void prepareNodes(std::size_t n, const Eigen::Vector3d* velocities, const double* masses,
-                  const std::uint8_t* constrained, double mass_offset, double* node_term, double* free_mask, double* p,
-                  double* q, double* diagonal) {
-  for (std::size_t i = 0; i < n; ++i) {
-    const Eigen::Vector3d& v = velocities[i];
-    const Vec4 vi = {v.x(), v.y(), v.z(), 0.0};
-    at(p, i) = vi;
-    at(q, i) = node_term[i] * vi;
-    const double term = node_term[i] + masses[i] + mass_offset;
-    node_term[i] = term;
-    at(diagonal, i) = Vec4{term, term, term, 0.0};
-    free_mask[i] = constrained == nullptr || constrained[i] == 0 ? 1.0 : 0.0;
+SolveResult solve(Preconditioner kind, std::size_t n, const std::uint32_t* group_slots,
+                  const std::int32_t* first_neighbour, const std::uint32_t* neighbour, const SlotBlocks* blocks,
+                  const double* node_term, const double* mask, const NodeBlocks& inverse, double b_norm2, double* r,
+                  double* z, double* p, double* q, double* dv, int max_iterations, double tolerance) {
+  // q = 0 so that the first updateResidual (α = 0) only computes z = P·r.
+  std::fill(q, q + 3 * n, 0.0);
+  switch (kind) {
+    case Preconditioner::kNone:
+      return conjugateGradients<Preconditioner::kNone>(n, group_slots, first_neighbour, neighbour, blocks, node_term,
+                                                       mask, inverse, b_norm2, r, z, p, q, dv, max_iterations,
+                                                       tolerance);
+    case Preconditioner::kJacobi:
+      return conjugateGradients<Preconditioner::kJacobi>(n, group_slots, first_neighbour, neighbour, blocks, node_term,
+                                                         mask, inverse, b_norm2, r, z, p, q, dv, max_iterations,
+                                                         tolerance);
+    case Preconditioner::kBlockJacobi:
+      break;
   }
-}
-
-// r = b = h·F⁰ − h²·S v⁰ (q holds h²·S v⁰) on free nodes; the diagonal becomes the filtered Jacobi preconditioner.
-VRM_IMPLICIT_KERNEL
-void rightHandSide(std::size_t n, const Eigen::Vector3d* forces, double h, const double* free_mask, const double* q,
-                   double* inverse_diagonal, double* r) {
-  for (std::size_t i = 0; i < n; ++i) {
-    const Vec4 d = at(inverse_diagonal, i);
-    const double mask = free_mask[i];
-    at(inverse_diagonal, i) = Vec4{mask / d[0], mask / d[1], mask / d[2], 0.0};
-    const Eigen::Vector3d& f = forces[i];
-    at(r, i) = mask * (h * Vec4{f.x(), f.y(), f.z(), 0.0} - at(q, i));
-  }
-}
-
-// v += Δv, x += h·v on free nodes.
-VRM_IMPLICIT_KERNEL
-void applyStep(std::size_t n, const double* free_mask, const double* dv, double h, Eigen::Vector3d* velocities,
-               Eigen::Vector3d* positions) {
-  for (std::size_t i = 0; i < n; ++i) {
-    if (free_mask[i] == 0.0) continue;
-    const Vec4 dvi = at(dv, i);
-    Eigen::Vector3d& v = velocities[i];
-    v += Eigen::Vector3d(dvi[0], dvi[1], dvi[2]);
-    positions[i] += h * v;
-  }
+  return conjugateGradients<Preconditioner::kBlockJacobi>(n, group_slots, first_neighbour, neighbour, blocks, node_term,
+                                                          mask, inverse, b_norm2, r, z, p, q, dv, max_iterations,
+                                                          tolerance);
 }
 
 class ImplicitEuler : public Integrator {
  public:
-  explicit ImplicitEuler(const IntegratorOptions& options) : options_(options) {}
+  explicit ImplicitEuler(const IntegratorOptions& options)
+      : options_(options), preconditioner_(preconditionerNamed(options.cg_preconditioner)) {}
   const char* name() const override { return "implicit_euler"; }
   int lastIterations() const override { return iterations_; }
+  double lastResidual() const override { return residual_; }
 
   void step(const SystemView& system, const ForceModel& forces, double dt) override {
-    const std::size_t n = system.node_count;
+    const bool topology_changed = !structure_.matches(system);
+    if (topology_changed) resize(system);
+    const std::size_t n = structure_.padded;
     const std::size_t m = system.spring_count;
-    Eigen::Vector3d* f = ensureSize(forces_, n);
-    double* r = ensureSize(r_, 4 * n);
-    double* p = ensureSize(p_, 4 * n);
-    double* q = ensureSize(q_, 4 * n);
-    double* dv = ensureSize(dv_, 4 * n);
-    double* inverse_diagonal = ensureSize(inverse_diagonal_, 4 * n);
-    double* node_term = ensureSize(node_term_, n);
-    double* free_mask = ensureSize(free_mask_, n);
-    PackedSpring* packed = ensureSize(packed_, m);
+    const std::uint32_t* order = structure_.order.data();
     const double h = dt;
     const double h2 = dt * dt;
 
-    forces.compute(system, system.positions, system.velocities, f);
-    for (std::size_t i = 0; i < n; ++i) node_term[i] = 0.0;
-    for (const Anchor& anchor : forces.anchors) node_term[anchor.node] += h2 * anchor.stiffness;
-    prepareNodes(n, system.velocities, system.masses, system.constrained, h * forces.params.damping, node_term,
-                 free_mask, p, q, inverse_diagonal);
-    packBlocks(m, system.springs, system.positions, system.stiffnesses, system.rest_lengths, h2, packed, p,
-               inverse_diagonal, q);
-    rightHandSide(n, f, h, free_mask, q, inverse_diagonal, r);
-    iterations_ = solve(n, m, packed, node_term, free_mask, inverse_diagonal, r, p, q, dv, options_.cg_max_iterations,
-                        options_.cg_tolerance);
+    forces.compute(system, system.positions, system.velocities, forces_.data());
+    // Node terms in internal order: anchor_term = Δt²·k_anchor (its part of Δt²·S), node_term = m + Δt·c +
+    // anchor_term; the padding lanes beyond node_count stay constrained zeros.
+    double* anchor_term = anchor_term_.data();
+    double* node_term = node_term_.data();
+    double* mask = mask_.data();
+    double* v0 = p_.data();
+    std::fill(anchor_term, anchor_term + n, 0.0);
+    for (const Anchor& anchor : forces.anchors) anchor_term[structure_.internal[anchor.node]] += h2 * anchor.stiffness;
+    const double damping = h * forces.params.damping;
+    for (std::size_t k = 0; k < system.node_count; ++k) {
+      const std::uint32_t i = order[k];
+      node_term[k] = system.masses[i] + damping + anchor_term[k];
+      mask[k] = system.isFree(i) ? 1.0 : 0.0;
+      const Eigen::Vector3d& v = system.velocities[i];
+      v0[k] = v.x();
+      v0[n + k] = v.y();
+      v0[2 * n + k] = v.z();
+    }
+    for (int c = 0; c < 3; ++c) std::copy(node_term, node_term + n, node_blocks_[c].data());
+    for (int c = 3; c < 6; ++c) std::fill(node_blocks_[c].begin(), node_blocks_[c].end(), 0.0);
 
-    applyStep(n, free_mask, dv, h, system.velocities, system.positions);
+    double* spring_a = spring_blocks_[0].data();
+    springBlocks(m, system.springs, system.positions, system.stiffnesses, system.rest_lengths, h2, spring_a,
+                 spring_blocks_[1].data(), spring_blocks_[2].data(), spring_blocks_[3].data());
+    const std::uint32_t* group_slots = structure_.group_slots.data();
+    const std::int32_t* first_neighbour = structure_.first_neighbour.data();
+    const std::uint32_t* neighbour = structure_.neighbour.data();
+    fillSlots(n / kLanes, group_slots, structure_.spring.data(), spring_a, spring_blocks_[1].data(),
+              spring_blocks_[2].data(), spring_blocks_[3].data(), slots_.data(), node_blocks_[0].data(),
+              node_blocks_[1].data(), node_blocks_[2].data(), node_blocks_[3].data(), node_blocks_[4].data(),
+              node_blocks_[5].data());
+    invertNodeBlocks(n, preconditioner_, mask, node_blocks_[0].data(), node_blocks_[1].data(), node_blocks_[2].data(),
+                     node_blocks_[3].data(), node_blocks_[4].data(), node_blocks_[5].data());
+
+    // b = mask·(Δt·F⁰ − Δt²·S v⁰).
+    double* q = q_.data();
+    double* r = r_.data();
+    product(n, group_slots, first_neighbour, neighbour, slots_.data(), anchor_term, mask, v0, q);
+    double b_norm2 = 0.0;
+    for (std::size_t k = 0; k < system.node_count; ++k) {
+      const Eigen::Vector3d& f = forces_[order[k]];
+      for (int c = 0; c < 3; ++c) {
+        const std::size_t index = c * n + k;
+        r[index] = mask[k] * (h * f[c] - q[index]);
+        b_norm2 += r[index] * r[index];
+      }
+    }
+
+    // Warm start: the last Δv, scaled by dt / previous dt (Δv ≈ Δt·acceleration), r = b − A·Δv₀.
+    double* dv = dv_.data();
+    const bool warm = options_.cg_warm_start && !topology_changed && previous_dt_ > 0.0;
+    if (warm) {
+      const double scale = dt / previous_dt_;
+      for (int c = 0; c < 3; ++c) {
+        for (std::size_t k = 0; k < n; ++k) dv[c * n + k] *= scale * mask[k];
+      }
+      product(n, group_slots, first_neighbour, neighbour, slots_.data(), node_term, mask, dv, q);
+      for (std::size_t k = 0; k < 3 * n; ++k) r[k] -= q[k];
+    } else {
+      std::fill(dv, dv + 3 * n, 0.0);
+    }
+
+    const NodeBlocks inverse{node_blocks_[0].data(), node_blocks_[1].data(), node_blocks_[2].data(),
+                             node_blocks_[3].data(), node_blocks_[4].data(), node_blocks_[5].data()};
+    const SolveResult result =
+        solve(preconditioner_, n, group_slots, first_neighbour, neighbour, slots_.data(), node_term, mask, inverse,
+              b_norm2, r, z_.data(), p_.data(), q, dv, options_.cg_max_iterations, options_.cg_tolerance);
+    iterations_ = result.iterations;
+    residual_ = result.residual;
+    previous_dt_ = dt;
+
+    for (std::size_t k = 0; k < system.node_count; ++k) {
+      if (mask[k] == 0.0) continue;
+      const std::uint32_t i = order[k];
+      Eigen::Vector3d& v = system.velocities[i];
+      v += Eigen::Vector3d(dv[k], dv[n + k], dv[2 * n + k]);
+      system.positions[i] += h * v;
+    }
   }
 
  private:
+  void resize(const SystemView& system) {
+    structure_.build(system);
+    const std::size_t n = structure_.padded;
+    forces_.assign(system.node_count, Eigen::Vector3d::Zero());
+    for (auto* vector : {&r_, &z_, &p_, &q_, &dv_}) vector->assign(3 * n, 0.0);
+    for (auto* vector : {&anchor_term_, &node_term_, &mask_}) vector->assign(n, 0.0);
+    for (auto& block : node_blocks_) block.assign(n, 0.0);
+    for (auto& block : spring_blocks_) block.assign(system.spring_count + 1, 0.0);
+    slots_.assign(structure_.group_slots.back(), SlotBlocks{});
+    previous_dt_ = 0.0;
+  }
+
   IntegratorOptions options_;
+  Preconditioner preconditioner_;
   int iterations_ = 0;
+  double residual_ = 0.0;
+  double previous_dt_ = 0.0;  // of the last solve (warm start); 0 after a topology change
+  Structure structure_;
   std::vector<Eigen::Vector3d> forces_;
-  std::vector<double> r_, p_, q_, dv_, inverse_diagonal_;  // 4 doubles per node
-  std::vector<double> node_term_;                          // m_i + h·c + h²·k_anchor,i
-  std::vector<double> free_mask_;                          // 1 free, 0 constrained
-  std::vector<PackedSpring> packed_;
+  std::vector<double> r_, z_, p_, q_, dv_;  // [x|y|z], stride structure_.padded
+  std::vector<double> anchor_term_, node_term_, mask_;
+  std::array<std::vector<double>, 6> node_blocks_;    // xx, yy, zz, xy, xz, yz of A, then of the preconditioner
+  std::array<std::vector<double>, 4> spring_blocks_;  // a, v_x, v_y, v_z per spring (+ one zero block)
+  std::vector<SlotBlocks> slots_;
 };
 
 }  // namespace
