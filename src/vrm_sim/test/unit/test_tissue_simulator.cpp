@@ -352,6 +352,56 @@ TEST(TissueWatchdog, ExplicitEulerFiveTimesTheBoundIsRescued) {
   }
 }
 
+TEST(TissueWatchdog, UnstableStepIsCaughtWithinThreeSteps) {
+  // Explicit Euler at 5× the eq. 5.6 bound, no instrument, a kick: the energy balance rejects the step that gains
+  // energy nobody gave within 3 steps; the halvings recover it.
+  const int cells = 12;
+  auto membrane = makeGridMembrane(cells, kSize, kStiffness, kNodeMass);
+  TissueConfig config = defaultConfig("explicit_euler");
+  config.forces.damping = 0.0;
+  std::vector<std::uint8_t> fixed(membrane->fixedFlags(), membrane->fixedFlags() + membrane->nodeCount());
+  config.dt = 5.0 * explicitStabilityBound(viewOf(*membrane, fixed.data()), ForceModel{});
+  TissueSimulator simulator(*membrane, config);
+  membrane->positions()[centreNode(cells)].z() += 1e-4;
+  int first_rejection = 0;
+  for (int step = 1; step <= 30; ++step) {
+    simulator.step();
+    if (first_rejection == 0 && simulator.statistics().fallbacks > 0) first_rejection = step;
+  }
+  EXPECT_GE(first_rejection, 1);
+  EXPECT_LE(first_rejection, 3);
+  EXPECT_GT(simulator.statistics().energy_growth, 0u);
+  EXPECT_EQ(simulator.statistics().unrecovered, 0u);
+  EXPECT_TRUE(allFinite(*membrane));
+  EXPECT_LT(simulator.maxStrain(), 2.0);
+}
+
+TEST(TissueWatchdog, GraspAndYankAreNotInstabilities) {
+  // Energy put in by the instrument (the grasp pressing nodes onto the jaw plane, a 0.6 m/s yank) is given energy:
+  // at a stable dt no integrator falls back.
+  for (const std::string& name : integratorNames()) {
+    const int cells = 22;
+    auto membrane = makeGridMembrane(cells, kSize, kStiffness, kNodeMass);
+    TissueSimulator simulator(*membrane, defaultConfig(name));
+    Eigen::Vector3d tip(0.0, 0.0, -2e-4);
+    simulator.setInstruments({forcepsAt(tip, 0.0)});
+    for (int frame = 0; frame < 10; ++frame) {  // grasp and lift at 20 mm/s
+      tip.z() += 2e-5;
+      simulator.setInstruments({forcepsAt(tip, 0.0)});
+      simulator.advance(1e-3, zeroClock);
+    }
+    ASSERT_FALSE(simulator.graspedNodes().empty()) << name;
+    for (int frame = 0; frame < 5; ++frame) {  // the yank: 0.6 m/s sideways and up
+      tip += Eigen::Vector3d(4.8e-4, 0.0, 3.6e-4);
+      simulator.setInstruments({forcepsAt(tip, 0.0)});
+      simulator.advance(1e-3, zeroClock);
+    }
+    EXPECT_EQ(simulator.statistics().fallbacks, 0u) << name;
+    EXPECT_EQ(simulator.statistics().unrecovered, 0u) << name;
+    EXPECT_TRUE(allFinite(*membrane)) << name;
+  }
+}
+
 // --- Hard cases (issue 3), for every integrator ---
 
 class TissueHardCases : public ::testing::TestWithParam<std::string> {};

@@ -18,6 +18,10 @@ class SpringSorter {
   // Rebuilds the adjacency; call after every topology change (and before the first sort).
   void rebuild(const SystemView& system);
   void sort(const SystemView& system, const std::vector<std::uint32_t>& seeds);
+  // CSR node -> incident springs of the last rebuild(): springs adjacency()[adjacencyOffsets()[i] ..
+  // adjacencyOffsets()[i + 1]) touch node i.
+  const std::vector<std::uint32_t>& adjacencyOffsets() const { return adjacency_offsets_; }
+  const std::vector<std::uint32_t>& adjacency() const { return adjacency_; }
 
   // Spring indices, S_0 first. levelOffsets()[d]..levelOffsets()[d+1] is S_d; the last set is the unreachable one.
   const std::vector<std::uint32_t>& order() const { return order_; }

@@ -30,13 +30,20 @@ class Membrane;
 
 namespace tissue {
 
+// The watchdog tells an instability from a kinematic shock by an energy balance (issue 15 §2): a step is rejected
+// only when the membrane ends it with more energy (kinetic + springs + anchors + gravity) than it started with plus
+// the work done on it — by the contact response (measured on the springs at the contact nodes), by pressure and
+// external forces. Grasped nodes move between steps, so what a grasp or a yank puts in is already in the start
+// energy. Also rejected: a non-finite state or a node faster than max_speed.
 struct WatchdogConfig {
   bool enabled = true;
-  double max_speed = 20.0;          // m/s; no node of intra-ocular tissue moves this fast (instruments: ≤ 0.1 m/s)
-  double energy_growth = 4.0;       // kinetic energy may grow at most by this factor per step ...
-  double energy_floor_speed = 1.0;  // ... above the kinetic energy of the whole membrane at this speed [m/s]
-  // Max strain after the strain limit beyond strain_factor·τ_c = unstable (springs at an instrument excepted).
-  double strain_factor = 3.0;
+  double max_speed = 20.0;  // m/s; no node of intra-ocular tissue moves this fast (instruments: ≤ 0.1 m/s, a yank 0.6)
+  // Energy the integrator may create in one step beyond the balance, relative to the kinetic + elastic energy at the
+  // start (stable explicit steps stay far below; an instability multiplies the energy of its mode every step) ...
+  double energy_tolerance = 0.5;
+  // ... plus the kinetic energy of the free nodes at this speed [m/s] (a floor, so a membrane at rest is not judged
+  // by rounding).
+  double energy_floor_speed = 0.005;
   int max_halvings = 4;  // Δt/2, Δt/4, ... before falling back to implicit Euler
   int hold_steps = 20;   // steps a fallback stays in force before the nominal Δt is tried again
 };
@@ -128,7 +135,8 @@ struct SimulatorStatistics {
   std::uint64_t unrecovered = 0;         // steps that failed even the implicit fallback (state rolled back)
   double max_strain = 0.0;               // largest strain seen after any step
   // Why steps were rejected.
-  std::uint64_t non_finite = 0, too_fast = 0, energy_growth = 0, strain_growth = 0;
+  std::uint64_t non_finite = 0, too_fast = 0, energy_growth = 0;
+  double max_energy_excess = 0.0;  // J: largest unexplained energy gain of an accepted step (0 = never gained)
   // Topology changes (cut, tear, refinement / coarsening): each one that changed the triangles counts once; a
   // TissueMesh producer sets topology_version from it.
   std::uint64_t topology_changes = 0;
@@ -198,11 +206,18 @@ class TissueSimulator {
                    const Eigen::Isometry3d& previous_pose, double dt);
   // Integrate + respond + limit, no watchdog.
   void rawStep(Integrator& integrator, double dt);
-  bool unstable(double kinetic_before);
-  // Max strain of the springs not at an instrument (untouched_ marks), also caching the overall max in frame_strain_.
-  double untouchedMaxStrain();
-  // The untouched max strain at the start of the current step (lazily, from the saved state).
-  double strainBefore();
+  struct Energy {
+    double kinetic = 0.0, elastic = 0.0, gravity = 0.0;  // J; elastic = springs + anchors
+    double total() const { return kinetic + elastic + gravity; }
+  };
+  // The energy of the current state (one sweep over nodes and one over springs; also sets frame_strain_).
+  Energy energy();
+  bool unstable(const Energy& before);
+  // Energy of the springs, anchors and kinetic + gravity terms at `nodes` (each spring once), for the work of the
+  // contact response.
+  double localEnergy(const std::vector<NodeDeformation>& contacts);
+  // Work of pressure and external forces from the saved start state to now, at the start state's forces.
+  double externalWork() const;
   // Marks the nodes at an instrument (contacts, grasps) with a new epoch, returned.
   std::uint32_t markTouched(std::vector<std::uint32_t>& touched, std::uint32_t& epoch) const;
   void saveState();
@@ -255,15 +270,15 @@ class TissueSimulator {
 
   std::vector<Eigen::Vector3d> saved_positions_, saved_velocities_;
   std::vector<double> saved_rest_lengths_;
-  std::vector<std::uint32_t> touched_;  // per node: epoch of the last watchdog check that saw it at an instrument
+  std::vector<std::uint32_t> touched_;  // per node: epoch of the last early-stop check that saw it at an instrument
   std::uint32_t touched_epoch_ = 0;
-  std::vector<std::uint32_t> touched_before_;  // the same at the start of the current step
-  std::uint32_t touched_before_epoch_ = 0;
+  std::vector<double> energy_scratch_;      // 3 per spring: the energy sweep's gathered spring vectors
+  std::vector<std::uint32_t> spring_mark_;  // per spring: epoch of the last localEnergy() that counted it
+  std::uint32_t spring_epoch_ = 0;
+  double contact_work_ = 0.0;                          // J: work of the contact response in the current step
   std::vector<NodeDeformation> pending_deformations_;  // external deformations, replayed after a rollback
   std::vector<Eigen::Vector3d> early_stop_forces_, early_stop_zero_;  // buffers of maxFreeForce()
-  double last_strain_ = -1.0;    // untouched max strain after the last accepted step (-1 = unknown)
-  double strain_before_ = -1.0;  // untouched max strain at the start of the current step (-1 = not yet measured)
-  double frame_strain_ = -1.0;   // max strain of all springs after the last step (-1 = unknown)
+  double frame_strain_ = -1.0;  // max strain of all springs after the last step (-1 = unknown)
   int fallback_level_ = 0;
   int hold_remaining_ = 0;
   double pending_time_ = 0.0;

@@ -23,6 +23,18 @@ void hookeForces(std::size_t spring_count, const std::array<std::uint32_t, 2>* s
 void scatterSpringForces(std::size_t spring_count, const std::array<std::uint32_t, 2>* springs, const double* fx,
                          const double* fy, const double* fz, Eigen::Vector3d* forces);
 
+struct SpringEnergy {
+  double potential = 0.0;   // J: Σ ½ k_s (|d_s| − l_s)² over all springs
+  double max_strain = 0.0;  // max |d|/l over springs with l >= kMinSpringLength (maxStrain())
+};
+
+// The springs' potential energy and the largest strain in one sweep, for the watchdog's energy balance. Like
+// hookeForces() in two loops (a scalar gather of d into dx/dy/dz, spring_count each, then the arithmetic on
+// contiguous arrays) and summed in four interleaved partial sums, so it vectorises and is the same on every run.
+SpringEnergy springEnergy(std::size_t spring_count, const std::array<std::uint32_t, 2>* springs,
+                          const Eigen::Vector3d* x, const double* stiffnesses, const double* rest_lengths, double* dx,
+                          double* dy, double* dz);
+
 struct StrainMaxima {
   double all = 0.0;        // max |d|/l over springs with l >= kMinSpringLength (maxStrain())
   double untouched = 0.0;  // the same without springs between two constrained nodes or with a touched end

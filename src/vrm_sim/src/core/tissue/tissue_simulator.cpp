@@ -117,7 +117,6 @@ void TissueSimulator::onTopologyChanged() {
   interaction_stamp_.assign(n, 0);
   if (!frame_pressed_.empty()) frame_pressed_.assign(n, 0);  // slots moved: the marks would name other nodes
   touched_.assign(n, 0);
-  last_strain_ = -1.0;
   sorted_seeds_.clear();
   sorted_valid_ = false;
   rebuildConstraints();
@@ -218,14 +217,11 @@ void TissueSimulator::updateGrasp(std::size_t index, const InstrumentInput& inst
     grasp.active = true;
     rebuildConstraints();
   } else if (!closed && grasp.active) {
-    last_strain_ = -1.0;
     for (std::uint32_t node : grasp.nodes) grasped_[node] = 0;
     grasp = Grasp{};
     rebuildConstraints();
   }
   if (!grasp.active) return;
-  // Kinematic motion changes strains outside the step: the watchdog must measure its "before" afresh.
-  last_strain_ = -1.0;
   const bool project = instrument.jaw_angle < config_.projection_jaw_angle;
   for (std::size_t k = 0; k < grasp.nodes.size(); ++k) {
     if (project) grasp.local[k].y() = 0.0;  // onto the jaws' mid-plane
@@ -297,7 +293,14 @@ void TissueSimulator::rawStep(Integrator& integrator, double dt) {
   }
   contacts_.insert(contacts_.end(), external_deformations_.begin(), external_deformations_.end());
   external_deformations_.clear();
-  applyDeformations(system, contacts_, config_.friction);
+  if (config_.watchdog.enabled && !contacts_.empty()) {
+    // The instrument's work on the membrane: the energy the response changes at the contact nodes' springs.
+    const double energy_before = localEnergy(contacts_);
+    applyDeformations(system, contacts_, config_.friction);
+    contact_work_ += localEnergy(contacts_) - energy_before;
+  } else {
+    applyDeformations(system, contacts_, config_.friction);
+  }
   for (const NodeDeformation& contact : contacts_) addInteractionPoint(contact.node);
 
   if (config_.plastic) {
@@ -342,29 +345,94 @@ std::uint32_t TissueSimulator::markTouched(std::vector<std::uint32_t>& touched, 
   return epoch;
 }
 
-double TissueSimulator::untouchedMaxStrain() {
-  const std::uint32_t epoch = markTouched(touched_, touched_epoch_);
+TissueSimulator::Energy TissueSimulator::energy() {
   const SystemView system = view();
-  const kernels::StrainMaxima maxima = kernels::strainMaxima(system, system.positions, touched_.data(), epoch);
-  frame_strain_ = maxima.all;
-  return maxima.untouched;
-}
-
-double TissueSimulator::strainBefore() {
-  if (strain_before_ < 0.0) {
-    // Measured on the saved start state with the contacts and grasps the step started with.
-    const kernels::StrainMaxima maxima =
-        kernels::strainMaxima(view(), saved_positions_.data(), touched_before_.data(), touched_before_epoch_);
-    strain_before_ = maxima.untouched;
+  Energy e;
+  const Eigen::Vector3d& g = config_.forces.gravity;
+  for (std::size_t i = 0; i < system.node_count; ++i) {
+    if (!system.isFree(i)) continue;
+    e.kinetic += 0.5 * system.masses[i] * system.velocities[i].squaredNorm();
+    e.gravity -= system.masses[i] * g.dot(system.positions[i]);
   }
-  return strain_before_;
+  const std::size_t m = system.spring_count;
+  if (energy_scratch_.size() < 3 * m) energy_scratch_.resize(3 * m);
+  double* d = energy_scratch_.data();
+  const kernels::SpringEnergy springs = kernels::springEnergy(m, system.springs, system.positions, system.stiffnesses,
+                                                              system.rest_lengths, d, d + m, d + 2 * m);
+  e.elastic = springs.potential;
+  frame_strain_ = springs.max_strain;
+  for (const Anchor& anchor : forces_.anchors) {
+    e.elastic += 0.5 * anchor.stiffness * (system.positions[anchor.node] - anchor.point).squaredNorm();
+  }
+  return e;
 }
 
-bool TissueSimulator::unstable(double kinetic_before) {
+double TissueSimulator::localEnergy(const std::vector<NodeDeformation>& contacts) {
+  const SystemView system = view();
+  const auto& offsets = sorter_.adjacencyOffsets();
+  const auto& incident = sorter_.adjacency();
+  if (spring_mark_.size() != system.spring_count) spring_mark_.assign(system.spring_count, 0);
+  if (++spring_epoch_ == 0) {  // wrapped: old marks could alias the new epoch
+    std::fill(spring_mark_.begin(), spring_mark_.end(), 0);
+    spring_epoch_ = 1;
+  }
+  double energy = 0.0;
+  const Eigen::Vector3d& g = config_.forces.gravity;
+  const std::uint32_t node_epoch = markTouched(touched_, touched_epoch_);  // each contact node once
+  (void)node_epoch;
+  for (const NodeDeformation& contact : contacts) {
+    const std::uint32_t i = contact.node;
+    if (i >= system.node_count || i + 1 >= offsets.size()) continue;
+    for (std::uint32_t k = offsets[i]; k < offsets[i + 1]; ++k) {
+      const std::uint32_t s = incident[k];
+      if (spring_mark_[s] == spring_epoch_) continue;
+      spring_mark_[s] = spring_epoch_;
+      const auto& ends = system.springs[s];
+      const double stretch = (system.positions[ends[1]] - system.positions[ends[0]]).norm() - system.rest_lengths[s];
+      energy += 0.5 * system.stiffnesses[s] * stretch * stretch;
+    }
+  }
+  // Kinetic and gravity terms per contact node, once each (a node may carry several deformation vectors).
+  for (const NodeDeformation& contact : contacts) {
+    const std::uint32_t i = contact.node;
+    if (i >= system.node_count || !system.isFree(i) || touched_[i] != touched_epoch_) continue;
+    touched_[i] = 0;
+    energy +=
+        0.5 * system.masses[i] * system.velocities[i].squaredNorm() - system.masses[i] * g.dot(system.positions[i]);
+  }
+  for (const Anchor& anchor : forces_.anchors) {
+    // Anchored contact nodes are rare (the retina side); their anchor term is cheap to include always.
+    energy += 0.5 * anchor.stiffness * (system.positions[anchor.node] - anchor.point).squaredNorm();
+  }
+  return energy;
+}
+
+double TissueSimulator::externalWork() const {
+  const std::size_t n = saved_positions_.size();
+  const Eigen::Vector3d* x = membrane_->positions();
+  double work = 0.0;
+  if (!forces_.external.empty()) {
+    for (std::size_t i = 0; i < n && i < forces_.external.size(); ++i) {
+      if (constrained_[i] == 0) work += forces_.external[i].dot(x[i] - saved_positions_[i]);
+    }
+  }
+  if (forces_.params.pressure != 0.0 && forces_.triangles != nullptr) {
+    const Eigen::Vector3d* x0 = saved_positions_.data();
+    for (std::size_t t = 0; t < forces_.triangle_count; ++t) {
+      const auto& c = forces_.triangles[t];
+      const Eigen::Vector3d f = (forces_.params.pressure / 6.0) * (x0[c[1]] - x0[c[0]]).cross(x0[c[2]] - x0[c[0]]);
+      for (std::uint32_t corner : c) {
+        if (constrained_[corner] == 0) work += f.dot(x[corner] - x0[corner]);
+      }
+    }
+  }
+  return work;
+}
+
+bool TissueSimulator::unstable(const Energy& before) {
   frame_strain_ = -1.0;
   const SystemView system = view();
   double total_mass = 0.0;
-  double kinetic = 0.0;
   const double max_speed2 = config_.watchdog.max_speed * config_.watchdog.max_speed;
   for (std::size_t i = 0; i < system.node_count; ++i) {
     if (!system.isFree(i)) continue;
@@ -372,29 +440,24 @@ bool TissueSimulator::unstable(double kinetic_before) {
       ++statistics_.non_finite;
       return true;
     }
-    const double speed2 = system.velocities[i].squaredNorm();
-    if (speed2 > max_speed2) {
+    if (system.velocities[i].squaredNorm() > max_speed2) {
       ++statistics_.too_fast;
       return true;
     }
-    kinetic += 0.5 * system.masses[i] * speed2;
     total_mass += system.masses[i];
   }
+  const Energy after = energy();
+  statistics_.max_strain = std::max(statistics_.max_strain, frame_strain_);
+  const double given = contact_work_ + externalWork();
   const double floor_speed = config_.watchdog.energy_floor_speed;
-  const double floor = 0.5 * total_mass * floor_speed * floor_speed;
-  if (kinetic > config_.watchdog.energy_growth * std::max(kinetic_before, floor)) {
+  const double allowance = config_.watchdog.energy_tolerance * (before.kinetic + before.elastic) +
+                           0.5 * total_mass * floor_speed * floor_speed;
+  const double excess = after.total() - before.total() - given;
+  if (!(excess <= allowance)) {
     ++statistics_.energy_growth;
     return true;
   }
-  // Strain far beyond the limit that jumped within this step (strain already there came from the instruments).
-  const double strain_bound = config_.watchdog.strain_factor * std::max(config_.strain_limit, 1.0);
-  const double strain = untouchedMaxStrain();
-  last_strain_ = strain;
-  statistics_.max_strain = std::max(statistics_.max_strain, strain);
-  if (strain > strain_bound && strain > 1.5 * strainBefore()) {
-    ++statistics_.strain_growth;
-    return true;
-  }
+  statistics_.max_energy_excess = std::max(statistics_.max_energy_excess, excess);
   return false;
 }
 
@@ -417,15 +480,12 @@ bool TissueSimulator::step() {
     hold_remaining_ = config_.watchdog.hold_steps;
   }
   saveState();
-  const double kinetic_before = kineticEnergy();
-  // The previous step's check measured it already (grasped and touched springs are excluded either way). After
-  // kinematic motion it is unknown; it is only needed when the step ends far beyond the limit, so it is measured
-  // then, on the saved state (strainBefore()).
-  strain_before_ = last_strain_;
-  if (strain_before_ < 0.0) markTouched(touched_before_, touched_before_epoch_);
+  // After the grasps moved (updateInstruments), so what they put in counts as given.
+  const Energy before = energy();
   pending_deformations_.assign(external_deformations_.begin(), external_deformations_.end());
   bool ok = false;
   for (int level = fallback_level_; level <= config_.watchdog.max_halvings + 1 && !ok; ++level) {
+    contact_work_ = 0.0;
     if (level > fallback_level_) {
       restoreState();
       external_deformations_.assign(pending_deformations_.begin(), pending_deformations_.end());
@@ -438,18 +498,13 @@ bool TissueSimulator::step() {
       ++statistics_.implicit_fallbacks;
       rawStep(*implicit_fallback_, config_.dt);
     }
-    const std::uint64_t strain_rejections = statistics_.strain_growth;
-    ok = !unstable(kinetic_before);
-    // Implicit Euler cannot be unstable; if only the strain criterion still objects, the strain came from a
-    // kinematic shock (e.g. grasped nodes pressed onto the jaw plane) and freezing the tissue would not help.
-    if (!ok && level > config_.watchdog.max_halvings && statistics_.strain_growth > strain_rejections) ok = true;
+    ok = !unstable(before);
     if (level > fallback_level_ && ok) {
       fallback_level_ = std::min(level, config_.watchdog.max_halvings);
       hold_remaining_ = config_.watchdog.hold_steps;
     }
   }
   if (!ok) {
-    last_strain_ = -1.0;
     // Nothing worked: keep the last good state (frozen) rather than letting an explosion reach the renderer.
     restoreState();
     for (std::size_t i = 0; i < membrane_->nodeCount(); ++i) membrane_->velocities()[i].setZero();

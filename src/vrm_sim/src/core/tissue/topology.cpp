@@ -206,7 +206,6 @@ void TissueSimulator::releaseOverloadedAdhesions() {
                         forces_.anchors.end());
   if (forces_.anchors.size() == before) return;
   statistics_.released_adhesions += before - forces_.anchors.size();
-  last_strain_ = -1.0;
   rebuildConstraints();
 }
 
