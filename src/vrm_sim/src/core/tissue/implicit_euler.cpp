@@ -386,7 +386,8 @@ __attribute__((always_inline)) inline SolveResult conjugateGradients(
     }
     ++result.iterations;
   }
-  result.residual = b_norm2 > 0.0 ? std::sqrt(r_norm2 / b_norm2) : 0.0;
+  // 0 for b = 0 (Δv = 0 is exact); NaN when b is NaN, so callers see that the solve did not run.
+  result.residual = b_norm2 > 0.0 ? std::sqrt(r_norm2 / b_norm2) : (b_norm2 == 0.0 ? 0.0 : b_norm2);
   return result;
 }
 
