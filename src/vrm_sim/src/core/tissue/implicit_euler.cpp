@@ -1,4 +1,7 @@
 #include <Eigen/Core>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -153,8 +156,28 @@ struct Structure {
   }
 };
 
+// Element-wise square root. std::sqrt keeps an errno branch (-fmath-errno is on), which stops GCC from vectorising
+// any loop that calls it; SSE2's sqrtpd exists in every clone and rounds exactly like std::sqrt.
+inline Lanes squareRoot(const Lanes& x) {
+#if defined(__SSE2__)
+  double values[kLanes];
+  std::memcpy(values, &x, sizeof(values));
+  for (std::size_t lane = 0; lane < kLanes; lane += 2) {
+    _mm_storeu_pd(values + lane, _mm_sqrt_pd(_mm_loadu_pd(values + lane)));
+  }
+  Lanes result;
+  std::memcpy(&result, values, sizeof(values));
+  return result;
+#else
+  Lanes result;
+  for (std::size_t lane = 0; lane < kLanes; ++lane) result[lane] = std::sqrt(x[lane]);
+  return result;
+#endif
+}
+
 // Per spring: a_s and v_s of B_s = a_s·I + v_s v_sᵀ for the current positions (slot `springs` stays zero: padding).
-// Two loops, like kernels::hookeForces: the gather is scalar, the square roots and divisions then fill SIMD lanes.
+// Two loops, like kernels::hookeForces: the gather is scalar, the two square roots and the division per spring then
+// run kLanes springs at a time (scalar they were 10 % of the step).
 VRM_IMPLICIT_KERNEL
 void springBlocks(std::size_t m, const std::array<std::uint32_t, 2>* ends, const Eigen::Vector3d* x,
                   const double* stiffnesses, const double* rest_lengths, double scale, double* a, double* vx,
@@ -166,7 +189,23 @@ void springBlocks(std::size_t m, const std::array<std::uint32_t, 2>* ends, const
     vy[s] = xb.y() - xa.y();
     vz[s] = xb.z() - xa.z();
   }
-  for (std::size_t s = 0; s < m; ++s) {
+  const Lanes zero = {};
+  const Lanes minimum = zero + kMinSpringLength;
+  std::size_t s = 0;
+  for (; s + kLanes <= m; s += kLanes) {
+    const Lanes dx = lanes(vx + s), dy = lanes(vy + s), dz = lanes(vz + s);
+    const Lanes length = squareRoot(dx * dx + dy * dy + dz * dz);
+    const Lanes inverse_length = 1.0 / (length < minimum ? minimum : length);
+    const Lanes k = length < minimum ? zero : scale * lanes(stiffnesses + s);
+    const Lanes stretch = 1.0 - lanes(rest_lengths + s) * inverse_length;
+    const Lanes transverse = stretch > zero ? stretch : zero;
+    lanes(a + s) = k * transverse;
+    const Lanes along = squareRoot(k * (1.0 - transverse)) * inverse_length;
+    lanes(vx + s) = along * dx;
+    lanes(vy + s) = along * dy;
+    lanes(vz + s) = along * dz;
+  }
+  for (; s < m; ++s) {
     const double dx = vx[s], dy = vy[s], dz = vz[s];
     const double length = std::sqrt(dx * dx + dy * dy + dz * dz);
     const double inverse_length = 1.0 / std::max(length, kMinSpringLength);
@@ -181,23 +220,25 @@ void springBlocks(std::size_t m, const std::array<std::uint32_t, 2>* ends, const
 }
 
 // Copies the spring blocks into the node-ordered slots and adds them to the 3×3 node blocks of A (diagonal dxx, dyy,
-// dzz and off-diagonal dxy, dxz, dyz; these hold the node term m + Δt·c + Δt²·k_anchor on entry).
+// dzz and off-diagonal dxy, dxz, dyz; these hold the node term m + Δt·c + Δt²·k_anchor on entry). The slots of a
+// constrained node are stored as zero blocks: its row of A·p is then zero without a mask in the product.
 VRM_IMPLICIT_KERNEL
 void fillSlots(std::size_t groups, const std::uint32_t* group_slots, const std::uint32_t* spring, const double* a,
-               const double* vx, const double* vy, const double* vz, SlotBlocks* blocks, double* dxx, double* dyy,
-               double* dzz, double* dxy, double* dxz, double* dyz) {
+               const double* vx, const double* vy, const double* vz, const double* mask, SlotBlocks* blocks,
+               double* dxx, double* dyy, double* dzz, double* dxy, double* dxz, double* dyz) {
   for (std::size_t g = 0; g < groups; ++g) {
     const std::size_t i = kLanes * g;
+    const Lanes free = lanes(mask + i);
     Lanes xx = lanes(dxx + i), yy = lanes(dyy + i), zz = lanes(dzz + i);
     Lanes xy = lanes(dxy + i), xz = lanes(dxz + i), yz = lanes(dyz + i);
     for (std::uint32_t slot = group_slots[g]; slot < group_slots[g + 1]; ++slot) {
       const std::uint32_t* s = spring + kLanes * slot;
       SlotBlocks& block = blocks[slot];
       const Lanes bx = gather(vx, s), by = gather(vy, s), bz = gather(vz, s), ba = gather(a, s);
-      lanes(block.vx) = bx;
-      lanes(block.vy) = by;
-      lanes(block.vz) = bz;
-      lanes(block.a) = ba;
+      lanes(block.vx) = free * bx;
+      lanes(block.vy) = free * by;
+      lanes(block.vz) = free * bz;
+      lanes(block.a) = free * ba;
       xx += ba + bx * bx;
       yy += ba + by * by;
       zz += ba + bz * bz;
@@ -214,12 +255,12 @@ void fillSlots(std::size_t groups, const std::uint32_t* group_slots, const std::
   }
 }
 
-// q = mask·(node_term·p + Σ_s B_s (p_i − p_j)) over node-ordered slots; returns p·q. Vectors are [x|y|z] with
-// stride n (padded).
+// q = node_term·p + Σ_s B_s (p_i − p_j) over node-ordered slots; returns p·q. Vectors are [x|y|z] with stride n
+// (padded). Constrained rows have zero blocks (fillSlots) and, inside CG, p = 0, so their q is 0.
 VRM_IMPLICIT_KERNEL
 double product(std::size_t n, const std::uint32_t* group_slots, const std::int32_t* first_neighbour,
-               const std::uint32_t* neighbour, const SlotBlocks* blocks, const double* node_term, const double* mask,
-               const double* p, double* q) {
+               const std::uint32_t* neighbour, const SlotBlocks* blocks, const double* node_term, const double* p,
+               double* q) {
   const double* px = p;
   const double* py = p + n;
   const double* pz = p + 2 * n;
@@ -249,10 +290,6 @@ double product(std::size_t n, const std::uint32_t* group_slots, const std::int32
       qy += a * wy + along * vy;
       qz += a * wz + along * vz;
     }
-    const Lanes free = lanes(mask + i);
-    qx *= free;
-    qy *= free;
-    qz *= free;
     lanes(q + i) = qx;
     lanes(q + n + i) = qy;
     lanes(q + 2 * n + i) = qz;
@@ -363,16 +400,15 @@ struct SolveResult {
 template <Preconditioner kKind>
 __attribute__((always_inline)) inline SolveResult conjugateGradients(
     std::size_t n, const std::uint32_t* group_slots, const std::int32_t* first_neighbour,
-    const std::uint32_t* neighbour, const SlotBlocks* blocks, const double* node_term, const double* mask,
-    const NodeBlocks& inverse, double b_norm2, double* r, double* z, double* p, double* q, double* dv,
-    int max_iterations, double tolerance) {
+    const std::uint32_t* neighbour, const SlotBlocks* blocks, const double* node_term, const NodeBlocks& inverse,
+    double b_norm2, double* r, double* z, double* p, double* q, double* dv, int max_iterations, double tolerance) {
   auto [rz, r_norm2] = updateResidual<kKind>(n, 0.0, inverse, q, r, z);
   std::memcpy(p, z, 3 * n * sizeof(double));
   const double tolerance2 = tolerance * tolerance * b_norm2;
   SolveResult result;
   // NaN in b or A fails every comparison below, so a poisoned system ends the loop instead of spinning.
   while (result.iterations < max_iterations && r_norm2 > tolerance2 && b_norm2 > 0.0) {
-    const double pq = product(n, group_slots, first_neighbour, neighbour, blocks, node_term, mask, p, q);
+    const double pq = product(n, group_slots, first_neighbour, neighbour, blocks, node_term, p, q);
     if (!(pq > 0.0)) break;
     const double alpha = rz / pq;
     const auto [rz_new, rr_new] = updateResidual<kKind>(n, alpha, inverse, q, r, z);
@@ -394,25 +430,22 @@ __attribute__((always_inline)) inline SolveResult conjugateGradients(
 VRM_IMPLICIT_KERNEL
 SolveResult solve(Preconditioner kind, std::size_t n, const std::uint32_t* group_slots,
                   const std::int32_t* first_neighbour, const std::uint32_t* neighbour, const SlotBlocks* blocks,
-                  const double* node_term, const double* mask, const NodeBlocks& inverse, double b_norm2, double* r,
-                  double* z, double* p, double* q, double* dv, int max_iterations, double tolerance) {
+                  const double* node_term, const NodeBlocks& inverse, double b_norm2, double* r, double* z, double* p,
+                  double* q, double* dv, int max_iterations, double tolerance) {
   // q = 0 so that the first updateResidual (α = 0) only computes z = P·r.
   std::fill(q, q + 3 * n, 0.0);
   switch (kind) {
     case Preconditioner::kNone:
       return conjugateGradients<Preconditioner::kNone>(n, group_slots, first_neighbour, neighbour, blocks, node_term,
-                                                       mask, inverse, b_norm2, r, z, p, q, dv, max_iterations,
-                                                       tolerance);
+                                                       inverse, b_norm2, r, z, p, q, dv, max_iterations, tolerance);
     case Preconditioner::kJacobi:
       return conjugateGradients<Preconditioner::kJacobi>(n, group_slots, first_neighbour, neighbour, blocks, node_term,
-                                                         mask, inverse, b_norm2, r, z, p, q, dv, max_iterations,
-                                                         tolerance);
+                                                         inverse, b_norm2, r, z, p, q, dv, max_iterations, tolerance);
     case Preconditioner::kBlockJacobi:
       break;
   }
   return conjugateGradients<Preconditioner::kBlockJacobi>(n, group_slots, first_neighbour, neighbour, blocks, node_term,
-                                                          mask, inverse, b_norm2, r, z, p, q, dv, max_iterations,
-                                                          tolerance);
+                                                          inverse, b_norm2, r, z, p, q, dv, max_iterations, tolerance);
 }
 
 class ImplicitEuler : public Integrator {
@@ -461,7 +494,7 @@ class ImplicitEuler : public Integrator {
     const std::int32_t* first_neighbour = structure_.first_neighbour.data();
     const std::uint32_t* neighbour = structure_.neighbour.data();
     fillSlots(n / kLanes, group_slots, structure_.spring.data(), spring_a, spring_blocks_[1].data(),
-              spring_blocks_[2].data(), spring_blocks_[3].data(), slots_.data(), node_blocks_[0].data(),
+              spring_blocks_[2].data(), spring_blocks_[3].data(), mask, slots_.data(), node_blocks_[0].data(),
               node_blocks_[1].data(), node_blocks_[2].data(), node_blocks_[3].data(), node_blocks_[4].data(),
               node_blocks_[5].data());
     invertNodeBlocks(n, preconditioner_, mask, node_blocks_[0].data(), node_blocks_[1].data(), node_blocks_[2].data(),
@@ -470,7 +503,7 @@ class ImplicitEuler : public Integrator {
     // b = mask·(Δt·F⁰ − Δt²·S v⁰).
     double* q = q_.data();
     double* r = r_.data();
-    product(n, group_slots, first_neighbour, neighbour, slots_.data(), anchor_term, mask, v0, q);
+    product(n, group_slots, first_neighbour, neighbour, slots_.data(), anchor_term, v0, q);
     double b_norm2 = 0.0;
     for (std::size_t k = 0; k < system.node_count; ++k) {
       const Eigen::Vector3d& f = forces_[order[k]];
@@ -489,7 +522,7 @@ class ImplicitEuler : public Integrator {
       for (int c = 0; c < 3; ++c) {
         for (std::size_t k = 0; k < n; ++k) dv[c * n + k] *= scale * mask[k];
       }
-      product(n, group_slots, first_neighbour, neighbour, slots_.data(), node_term, mask, dv, q);
+      product(n, group_slots, first_neighbour, neighbour, slots_.data(), node_term, dv, q);
       for (std::size_t k = 0; k < 3 * n; ++k) r[k] -= q[k];
     } else {
       std::fill(dv, dv + 3 * n, 0.0);
@@ -498,8 +531,8 @@ class ImplicitEuler : public Integrator {
     const NodeBlocks inverse{node_blocks_[0].data(), node_blocks_[1].data(), node_blocks_[2].data(),
                              node_blocks_[3].data(), node_blocks_[4].data(), node_blocks_[5].data()};
     const SolveResult result =
-        solve(preconditioner_, n, group_slots, first_neighbour, neighbour, slots_.data(), node_term, mask, inverse,
-              b_norm2, r, z_.data(), p_.data(), q, dv, options_.cg_max_iterations, options_.cg_tolerance);
+        solve(preconditioner_, n, group_slots, first_neighbour, neighbour, slots_.data(), node_term, inverse, b_norm2,
+              r, z_.data(), p_.data(), q, dv, options_.cg_max_iterations, options_.cg_tolerance);
     iterations_ = result.iterations;
     residual_ = result.residual;
     previous_dt_ = dt;
