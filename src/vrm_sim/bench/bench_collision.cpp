@@ -3,8 +3,10 @@
 // colliding triangles; static and deformed membrane; ZCOLL/F and ZCOLL on the CPU and on OpenGL (OSMesa) at 30², 100²,
 // 300² (GL also as *_gl_cpumask: without the GPU-side reductions of §4.2.5, footprint read back and mask made on the
 // CPU); FCL (AABB, OBBRSS, kIOS) build and refit + collide with full contacts; the exact primitives. Also the cone test
-// of §4.2.6 (measured full-detection depth next to the prediction). Usage: bench_collision [--quick] [--out FILE]
+// of §4.2.6 (measured full-detection depth next to the prediction), and the severity independence of ZCOLL/F-CPU at
+// 100² as light/heavy over 5 repetitions in one run (issue 15). Usage: bench_collision [--quick] [--out FILE]
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -329,6 +331,43 @@ int main(int argc, char** argv) {
     }
   }
 
+  // Severity independence (issue 15): ZCOLL/F-CPU at 100², deformed membrane, light and heavy alternating, repeated
+  // kSeverityRepetitions times in this run; each repetition gives the median light and heavy time and their ratio.
+  constexpr int kSeverityRepetitions = 5;
+  std::vector<double> severity_heavy, severity_light, severity_ratio;
+  {
+    const std::vector<std::vector<Vector3d>> states = {deform(membrane, 0), deform(membrane, 1)};
+    CollisionOptions options;
+    options.resolution = 100;
+    std::map<std::string, std::unique_ptr<CollisionDetector>> detectors;
+    auto view = [&](int i) {
+      SurfaceView v = SurfaceView::of(membrane);
+      v.positions = states[i % states.size()].data();
+      v.static_geometry = false;
+      return v;
+    };
+    for (const auto& [severity, target] : targets) {
+      detectors[severity] = makeCollisionDetector("zcoll_f_cpu", options);
+      detectors[severity]->setInstrument(teapot);
+      detectors[severity]->collide(poses[severity], view(0));
+    }
+    auto median = [](std::vector<double> v) {
+      std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+      return v[v.size() / 2];
+    };
+    for (int repetition = 0; repetition < kSeverityRepetitions; ++repetition) {
+      std::map<std::string, std::vector<double>> ms;
+      for (int i = 0; i < iterations; ++i) {
+        for (const auto& [severity, target] : targets) {
+          ms[severity].push_back(detectors[severity]->collide(poses[severity], view(i)).timing.ms_total);
+        }
+      }
+      severity_heavy.push_back(median(ms["heavy"]));
+      severity_light.push_back(median(ms["light"]));
+      severity_ratio.push_back(severity_light.back() / severity_heavy.back());
+    }
+  }
+
   // Cone test (§4.2.6): 4 x 4 cones, alpha = 50°, full-detection depth vs d = p / (2 tan(alpha/2)).
   {
     const double alpha = 50.0 * kPi / 180.0, height = 0.0005, pitch = 0.001;
@@ -442,6 +481,18 @@ int main(int argc, char** argv) {
                 find(m, bv, res, "light", true) / find(m, bv, res, "heavy", true));
   }
 
+  auto spread = [](std::vector<double> v) {
+    std::sort(v.begin(), v.end());
+    return std::array<double, 3>{v[v.size() / 2], v.front(), v.back()};
+  };
+  const auto heavy_spread = spread(severity_heavy), light_spread = spread(severity_light),
+             ratio_spread = spread(severity_ratio);
+  std::printf(
+      "zcoll_f_cpu 100x100 deformed, %d repetitions in this run: heavy %.4f ms [%.4f, %.4f], light %.4f ms "
+      "[%.4f, %.4f], light/heavy %.3f [%.3f, %.3f] (target >= 0.9)\n",
+      kSeverityRepetitions, heavy_spread[0], heavy_spread[1], heavy_spread[2], light_spread[0], light_spread[1],
+      light_spread[2], ratio_spread[0], ratio_spread[1], ratio_spread[2]);
+
   std::ofstream out(out_path);
   if (!out) {
     std::fprintf(stderr, "cannot write %s\n", out_path.c_str());
@@ -449,7 +500,18 @@ int main(int argc, char** argv) {
   }
   out << "{\"suite\":\"collision\",\"command\":\"" << command << "\",\"quick\":" << (quick ? "true" : "false")
       << ",\"instrument_triangles\":" << teapot.mesh.triangles.size()
-      << ",\"membrane_triangles\":" << membrane.triangles.size() << ",\"rows\":[\n";
+      << ",\"membrane_triangles\":" << membrane.triangles.size();
+  // Median and spread (min, max) over the repetitions of the severity block above.
+  auto json_spread = [&out](const char* name, const std::array<double, 3>& v) {
+    out << ",\"" << name << "\":{\"median\":" << jsonNumber(v[0]) << ",\"min\":" << jsonNumber(v[1])
+        << ",\"max\":" << jsonNumber(v[2]) << "}";
+  };
+  out << ",\"severity_repetitions\":{\"method\":\"zcoll_f_cpu\",\"resolution\":100,\"deformed\":true,\"repetitions\":"
+      << kSeverityRepetitions << ",\"iterations\":" << iterations;
+  json_spread("heavy_ms", heavy_spread);
+  json_spread("light_ms", light_spread);
+  json_spread("light_over_heavy", ratio_spread);
+  out << "},\"rows\":[\n";
   for (std::size_t i = 0; i < rows.size(); ++i) {
     const Row& r = rows[i];
     out << "{\"suite\":\"collision\",\"method\":\"" << r.method << "\",\"bv\":\"" << r.bv

@@ -133,32 +133,37 @@ void NodeAccumulator::begin(std::size_t node_count) {
     sum_.assign(node_count, 0.0);
     max_.assign(node_count, 0.0f);
     count_.assign(node_count, 0);
+    touched_.assign(node_count + 1, 0);  // + 1: add() writes one entry past the last node it keeps
   }
-  touched_.clear();
+  touched_count_ = 0;
 }
 
 void NodeAccumulator::finish(DeformationReduction reduction, const Eigen::Vector3d& direction,
                              CollisionResult& result) {
-  // Sorted by a scan over all nodes when that is cheaper than sorting the touched ones (a heavy contact).
-  if (touched_.size() * 8 > count_.size()) {
-    touched_.clear();
+  // Sorted by a branch-free scan over all nodes when that is cheaper than sorting the touched ones (a heavy contact).
+  const std::size_t touched = touched_count_;
+  if (touched * 8 > count_.size()) {
+    std::size_t kept = 0;
     for (std::size_t n = 0; n < count_.size(); ++n) {
-      if (count_[n] != 0) touched_.push_back(static_cast<std::uint32_t>(n));
+      touched_[kept] = static_cast<std::uint32_t>(n);
+      kept += count_[n] != 0 ? 1 : 0;
     }
   } else {
-    std::sort(touched_.begin(), touched_.end());
+    std::sort(touched_.begin(), touched_.begin() + static_cast<std::ptrdiff_t>(touched));
   }
-  result.nodes.reserve(result.nodes.size() + touched_.size());
-  result.deformations.reserve(result.deformations.size() + touched_.size());
-  for (std::uint32_t node : touched_) {
-    result.nodes.push_back(node);
+  const std::size_t first = result.nodes.size();
+  result.nodes.resize(first + touched);
+  result.deformations.resize(first + touched);
+  for (std::size_t k = 0; k < touched; ++k) {
+    const std::uint32_t node = touched_[k];
+    result.nodes[first + k] = node;
     const double length = reduction == DeformationReduction::kMax ? max_[node] : sum_[node] / count_[node];
-    result.deformations.push_back(length * direction);
+    result.deformations[first + k] = length * direction;
     sum_[node] = 0.0;
     max_[node] = 0.0f;
     count_[node] = 0;
   }
-  touched_.clear();
+  touched_count_ = 0;
 }
 
 namespace {

@@ -36,7 +36,10 @@ class NodeAccumulator {
   void begin(std::size_t node_count);
   // Adds `count` vectors of total length `sum` and maximum length `max` (one triangle's pixels at once).
   void add(std::uint32_t node, float max, double sum, std::uint32_t count) {
-    if (count_[node] == 0) touched_.push_back(node);
+    // Branch-free append of a node seen for the first time (touched_ has room for every node): a branch here
+    // mispredicted once per node and made the cost follow the contact size.
+    touched_[touched_count_] = node;
+    touched_count_ += count_[node] == 0 ? 1 : 0;
     count_[node] += count;
     sum_[node] += sum;
     max_[node] = std::max(max_[node], max);
@@ -49,6 +52,7 @@ class NodeAccumulator {
   std::vector<float> max_;
   std::vector<std::uint32_t> count_;
   std::vector<std::uint32_t> touched_;
+  std::size_t touched_count_ = 0;
 };
 
 class Stopwatch {
@@ -66,9 +70,11 @@ class Stopwatch {
   std::chrono::steady_clock::time_point start_;
 };
 
-// Scratch buffers of analyzeCollisionMask, reused between queries.
+// Scratch buffers of analyzeCollisionMask, reused between queries: one entry per surface triangle, then
+// kSinkEntries entries that absorb the pixels outside the mask (a power of two).
 struct AnalysisScratch {
-  std::vector<float> triangle_best;
+  static constexpr std::uint32_t kSinkEntries = 16;
+  std::vector<float> triangle_best;  // -inf = no pixel yet
   std::vector<double> triangle_sum;
   std::vector<std::uint32_t> triangle_count;
   std::vector<std::uint32_t> best_pixel;

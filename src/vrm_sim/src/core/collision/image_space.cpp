@@ -13,11 +13,6 @@ Vector3d ProjectionVolume::toPixel(const Vector3d& p) const {
   return Vector3d((q.x() - x_min) / pixel_size, (q.y() - y_min) / pixel_size, near_z - q.z());
 }
 
-Vector3d ProjectionVolume::fromPixel(int x, int y, double depth) const {
-  const Vector3d q(x_min + (x + 0.5) * pixel_size, y_min + (y + 0.5) * pixel_size, near_z - depth);
-  return axes.transpose() * q;
-}
-
 ProjectionVolume fitProjectionVolume(const TriangleMesh& mesh, const Vector3d& direction, int resolution,
                                      double tip_region_length) {
   ProjectionVolume volume;

@@ -115,15 +115,18 @@ class ZcollCpuDetector : public CollisionDetector {
     }
     result.colliding = true;
 
+    // The analysis scans B's whole footprint (b_roi_), not the colliding ROI: the ROI grows with the contact, the
+    // footprint does not, so a light and a heavy contact cost the same (§4.2.7, issue 15). The colliding ROI still
+    // answers "any collision" above.
     if (volume_mode) {
       // Alg. 4.1 only answers "which pixels collide"; its depth difference is no deformation (A is a volume).
       CollisionOptions triangles_only = options_;
       triangles_only.readback = ReadbackMode::kTrianglesOnly;
-      analyzeCollisionMask(volume_, mask_, roi, zbuf_a_.depth.data(), zbuf_a_.id.data(), zbuf_b_.data(), pose, surface,
-                           triangles_only, scratch_, result);
+      analyzeCollisionMask(volume_, mask_, b_roi_, zbuf_a_.depth.data(), zbuf_a_.id.data(), zbuf_b_.data(), pose,
+                           surface, triangles_only, scratch_, result);
     } else {
-      analyzeCollisionMask(volume_, mask_, roi, zbuf_a_.depth.data(), zbuf_a_.id.data(), zbuf_b_.data(), pose, surface,
-                           options_, scratch_, result);
+      analyzeCollisionMask(volume_, mask_, b_roi_, zbuf_a_.depth.data(), zbuf_a_.id.data(), zbuf_b_.data(), pose,
+                           surface, options_, scratch_, result);
     }
     result.timing.ms_analysis = phase.lap();
     result.timing.ms_total = total.lap();
