@@ -26,21 +26,28 @@ namespace {
 // positive definite — CG needs that, and it only removes buckling stiffness.
 //
 // Layout, chosen for the product A·p that every CG iteration runs once (issue 15):
-//  - node vectors are structure of arrays [x…|y…|z…], the node count padded to a multiple of 4;
-//  - the product gathers instead of scattering: nodes are taken 4 at a time (one SIMD lane each), and the springs
-//    of those 4 nodes are stored slot by slot (sliced ELLPACK: slot k holds the k-th spring of each of the 4 nodes,
-//    padded with zero blocks to the group's largest degree), each slot one 128-byte record (v_x, v_y, v_z, a for the
-//    4 lanes) plus the 4 neighbour indices. A sweep then reads the records in order, gathers 3×4 neighbour values and
-//    writes each q_i once — no read-modify-write chains through memory and no horizontal sums. Every spring is stored
-//    twice (once per end); that costs a second copy of the block, not a second square root.
-// Measured at 10k nodes (bench_implicit, same run): the previous form (one packed record per spring, Vec4 per node,
-// scatter to both ends) took ~0.25 ms per iteration.
-// Constrained nodes (pinned or grasped) are handled by the filtered CG of Baraff & Witkin §5.3: A·p is masked to zero
-// there and the preconditioner is zero there, so p, Δv and r stay zero on them — the "infinite mass" of the thesis
+//  - node vectors are structure of arrays [x…|y…|z…] in an internal node order (Structure), padded to kLanes;
+//  - the product gathers instead of scattering: nodes are taken kLanes at a time (one SIMD lane each), and their
+//    springs are stored slot by slot (sliced ELLPACK: slot k holds the k-th spring of each node of the group, padded
+//    with zero blocks to the group's largest degree), each slot one record of v_x, v_y, v_z, a for the kLanes nodes.
+//    A sweep reads the records in order, loads the neighbours (one vector load per component where they are
+//    consecutive, else a gather) and writes each q_i once — no read-modify-write chains, no horizontal sums. Every
+//    spring is stored twice (once per end); that costs a second copy of the block, not a second square root.
+// Measured (bench_implicit, 10k nodes, same run; a perf profile of the step): the scatter form this replaced took
+// 2.6 ms per step with 10 iterations, this one 2.3; the product is 40 % of the step, the CG vector passes 20 %, the
+// assembly (springBlocks, fillSlots) 16 %, ForceModel::compute 7 %. The step is bound by memory traffic: the slot
+// records (2 MB at 10k nodes) and the CG vectors do not fit the 2 MB L2 together; with every slot pointing at one
+// record (no record traffic) the step took 1.65 ms. Tried and not kept: float records (5 % faster, but CG then
+// converges to the rounded matrix, ~1e-7 relative — the dense-solve tests ask for 1e-9), AVX2 with 4 lanes
+// instead of AVX-512 with 8 (same speed: not bound by arithmetic), a scalar spring-block loop (std::sqrt's errno
+// branch; now 8 springs per iteration).
+// Constrained nodes (pinned or grasped) are handled by the filtered CG of Baraff & Witkin §5.3: their rows of A are
+// zero blocks and their preconditioner is zero, so p, Δv and r stay zero on them — the "infinite mass" of the thesis
 // without ill-conditioning. A step allocates nothing once the buffers have their size.
 
-// Built for AVX2 and the baseline and picked at load time, like spring_kernels.cpp. The two builds may round
-// differently; the implicit solve is iterative and not part of any bit-exact contract.
+// Built for AVX-512, AVX2+FMA and the baseline, picked at load time like spring_kernels.cpp. The builds round
+// differently (FMA, lane order of the dot products); the implicit solve is iterative and not part of any bit-exact
+// contract, but each build is deterministic.
 #if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
 #define VRM_IMPLICIT_KERNEL __attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
 #else
