@@ -73,9 +73,32 @@ inline Lanes gather(const double* base, const std::uint32_t* index) {
   return values;
 }
 
-// One slot of a 4-node group: the k-th spring of each node.
-struct SlotBlocks {
-  double vx[kLanes], vy[kLanes], vz[kLanes], a[kLanes];
+// The blocks B_s = a·I + v vᵀ of the springs in internal spring order (plus one zero block for padding) and, per slot,
+// which springs its lanes hold: consecutive ids (one vector load per array) where the structure allows, else a gather.
+struct Springs {
+  const double* a;
+  const double* vx;
+  const double* vy;
+  const double* vz;
+  const std::int32_t* first;  // per slot: id of lane 0's spring when the lanes hold consecutive ids, else −1
+  const std::uint32_t* ids;   // kLanes per slot
+  const double* mask;         // per node: 1 free, 0 constrained (rows of A·p that are filtered out)
+
+  void load(std::uint32_t slot, Lanes& bx, Lanes& by, Lanes& bz, Lanes& ba) const {
+    const std::int32_t id = first[slot];
+    if (id >= 0) {
+      bx = lanes(vx + id);
+      by = lanes(vy + id);
+      bz = lanes(vz + id);
+      ba = lanes(a + id);
+    } else {
+      const std::uint32_t* lane_ids = ids + kLanes * slot;
+      bx = gather(vx, lane_ids);
+      by = gather(vy, lane_ids);
+      bz = gather(vz, lane_ids);
+      ba = gather(a, lane_ids);
+    }
+  }
 };
 
 // The node-ordered spring structure; depends on the topology only. Nodes are renumbered internally (order[k] = the
@@ -91,7 +114,9 @@ struct Structure {
   std::vector<std::uint32_t> group_slots;          // first slot of group g; group_slots[groups] = slot count
   std::vector<std::int32_t> first_neighbour;       // per slot: internal neighbour of lane 0 if the 4 are consecutive
   std::vector<std::uint32_t> neighbour;            // 4 per slot: internal other end (the node itself in padding)
-  std::vector<std::uint32_t> spring;               // 4 per slot: the spring (springs = the zero block in padding)
+  std::vector<std::uint32_t> spring;               // kLanes per slot: internal spring id (springs: the zero block)
+  std::vector<std::int32_t> first_spring;          // per slot: id of lane 0 if the lanes' ids are consecutive
+  std::vector<std::uint32_t> spring_order;         // internal spring id → spring
 
   bool matches(const SystemView& system) const {
     return system.node_count == nodes && system.spring_count == springs &&
@@ -160,6 +185,36 @@ struct Structure {
         if (consecutive) first_neighbour[slot] = static_cast<std::int32_t>(neighbour[kLanes * slot]);
       }
     }
+    // Internal spring ids, handed out slot index by slot index over all groups: in a regular patch the two ends of a
+    // run of springs are runs of nodes in two groups' slots with the same direction, so both ends see consecutive
+    // ids and every spring block is stored once.
+    const std::uint32_t unassigned = std::numeric_limits<std::uint32_t>::max();
+    std::vector<std::uint32_t> id_of(springs + 1, unassigned);
+    id_of[springs] = static_cast<std::uint32_t>(springs);
+    spring_order.clear();
+    std::uint32_t widest = 0;
+    for (std::size_t g = 0; g < groups; ++g) widest = std::max(widest, group_slots[g + 1] - group_slots[g]);
+    for (std::uint32_t k = 0; k < widest; ++k) {
+      for (std::size_t g = 0; g < groups; ++g) {
+        if (k >= group_slots[g + 1] - group_slots[g]) continue;
+        for (std::size_t lane = 0; lane < kLanes; ++lane) {
+          const std::uint32_t s = spring[kLanes * (group_slots[g] + k) + lane];
+          if (id_of[s] != unassigned) continue;
+          id_of[s] = static_cast<std::uint32_t>(spring_order.size());
+          spring_order.push_back(s);
+        }
+      }
+    }
+    first_spring.assign(slots, -1);
+    for (std::size_t slot = 0; slot < slots; ++slot) {
+      bool consecutive = true;
+      for (std::size_t lane = 0; lane < kLanes; ++lane) {
+        std::uint32_t& s = spring[kLanes * slot + lane];
+        s = id_of[s];
+        consecutive = consecutive && s < springs && s == spring[kLanes * slot] + lane;
+      }
+      if (consecutive) first_spring[slot] = static_cast<std::int32_t>(spring[kLanes * slot]);
+    }
   }
 };
 
@@ -182,19 +237,24 @@ inline Lanes squareRoot(const Lanes& x) {
 #endif
 }
 
-// Per spring: a_s and v_s of B_s = a_s·I + v_s v_sᵀ for the current positions (slot `springs` stays zero: padding).
+// Per spring, in internal order: a_s and v_s of B_s = a_s·I + v_s v_sᵀ for the current positions (id `springs`
+// stays zero: padding). stiffnesses and rest_lengths are scratch arrays for the reordered inputs.
 // Two loops, like kernels::hookeForces: the gather is scalar, the two square roots and the division per spring then
 // run kLanes springs at a time (scalar they were 10 % of the step).
 VRM_IMPLICIT_KERNEL
-void springBlocks(std::size_t m, const std::array<std::uint32_t, 2>* ends, const Eigen::Vector3d* x,
-                  const double* stiffnesses, const double* rest_lengths, double scale, double* a, double* vx,
-                  double* vy, double* vz) {
+void springBlocks(std::size_t m, const std::uint32_t* spring_order, const std::array<std::uint32_t, 2>* ends,
+                  const Eigen::Vector3d* x, const double* spring_stiffnesses, const double* spring_rest_lengths,
+                  double scale, double* stiffnesses, double* rest_lengths, double* a, double* vx, double* vy,
+                  double* vz) {
   for (std::size_t s = 0; s < m; ++s) {
-    const Eigen::Vector3d& xa = x[ends[s][0]];
-    const Eigen::Vector3d& xb = x[ends[s][1]];
+    const std::uint32_t spring = spring_order[s];
+    const Eigen::Vector3d& xa = x[ends[spring][0]];
+    const Eigen::Vector3d& xb = x[ends[spring][1]];
     vx[s] = xb.x() - xa.x();
     vy[s] = xb.y() - xa.y();
     vz[s] = xb.z() - xa.z();
+    stiffnesses[s] = spring_stiffnesses[spring];
+    rest_lengths[s] = spring_rest_lengths[spring];
   }
   const Lanes zero = {};
   const Lanes minimum = zero + kMinSpringLength;
@@ -226,26 +286,18 @@ void springBlocks(std::size_t m, const std::array<std::uint32_t, 2>* ends, const
   }
 }
 
-// Copies the spring blocks into the node-ordered slots and adds them to the 3×3 node blocks of A (diagonal dxx, dyy,
-// dzz and off-diagonal dxy, dxz, dyz; these hold the node term m + Δt·c + Δt²·k_anchor on entry). The slots of a
-// constrained node are stored as zero blocks: its row of A·p is then zero without a mask in the product.
+// Adds the spring blocks to the 3×3 node blocks of A (diagonal dxx, dyy, dzz and off-diagonal dxy, dxz, dyz; these
+// hold the node term m + Δt·c + Δt²·k_anchor on entry).
 VRM_IMPLICIT_KERNEL
-void fillSlots(std::size_t groups, const std::uint32_t* group_slots, const std::uint32_t* spring, const double* a,
-               const double* vx, const double* vy, const double* vz, const double* mask, SlotBlocks* blocks,
-               double* dxx, double* dyy, double* dzz, double* dxy, double* dxz, double* dyz) {
+void nodeBlocks(std::size_t groups, const std::uint32_t* group_slots, const Springs& springs, double* dxx, double* dyy,
+                double* dzz, double* dxy, double* dxz, double* dyz) {
   for (std::size_t g = 0; g < groups; ++g) {
     const std::size_t i = kLanes * g;
-    const Lanes free = lanes(mask + i);
     Lanes xx = lanes(dxx + i), yy = lanes(dyy + i), zz = lanes(dzz + i);
     Lanes xy = lanes(dxy + i), xz = lanes(dxz + i), yz = lanes(dyz + i);
     for (std::uint32_t slot = group_slots[g]; slot < group_slots[g + 1]; ++slot) {
-      const std::uint32_t* s = spring + kLanes * slot;
-      SlotBlocks& block = blocks[slot];
-      const Lanes bx = gather(vx, s), by = gather(vy, s), bz = gather(vz, s), ba = gather(a, s);
-      lanes(block.vx) = free * bx;
-      lanes(block.vy) = free * by;
-      lanes(block.vz) = free * bz;
-      lanes(block.a) = free * ba;
+      Lanes bx, by, bz, ba;
+      springs.load(slot, bx, by, bz, ba);
       xx += ba + bx * bx;
       yy += ba + by * by;
       zz += ba + bz * bz;
@@ -263,10 +315,10 @@ void fillSlots(std::size_t groups, const std::uint32_t* group_slots, const std::
 }
 
 // q = node_term·p + Σ_s B_s (p_i − p_j) over node-ordered slots; returns p·q. Vectors are [x|y|z] with stride n
-// (padded). Constrained rows have zero blocks (fillSlots) and, inside CG, p = 0, so their q is 0.
+// (padded). The rows of constrained nodes are masked to zero.
 VRM_IMPLICIT_KERNEL
 double product(std::size_t n, const std::uint32_t* group_slots, const std::int32_t* first_neighbour,
-               const std::uint32_t* neighbour, const SlotBlocks* blocks, const double* node_term, const double* p,
+               const std::uint32_t* neighbour, const Springs& springs, const double* node_term, const double* p,
                double* q) {
   const double* px = p;
   const double* py = p + n;
@@ -290,13 +342,17 @@ double product(std::size_t n, const std::uint32_t* group_slots, const std::int32
         wy = piy - gather(py, j);
         wz = piz - gather(pz, j);
       }
-      const SlotBlocks& block = blocks[slot];
-      const Lanes vx = lanes(block.vx), vy = lanes(block.vy), vz = lanes(block.vz), a = lanes(block.a);
+      Lanes vx, vy, vz, a;
+      springs.load(slot, vx, vy, vz, a);
       const Lanes along = vx * wx + vy * wy + vz * wz;
       qx += a * wx + along * vx;
       qy += a * wy + along * vy;
       qz += a * wz + along * vz;
     }
+    const Lanes free = lanes(springs.mask + i);
+    qx *= free;
+    qy *= free;
+    qz *= free;
     lanes(q + i) = qx;
     lanes(q + n + i) = qy;
     lanes(q + 2 * n + i) = qz;
@@ -407,7 +463,7 @@ struct SolveResult {
 template <Preconditioner kKind>
 __attribute__((always_inline)) inline SolveResult conjugateGradients(
     std::size_t n, const std::uint32_t* group_slots, const std::int32_t* first_neighbour,
-    const std::uint32_t* neighbour, const SlotBlocks* blocks, const double* node_term, const NodeBlocks& inverse,
+    const std::uint32_t* neighbour, const Springs& blocks, const double* node_term, const NodeBlocks& inverse,
     double b_norm2, double* r, double* z, double* p, double* q, double* dv, int max_iterations, double tolerance) {
   auto [rz, r_norm2] = updateResidual<kKind>(n, 0.0, inverse, q, r, z);
   std::memcpy(p, z, 3 * n * sizeof(double));
@@ -436,7 +492,7 @@ __attribute__((always_inline)) inline SolveResult conjugateGradients(
 
 VRM_IMPLICIT_KERNEL
 SolveResult solve(Preconditioner kind, std::size_t n, const std::uint32_t* group_slots,
-                  const std::int32_t* first_neighbour, const std::uint32_t* neighbour, const SlotBlocks* blocks,
+                  const std::int32_t* first_neighbour, const std::uint32_t* neighbour, const Springs& blocks,
                   const double* node_term, const NodeBlocks& inverse, double b_norm2, double* r, double* z, double* p,
                   double* q, double* dv, int max_iterations, double tolerance) {
   // q = 0 so that the first updateResidual (α = 0) only computes z = P·r.
@@ -494,23 +550,28 @@ class ImplicitEuler : public Integrator {
     for (int c = 0; c < 3; ++c) std::copy(node_term, node_term + n, node_blocks_[c].data());
     for (int c = 3; c < 6; ++c) std::fill(node_blocks_[c].begin(), node_blocks_[c].end(), 0.0);
 
-    double* spring_a = spring_blocks_[0].data();
-    springBlocks(m, system.springs, system.positions, system.stiffnesses, system.rest_lengths, h2, spring_a,
+    springBlocks(m, structure_.spring_order.data(), system.springs, system.positions, system.stiffnesses,
+                 system.rest_lengths, h2, spring_blocks_[4].data(), spring_blocks_[5].data(), spring_blocks_[0].data(),
                  spring_blocks_[1].data(), spring_blocks_[2].data(), spring_blocks_[3].data());
     const std::uint32_t* group_slots = structure_.group_slots.data();
     const std::int32_t* first_neighbour = structure_.first_neighbour.data();
     const std::uint32_t* neighbour = structure_.neighbour.data();
-    fillSlots(n / kLanes, group_slots, structure_.spring.data(), spring_a, spring_blocks_[1].data(),
-              spring_blocks_[2].data(), spring_blocks_[3].data(), mask, slots_.data(), node_blocks_[0].data(),
-              node_blocks_[1].data(), node_blocks_[2].data(), node_blocks_[3].data(), node_blocks_[4].data(),
-              node_blocks_[5].data());
+    const Springs springs{spring_blocks_[0].data(),
+                          spring_blocks_[1].data(),
+                          spring_blocks_[2].data(),
+                          spring_blocks_[3].data(),
+                          structure_.first_spring.data(),
+                          structure_.spring.data(),
+                          mask};
+    nodeBlocks(n / kLanes, group_slots, springs, node_blocks_[0].data(), node_blocks_[1].data(), node_blocks_[2].data(),
+               node_blocks_[3].data(), node_blocks_[4].data(), node_blocks_[5].data());
     invertNodeBlocks(n, preconditioner_, mask, node_blocks_[0].data(), node_blocks_[1].data(), node_blocks_[2].data(),
                      node_blocks_[3].data(), node_blocks_[4].data(), node_blocks_[5].data());
 
     // b = mask·(Δt·F⁰ − Δt²·S v⁰).
     double* q = q_.data();
     double* r = r_.data();
-    product(n, group_slots, first_neighbour, neighbour, slots_.data(), anchor_term, v0, q);
+    product(n, group_slots, first_neighbour, neighbour, springs, anchor_term, v0, q);
     double b_norm2 = 0.0;
     for (std::size_t k = 0; k < system.node_count; ++k) {
       const Eigen::Vector3d& f = forces_[order[k]];
@@ -529,7 +590,7 @@ class ImplicitEuler : public Integrator {
       for (int c = 0; c < 3; ++c) {
         for (std::size_t k = 0; k < n; ++k) dv[c * n + k] *= scale * mask[k];
       }
-      product(n, group_slots, first_neighbour, neighbour, slots_.data(), node_term, dv, q);
+      product(n, group_slots, first_neighbour, neighbour, springs, node_term, dv, q);
       for (std::size_t k = 0; k < 3 * n; ++k) r[k] -= q[k];
     } else {
       std::fill(dv, dv + 3 * n, 0.0);
@@ -538,8 +599,8 @@ class ImplicitEuler : public Integrator {
     const NodeBlocks inverse{node_blocks_[0].data(), node_blocks_[1].data(), node_blocks_[2].data(),
                              node_blocks_[3].data(), node_blocks_[4].data(), node_blocks_[5].data()};
     const SolveResult result =
-        solve(preconditioner_, n, group_slots, first_neighbour, neighbour, slots_.data(), node_term, inverse, b_norm2,
-              r, z_.data(), p_.data(), q, dv, options_.cg_max_iterations, options_.cg_tolerance);
+        solve(preconditioner_, n, group_slots, first_neighbour, neighbour, springs, node_term, inverse, b_norm2, r,
+              z_.data(), p_.data(), q, dv, options_.cg_max_iterations, options_.cg_tolerance);
     iterations_ = result.iterations;
     residual_ = result.residual;
     previous_dt_ = dt;
@@ -562,7 +623,6 @@ class ImplicitEuler : public Integrator {
     for (auto* vector : {&anchor_term_, &node_term_, &mask_}) vector->assign(n, 0.0);
     for (auto& block : node_blocks_) block.assign(n, 0.0);
     for (auto& block : spring_blocks_) block.assign(system.spring_count + 1, 0.0);
-    slots_.assign(structure_.group_slots.back(), SlotBlocks{});
     previous_dt_ = 0.0;
   }
 
@@ -575,9 +635,9 @@ class ImplicitEuler : public Integrator {
   std::vector<Eigen::Vector3d> forces_;
   std::vector<double> r_, z_, p_, q_, dv_;  // [x|y|z], stride structure_.padded
   std::vector<double> anchor_term_, node_term_, mask_;
-  std::array<std::vector<double>, 6> node_blocks_;    // xx, yy, zz, xy, xz, yz of A, then of the preconditioner
-  std::array<std::vector<double>, 4> spring_blocks_;  // a, v_x, v_y, v_z per spring (+ one zero block)
-  std::vector<SlotBlocks> slots_;
+  std::array<std::vector<double>, 6> node_blocks_;  // xx, yy, zz, xy, xz, yz of A, then of the preconditioner
+  // a, v_x, v_y, v_z per internal spring id (+ one zero block), then stiffness and rest length in that order.
+  std::array<std::vector<double>, 6> spring_blocks_;
 };
 
 }  // namespace
