@@ -78,6 +78,8 @@ struct RunResult {
   std::vector<Eigen::Vector3d> final_positions;
   double ms_per_step = 0.0;
   double ms_per_step_median = 0.0;  // median over frames: a typical step, without the rare watchdog rollbacks
+  double ms_per_step_max = 0.0;     // the worst frame
+  std::string chosen;               // the integrator in use at the end (integrator: auto)
   int steps = 0;
   int iterations = 0;
   bool finite = true;
@@ -111,6 +113,8 @@ RunResult runGraspPull(const Scene& scene, const TissueConfig& config, double du
     result.steps += report.steps;
     if (report.steps > 0) frame_ms_per_step.push_back(1e3 * frame_time / report.steps);
   }
+  for (double ms : frame_ms_per_step) result.ms_per_step_max = std::max(result.ms_per_step_max, ms);
+  result.chosen = simulator.integratorLabel();
   result.ms_per_step = 1e3 * elapsed / std::max(result.steps, 1);
   if (!frame_ms_per_step.empty()) {
     std::nth_element(frame_ms_per_step.begin(), frame_ms_per_step.begin() + frame_ms_per_step.size() / 2,
@@ -126,6 +130,86 @@ RunResult runGraspPull(const Scene& scene, const TissueConfig& config, double du
   result.energy = simulator.totalEnergy();
   return result;
 }
+
+// The plain baseline of issue 15 §1 (impl "naive_soa"): scalar structure-of-arrays spring forces with the scatter in
+// the same loop, symplectic Euler and one Provot pass in spring order, over the same mesh, masses and springs; one
+// thread, vectorisation off. The grasped nodes (same radius as the forceps) move up kinematically, the border is
+// pinned. What a straightforward implementation of §5.1 costs per step — every speed target is a ratio to it.
+class NaiveSoaMembrane {
+ public:
+  NaiveSoaMembrane(int cells, double node_mass) {
+    auto membrane = vrm_sim::tissue::makeGridMembrane(cells, kSize, kStiffness, node_mass);
+    const std::size_t n = membrane->nodeCount();
+    for (std::size_t i = 0; i < n; ++i) {
+      const Eigen::Vector3d& p = membrane->positions()[i];
+      x_.push_back(p.x());
+      y_.push_back(p.y());
+      z_.push_back(p.z());
+      inverse_mass_.push_back(1.0 / membrane->masses()[i]);
+      mass_.push_back(membrane->masses()[i]);
+      const bool grasped = std::hypot(p.x(), p.y()) <= 3e-4;
+      free_.push_back(membrane->fixedFlags()[i] || grasped ? 0 : 1);
+      if (grasped && !membrane->fixedFlags()[i]) grasped_.push_back(static_cast<std::uint32_t>(i));
+    }
+    vx_.assign(n, 0.0), vy_.assign(n, 0.0), vz_.assign(n, 0.0);
+    fx_.assign(n, 0.0), fy_.assign(n, 0.0), fz_.assign(n, 0.0);
+    for (std::size_t s = 0; s < membrane->springCount(); ++s) {
+      a_.push_back(membrane->springNodeSlots()[s][0]);
+      b_.push_back(membrane->springNodeSlots()[s][1]);
+      k_.push_back(membrane->stiffnesses()[s]);
+      rest_.push_back(membrane->restLengths()[s]);
+    }
+  }
+  std::size_t nodes() const { return x_.size(); }
+  std::size_t springs() const { return a_.size(); }
+
+  __attribute__((optimize("no-tree-vectorize"))) void step(double dt, double damping, double lift, double tau) {
+    const std::size_t n = x_.size();
+    for (std::uint32_t i : grasped_) z_[i] += lift;
+    for (std::size_t i = 0; i < n; ++i) {
+      fx_[i] = -damping * vx_[i];
+      fy_[i] = -damping * vy_[i];
+      fz_[i] = -damping * vz_[i];
+    }
+    for (std::size_t s = 0; s < a_.size(); ++s) {
+      const std::uint32_t a = a_[s], b = b_[s];
+      const double dx = x_[b] - x_[a], dy = y_[b] - y_[a], dz = z_[b] - z_[a];
+      const double length = std::sqrt(dx * dx + dy * dy + dz * dz);
+      if (length < 1e-12) continue;
+      const double scale = k_[s] * (length - rest_[s]) / length;
+      fx_[a] += scale * dx, fy_[a] += scale * dy, fz_[a] += scale * dz;
+      fx_[b] -= scale * dx, fy_[b] -= scale * dy, fz_[b] -= scale * dz;
+    }
+    for (std::size_t i = 0; i < n; ++i) {
+      if (!free_[i]) continue;
+      vx_[i] += dt * inverse_mass_[i] * fx_[i], vy_[i] += dt * inverse_mass_[i] * fy_[i];
+      vz_[i] += dt * inverse_mass_[i] * fz_[i];
+      x_[i] += dt * vx_[i], y_[i] += dt * vy_[i], z_[i] += dt * vz_[i];
+    }
+    for (std::size_t s = 0; s < a_.size(); ++s) {
+      const std::uint32_t a = a_[s], b = b_[s];
+      const double dx = x_[b] - x_[a], dy = y_[b] - y_[a], dz = z_[b] - z_[a];
+      const double length = std::sqrt(dx * dx + dy * dy + dz * dz);
+      const double limit = tau * rest_[s];
+      if (length <= limit || (!free_[a] && !free_[b])) continue;
+      const double excess = (length - limit) / length;
+      const double share = free_[a] && free_[b] ? 0.5 : 1.0;
+      if (free_[a]) x_[a] += share * excess * dx, y_[a] += share * excess * dy, z_[a] += share * excess * dz;
+      if (free_[b]) x_[b] -= share * excess * dx, y_[b] -= share * excess * dy, z_[b] -= share * excess * dz;
+    }
+  }
+  bool finite() const {
+    for (std::size_t i = 0; i < x_.size(); ++i) {
+      if (!std::isfinite(x_[i] + y_[i] + z_[i])) return false;
+    }
+    return true;
+  }
+
+ private:
+  std::vector<double> x_, y_, z_, vx_, vy_, vz_, fx_, fy_, fz_, inverse_mass_, mass_, k_, rest_;
+  std::vector<std::uint8_t> free_;
+  std::vector<std::uint32_t> a_, b_, grasped_;
+};
 
 std::string number(double value) {
   if (!std::isfinite(value)) return "null";
@@ -148,7 +232,14 @@ struct Row {
   int steps = 0;
   bool strain_limit = true;
   std::string peer = "ours";
-  double ratio_to_bullet = NAN;  // bullet rows: our median ms per step (same mesh, dt; quasi-static Euler) / Bullet's
+  std::string impl = "ours";      // "naive_soa": the plain baseline; "ours": TissueSimulator
+  std::string chosen;             // integrator: auto — what it chose ("symplectic_euler x3")
+  double ratio_to_naive = NAN;    // ms per step (median) / naive_soa's in the same run, same mesh and dt
+  double ms_per_step_max = NAN;   // worst frame's ms per step
+  std::string auto_fastest;       // hard cases, auto row: the fastest fixed integrator that stayed stable
+  double auto_cost_ratio = NAN;   // ... auto's ms per step / its
+  double auto_error_ratio = NAN;  // ... auto's error rms / its
+  double ratio_to_bullet = NAN;   // bullet rows: our median ms per step (same mesh, dt; quasi-static Euler) / Bullet's
 
   std::string json() const {
     std::ostringstream out;
@@ -163,6 +254,14 @@ struct Row {
         << ", \"steps\": " << steps << ", \"strain_limit\": " << (strain_limit ? "true" : "false") << ", \"peer\": \""
         << peer << "\"";
     if (std::isfinite(ratio_to_bullet)) out << ", \"ratio_ours_to_bullet\": " << number(ratio_to_bullet);
+    out << ", \"impl\": \"" << impl << "\"";
+    if (!chosen.empty()) out << ", \"integrator_chosen\": \"" << chosen << "\"";
+    if (std::isfinite(ratio_to_naive)) out << ", \"ratio_to_naive\": " << number(ratio_to_naive);
+    if (std::isfinite(ms_per_step_max)) out << ", \"ms_per_step_max\": " << number(ms_per_step_max);
+    if (!auto_fastest.empty()) {
+      out << ", \"auto_fastest_fixed\": \"" << auto_fastest << "\", \"auto_cost_ratio\": " << number(auto_cost_ratio)
+          << ", \"auto_error_ratio\": " << number(auto_error_ratio);
+    }
     out << "}";
     return out.str();
   }
@@ -173,6 +272,10 @@ void printRow(const Row& row) {
               row.integrator.c_str(), row.nodes, row.springs, row.dt, row.iterations, row.ms_per_step,
               row.ms_per_step_median, row.error_rms, row.error_max, row.stable ? "yes" : "no",
               static_cast<unsigned long>(row.fallbacks), row.max_strain);
+  if (!row.chosen.empty() || std::isfinite(row.ratio_to_naive) || row.impl != "ours") {
+    std::printf("%-24s   %s%s%s ratio to naive_soa %.2f\n", "", row.impl.c_str(), row.chosen.empty() ? "" : " chose ",
+                row.chosen.c_str(), row.ratio_to_naive);
+  }
 }
 
 #ifdef VRM_HAVE_BULLET
@@ -319,7 +422,8 @@ int main(int argc, char** argv) {
       return 2;
     }
   }
-  const std::vector<std::string> integrators = vrm_sim::tissue::integratorNames();
+  std::vector<std::string> integrators = vrm_sim::tissue::integratorNames();
+  integrators.push_back(vrm_sim::tissue::kAutoIntegrator);
   const std::vector<int> sizes = quick ? std::vector<int>{22} : std::vector<int>{22, 100};
   const std::vector<double> dts =
       quick ? std::vector<double>{2.5e-4, 1e-3} : std::vector<double>{1e-4, 2.5e-4, 5e-4, 1e-3};
@@ -374,9 +478,42 @@ int main(int argc, char** argv) {
   for (int cells : sizes) {
     const Scene scene{cells};
     for (double dt : {1e-3, 2.5e-4}) {
+      // The naive baseline first: median ms per step over the same pull, 1 ms frames' worth of steps each.
+      Row naive;
+      {
+        NaiveSoaMembrane membrane(cells, scene.node_mass());
+        const int steps = static_cast<int>(std::lround(duration / dt));
+        std::vector<double> step_ms;
+        double elapsed = 0.0;
+        for (int k = 0; k < steps; ++k) {
+          const double start = wallClock();
+          membrane.step(dt, 2e-3, lift / steps, 1.1);
+          step_ms.push_back(1e3 * (wallClock() - start));
+          elapsed += step_ms.back();
+        }
+        naive.scene = "full_step_" + std::to_string(cells) + "x" + std::to_string(cells);
+        naive.integrator = "symplectic_euler";
+        naive.impl = "naive_soa";
+        naive.nodes = membrane.nodes();
+        naive.springs = membrane.springs();
+        naive.dt = dt;
+        naive.iterations = 1;
+        naive.steps = steps;
+        naive.ms_per_step = elapsed / std::max(steps, 1);
+        naive.ms_per_step_max = *std::max_element(step_ms.begin(), step_ms.end());
+        std::nth_element(step_ms.begin(), step_ms.begin() + step_ms.size() / 2, step_ms.end());
+        naive.ms_per_step_median = step_ms[step_ms.size() / 2];
+        naive.stable = membrane.finite();
+        naive.ratio_to_naive = 1.0;
+        printRow(naive);
+        rows.push_back(naive);
+      }
       for (const auto& integrator : integrators) {
         const RunResult run = runGraspPull(scene, sceneConfig(integrator, dt, true), duration, lift);
         Row row;
+        row.chosen = integrator == vrm_sim::tissue::kAutoIntegrator ? run.chosen : "";
+        row.ms_per_step_max = run.ms_per_step_max;
+        row.ratio_to_naive = run.ms_per_step_median / naive.ms_per_step_median;
         row.scene = "full_step_" + std::to_string(cells) + "x" + std::to_string(cells);
         row.integrator = integrator;
         row.nodes = run.nodes;
@@ -403,102 +540,181 @@ int main(int argc, char** argv) {
       const int frames = static_cast<int>(std::lround(duration / dt));
       Row row = runBullet(scene_name, cells, dt, frames, Eigen::Vector3d(0.0, 0.0, lift / duration));
       for (const Row& ours : rows) {
-        if (ours.peer == "ours" && ours.scene == scene_name && ours.dt == dt &&
-            ours.integrator == "quasi_static_euler") {
+        if (ours.peer == "ours" && ours.impl == "ours" && ours.scene == scene_name && ours.dt == dt &&
+            ours.integrator == vrm_sim::tissue::kAutoIntegrator) {
           // Medians: robust against the load of a shared machine and against our rare watchdog rollbacks.
           row.ratio_to_bullet = ours.ms_per_step_median / row.ms_per_step_median;
         }
       }
       printRow(row);
-      std::printf("%-24s ours/bullet (quasi-static Euler, median step): %.3f\n", "", row.ratio_to_bullet);
+      std::printf("%-24s ours/bullet (auto, median step): %.3f\n", "", row.ratio_to_bullet);
       rows.push_back(row);
     }
   }
 #endif
 
-  // Hard cases: stable / max strain / fallbacks per integrator (error: none, no reference).
+  // Hard cases: stable / max strain / fallbacks per integrator and `auto`, error against a converged reference of the
+  // same case (RK2 far below its bound), and for `auto` its cost and error relative to the fastest fixed integrator
+  // that stayed stable (issue 15 §3: within 1.25× in cost, 2× in error, never unstable).
   struct HardCase {
     std::string name;
     int cells;
-    double dt_factor;  // × the explicit bound (0 = 1 ms)
-    double stiffness_ratio;
-    double mass_ratio;
-    double pull_speed;  // m/s, grasp and pull
-    double push_speed;  // m/s, sphere pushed through
+    double dt;               // s; < 0: −dt × the explicit bound
+    double stiffness_ratio;  // the x > 0 half
+    double mass_ratio;       // the x > 0 half
+    double pull_speed;       // m/s, grasp and pull
+    double push_speed;       // m/s, sphere pushed through
+    double stiffness_scale = 1.0, mass_scale = 1.0, damping = 2e-3;
+    bool yank = false;  // grasp, then 0.6 m/s sideways and up
   };
-  std::vector<HardCase> cases{{"hard_stiffness_ratio_1e4", 22, 0, 1e4, 1, 0.01, 0},
-                              {"hard_dt_5x_bound", 22, 5, 1, 1, 0.01, 0},
-                              {"hard_mass_ratio_1e3", 22, 0, 1, 1e3, 0.01, 0},
-                              {"hard_fast_grasp_pull", 22, 0, 1, 1, 0.1, 0},
-                              {"hard_push_through", 22, 0, 1, 1, 0, 0.1}};
-  if (!quick) cases.push_back({"hard_membrane_128", 128, 0.5, 1, 1, 0.01, 0});
-  for (const auto& hard : cases) {
-    for (const auto& integrator : integrators) {
-      const Scene scene{hard.cells};
-      auto membrane = vrm_sim::tissue::makeGridMembrane(hard.cells, kSize, kStiffness, scene.node_mass());
-      for (std::size_t s = 0; s < membrane->springCount(); ++s) {
-        if (membrane->positions()[membrane->springNodeSlots()[s][0]].x() > 0.0) {
-          membrane->stiffnesses()[s] *= hard.stiffness_ratio;
-        }
+  std::vector<HardCase> cases{{"hard_stiffness_ratio_1e4", 22, 1e-3, 1e4, 1, 0.01, 0},
+                              {"hard_stiffness_ratio_1e5", 22, 1e-3, 1e5, 1, 0.01, 0},
+                              {"hard_stiff_k2000", 22, 1e-3, 1, 1, 0.01, 0, 1000.0},
+                              {"hard_dt_5x_bound", 22, -5, 1, 1, 0.01, 0},
+                              {"hard_mass_ratio_1e3", 22, 1e-3, 1, 1e3, 0.01, 0},
+                              {"hard_light_heavy_damping", 22, 1e-3, 1, 1, 0.01, 0, 1.0, 1e-3, 2e-3},
+                              {"hard_fine_48_dt5ms", 48, 5e-3, 1, 1, 0.01, 0},
+                              {"hard_fast_grasp_pull", 22, 1e-3, 1, 1, 0.1, 0},
+                              {"hard_yank_0.6", 22, 1e-3, 1, 1, 0.01, 0, 1.0, 1.0, 2e-3, true},
+                              {"hard_push_through", 22, 1e-3, 1, 1, 0, 0.1}};
+  if (!quick) cases.push_back({"hard_membrane_128", 128, -0.5, 1, 1, 0.01, 0});
+  struct HardRun {
+    Row row;
+    std::vector<Eigen::Vector3d> positions;
+  };
+  const auto runHard = [&](const HardCase& hard, const std::string& integrator, double dt_override, bool strain_limit) {
+    const Scene scene{hard.cells};
+    const double node_mass = (hard.cells == 48 ? 1e-5 * (22.0 / 48) * (22.0 / 48) : scene.node_mass());
+    auto membrane = vrm_sim::tissue::makeGridMembrane(hard.cells, kSize, kStiffness * hard.stiffness_scale,
+                                                      node_mass * hard.mass_scale);
+    for (std::size_t s = 0; s < membrane->springCount(); ++s) {
+      if (membrane->positions()[membrane->springNodeSlots()[s][0]].x() > 0.0) {
+        membrane->stiffnesses()[s] *= hard.stiffness_ratio;
       }
-      for (std::size_t i = 0; i < membrane->nodeCount(); ++i) {
-        if (membrane->positions()[i].x() > 0.0) membrane->nodeAtSlot(i).mass() *= hard.mass_ratio;
-      }
-      double dt = 1e-3;
-      if (hard.dt_factor > 0.0) {
-        std::vector<std::uint8_t> fixed(membrane->fixedFlags(), membrane->fixedFlags() + membrane->nodeCount());
-        dt = hard.dt_factor *
-             vrm_sim::tissue::explicitStabilityBound(vrm_sim::tissue::viewOf(*membrane, fixed.data()), {});
-      }
-      TissueSimulator simulator(*membrane, sceneConfig(integrator, dt));
-      const double energy0 = simulator.totalEnergy();
-      const int frames = 40;
-      const double frame = 1e-3;
-      Eigen::Vector3d tip(0.0, 0.0, -2e-4);
-      int steps = 0;
-      const double start = wallClock();
-      for (int f = 0; f < frames; ++f) {
-        InstrumentInput instrument;
-        if (hard.push_speed > 0.0) {
-          instrument.pose.translation() = Eigen::Vector3d(1e-5, 2e-5, 5e-4 - hard.push_speed * frame * f);
-          instrument.radius = 3e-4;
+    }
+    for (std::size_t i = 0; i < membrane->nodeCount(); ++i) {
+      if (membrane->positions()[i].x() > 0.0) membrane->nodeAtSlot(i).mass() *= hard.mass_ratio;
+    }
+    double dt = hard.dt;
+    if (dt < 0.0) {
+      std::vector<std::uint8_t> fixed(membrane->fixedFlags(), membrane->fixedFlags() + membrane->nodeCount());
+      dt = -dt * vrm_sim::tissue::explicitStabilityBound(vrm_sim::tissue::viewOf(*membrane, fixed.data()), {});
+    }
+    const double frame = std::max(1e-3, dt);  // 40 frames of 1 ms (or of dt when dt is longer)
+    TissueConfig config = sceneConfig(integrator, dt_override > 0.0 ? dt_override : dt, strain_limit);
+    config.forces.damping = hard.damping;
+    TissueSimulator simulator(*membrane, config);
+    const double energy0 = simulator.totalEnergy();
+    const int frames = 40;
+    Eigen::Vector3d tip(0.0, 0.0, -2e-4);
+    int steps = 0;
+    double worst = 0.0;
+    const double start = wallClock();
+    for (int f = 0; f < frames; ++f) {
+      InstrumentInput instrument;
+      if (hard.push_speed > 0.0) {
+        instrument.pose.translation() = Eigen::Vector3d(1e-5, 2e-5, 5e-4 - hard.push_speed * frame * f);
+        instrument.radius = 3e-4;
+      } else {
+        // The yank: 20 frames of a slow lift to grasp and settle, then 0.6 m/s for 5 frames, then hold.
+        const bool yanking = hard.yank && f >= 20 && f < 25;
+        if (yanking) {
+          tip += Eigen::Vector3d(0.48, 0.0, 0.36) * frame;
         } else {
           tip.z() += hard.pull_speed * frame;
-          instrument = forcepsAt(tip);
         }
-        simulator.setInstruments({instrument});
-        steps += simulator.advance(frame, wallClock).steps;
+        instrument = forcepsAt(tip);
       }
-      const double elapsed = wallClock() - start;
-      bool finite = true;
-      for (std::size_t i = 0; i < membrane->nodeCount(); ++i) finite = finite && membrane->positions()[i].allFinite();
-      Row row;
-      row.scene = hard.name;
-      row.integrator = integrator;
-      row.nodes = membrane->nodeCount();
-      row.springs = membrane->springCount();
-      row.dt = dt;
-      row.iterations = simulator.integrator().lastIterations();
-      row.ms_per_step = 1e3 * elapsed / std::max(steps, 1);
-      row.steps = steps;
-      row.stable = finite && simulator.statistics().unrecovered == 0;
-      row.fallbacks = simulator.statistics().fallbacks;
-      row.max_strain = simulator.maxStrain();
-      const double energy1 = simulator.totalEnergy();
-      row.energy_drift = energy0 != 0.0 ? (energy1 - energy0) / std::abs(energy0) : energy1;
-      printRow(row);
-      rows.push_back(row);
+      simulator.setInstruments({instrument});
+      const double frame_start = wallClock();
+      const int frame_steps = simulator.advance(frame, wallClock).steps;
+      steps += frame_steps;
+      if (frame_steps > 0) worst = std::max(worst, 1e3 * (wallClock() - frame_start) / frame_steps);
+    }
+    const double elapsed = wallClock() - start;
+    bool finite = true;
+    for (std::size_t i = 0; i < membrane->nodeCount(); ++i) finite = finite && membrane->positions()[i].allFinite();
+    HardRun run;
+    Row& row = run.row;
+    row.scene = hard.name;
+    row.integrator = integrator;
+    row.chosen = integrator == vrm_sim::tissue::kAutoIntegrator ? simulator.integratorLabel() : "";
+    row.nodes = membrane->nodeCount();
+    row.springs = membrane->springCount();
+    row.dt = config.dt;
+    row.iterations = simulator.integrator().lastIterations();
+    row.ms_per_step = 1e3 * elapsed / std::max(steps, 1);
+    row.ms_per_step_max = worst;
+    row.steps = steps;
+    row.stable = finite && simulator.statistics().unrecovered == 0;
+    row.fallbacks = simulator.statistics().fallbacks;
+    row.max_strain = simulator.maxStrain();
+    const double energy1 = simulator.totalEnergy();
+    row.energy_drift = energy0 != 0.0 ? (energy1 - energy0) / std::abs(energy0) : energy1;
+    run.positions.assign(membrane->positions(), membrane->positions() + membrane->nodeCount());
+    return run;
+  };
+  for (const auto& hard : cases) {
+    // Reference: RK2 at a step far below its bound (at most 1e-5 s), with the same strain limit; the error of each
+    // run is the final node distance to it. Skipped for the 128 mesh (too long for a benchmark run).
+    std::vector<Eigen::Vector3d> reference;
+    if (hard.cells <= 48) {
+      const HardRun probe = runHard(hard, "rk2", 0.0, true);
+      double reference_dt = std::min(1e-5, probe.row.dt / 20.0);
+      // The stiff cases need a step well below the explicit bound of their stiffest spring.
+      reference_dt = std::min(reference_dt, 1e-3 / std::sqrt(hard.stiffness_ratio * hard.stiffness_scale) / 20.0);
+      if (hard.damping > 0.0) reference_dt = std::min(reference_dt, 0.2 * (1e-5 * hard.mass_scale) / hard.damping);
+      reference = runHard(hard, "rk2", reference_dt, true).positions;
+    }
+    std::vector<std::size_t> case_rows;
+    for (const auto& integrator : integrators) {
+      HardRun run = runHard(hard, integrator, 0.0, true);
+      if (!reference.empty() && run.positions.size() == reference.size()) {
+        double sum2 = 0.0, max_error = 0.0;
+        for (std::size_t i = 0; i < reference.size(); ++i) {
+          const double e = (run.positions[i] - reference[i]).norm();
+          sum2 += std::isfinite(e) ? e * e : INFINITY;
+          max_error = std::max(max_error, std::isfinite(e) ? e : INFINITY);
+        }
+        run.row.error_rms = std::sqrt(sum2 / reference.size());
+        run.row.error_max = max_error;
+      }
+      case_rows.push_back(rows.size());
+      rows.push_back(run.row);
+    }
+    // `auto` against the fastest fixed integrator that stayed stable.
+    const Row* fastest = nullptr;
+    Row* automatic = nullptr;
+    for (std::size_t index : case_rows) {
+      Row& row = rows[index];
+      if (row.integrator == vrm_sim::tissue::kAutoIntegrator) {
+        automatic = &row;
+      } else if (row.stable && (fastest == nullptr || row.ms_per_step < fastest->ms_per_step)) {
+        fastest = &row;
+      }
+    }
+    if (automatic != nullptr && fastest != nullptr) {
+      automatic->auto_fastest = fastest->integrator;
+      automatic->auto_cost_ratio = automatic->ms_per_step / fastest->ms_per_step;
+      automatic->auto_error_ratio = automatic->error_rms / fastest->error_rms;
+    }
+    for (std::size_t index : case_rows) printRow(rows[index]);
+    if (automatic != nullptr) {
+      std::printf("%-24s auto = %s: cost %.2fx, error %.2fx the fastest stable fixed (%s)\n", "",
+                  automatic->chosen.c_str(), automatic->auto_cost_ratio, automatic->auto_error_ratio,
+                  automatic->auto_fastest.c_str());
     }
 #ifdef VRM_HAVE_BULLET
-    // The same case for btSoftBody (no rigid instrument in its world: the push-through case is ours only).
-    if (hard.push_speed <= 0.0) {
-      double dt = 1e-3;
-      if (hard.dt_factor > 0.0) {
+    // The same case for btSoftBody (no rigid instrument in its world: the push-through case is ours only; the
+    // whole-membrane scales and the yank have no Bullet twin).
+    if (hard.push_speed <= 0.0 && hard.stiffness_scale == 1.0 && hard.mass_scale == 1.0 && !hard.yank &&
+        hard.cells != 48) {
+      double dt = hard.dt;
+      if (dt < 0.0) {
         const Scene scene{hard.cells};
         auto membrane = vrm_sim::tissue::makeGridMembrane(hard.cells, kSize, kStiffness, scene.node_mass());
         std::vector<std::uint8_t> fixed(membrane->fixedFlags(), membrane->fixedFlags() + membrane->nodeCount());
-        dt = hard.dt_factor *
-             vrm_sim::tissue::explicitStabilityBound(vrm_sim::tissue::viewOf(*membrane, fixed.data()), {});
+        dt = -dt * vrm_sim::tissue::explicitStabilityBound(vrm_sim::tissue::viewOf(*membrane, fixed.data()), {});
       }
       const int frames = static_cast<int>(std::lround(0.04 / dt));  // our 40 frames of 1 ms
       const Row row = runBullet(hard.name, hard.cells, dt, std::max(frames, 1),

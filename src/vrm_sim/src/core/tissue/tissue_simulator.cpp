@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <stdexcept>
 #include <string>
 
@@ -260,7 +261,17 @@ void TissueSimulator::sortSprings() {
 
 void TissueSimulator::rawStep(Integrator& integrator, double dt) {
   const SystemView system = view();
-  integrator.step(system, forces_, dt);
+  if (measure_energy_) {
+    // The balance covers the integration only: the strain limit and the contact response that follow are
+    // projections (kinematic constraints, the instrument), whose work is given, not created by the integrator.
+    const Energy before = energy();
+    integrator.step(system, forces_, dt);
+    const Energy after = energy();
+    energy_excess_ =
+        std::max(energy_excess_, after.total() - before.total() - externalWork(dt) - energyAllowance(before));
+  } else {
+    integrator.step(system, forces_, dt);
+  }
 
   // Strain limit first, then collision response: the instrument has the last word, so no node is left inside it
   // (the few springs at the contact may then exceed τ_c slightly until the next step).
@@ -293,14 +304,7 @@ void TissueSimulator::rawStep(Integrator& integrator, double dt) {
   }
   contacts_.insert(contacts_.end(), external_deformations_.begin(), external_deformations_.end());
   external_deformations_.clear();
-  if (config_.watchdog.enabled && !contacts_.empty()) {
-    // The instrument's work on the membrane: the energy the response changes at the contact nodes' springs.
-    const double energy_before = localEnergy(contacts_);
-    applyDeformations(system, contacts_, config_.friction);
-    contact_work_ += localEnergy(contacts_) - energy_before;
-  } else {
-    applyDeformations(system, contacts_, config_.friction);
-  }
+  applyDeformations(system, contacts_, config_.friction);
   for (const NodeDeformation& contact : contacts_) addInteractionPoint(contact.node);
 
   if (config_.plastic) {
@@ -360,79 +364,44 @@ TissueSimulator::Energy TissueSimulator::energy() {
   const kernels::SpringEnergy springs = kernels::springEnergy(m, system.springs, system.positions, system.stiffnesses,
                                                               system.rest_lengths, d, d + m, d + 2 * m);
   e.elastic = springs.potential;
-  frame_strain_ = springs.max_strain;
   for (const Anchor& anchor : forces_.anchors) {
     e.elastic += 0.5 * anchor.stiffness * (system.positions[anchor.node] - anchor.point).squaredNorm();
   }
   return e;
 }
 
-double TissueSimulator::localEnergy(const std::vector<NodeDeformation>& contacts) {
-  const SystemView system = view();
-  const auto& offsets = sorter_.adjacencyOffsets();
-  const auto& incident = sorter_.adjacency();
-  if (spring_mark_.size() != system.spring_count) spring_mark_.assign(system.spring_count, 0);
-  if (++spring_epoch_ == 0) {  // wrapped: old marks could alias the new epoch
-    std::fill(spring_mark_.begin(), spring_mark_.end(), 0);
-    spring_epoch_ = 1;
-  }
-  double energy = 0.0;
-  const Eigen::Vector3d& g = config_.forces.gravity;
-  const std::uint32_t node_epoch = markTouched(touched_, touched_epoch_);  // each contact node once
-  (void)node_epoch;
-  for (const NodeDeformation& contact : contacts) {
-    const std::uint32_t i = contact.node;
-    if (i >= system.node_count || i + 1 >= offsets.size()) continue;
-    for (std::uint32_t k = offsets[i]; k < offsets[i + 1]; ++k) {
-      const std::uint32_t s = incident[k];
-      if (spring_mark_[s] == spring_epoch_) continue;
-      spring_mark_[s] = spring_epoch_;
-      const auto& ends = system.springs[s];
-      const double stretch = (system.positions[ends[1]] - system.positions[ends[0]]).norm() - system.rest_lengths[s];
-      energy += 0.5 * system.stiffnesses[s] * stretch * stretch;
-    }
-  }
-  // Kinetic and gravity terms per contact node, once each (a node may carry several deformation vectors).
-  for (const NodeDeformation& contact : contacts) {
-    const std::uint32_t i = contact.node;
-    if (i >= system.node_count || !system.isFree(i) || touched_[i] != touched_epoch_) continue;
-    touched_[i] = 0;
-    energy +=
-        0.5 * system.masses[i] * system.velocities[i].squaredNorm() - system.masses[i] * g.dot(system.positions[i]);
-  }
-  for (const Anchor& anchor : forces_.anchors) {
-    // Anchored contact nodes are rare (the retina side); their anchor term is cheap to include always.
-    energy += 0.5 * anchor.stiffness * (system.positions[anchor.node] - anchor.point).squaredNorm();
-  }
-  return energy;
+double TissueSimulator::energyAllowance(const Energy& before) const {
+  const double floor_speed = config_.watchdog.energy_floor_speed;
+  return config_.watchdog.energy_tolerance * (before.kinetic + before.elastic) +
+         0.5 * free_mass_ * floor_speed * floor_speed;
 }
 
-double TissueSimulator::externalWork() const {
-  const std::size_t n = saved_positions_.size();
+double TissueSimulator::externalWork(double dt) const {
+  // F·Δx with Δx ≈ h·v after the step (exact for symplectic Euler), F at the end positions: an estimate, enough to
+  // keep pressure and external loads from counting as created energy.
+  if (forces_.external.empty() && (forces_.params.pressure == 0.0 || forces_.triangles == nullptr)) return 0.0;
   const Eigen::Vector3d* x = membrane_->positions();
+  const Eigen::Vector3d* v = membrane_->velocities();
+  const std::size_t n = membrane_->nodeCount();
   double work = 0.0;
-  if (!forces_.external.empty()) {
-    for (std::size_t i = 0; i < n && i < forces_.external.size(); ++i) {
-      if (constrained_[i] == 0) work += forces_.external[i].dot(x[i] - saved_positions_[i]);
-    }
+  for (std::size_t i = 0; i < n && i < forces_.external.size(); ++i) {
+    if (constrained_[i] == 0) work += dt * forces_.external[i].dot(v[i]);
   }
   if (forces_.params.pressure != 0.0 && forces_.triangles != nullptr) {
-    const Eigen::Vector3d* x0 = saved_positions_.data();
     for (std::size_t t = 0; t < forces_.triangle_count; ++t) {
       const auto& c = forces_.triangles[t];
-      const Eigen::Vector3d f = (forces_.params.pressure / 6.0) * (x0[c[1]] - x0[c[0]]).cross(x0[c[2]] - x0[c[0]]);
+      const Eigen::Vector3d f = (forces_.params.pressure / 6.0) * (x[c[1]] - x[c[0]]).cross(x[c[2]] - x[c[0]]);
       for (std::uint32_t corner : c) {
-        if (constrained_[corner] == 0) work += f.dot(x[corner] - x0[corner]);
+        if (constrained_[corner] == 0) work += dt * f.dot(v[corner]);
       }
     }
   }
-  return work;
+  return std::abs(work);
 }
 
-bool TissueSimulator::unstable(const Energy& before) {
+bool TissueSimulator::unstable() {
   frame_strain_ = -1.0;
   const SystemView system = view();
-  double total_mass = 0.0;
   const double max_speed2 = config_.watchdog.max_speed * config_.watchdog.max_speed;
   for (std::size_t i = 0; i < system.node_count; ++i) {
     if (!system.isFree(i)) continue;
@@ -444,20 +413,11 @@ bool TissueSimulator::unstable(const Energy& before) {
       ++statistics_.too_fast;
       return true;
     }
-    total_mass += system.masses[i];
   }
-  const Energy after = energy();
-  statistics_.max_strain = std::max(statistics_.max_strain, frame_strain_);
-  const double given = contact_work_ + externalWork();
-  const double floor_speed = config_.watchdog.energy_floor_speed;
-  const double allowance = config_.watchdog.energy_tolerance * (before.kinetic + before.elastic) +
-                           0.5 * total_mass * floor_speed * floor_speed;
-  const double excess = after.total() - before.total() - given;
-  if (!(excess <= allowance)) {
+  if (!(energy_excess_ <= 0.0)) {
     ++statistics_.energy_growth;
     return true;
   }
-  statistics_.max_energy_excess = std::max(statistics_.max_energy_excess, excess);
   return false;
 }
 
@@ -480,12 +440,16 @@ bool TissueSimulator::step() {
     hold_remaining_ = config_.watchdog.hold_steps;
   }
   saveState();
-  // After the grasps moved (updateInstruments), so what they put in counts as given.
-  const Energy before = energy();
+  free_mass_ = 0.0;
+  for (std::size_t i = 0; i < membrane_->nodeCount(); ++i) {
+    if (constrained_[i] == 0) free_mass_ += membrane_->masses()[i];
+  }
   pending_deformations_.assign(external_deformations_.begin(), external_deformations_.end());
   bool ok = false;
   for (int level = fallback_level_; level <= config_.watchdog.max_halvings + 1 && !ok; ++level) {
-    contact_work_ = 0.0;
+    energy_excess_ = -std::numeric_limits<double>::infinity();
+    // Implicit Euler is stable at any dt: its residual energy error (truncated CG) is no instability to roll back.
+    measure_energy_ = level <= config_.watchdog.max_halvings && std::strcmp(integrator_->name(), "implicit_euler") != 0;
     if (level > fallback_level_) {
       restoreState();
       external_deformations_.assign(pending_deformations_.begin(), pending_deformations_.end());
@@ -498,7 +462,11 @@ bool TissueSimulator::step() {
       ++statistics_.implicit_fallbacks;
       rawStep(*implicit_fallback_, config_.dt);
     }
-    ok = !unstable(before);
+    ok = !unstable();
+    measure_energy_ = false;
+    if (ok && energy_excess_ > -std::numeric_limits<double>::infinity()) {
+      statistics_.max_energy_excess = std::max(statistics_.max_energy_excess, energy_excess_);
+    }
     if (level > fallback_level_ && ok) {
       fallback_level_ = std::min(level, config_.watchdog.max_halvings);
       hold_remaining_ = config_.watchdog.hold_steps;
@@ -552,6 +520,7 @@ FrameReport TissueSimulator::advance(double frame_time, const Clock& clock) {
   report.fallbacks = static_cast<int>(statistics_.fallbacks - fallbacks_before);
   // The watchdog measured the state after the last step already.
   report.max_strain = report.steps > 0 && frame_strain_ >= 0.0 ? frame_strain_ : maxStrain();
+  statistics_.max_strain = std::max(statistics_.max_strain, report.max_strain);
   return report;
 }
 
