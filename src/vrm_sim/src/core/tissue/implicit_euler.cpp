@@ -27,20 +27,19 @@ namespace {
 //
 // Layout, chosen for the product A·p that every CG iteration runs once (issue 15):
 //  - node vectors are structure of arrays [x…|y…|z…] in an internal node order (Structure), padded to kLanes;
-//  - the product gathers instead of scattering: nodes are taken kLanes at a time (one SIMD lane each), and their
-//    springs are stored slot by slot (sliced ELLPACK: slot k holds the k-th spring of each node of the group, padded
-//    with zero blocks to the group's largest degree), each slot one record of v_x, v_y, v_z, a for the kLanes nodes.
-//    A sweep reads the records in order, loads the neighbours (one vector load per component where they are
-//    consecutive, else a gather) and writes each q_i once — no read-modify-write chains, no horizontal sums. Every
-//    spring is stored twice (once per end); that costs a second copy of the block, not a second square root.
-// Measured (bench_implicit, 10k nodes, same run; a perf profile of the step): the scatter form this replaced took
-// 2.6 ms per step with 10 iterations, this one 2.3; the product is 40 % of the step, the CG vector passes 20 %, the
-// assembly (springBlocks, fillSlots) 16 %, ForceModel::compute 7 %. The step is bound by memory traffic: the slot
-// records (2 MB at 10k nodes) and the CG vectors do not fit the 2 MB L2 together; with every slot pointing at one
-// record (no record traffic) the step took 1.65 ms. Tried and not kept: float records (5 % faster, but CG then
-// converges to the rounded matrix, ~1e-7 relative — the dense-solve tests ask for 1e-9), AVX2 with 4 lanes
-// instead of AVX-512 with 8 (same speed: not bound by arithmetic), a scalar spring-block loop (std::sqrt's errno
-// branch; now 8 springs per iteration).
+//  - the product gathers instead of scattering: nodes are taken kLanes at a time (one SIMD lane each) and their
+//    springs slot by slot (sliced ELLPACK: slot k holds the k-th spring of each node of the group, padded with the
+//    zero block to the group's largest degree). A sweep loads the neighbours and the blocks (one vector load per
+//    array where the lanes' indices are consecutive, else a gather) and writes each q_i once — no read-modify-write
+//    chains, no horizontal sums;
+//  - each spring's block (a, v) is stored once, in an internal spring order that makes both of its slots read
+//    consecutive ids in a regular patch.
+// Measured (bench_implicit, 10k nodes, one run, median ms per step with 10 CG iterations): the packed-record scatter
+// form this replaced 3.00 ms at dt 1 ms, this one 1.93. The step is bound by memory traffic, not arithmetic: AVX-512
+// with 8 lanes ran as fast as AVX2 with 4; a slot-record layout (each block stored twice, 2 MB at 10k nodes, which
+// with the CG vectors overflows the 2 MB L2) spent ~28 % of the step on reading the records. Profile now: product
+// 35 %, CG vector passes 20 %, springBlocks 16 %, ForceModel::compute 7 %. Tried and not kept: float blocks (5 %
+// faster, but CG then converges to the rounded matrix, ~1e-7 relative, and the dense-solve tests ask for 1e-9).
 // Constrained nodes (pinned or grasped) are handled by the filtered CG of Baraff & Witkin §5.3: their rows of A are
 // zero blocks and their preconditioner is zero, so p, Δv and r stay zero on them — the "infinite mass" of the thesis
 // without ill-conditioning. A step allocates nothing once the buffers have their size.
