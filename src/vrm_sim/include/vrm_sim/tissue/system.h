@@ -69,10 +69,16 @@ class ForceModel {
   // Spring and anchor potential plus gravity potential of the free nodes [J].
   double potentialEnergy(const SystemView& system, const Eigen::Vector3d* x) const;
 
+  // The watchdog's energy balance: the next compute() also sums the springs' potential energy at its x (at almost no
+  // cost: the lengths are at hand) into *spring_energy, then disarms. Integrators evaluate the forces at the start
+  // state first, so this is the start energy of the integration.
+  void captureSpringEnergy(double* spring_energy) const { capture_ = spring_energy; }
+
  private:
   // Per-spring forces of the last compute() (structure of arrays), kept between steps so a step allocates nothing;
   // grows only after a topology change. One ForceModel therefore serves one thread at a time.
   mutable std::vector<double> spring_forces_;
+  mutable double* capture_ = nullptr;
 };
 
 double kineticEnergy(const SystemView& system);

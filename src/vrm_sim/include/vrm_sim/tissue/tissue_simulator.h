@@ -214,8 +214,9 @@ class TissueSimulator {
     double kinetic = 0.0, elastic = 0.0, gravity = 0.0;  // J; elastic = springs + anchors
     double total() const { return kinetic + elastic + gravity; }
   };
-  // The energy of the current state (one sweep over nodes and one over springs).
-  Energy energy();
+  // The energy of the current state: a sweep over the nodes and one over the springs, or, given spring_energy, that
+  // value for the springs' part instead of the second sweep.
+  Energy energy(const double* spring_energy = nullptr);
   // What an integration step may create beyond the balance (WatchdogConfig::energy_tolerance and the floor).
   double energyAllowance(const Energy& before) const;
   // Work of pressure and external forces during an integration step of dt just done (estimate, see the .cpp).

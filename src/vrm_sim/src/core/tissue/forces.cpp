@@ -34,9 +34,16 @@ void ForceModel::compute(const SystemView& system, const Eigen::Vector3d* x, con
   }
   // Two sweeps instead of one: the per-spring forces vectorise (no scatter), the scatter then only adds.
   const std::size_t m = system.spring_count;
-  if (spring_forces_.size() < 3 * m) spring_forces_.resize(3 * m);
+  if (spring_forces_.size() < 4 * m) spring_forces_.resize(4 * m);
   double* f = spring_forces_.data();
-  kernels::hookeForces(m, system.springs, x, system.stiffnesses, system.rest_lengths, f, f + m, f + 2 * m);
+  if (capture_ != nullptr) {
+    kernels::hookeForcesAndEnergy(m, system.springs, x, system.stiffnesses, system.rest_lengths, f, f + m, f + 2 * m,
+                                  f + 3 * m);
+    *capture_ = kernels::sumOf(f + 3 * m, m);
+    capture_ = nullptr;
+  } else {
+    kernels::hookeForces(m, system.springs, x, system.stiffnesses, system.rest_lengths, f, f + m, f + 2 * m);
+  }
   kernels::scatterSpringForces(m, system.springs, f, f + m, f + 2 * m, forces);
   for (const Anchor& anchor : anchors) {
     forces[anchor.node] += anchor.stiffness * (anchor.point - x[anchor.node]);

@@ -43,9 +43,37 @@ void hookeForces(std::size_t spring_count, const std::array<std::uint32_t, 2>* s
 }
 
 VRM_TISSUE_KERNEL
-SpringEnergy springEnergy(std::size_t spring_count, const std::array<std::uint32_t, 2>* springs,
-                          const Eigen::Vector3d* x, const double* stiffnesses, const double* rest_lengths, double* dx,
-                          double* dy, double* dz) {
+void hookeForcesAndEnergy(std::size_t spring_count, const std::array<std::uint32_t, 2>* springs,
+                          const Eigen::Vector3d* x, const double* __restrict stiffnesses,
+                          const double* __restrict rest_lengths, double* __restrict fx, double* __restrict fy,
+                          double* __restrict fz, double* __restrict energies) {
+  for (std::size_t s = 0; s < spring_count; ++s) {
+    const Eigen::Vector3d& a = x[springs[s][0]];
+    const Eigen::Vector3d& b = x[springs[s][1]];
+    fx[s] = b.x() - a.x();
+    fy[s] = b.y() - a.y();
+    fz[s] = b.z() - a.z();
+  }
+  // The loop of hookeForces() (the same operations, so the same forces) plus ½ k (|d| − l)² per spring.
+  for (std::size_t s = 0; s < spring_count; ++s) {
+    const double dx = fx[s];
+    const double dy = fy[s];
+    const double dz = fz[s];
+    const double length = std::sqrt(dx * dx + dy * dy + dz * dz);
+    const double stretch = length - rest_lengths[s];
+    const double scale = stiffnesses[s] * stretch / std::max(length, kMinSpringLength);
+    const double used = length < kMinSpringLength ? 0.0 : scale;
+    fx[s] = used * dx;
+    fy[s] = used * dy;
+    fz[s] = used * dz;
+    energies[s] = 0.5 * stiffnesses[s] * stretch * stretch;
+  }
+}
+
+VRM_TISSUE_KERNEL
+double springEnergy(std::size_t spring_count, const std::array<std::uint32_t, 2>* springs, const Eigen::Vector3d* x,
+                    const double* __restrict stiffnesses, const double* __restrict rest_lengths,
+                    double* __restrict dx, double* __restrict dy, double* __restrict dz) {
   for (std::size_t s = 0; s < spring_count; ++s) {
     const Eigen::Vector3d& a = x[springs[s][0]];
     const Eigen::Vector3d& b = x[springs[s][1]];
@@ -53,32 +81,27 @@ SpringEnergy springEnergy(std::size_t spring_count, const std::array<std::uint32
     dy[s] = b.y() - a.y();
     dz[s] = b.z() - a.z();
   }
-  // Four partial sums and maxima, one per lane of an AVX2 register: a strict-IEEE reduction into one accumulator
-  // would not vectorise.
-  double energy[4] = {0.0, 0.0, 0.0, 0.0};
-  double strain[4] = {0.0, 0.0, 0.0, 0.0};
-  const std::size_t blocks = spring_count / 4 * 4;
+  for (std::size_t s = 0; s < spring_count; ++s) {
+    const double stretch = std::sqrt(dx[s] * dx[s] + dy[s] * dy[s] + dz[s] * dz[s]) - rest_lengths[s];
+    dx[s] = 0.5 * stiffnesses[s] * stretch * stretch;
+  }
+  return sumOf(dx, spring_count);
+}
+
+VRM_TISSUE_KERNEL
+double sumOf(const double* values, std::size_t count) {
+  // Four interleaved partial sums: a strict-IEEE reduction into one accumulator would not vectorise.
+  double lanes[4] = {0.0, 0.0, 0.0, 0.0};
+  const std::size_t blocks = count / 4 * 4;
   for (std::size_t s = 0; s < blocks; s += 4) {
-    for (std::size_t lane = 0; lane < 4; ++lane) {
-      const std::size_t k = s + lane;
-      const double length = std::sqrt(dx[k] * dx[k] + dy[k] * dy[k] + dz[k] * dz[k]);
-      const double stretch = length - rest_lengths[k];
-      energy[lane] += 0.5 * stiffnesses[k] * stretch * stretch;
-      const double rest = rest_lengths[k];
-      const double ratio = length / std::max(rest, kMinSpringLength);
-      strain[lane] = std::max(strain[lane], rest < kMinSpringLength ? 0.0 : ratio);
-    }
+    lanes[0] += values[s];
+    lanes[1] += values[s + 1];
+    lanes[2] += values[s + 2];
+    lanes[3] += values[s + 3];
   }
-  SpringEnergy result;
-  for (std::size_t k = blocks; k < spring_count; ++k) {
-    const double length = std::sqrt(dx[k] * dx[k] + dy[k] * dy[k] + dz[k] * dz[k]);
-    const double stretch = length - rest_lengths[k];
-    result.potential += 0.5 * stiffnesses[k] * stretch * stretch;
-    if (rest_lengths[k] >= kMinSpringLength) result.max_strain = std::max(result.max_strain, length / rest_lengths[k]);
-  }
-  result.potential += (energy[0] + energy[1]) + (energy[2] + energy[3]);
-  result.max_strain = std::max({result.max_strain, strain[0], strain[1], strain[2], strain[3]});
-  return result;
+  double sum = (lanes[0] + lanes[1]) + (lanes[2] + lanes[3]);
+  for (std::size_t s = blocks; s < count; ++s) sum += values[s];
+  return sum;
 }
 
 void scatterSpringForces(std::size_t spring_count, const std::array<std::uint32_t, 2>* springs, const double* fx,

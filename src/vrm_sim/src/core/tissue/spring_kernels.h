@@ -23,17 +23,19 @@ void hookeForces(std::size_t spring_count, const std::array<std::uint32_t, 2>* s
 void scatterSpringForces(std::size_t spring_count, const std::array<std::uint32_t, 2>* springs, const double* fx,
                          const double* fy, const double* fz, Eigen::Vector3d* forces);
 
-struct SpringEnergy {
-  double potential = 0.0;   // J: Σ ½ k_s (|d_s| − l_s)² over all springs
-  double max_strain = 0.0;  // max |d|/l over springs with l >= kMinSpringLength (maxStrain())
-};
+// The springs' potential energy Σ ½ k_s (|d_s| − l_s)² for the watchdog's energy balance: like hookeForces() in two
+// loops (a scalar gather of d into dx/dy/dz, spring_count each, then the arithmetic on contiguous arrays), summed by
+// sumOf(), so it vectorises and gives the same sum on every run.
+double springEnergy(std::size_t spring_count, const std::array<std::uint32_t, 2>* springs, const Eigen::Vector3d* x,
+                    const double* stiffnesses, const double* rest_lengths, double* dx, double* dy, double* dz);
 
-// The springs' potential energy and the largest strain in one sweep, for the watchdog's energy balance. Like
-// hookeForces() in two loops (a scalar gather of d into dx/dy/dz, spring_count each, then the arithmetic on
-// contiguous arrays) and summed in four interleaved partial sums, so it vectorises and is the same on every run.
-SpringEnergy springEnergy(std::size_t spring_count, const std::array<std::uint32_t, 2>* springs,
-                          const Eigen::Vector3d* x, const double* stiffnesses, const double* rest_lengths, double* dx,
-                          double* dy, double* dz);
+// hookeForces() (bit for bit the same forces) that also writes each spring's ½ k (|d| − l)² to energies.
+void hookeForcesAndEnergy(std::size_t spring_count, const std::array<std::uint32_t, 2>* springs,
+                          const Eigen::Vector3d* x, const double* stiffnesses, const double* rest_lengths, double* fx,
+                          double* fy, double* fz, double* energies);
+
+// Σ values in four interleaved partial sums (vectorises; a fixed order, so deterministic).
+double sumOf(const double* values, std::size_t count);
 
 struct StrainMaxima {
   double all = 0.0;        // max |d|/l over springs with l >= kMinSpringLength (maxStrain())
