@@ -7,7 +7,7 @@
 //    "final_state_hash"}.
 // Same scene, options and seed -> the same final_state_hash, bit for bit.
 //
-// Usage: rosrun vrm_sim tissue_offline --scene FILE.yaml|NAME --seconds T [--rate HZ] [--integrator NAME] [--dt DT]
+// Usage: rosrun vrm_sim tissue_offline --scene FILE.yaml|NAME --seconds T [--rate HZ] [--integrator auto|NAME] [--dt DT]
 //        [--detector NAME] [--seed N]
 // (NAME: a shipped scene, e.g. membrane_peeling). Exit status: 0 ran (see "stable"), 1 bad scene or options,
 // 2 usage.
