@@ -23,6 +23,7 @@
 #include <vector>
 
 #include "bench_cli.h"
+#include "tissue_bench_scene.h"
 #include "vrm_sim/tissue/integrator.h"
 #include "vrm_sim/tissue/reference_scenes.h"
 #include "vrm_sim/tissue/system.h"
@@ -303,20 +304,17 @@ using vrm_sim::tissue::SystemView;
 using vrm_sim::tissue::TissueConfig;
 using vrm_sim::tissue::TissueSimulator;
 
-double wallClock() {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
-}
-
 // bench_tissue's grasp-and-pull scene: 5 mm membrane, k = 2 N/m, total mass of the 22×22 thesis mesh at every
 // resolution, damping 2e-3 N s/m, the centre grasped (3e-4 m radius) and pulled up at 20 mm/s.
-constexpr double kSize = 0.005;
-constexpr double kStiffness = 2.0;
-constexpr double kReferenceMass = 1e-5;
+using vrm_sim::bench::forcepsAt;
+using vrm_sim::bench::wallClock;
+constexpr double kSize = vrm_sim::bench::kMembraneSize;
+constexpr double kStiffness = vrm_sim::bench::kSpringStiffness;
 constexpr double kDamping = 2e-3;
 constexpr double kGraspRadius = 3e-4;
 constexpr double kLiftSpeed = 0.02;
 
-double nodeMass(int cells) { return kReferenceMass * (22.0 / cells) * (22.0 / cells); }
+double nodeMass(int cells) { return vrm_sim::bench::gridNodeMass(cells); }
 
 double median(std::vector<double> values) {
   if (values.empty()) return NAN;
@@ -371,17 +369,6 @@ Run runSolver(int cells, double dt, double duration, const IntegratorFactory& ma
   run.final_positions.assign(membrane->positions(), membrane->positions() + n);
   for (const auto& x : run.final_positions) run.finite = run.finite && x.allFinite();
   return run;
-}
-
-InstrumentInput forcepsAt(const Eigen::Vector3d& tip) {
-  InstrumentInput forceps;
-  forceps.pose.linear() = Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitX()).toRotationMatrix();
-  forceps.pose.translation() = tip;
-  forceps.can_grasp = true;
-  forceps.collides = false;
-  forceps.jaw_angle = 0.0;
-  forceps.jaw_length = 1e-3;
-  return forceps;
 }
 
 // The whole TissueSimulator step (forces, implicit solve, Provot strain limit, grasp) in 1 ms frames.

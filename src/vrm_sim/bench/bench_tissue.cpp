@@ -17,6 +17,7 @@
 #include <string>
 #include <vector>
 
+#include "tissue_bench_scene.h"
 #include "vrm_sim/tissue/reference_scenes.h"
 #include "vrm_sim/tissue/tissue_simulator.h"
 
@@ -36,29 +37,15 @@ using vrm_sim::tissue::InstrumentInput;
 using vrm_sim::tissue::TissueConfig;
 using vrm_sim::tissue::TissueSimulator;
 
-double wallClock() {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
-}
-
-constexpr double kSize = 0.005;
-constexpr double kStiffness = 2.0;
-constexpr double kReferenceMass = 1e-5;  // per node at 22 cells (thesis' resolution); finer meshes keep total mass
+using vrm_sim::bench::forcepsAt;
+using vrm_sim::bench::wallClock;
+constexpr double kSize = vrm_sim::bench::kMembraneSize;
+constexpr double kStiffness = vrm_sim::bench::kSpringStiffness;
 
 struct Scene {
   int cells;
-  double node_mass() const { return kReferenceMass * (22.0 / cells) * (22.0 / cells); }
+  double node_mass() const { return vrm_sim::bench::gridNodeMass(cells); }
 };
-
-InstrumentInput forcepsAt(const Eigen::Vector3d& tip) {
-  InstrumentInput forceps;
-  forceps.pose.linear() = Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitX()).toRotationMatrix();
-  forceps.pose.translation() = tip;
-  forceps.can_grasp = true;
-  forceps.collides = false;
-  forceps.jaw_angle = 0.0;
-  forceps.jaw_length = 1e-3;
-  return forceps;
-}
 
 TissueConfig sceneConfig(const std::string& integrator, double dt, bool strain_limit = true) {
   TissueConfig config;
@@ -584,7 +571,7 @@ int main(int argc, char** argv) {
   };
   const auto runHard = [&](const HardCase& hard, const std::string& integrator, double dt_override, bool strain_limit) {
     const Scene scene{hard.cells};
-    const double node_mass = (hard.cells == 48 ? 1e-5 * (22.0 / 48) * (22.0 / 48) : scene.node_mass());
+    const double node_mass = scene.node_mass();
     auto membrane = vrm_sim::tissue::makeGridMembrane(hard.cells, kSize, kStiffness * hard.stiffness_scale,
                                                       node_mass * hard.mass_scale);
     for (std::size_t s = 0; s < membrane->springCount(); ++s) {

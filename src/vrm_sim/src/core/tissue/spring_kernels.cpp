@@ -15,65 +15,12 @@ namespace vrm_sim {
 namespace tissue {
 namespace kernels {
 
-VRM_TISSUE_KERNEL
-void hookeForces(std::size_t spring_count, const std::array<std::uint32_t, 2>* springs, const Eigen::Vector3d* x,
-                 const double* stiffnesses, const double* rest_lengths, double* fx, double* fy, double* fz) {
-  // First the spring vectors d = x_b − x_a (a gather, scalar) ...
-  for (std::size_t s = 0; s < spring_count; ++s) {
-    const Eigen::Vector3d& a = x[springs[s][0]];
-    const Eigen::Vector3d& b = x[springs[s][1]];
-    fx[s] = b.x() - a.x();
-    fy[s] = b.y() - a.y();
-    fz[s] = b.z() - a.z();
-  }
-  // ... then the forces on contiguous arrays, where the square roots and divisions fill whole SIMD registers.
-  for (std::size_t s = 0; s < spring_count; ++s) {
-    const double dx = fx[s];
-    const double dy = fy[s];
-    const double dz = fz[s];
-    const double length = std::sqrt(dx * dx + dy * dy + dz * dz);
-    // A zero-length spring has no direction to push along. The division runs on a safe length in every lane and
-    // the result is selected afterwards, so the loop has no branch.
-    const double scale = stiffnesses[s] * (length - rest_lengths[s]) / std::max(length, kMinSpringLength);
-    const double used = length < kMinSpringLength ? 0.0 : scale;
-    fx[s] = used * dx;
-    fy[s] = used * dy;
-    fz[s] = used * dz;
-  }
-}
+namespace {
 
-VRM_TISSUE_KERNEL
-void hookeForcesAndEnergy(std::size_t spring_count, const std::array<std::uint32_t, 2>* springs,
-                          const Eigen::Vector3d* x, const double* __restrict stiffnesses,
-                          const double* __restrict rest_lengths, double* __restrict fx, double* __restrict fy,
-                          double* __restrict fz, double* __restrict energies) {
-  for (std::size_t s = 0; s < spring_count; ++s) {
-    const Eigen::Vector3d& a = x[springs[s][0]];
-    const Eigen::Vector3d& b = x[springs[s][1]];
-    fx[s] = b.x() - a.x();
-    fy[s] = b.y() - a.y();
-    fz[s] = b.z() - a.z();
-  }
-  // The loop of hookeForces() (the same operations, so the same forces) plus ½ k (|d| − l)² per spring.
-  for (std::size_t s = 0; s < spring_count; ++s) {
-    const double dx = fx[s];
-    const double dy = fy[s];
-    const double dz = fz[s];
-    const double length = std::sqrt(dx * dx + dy * dy + dz * dz);
-    const double stretch = length - rest_lengths[s];
-    const double scale = stiffnesses[s] * stretch / std::max(length, kMinSpringLength);
-    const double used = length < kMinSpringLength ? 0.0 : scale;
-    fx[s] = used * dx;
-    fy[s] = used * dy;
-    fz[s] = used * dz;
-    energies[s] = 0.5 * stiffnesses[s] * stretch * stretch;
-  }
-}
-
-VRM_TISSUE_KERNEL
-double springEnergy(std::size_t spring_count, const std::array<std::uint32_t, 2>* springs, const Eigen::Vector3d* x,
-                    const double* __restrict stiffnesses, const double* __restrict rest_lengths,
-                    double* __restrict dx, double* __restrict dy, double* __restrict dz) {
+// d_s = x_b − x_a into dx/dy/dz: the gather (scalar), so that the arithmetic after it reads contiguous arrays.
+inline void gatherSpringVectors(std::size_t spring_count, const std::array<std::uint32_t, 2>* springs,
+                                const Eigen::Vector3d* x, double* __restrict dx, double* __restrict dy,
+                                double* __restrict dz) {
   for (std::size_t s = 0; s < spring_count; ++s) {
     const Eigen::Vector3d& a = x[springs[s][0]];
     const Eigen::Vector3d& b = x[springs[s][1]];
@@ -81,10 +28,63 @@ double springEnergy(std::size_t spring_count, const std::array<std::uint32_t, 2>
     dy[s] = b.y() - a.y();
     dz[s] = b.z() - a.z();
   }
+}
+
+// Eq. 5.2 on the gathered vectors, in place: the square roots and divisions fill whole SIMD registers. With kEnergy
+// also ½ k (|d| − l)² per spring (the same operations for the forces either way, so the same forces).
+template <bool kEnergy>
+inline void hookeOnVectors(std::size_t spring_count, const double* __restrict stiffnesses,
+                           const double* __restrict rest_lengths, double* __restrict fx, double* __restrict fy,
+                           double* __restrict fz, double* __restrict energies) {
+  for (std::size_t s = 0; s < spring_count; ++s) {
+    const double dx = fx[s];
+    const double dy = fy[s];
+    const double dz = fz[s];
+    const double length = std::sqrt(dx * dx + dy * dy + dz * dz);
+    const double stretch = length - rest_lengths[s];
+    // A zero-length spring has no direction to push along. The division runs on a safe length in every lane and
+    // the result is selected afterwards, so the loop has no branch.
+    const double scale = stiffnesses[s] * stretch / std::max(length, kMinSpringLength);
+    const double used = length < kMinSpringLength ? 0.0 : scale;
+    fx[s] = used * dx;
+    fy[s] = used * dy;
+    fz[s] = used * dz;
+    if (kEnergy) energies[s] = 0.5 * stiffnesses[s] * stretch * stretch;
+  }
+}
+
+// ½ k (|d| − l)² per spring from the gathered vectors, into dx.
+inline void energyOnVectors(std::size_t spring_count, const double* __restrict stiffnesses,
+                            const double* __restrict rest_lengths, double* __restrict dx, const double* __restrict dy,
+                            const double* __restrict dz) {
   for (std::size_t s = 0; s < spring_count; ++s) {
     const double stretch = std::sqrt(dx[s] * dx[s] + dy[s] * dy[s] + dz[s] * dz[s]) - rest_lengths[s];
     dx[s] = 0.5 * stiffnesses[s] * stretch * stretch;
   }
+}
+
+}  // namespace
+
+VRM_TISSUE_KERNEL
+void hookeForces(std::size_t spring_count, const std::array<std::uint32_t, 2>* springs, const Eigen::Vector3d* x,
+                 const double* stiffnesses, const double* rest_lengths, double* fx, double* fy, double* fz) {
+  gatherSpringVectors(spring_count, springs, x, fx, fy, fz);
+  hookeOnVectors<false>(spring_count, stiffnesses, rest_lengths, fx, fy, fz, nullptr);
+}
+
+VRM_TISSUE_KERNEL
+void hookeForcesAndEnergy(std::size_t spring_count, const std::array<std::uint32_t, 2>* springs,
+                          const Eigen::Vector3d* x, const double* stiffnesses, const double* rest_lengths, double* fx,
+                          double* fy, double* fz, double* energies) {
+  gatherSpringVectors(spring_count, springs, x, fx, fy, fz);
+  hookeOnVectors<true>(spring_count, stiffnesses, rest_lengths, fx, fy, fz, energies);
+}
+
+VRM_TISSUE_KERNEL
+double springEnergy(std::size_t spring_count, const std::array<std::uint32_t, 2>* springs, const Eigen::Vector3d* x,
+                    const double* stiffnesses, const double* rest_lengths, double* dx, double* dy, double* dz) {
+  gatherSpringVectors(spring_count, springs, x, dx, dy, dz);
+  energyOnVectors(spring_count, stiffnesses, rest_lengths, dx, dy, dz);
   return sumOf(dx, spring_count);
 }
 
