@@ -35,27 +35,38 @@ double omegaSquared(double mass, double stiffness) { return stiffness / (mass * 
 
 }  // namespace
 
-double dampedExplicitBound(const SystemView& system, const ForceModel& forces, std::vector<double>* scratch) {
+namespace {
+
+struct ExplicitBounds {
+  double symplectic = std::numeric_limits<double>::infinity();
+  double quasi_static = std::numeric_limits<double>::infinity();
+};
+
+// Both candidates' bounds from one pass over the nodes (and one over the springs for their stiffest).
+ExplicitBounds explicitBounds(const SystemView& system, const ForceModel& forces, std::vector<double>* scratch) {
   const double damping = std::max(forces.params.damping, 0.0);
-  double bound = std::numeric_limits<double>::infinity();
+  ExplicitBounds bounds;
   forEachFreeNode(system, forces, scratch, [&](double mass, double stiffness) {
     const double omega2 = omegaSquared(mass, stiffness);
     const double gamma = damping / mass;
     if (omega2 > 0.0) {
-      bound = std::min(bound, (-gamma + std::sqrt(gamma * gamma + 4.0 * omega2)) / omega2);
+      bounds.symplectic = std::min(bounds.symplectic, (-gamma + std::sqrt(gamma * gamma + 4.0 * omega2)) / omega2);
+      bounds.quasi_static = std::min(bounds.quasi_static, 2.0 / std::sqrt(omega2));
     } else if (gamma > 0.0) {
-      bound = std::min(bound, 2.0 / gamma);
+      bounds.symplectic = std::min(bounds.symplectic, 2.0 / gamma);
     }
   });
-  return bound;
+  return bounds;
+}
+
+}  // namespace
+
+double dampedExplicitBound(const SystemView& system, const ForceModel& forces, std::vector<double>* scratch) {
+  return explicitBounds(system, forces, scratch).symplectic;
 }
 
 double quasiStaticBound(const SystemView& system, const ForceModel& forces, std::vector<double>* scratch) {
-  double bound = std::numeric_limits<double>::infinity();
-  forEachFreeNode(system, forces, scratch, [&](double mass, double stiffness) {
-    if (stiffness > 0.0) bound = std::min(bound, 2.0 / std::sqrt(omegaSquared(mass, stiffness)));
-  });
-  return bound;
+  return explicitBounds(system, forces, scratch).quasi_static;
 }
 
 IntegratorChoice chooseIntegrator(const SystemView& system, const ForceModel& forces, double dt,
@@ -63,8 +74,9 @@ IntegratorChoice chooseIntegrator(const SystemView& system, const ForceModel& fo
   const auto substepsFor = [dt](double bound) {
     return std::isfinite(bound) ? std::max(1.0, std::ceil(dt / bound - 1e-9)) : 1.0;
   };
-  const double symplectic_bound = options.margin * dampedExplicitBound(system, forces, scratch);
-  const double quasi_static_bound = options.margin * quasiStaticBound(system, forces, scratch);
+  const ExplicitBounds bounds = explicitBounds(system, forces, scratch);
+  const double symplectic_bound = options.margin * bounds.symplectic;
+  const double quasi_static_bound = options.margin * bounds.quasi_static;
   const double symplectic_steps = substepsFor(symplectic_bound);
   const double quasi_static_steps = substepsFor(quasi_static_bound);
   IntegratorChoice choice;
