@@ -280,7 +280,7 @@ class TissueSimulator {
   std::vector<double> energy_scratch_;  // 3 per spring: the energy sweep's gathered spring vectors
   bool measure_energy_ = false;         // rawStep() balances each integration (watchdog on, explicit attempt)
   double energy_excess_ = 0.0;          // J: the most an integration of this step created beyond the allowance
-  double free_mass_ = 0.0;              // kg: of the integrated nodes, for the allowance's floor
+  double free_mass_ = 0.0;              // kg: of the integrated nodes (rebuildConstraints), for the floor
   std::vector<NodeDeformation> pending_deformations_;  // external deformations, replayed after a rollback
   std::vector<Eigen::Vector3d> early_stop_forces_, early_stop_zero_;  // buffers of maxFreeForce()
   double frame_strain_ = -1.0;  // max strain of all springs after the last step (-1 = unknown)

@@ -73,6 +73,7 @@ TissueSimulator::TissueSimulator(mge::Membrane& membrane, const TissueConfig& co
     for (std::size_t i = 0; i < membrane_->nodeCount(); ++i) {
       if (!(membrane_->masses()[i] > 0.0)) membrane_->nodeAtSlot(i).mass() = mean;
     }
+    rebuildConstraints();  // the free mass and the "auto" choice depend on the masses
   }
   if (config_.refinement.levels > 0) {
     if (chainmail_ || config_.adhesion_stiffness > 0.0) {
@@ -134,8 +135,10 @@ void TissueSimulator::rebuildConstraints() {
   const std::uint8_t* fixed = membrane_->fixedFlags();
   for (std::size_t i = 0; i < n; ++i) constrained_[i] = ((fixed[i] && !anchored_[i]) || grasped_[i]) ? 1 : 0;
   grasped_nodes_.clear();
+  free_mass_ = 0.0;
   for (std::size_t i = 0; i < n; ++i) {
     if (grasped_[i]) grasped_nodes_.push_back(static_cast<std::uint32_t>(i));
+    if (constrained_[i] == 0) free_mass_ += membrane_->masses()[i];
   }
   if (auto_integrator_) chooseIntegratorNow();
 }
@@ -454,10 +457,6 @@ bool TissueSimulator::step() {
     hold_remaining_ = config_.watchdog.hold_steps;
   }
   saveState();
-  free_mass_ = 0.0;
-  for (std::size_t i = 0; i < membrane_->nodeCount(); ++i) {
-    if (constrained_[i] == 0) free_mass_ += membrane_->masses()[i];
-  }
   pending_deformations_.assign(external_deformations_.begin(), external_deformations_.end());
   bool ok = false;
   for (int level = fallback_level_; level <= config_.watchdog.max_halvings + 1 && !ok; ++level) {
