@@ -84,7 +84,7 @@ double kineticEnergy(const SystemView& system) {
   return energy;
 }
 
-double maxStrain(const SystemView& system) { return kernels::strainMaxima(system, system.positions, nullptr, 0).all; }
+double maxStrain(const SystemView& system) { return kernels::maxStrain(system, system.positions); }
 
 }  // namespace tissue
 }  // namespace vrm_sim

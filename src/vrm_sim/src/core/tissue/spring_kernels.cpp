@@ -113,30 +113,25 @@ void scatterSpringForces(std::size_t spring_count, const std::array<std::uint32_
   }
 }
 
-StrainMaxima strainMaxima(const SystemView& system, const Eigen::Vector3d* x, const std::uint32_t* touched,
-                          std::uint32_t epoch) {
-  StrainMaxima maxima;
-  // |d|² <= bound·l² means |d|/l <= the untouched maximum (to 1e-12 relative), so the spring cannot change either
-  // maximum (untouched <= all). The slack lets the many springs at exactly the maximum (e.g. 1 at rest) skip too.
+double maxStrain(const SystemView& system, const Eigen::Vector3d* x) {
+  // |d|² <= bound·l² means |d|/l <= the maximum so far (to 1e-12 relative), so the spring cannot change it. The
+  // slack lets the many springs at exactly the maximum (e.g. 1 at rest) skip too.
   constexpr double kMargin = 1.0 + 1e-12;
+  double maximum = 0.0;
   double bound = 0.0;
   for (std::size_t s = 0; s < system.spring_count; ++s) {
     const auto& ends = system.springs[s];
     const double rest = system.rest_lengths[s];
-    const Eigen::Vector3d d = x[ends[1]] - x[ends[0]];
-    const double length2 = d.squaredNorm();
+    const double length2 = (x[ends[1]] - x[ends[0]]).squaredNorm();
     if (length2 <= bound * (rest * rest)) continue;
     if (rest < kMinSpringLength) continue;
     const double strain = std::sqrt(length2) / rest;
-    maxima.all = std::max(maxima.all, strain);
-    if (!system.isFree(ends[0]) && !system.isFree(ends[1])) continue;
-    if (touched != nullptr && (touched[ends[0]] == epoch || touched[ends[1]] == epoch)) continue;
-    if (strain > maxima.untouched) {
-      maxima.untouched = strain;
+    if (strain > maximum) {
+      maximum = strain;
       bound = strain * strain * kMargin;
     }
   }
-  return maxima;
+  return maximum;
 }
 
 }  // namespace kernels

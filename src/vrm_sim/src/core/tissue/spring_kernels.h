@@ -2,7 +2,7 @@
 // The inner loops over springs that every step runs (forces, strain measurement), written on raw arrays so the
 // compiler can vectorise them. Each kernel gives bit for bit the result of the straightforward Eigen loop it
 // replaces (same operations in the same order, no FMA contraction), so the speed-up does not change the physics;
-// strainMaxima() says where it differs.
+// maxStrain() says where it differs.
 
 #include <cstddef>
 #include <cstdint>
@@ -37,17 +37,10 @@ void hookeForcesAndEnergy(std::size_t spring_count, const std::array<std::uint32
 // Σ values in four interleaved partial sums (vectorises; a fixed order, so deterministic).
 double sumOf(const double* values, std::size_t count);
 
-struct StrainMaxima {
-  double all = 0.0;        // max |d|/l over springs with l >= kMinSpringLength (maxStrain())
-  double untouched = 0.0;  // the same without springs between two constrained nodes or with a touched end
-};
-
-// Both maxima in one sweep without a square root per spring: a spring is measured exactly (sqrt, division) only
-// when |d|² exceeds the current untouched maximum's bound, which after the first few springs is rare. A spring
-// within 5e-13 (relative) of the running maximum may be skipped, so the maxima are exact to that. `touched`
-// (may be null) marks nodes at an instrument with the value `epoch`.
-StrainMaxima strainMaxima(const SystemView& system, const Eigen::Vector3d* x, const std::uint32_t* touched,
-                          std::uint32_t epoch);
+// max |d|/l over springs with l >= kMinSpringLength, without a square root per spring: a spring is measured exactly
+// (sqrt, division) only when |d|² exceeds the running maximum's bound, which after the first few springs is rare. A
+// spring within 5e-13 (relative) of the running maximum may be skipped, so the maximum is exact to that.
+double maxStrain(const SystemView& system, const Eigen::Vector3d* x);
 
 }  // namespace kernels
 }  // namespace tissue
