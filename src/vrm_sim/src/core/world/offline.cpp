@@ -10,8 +10,6 @@
 
 #include "vrm_sim/mge/membrane.h"
 #include "vrm_sim/scene/scene_loader.h"
-#include "vrm_sim/tissue/integrator.h"
-#include "vrm_sim/tissue/integrator_choice.h"
 #include "vrm_sim/tissue/offline_run.h"
 #include "vrm_sim/tissue/tissue_simulator.h"
 
@@ -134,8 +132,8 @@ OfflineResult runOffline(const scene::SceneDescription& scene_in, const OfflineO
     throw std::invalid_argument("tissue_offline: --rate must be positive");
   }
   if (!options.integrator.empty()) {
-    std::vector<std::string> known = tissue::integratorNames();
-    known.insert(known.begin(), tissue::kAutoIntegrator);
+    // The names a scene's `tissue.integrator` accepts ("auto" and the integrators).
+    const std::vector<std::string>& known = scene::knownIntegrators();
     if (std::find(known.begin(), known.end(), options.integrator) == known.end()) {
       std::string names;
       for (const auto& name : known) names += (names.empty() ? "" : ", ") + name;
