@@ -307,6 +307,7 @@ using vrm_sim::tissue::TissueSimulator;
 // bench_tissue's grasp-and-pull scene: 5 mm membrane, k = 2 N/m, total mass of the 22×22 thesis mesh at every
 // resolution, damping 2e-3 N s/m, the centre grasped (3e-4 m radius) and pulled up at 20 mm/s.
 using vrm_sim::bench::forcepsAt;
+using vrm_sim::bench::medianOf;
 using vrm_sim::bench::wallClock;
 constexpr double kSize = vrm_sim::bench::kMembraneSize;
 constexpr double kStiffness = vrm_sim::bench::kSpringStiffness;
@@ -315,12 +316,6 @@ constexpr double kGraspRadius = 3e-4;
 constexpr double kLiftSpeed = 0.02;
 
 double nodeMass(int cells) { return vrm_sim::bench::gridNodeMass(cells); }
-
-double median(std::vector<double> values) {
-  if (values.empty()) return NAN;
-  std::nth_element(values.begin(), values.begin() + values.size() / 2, values.end());
-  return values[values.size() / 2];
-}
 
 double mean(const std::vector<double>& values) {
   return values.empty() ? NAN : std::accumulate(values.begin(), values.end(), 0.0) / values.size();
@@ -481,7 +476,7 @@ Row summarise(const std::vector<Run>& runs, const Run& reference) {
   row.springs = runs.front().springs;
   row.steps = static_cast<int>(runs.front().step_ms.size());
   row.ms_per_step = mean(ms);
-  row.ms_per_step_median = median(ms);
+  row.ms_per_step_median = medianOf(ms);
   row.iterations = mean(iterations);
   row.residual = mean(residuals);
   row.residual_max = residuals.empty() ? NAN : *std::max_element(residuals.begin(), residuals.end());

@@ -103,11 +103,7 @@ RunResult runGraspPull(const Scene& scene, const TissueConfig& config, double du
   for (double ms : frame_ms_per_step) result.ms_per_step_max = std::max(result.ms_per_step_max, ms);
   result.chosen = simulator.integratorLabel();
   result.ms_per_step = 1e3 * elapsed / std::max(result.steps, 1);
-  if (!frame_ms_per_step.empty()) {
-    std::nth_element(frame_ms_per_step.begin(), frame_ms_per_step.begin() + frame_ms_per_step.size() / 2,
-                     frame_ms_per_step.end());
-    result.ms_per_step_median = frame_ms_per_step[frame_ms_per_step.size() / 2];
-  }
+  if (!frame_ms_per_step.empty()) result.ms_per_step_median = vrm_sim::bench::medianOf(frame_ms_per_step);
   result.iterations = simulator.integrator().lastIterations();
   result.final_positions.assign(membrane->positions(), membrane->positions() + membrane->nodeCount());
   for (const auto& x : result.final_positions) result.finite = result.finite && x.allFinite();
@@ -380,10 +376,7 @@ Row runBullet(const std::string& scene_name, int cells, double dt, int frames, c
   row.iterations = 10;
   row.steps = frames;
   row.ms_per_step = 1e3 * elapsed / std::max(frames, 1);
-  if (!step_ms.empty()) {
-    std::nth_element(step_ms.begin(), step_ms.begin() + step_ms.size() / 2, step_ms.end());
-    row.ms_per_step_median = step_ms[step_ms.size() / 2];
-  }
+  row.ms_per_step_median = vrm_sim::bench::medianOf(step_ms);
   row.max_strain = membrane.maxStrain();
   // Survives = finite and no link torn apart beyond 10× its rest length.
   row.stable = membrane.finite() && row.max_strain < 10.0;
@@ -488,8 +481,7 @@ int main(int argc, char** argv) {
         naive.steps = steps;
         naive.ms_per_step = elapsed / std::max(steps, 1);
         naive.ms_per_step_max = *std::max_element(step_ms.begin(), step_ms.end());
-        std::nth_element(step_ms.begin(), step_ms.begin() + step_ms.size() / 2, step_ms.end());
-        naive.ms_per_step_median = step_ms[step_ms.size() / 2];
+        naive.ms_per_step_median = vrm_sim::bench::medianOf(step_ms);
         naive.stable = membrane.finite();
         naive.ratio_to_naive = 1.0;
         printRow(naive);
@@ -569,24 +561,37 @@ int main(int argc, char** argv) {
     Row row;
     std::vector<Eigen::Vector3d> positions;
   };
-  const auto runHard = [&](const HardCase& hard, const std::string& integrator, double dt_override, bool strain_limit) {
+  // The case's membrane (scaled stiffnesses and masses) and its dt (a multiple of its explicit bound when dt < 0).
+  struct HardSetup {
+    std::unique_ptr<vrm_sim::mge::Membrane> membrane;
+    double dt = 0.0;
+  };
+  const auto setUpHard = [](const HardCase& hard) {
     const Scene scene{hard.cells};
-    const double node_mass = scene.node_mass();
-    auto membrane = vrm_sim::tissue::makeGridMembrane(hard.cells, kSize, kStiffness * hard.stiffness_scale,
-                                                      node_mass * hard.mass_scale);
-    for (std::size_t s = 0; s < membrane->springCount(); ++s) {
-      if (membrane->positions()[membrane->springNodeSlots()[s][0]].x() > 0.0) {
-        membrane->stiffnesses()[s] *= hard.stiffness_ratio;
+    HardSetup setup;
+    setup.membrane = vrm_sim::tissue::makeGridMembrane(hard.cells, kSize, kStiffness * hard.stiffness_scale,
+                                                       scene.node_mass() * hard.mass_scale);
+    vrm_sim::mge::Membrane& membrane = *setup.membrane;
+    for (std::size_t s = 0; s < membrane.springCount(); ++s) {
+      if (membrane.positions()[membrane.springNodeSlots()[s][0]].x() > 0.0) {
+        membrane.stiffnesses()[s] *= hard.stiffness_ratio;
       }
     }
-    for (std::size_t i = 0; i < membrane->nodeCount(); ++i) {
-      if (membrane->positions()[i].x() > 0.0) membrane->nodeAtSlot(i).mass() *= hard.mass_ratio;
+    for (std::size_t i = 0; i < membrane.nodeCount(); ++i) {
+      if (membrane.positions()[i].x() > 0.0) membrane.nodeAtSlot(i).mass() *= hard.mass_ratio;
     }
-    double dt = hard.dt;
-    if (dt < 0.0) {
-      std::vector<std::uint8_t> fixed(membrane->fixedFlags(), membrane->fixedFlags() + membrane->nodeCount());
-      dt = -dt * vrm_sim::tissue::explicitStabilityBound(vrm_sim::tissue::viewOf(*membrane, fixed.data()), {});
+    setup.dt = hard.dt;
+    if (setup.dt < 0.0) {
+      std::vector<std::uint8_t> fixed(membrane.fixedFlags(), membrane.fixedFlags() + membrane.nodeCount());
+      setup.dt =
+          -setup.dt * vrm_sim::tissue::explicitStabilityBound(vrm_sim::tissue::viewOf(membrane, fixed.data()), {});
     }
+    return setup;
+  };
+  const auto runHard = [&](const HardCase& hard, const std::string& integrator, double dt_override, bool strain_limit) {
+    HardSetup setup = setUpHard(hard);
+    auto& membrane = setup.membrane;
+    const double dt = setup.dt;
     const double frame = std::max(1e-3, dt);  // 40 frames of 1 ms (or of dt when dt is longer)
     TissueConfig config = sceneConfig(integrator, dt_override > 0.0 ? dt_override : dt, strain_limit);
     config.forces.damping = hard.damping;
@@ -646,8 +651,7 @@ int main(int argc, char** argv) {
     // run is the final node distance to it. Skipped for the 128 mesh (too long for a benchmark run).
     std::vector<Eigen::Vector3d> reference;
     if (hard.cells <= 48) {
-      const HardRun probe = runHard(hard, "rk2", 0.0, true);
-      double reference_dt = std::min(1e-5, probe.row.dt / 20.0);
+      double reference_dt = std::min(1e-5, setUpHard(hard).dt / 20.0);
       // The stiff cases need a step well below the explicit bound of their stiffest spring.
       reference_dt = std::min(reference_dt, 1e-3 / std::sqrt(hard.stiffness_ratio * hard.stiffness_scale) / 20.0);
       if (hard.damping > 0.0) reference_dt = std::min(reference_dt, 0.2 * (1e-5 * hard.mass_scale) / hard.damping);
@@ -696,13 +700,7 @@ int main(int argc, char** argv) {
     // whole-membrane scales and the yank have no Bullet twin).
     if (hard.push_speed <= 0.0 && hard.stiffness_scale == 1.0 && hard.mass_scale == 1.0 && !hard.yank &&
         hard.cells != 48) {
-      double dt = hard.dt;
-      if (dt < 0.0) {
-        const Scene scene{hard.cells};
-        auto membrane = vrm_sim::tissue::makeGridMembrane(hard.cells, kSize, kStiffness, scene.node_mass());
-        std::vector<std::uint8_t> fixed(membrane->fixedFlags(), membrane->fixedFlags() + membrane->nodeCount());
-        dt = -dt * vrm_sim::tissue::explicitStabilityBound(vrm_sim::tissue::viewOf(*membrane, fixed.data()), {});
-      }
+      const double dt = setUpHard(hard).dt;
       const int frames = static_cast<int>(std::lround(0.04 / dt));  // our 40 frames of 1 ms
       const Row row = runBullet(hard.name, hard.cells, dt, std::max(frames, 1),
                                 Eigen::Vector3d(0.0, 0.0, hard.pull_speed), hard.stiffness_ratio, hard.mass_ratio);

@@ -3,8 +3,10 @@
 // total mass of the 22×22 thesis mesh (1e-5 kg per node there) at every resolution, grasped at the centre by forceps
 // pointing down.
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <vector>
 
 #include "vrm_sim/tissue/tissue_simulator.h"
 
@@ -16,6 +18,13 @@ constexpr double kSpringStiffness = 2.0;  // N/m
 constexpr double kThesisNodeMass = 1e-5;  // kg per node at 22 cells
 
 inline double gridNodeMass(int cells) { return kThesisNodeMass * (22.0 / cells) * (22.0 / cells); }
+
+// The median of `values` (NaN for none): timings on a shared machine, robust against the odd slow step.
+inline double medianOf(std::vector<double> values) {
+  if (values.empty()) return NAN;
+  std::nth_element(values.begin(), values.begin() + values.size() / 2, values.end());
+  return values[values.size() / 2];
+}
 
 inline double wallClock() {
   return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
