@@ -8,8 +8,14 @@
 #include <stdexcept>
 
 #include "fuzz_target.h"
+#include "vrm_sim/scene/scene_loader.h"
 
 namespace vrm_fuzz {
+
+namespace {
+// The fuzz build runs in a checkout: vrm_sim's shipped scenes (sim_messages.h) from its source package.
+const bool kShippedScenes = (vrm_sim::scene::setPackageDirectory(VRM_FUZZ_SOURCE_DIR "/../vrm_sim"), true);
+}  // namespace
 
 std::vector<std::pair<std::string, EntryPoint>>& registeredTargets() {
   static std::vector<std::pair<std::string, EntryPoint>> targets;

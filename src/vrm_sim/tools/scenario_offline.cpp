@@ -18,6 +18,7 @@
 #include <filesystem>
 #include <string>
 
+#include "vrm_sim/package_data.h"
 #include "vrm_sim/scene/scene_loader.h"
 #include "vrm_sim/world/offline.h"
 
@@ -53,6 +54,7 @@ int list() {
 }  // namespace
 
 int main(int argc, char** argv) {
+  vrm_sim::usePackageData();  // --scene NAME and --list: the shipped scenes, found through ROS_PACKAGE_PATH
   std::string scene_argument, difficulty, script = "expert";
   vrm_sim::world::ScenarioRunOptions options;
   for (int i = 1; i < argc; ++i) {

@@ -19,6 +19,7 @@
 #include <string>
 
 #include "vrm_sim/bag/session_bag.h"
+#include "vrm_sim/package_data.h"
 #include "vrm_sim/scene/scene_loader.h"
 
 namespace {
@@ -50,6 +51,7 @@ void reportRecovery(const vrm_sim::bag::PreparedBag& bag) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  vrm_sim::usePackageData();  // the recorded scene by name when its file is not on this machine
   std::string bag_path, scene, print;
   bool prepare_only = false;
   for (int i = 1; i < argc; ++i) {

@@ -16,6 +16,7 @@
 #include <exception>
 #include <string>
 
+#include "vrm_sim/package_data.h"
 #include "vrm_sim/scene/scene_loader.h"
 #include "vrm_sim/world/offline.h"
 
@@ -38,6 +39,7 @@ bool parseDouble(const char* text, double& value) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  vrm_sim::usePackageData();  // --scene NAME: the shipped scene, found through ROS_PACKAGE_PATH (no master)
   std::string scene_argument;
   bool have_seconds = false;
   vrm_sim::world::OfflineOptions options;

@@ -46,6 +46,7 @@
 #include "vrm_msgs/SessionResult.h"
 #include "vrm_msgs/SimulationState.h"
 #include "vrm_msgs/StationStatus.h"
+#include "vrm_sim/package_data.h"
 #include "vrm_sim/scene/scene_loader.h"
 
 namespace {
@@ -151,6 +152,7 @@ std::string lastLines(const std::string& path, std::size_t count) {
 class SessionStation {
  public:
   SessionStation() : private_nh_("~") {
+    vrm_sim::usePackageData();  // the scene library (~list_scenes): vrm_sim's shipped scenes
     simulator_launch_ = private_nh_.param<std::string>("simulator_launch", "");
     replay_launch_ = private_nh_.param<std::string>("replay_launch", "");
     records_dir_ = expandHome(private_nh_.param<std::string>("records_dir", "~/.ros/eyesi/sessions"));

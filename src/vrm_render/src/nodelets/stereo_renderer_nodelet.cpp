@@ -76,6 +76,7 @@
 #include "vrm_render/image_io.h"
 #include "vrm_render/scene_setup.h"
 #include "vrm_render/stereo_renderer.h"
+#include "vrm_sim/package_data.h"
 #include "vrm_sim/scene/scene_loader.h"
 
 namespace vrm_render {
@@ -242,6 +243,7 @@ class StereoRendererNodelet : public nodelet::Nodelet {
 
     try {
       trigger_ = parseTrigger(trigger_name);
+      vrm_sim::usePackageData();  // a scene name means vrm_sim's shipped scene (devel or install space)
       scene_ = vrm_sim::scene::loadScene(vrm_sim::scene::resolveScenePath(scene_parameter));
       const std::set<pid_t> threads_before = processThreads();
       renderer_ = std::make_unique<StereoRenderer>(options);

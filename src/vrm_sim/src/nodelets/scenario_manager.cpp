@@ -60,6 +60,7 @@
 #include "vrm_msgs/publish.h"
 #include "vrm_sim/conversions.h"
 #include "vrm_sim/mge/membrane.h"
+#include "vrm_sim/package_data.h"
 #include "vrm_sim/scene/scene_loader.h"
 #include "vrm_sim/tissue/tissue_simulator.h"
 #include "vrm_sim/world/offline.h"
@@ -72,6 +73,7 @@ class ScenarioManager : public nodelet::Nodelet {
   void onInit() override {
     ros::NodeHandle& nh = getNodeHandle();
     ros::NodeHandle& private_nh = getPrivateNodeHandle();
+    usePackageData();  // shipped scenes by name (also for a LOAD): found through ROS_PACKAGE_PATH
     const std::string scene_parameter = private_nh.param<std::string>("scene", "membrane_peeling");
     const std::string difficulty = private_nh.param<std::string>("difficulty", "");
     world::WorldOptions options;

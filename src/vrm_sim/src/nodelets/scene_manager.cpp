@@ -25,6 +25,7 @@
 #include "vrm_msgs/publish.h"
 #include "vrm_sim/conversions.h"
 #include "vrm_sim/mge/membrane.h"
+#include "vrm_sim/package_data.h"
 #include "vrm_sim/scene/scene_loader.h"
 #include "vrm_sim/tissue/offline_run.h"
 
@@ -60,6 +61,7 @@ class SceneManager : public nodelet::Nodelet {
     publish_pose_tf_ = private_nh.param("publish_pose_tf", true);
     const std::string scene_parameter = private_nh.param<std::string>("scene", "membrane_peeling");
 
+    usePackageData();  // shipped scenes by name: the devel space's source package or the installed share directory
     const std::string scene_path = scene::resolveScenePath(scene_parameter);
     try {
       scene_ = scene::loadScene(scene_path);

@@ -15,6 +15,7 @@
 
 #include "vrm_tracking/conversions.h"
 #include "vrm_tracking/scene_trocars.h"
+#include "vrm_sim/package_data.h"
 #include "vrm_tracking/surgeon_script.h"
 
 namespace vrm_tracking {
@@ -29,6 +30,7 @@ class ScriptedSurgeon : public nodelet::Nodelet {
     // object are placed on (else the script's trocars and written tips).
     std::string scene_spec;
     pnh.param<std::string>("scene", scene_spec, "");
+    vrm_sim::usePackageData();  // a scene name means vrm_sim's shipped scene
     std::string script_spec;
     pnh.param<std::string>("script", script_spec, "");
     try {

@@ -46,6 +46,7 @@
 #include "vrm_tracking/conversions.h"
 #include "vrm_tracking/pose_tracker.h"
 #include "vrm_tracking/scene_trocars.h"
+#include "vrm_sim/package_data.h"
 
 namespace vrm_tracking {
 
@@ -64,6 +65,7 @@ class Tracker : public nodelet::Nodelet {
     pnh.param<std::string>("layout_file", layout_file, "");
     std::string scene_spec;  // optional: the scene whose trocars override the layout's (name or path)
     pnh.param<std::string>("scene", scene_spec, "");
+    vrm_sim::usePackageData();  // a scene name means vrm_sim's shipped scene
     pnh.param<std::string>("markers_topic", markers_topic, "markers");
     TrackerConfig config;
     pnh.param("gate_px", config.gate_px, config.gate_px);

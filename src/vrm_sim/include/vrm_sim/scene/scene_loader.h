@@ -27,7 +27,7 @@ class SceneError : public std::runtime_error {
 
 // Parses and validates a scene file: unknown keys, wrong types, out-of-range values, inconsistent simulations,
 // unknown trocars and missing mesh files are all SceneErrors. Relative mesh paths are resolved against the scene
-// file's directory, then against the vrm_sim package directory.
+// file's directory, then against the vrm_sim package directory (packageDirectory(), when set).
 // `difficulty`: the scenario's difficulty level whose overrides to apply (empty: its default level); a level the
 // scenario does not have, or any level for a scene without levels, is a SceneError.
 SceneDescription loadScene(const std::string& path, const std::string& difficulty = "");
@@ -39,12 +39,20 @@ SceneDescription loadSceneFromString(const std::string& yaml_text, const std::st
 // scenario's scripts (see scene_description.h). SceneError with file:line:col as for scenes.
 std::vector<ScriptedInstrument> loadScript(const std::string& path);
 
-// Path of a shipped scene, e.g. shippedScenePath("navigation") -> <package>/config/scenes/navigation.yaml.
+// Where the shipped data is found: the vrm_sim package directory (config/scenes/, shared mesh assets), found at run
+// time, never compiled in: a source package in a devel space, <prefix>/share/vrm_sim in an install space. The core
+// does not look for it; whoever knows sets it once per process: the ROS layer with vrm_sim::usePackageData()
+// (vrm_sim/package_data.h: ros::package::getPath), tests with their source package. Empty until set.
+void setPackageDirectory(const std::string& directory);
+std::string packageDirectory();
+
+// Path of a shipped scene, e.g. shippedScenePath("navigation") -> <package>/config/scenes/navigation.yaml. A
+// SceneError when the package directory was not set.
 std::string shippedScenePath(const std::string& scene_name);
 // What the nodes' and tools' `scene` arguments mean: an existing file; else, for a bare name (no '/', no '.'), the
 // shipped scene of that name; else the path as written (loadScene then reports it missing).
 std::string resolveScenePath(const std::string& name_or_path);
-// Names of the shipped scenes (config/scenes/*.yaml), sorted.
+// Names of the shipped scenes (config/scenes/*.yaml), sorted; none when the package directory was not set.
 std::vector<std::string> shippedScenes();
 
 enum class MeshFrame {

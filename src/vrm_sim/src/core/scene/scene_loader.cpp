@@ -10,14 +10,11 @@
 #include <fstream>
 #include <functional>
 #include <map>
+#include <mutex>
 #include <sstream>
 
 #include "vrm_sim/scene/mesh_io.h"
 #include "vrm_sim/scene/mesh_utils.h"
-
-#ifndef VRM_SIM_SOURCE_DIR
-#define VRM_SIM_SOURCE_DIR ""
-#endif
 
 namespace vrm_sim {
 namespace scene {
@@ -531,7 +528,8 @@ std::string resolveMeshPath(const Field& field, const std::string& scene_file) {
     candidates.push_back(written);
   } else {
     candidates.push_back(fs::absolute(scene_file).parent_path() / written);
-    if (std::string(VRM_SIM_SOURCE_DIR).size() > 0) candidates.push_back(fs::path(VRM_SIM_SOURCE_DIR) / written);
+    const std::string package = packageDirectory();
+    if (!package.empty()) candidates.push_back(fs::path(package) / written);
   }
   std::string looked_in;
   for (const auto& candidate : candidates) {
@@ -1067,10 +1065,29 @@ std::string resolveScenePath(const std::string& name_or_path) {
   return shippedScenePath(name_or_path);
 }
 
+namespace {
+// Set once per process by whoever knows where the package is (the ROS layer, a tool, a test); a mutex because
+// nodelets of one manager set and read it from their own threads.
+std::mutex package_directory_mutex;
+std::string package_directory;
+}  // namespace
+
+void setPackageDirectory(const std::string& directory) {
+  std::lock_guard<std::mutex> lock(package_directory_mutex);
+  package_directory = directory;
+}
+
+std::string packageDirectory() {
+  std::lock_guard<std::mutex> lock(package_directory_mutex);
+  return package_directory;
+}
+
 std::vector<std::string> shippedScenes() {
   std::vector<std::string> names;
+  const std::string package = packageDirectory();
+  if (package.empty()) return names;
   std::error_code error;
-  for (const auto& entry : fs::directory_iterator(fs::path(VRM_SIM_SOURCE_DIR) / "config" / "scenes", error)) {
+  for (const auto& entry : fs::directory_iterator(fs::path(package) / "config" / "scenes", error)) {
     if (entry.path().extension() == ".yaml") names.push_back(entry.path().stem().string());
   }
   std::sort(names.begin(), names.end());
@@ -1078,7 +1095,15 @@ std::vector<std::string> shippedScenes() {
 }
 
 std::string shippedScenePath(const std::string& scene_name) {
-  return (fs::path(VRM_SIM_SOURCE_DIR) / "config" / "scenes" / (scene_name + ".yaml")).string();
+  const std::string package = packageDirectory();
+  if (package.empty()) {
+    SourceLocation location;
+    location.file = scene_name;
+    throw SceneError(location, "not a scene file, and no shipped scenes: the vrm_sim package directory is unknown "
+                               "(ROS nodes and tools: vrm_sim must be on ROS_PACKAGE_PATH, source setup.bash; "
+                               "ROS-free code: scene::setPackageDirectory)");
+  }
+  return (fs::path(package) / "config" / "scenes" / (scene_name + ".yaml")).string();
 }
 
 TriangleMesh buildMesh(const ObjectDescription& object, MeshFrame frame) {
