@@ -14,7 +14,7 @@ PACKAGES=(
   libassimp-dev libyaml-cpp-dev libfcl-dev libsqlite3-dev libbullet-dev
   python3-matplotlib python3-diagnostic-msgs python3-sensor-msgs
   qtbase5-dev libqt5charts5-dev nlohmann-json3-dev libssl-dev xvfb xauth python3-pil
-  nftables
+  nftables strace
 )
 
 missing=()

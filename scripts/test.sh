@@ -51,6 +51,8 @@ script_test security_firewall firewall_rules_in_netns "$ROOT/src/eyesi_gui/test/
 for fault in manager_crash recorder_crash hostile_flood slow_consumer; do
   script_test "fault_$fault" "$fault" /usr/bin/python3 "$ROOT/src/vrm_sim/test/faults/graph_faults.py" "$fault"
 done
+# The install space runs the simulator without the source tree (issue 18): a temporary prefix, strace for the checkout.
+script_test install_space installed_simulator_runs_without_the_source_tree "$ROOT/scripts/install-test.sh"
 
 set +e
 summary=$(catkin_test_results "$ROOT/build/test_results" --all 2>&1)
