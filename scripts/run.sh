@@ -43,17 +43,31 @@ out="$ROOT/build/sessions/$(date +%Y%m%d_%H%M%S)"
 SNAPSHOT_TIMES=${SNAPSHOT_TIMES:-"2.5 4.3 5.9"}
 mkdir -p "$out"
 [[ -n $bag ]] || bag="$out/session.bag"
-echo "run.sh: headless simulator, simulated hardware, scenario '$scene'${difficulty:+ ($difficulty)}, scripted $script, ${duration} s, recording to $bag"
+echo "run.sh: headless simulator, simulated hardware (scripted $script surgeon, pedals, knobs) seen through the camera" \
+  "rig twin and the optical tracking (tracking:=true), scenario '$scene'${difficulty:+ ($difficulty)}, ${duration} s," \
+  "recording to $bag"
 # The recorder is a required node with --duration, so roslaunch ends by itself; timeout is only a safety net.
+launch_status=0
 timeout --signal=INT --kill-after=15 "$(awk "BEGIN{print int($duration) + 60}")" \
   roslaunch --screen "$ROOT/launch/simulator.launch" sim:=true headless:=true record:=true tracking:=true \
   "duration:=$duration" "bag:=$bag" "outputs_bag:=$out/outputs.bag" "scene:=$scene" "snapshot_dir:=$out" \
   "difficulty:=$difficulty" "script:=scenario:$script" "result_file:=$out/result.json" \
   snapshot_times:="$SNAPSHOT_TIMES" "${extra[@]}" \
-  >"$out/launch.log" 2>&1 || true
+  >"$out/launch.log" 2>&1 || launch_status=$?
 log="$out/launch.log"
-grep -hE "scene '|FATAL|ERROR" "$log" | sed -E 's/\x1b\[[0-9;]*m//g' | head -n 10 || true
+grep -ahE "scene '|FATAL|ERROR|the graph failed" "$log" | sed -E 's/\x1b\[[0-9;]*m//g' | head -n 10 || true
 echo "launch log: $log"
+# roslaunch exits 0 when a required part of the graph failed (e.g. a scene that does not exist): say so and stop.
+if ! failed=$(required_failures "$log"); then
+  echo "run.sh: the simulator graph failed: $failed" >&2
+  exit 1
+fi
+if ((launch_status == 124)); then
+  echo "run.sh: the graph did not end by itself within $(awk "BEGIN{print int($duration) + 60}") s; stopped it" >&2
+elif ((launch_status != 0)); then
+  echo "run.sh: roslaunch failed (exit status $launch_status)" >&2
+  exit 1
+fi
 status=0
 /usr/bin/python3 "$ROOT/scripts/bag_summary.py" "$bag" || status=1
 echo "stereo frames: $(find "$out" -name '*.png' | wc -l) PNGs in $out"

@@ -59,6 +59,7 @@
 #include "vrm_msgs/TissueMesh.h"
 #include "vrm_msgs/publish.h"
 #include "vrm_sim/conversions.h"
+#include "vrm_sim/graph_failure.h"
 #include "vrm_sim/mge/membrane.h"
 #include "vrm_sim/package_data.h"
 #include "vrm_sim/scene/scene_loader.h"
@@ -110,7 +111,7 @@ class ScenarioManager : public nodelet::Nodelet {
       session_ = std::make_unique<world::Session>(world::Session::loadByName(scene_parameter, difficulty), options);
     } catch (const std::exception& error) {
       NODELET_FATAL("scenario_manager: cannot set up scene '%s': %s", scene_parameter.c_str(), error.what());
-      ros::requestShutdown();
+      failGraph("scenario_manager: cannot set up scene '" + scene_parameter + "': " + error.what());
       return;
     }
     state_publisher_ = nh.advertise<vrm_msgs::SimulationState>("simulation_state", 50);

@@ -24,6 +24,7 @@
 #include "vrm_msgs/TissueMesh.h"
 #include "vrm_msgs/publish.h"
 #include "vrm_sim/conversions.h"
+#include "vrm_sim/graph_failure.h"
 #include "vrm_sim/mge/membrane.h"
 #include "vrm_sim/package_data.h"
 #include "vrm_sim/scene/scene_loader.h"
@@ -69,7 +70,7 @@ class SceneManager : public nodelet::Nodelet {
     } catch (const std::exception& error) {
       // A broken scene ends the session with the reason, instead of a simulator running on half a scene.
       NODELET_FATAL("cannot load scene '%s': %s", scene_parameter.c_str(), error.what());
-      ros::requestShutdown();
+      failGraph("scene_manager: cannot load scene '" + scene_parameter + "': " + error.what());
       return;
     }
     NODELET_INFO("scene '%s' (%s): %zu objects, %zu deformable, %zu instruments", scene_.name.c_str(),
