@@ -86,6 +86,11 @@ trap - EXIT
 
 grep -hE "FATAL|ERROR|REQUIRED process|has died" "$out/launch.log" | sed -E 's/\x1b\[[0-9;]*m//g' | head -n 10 || true
 echo "launch log: $out/launch.log"
+# roslaunch exits 0 when a required part failed: the soak fails then too (issue 20).
+if ! failed=$(required_failures "$out/launch.log"); then
+  echo "soak.sh: the simulator graph failed: $failed" >&2
+  status=1
+fi
 if [[ -f $json ]]; then
   /usr/bin/python3 "$ROOT/scripts/soak_table.py" --png "$png" "$json" || true
   echo "results: $json, $png"
