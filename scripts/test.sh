@@ -54,6 +54,7 @@ done
 # The install space runs the simulator without the source tree (issue 18): a temporary prefix, strace for the checkout.
 # A new user's first hour (issue 20): a failed graph fails the scripts that wrap roslaunch.
 script_test failed_graph wrapper_fails_when_a_required_part_fails "$ROOT/scripts/tests/failed_graph.sh"
+script_test readme_clients readme_ros_clients_answer "$ROOT/scripts/tests/readme_clients.sh"
 script_test install_space installed_simulator_runs_without_the_source_tree "$ROOT/scripts/install-test.sh"
 
 set +e

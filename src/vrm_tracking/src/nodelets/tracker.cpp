@@ -42,11 +42,11 @@
 #include <string>
 #include <vector>
 
+#include "vrm_sim/package_data.h"
 #include "vrm_tracking/camera_watchdog.h"
 #include "vrm_tracking/conversions.h"
 #include "vrm_tracking/pose_tracker.h"
 #include "vrm_tracking/scene_trocars.h"
-#include "vrm_sim/package_data.h"
 
 namespace vrm_tracking {
 
@@ -124,6 +124,7 @@ class Tracker : public nodelet::Nodelet {
     last_seen_.assign(rig.size(), ros::Time());
     last_wall_.assign(rig.size(), ros::WallTime());
     diag_missing_.assign(rig.size(), 0);
+    late_frames_.assign(rig.size(), 0);
     diagnostics_pub_ = nh.advertise<diagnostic_msgs::DiagnosticArray>("/diagnostics", 10);
     diagnostic_timer_ = nh.createWallTimer(ros::WallDuration(diagnostic_period), &Tracker::publishDiagnostics, this);
     start_wall_ = last_diag_wall_ = ros::WallTime::now();
@@ -169,6 +170,7 @@ class Tracker : public nodelet::Nodelet {
       return;
     }
     if (!last_processed_.isZero() && stamp <= last_processed_) {
+      ++late_frames_[camera];
       NODELET_WARN_THROTTLE(2.0, "tracker: %s frame at %.3f arrived after its frame was reconstructed; dropped",
                             tracker_->rig().cameras[camera].name.c_str(), stamp.toSec());
       return;
@@ -196,12 +198,8 @@ class Tracker : public nodelet::Nodelet {
     last_processed_ = frame.header.stamp;
     const std::size_t n = tracker_->rig().size();
     if (frame.cameras.size() < n) {
-      std::string missing;
-      for (std::size_t c = 0; c < n; ++c) {
-        if (!frame.cameras.count(c)) missing += " " + tracker_->rig().cameras[c].name;
-      }
-      NODELET_WARN_THROTTLE(5.0, "tracker: frame %.3f with %zu of %zu cameras (missing:%s)%s",
-                            frame.header.stamp.toSec(), frame.cameras.size(), n, missing.c_str(),
+      NODELET_WARN_THROTTLE(5.0, "tracker: frame %.3f with %zu of %zu cameras (%s)%s", frame.header.stamp.toSec(),
+                            frame.cameras.size(), n, whyMissing(frame).c_str(),
                             frame.cameras.size() < 2 ? "; no reconstruction possible" : "; continuing");
     }
     std::vector<CameraObservations> observations;
@@ -221,6 +219,36 @@ class Tracker : public nodelet::Nodelet {
     stage.end = end;
     timing->stages.push_back(stage);
     vrm_msgs::publishShared(timing_pub_, timing);
+  }
+
+  // Why a camera is missing from a frame, so the warning tells a fault from load (issue 20): a camera whose frames have
+  // come after their frame was already reconstructed is late — its detection runs behind the cameras, as on a
+  // saturated CPU (the rig twin renders three cameras and the detector analyses them on the manager's worker
+  // threads); one silent for longer than a few frames dropped out; otherwise its frame missed the sync window.
+  std::string whyMissing(const Pending& frame) const {
+    std::string why;
+    const ros::WallTime now = ros::WallTime::now();
+    for (std::size_t c = 0; c < tracker_->rig().size(); ++c) {
+      if (frame.cameras.count(c)) continue;
+      const std::string& name = tracker_->rig().cameras[c].name;
+      char reason[200];
+      const double silent = last_wall_[c].isZero() ? -1.0 : (now - last_wall_[c]).toSec();
+      if (last_wall_[c].isZero()) {
+        std::snprintf(reason, sizeof reason, "%s: no frame yet", name.c_str());
+      } else if (silent > 0.2) {
+        std::snprintf(reason, sizeof reason, "%s: silent for %.1f s, the camera dropped out", name.c_str(), silent);
+      } else if (late_frames_[c] > 0) {
+        std::snprintf(reason, sizeof reason,
+                      "%s: late, %zu of its frames came after the %.0f ms sync window so far: its detection runs "
+                      "behind, e.g. on a saturated CPU",
+                      name.c_str(), late_frames_[c], 1e3 * sync_window_);
+      } else {
+        std::snprintf(reason, sizeof reason, "%s: no frame within the %.0f ms sync window", name.c_str(),
+                      1e3 * sync_window_);
+      }
+      why += (why.empty() ? "" : "; ") + std::string(reason);
+    }
+    return why;
   }
 
   // eye_state, one instrument_state per layout instrument, and (measured poses only) tf.
@@ -258,7 +286,18 @@ class Tracker : public nodelet::Nodelet {
         t.transform.rotation = msg->tip_pose.orientation;
         frames.push_back(t);
       }
-      if (!est.valid && measured) NODELET_WARN_THROTTLE(5.0, "tracker: instrument '%s' not seen", est.slot.c_str());
+      if (!est.valid && measured) {
+        // Why: its tip marker needs two cameras (thesis §7.3.2); say in how many it was found.
+        const InstrumentMarker* marker = tracker_->layout().findSlot(est.slot);
+        int seen_by = 0;
+        for (const MarkerEstimate& m : result.markers) {
+          if (marker && m.class_id == marker->class_id) seen_by = m.cameras;
+        }
+        NODELET_WARN_THROTTLE(5.0,
+                              "tracker: instrument '%s' not seen (its tip marker in %d camera(s) of this frame, 2 "
+                              "needed: occluded, outside the cameras' view, or cameras missing from the frame)",
+                              est.slot.c_str(), seen_by);
+      }
       vrm_msgs::publishShared(instrument_pub_, msg);
     }
     if (!frames.empty()) broadcaster_.sendTransform(frames);
@@ -478,6 +517,7 @@ class Tracker : public nodelet::Nodelet {
   std::map<ros::Time, Pending> pending_;
   std::map<std::string, vrm_msgs::InstrumentState::ConstPtr> sensors_;
   std::vector<ros::Time> last_seen_;
+  std::vector<std::size_t> late_frames_;  // per camera: frames that came after their frame was reconstructed
   ros::Time last_processed_;
   // Diagnostics (wall clock: they report the live health of the inputs).
   ros::Publisher diagnostics_pub_;
