@@ -40,7 +40,20 @@ struct Case {
   int shadow_map = 512;
   int dof_downsample = 4;
   bool light_partition = true;  // lit shader only for the triangles the spotlight may reach
+  bool fundus = true;           // issue 16: the fundus texture on the retina
+  bool metal = true;            // issue 16: metallic instruments, glowing light pipe tip, membrane sheen
+  // The plain reference frame (issue 16): one shadow pass, two Phong + spotlight eye passes over every triangle (no
+  // partition, no fundus, no bump mapping, no metal), a 13-tap separable blur at full resolution per eye.
+  bool plain = false;
 };
+
+Case plainReference(const std::string& name, int width, int height) {
+  Case c{name, width, height, true, true, true, true, true, true, 512, 1, false};
+  c.fundus = false;
+  c.metal = false;
+  c.plain = true;
+  return c;
+}
 
 struct Row {
   Case c;
@@ -54,8 +67,8 @@ struct Row {
 std::string passesOf(const Case& c) {
   std::vector<std::string> p;
   if (c.shadow) p.push_back("shadow");
-  p.push_back(c.lighting ? "scene" : "scene_flat");
-  if (c.dof) p.push_back("dof");
+  p.push_back(c.plain ? "scene_phong" : c.lighting ? "scene" : "scene_flat");
+  if (c.dof) p.push_back(c.plain ? "blur13_full" : "dof");
   std::string s;
   for (const auto& x : p) s += (s.empty() ? "" : "+") + x;
   return s;
@@ -88,12 +101,22 @@ Row run(const Case& c, int frames, const std::string& png_dir) {
   options.shadow_map_size = c.shadow_map;
   options.dof_downsample = c.dof_downsample;
   options.light_partition = c.light_partition;
+  options.fundus = c.fundus;
+  if (c.plain) {
+    options.bump_mapping = false;
+    options.dof_taps = 13;
+  }
   StereoRenderer renderer(options);
   vrm_render::LightPipe light;
   std::vector<vrm_render::SceneObject> scene = vrm_render::typicalScene(&light);
   MeshData* membrane = nullptr;
   std::size_t streamed_triangles = 0;
   for (auto& object : scene) {
+    if (!c.metal) {
+      object.style.material.metallic = 0.0f;
+      object.style.material.glow_tip_length = 0.0f;
+      object.style.material.sheen = 0.0f;
+    }
     renderer.setStyle(object.id, object.style);
     renderer.setPose(object.id, object.pose);
     renderer.updateMesh(object.id, object.mesh.view(), 1);
@@ -104,7 +127,7 @@ Row run(const Case& c, int frames, const std::string& png_dir) {
   }
   renderer.setLightPipe(light);
   vrm_render::MicroscopeState microscope;
-  microscope.focus_distance = 0.196;  // the focal plane a few mm above the posterior pole: retina slightly blurred
+  // The default focus (0.2 m): the posterior pole sharp, the instruments above it blurred by the circle of confusion.
   renderer.setMicroscope(microscope);
   StereoFrame frame;
   renderer.render(&frame);  // warm-up (shader compilation by llvmpipe happens on first use)
@@ -185,13 +208,17 @@ int main(int argc, char** argv) {
   const char* threads = std::getenv("LP_NUM_THREADS");
   const std::string lp_threads = threads ? threads : "default";
   // name, w, h, stereo, shadow, lighting, dof, stream, time_passes
+  // The plain reference first: every row's ratio_to_plain is against it, measured in the same run.
   std::vector<Case> cases = {
+      plainReference("stereo_800x600_plain_reference", 800, 600),
       {"stereo_800x600_all", 800, 600, true, true, true, true, true, true},
       {"stereo_800x600_all_nobarrier", 800, 600, true, true, true, true, true, false},
       {"stereo_800x600_all_dof_half", 800, 600, true, true, true, true, true, true, 512, 2},
       {"stereo_800x600_all_shadow1024", 800, 600, true, true, true, true, true, true, 1024, 4},
       {"stereo_800x600_all_lit_everywhere", 800, 600, true, true, true, true, true, true, 512, 4, false},
       {"stereo_800x600_noshadow", 800, 600, true, false, true, true, true, true},
+      {"stereo_800x600_nofundus", 800, 600, true, true, true, true, true, true},
+      {"stereo_800x600_nometal", 800, 600, true, true, true, true, true, true},
       {"stereo_800x600_nodof", 800, 600, true, true, true, false, true, true},
       {"stereo_800x600_flat", 800, 600, true, false, false, false, true, true},
       {"stereo_800x600_static", 800, 600, true, true, true, true, false, true},
@@ -202,34 +229,67 @@ int main(int argc, char** argv) {
   };
   int frames = 30;
   if (quick) {
-    cases = {{"stereo_320x240_all", 320, 240, true, true, true, true, true, true}};
+    cases = {plainReference("stereo_320x240_plain_reference", 320, 240),
+             {"stereo_320x240_all", 320, 240, true, true, true, true, true, true}};
     frames = 5;
   }
   if (!only_case.empty()) {
     // One case of the table in use (for profiling).
     std::vector<Case> all = cases;
     cases.clear();
-    for (const Case& c : all) {
-      if (c.name == only_case) cases.push_back(c);
+    // A comma-separated list: e.g. the plain reference and one row, for their ratio in one run.
+    std::stringstream names(only_case);
+    for (std::string name; std::getline(names, name, ',');) {
+      for (const Case& c : all) {
+        if (c.name == name) cases.push_back(c);
+      }
     }
     if (cases.empty()) {
       std::fprintf(stderr, "bench_render: no case named %s\n", only_case.c_str());
       return 2;
     }
   }
+  for (Case& c : cases) {
+    if (c.name.find("nofundus") != std::string::npos) c.fundus = false;
+    if (c.name.find("nometal") != std::string::npos) c.metal = false;
+  }
   if (frames_override > 0) frames = frames_override;
+  // Set-up cost of the fundus (baked once per scene, not per frame).
+  const auto bake_start = std::chrono::steady_clock::now();
+  const vrm_render::FundusMap fundus_map;
+  const double fundus_bake_ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - bake_start).count();
+  std::printf("fundus bake (once per scene): %.1f ms, %zu vessel segments, %dx%d texels\n", fundus_bake_ms,
+              fundus_map.vessels().size(), fundus_map.textureSize(), fundus_map.textureSize());
   std::vector<Row> rows;
   std::printf("LP_NUM_THREADS=%s, %d frames per case (median)\n", lp_threads.c_str(), frames);
-  std::printf("%-30s %5s %4s %8s %7s %7s %7s %7s %7s %7s %8s %8s %10s\n", "case", "size", "eyes", "tris", "upload",
-              "shadow", "scene", "dof", "readbk", "total", "min", "cpu_ms", "Mtris/s");
+  std::printf("%-34s %5s %4s %8s %7s %7s %7s %7s %7s %7s %8s %8s %10s %6s\n", "case", "size", "eyes", "tris", "upload",
+              "shadow", "scene", "dof", "readbk", "total", "min", "cpu_ms", "Mtris/s", "/plain");
+  // A row's cost against the plain reference frame of its size measured in this run (0 when there is none).
+  auto ratioToPlain = [&](const Row& r) {
+    for (const Row& p : rows) {
+      if (p.c.plain && p.c.width == r.c.width && p.c.height == r.c.height && p.ms_total > 0) {
+        return r.ms_total / p.ms_total;
+      }
+    }
+    return 0.0;
+  };
   for (const Case& c : cases) {
     Row r = run(c, frames, png_dir);
-    std::printf("%-30s %4dx%-4d %d %8zu %7.2f %7.2f %7.2f %7.2f %7.2f %7.2f %8.2f %8.2f %10.2f\n", c.name.c_str(),
-                c.width, c.height, c.stereo ? 2 : 1, r.triangles, r.ms_upload, r.ms_shadow, r.ms_scene, r.ms_dof,
-                r.ms_readback, r.ms_total, r.ms_total_min, r.cpu_ms_per_frame, r.tris_per_s * 1e-6);
-    std::fflush(stdout);
     rows.push_back(r);
+    std::printf("%-34s %4dx%-4d %d %8zu %7.2f %7.2f %7.2f %7.2f %7.2f %7.2f %8.2f %8.2f %10.2f %6.3f\n", c.name.c_str(),
+                c.width, c.height, c.stereo ? 2 : 1, r.triangles, r.ms_upload, r.ms_shadow, r.ms_scene, r.ms_dof,
+                r.ms_readback, r.ms_total, r.ms_total_min, r.cpu_ms_per_frame, r.tris_per_s * 1e-6, ratioToPlain(r));
+    std::fflush(stdout);
   }
+  auto cpuRatioToPlain = [&](const Row& r) {
+    for (const Row& p : rows) {
+      if (p.c.plain && p.c.width == r.c.width && p.c.height == r.c.height && p.cpu_ms_per_frame > 0) {
+        return r.cpu_ms_per_frame / p.cpu_ms_per_frame;
+      }
+    }
+    return 0.0;
+  };
   if (!out.empty()) {
     std::ofstream file(out);
     if (!file) {
@@ -237,7 +297,8 @@ int main(int argc, char** argv) {
       return 1;
     }
     file << "{\"suite\":\"render\",\"command\":\"" << command << "\",\"lp_num_threads\":\"" << lp_threads
-         << "\",\"target_ms_total\":33.0,\"rows\":[\n";
+         << "\",\"target_ms_total\":33.0,\"target_ratio_to_plain\":0.40,\"fundus_bake_ms\":" << fundus_bake_ms
+         << ",\"rows\":[\n";
     for (std::size_t i = 0; i < rows.size(); ++i) {
       const Row& r = rows[i];
       file << "{\"suite\":\"render\",\"case\":\"" << r.c.name << "\",\"width\":" << r.c.width
@@ -251,8 +312,10 @@ int main(int argc, char** argv) {
            << ",\"frames\":" << r.frames << ",\"shadow_map_size\":" << r.c.shadow_map
            << ",\"dof_downsample\":" << r.c.dof_downsample
            << ",\"light_partition\":" << (r.c.light_partition ? "true" : "false") << ",\"lp_num_threads\":\""
-           << lp_threads << "\",\"meets_33ms\":" << (r.ms_total <= 33.0 ? "true" : "false") << "}"
-           << (i + 1 < rows.size() ? ",\n" : "\n");
+           << lp_threads << "\",\"meets_33ms\":" << (r.ms_total <= 33.0 ? "true" : "false")
+           << ",\"fundus\":" << (r.c.fundus ? "true" : "false") << ",\"metal\":" << (r.c.metal ? "true" : "false")
+           << ",\"plain_reference\":" << (r.c.plain ? "true" : "false") << ",\"ratio_to_plain\":" << ratioToPlain(r)
+           << ",\"cpu_ratio_to_plain\":" << cpuRatioToPlain(r) << "}" << (i + 1 < rows.size() ? ",\n" : "\n");
     }
     file << "]}\n";
   }

@@ -56,12 +56,22 @@ struct Material {
   Eigen::Vector4f diffuse{0.8f, 0.8f, 0.8f, 1.0f};  // alpha < 1: drawn translucent after the opaque objects
   Eigen::Vector3f specular{0.2f, 0.2f, 0.2f};
   float shininess = 16.0f;
+  // Issue 16. 0..1: a metal's highlights take its own colour and it mirrors the eye's interior (the glow of the lit
+  // fundus below, the dark pupil above) and the microscope's coaxial light; metals are lit everywhere (small).
+  float metallic = 0.0f;
+  // Grazing-angle (Fresnel-like) reflex of the light pipe's light on a wet, translucent film: where the membrane is
+  // lifted its surface tilts and the sheen appears (the surgeon's cue of a lifted edge).
+  float sheen = 0.0f;
+  // Light pipe: the fibre end glows — fragments within this distance (m) behind the object's z = 0 tip plane are
+  // emissive (instrument frame of vrm_sim's instrument_meshes.h: tip at z = 0, shaft along -z).
+  float glow_tip_length = 0.0f;
 };
 
 struct ObjectStyle {
   Material material;
   bool casts_shadow = false;  // §7.4.2: only the interacting instrument and abstract objects cast shadows
   bool bump_mapped = false;   // procedural normal perturbation (the retina)
+  bool fundus = false;        // the retina: albedo from the fundus texture (FundusMap, sampled at object x, y)
   bool ghost = false;         // translucent replay of an instructor's instrument
   bool deformable = false;    // GL_STREAM_DRAW buffers re-filled whenever the version changes
 };
@@ -98,7 +108,14 @@ struct MicroscopeRig {
   float stereo_baseline = 0.022f;  // m between the two optical paths of a surgical stereo microscope
   float near_plane = 0.1f;
   float far_plane = 0.3f;
-  float depth_of_field = 0.002f;  // m at zoom 1: defocus at which the blur is complete (scales with 1 / zoom)
+  // Depth of field from the objective's circle of confusion (issue 16): a point at distance z from the objective,
+  // focused at s, blurs to a disc of diameter aperture * |z - s| / z in the focal plane (thin lens, object side),
+  // i.e. aperture * |z - s| / z * width * zoom / field_width pixels. Defaults of a surgical stereo microscope: the
+  // objective f = 200 mm (working distance = default focus), each stereo channel's entrance pupil ~10 mm (NA
+  // ~0.025; geometric depth of field ~2 mm at a 50 µm acceptable blur, as quoted for ophthalmic microscopes at
+  // medium magnification).
+  float objective_focal_length = 0.2f;
+  float aperture_diameter = 0.010f;
 };
 
 enum class Eye { kLeft = 0, kRight = 1 };
@@ -110,6 +127,7 @@ struct RenderOptions {
   bool shadow_pass = true;
   bool lighting = true;  // spotlight + Phong; off: flat material colour scaled by the ambient light
   bool bump_mapping = true;
+  bool fundus = true;  // the fundus texture on objects styled `fundus` (off: their material colour)
   bool dof_pass = true;
   // Lit shader only for the triangles the spotlight may reach (the shadow lookup only for those a shadow may reach),
   // the ambient-only one for the rest (same image; off: the lit shader everywhere, for comparison).
@@ -117,6 +135,7 @@ struct RenderOptions {
   int shadow_map_size = 512;
   int dof_downsample = 4;     // blur at 1/4 (or 1/2, 1) resolution, separable 9 taps: §7.4.2 pass 3 is the costliest
   float dof_sigma_px = 1.5f;  // Gaussian sigma at the reduced resolution (x dof_downsample at full resolution)
+  int dof_taps = 9;           // 9 or 13 (the plain reference frame of bench_render: 13 taps at full resolution)
   float ghost_alpha = 0.35f;
   Eigen::Vector3f background{0.02f, 0.02f, 0.02f};
   Eigen::Vector3f blood_colour{0.55f, 0.02f, 0.02f};

@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "vrm_render/fundus.h"
 #include "vrm_render/render_types.h"
 #include "vrm_sim/scene/scene_description.h"
 #include "vrm_sim/triangle_mesh.h"
@@ -13,6 +14,9 @@
 namespace vrm_render {
 
 MeshData toMeshData(const vrm_sim::TriangleMesh& mesh);
+// The fundus of a scene (issue 16): its eye radius, seeded by `seed` when >= 0, else by a hash of the scene's name
+// (scene descriptions carry no seed of their own), so a scene always shows the same fundus.
+FundusParams fundusParams(const vrm_sim::scene::SceneDescription& scene, long long seed = -1);
 Material toMaterial(const vrm_sim::scene::Material& material);
 ObjectStyle objectStyle(const vrm_sim::scene::ObjectDescription& object);
 // The light pipe does not cast a shadow (the light leaves its tip); the interacting instruments do.

@@ -11,7 +11,11 @@
 //           they may also reach the casters' rectangle in the shadow map), the rest with an ambient-only one; each
 //           triangle is drawn once, the image is the same (test SpotlightPartition...) at a fraction of the cost.
 //           Opaque pixels store their depth-of-field weight in alpha;
-//   pass 3  depth of field: the scene is blurred at reduced resolution with a separable Gaussian; the blend with
+//           The retina's albedo comes from the fundus texture (FundusMap: disc, vessels, macula, choroid), baked once;
+//           instruments are metallic (mirrored fundus glow, coaxial highlight), the light pipe's fibre end glows;
+//           the membrane shows a sheen where it tilts (lifted);
+//   pass 3  depth of field (circle of confusion of the objective, MicroscopeRig): the scene is blurred at reduced
+//   resolution with a separable Gaussian; the blend with
 //           the sharp image by that weight is fused with the readback on the CPU (cheaper than a full-resolution
 //           pass on llvmpipe). Both eyes are submitted before either is read back, so one eye's rasterisation
 //           overlaps the next eye's binning and the previous eye's blend.
@@ -23,6 +27,7 @@
 #include <string>
 #include <vector>
 
+#include "vrm_render/fundus.h"
 #include "vrm_render/microscope_camera.h"
 #include "vrm_render/render_types.h"
 
@@ -52,6 +57,10 @@ class StereoRenderer {
   std::uint64_t version(const std::string& id) const;  // 0 when unknown
 
   void setLightPipe(const LightPipe& light) { light_ = light; }
+  // The fundus that objects styled `fundus` show (issue 16). Without one, the first frame that needs it bakes the
+  // default FundusMap (seed 1). The map is shared, so the simulation can query the same vessel tree.
+  void setFundus(std::shared_ptr<const FundusMap> fundus);
+  const FundusMap& fundus();
   void setMicroscope(const MicroscopeState& state);  // throws RenderError for non-finite / non-positive knobs
   // Changes size, stereo or passes; throws RenderError (state unchanged) for sizes beyond kMaxImageSide.
   void setOptions(const RenderOptions& options);

@@ -12,6 +12,14 @@ namespace vrm_render {
 
 namespace scene = vrm_sim::scene;
 
+namespace {
+// Issue 16: stainless steel instruments (metallic shading), the light pipe's glowing fibre end (its polished dome,
+// vrm_sim LightPipeParams::tip_length 0.3 mm), the sheen of the wet membrane / ILM film.
+constexpr float kInstrumentMetallic = 0.85f;
+constexpr float kLightPipeGlow = 0.0003f;
+constexpr float kFilmSheen = 1.2f;
+}  // namespace
+
 MeshData toMeshData(const vrm_sim::TriangleMesh& mesh) {
   MeshData data;
   data.positions.reserve(mesh.vertices.size() * 3);
@@ -26,6 +34,19 @@ MeshData toMeshData(const vrm_sim::TriangleMesh& mesh) {
   data.triangles.reserve(mesh.triangles.size() * 3);
   for (const auto& t : mesh.triangles) data.triangles.insert(data.triangles.end(), t.begin(), t.end());
   return data;
+}
+
+FundusParams fundusParams(const scene::SceneDescription& scene, long long seed) {
+  FundusParams params;
+  params.eye_radius = static_cast<float>(scene.eye.radius);
+  if (seed >= 0) {
+    params.seed = static_cast<std::uint32_t>(seed);
+  } else {
+    std::uint32_t hash = 2166136261u;  // FNV-1a: stable across runs and platforms (std::hash is not)
+    for (const char c : scene.name) hash = (hash ^ static_cast<unsigned char>(c)) * 16777619u;
+    params.seed = hash;
+  }
+  return params;
 }
 
 Material toMaterial(const scene::Material& material) {
@@ -44,6 +65,10 @@ ObjectStyle objectStyle(const scene::ObjectDescription& object) {
   style.material = toMaterial(object.material);
   style.casts_shadow = object.role == scene::ObjectRole::kAbstractTarget || object.role == scene::ObjectRole::kRigid;
   style.bump_mapped = object.role == scene::ObjectRole::kRetina;
+  style.fundus = object.role == scene::ObjectRole::kRetina;
+  if (object.role == scene::ObjectRole::kMembrane || object.role == scene::ObjectRole::kIlm) {
+    style.material.sheen = kFilmSheen;
+  }
   style.deformable = object.isDeformable();
   return style;
 }
@@ -53,6 +78,8 @@ ObjectStyle instrumentStyle(const scene::InstrumentDescription& instrument, bool
   style.material = toMaterial(instrument.material);
   style.casts_shadow = instrument.type != scene::InstrumentType::kLightPipe;
   style.ghost = ghost;
+  style.material.metallic = kInstrumentMetallic;
+  if (instrument.type == scene::InstrumentType::kLightPipe) style.material.glow_tip_length = kLightPipeGlow;
   return style;
 }
 
@@ -108,6 +135,7 @@ std::vector<SceneObject> typicalScene(LightPipe* light) {
   retina.style.material.specular = {0.3f, 0.25f, 0.2f};
   retina.style.material.shininess = 24.0f;
   retina.style.bump_mapped = true;
+  retina.style.fundus = true;
   objects.push_back(std::move(retina));
 
   scene::MembraneParams membrane_params;
@@ -119,6 +147,7 @@ std::vector<SceneObject> typicalScene(LightPipe* light) {
   membrane.style.material.diffuse = {0.92f, 0.9f, 0.85f, 0.55f};
   membrane.style.material.specular = {0.6f, 0.6f, 0.6f};
   membrane.style.material.shininess = 60.0f;
+  membrane.style.material.sheen = kFilmSheen;
   membrane.style.deformable = true;
   objects.push_back(std::move(membrane));
 
@@ -131,6 +160,8 @@ std::vector<SceneObject> typicalScene(LightPipe* light) {
   light_pipe.style.material.diffuse = {0.75f, 0.75f, 0.78f, 1.0f};
   light_pipe.style.material.specular = {0.8f, 0.8f, 0.8f};
   light_pipe.style.material.shininess = 40.0f;
+  light_pipe.style.material.metallic = kInstrumentMetallic;
+  light_pipe.style.material.glow_tip_length = kLightPipeGlow;
   light_pipe.pose = instrumentPoseThroughTrocar(left_trocar, Eigen::Vector3f(0.0015f, 0.0f, -radius), 0.014f);
   objects.push_back(std::move(light_pipe));
 
@@ -138,6 +169,7 @@ std::vector<SceneObject> typicalScene(LightPipe* light) {
   forceps.id = "instrument_right";
   forceps.mesh = toMeshData(scene::makeForceps({}));
   forceps.style.material = objects.back().style.material;
+  forceps.style.material.glow_tip_length = 0.0f;
   forceps.style.casts_shadow = true;
   forceps.pose = instrumentPoseThroughTrocar(right_trocar, Eigen::Vector3f(0.0017f, 0.0f, -radius + 0.0004f), 0.0185f);
   objects.push_back(std::move(forceps));

@@ -30,10 +30,28 @@ out vec3 v_object;
 #if SHADOWS
 out vec4 v_light_clip;
 #endif
+#if FUNDUS
+uniform float u_fundus_scale;
+out vec2 v_fundus_uv;
+#endif
+#if METAL
+out float v_object_z;
+#endif
 void main() {
   vec4 world = u_model * vec4(a_position, 1.0);
+#if FUNDUS
+  // The texture is the albedo; alpha carries the bleeding (fundus objects are opaque), one varying less.
+  v_base = vec4(a_color.rgb, clamp(a_injury, 0.0, 1.0));
+#else
   v_base = u_diffuse * a_color;
+#endif
+#if FUNDUS
+  // The fundus texture is an orthographic map of the eye frame's x, y (FundusMap::texture); bleeding is mixed in
+  // after the texture so that blood is blood-coloured on vessels and disc alike.
+  v_fundus_uv = a_position.xy * u_fundus_scale + 0.5;
+#else
   v_base.rgb = mix(v_base.rgb, u_blood, clamp(a_injury, 0.0, 1.0));
+#endif
 #if LIGHTING
   v_world = world.xyz;
   v_normal = u_normal_matrix * a_normal;
@@ -43,6 +61,9 @@ void main() {
 #endif
 #if SHADOWS
   v_light_clip = u_light_view_proj * world;
+#endif
+#if METAL
+  v_object_z = a_position.z;
 #endif
   gl_Position = u_view_proj * world;
 }
@@ -66,6 +87,17 @@ in vec3 v_object;
 #if SHADOWS
 in vec4 v_light_clip;
 #endif
+#if FUNDUS
+in vec2 v_fundus_uv;
+uniform sampler2D u_fundus;
+uniform vec3 u_blood;
+#endif
+#if METAL
+in float v_object_z;
+uniform float u_metallic;
+uniform vec3 u_environment;  // the glow of the lit fundus that the metal mirrors
+uniform float u_glow_length;
+#endif
 out vec4 frag;
 uniform float u_colour_scale;
 uniform vec3 u_camera_pos;
@@ -86,7 +118,8 @@ uniform float u_coc_alpha;  // 1: opaque, alpha = DOF weight; 0: translucent, al
 uniform float u_near;
 uniform float u_far;
 uniform float u_focus;
-uniform float u_dof_range;
+uniform float u_coc_scale;  // blur circle in pixels per unit of |z - focus| / z (MicroscopeRig)
+uniform float u_sheen;
 
 #if BUMP
 // Gradient of a height field made of four plane waves in object coordinates (wavelengths 0.3-0.9 mm, directions
@@ -102,15 +135,21 @@ vec3 bumpGradient(vec3 p) {
 }
 #endif
 
+// Depth of field by the objective's circle of confusion c (pixels, MicroscopeRig): the pixel is mixed with the
+// fully blurred image by w = 1 - exp(-2 pi^2 (c/4)^2 / 16), the contrast a Gaussian of the blur disc's width
+// (sigma = c / 4) leaves of a pattern with a 4-pixel period: the mix then has the blur's fine-detail contrast.
 float dofWeight() {
   float z_ndc = gl_FragCoord.z * 2.0 - 1.0;
   float z = 2.0 * u_near * u_far / (u_far + u_near - z_ndc * (u_far - u_near));
-  float w = clamp(abs(z - u_focus) / u_dof_range, 0.0, 1.0);
-  return w * w * (3.0 - 2.0 * w);
+  float c = u_coc_scale * abs(z - u_focus) / z;
+  return 1.0 - exp(-0.0771 * c * c);
 }
 
 void main() {
   vec4 base = v_base;
+#if FUNDUS
+  base = vec4(mix(base.rgb * texture(u_fundus, v_fundus_uv).rgb, u_blood, base.a), 1.0);
+#endif
   float alpha = mix(base.a * u_alpha_scale, dofWeight(), u_coc_alpha);
 #if !LIGHTING
   frag = vec4(base.rgb * u_colour_scale, alpha);
@@ -120,9 +159,15 @@ void main() {
   float d = length(to_light);
   vec3 l = to_light / max(d, 1e-9);
   float cone = smoothstep(u_cos_outer, u_cos_inner, dot(-l, u_light_dir));
+  vec3 v = normalize(u_camera_pos - v_world);
+  vec3 n = normalize(v_normal);
+  if (!gl_FrontFacing) n = -n;
+#if METAL
+  vec3 specular_colour = mix(u_specular, base.rgb, u_metallic);
+#else
+  vec3 specular_colour = u_specular;
+#endif
   if (cone > 0.0) {
-    vec3 n = normalize(v_normal);
-    if (!gl_FrontFacing) n = -n;
 #if BUMP
     vec3 g = u_bump_amplitude * bumpGradient(v_object);
     n = normalize(n - (g - dot(g, n) * n));
@@ -139,12 +184,29 @@ void main() {
     float attenuation = u_light_intensity / (1.0 + d * d / (u_light_range * u_light_range));
     float diffuse = max(dot(n, l), 0.0);
     vec3 r = reflect(-l, n);
-    vec3 v = normalize(u_camera_pos - v_world);
     // Phong's cos^s lobe in Schlick's rational form t / (s - s t + t): no pow() per pixel (Schlick 1994).
     float t = max(dot(r, v), 0.0);
     float specular = diffuse > 0.0 ? t / (u_shininess - u_shininess * t + t) : 0.0;
-    colour += cone * attenuation * visibility * (base.rgb * diffuse + u_specular * specular);
+    // Sheen: the wet film's reflex grows towards grazing view (Schlick's Fresnel factor (1 - n.v)^5 softened to a
+    // square for a rough film), where a lifted membrane tilts away from the retina's orientation.
+    float grazing = 1.0 - abs(dot(n, v));
+    float sheen = u_sheen * grazing * grazing * (0.3 + 0.7 * diffuse);
+    colour += cone * attenuation * visibility * (base.rgb * diffuse + specular_colour * specular + vec3(sheen));
   }
+#if METAL
+  // A metal mirrors its surroundings: below, the fundus lit by the light pipe (orange-red), above, the dark pupil;
+  // the microscope's coaxial light gives the highlight along the shaft where the surface faces the objective.
+  vec3 rv = reflect(-v, n);
+  float below = clamp(0.5 - 0.5 * rv.z, 0.0, 1.0);
+  float facing = max(dot(n, v), 0.0);
+  float coaxial = facing * facing;
+  coaxial *= coaxial;
+  coaxial *= coaxial;
+  vec3 mirror = base.rgb * (u_environment * below * below + u_ambient * (0.15 + 1.6 * coaxial));
+  colour = mix(colour, mirror + (colour - base.rgb * u_ambient), u_metallic);
+  // The light pipe's polished fibre end glows with the light it emits.
+  colour += vec3(1.0, 0.97, 0.88) * 1.3 * smoothstep(-u_glow_length, 0.0, v_object_z) * step(0.0, u_glow_length - 1e-9);
+#endif
   frag = vec4(colour, alpha);
 #endif
 }
@@ -181,17 +243,17 @@ uniform sampler2D u_src;
 void main() { frag = texture(u_src, v_uv); }
 )";
 
-// Separable 9-tap Gaussian with bilinear tap pairs: 5 fetches per direction.
-inline constexpr const char* kBlurFragment = R"(#version 330 core
+// Separable Gaussian with bilinear tap pairs: PAIRS 2 = 9 taps (5 fetches per direction), 3 = 13 taps (7 fetches).
+inline constexpr const char* kBlurFragment = R"(
 in vec2 v_uv;
 out vec4 frag;
 uniform sampler2D u_src;
 uniform vec2 u_step;
-uniform float u_weight[3];
-uniform float u_offset[3];
+uniform float u_weight[PAIRS + 1];
+uniform float u_offset[PAIRS + 1];
 void main() {
   vec4 c = texture(u_src, v_uv) * u_weight[0];
-  for (int i = 1; i < 3; ++i) {
+  for (int i = 1; i <= PAIRS; ++i) {
     c += (texture(u_src, v_uv + u_step * u_offset[i]) + texture(u_src, v_uv - u_step * u_offset[i])) * u_weight[i];
   }
   frag = c;

@@ -51,8 +51,10 @@ GLuint compileShader(GLenum type, const char* source, const char* name) {
 class Program {
  public:
   void build(const char* vertex, const char* fragment, const char* name, const std::string& prefix = "") {
-    GLuint vs = compileShader(GL_VERTEX_SHADER, (prefix + vertex).c_str(), name);
-    GLuint fs = compileShader(GL_FRAGMENT_SHADER, (prefix + fragment).c_str(), name);
+    // Sources that carry their own #version are used as they are.
+    auto source = [&](const char* s) { return std::strncmp(s, "#version", 8) == 0 ? std::string(s) : prefix + s; };
+    GLuint vs = compileShader(GL_VERTEX_SHADER, source(vertex).c_str(), name);
+    GLuint fs = compileShader(GL_FRAGMENT_SHADER, source(fragment).c_str(), name);
     id_ = glCreateProgram();
     glAttachShader(id_, vs);
     glAttachShader(id_, fs);
@@ -240,6 +242,7 @@ void validateOptions(const RenderOptions& options) {
   if (options.dof_downsample != 1 && options.dof_downsample != 2 && options.dof_downsample != 4) {
     throw RenderError("dof_downsample must be 1, 2 or 4");
   }
+  if (options.dof_taps != 9 && options.dof_taps != 13) throw RenderError("dof_taps must be 9 or 13");
   if (!(options.dof_sigma_px > 0.0f) || !std::isfinite(options.dof_sigma_px)) {
     throw RenderError("dof_sigma_px must be positive");
   }
@@ -265,6 +268,14 @@ Pyramid spotPyramid(const Eigen::Vector3f& tip, const Eigen::Vector3f& axis, flo
     planes[k] << n, -n.dot(tip);
   }
   return planes;
+}
+
+// Bilinear without mip-maps: at zoom 1 a fundus texel is ~0.6 pixel (mild minification; the vessels are drawn
+// at least 0.8 texel wide), and llvmpipe's per-quad LOD selection costs ~? ms per stereo frame (bench_render).
+constexpr GLint kFundusMinFilter = GL_NEAREST;
+
+bool isMetal(const ObjectStyle& style) {
+  return style.material.metallic > 0.0f || style.material.glow_tip_length > 0.0f;
 }
 
 // Where the shadow map can hold a caster: a rectangle in the light's normalised device coordinates (x0, y0, x1, y1),
@@ -531,24 +542,63 @@ void rgbaToRgbFlipped(const std::uint8_t* rgba, int width, int height, RgbImage*
 
 struct StereoRenderer::Impl {
   std::unique_ptr<vrm_gl::GlContext> context;
-  // Scene program variants, index = lighting | shadows << 1 | bump << 2: switched-off features cost no varyings
-  // and no per-pixel branches (llvmpipe interpolates every varying of every fragment).
-  std::array<std::unique_ptr<Program>, 8> scene_variants;
-  Program& sceneProgram(bool lighting, bool shadows, bool bump) {
-    const int key = (lighting ? 1 : 0) | (lighting && shadows ? 2 : 0) | (lighting && bump ? 4 : 0);
+  // Scene program variants, index = lighting | shadows << 1 | bump << 2 | fundus << 3 | metal << 4: switched-off
+  // features cost no varyings and no per-pixel branches (llvmpipe interpolates every varying of every fragment).
+  static int variantKey(bool lighting, bool shadows, bool bump, bool fundus, bool metal) {
+    return (lighting ? 1 : 0) | (lighting && shadows ? 2 : 0) | (lighting && bump ? 4 : 0) | (fundus ? 8 : 0) |
+           (lighting && metal ? 16 : 0);
+  }
+  std::array<std::unique_ptr<Program>, 32> scene_variants;
+  Program& sceneProgram(bool lighting, bool shadows, bool bump, bool fundus = false, bool metal = false) {
+    const int key = variantKey(lighting, shadows, bump, fundus, metal);
     if (!scene_variants[key]) {
       auto program = std::make_unique<Program>();
+      auto flag = [&](int bit) { return (key & bit) ? "1" : "0"; };
       program->build(shaders::kSceneVertex, shaders::kSceneFragment, "scene",
-                     std::string("#version 330 core\n#define LIGHTING ") + ((key & 1) ? "1" : "0") +
-                         "\n#define SHADOWS " + ((key & 2) ? "1" : "0") + "\n#define BUMP " + ((key & 4) ? "1" : "0") +
+                     std::string("#version 330 core\n#define LIGHTING ") + flag(1) + "\n#define SHADOWS " + flag(2) +
+                         "\n#define BUMP " + flag(4) + "\n#define FUNDUS " + flag(8) + "\n#define METAL " + flag(16) +
                          "\n");
       scene_variants[key] = std::move(program);
     }
     return *scene_variants[key];
   }
+  // The fundus texture (FundusMap::texture), baked once and uploaded once per map.
+  std::shared_ptr<const FundusMap> fundus;
+  GLuint fundus_texture = 0;
+  const FundusMap* uploaded_fundus = nullptr;
+  double fundus_bake_ms = 0.0;
+  Eigen::Vector3f fundus_mean = Eigen::Vector3f(0.7f, 0.3f, 0.15f);
+  void uploadFundus() {
+    if (uploaded_fundus == fundus.get()) return;
+    if (!fundus_texture) glGenTextures(1, &fundus_texture);
+    glActiveTexture(GL_TEXTURE1);
+    glBindTexture(GL_TEXTURE_2D, fundus_texture);
+    const int n = fundus->textureSize();
+    glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
+    glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA8, n, n, 0, GL_RGBA, GL_UNSIGNED_BYTE, fundus->texture().data());
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, kFundusMinFilter);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, kFundusMinFilter);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+    glActiveTexture(GL_TEXTURE0);
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    const auto& texels = fundus->texture();
+    for (std::size_t k = 0; k < texels.size(); k += 4) sum += Eigen::Vector3d(texels[k], texels[k + 1], texels[k + 2]);
+    fundus_mean = (sum / (255.0 * static_cast<double>(texels.size() / 4))).cast<float>();
+    uploaded_fundus = fundus.get();
+  }
   Program shadow;
   Program copy;
-  Program blur;
+  std::array<std::unique_ptr<Program>, 2> blur;  // 9 and 13 taps
+  Program& blurProgram(int taps) {
+    const int i = taps == 13 ? 1 : 0;
+    if (!blur[i]) {
+      blur[i] = std::make_unique<Program>();
+      blur[i]->build(shaders::kFullscreenVertex, shaders::kBlurFragment, "blur",
+                     std::string("#version 330 core\n#define PAIRS ") + (i ? "3" : "2") + "\n");
+    }
+    return *blur[i];
+  }
   GLuint fullscreen_vao = 0;
   RenderTarget shadow_target;
   // Per eye, so that both eyes can be in flight at once.
@@ -627,7 +677,7 @@ StereoRenderer::StereoRenderer(const RenderOptions& options, const MicroscopeRig
   }
   impl_->shadow.build(shaders::kShadowVertex, shaders::kShadowFragment, "shadow");
   impl_->copy.build(shaders::kFullscreenVertex, shaders::kCopyFragment, "downsample");
-  impl_->blur.build(shaders::kFullscreenVertex, shaders::kBlurFragment, "blur");
+  impl_->blurProgram(9);
   glGenVertexArrays(1, &impl_->fullscreen_vao);
   impl_->allocateTargets(options_);
   if (glGetError() != GL_NO_ERROR) throw RenderError("OpenGL error while setting up the renderer");
@@ -721,6 +771,20 @@ bool StereoRenderer::updateMesh(const std::string& id, const MeshView& mesh, std
 
 void StereoRenderer::setStyle(const std::string& id, const ObjectStyle& style) { impl_->objects[id].style = style; }
 
+void StereoRenderer::setFundus(std::shared_ptr<const FundusMap> fundus) {
+  if (!fundus) throw RenderError("setFundus: null fundus map");
+  impl_->fundus = std::move(fundus);
+}
+
+const FundusMap& StereoRenderer::fundus() {
+  if (!impl_->fundus) {
+    const auto start = Clock::now();
+    impl_->fundus = std::make_shared<const FundusMap>();
+    impl_->fundus_bake_ms = msSince(start);
+  }
+  return *impl_->fundus;
+}
+
 void StereoRenderer::setPose(const std::string& id, const Eigen::Isometry3f& world_from_object) {
   if (!world_from_object.matrix().allFinite()) throw RenderError("pose of '" + id + "' is not finite");
   impl_->objects[id].pose = world_from_object;
@@ -788,6 +852,22 @@ void StereoRenderer::render(StereoFrame* frame) {
   const Eigen::Vector3f light_pos = light_on ? light_.tip : Eigen::Vector3f::Zero();
   const float ambient = static_cast<float>(std::clamp(microscope_.ambient_light, 0.0, 1.0));
 
+  // The fundus texture: baked at the first frame that shows a fundus-styled object (or by setFundus), then reused.
+  bool fundus_in_view = false;
+  for (const auto& entry : im.objects) {
+    fundus_in_view = fundus_in_view || (entry.second.has_mesh && entry.second.visible && entry.second.style.fundus);
+  }
+  fundus_in_view = fundus_in_view && options_.fundus;
+  if (fundus_in_view) {
+    fundus();  // bakes the default map if none was given
+    im.uploadFundus();
+    glActiveTexture(GL_TEXTURE1);
+    glBindTexture(GL_TEXTURE_2D, im.fundus_texture);
+    glActiveTexture(GL_TEXTURE0);
+  }
+  // What metal mirrors: the fundus lit by the light pipe and the coaxial light.
+  const Eigen::Vector3f environment = im.fundus_mean * (0.6f * ambient + (light_on ? 0.35f * light_.intensity : 0.0f));
+
   // Where the spotlight can reach. llvmpipe evaluates both sides of a branch for every pixel, so the lit shader
   // would cost the same outside the cone, where only the ambient term remains. Instead, the triangles of each object
   // the cone reaches are split (every frame, both eyes share it) into those that may reach into the pyramid around
@@ -813,6 +893,7 @@ void StereoRenderer::render(StereoFrame* frame) {
     object.in_cone = false;
     object.shadowed_triangles = object.lit_triangles = object.triangle_count;
     if (!light_on || !object.has_mesh || !object.visible) continue;
+    if (isMetal(object.style)) continue;  // drawn lit as a whole (draw())
     const Eigen::Vector3f centre = object.pose * object.centre;
     bool reached = true;
     for (const Eigen::Vector4f& plane : pyramid)
@@ -839,7 +920,10 @@ void StereoRenderer::render(StereoFrame* frame) {
     glDepthMask(GL_TRUE);
     glClear(GL_DEPTH_BUFFER_BIT);
     glEnable(GL_POLYGON_OFFSET_FILL);
-    glPolygonOffset(2.0f, 4.0f);  // slope-scaled bias against self-shadowing of the casters
+    // A constant bias only: a slope-scaled one pushed the thin forceps jaws, seen edge-on by the light, behind the
+    // retina 1 mm below (their shadow vanished; test ShadowCue). Instruments, the casters that matter, do not look
+    // their own shadow up (draw()), so they cannot self-shadow.
+    glPolygonOffset(0.0f, 4.0f);
     im.shadow.use();
     glUniformMatrix4fv(im.shadow["u_light_view_proj"], 1, GL_FALSE, light_view_proj.data());
     const auto planes = frustumPlanes(light_view_proj);
@@ -895,16 +979,17 @@ void StereoRenderer::render(StereoFrame* frame) {
     glDisable(GL_CULL_FACE);  // the retina is seen from inside, membranes from both sides
     glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
 
-    std::array<bool, 8> prepared{};  // per-eye uniforms set, per program variant
+    std::array<bool, 32> prepared{};  // per-eye uniforms set, per program variant
     Program* current = nullptr;
-    auto use = [&](bool lit, bool bump, bool shadowed = true) -> Program& {
+    auto use = [&](bool lit, bool bump, bool shadowed = true, bool fundus = false, bool metal = false) -> Program& {
       const bool shadows_here = shadows && shadowed;
-      Program& p = im.sceneProgram(lit, shadows_here, options_.bump_mapping && bump);
+      const bool bump_here = options_.bump_mapping && bump;
+      Program& p = im.sceneProgram(lit, shadows_here, bump_here, fundus, metal);
       if (&p != current) {
         current = &p;
         p.use();
       }
-      const int key = (lit ? 1 : 0) | (lit && shadows_here ? 2 : 0) | (lit && options_.bump_mapping && bump ? 4 : 0);
+      const int key = Impl::variantKey(lit, shadows_here, bump_here, fundus, metal);
       if (prepared[key]) return p;
       prepared[key] = true;
       glUniformMatrix4fv(p["u_view_proj"], 1, GL_FALSE, view_proj.data());
@@ -926,7 +1011,12 @@ void StereoRenderer::render(StereoFrame* frame) {
       glUniform1f(p["u_near"], cam.near_plane);
       glUniform1f(p["u_far"], cam.far_plane);
       glUniform1f(p["u_focus"], cam.focus_depth);
-      glUniform1f(p["u_dof_range"], rig_.depth_of_field / static_cast<float>(microscope_.zoom));
+      // Circle of confusion in pixels per unit of |z - s| / z (MicroscopeRig: aperture, zoom, field, image width).
+      glUniform1f(p["u_coc_scale"],
+                  rig_.aperture_diameter * static_cast<float>(options_.width * microscope_.zoom) / rig_.field_width);
+      glUniform1i(p["u_fundus"], 1);
+      glUniform1f(p["u_fundus_scale"], im.fundus ? 0.5f / im.fundus->params().eye_radius : 0.0f);
+      glUniform3fv(p["u_environment"], 1, environment.data());
       return p;
     };
     glActiveTexture(GL_TEXTURE0);
@@ -943,23 +1033,34 @@ void StereoRenderer::render(StereoFrame* frame) {
       glUniform3fv(p["u_specular"], 1, m.specular.data());
       glUniform1f(p["u_shininess"], std::max(1.0f, m.shininess));
       glUniform1f(p["u_alpha_scale"], alpha_scale);
+      glUniform1f(p["u_sheen"], m.sheen);
+      glUniform1f(p["u_metallic"], m.metallic);
+      glUniform1f(p["u_glow_length"], m.glow_tip_length);
       glUniform1f(p["u_coc_alpha"], opaque ? 1.0f : 0.0f);
       im.drawObject(object, first, count);
     };
     // One object in the current depth / blend state: its triangles the spotlight may reach lit, the rest ambient.
     auto draw = [&](const Object& object, float alpha_scale, bool opaque) {
       timings.triangles_drawn += object.triangle_count;
+      const bool fundus = fundus_in_view && object.style.fundus;
+      const bool bump = object.style.bump_mapped;
+      if (options_.lighting && isMetal(object.style)) {
+        // Instruments: few pixels, lit everywhere (the mirrored environment and the coaxial highlight are not
+        // bounded by the spotlight's cone).
+        drawWith(use(true, false, false, false, true), object, alpha_scale, opaque);
+        return;
+      }
       if (!split) {
-        drawWith(use(options_.lighting, object.style.bump_mapped), object, alpha_scale, opaque);
+        drawWith(use(options_.lighting, bump, true, fundus), object, alpha_scale, opaque);
         return;
       }
       if (object.in_cone) {
-        drawWith(use(true, object.style.bump_mapped), object, alpha_scale, opaque, 0, object.shadowed_triangles);
-        drawWith(use(true, object.style.bump_mapped, false), object, alpha_scale, opaque, object.shadowed_triangles,
+        drawWith(use(true, bump, true, fundus), object, alpha_scale, opaque, 0, object.shadowed_triangles);
+        drawWith(use(true, bump, false, fundus), object, alpha_scale, opaque, object.shadowed_triangles,
                  object.lit_triangles - object.shadowed_triangles);
-        drawWith(use(false, false), object, alpha_scale, opaque, object.lit_triangles);
+        drawWith(use(false, false, true, fundus), object, alpha_scale, opaque, object.lit_triangles);
       } else {
-        drawWith(use(false, false), object, alpha_scale, opaque);
+        drawWith(use(false, false, true, fundus), object, alpha_scale, opaque);
       }
     };
     for (const auto& entry : opaque) draw(*entry.second, 1.0f, true);
@@ -996,32 +1097,42 @@ void StereoRenderer::render(StereoFrame* frame) {
       glDisable(GL_DEPTH_TEST);
       glDepthMask(GL_FALSE);
       glViewport(0, 0, target.half_a.width, target.half_a.height);
-      glBindFramebuffer(GL_FRAMEBUFFER, target.half_a.fbo);
-      im.copy.use();
-      glBindTexture(GL_TEXTURE_2D, target.scene.color);
-      glUniform1i(im.copy["u_src"], 0);
-      im.drawFullscreen();
-      // Gaussian weights of taps 0..4, pairs (1,2) and (3,4) merged into one bilinear fetch each.
-      float g[5];
+      // Downsampled copy first; at full resolution the horizontal blur reads the scene itself.
+      const bool full_resolution = options_.dof_downsample == 1;
+      if (!full_resolution) {
+        glBindFramebuffer(GL_FRAMEBUFFER, target.half_a.fbo);
+        im.copy.use();
+        glBindTexture(GL_TEXTURE_2D, target.scene.color);
+        glUniform1i(im.copy["u_src"], 0);
+        im.drawFullscreen();
+      }
+      // Gaussian weights of taps 0..half, pairs (1,2), (3,4)[, (5,6)] merged into one bilinear fetch each.
+      const int half = options_.dof_taps / 2;
+      float g[7];
       float sum = 0.0f;
-      for (int i = 0; i < 5; ++i) {
+      for (int i = 0; i <= half; ++i) {
         g[i] = std::exp(-0.5f * i * i / (options_.dof_sigma_px * options_.dof_sigma_px));
         sum += i == 0 ? g[i] : 2.0f * g[i];
       }
-      const float weights[3] = {g[0] / sum, (g[1] + g[2]) / sum, (g[3] + g[4]) / sum};
-      const float offsets[3] = {0.0f, (g[1] * 1.0f + g[2] * 2.0f) / (g[1] + g[2]),
-                                (g[3] * 3.0f + g[4] * 4.0f) / (g[3] + g[4])};
-      im.blur.use();
-      glUniform1fv(im.blur["u_weight"], 3, weights);
-      glUniform1fv(im.blur["u_offset"], 3, offsets);
-      glUniform1i(im.blur["u_src"], 0);
+      float weights[4] = {g[0] / sum, 0.0f, 0.0f, 0.0f};
+      float offsets[4] = {0.0f, 0.0f, 0.0f, 0.0f};
+      for (int k = 1; k <= half / 2; ++k) {
+        const float a = g[2 * k - 1], b = g[2 * k];
+        weights[k] = (a + b) / sum;
+        offsets[k] = (a * (2 * k - 1) + b * 2 * k) / (a + b);
+      }
+      Program& blur = im.blurProgram(options_.dof_taps);
+      blur.use();
+      glUniform1fv(blur["u_weight"], half / 2 + 1, weights);
+      glUniform1fv(blur["u_offset"], half / 2 + 1, offsets);
+      glUniform1i(blur["u_src"], 0);
       glBindFramebuffer(GL_FRAMEBUFFER, target.half_b.fbo);
-      glBindTexture(GL_TEXTURE_2D, target.half_a.color);
-      glUniform2f(im.blur["u_step"], 1.0f / target.half_a.width, 0.0f);
+      glBindTexture(GL_TEXTURE_2D, full_resolution ? target.scene.color : target.half_a.color);
+      glUniform2f(blur["u_step"], 1.0f / target.half_a.width, 0.0f);
       im.drawFullscreen();
       glBindFramebuffer(GL_FRAMEBUFFER, target.half_a.fbo);
       glBindTexture(GL_TEXTURE_2D, target.half_b.color);
-      glUniform2f(im.blur["u_step"], 0.0f, 1.0f / target.half_a.height);
+      glUniform2f(blur["u_step"], 0.0f, 1.0f / target.half_a.height);
       im.drawFullscreen();
       glDepthMask(GL_TRUE);
       barrier();

@@ -247,6 +247,8 @@ class StereoRendererNodelet : public nodelet::Nodelet {
       scene_ = vrm_sim::scene::loadScene(vrm_sim::scene::resolveScenePath(scene_parameter));
       const std::set<pid_t> threads_before = processThreads();
       renderer_ = std::make_unique<StereoRenderer>(options);
+      // The retina's fundus (disc, vessels, macula), baked once; the seed from the scene (or ~fundus_seed).
+      renderer_->setFundus(std::make_shared<const FundusMap>(fundusParams(scene_, pnh.param("fundus_seed", -1))));
       // The rasteriser threads llvmpipe started for this context run at the render thread's priority.
       for (pid_t thread : processThreads()) {
         if (threads_before.count(thread) == 0 && threadName(thread).rfind("llvmpipe", 0) == 0) {

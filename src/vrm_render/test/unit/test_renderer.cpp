@@ -219,6 +219,9 @@ TEST(Renderer, DepthOfFieldLeavesTheFocusedPlaneSharpAndBlursTheOther) {
   // Left half of the view: a checkerboard on the default focal plane; right half: one 8 mm nearer the objective.
   renderer.updateMesh("far", makePlane(-0.004f, 0, kFocalZ, 0.0035f, 12, true, {1, 1, 1}).view(), 1);
   renderer.updateMesh("near", makePlane(0.004f, 0, kFocalZ + 0.008f, 0.0035f, 12, true, {1, 1, 1}).view(), 1);
+  MicroscopeState zoomed;
+  zoomed.zoom = 3.0;
+  renderer.setMicroscope(zoomed);
   const Eigen::Vector2f far_px = pixelOf(renderer, {-0.004f, 0.0f, kFocalZ});
   const Eigen::Vector2f near_px = pixelOf(renderer, {0.004f, 0.0f, kFocalZ + 0.008f});
   auto sharpness = [](const RgbImage& image, const Eigen::Vector2f& c) {
@@ -229,6 +232,9 @@ TEST(Renderer, DepthOfFieldLeavesTheFocusedPlaneSharpAndBlursTheOther) {
   renderer.setOptions(options);
   for (const double focus : {0.2, 0.192}) {  // on the far plane, then on the near plane
     MicroscopeState microscope;
+    // Issue 16: the blur is the objective's circle of confusion in pixels, so it grows with the magnification; at
+    // zoom 3 the 8 mm defocus blurs ~6 px at this image size (at zoom 1 only ~2 px).
+    microscope.zoom = 3.0;
     microscope.focus_distance = focus;
     renderer.setMicroscope(microscope);
     const StereoFrame blurred = renderFrame(renderer);

@@ -1,0 +1,91 @@
+#pragma once
+// The procedural fundus (issue 16): optic disc with its cup, the retinal vessel tree in its four arcades, macula and
+// fovea, choroidal pattern — generated once from a seed, no photographs. The renderer bakes it into one texture at
+// set-up; the vessel map stays queryable (nearestVessel) so that the simulation can put bleeding where vessels are.
+//
+// Geometry (eye frame of vrm_sim's eye_meshes.h: origin at the eye centre, +z towards the microscope, the fovea at
+// the posterior pole (0, 0, -R)). Anatomy is laid out in *fundus coordinates*: the azimuthal equidistant map of
+// the retina about the fovea — (x, y) in metres along the retinal surface, directions those of the eye frame's x
+// and y. Figures used (cited where they are used in fundus.cpp):
+//   [Hogan] Hogan, Alvarado, Weddell: Histology of the Human Eye (1971), ch. 9 — disc 1.5 x 1.75 mm, disc centre
+//           ~4.0-4.5 mm nasal and ~0.5 mm superior of the fovea (≈15° of visual angle), fovea ~1.5 mm, foveola
+//           0.35 mm, foveal avascular zone ~0.5 mm;
+//   [Murray] Murray (1926) r0^3 = r1^3 + r2^3 at bifurcations; retinal vessels follow it closely (Zamir 1979);
+//   [Jonas] Jonas et al. (1999) arteriole : venule calibre ~2 : 3; vein ~125-150 µm, artery ~90-110 µm at the
+//           disc margin; cup-to-disc ratio ~0.3-0.4 in normal eyes;
+//   [Kanski] Kanski: Clinical Ophthalmology, normal fundus — four arcades (superotemporal, inferotemporal,
+//           superonasal, inferonasal) leaving the disc; the temporal arcades arch around the macula ~3 mm from
+//           the fovea; arteries paler and with a brighter central reflex than veins; arteries cross over veins.
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace vrm_render {
+
+struct FundusParams {
+  std::uint32_t seed = 1;  // the scene's seed: vessel branching, tortuosity, choroidal pattern
+  float eye_radius = 0.012f;
+  float nasal_sign = 1.0f;  // +1: the disc lies towards +x (right eye as the microscope shows it), -1: left eye
+  float disc_diameter = 0.00165f;
+  float cup_to_disc = 0.35f;
+  float disc_fovea_distance = 0.0045f;  // along the retina
+  float disc_above_fovea = 0.0005f;
+  float macula_radius = 0.0015f;  // the darker, xanthophyll-pigmented centre
+  float fovea_radius = 0.00035f;  // foveola
+  int texture_size = 1024;        // texels across [-R, R] of the eye frame's x and y
+};
+
+// One straight piece of a vessel's centre line, in fundus coordinates (metres), radii at both ends.
+struct VesselSegment {
+  Eigen::Vector2f a = Eigen::Vector2f::Zero();
+  Eigen::Vector2f b = Eigen::Vector2f::Zero();
+  float radius_a = 0.0f;
+  float radius_b = 0.0f;
+  bool artery = false;
+  int arcade = -1;     // 0 superotemporal, 1 inferotemporal, 2 superonasal, 3 inferonasal, -1 small disc vessel
+  int generation = 0;  // 0: a trunk leaving the disc, +1 per bifurcation
+};
+
+struct VesselQuery {
+  bool inside = false;    // the point lies within a vessel's lumen
+  float distance = 1e9f;  // from the vessel's centre line (m, along the retina)
+  float radius = 0.0f;    // of that vessel there
+  bool artery = false;
+  int segment = -1;  // index into vessels(), -1 when there is none
+};
+
+class FundusMap {
+ public:
+  explicit FundusMap(const FundusParams& params = {});
+
+  const FundusParams& params() const { return params_; }
+  // Eye frame (on or near the retina sphere) <-> fundus coordinates.
+  Eigen::Vector2f toFundus(const Eigen::Vector3f& point_in_eye) const;
+  Eigen::Vector3f toEye(const Eigen::Vector2f& fundus) const;
+
+  Eigen::Vector2f fovea() const { return Eigen::Vector2f::Zero(); }
+  Eigen::Vector2f discCentre() const { return disc_; }
+  const std::vector<VesselSegment>& vessels() const { return vessels_; }
+  // The nearest vessel to a point on the retina (eye frame): where an injury bleeds (thesis §7: retina injuries
+  // bleed); O(segments), meant for contact events, not for every vertex of every frame.
+  VesselQuery nearestVessel(const Eigen::Vector3f& point_in_eye) const;
+
+  // Albedo texture, RGBA8, texture_size^2, row 0 at y = -R (GL's first row), texel (i, j) centred at
+  // x = -R + (i + 0.5) * 2R / size: the retina samples it at its eye-frame (x, y) (orthographic from the
+  // microscope's side, so no seam over the cap).
+  const std::vector<std::uint8_t>& texture() const { return texture_; }
+  int textureSize() const { return params_.texture_size; }
+
+ private:
+  void growVessels();
+  void bake();
+
+  FundusParams params_;
+  Eigen::Vector2f disc_;
+  std::vector<VesselSegment> vessels_;
+  std::vector<std::uint8_t> texture_;
+};
+
+}  // namespace vrm_render

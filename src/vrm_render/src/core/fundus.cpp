@@ -1,0 +1,403 @@
+#include "vrm_render/fundus.h"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+#include "vrm_render/render_types.h"
+
+namespace vrm_render {
+namespace {
+
+// A small deterministic generator (xorshift-multiply): the fundus must be the same for a seed on every platform,
+// which std::uniform_real_distribution does not promise.
+class Random {
+ public:
+  explicit Random(std::uint32_t seed) : state_(0x9E3779B97F4A7C15ull ^ (static_cast<std::uint64_t>(seed) << 1 | 1)) {}
+  std::uint64_t next() {
+    state_ ^= state_ >> 12;
+    state_ ^= state_ << 25;
+    state_ ^= state_ >> 27;
+    return state_ * 0x2545F4914F6CDD1Dull;
+  }
+  float uniform() { return static_cast<float>(next() >> 40) * (1.0f / 16777216.0f); }  // [0, 1)
+  float uniform(float lo, float hi) { return lo + (hi - lo) * uniform(); }
+  float normal() {  // Irwin-Hall approximation: plenty for jitter
+    float s = 0.0f;
+    for (int i = 0; i < 4; ++i) s += uniform();
+    return (s - 2.0f) * 1.7320508f;
+  }
+
+ private:
+  std::uint64_t state_;
+};
+
+// Value noise on an integer lattice hashed with the seed, smoothly interpolated: the choroidal pattern.
+float hashLattice(int x, int y, std::uint32_t seed) {
+  std::uint32_t h = static_cast<std::uint32_t>(x) * 374761393u + static_cast<std::uint32_t>(y) * 668265263u + seed;
+  h = (h ^ (h >> 13)) * 1274126177u;
+  h ^= h >> 16;
+  return static_cast<float>(h & 0xFFFFFF) * (1.0f / 16777216.0f);
+}
+
+float valueNoise(float x, float y, std::uint32_t seed) {
+  const float fx = std::floor(x), fy = std::floor(y);
+  const int ix = static_cast<int>(fx), iy = static_cast<int>(fy);
+  float tx = x - fx, ty = y - fy;
+  tx = tx * tx * (3.0f - 2.0f * tx);
+  ty = ty * ty * (3.0f - 2.0f * ty);
+  const float a = hashLattice(ix, iy, seed), b = hashLattice(ix + 1, iy, seed);
+  const float c = hashLattice(ix, iy + 1, seed), d = hashLattice(ix + 1, iy + 1, seed);
+  return (a + (b - a) * tx) + ((c + (d - c) * tx) - (a + (b - a) * tx)) * ty;
+}
+
+float smoothstep(float e0, float e1, float x) {
+  const float t = std::clamp((x - e0) / (e1 - e0), 0.0f, 1.0f);
+  return t * t * (3.0f - 2.0f * t);
+}
+
+Eigen::Vector2f rotate(const Eigen::Vector2f& v, float angle) {
+  const float c = std::cos(angle), s = std::sin(angle);
+  return {c * v.x() - s * v.y(), s * v.x() + c * v.y()};
+}
+
+// Catmull-Rom through the control points, sampled every `step` metres (approximately).
+std::vector<Eigen::Vector2f> spline(const std::vector<Eigen::Vector2f>& p, float step) {
+  std::vector<Eigen::Vector2f> out;
+  for (std::size_t i = 0; i + 1 < p.size(); ++i) {
+    const Eigen::Vector2f p0 = p[i == 0 ? 0 : i - 1], p1 = p[i], p2 = p[i + 1], p3 = p[std::min(i + 2, p.size() - 1)];
+    const int n = std::max(1, static_cast<int>((p2 - p1).norm() / step));
+    for (int k = 0; k < n; ++k) {
+      const float t = static_cast<float>(k) / n, t2 = t * t, t3 = t2 * t;
+      out.push_back(0.5f * (2.0f * p1 + (p2 - p0) * t + (2.0f * p0 - 5.0f * p1 + 4.0f * p2 - p3) * t2 +
+                            (3.0f * p1 - p0 - 3.0f * p2 + p3) * t3));
+    }
+  }
+  out.push_back(p.back());
+  return out;
+}
+
+constexpr float kMm = 1e-3f;
+constexpr float kStep = 0.1f * kMm;          // centre-line segment length
+constexpr float kMinRadius = 0.011f * kMm;   // smaller vessels are not seen at the microscope's resolution
+constexpr float kTaperPerMetre = 25.0f;      // 2.5 % calibre loss per mm between bifurcations
+constexpr std::size_t kMaxSegments = 40000;  // a bound against runaway growth
+
+struct Grower {
+  const FundusParams& params;
+  Random& random;
+  std::vector<VesselSegment>* out;
+  float max_eccentricity;  // along the retina from the fovea
+
+  bool stop(const Eigen::Vector2f& p) const {
+    // [Hogan]: the foveal avascular zone, ~0.5 mm across, has no vessels.
+    return p.norm() < 0.3f * kMm || p.norm() > max_eccentricity || out->size() >= kMaxSegments;
+  }
+
+  void add(const Eigen::Vector2f& a, const Eigen::Vector2f& b, float ra, float rb, bool artery, int arcade, int gen) {
+    VesselSegment s;
+    s.a = a;
+    s.b = b;
+    s.radius_a = ra;
+    s.radius_b = rb;
+    s.artery = artery;
+    s.arcade = arcade;
+    s.generation = gen;
+    out->push_back(s);
+  }
+
+  // A daughter vessel's radius at a bifurcation and the parent's remaining one, [Murray]: r^3 = r1^3 + r2^3.
+  void bifurcate(float r, float* daughter, float* parent) {
+    const float k = random.uniform(0.45f, 0.8f);
+    *daughter = k * r;
+    *parent = std::cbrt(std::max(0.0f, r * r * r - *daughter * *daughter * *daughter));
+  }
+
+  // Free growth: a persistent random walk that bifurcates every 0.8-2 mm (longer for thicker vessels).
+  void grow(Eigen::Vector2f p, Eigen::Vector2f dir, float r, bool artery, int arcade, int gen, float length) {
+    float next_branch = random.uniform(0.6f, 1.6f) * kMm * std::clamp(r / (0.03f * kMm), 0.6f, 1.6f);
+    float travelled = 0.0f;
+    float turn = 0.0f;
+    while (r > kMinRadius && travelled < length && !stop(p)) {
+      turn = 0.8f * turn + random.normal() * 0.06f;  // tortuosity: correlated heading changes
+      dir = rotate(dir, turn).normalized();
+      const Eigen::Vector2f q = p + kStep * dir;
+      if (stop(q)) break;
+      const float rq = r * (1.0f - kTaperPerMetre * kStep);
+      add(p, q, r, rq, artery, arcade, gen);
+      p = q;
+      r = rq;
+      travelled += kStep;
+      if (travelled >= next_branch && gen < 4) {
+        float daughter, parent;
+        bifurcate(r, &daughter, &parent);
+        const float side = random.uniform() < 0.5f ? -1.0f : 1.0f;
+        const float angle = random.uniform(0.5f, 1.2f);  // 30-70 deg, the usual retinal branching angles
+        grow(p, rotate(dir, side * angle), daughter, artery, arcade, gen + 1, length * random.uniform(0.4f, 0.7f));
+        dir = rotate(dir, -side * angle * 0.3f);  // the parent deflects away from its daughter
+        r = parent;
+        next_branch = travelled + random.uniform(0.8f, 2.0f) * kMm;
+      }
+    }
+  }
+
+  // A trunk along a jittered arcade path from the disc, branching off the side given by `outward` (a function of
+  // where the fovea is: temporal arcades send most branches away from the macula and some small ones into it).
+  void trunk(const std::vector<Eigen::Vector2f>& path, float r, bool artery, int arcade, bool temporal) {
+    const std::vector<Eigen::Vector2f> line = spline(path, kStep);
+    float travelled = 0.0f;
+    // The first bifurcations lie beyond the disc margin, a disc diameter or more out ([Kanski]).
+    float next_branch = random.uniform(1.6f, 2.4f) * kMm;
+    for (std::size_t i = 0; i + 1 < line.size() && r > kMinRadius; ++i) {
+      const float length = (line[i + 1] - line[i]).norm();
+      const float rq = r * (1.0f - kTaperPerMetre * length);
+      add(line[i], line[i + 1], r, rq, artery, arcade, 0);
+      r = rq;
+      travelled += length;
+      if (travelled < next_branch) continue;
+      const Eigen::Vector2f dir = (line[i + 1] - line[i]).normalized();
+      // Which side faces the fovea: the sign of the cross product of the heading and the direction to the fovea.
+      const Eigen::Vector2f to_fovea = -line[i + 1];
+      const float fovea_side = dir.x() * to_fovea.y() - dir.y() * to_fovea.x() > 0.0f ? 1.0f : -1.0f;
+      const bool inward = temporal && random.uniform() < 0.35f;
+      const float side = temporal ? (inward ? fovea_side : -fovea_side) : (random.uniform() < 0.5f ? -1.0f : 1.0f);
+      float daughter, parent;
+      bifurcate(r, &daughter, &parent);
+      if (inward) daughter = std::min(daughter, 0.45f * r);  // macular branches are small
+      grow(line[i + 1], rotate(dir, side * random.uniform(0.6f, 1.2f)), daughter, artery, arcade, 1,
+           random.uniform(3.0f, 7.0f) * kMm);
+      r = std::max(parent, 0.8f * r);  // the trunk keeps its identity (a side branch, not a symmetric split)
+      next_branch = travelled + random.uniform(1.0f, 2.0f) * kMm;
+    }
+    // Beyond the drawn arcade the trunk continues into the periphery.
+    if (line.size() >= 2) {
+      const Eigen::Vector2f dir = (line.back() - line[line.size() - 2]).normalized();
+      grow(line.back(), dir, r, artery, arcade, 1, 8.0f * kMm);
+    }
+  }
+};
+
+}  // namespace
+
+FundusMap::FundusMap(const FundusParams& params) : params_(params) {
+  if (!(params_.eye_radius > 0.0f) || params_.texture_size < 16 || params_.texture_size > 4096 ||
+      !(params_.disc_diameter > 0.0f) || !std::isfinite(params_.disc_fovea_distance)) {
+    throw RenderError("fundus: eye_radius and disc_diameter must be positive, texture_size within 16..4096");
+  }
+  params_.nasal_sign = params_.nasal_sign < 0.0f ? -1.0f : 1.0f;
+  disc_ = Eigen::Vector2f(params_.nasal_sign * params_.disc_fovea_distance, params_.disc_above_fovea);
+  growVessels();
+  bake();
+}
+
+Eigen::Vector2f FundusMap::toFundus(const Eigen::Vector3f& p) const {
+  const float norm = p.norm();
+  if (!(norm > 0.0f)) return Eigen::Vector2f::Zero();
+  const float theta = std::acos(std::clamp(-p.z() / norm, -1.0f, 1.0f));
+  const Eigen::Vector2f azimuth(p.x(), p.y());
+  const float a = azimuth.norm();
+  if (a < 1e-12f) return Eigen::Vector2f::Zero();
+  return params_.eye_radius * theta * azimuth / a;
+}
+
+Eigen::Vector3f FundusMap::toEye(const Eigen::Vector2f& f) const {
+  const float s = f.norm();
+  const float theta = s / params_.eye_radius;
+  const Eigen::Vector2f dir = s > 1e-12f ? Eigen::Vector2f(f / s) : Eigen::Vector2f::UnitX();
+  return params_.eye_radius * Eigen::Vector3f(std::sin(theta) * dir.x(), std::sin(theta) * dir.y(), -std::cos(theta));
+}
+
+VesselQuery FundusMap::nearestVessel(const Eigen::Vector3f& point_in_eye) const {
+  const Eigen::Vector2f p = toFundus(point_in_eye);
+  VesselQuery best;
+  for (std::size_t i = 0; i < vessels_.size(); ++i) {
+    const VesselSegment& s = vessels_[i];
+    const Eigen::Vector2f ab = s.b - s.a;
+    const float t = std::clamp((p - s.a).dot(ab) / std::max(ab.squaredNorm(), 1e-20f), 0.0f, 1.0f);
+    const float d = (p - (s.a + t * ab)).norm();
+    if (d < best.distance) {
+      best.distance = d;
+      best.radius = s.radius_a + (s.radius_b - s.radius_a) * t;
+      best.artery = s.artery;
+      best.segment = static_cast<int>(i);
+    }
+  }
+  best.inside = best.segment >= 0 && best.distance <= best.radius;
+  return best;
+}
+
+void FundusMap::growVessels() {
+  Random random(params_.seed);
+  const float ns = params_.nasal_sign;
+  // The retina ends at the equator of the cap; vessels stop a little before.
+  Grower grower{params_, random, &vessels_, 0.95f * params_.eye_radius * static_cast<float>(M_PI) * 0.5f};
+  auto mm = [&](float x, float y) { return Eigen::Vector2f(ns * x * kMm, y * kMm); };
+  auto jittered = [&](std::vector<Eigen::Vector2f> path, float sigma_mm) {
+    for (std::size_t i = 1; i < path.size(); ++i)
+      path[i] += sigma_mm * kMm * Eigen::Vector2f(random.normal(), random.normal());
+    return path;
+  };
+  const Eigen::Vector2f d = disc_;
+  // [Kanski] arcade courses relative to the fovea (mm, nasal +): the temporal arcades leave the disc vertically and
+  // arch over and under the macula ~3 mm from the fovea; the nasal ones run up- and down-nasally, straighter.
+  const std::vector<std::vector<Eigen::Vector2f>> arcades = {
+      {d, mm(4.3f, 1.4f), mm(3.3f, 2.6f), mm(1.5f, 3.2f), mm(-1.0f, 3.3f), mm(-3.5f, 3.0f), mm(-6.5f, 2.4f),
+       mm(-9.5f, 1.9f)},
+      {d, mm(4.3f, -0.5f), mm(3.3f, -1.9f), mm(1.5f, -2.8f), mm(-1.0f, -3.0f), mm(-3.5f, -2.7f), mm(-6.5f, -2.1f),
+       mm(-9.5f, -1.6f)},
+      {d, mm(5.0f, 1.7f), mm(5.8f, 3.1f), mm(7.0f, 4.6f), mm(8.5f, 6.2f), mm(10.0f, 7.6f)},
+      {d, mm(5.0f, -0.7f), mm(5.8f, -2.1f), mm(7.0f, -3.7f), mm(8.5f, -5.4f), mm(10.0f, -6.9f)},
+  };
+  // [Jonas] calibres at the disc: veins ~130-150 µm (temporal), arteries ~2/3 of that; nasal vessels thinner.
+  for (int artery = 0; artery < 2; ++artery) {  // veins first: arteries are drawn over them where they cross
+    for (int a = 0; a < 4; ++a) {
+      std::vector<Eigen::Vector2f> path = jittered(arcades[a], 0.22f);
+      // The artery of an arcade runs beside its vein, a few tenths of a mm apart, crossing it now and then.
+      if (artery) {
+        const float offset = random.uniform(0.15f, 0.4f) * (random.uniform() < 0.5f ? -1.0f : 1.0f);
+        for (std::size_t i = 1; i < path.size(); ++i)
+          path[i] += offset * kMm * Eigen::Vector2f(random.normal(), 1.0f).normalized();
+        path[0] += 0.08f * kMm * Eigen::Vector2f(random.normal(), random.normal());
+      }
+      const bool temporal = a < 2;
+      const float vein_radius = (temporal ? 0.07f : 0.055f) * kMm;
+      grower.trunk(path, artery ? 0.68f * vein_radius : vein_radius, artery != 0, a, temporal);
+    }
+  }
+  // A few small vessels leave the disc margin towards the macula (papillomacular bundle region) and nasally.
+  for (int k = 0; k < 4; ++k) {
+    const float angle =
+        (k < 2 ? (ns > 0 ? static_cast<float>(M_PI) : 0.0f) : (ns > 0 ? 0.0f : static_cast<float>(M_PI))) +
+        random.uniform(-0.35f, 0.35f);
+    const Eigen::Vector2f dir(std::cos(angle), std::sin(angle));
+    grower.grow(d + 0.5f * params_.disc_diameter * dir, dir, 0.022f * kMm, k % 2 == 1, -1, 1,
+                random.uniform(1.5f, 3.0f) * kMm);
+  }
+}
+
+void FundusMap::bake() {
+  const int n = params_.texture_size;
+  const float radius = params_.eye_radius;
+  const float texel = 2.0f * radius / n;
+  std::vector<float> rgb(static_cast<std::size_t>(n) * n * 3);
+  const std::uint32_t seed = params_.seed * 2654435761u;
+  const float disc_r = 0.5f * params_.disc_diameter;
+  // Cup slightly temporal of the disc centre, where the vessels emerge ([Jonas]).
+  const Eigen::Vector2f cup = disc_ - Eigen::Vector2f(params_.nasal_sign * 0.12f * disc_r, 0.0f);
+
+  for (int j = 0; j < n; ++j) {
+    for (int i = 0; i < n; ++i) {
+      const float x = -radius + (i + 0.5f) * texel, y = -radius + (j + 0.5f) * texel;
+      const float rr = std::min(x * x + y * y, radius * radius * 0.9999f);
+      const Eigen::Vector2f f = toFundus(Eigen::Vector3f(x, y, -std::sqrt(radius * radius - rr)));
+      // Choroid: orange-red RPE/choroid background; the choroidal vessels show as a lighter network with darker
+      // pigmented interstices (a mildly "tigroid" fundus), on a ~0.7 mm scale, plus slow variation.
+      const float u = f.x() / (0.45f * kMm), v = f.y() / (0.45f * kMm);
+      const float ridge = 1.0f - std::abs(2.0f * valueNoise(u, v, seed) - 1.0f);
+      const float ridge2 = 1.0f - std::abs(2.0f * valueNoise(2.1f * u + 5.3f, 2.1f * v - 1.7f, seed + 7u) - 1.0f);
+      const float slow = valueNoise(f.x() / (3.0f * kMm), f.y() / (3.0f * kMm), seed + 13u);
+      const float choroid = 0.55f * std::pow(ridge, 3.0f) + 0.25f * std::pow(ridge2, 3.0f);
+      float r = 0.80f * (0.86f + 0.14f * slow) * (0.91f + 0.12f * choroid);
+      float g = 0.33f * (0.86f + 0.14f * slow) * (0.88f + 0.16f * choroid);
+      float b = 0.17f * (0.86f + 0.14f * slow) * (0.88f + 0.14f * choroid);
+      // Macula ([Hogan]): xanthophyll and denser RPE pigment darken it towards the fovea; the foveola darker still,
+      // with its small light reflex in the centre.
+      const float e2 = f.squaredNorm();
+      const float macula = std::exp(-e2 / (params_.macula_radius * params_.macula_radius));
+      const float fovea = std::exp(-e2 / (params_.fovea_radius * params_.fovea_radius));
+      r *= 1.0f - 0.30f * macula - 0.15f * fovea;
+      g *= 1.0f - 0.42f * macula - 0.20f * fovea;
+      b *= 1.0f - 0.50f * macula - 0.20f * fovea;
+      const float reflex = std::exp(-e2 / (0.04f * kMm * 0.04f * kMm));
+      r += 0.25f * reflex;
+      g += 0.22f * reflex;
+      b += 0.15f * reflex;
+      // Optic disc ([Hogan]: vertically oval, 1.5 x 1.75 mm): pinkish-yellow neuroretinal rim, a pale cup, a thin
+      // darker peripapillary ring.
+      const Eigen::Vector2f dd = f - disc_;
+      const float de = std::sqrt(dd.x() * dd.x() / (0.93f * 0.93f) + dd.y() * dd.y() / (1.07f * 1.07f)) / disc_r;
+      const float ring = std::exp(-(de - 1.08f) * (de - 1.08f) / 0.004f);
+      r *= 1.0f - 0.25f * ring;
+      g *= 1.0f - 0.30f * ring;
+      b *= 1.0f - 0.30f * ring;
+      const float rim = 1.0f - smoothstep(0.9f, 1.02f, de);
+      r += (0.98f - r) * rim;
+      g += (0.70f - g) * rim;
+      b += (0.52f - b) * rim;
+      const Eigen::Vector2f dc = f - cup;
+      const float cup_e = dc.norm() / (params_.cup_to_disc * disc_r);
+      const float pale = 1.0f - smoothstep(0.6f, 1.15f, cup_e);
+      r += (1.0f - r) * pale;
+      g += (0.93f - g) * pale;
+      b += (0.80f - b) * pale;
+      float* out = rgb.data() + (static_cast<std::size_t>(j) * n + i) * 3;
+      out[0] = r;
+      out[1] = g;
+      out[2] = b;
+    }
+  }
+
+  // Vessels: each segment as a capsule of its radius in texel space (the orthographic map is within a few % of
+  // the fundus map near the posterior pole). Cross-section: blood absorbs more along the longer central path, a
+  // central light reflex, brighter on arteries ([Kanski]); anti-aliased over one texel. Per texel the most opaque
+  // vessel wins (no darkening where a vessel's own segments overlap), an artery over a vein where they cross.
+  std::vector<float> opacity(static_cast<std::size_t>(n) * n, 0.0f);
+  std::vector<std::uint8_t> is_artery(static_cast<std::size_t>(n) * n, 0);
+  std::vector<float> profile(static_cast<std::size_t>(n) * n, 0.0f);
+  auto toTexel = [&](const Eigen::Vector2f& f) {
+    const Eigen::Vector3f p = toEye(f);
+    return Eigen::Vector2f((p.x() + radius) / texel - 0.5f, (p.y() + radius) / texel - 0.5f);
+  };
+  for (const VesselSegment& s : vessels_) {
+    const Eigen::Vector2f a = toTexel(s.a), b = toTexel(s.b);
+    const float ra = s.radius_a / texel, rb = s.radius_b / texel;
+    const float reach = std::max(ra, rb) + 1.0f;
+    const int x0 = std::max(0, static_cast<int>(std::floor(std::min(a.x(), b.x()) - reach)));
+    const int x1 = std::min(n - 1, static_cast<int>(std::ceil(std::max(a.x(), b.x()) + reach)));
+    const int y0 = std::max(0, static_cast<int>(std::floor(std::min(a.y(), b.y()) - reach)));
+    const int y1 = std::min(n - 1, static_cast<int>(std::ceil(std::max(a.y(), b.y()) + reach)));
+    const Eigen::Vector2f ab = b - a;
+    const float len2 = std::max(ab.squaredNorm(), 1e-12f);
+    for (int y = y0; y <= y1; ++y) {
+      for (int x = x0; x <= x1; ++x) {
+        const Eigen::Vector2f p(static_cast<float>(x), static_cast<float>(y));
+        const float t = std::clamp((p - a).dot(ab) / len2, 0.0f, 1.0f);
+        const float d = (p - (a + t * ab)).norm();
+        const float r = ra + (rb - ra) * t;
+        // Sub-texel vessels are drawn 0.8 texel wide and fainter, not as a dotted line.
+        const float re = std::max(r, 0.8f);
+        const float cover = std::clamp(re + 0.5f - d, 0.0f, 1.0f) * std::min(1.0f, 0.4f + 0.6f * r / re);
+        if (cover <= 0.0f) continue;
+        const float across = std::min(1.0f, d / re);
+        const float op = cover * (0.55f + 0.45f * std::sqrt(1.0f - across * across));
+        const std::size_t k = static_cast<std::size_t>(y) * n + x;
+        const bool over = s.artery ? (op > 0.5f * opacity[k] || is_artery[k]) && op > (is_artery[k] ? opacity[k] : 0.0f)
+                                   : !is_artery[k] && op > opacity[k];
+        if (!over) continue;
+        opacity[k] = op;
+        is_artery[k] = s.artery ? 1 : 0;
+        profile[k] = across;
+      }
+    }
+  }
+
+  texture_.resize(static_cast<std::size_t>(n) * n * 4);
+  for (std::size_t k = 0; k < opacity.size(); ++k) {
+    float* c = rgb.data() + 3 * k;
+    if (opacity[k] > 0.0f) {
+      const bool artery = is_artery[k] != 0;
+      const float vr = artery ? 0.62f : 0.38f, vg = artery ? 0.12f : 0.06f, vb = artery ? 0.08f : 0.06f;
+      const float reflex = (artery ? 0.16f : 0.06f) * std::exp(-profile[k] * profile[k] / 0.04f);
+      const float o = std::min(1.0f, opacity[k]);
+      c[0] += (vr + reflex - c[0]) * o;
+      c[1] += (vg + reflex * 0.8f - c[1]) * o;
+      c[2] += (vb + reflex * 0.7f - c[2]) * o;
+    }
+    for (int ch = 0; ch < 3; ++ch) {
+      texture_[4 * k + ch] = static_cast<std::uint8_t>(std::clamp(c[ch], 0.0f, 1.0f) * 255.0f + 0.5f);
+    }
+    texture_[4 * k + 3] = 255;
+  }
+}
+
+}  // namespace vrm_render
