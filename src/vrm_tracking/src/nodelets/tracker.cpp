@@ -39,6 +39,7 @@
 #include <mutex>
 #include <optional>
 #include <pluginlib/class_list_macros.hpp>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -286,16 +287,23 @@ class Tracker : public nodelet::Nodelet {
         t.transform.rotation = msg->tip_pose.orientation;
         frames.push_back(t);
       }
-      if (!est.valid && measured) {
-        // Why: its tip marker needs two cameras (thesis §7.3.2); say in how many it was found.
+      if (est.valid) ever_seen_.insert(est.slot);
+      if (!est.valid && measured && !ever_seen_.count(est.slot)) {
+        // Never seen since the start: not inserted (a session may use one instrument only) — no fault, said once.
+        if (announced_unseen_.insert(est.slot).second) {
+          NODELET_INFO("tracker: instrument '%s' not in view yet (not inserted, or outside the cameras' view)",
+                       est.slot.c_str());
+        }
+      } else if (!est.valid && measured) {
+        // Lost after it was tracked. Why: its tip marker needs two cameras (thesis §7.3.2); say in how many it was.
         const InstrumentMarker* marker = tracker_->layout().findSlot(est.slot);
         int seen_by = 0;
         for (const MarkerEstimate& m : result.markers) {
           if (marker && m.class_id == marker->class_id) seen_by = m.cameras;
         }
         NODELET_WARN_THROTTLE(5.0,
-                              "tracker: instrument '%s' not seen (its tip marker in %d camera(s) of this frame, 2 "
-                              "needed: occluded, outside the cameras' view, or cameras missing from the frame)",
+                              "tracker: instrument '%s' lost (its tip marker in %d camera(s) of this frame, 2 "
+                              "needed: occluded, withdrawn, or cameras missing from the frame); holding its last pose",
                               est.slot.c_str(), seen_by);
       }
       vrm_msgs::publishShared(instrument_pub_, msg);
@@ -517,7 +525,10 @@ class Tracker : public nodelet::Nodelet {
   std::map<ros::Time, Pending> pending_;
   std::map<std::string, vrm_msgs::InstrumentState::ConstPtr> sensors_;
   std::vector<ros::Time> last_seen_;
-  std::vector<std::size_t> late_frames_;  // per camera: frames that came after their frame was reconstructed
+  std::vector<std::size_t> late_frames_;
+  std::set<std::string> ever_seen_,
+      announced_unseen_;  // instrument slots tracked at least once / said "not yet"  // per camera: frames that came
+                          // after their frame was reconstructed
   ros::Time last_processed_;
   // Diagnostics (wall clock: they report the live health of the inputs).
   ros::Publisher diagnostics_pub_;
