@@ -122,6 +122,13 @@ for xml in "$PREFIX"/share/*/nodelet_plugins.xml; do
   done
 done
 if [[ -z $missing_plugins ]]; then pass "nodelet plugin libraries installed"; else fail "missing:$missing_plugins"; fi
+# Every installed executable and library loads its libraries from the prefix or the system (no RPATH into build/).
+unresolved=$(installed bash -c 'for f in $(find "$1/lib" -maxdepth 2 -type f \( -name "*.so" -o -perm -u+x \)); do
+    file -b "$f" 2>/dev/null | grep -q ELF || head -c 4 "$f" | grep -q ELF || continue
+    ldd "$f" 2>&1 | grep -E "not found|$2" | sed "s|^|$f: |"
+  done' _ "$PREFIX" "$ROOT" || true)
+if [[ -z $unresolved ]]; then pass "installed executables and libraries resolve their libraries outside the checkout"
+else fail "unresolved or checkout libraries:"; echo "$unresolved" | head -n 10 | sed 's/^/    /'; fi
 plugin_list=$(installed rospack plugins --attrib=plugin nodelet 2>/dev/null || true)
 for package in vrm_sim vrm_tracking vrm_render; do
   grep -q "^$package $PREFIX/share/$package/nodelet_plugins.xml" <<<"$plugin_list" \
