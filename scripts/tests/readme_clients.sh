@@ -69,4 +69,31 @@ run "rosnode list" 20 "/vrm_manager" rosnode list
 # tf_echo prints once a second until stopped: the limit ends it.
 run "rosrun tf tf_echo world eye" 12 "Translation:" rosrun tf tf_echo world eye
 
+# simulator.launch rviz:=true: the shipped view opens under a virtual display, stays up and draws the scene.
+display=":$((PORT % 50 + 60))"
+Xvfb "$display" -screen 0 1280x800x24 -nolisten tcp >"$TMP/xvfb.log" 2>&1 &
+xvfb_pid=$!
+DISPLAY=$display rviz -d "$ROOT/src/vrm_bringup/config/simulator.rviz" >"$TMP/rviz.log" 2>&1 &
+rviz_pid=$!
+sleep_until_drawn=0
+for _ in $(seq 60); do  # until the 3D view shows the eye (orange) or 30 s
+  sleep 0.5
+  if DISPLAY=$display /usr/bin/python3 -c 'import sys
+from PIL import ImageGrab
+image = ImageGrab.grab(xdisplay=sys.argv[1]).convert("RGB")
+w, h = image.size
+view = image.crop((w // 3, h // 6, w - 20, h - 60)).resize((64, 40))
+orange = sum(1 for r, g, b in view.getdata() if r > 120 and r > g + 40 and r > b + 60)
+sys.exit(0 if orange > 40 else 1)' "$display" 2>/dev/null; then
+    sleep_until_drawn=1; break
+  fi
+done
+if ((sleep_until_drawn)) && kill -0 "$rviz_pid" 2>/dev/null; then
+  pass "rviz -d vrm_bringup/config/simulator.rviz is up and draws the eye"
+else
+  fail "RViz with the shipped view: $(grep -v media_export "$TMP/rviz.log" | grep -iE 'error|fatal' | head -n 3)"
+fi
+kill "$rviz_pid" 2>/dev/null; wait "$rviz_pid" 2>/dev/null
+kill "$xvfb_pid" 2>/dev/null; wait "$xvfb_pid" 2>/dev/null
+
 ((failures == 0)) || exit 1
