@@ -144,7 +144,8 @@ std::vector<SceneObject> typicalScene(LightPipe* light) {
   SceneObject membrane;
   membrane.id = "membrane";
   membrane.mesh = toMeshData(scene::makeMembrane(membrane_params));
-  membrane.style.material.diffuse = {0.92f, 0.9f, 0.85f, 0.55f};
+  // An epiretinal membrane is a thin, nearly transparent film: seen by its sheen and a faint whitish veil.
+  membrane.style.material.diffuse = {0.95f, 0.95f, 0.92f, 0.22f};
   membrane.style.material.specular = {0.6f, 0.6f, 0.6f};
   membrane.style.material.shininess = 60.0f;
   membrane.style.material.sheen = kFilmSheen;
@@ -174,7 +175,14 @@ std::vector<SceneObject> typicalScene(LightPipe* light) {
   forceps.pose = instrumentPoseThroughTrocar(right_trocar, Eigen::Vector3f(0.0017f, 0.0f, -radius + 0.0004f), 0.0185f);
   objects.push_back(std::move(forceps));
 
-  if (light) *light = lightPipeAt(objects[2].pose);
+  if (light) {
+    // Endoillumination: a soft-edged cone (the fibre's light falls off towards the rim rather than ending at it)
+    // that lights the fundus without saturating it.
+    LightPipe defaults;
+    defaults.cone_softness = 0.6f;
+    defaults.intensity = 1.2f;
+    *light = lightPipeAt(objects[2].pose, defaults);
+  }
   return objects;
 }
 

@@ -31,7 +31,8 @@ out vec3 v_object;
 out vec4 v_light_clip;
 #endif
 #if FUNDUS
-uniform float u_fundus_scale;
+uniform float u_fundus_scale;   // texels per metre
+uniform float u_fundus_offset;  // texel coordinate of x = 0
 out vec2 v_fundus_uv;
 #endif
 #if METAL
@@ -48,7 +49,7 @@ void main() {
 #if FUNDUS
   // The fundus texture is an orthographic map of the eye frame's x, y (FundusMap::texture); bleeding is mixed in
   // after the texture so that blood is blood-coloured on vessels and disc alike.
-  v_fundus_uv = a_position.xy * u_fundus_scale + 0.5;
+  v_fundus_uv = a_position.xy * u_fundus_scale + u_fundus_offset;
 #else
   v_base.rgb = mix(v_base.rgb, u_blood, clamp(a_injury, 0.0, 1.0));
 #endif
@@ -148,7 +149,9 @@ float dofWeight() {
 void main() {
   vec4 base = v_base;
 #if FUNDUS
-  base = vec4(mix(base.rgb * texture(u_fundus, v_fundus_uv).rgb, u_blood, base.a), 1.0);
+  // texelFetch: the nearest texel without the sampler's filter and wrap logic (the cheapest fetch on llvmpipe;
+  // bench_render); the coordinates stay inside the texture on the retina (|x|, |y| <= R).
+  base = vec4(mix(base.rgb * texelFetch(u_fundus, ivec2(v_fundus_uv), 0).rgb, u_blood, base.a), 1.0);
 #endif
   float alpha = mix(base.a * u_alpha_scale, dofWeight(), u_coc_alpha);
 #if !LIGHTING

@@ -1005,7 +1005,8 @@ void StereoRenderer::render(StereoFrame* frame) {
       glUniform1f(p["u_light_intensity"], light_.intensity);
       glUniform1f(p["u_light_range"], light_.range);
       glUniform1f(p["u_shadow_bias"], 2e-5f);
-      glUniform1f(p["u_bump_amplitude"], 1.4e-5f);
+      // On the fundus texture the relief is subtler: the texture carries the detail, the bump only its sheen.
+      glUniform1f(p["u_bump_amplitude"], fundus ? 0.5e-5f : 1.4e-5f);
       glUniform3fv(p["u_blood"], 1, options_.blood_colour.data());
       glUniform1i(p["u_shadow_map"], 0);
       glUniform1f(p["u_near"], cam.near_plane);
@@ -1015,7 +1016,11 @@ void StereoRenderer::render(StereoFrame* frame) {
       glUniform1f(p["u_coc_scale"],
                   rig_.aperture_diameter * static_cast<float>(options_.width * microscope_.zoom) / rig_.field_width);
       glUniform1i(p["u_fundus"], 1);
-      glUniform1f(p["u_fundus_scale"], im.fundus ? 0.5f / im.fundus->params().eye_radius : 0.0f);
+      if (im.fundus) {
+        const float n = static_cast<float>(im.fundus->textureSize());
+        glUniform1f(p["u_fundus_scale"], 0.5f * n / im.fundus->params().eye_radius);
+        glUniform1f(p["u_fundus_offset"], 0.5f * n);
+      }
       glUniform3fv(p["u_environment"], 1, environment.data());
       return p;
     };
