@@ -3,7 +3,9 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <filesystem>
 #include <string>
+#include <vector>
 
 #include "vrm_sim/scene/mesh_utils.h"
 #include "vrm_sim/scene/mesh_validation.h"
@@ -431,6 +433,35 @@ TEST(SceneErrors, BrokenMeshFileFailsInBuildMeshWithObjectLocation) {
     EXPECT_NE(message.find("nan_vertex.obj"), std::string::npos) << message;
     EXPECT_NE(message.find("non-finite"), std::string::npos) << message;
   }
+}
+
+// Shipped scenes come from the package directory set at run time (issue 18: an install space has no source tree),
+// never from a path compiled into the library.
+TEST(ShippedScenes, FollowThePackageDirectorySetAtRunTime) {
+  const std::string source_package = packageDirectory();
+  ASSERT_FALSE(source_package.empty()) << "test/support/source_package.cpp sets the source package";
+  EXPECT_EQ(resolveScenePath("navigation"), source_package + "/config/scenes/navigation.yaml");
+
+  const std::string installed = ::testing::TempDir() + "vrm_sim_share";
+  std::filesystem::create_directories(installed + "/config/scenes");
+  std::filesystem::copy_file(source_package + "/config/scenes/navigation.yaml",
+                             installed + "/config/scenes/navigation.yaml",
+                             std::filesystem::copy_options::overwrite_existing);
+  setPackageDirectory(installed);
+  EXPECT_EQ(shippedScenes(), std::vector<std::string>{"navigation"});
+  EXPECT_EQ(loadScene(resolveScenePath("navigation")).source_file, installed + "/config/scenes/navigation.yaml");
+  EXPECT_THROW(loadScene(resolveScenePath("membrane_peeling")), SceneError);  // not in this package
+
+  setPackageDirectory("");  // nobody said where the package is: no shipped scenes, and an error that says why
+  EXPECT_TRUE(shippedScenes().empty());
+  try {
+    shippedScenePath("navigation");
+    ADD_FAILURE() << "no SceneError";
+  } catch (const SceneError& error) {
+    EXPECT_NE(std::string(error.what()).find("package directory is unknown"), std::string::npos) << error.what();
+  }
+  setPackageDirectory(source_package);
+  std::filesystem::remove_all(installed);
 }
 
 }  // namespace
