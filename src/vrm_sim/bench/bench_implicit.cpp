@@ -417,6 +417,9 @@ struct Row {
   double dt = 0.0;
   double iterations = NAN, residual = NAN, residual_max = NAN;
   double ms_per_step = NAN, ms_per_step_median = NAN;
+  // Spread (issue 19): each repetition's median ms per step; the row's ms_min/ms_max are their extremes.
+  double ms_min = NAN, ms_max = NAN;
+  int repetitions = 0;
   double error_rms = NAN, error_max = NAN;
   bool stable = false;
   int steps = 0;
@@ -429,7 +432,9 @@ struct Row {
         << "\", \"nodes\": " << nodes << ", \"springs\": " << springs << ", \"dt\": " << number(dt)
         << ", \"iterations\": " << number(iterations) << ", \"residual\": " << number(residual)
         << ", \"residual_max\": " << number(residual_max) << ", \"ms_per_step\": " << number(ms_per_step)
-        << ", \"ms_per_step_median\": " << number(ms_per_step_median) << ", \"error_rms\": " << number(error_rms)
+        << ", \"ms_per_step_median\": " << number(ms_per_step_median) << ", \"ms_min\": " << number(ms_min)
+        << ", \"ms_max\": " << number(ms_max) << ", \"repetitions\": " << repetitions
+        << ", \"error_rms\": " << number(error_rms)
         << ", \"error_max\": " << number(error_max)
         << ", \"error_unit\": \"m\", \"stable\": " << (stable ? "true" : "false") << ", \"steps\": " << steps
         << ", \"peer\": \"ours\"}";
@@ -467,11 +472,15 @@ Row summarise(const std::vector<Run>& runs, const Run& reference) {
   std::vector<double> ms, iterations, residuals;
   bool finite = true;
   for (const Run& run : runs) {
+    const double rep_median = medianOf(run.step_ms);
+    row.ms_min = std::isfinite(row.ms_min) ? std::min(row.ms_min, rep_median) : rep_median;
+    row.ms_max = std::isfinite(row.ms_max) ? std::max(row.ms_max, rep_median) : rep_median;
     ms.insert(ms.end(), run.step_ms.begin(), run.step_ms.end());
     iterations.insert(iterations.end(), run.iterations.begin(), run.iterations.end());
     residuals.insert(residuals.end(), run.residuals.begin(), run.residuals.end());
     finite = finite && run.finite;
   }
+  row.repetitions = static_cast<int>(runs.size());
   row.nodes = runs.front().nodes;
   row.springs = runs.front().springs;
   row.steps = static_cast<int>(runs.front().step_ms.size());
@@ -515,7 +524,7 @@ int main(int argc, char** argv) {
   const std::vector<int> sizes = quick ? std::vector<int>{22} : std::vector<int>{22, 100};
   const std::vector<double> dts{1e-3, 2.5e-4};
   const double duration = quick ? 0.01 : 0.05;
-  const int repetitions = quick ? 1 : 3;
+  const int repetitions = quick ? 1 : 5;  // issue 19: spreads from >= 5 repetitions in one run
   // A residual of 0 never stops CG early, so these runs do exactly 10 iterations.
   constexpr double kFixed = 0.0;
   std::vector<Variant> variants;
