@@ -4,7 +4,12 @@
 //   (2) rendered: synthetic images (noise, blur, exposure, marker size, speed up to 50 mm/s, one camera occluded,
 //       distractors) through detection + reconstruction;
 //   (3) rendered, fast (issue 15): the eye turning at >= 0.8 rad/s (±12°), both tips sweeping at 50 mm/s near the
-//       posterior pole, all at once, with three cameras and with each camera occluded in turn under the same motion.
+//       posterior pole, all at once, with three cameras and with each camera occluded in turn under the same motion;
+//   (4) calibration error (issue 19): the headline rows again with the tracker reconstructing through a rig estimated
+//       by calibrate_rig's procedure (calibration.h: Zhang via OpenCV) from synthetic chessboard views with sensor
+//       noise and blur (`calibration: estimated`), beside the perfect rig (`calibration: true`).
+// Headline rows repeat `repetitions` times in this run (seed + k; estimated rows: a new calibration per repetition);
+// each metric is the median over the repetitions with _min/_max beside it.
 // Usage: bench_tracking [--quick] [--out FILE]   (writes JSON; prints a table)
 
 #include <time.h>
@@ -20,6 +25,10 @@
 #include <string>
 #include <vector>
 
+#include <opencv2/imgproc.hpp>
+#include <random>
+
+#include "vrm_tracking/calibration.h"
 #include "vrm_tracking/evaluation.h"
 #include "vrm_tracking/pose_filter.h"
 
@@ -53,7 +62,138 @@ struct Row {
   double eye_speed_min = 0.0, eye_speed_max = 0.0;  // rad/s over the sampled frames
   double ratio_to_three_cameras = 0.0;              // occluded fast rows: tip RMS / the three-camera row's
   double camera_skew_ms = 0.0;                      // camera_1 exposes this late (sensitivity rows)
+  // Issue 19: repetitions in this run and the spread of the metrics over them (r holds the per-metric medians).
+  int repetitions = 1;
+  double tip_rms_min = 0, tip_rms_max = 0, tip_max_min = 0, tip_max_max = 0, ms_detect_min = 0, ms_detect_max = 0;
+  double ratio_min = 0, ratio_max = 0;  // tip RMS / floor (centroid) or / three cameras (occluded fast rows)
+  std::vector<double> tip_rms_each;     // per repetition (for ratios between rows, repetition by repetition)
+  bool estimated = false;               // calibration: "estimated" (tracker uses a calibrated rig) or "true"
+  std::vector<unsigned> calibration_seeds;
+  double reproj_rms = 0, reproj_rms_min = 0, reproj_rms_max = 0;  // calibration's reprojection RMS (px)
 };
+
+// Median, min, max.
+struct Spread {
+  double median = 0, min = 0, max = 0;
+};
+Spread spreadOf(std::vector<double> v) {
+  Spread s;
+  if (v.empty()) return s;
+  std::sort(v.begin(), v.end());
+  s.median = v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
+  s.min = v.front();
+  s.max = v.back();
+  return s;
+}
+
+// Runs `evaluate_k(k)` for k = 0 .. n-1; the row's metrics become the medians, with the spread beside the headline
+// ones.
+void repeatInto(Row* row, int n, const std::function<EvalResult(int)>& evaluate_k) {
+  std::vector<EvalResult> results;
+  for (int k = 0; k < n; ++k) results.push_back(evaluate_k(k));
+  auto field = [&results](double EvalResult::*f) {
+    std::vector<double> v;
+    for (const EvalResult& r : results) v.push_back(r.*f);
+    return spreadOf(v);
+  };
+  row->repetitions = n;
+  row->r = results.front();
+  const Spread rms = field(&EvalResult::tip_rms_um), max = field(&EvalResult::tip_max_um),
+               det = field(&EvalResult::ms_detect);
+  for (double EvalResult::*f :
+       {&EvalResult::tip_rms_um, &EvalResult::tip_max_um, &EvalResult::tip_eye_rms_um, &EvalResult::tip_eye_max_um,
+        &EvalResult::eye_err_deg, &EvalResult::eye_err_max_deg, &EvalResult::detect_rate, &EvalResult::track_rate,
+        &EvalResult::ms_detect, &EvalResult::ms_reconstruct, &EvalResult::ms_render, &EvalResult::full_frame_rate}) {
+    row->r.*f = field(f).median;
+  }
+  row->tip_rms_min = rms.min;
+  row->tip_rms_max = rms.max;
+  row->tip_max_min = max.min;
+  row->tip_max_max = max.max;
+  row->ms_detect_min = det.min;
+  row->ms_detect_max = det.max;
+  row->tip_rms_each.clear();
+  for (const EvalResult& r : results) row->tip_rms_each.push_back(r.tip_rms_um);
+}
+
+// --- The estimated rig (issue 19) ---
+// calibrate_rig --synthetic's procedure (the same poses, target and calibration.h calls) with a realistic sensor on
+// the chessboard images: the optics' point spread (Gaussian, sigma kCalibBlurPx) and the marker renderer's noise
+// model (Gaussian read noise kCalibReadNoiseDn DN + shot noise of variance kCalibShotGain per DN of signal), seeded.
+constexpr double kCalibBlurPx = 0.7, kCalibReadNoiseDn = 2.0, kCalibShotGain = 0.05;
+constexpr int kCalibViews = 15;
+
+void addSensorNoise(cv::Mat* bgr, std::mt19937* rng) {
+  cv::GaussianBlur(*bgr, *bgr, cv::Size(0, 0), kCalibBlurPx);
+  std::normal_distribution<double> n01(0.0, 1.0);
+  for (int y = 0; y < bgr->rows; ++y) {
+    auto* p = bgr->ptr<cv::Vec3b>(y);
+    for (int x = 0; x < bgr->cols; ++x) {
+      for (int ch = 0; ch < 3; ++ch) {
+        const double v = p[x][ch];
+        const double sigma = std::sqrt(kCalibReadNoiseDn * kCalibReadNoiseDn + kCalibShotGain * v);
+        p[x][ch] = cv::saturate_cast<uchar>(v + sigma * n01(*rng));
+      }
+    }
+  }
+}
+
+struct EstimatedRig {
+  bool ok = false;
+  unsigned seed = 0;
+  CameraRig rig;
+  std::vector<CameraCalibrationResult> cameras;
+  std::vector<CalibrationError> errors;
+  std::vector<double> corner_err_px;  // per camera: RMS of the detected reference corners against the truth
+  double reproj_rms_px = 0;           // mean over cameras of the intrinsic (Zhang) reprojection RMS
+};
+
+EstimatedRig estimateRig(const CameraRig& truth, unsigned seed) {
+  EstimatedRig out;
+  out.seed = seed;
+  const ChessboardTarget target;
+  const Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+  const Eigen::Isometry3d fixture = fixturePose(target, centre);
+  std::mt19937 rng(seed);
+  out.ok = true;
+  for (std::size_t c = 0; c < truth.size(); ++c) {
+    const CameraModel& cam = truth.cameras[c];
+    std::vector<cv::Mat> views;
+    for (const Eigen::Isometry3d& pose : calibrationPoses(cam, target, centre, kCalibViews, seed + 101 * c)) {
+      cv::Mat image;
+      renderTarget(cam, pose, target, &image, 3);
+      addSensorNoise(&image, &rng);
+      views.push_back(image);
+    }
+    cv::Mat reference;
+    renderTarget(cam, fixture, target, &reference, 4);
+    addSensorNoise(&reference, &rng);
+    const CameraCalibrationResult r = calibrateCamera(cam.name, views, reference, target, fixture);
+    out.cameras.push_back(r);
+    if (!r.ok) {
+      std::fprintf(stderr, "bench_tracking: calibration seed %u: %s\n", seed, r.error.c_str());
+      out.ok = false;
+      continue;
+    }
+    out.rig.cameras.push_back(r.camera);
+    out.errors.push_back(compareCameras(r.camera, cam));
+    out.reproj_rms_px += r.intrinsic_rms_px / truth.size();
+    std::vector<cv::Point2f> corners;
+    double sum = 0;
+    int count = 0;
+    if (detectTarget(reference, target, &corners)) {
+      const std::vector<cv::Point3f> object = target.objectPoints();
+      for (std::size_t i = 0; i < corners.size(); ++i) {
+        Eigen::Vector2d px;
+        cam.project(fixture * Eigen::Vector3d(object[i].x, object[i].y, object[i].z), &px);
+        sum += std::pow(corners[i].x - px.x(), 2) + std::pow(corners[i].y - px.y(), 2);
+        ++count;
+      }
+    }
+    out.corner_err_px.push_back(count ? std::sqrt(sum / count) : std::nan(""));
+  }
+  return out;
+}
 
 std::string num(double v) {
   char buf[64];
@@ -71,11 +211,27 @@ std::string toJson(const Row& row) {
     << ", \"crlb_um\": " << (row.has_floor ? num(row.crlb_um) : "null")
     << ", \"ratio_to_floor\": " << (row.has_floor && row.floor_um > 0 ? num(row.r.tip_rms_um / row.floor_um) : "null")
     << ", \"tip_eye_rms_um\": " << num(row.r.tip_eye_rms_um) << ", \"eye_err_deg\": " << num(row.r.eye_err_deg)
-    << ", \"eye_err_max_deg\": " << num(row.r.eye_err_max_deg) << ", \"detect_rate\": " << num(row.r.detect_rate)
+    << ", \"eye_err_max_deg\": " << num(row.r.eye_err_max_deg)
+    // Centroid path: the centroids are given, not detected (every visible marker counts as found by construction).
+    << ", \"detect_rate\": " << (row.source == "centroid_noise" ? "null" : num(row.r.detect_rate))
     << ", \"track_rate\": " << num(row.r.track_rate) << ", \"ms_detect\": " << num(row.r.ms_detect)
     << ", \"ms_reconstruct\": " << num(row.r.ms_reconstruct) << ", \"full_frame_rate\": " << num(row.r.full_frame_rate)
     << ", \"frames\": " << row.r.frames << ", \"filter\": \"" << toString(row.filter.type) << "\""
-    << ", \"filter_lag_ms\": " << num(row.filter_lag_ms);
+    << ", \"filter_lag_ms\": " << num(row.filter_lag_ms) << ", \"calibration\": \""
+    << (row.estimated ? "estimated" : "true") << "\", \"repetitions\": " << row.repetitions
+    << ", \"tip_rms_um_min\": " << num(row.tip_rms_min) << ", \"tip_rms_um_max\": " << num(row.tip_rms_max)
+    << ", \"tip_max_um_min\": " << num(row.tip_max_min) << ", \"tip_max_um_max\": " << num(row.tip_max_max)
+    << ", \"ms_detect_min\": " << (row.source == "centroid_noise" ? "null" : num(row.ms_detect_min))
+    << ", \"ms_detect_max\": " << (row.source == "centroid_noise" ? "null" : num(row.ms_detect_max));
+  if (row.has_floor && row.floor_um > 0) {
+    o << ", \"ratio_to_floor_min\": " << num(row.ratio_min) << ", \"ratio_to_floor_max\": " << num(row.ratio_max);
+  }
+  if (row.estimated) {
+    o << ", \"calibration_seeds\": [";
+    for (std::size_t i = 0; i < row.calibration_seeds.size(); ++i) o << (i ? ", " : "") << row.calibration_seeds[i];
+    o << "], \"calib_reproj_rms_px\": " << num(row.reproj_rms) << ", \"calib_reproj_rms_px_min\": "
+      << num(row.reproj_rms_min) << ", \"calib_reproj_rms_px_max\": " << num(row.reproj_rms_max);
+  }
   if (row.source == "rendered") {
     o << ", \"read_noise_dn\": " << num(row.render.read_noise) << ", \"blur_px\": " << num(row.render.blur_px)
       << ", \"exposure\": " << num(row.render.exposure) << ", \"distractors\": " << row.render.distractors
@@ -86,7 +242,12 @@ std::string toJson(const Row& row) {
       o << ", \"eye_speed_min_rad_s\": " << num(row.eye_speed_min)
         << ", \"eye_speed_max_rad_s\": " << num(row.eye_speed_max)
         << ", \"tip_eye_max_um\": " << num(row.r.tip_eye_max_um) << ", \"ratio_to_three_cameras\": "
-        << (row.ratio_to_three_cameras > 0 ? num(row.ratio_to_three_cameras) : "null")
+        << (row.ratio_to_three_cameras > 0 ? num(row.ratio_to_three_cameras) : "null");
+      if (row.ratio_to_three_cameras > 0) {
+        o << ", \"ratio_to_three_cameras_min\": " << num(row.ratio_min)
+          << ", \"ratio_to_three_cameras_max\": " << num(row.ratio_max);
+      }
+      o
         << ", \"camera_skew_ms\": " << num(row.camera_skew_ms);
     }
   }
@@ -122,7 +283,30 @@ int main(int argc, char** argv) {
   const int frames_rendered = quick ? 5 : 300;
   const int frames_fast = quick ? 25 : 500;  // 10 s: 6.5 eye cycles, 50 sweep legs
   const int floor_trials = quick ? 20 : 200;
+  const int repetitions = quick ? 2 : 5;  // of the headline rows (issue 19: >= 5 in the full run)
   std::vector<Row> rows;
+
+  // (4, first half) The estimated rigs: one calibration per repetition, seeds kCalibrationSeed + k.
+  constexpr unsigned kCalibrationSeed = 1900;
+  std::vector<EstimatedRig> estimated;
+  for (int k = 0; k < repetitions; ++k) {
+    estimated.push_back(estimateRig(rig, kCalibrationSeed + k));
+    if (!estimated.back().ok) return 1;
+  }
+  std::vector<unsigned> calibration_seeds;
+  std::vector<double> reproj;
+  for (const EstimatedRig& e : estimated) {
+    calibration_seeds.push_back(e.seed);
+    reproj.push_back(e.reproj_rms_px);
+  }
+  const Spread reproj_spread = spreadOf(reproj);
+  auto markEstimated = [&](Row* row) {
+    row->estimated = true;
+    row->calibration_seeds = calibration_seeds;
+    row->reproj_rms = reproj_spread.median;
+    row->reproj_rms_min = reproj_spread.min;
+    row->reproj_rms_max = reproj_spread.max;
+  };
 
   auto wanted = [&only](const std::string& label) { return only.empty() || label.find(only) != std::string::npos; };
   // (1) Centroid noise: the FPGA path. Tips move at 10 mm/s (positions only; no images).
@@ -141,23 +325,36 @@ int main(int argc, char** argv) {
     for (std::size_t i = 0; i < tip_points.size(); i += quick ? 10 : 20) floor_points.push_back(tip_points[i]);
     for (int occluded : {0, 1}) {
       for (double noise : {0.0, 0.1, 0.3, 1.0}) {
-        Row row;
-        row.source = "centroid_noise";
-        row.label = occluded ? "2 cameras (camera_2 occluded)" : "3 cameras";
-        row.noise_px = noise;
-        row.occluded_cams = occluded;
-        row.speed_mm_s = 10.0;
-        EvalOptions opt;
-        opt.noise_px = noise;
-        opt.occluded_camera = occluded ? 2 : -1;
-        opt.seed = 11;
-        opt.clock = now;
-        row.r = evaluate(rig, layout, truth, times, opt);
-        row.has_floor = true;
-        const std::vector<std::size_t> cams =
-            occluded ? std::vector<std::size_t>{0, 1} : std::vector<std::size_t>{0, 1, 2};
-        row.floor_um = noise > 0 ? idealFloorUm(rig, floor_points, noise, cams, floor_trials, 99, &row.crlb_um) : 0.0;
-        rows.push_back(row);
+        for (bool est : {false, true}) {
+          // Estimated rig: the calibration error alone (0 px) and with the FPGA-like centroid noise (0.3 px).
+          if (est && (occluded || (noise != 0.0 && noise != 0.3))) continue;
+          Row row;
+          row.source = "centroid_noise";
+          row.label = occluded ? "2 cameras (camera_2 occluded)" : "3 cameras";
+          row.noise_px = noise;
+          row.occluded_cams = occluded;
+          row.speed_mm_s = 10.0;
+          repeatInto(&row, repetitions, [&](int k) {
+            EvalOptions opt;
+            opt.noise_px = noise;
+            opt.occluded_camera = occluded ? 2 : -1;
+            opt.seed = 11 + k;
+            opt.clock = now;
+            if (est) opt.tracker_rig = &estimated[k].rig;
+            return evaluate(rig, layout, truth, times, opt);
+          });
+          if (est) markEstimated(&row);
+          row.has_floor = true;
+          const std::vector<std::size_t> cams =
+              occluded ? std::vector<std::size_t>{0, 1} : std::vector<std::size_t>{0, 1, 2};
+          row.floor_um =
+              noise > 0 ? idealFloorUm(rig, floor_points, noise, cams, floor_trials, 99, &row.crlb_um) : 0.0;
+          if (row.floor_um > 0) {
+            row.ratio_min = row.tip_rms_min / row.floor_um;
+            row.ratio_max = row.tip_rms_max / row.floor_um;
+          }
+          rows.push_back(row);
+        }
       }
     }
   }
@@ -182,12 +379,14 @@ int main(int argc, char** argv) {
         row.speed_mm_s = still ? 0.0 : 10.0;
         row.filter = filter;
         row.filter_lag_ms = filter.type == FilterType::kNone ? 0.0 : 1e3 * measureRampLag(filter, 0.010, 50.0);
-        EvalOptions opt;
-        opt.noise_px = 0.3;
-        opt.seed = 13;
-        opt.clock = now;
-        opt.tracker.filter = filter;
-        row.r = evaluate(rig, layout, still ? resting : moving, times, opt);
+        repeatInto(&row, repetitions, [&](int k) {
+          EvalOptions opt;
+          opt.noise_px = 0.3;
+          opt.seed = 13 + k;
+          opt.clock = now;
+          opt.tracker.filter = filter;
+          return evaluate(rig, layout, still ? resting : moving, times, opt);
+        });
         rows.push_back(row);
       }
     }
@@ -247,8 +446,18 @@ int main(int argc, char** argv) {
   cases.push_back({"10 mm/s, filter alpha_beta", 10.0, 0, base, 0.4, true, 1.0, filters[2]});
   if (!quick) cases.push_back({"1280x960", 10.0, 0, base, 0.4, true, 2.0});
 
+  // Headline rows (BENCHMARKS.md's targets): repeated, and again with the estimated rig; the others once.
+  auto headline = [](const std::string& label) {
+    return label == "10 mm/s" || label == "50 mm/s" || label == "one camera occluded" ||
+           label == "12 distractor blobs" || label == "full-frame detection (no ROI)";
+  };
+  auto estimatedToo = [](const std::string& label) {
+    return label == "10 mm/s" || label == "50 mm/s" || label == "one camera occluded";
+  };
   for (const Case& c : cases) {
     if (!wanted(c.label)) continue;
+   for (bool est : {false, true}) {
+    if (est && !estimatedToo(c.label)) continue;
     MarkerLayout l = layout;
     l.tip_marker_radius = c.tip_marker_mm * 1e-3;
     DefaultRigGeometry g;
@@ -281,9 +490,16 @@ int main(int argc, char** argv) {
     opt.tracker.clean_quality_ratio = c.clean_quality_ratio;
     row.filter = c.filter;
     row.filter_lag_ms = c.filter.type == FilterType::kNone ? 0.0 : 1e3 * measureRampLag(c.filter, 0.010, 50.0);
-    row.r = evaluate(r, l, truth, times, opt);
+    repeatInto(&row, headline(c.label) ? repetitions : 1, [&](int k) {
+      EvalOptions o = opt;
+      o.seed = opt.seed + k;
+      if (est) o.tracker_rig = &estimated[k].rig;
+      return evaluate(r, l, truth, times, o);
+    });
+    if (est) markEstimated(&row);
     row.occluded_camera = opt.occluded_camera;
     rows.push_back(row);
+   }
   }
 
   // (3) The hard case: fast eye, fast tips, tips at the back of the eye, with all cameras and with each one occluded
@@ -299,8 +515,10 @@ int main(int argc, char** argv) {
       speed_max = std::max(speed_max, eyeAngularSpeed(truth, t));
     }
     const std::string name = "fast eye " + num(std::round(100 * speed_min) / 100) + " rad/s, tips 50 mm/s at pole";
-    double three_cam_rms = 0.0;
-    for (int occluded : {-1, 0, 1, 2}) {
+    std::vector<double> three_cam_rms;
+    for (int occluded : {-1, -2, 0, 1, 2}) {  // -2: three cameras, the estimated rig
+      const bool est = occluded == -2;
+      if (est) occluded = -1;
       Row row;
       row.source = "rendered";
       row.label = occluded < 0 ? name + ", 3 cameras" : name + ", camera_" + std::to_string(occluded) + " occluded";
@@ -316,9 +534,23 @@ int main(int argc, char** argv) {
       opt.occluded_camera = occluded;
       opt.seed = 23;
       opt.clock = now;
-      row.r = evaluate(rig, layout, truth, times, opt);
-      if (occluded < 0) three_cam_rms = row.r.tip_rms_um;
-      if (occluded >= 0 && three_cam_rms > 0) row.ratio_to_three_cameras = row.r.tip_rms_um / three_cam_rms;
+      repeatInto(&row, repetitions, [&](int k) {
+        EvalOptions o = opt;
+        o.seed = opt.seed + k;
+        if (est) o.tracker_rig = &estimated[k].rig;
+        return evaluate(rig, layout, truth, times, o);
+      });
+      if (est) markEstimated(&row);
+      if (occluded < 0 && !est) three_cam_rms = row.tip_rms_each;
+      if (occluded >= 0 && three_cam_rms.size() == row.tip_rms_each.size()) {
+        // Per repetition (the same seed and frames in both rows), then the median and spread of the ratios.
+        std::vector<double> ratios;
+        for (std::size_t k = 0; k < three_cam_rms.size(); ++k) ratios.push_back(row.tip_rms_each[k] / three_cam_rms[k]);
+        const Spread sp = spreadOf(ratios);
+        row.ratio_to_three_cameras = sp.median;
+        row.ratio_min = sp.min;
+        row.ratio_max = sp.max;
+      }
       rows.push_back(row);
     }
     // Sensitivity, not a target: the rig twin exposes all cameras at one stamp, as EyeSi's synchronised cameras do.
@@ -338,16 +570,31 @@ int main(int argc, char** argv) {
       opt.camera_time_offset = {0.0, skew, 0.0};
       opt.seed = 23;
       opt.clock = now;
-      row.r = evaluate(rig, layout, truth, times, opt);
+      repeatInto(&row, 1, [&](int) { return evaluate(rig, layout, truth, times, opt); });
       rows.push_back(row);
     }
   }
 
-  std::printf("%-15s %-52s %5s %4s %5s %9s %9s %9s %9s %7s %8s %7s %8s %8s\n", "source", "case", "noise", "occ", "mm/s",
-              "tip_rms", "tip_max", "eye_frm", "floor", "ratio", "eye_deg", "detect", "ms_det", "ms_rec");
+  std::printf("calibration (estimated rig; blur %.1f px, read noise %.1f DN, shot gain %.2f, %d views + fixture):\n",
+              kCalibBlurPx, kCalibReadNoiseDn, kCalibShotGain, kCalibViews);
+  for (const EstimatedRig& e : estimated) {
+    std::printf("  seed %u:", e.seed);
+    for (std::size_t c = 0; c < e.cameras.size(); ++c) {
+      std::printf("  %s rms %.3f/%.3f px corner err %.3f px focal %.3f%% pos %.3f mm rot %.3f deg",
+                  e.cameras[c].camera.name.c_str(), e.cameras[c].intrinsic_rms_px, e.cameras[c].extrinsic_rms_px,
+                  e.corner_err_px[c], e.errors[c].focal_percent, 1e3 * e.errors[c].position_m, e.errors[c].rotation_deg);
+    }
+    std::printf("\n");
+  }
+  std::printf("%-15s %-52s %-4s %5s %4s %5s %9s %-17s %9s %9s %9s %7s %8s %7s %8s %8s\n", "source", "case", "cal",
+              "noise", "occ", "mm/s", "tip_rms", "[min, max]", "tip_max", "eye_frm", "floor", "ratio", "eye_deg", "detect",
+              "ms_det", "ms_rec");
   for (const Row& row : rows) {
-    std::printf("%-15s %-52s %5.2f %4d %5.0f %9.2f %9.2f %9.2f %9s %7s %8.4f %7.3f %8.3f %8.3f\n", row.source.c_str(),
-                row.label.c_str(), row.noise_px, row.occluded_cams, row.speed_mm_s, row.r.tip_rms_um, row.r.tip_max_um,
+    char range[64];
+    std::snprintf(range, sizeof(range), "[%.2f, %.2f]", row.tip_rms_min, row.tip_rms_max);
+    std::printf("%-15s %-52s %-4s %5.2f %4d %5.0f %9.2f %-17s %9.2f %9.2f %9s %7s %8.4f %7.3f %8.3f %8.3f\n",
+                row.source.c_str(), row.label.c_str(), row.estimated ? "est" : "true", row.noise_px,
+                row.occluded_cams, row.speed_mm_s, row.r.tip_rms_um, range, row.r.tip_max_um,
                 row.r.tip_eye_rms_um, row.has_floor ? num(row.floor_um).c_str() : "-",
                 row.has_floor && row.floor_um > 0 ? num(row.r.tip_rms_um / row.floor_um).c_str() : "-",
                 row.r.eye_err_deg, row.r.detect_rate, row.r.ms_detect, row.r.ms_reconstruct);
@@ -362,7 +609,29 @@ int main(int argc, char** argv) {
   file << "{\"suite\": \"tracking\", \"command\": \"" << command << "\", \"quick\": " << (quick ? "true" : "false")
        << ",\n \"rig\": {\"cameras\": 3, \"width\": 640, \"height\": 480, \"distance_mm\": 100, \"tilt_deg\": 40, "
        << "\"azimuths_deg\": [90, 210, 330], \"focal_px\": " << num(cam.K(0, 0))
-       << ", \"um_per_px_at_centre\": " << num(cam.metresPerPixel(0.1) * 1e6) << "},\n \"rows\": [\n";
+       << ", \"um_per_px_at_centre\": " << num(cam.metresPerPixel(0.1) * 1e6) << "},\n";
+  // The estimated rigs (issue 19): how they were made and how far they are from the truth.
+  file << " \"calibration\": {\"method\": \"calibrate_rig procedure (calibration.h calibrateCamera: Zhang via OpenCV "
+       << "calibrateCamera; extrinsics from one fixture view)\", \"target\": \"chessboard 9x6 inner corners, 2.5 mm\", "
+       << "\"views_per_camera\": " << kCalibViews << ", \"image_noise\": {\"blur_sigma_px\": " << num(kCalibBlurPx)
+       << ", \"read_noise_dn\": " << num(kCalibReadNoiseDn) << ", \"shot_gain\": " << num(kCalibShotGain)
+       << "}, \"repetitions\": [";
+  for (std::size_t k = 0; k < estimated.size(); ++k) {
+    const EstimatedRig& e = estimated[k];
+    file << (k ? ",\n   " : "\n   ") << "{\"seed\": " << e.seed << ", \"reproj_rms_px\": " << num(e.reproj_rms_px)
+         << ", \"cameras\": [";
+    for (std::size_t c = 0; c < e.cameras.size(); ++c) {
+      file << (c ? ", " : "") << "{\"name\": \"" << e.cameras[c].camera.name
+           << "\", \"intrinsic_rms_px\": " << num(e.cameras[c].intrinsic_rms_px)
+           << ", \"extrinsic_rms_px\": " << num(e.cameras[c].extrinsic_rms_px)
+           << ", \"corner_err_px\": " << num(e.corner_err_px[c])
+           << ", \"focal_err_percent\": " << num(e.errors[c].focal_percent)
+           << ", \"position_err_mm\": " << num(1e3 * e.errors[c].position_m)
+           << ", \"rotation_err_deg\": " << num(e.errors[c].rotation_deg) << "}";
+    }
+    file << "]}";
+  }
+  file << "]},\n \"rows\": [\n";
   for (std::size_t i = 0; i < rows.size(); ++i) file << "  " << toJson(rows[i]) << (i + 1 < rows.size() ? ",\n" : "\n");
   file << " ]}\n";
   std::printf("wrote %s\n", out.c_str());

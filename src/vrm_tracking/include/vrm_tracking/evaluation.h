@@ -31,6 +31,9 @@ struct EvalOptions {
   // t (an unsynchronised rig); missing entries are 0. The accuracy is still judged against the truth at t.
   std::vector<double> camera_time_offset;
   std::function<double()> clock;  // seconds, monotonic; empty: no timing
+  // The rig the tracker reconstructs with (e.g. one estimated by calibrate_rig, calibration.h); null: the rig the
+  // images or centroids come from (a perfectly calibrated tracker). Not owned; must outlive evaluate().
+  const CameraRig* tracker_rig = nullptr;
 };
 
 struct EvalResult {

@@ -87,7 +87,7 @@ EvalResult evaluate(const CameraRig& rig, const MarkerLayout& layout,
   const MarkerDetector detector(layout.classes);
   std::vector<RoiTracker> roi;
   for (std::size_t c = 0; c < rig.size(); ++c) roi.emplace_back(&detector, options.roi);
-  PoseTracker tracker(rig, layout, options.tracker);
+  PoseTracker tracker(options.tracker_rig ? *options.tracker_rig : rig, layout, options.tracker);
 
   double tip2 = 0.0, tip_eye2 = 0.0, eye2 = 0.0, t_detect = 0.0, t_rec = 0.0, t_render = 0.0;
   long tips = 0, tips_valid = 0, visible = 0, detected = 0, camera_frames = 0, full_frames = 0;
