@@ -142,10 +142,11 @@ if [[ -z $named ]]; then pass "no installed text file names $ROOT"; else fail "i
 # --- 2. tissue_offline: the same state hash as the devel space -------------------------------------------------------
 hash_of() { /usr/bin/python3 -c 'import json,sys; print(json.loads(sys.argv[1].strip().splitlines()[-1])["final_state_hash"])' "$1"; }
 devel_json=$(env -i HOME="$TMP/home" PATH=/usr/bin:/bin ROS_HOME="$TMP/home/.ros" bash --noprofile --norc -c \
-  "set +u; source '$BUILD/devel/setup.bash'; rosrun vrm_sim tissue_offline --scene membrane_peeling --seconds 0.2")
+  "set +u; source '$BUILD/devel/setup.bash'; rosrun vrm_sim tissue_offline --scene membrane_peeling --seconds 0.2") \
+  || fail "devel space's tissue_offline failed"
 installed_json=$(traced tissue_offline rosrun vrm_sim tissue_offline --scene membrane_peeling --seconds 0.2) \
   || fail "installed tissue_offline failed"
-devel_hash=$(hash_of "$devel_json")
+devel_hash=$(hash_of "$devel_json" 2>/dev/null || echo "none (devel)")
 installed_hash=$(hash_of "$installed_json" 2>/dev/null || echo none)
 if [[ $installed_hash == "$devel_hash" ]]; then
   pass "tissue_offline --scene membrane_peeling --seconds 0.2: state hash $installed_hash = devel space"
