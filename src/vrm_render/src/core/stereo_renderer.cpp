@@ -1005,8 +1005,7 @@ void StereoRenderer::render(StereoFrame* frame) {
       glUniform1f(p["u_light_intensity"], light_.intensity);
       glUniform1f(p["u_light_range"], light_.range);
       glUniform1f(p["u_shadow_bias"], 2e-5f);
-      // On the fundus texture the relief is subtler: the texture carries the detail, the bump only its sheen.
-      glUniform1f(p["u_bump_amplitude"], fundus ? 0.5e-5f : 1.4e-5f);
+      glUniform1f(p["u_bump_amplitude"], 1.4e-5f);
       glUniform3fv(p["u_blood"], 1, options_.blood_colour.data());
       glUniform1i(p["u_shadow_map"], 0);
       glUniform1f(p["u_near"], cam.near_plane);
@@ -1048,7 +1047,9 @@ void StereoRenderer::render(StereoFrame* frame) {
     auto draw = [&](const Object& object, float alpha_scale, bool opaque) {
       timings.triangles_drawn += object.triangle_count;
       const bool fundus = fundus_in_view && object.style.fundus;
-      const bool bump = object.style.bump_mapped;
+      // The fundus texture replaces the procedural relief (its plane waves were the "wavy bump pattern" of the
+      // uniform retina, issue 16): the lit fundus pixels save the seven sines of bumpGradient.
+      const bool bump = object.style.bump_mapped && !fundus;
       if (options_.lighting && isMetal(object.style)) {
         // Instruments: few pixels, lit everywhere (the mirrored environment and the coaxial highlight are not
         // bounded by the spotlight's cone).
