@@ -4,7 +4,15 @@
 // 300² (GL also as *_gl_cpumask: without the GPU-side reductions of §4.2.5, footprint read back and mask made on the
 // CPU); FCL (AABB, OBBRSS, kIOS) build and refit + collide with full contacts; the exact primitives. Also the cone test
 // of §4.2.6 (measured full-detection depth next to the prediction), and the severity independence of ZCOLL/F-CPU at
-// 100² as light/heavy over 5 repetitions in one run (issue 15). Usage: bench_collision [--quick] [--out FILE]
+// 100² as light/heavy over 5 repetitions in one run (issue 15).
+// Issue 19: every method is also scored against one definition of contact that does not depend on how a method
+// counts: the membrane vertices inside the instrument solid (exact point-in-solid test on the primitives) and, per
+// vertex, the exact penetration depth along the instrument axis (the displacement along +z that takes the vertex out
+// of the solid, which is what the deformation vectors of ZCOLL/F and the primitives resolve). Each method's vertex set
+// is the vertices it moves (image space, primitives) or the vertices of the triangles it reports (FCL). The 1-ring
+// measure (deform_err_um: ZCOLL/F's own definition, §4.2.2) is kept beside it. Every row's time is the median of 5
+// repetition medians with their min/max; the headline figures come from an interleaved block of 5 repetitions.
+// Usage: bench_collision [--quick] [--out FILE]
 #include <algorithm>
 #include <array>
 #include <chrono>
@@ -39,7 +47,106 @@ struct Row {
   double pixel_um = 0;
   int iterations = 0;
   double extra_depth_um = -1, extra_predicted_um = -1;
+  double ms_min = 0, ms_max = 0;  // spread of the repetition medians of ms_total
+  int repetitions = 0;
+  // Against the exact vertex reference (issue 19); verts_exact < 0: not scored.
+  int verts_exact = -1, verts_found = 0, verts_hit = 0, tris_crossing_exact = -1;
+  double depth_err_um = -1;  // < 0: null (the method gives no depths)
 };
+
+// The exact vertex reference: per membrane vertex the penetration depth along the instrument axis (0 outside), and
+// the exact number of surface-crossing triangles (what FCL's mesh-mesh test counts).
+struct VertexReference {
+  std::vector<double> depth;
+  int inside = 0;
+  int crossing_triangles = 0;
+};
+
+// Depth along z out of a union of convex solids: the upper end of the connected run of line intervals holding t = 0.
+double axialDepth(const std::vector<Primitive>& solids, const Vector3d& point, const Vector3d& z) {
+  bool inside = false;
+  for (const Primitive& p : solids) inside = inside || signedDistance(p, point) < 0.0;
+  if (!inside) return 0.0;
+  std::vector<Eigen::Vector2d> intervals;
+  for (const Primitive& p : solids) {
+    if (auto interval = lineInterval(p, point, z)) intervals.push_back(*interval);
+  }
+  double hi = 0.0;
+  for (bool grew = true; grew;) {
+    grew = false;
+    for (const Eigen::Vector2d& iv : intervals) {
+      if (iv[0] <= hi + 1e-12 && iv[1] > hi) {
+        hi = iv[1];
+        grew = true;
+      }
+    }
+  }
+  return hi;
+}
+
+VertexReference vertexReference(const InstrumentModel& instrument, const Eigen::Isometry3d& pose,
+                                const std::vector<Vector3d>& positions, const TriangleMesh& mesh) {
+  std::vector<Primitive> solids;
+  for (const Primitive& p : instrument.primitives) solids.push_back(transformed(p, pose));
+  const Vector3d z = pose.linear() * Vector3d::UnitZ();
+  VertexReference ref;
+  ref.depth.assign(positions.size(), 0.0);
+  for (std::size_t v = 0; v < positions.size(); ++v) {
+    ref.depth[v] = axialDepth(solids, positions[v], z);
+    ref.inside += ref.depth[v] > 0.0;
+  }
+  // Crossing: overlaps the solid but is not entirely inside it (sampled densely, 91 points per triangle).
+  const int n = 12;
+  for (const auto& tri : mesh.triangles) {
+    const Vector3d &a = positions[tri[0]], &b = positions[tri[1]], &c = positions[tri[2]];
+    bool overlapping = false;
+    for (const Primitive& p : solids) overlapping = overlapping || overlapsTriangle(p, a, b, c);
+    if (!overlapping) continue;
+    bool all_inside = true;
+    for (int i = 0; i <= n && all_inside; ++i) {
+      for (int j = 0; i + j <= n && all_inside; ++j) {
+        const Vector3d q = a + (b - a) * i / n + (c - a) * j / n;
+        bool in = false;
+        for (const Primitive& p : solids) in = in || signedDistance(p, q) < 0.0;
+        all_inside = in;
+      }
+    }
+    ref.crossing_triangles += !all_inside;
+  }
+  return ref;
+}
+
+// Scores a result against the reference. with_depths: the method's displacement per vertex is compared with the
+// exact depth (RMS over the vertices that are inside or that the method moves); FCL gives none.
+void scoreVertices(Row* row, const CollisionResult& r, const VertexReference& ref, const TriangleMesh& mesh,
+                   bool with_depths) {
+  std::vector<double> moved(ref.depth.size(), -1.0);  // < 0: not found
+  if (with_depths) {
+    for (std::size_t i = 0; i < r.nodes.size(); ++i) {
+      if (r.deformations[i].norm() > 0.0) moved[r.nodes[i]] = r.deformations[i].norm();
+    }
+  } else {
+    for (std::uint32_t t : r.triangles) {
+      for (std::uint32_t v : mesh.triangles[t]) moved[v] = 0.0;
+    }
+  }
+  row->verts_exact = ref.inside;
+  row->tris_crossing_exact = ref.crossing_triangles;
+  row->verts_found = row->verts_hit = 0;
+  double sum = 0.0;
+  int count = 0;
+  for (std::size_t v = 0; v < ref.depth.size(); ++v) {
+    const bool found = moved[v] >= 0.0, inside = ref.depth[v] > 0.0;
+    row->verts_found += found;
+    row->verts_hit += found && inside;
+    if (found || inside) {
+      const double d = ref.depth[v] - std::max(0.0, moved[v]);
+      sum += d * d;
+      ++count;
+    }
+  }
+  row->depth_err_um = with_depths ? (count ? std::sqrt(sum / count) * 1e6 : 0.0) : -1.0;
+}
 
 InstrumentModel makeTeapot() {
   // Instrument frame: +z towards the tip; the body's lowest point is the tip (origin).
@@ -149,7 +256,10 @@ double penetrationFor(const InstrumentModel& teapot, const TriangleMesh& membran
   return hi;
 }
 
-// Per-iteration phase times; average() reports medians, robust against the preemptions of a shared machine.
+// Per-iteration phase times; average() reports medians, robust against the preemptions of a shared machine. The
+// iterations are split into kRepetitions consecutive blocks: ms_total is the median of the block medians, ms_min /
+// ms_max their extremes (issue 19: a spread beside every time).
+constexpr int kRepetitions = 5;
 std::map<const Row*, std::vector<PhaseTiming>> samples;
 
 void addTimes(Row& row, const CollisionResult& r) { samples[&row].push_back(r.timing); }
@@ -167,6 +277,19 @@ void average(Row& row, int n) {
   row.ms_raster = median(&PhaseTiming::ms_raster);
   row.ms_readback = median(&PhaseTiming::ms_readback);
   row.ms_analysis = median(&PhaseTiming::ms_analysis);
+  const int blocks = std::max<int>(1, std::min<int>(kRepetitions, static_cast<int>(s.size())));
+  std::vector<double> block_medians;
+  for (int b = 0; b < blocks; ++b) {
+    std::vector<double> v;
+    for (std::size_t i = b * s.size() / blocks; i < (b + 1) * s.size() / blocks; ++i) v.push_back(s[i].ms_total);
+    std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+    block_medians.push_back(v[v.size() / 2]);
+  }
+  std::sort(block_medians.begin(), block_medians.end());
+  row.ms_total = block_medians[block_medians.size() / 2];
+  row.ms_min = block_medians.front();
+  row.ms_max = block_medians.back();
+  row.repetitions = blocks;
   row.iterations = n;
   samples.erase(&row);
 }
@@ -226,6 +349,7 @@ int main(int argc, char** argv) {
     };
     std::map<std::string, int> tris_exact_of;
     std::map<std::string, std::vector<std::vector<double>>> ring_max;
+    std::map<std::string, VertexReference> vertex_ref;  // on state 0, the state the counts are taken on
     for (const auto& [severity, target] : targets) {
       const Eigen::Isometry3d& pose = poses[severity];
       auto exact_detector = makeCollisionDetector("geometric");
@@ -234,6 +358,7 @@ int main(int argc, char** argv) {
       const int tris_exact = static_cast<int>(exact.triangles.size());
       tris_exact_of[severity] = tris_exact;
       for (const auto& s : states) ring_max[severity].push_back(exactRingMax(teapot, pose, s, membrane));
+      vertex_ref[severity] = vertexReference(teapot, pose, states[0], membrane);
 
       // Exact primitives.
       {
@@ -245,6 +370,7 @@ int main(int argc, char** argv) {
         last = exact_detector->collide(pose, view(0));  // counts on the state tris_exact refers to
         row.tris_found = static_cast<int>(last.triangles.size());
         row.tris_exact = tris_exact;
+        scoreVertices(&row, last, vertex_ref[severity], membrane, true);
         rows.push_back(row);
       }
       // FCL: build (a new BVH for the deformed membrane, as RAPID had to) and refit + collide.
@@ -265,6 +391,7 @@ int main(int argc, char** argv) {
           last = fresh->collide(pose, view(0));
           row.tris_found = static_cast<int>(last.triangles.size());
           row.tris_exact = tris_exact;
+          scoreVertices(&row, last, vertex_ref[severity], membrane, false);
           rows.push_back(row);
         }
         {
@@ -280,6 +407,7 @@ int main(int argc, char** argv) {
           last = detector->collide(pose, view(0));
           row.tris_found = static_cast<int>(last.triangles.size());
           row.tris_exact = tris_exact;
+          scoreVertices(&row, last, vertex_ref[severity], membrane, false);
           rows.push_back(row);
         }
       }
@@ -325,6 +453,7 @@ int main(int argc, char** argv) {
           row.tris_exact = tris_exact_of[severity];
           row.deform_err_um = err[severity] / std::min<int>(iterations, states.size());
           row.pixel_um = last[severity].pixel_size * 1e6;
+          scoreVertices(&row, last[severity], vertex_ref[severity], membrane, true);
           rows.push_back(row);
         }
       }
@@ -333,8 +462,10 @@ int main(int argc, char** argv) {
 
   // Severity independence (issue 15): ZCOLL/F-CPU at 100², deformed membrane, light and heavy alternating, repeated
   // kSeverityRepetitions times in this run; each repetition gives the median light and heavy time and their ratio.
-  constexpr int kSeverityRepetitions = 5;
-  std::vector<double> severity_heavy, severity_light, severity_ratio;
+  // Issue 19: FCL (AABB refit + collide, the fastest FCL variant) runs in the same interleaved block, so that the
+  // FCL / ZCOLL/F ratio has a spread from one run too (per repetition: FCL median / ZCOLL/F median, heavy).
+  constexpr int kSeverityRepetitions = kRepetitions;
+  std::vector<double> severity_heavy, severity_light, severity_ratio, fcl_heavy, fcl_light, fcl_over_zf;
   {
     const std::vector<std::vector<Vector3d>> states = {deform(membrane, 0), deform(membrane, 1)};
     CollisionOptions options;
@@ -346,25 +477,35 @@ int main(int argc, char** argv) {
       v.static_geometry = false;
       return v;
     };
+    std::map<std::string, std::unique_ptr<CollisionDetector>> fcl;
     for (const auto& [severity, target] : targets) {
       detectors[severity] = makeCollisionDetector("zcoll_f_cpu", options);
       detectors[severity]->setInstrument(teapot);
       detectors[severity]->collide(poses[severity], view(0));
+      fcl[severity] = makeCollisionDetector("fcl_aabb");
+      fcl[severity]->setInstrument(teapot);
+      fcl[severity]->collide(poses[severity], view(0));  // build once; then refit + collide
     }
     auto median = [](std::vector<double> v) {
       std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
       return v[v.size() / 2];
     };
     for (int repetition = 0; repetition < kSeverityRepetitions; ++repetition) {
-      std::map<std::string, std::vector<double>> ms;
+      std::map<std::string, std::vector<double>> ms, ms_fcl;
       for (int i = 0; i < iterations; ++i) {
         for (const auto& [severity, target] : targets) {
           ms[severity].push_back(detectors[severity]->collide(poses[severity], view(i)).timing.ms_total);
+          if (i % 5 == 0) {  // FCL every 5th query: ~20x slower, it would otherwise dominate the block's time
+            ms_fcl[severity].push_back(fcl[severity]->collide(poses[severity], view(i / 5 + 1)).timing.ms_total);
+          }
         }
       }
       severity_heavy.push_back(median(ms["heavy"]));
       severity_light.push_back(median(ms["light"]));
       severity_ratio.push_back(severity_light.back() / severity_heavy.back());
+      fcl_heavy.push_back(median(ms_fcl["heavy"]));
+      fcl_light.push_back(median(ms_fcl["light"]));
+      fcl_over_zf.push_back(fcl_heavy.back() / severity_heavy.back());
     }
   }
 
@@ -436,14 +577,19 @@ int main(int argc, char** argv) {
   }
 
   // Table.
-  std::printf("%-18s %-7s %4s %-6s %-5s %9s %9s %9s %9s %6s %6s %9s %8s\n", "method", "bv", "res", "sev", "def",
-              "ms_total", "ms_rast", "ms_read", "ms_anal", "found", "exact", "err_um", "px_um");
+  std::printf("%-18s %-7s %4s %-6s %-5s %9s %-17s %9s %9s %9s %6s %6s %5s %9s %8s | %5s %5s %5s %9s\n", "method", "bv",
+              "res", "sev", "def", "ms_total", "[min, max]", "ms_rast", "ms_read", "ms_anal", "found", "exact", "cross",
+              "ring_um", "px_um", "vexct", "vfnd", "vhit", "depth_um");
   for (const Row& r : rows) {
     if (r.scene == "cone_test") continue;
-    std::printf("%-18s %-7s %4s %-6s %-5s %9.4f %9.4f %9.4f %9.4f %6d %6d %9s %8.2f\n", r.method.c_str(), r.bv.c_str(),
-                r.resolution < 0 ? "n/a" : std::to_string(r.resolution).c_str(), r.severity.c_str(),
-                r.deformed ? "yes" : "no", r.ms_total, r.ms_raster, r.ms_readback, r.ms_analysis, r.tris_found,
-                r.tris_exact, r.deform_err_um < 0 ? "null" : jsonNumber(r.deform_err_um).c_str(), r.pixel_um);
+    char range[64];
+    std::snprintf(range, sizeof(range), "[%.4f, %.4f]", r.ms_min, r.ms_max);
+    std::printf("%-18s %-7s %4s %-6s %-5s %9.4f %-17s %9.4f %9.4f %9.4f %6d %6d %5d %9s %8.2f | %5d %5d %5d %9s\n",
+                r.method.c_str(), r.bv.c_str(), r.resolution < 0 ? "n/a" : std::to_string(r.resolution).c_str(),
+                r.severity.c_str(), r.deformed ? "yes" : "no", r.ms_total, range, r.ms_raster, r.ms_readback,
+                r.ms_analysis, r.tris_found, r.tris_exact, r.tris_crossing_exact,
+                r.deform_err_um < 0 ? "null" : jsonNumber(r.deform_err_um).c_str(), r.pixel_um, r.verts_exact,
+                r.verts_found, r.verts_hit, r.depth_err_um < 0 ? "null" : jsonNumber(r.depth_err_um).c_str());
   }
   std::printf("\ncone test (4x4 cones, alpha = 50 deg): full-detection depth vs prediction p / (2 tan 25 deg)\n");
   for (const Row& r : rows) {
@@ -486,12 +632,17 @@ int main(int argc, char** argv) {
     return std::array<double, 3>{v[v.size() / 2], v.front(), v.back()};
   };
   const auto heavy_spread = spread(severity_heavy), light_spread = spread(severity_light),
-             ratio_spread = spread(severity_ratio);
+             ratio_spread = spread(severity_ratio), fcl_heavy_spread = spread(fcl_heavy),
+             fcl_light_spread = spread(fcl_light), fcl_ratio_spread = spread(fcl_over_zf);
   std::printf(
       "zcoll_f_cpu 100x100 deformed, %d repetitions in this run: heavy %.4f ms [%.4f, %.4f], light %.4f ms "
       "[%.4f, %.4f], light/heavy %.3f [%.3f, %.3f] (target >= 0.9)\n",
       kSeverityRepetitions, heavy_spread[0], heavy_spread[1], heavy_spread[2], light_spread[0], light_spread[1],
       light_spread[2], ratio_spread[0], ratio_spread[1], ratio_spread[2]);
+  std::printf("fcl_refit_collide (aabb) in the same block: heavy %.4f ms [%.4f, %.4f], light %.4f ms [%.4f, %.4f]; "
+              "FCL / ZCOLL/F heavy %.1fx [%.1f, %.1f] (target >= 10x)\n",
+              fcl_heavy_spread[0], fcl_heavy_spread[1], fcl_heavy_spread[2], fcl_light_spread[0], fcl_light_spread[1],
+              fcl_light_spread[2], fcl_ratio_spread[0], fcl_ratio_spread[1], fcl_ratio_spread[2]);
 
   std::ofstream out(out_path);
   if (!out) {
@@ -511,7 +662,24 @@ int main(int argc, char** argv) {
   json_spread("heavy_ms", heavy_spread);
   json_spread("light_ms", light_spread);
   json_spread("light_over_heavy", ratio_spread);
-  out << "},\"rows\":[\n";
+  json_spread("fcl_aabb_heavy_ms", fcl_heavy_spread);
+  json_spread("fcl_aabb_light_ms", fcl_light_spread);
+  json_spread("fcl_aabb_over_zcoll_f_heavy", fcl_ratio_spread);
+  out << "},\"definitions\":{"
+      << "\"tris_exact\":\"membrane triangles overlapping the instrument's exact primitives (solid contact)\","
+      << "\"tris_found\":\"triangles the method reports (FCL: triangles crossing the instrument mesh surface)\","
+      << "\"tris_crossing_exact\":\"tris_exact minus those entirely inside the solid (sampled 91 points each): what "
+         "FCL's mesh-mesh test counts\","
+      << "\"verts_exact\":\"membrane vertices inside the instrument solid (exact point-in-solid on the primitives)\","
+      << "\"verts_found\":\"vertices the method moves (image space, primitives) or of the triangles it reports (FCL)\","
+      << "\"verts_hit\":\"verts_found that are in verts_exact\","
+      << "\"depth_err_um\":\"RMS over vertices inside or moved of (exact axial penetration - method's displacement); "
+         "axial penetration = displacement along the instrument axis out of the solid (0 outside); null: no depths\","
+      << "\"deform_err_um\":\"RMS against ZCOLL/F's own definition: per node the maximum exact axial penetration "
+         "over its 1-ring (thesis 4.2.2), mean of the two membrane states\","
+      << "\"ms_total\":\"median of 5 repetition medians (consecutive blocks of the iterations); ms_min/ms_max: their "
+         "extremes\"}"
+      << ",\"rows\":[\n";
   for (std::size_t i = 0; i < rows.size(); ++i) {
     const Row& r = rows[i];
     out << "{\"suite\":\"collision\",\"method\":\"" << r.method << "\",\"bv\":\"" << r.bv
@@ -522,7 +690,14 @@ int main(int argc, char** argv) {
         << ",\"ms_analysis\":" << jsonNumber(r.ms_analysis) << ",\"tris_found\":" << r.tris_found
         << ",\"tris_exact\":" << r.tris_exact
         << ",\"deform_err_um\":" << (r.deform_err_um < 0 ? "null" : jsonNumber(r.deform_err_um))
-        << ",\"pixel_um\":" << jsonNumber(r.pixel_um) << ",\"iterations\":" << r.iterations;
+        << ",\"pixel_um\":" << jsonNumber(r.pixel_um) << ",\"iterations\":" << r.iterations
+        << ",\"ms_min\":" << jsonNumber(r.ms_min) << ",\"ms_max\":" << jsonNumber(r.ms_max)
+        << ",\"repetitions\":" << r.repetitions;
+    if (r.verts_exact >= 0) {
+      out << ",\"verts_exact\":" << r.verts_exact << ",\"verts_found\":" << r.verts_found
+          << ",\"verts_hit\":" << r.verts_hit << ",\"tris_crossing_exact\":" << r.tris_crossing_exact
+          << ",\"depth_err_um\":" << (r.depth_err_um < 0 ? "null" : jsonNumber(r.depth_err_um));
+    }
     if (r.extra_depth_um >= 0) {
       out << ",\"depth_um\":" << jsonNumber(r.extra_depth_um)
           << ",\"predicted_um\":" << jsonNumber(r.extra_predicted_um);

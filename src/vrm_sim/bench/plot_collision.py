@@ -1,7 +1,9 @@
 #!/usr/bin/python3
 """Plots of bench/results/collision.json (benchmark `collision`, thesis §4.2.6-4.2.7):
-  collision_accuracy.png  deformation error and triangle recall vs resolution (image-space methods), and the cone
-                          test's full-detection depth next to the prediction d = p / (2 tan 25°)
+  collision_accuracy.png  deformation error (ZCOLL/F's 1-ring definition), triangle recall, and — against one exact
+                          definition for every method (issue 19) — vertex recall / precision and the per-vertex axial
+                          penetration error vs resolution, FCL and the primitives as horizontal lines; the cone test's
+                          full-detection depth next to the prediction d = p / (2 tan 25°)
   collision_time.png      time per query vs resolution, image-space methods next to FCL and the exact primitives
 Usage: plot_collision.py [collision.json] [output directory]   (defaults: bench/results/collision.json, its folder)"""
 import json
@@ -22,7 +24,7 @@ image_methods = sorted({r["method"] for r in teapot if isinstance(r["resolution"
 styles = {"heavy": "-", "light": "--"}
 colours = {m: plt.cm.tab10(i % 10) for i, m in enumerate(image_methods)}  # one colour per method, style = severity
 
-fig, axes = plt.subplots(1, 3, figsize=(15, 4.5))
+fig, axes = plt.subplots(1, 5, figsize=(25, 4.5))
 for method in image_methods:
     for severity in ("heavy", "light"):
         sel = sorted((r for r in teapot if r["method"] == method and r["severity"] == severity and r["deformed"]),
@@ -37,12 +39,35 @@ for method in image_methods:
 pixel = sorted({(r["resolution"], r["pixel_um"]) for r in teapot if r["method"] == "zcoll_f_cpu"})
 axes[0].plot([p[0] for p in pixel], [p[1] for p in pixel], "k:", label="pixel size")
 axes[0].set(xscale="log", yscale="log", xlabel="resolution r (r x r pixels)", ylabel="RMS deformation error [µm]",
-            title="deformation error vs exact (deformed membrane)")
+            title="vs ZCOLL/F's own definition (1-ring max along the axis)")
 axes[1].set(xscale="log", xlabel="resolution r", ylabel="colliding triangles found / exact",
             title="triangle recall (several triangles per pixel -> one)")
-for ax in axes[:2]:
+# One definition for every method (issue 19): vertices inside the instrument solid, exact axial depth per vertex.
+scored = [r for r in teapot if r["deformed"] and r.get("verts_exact") is not None and r["severity"] == "heavy"]
+for method in image_methods:
+    sel = sorted((r for r in scored if r["method"] == method), key=lambda r: r["resolution"])
+    if not sel:
+        continue
+    res = [r["resolution"] for r in sel]
+    axes[2].plot(res, [r["verts_hit"] / max(1, r["verts_exact"]) for r in sel], "-", marker="o", color=colours[method],
+                 label=f"{method} recall")
+    axes[2].plot(res, [r["verts_hit"] / max(1, r["verts_found"]) for r in sel], ":", marker="x", color=colours[method],
+                 label=f"{method} precision")
+    axes[3].plot(res, [r["depth_err_um"] for r in sel], "-", marker="o", color=colours[method], label=method)
+for r in scored:
+    if isinstance(r["resolution"], int) or r["method"] == "fcl_build":
+        continue
+    label = r["method"] + (f" ({r['bv']})" if r.get("bv") else "")
+    axes[2].axhline(r["verts_hit"] / max(1, r["verts_exact"]), linestyle="--", linewidth=1, color="grey")
+    axes[2].text(30, r["verts_hit"] / max(1, r["verts_exact"]), label + " recall", fontsize=6, va="bottom")
+axes[2].set(xscale="log", xlabel="resolution r", ylabel="fraction",
+            title="vertices inside the solid (exact), heavy: recall / precision")
+axes[3].set(xscale="log", xlabel="resolution r", ylabel="RMS axial penetration error [µm]",
+            title="per-vertex depth vs exact point-in-solid (heavy; FCL: none)")
+for ax in axes[:4]:
     ax.legend(fontsize=7)
     ax.grid(True, which="both", alpha=0.3)
+axes = list(axes[:2]) + [axes[4]]
 if cones:
     r = [c["resolution"] for c in cones]
     axes[2].plot(r, [c["depth_um"] for c in cones], "o-", label="measured (all 16 cones detected)")
