@@ -18,8 +18,12 @@ uniform mat4 u_view_proj;
 uniform mat4 u_light_view_proj;
 uniform vec4 u_diffuse;
 uniform vec3 u_blood;
+uniform float u_focus;
 invariant gl_Position;
 out vec4 v_base;
+// 1 - s / z at the vertex (z = clip w, the distance along the optical axis): affine in screen space, so interpolated
+// without perspective it is exact per pixel — the fragment needs no depth reconstruction for its blur.
+noperspective out float v_defocus;
 #if LIGHTING
 out vec3 v_world;
 out vec3 v_normal;
@@ -67,6 +71,7 @@ void main() {
   v_object_z = a_position.z;
 #endif
   gl_Position = u_view_proj * world;
+  v_defocus = 1.0 - u_focus / gl_Position.w;
 }
 )";
 
@@ -78,6 +83,7 @@ void main() {
 // depth-of-field blend weight of the pixel (0 = on the focal plane .. 1 = fully blurred), read back with the colour.
 inline constexpr const char* kSceneFragment = R"(
 in vec4 v_base;
+noperspective in float v_defocus;
 #if LIGHTING
 in vec3 v_world;
 in vec3 v_normal;
@@ -116,9 +122,6 @@ uniform float u_shadow_bias;
 uniform float u_bump_amplitude;
 uniform float u_alpha_scale;
 uniform float u_coc_alpha;  // 1: opaque, alpha = DOF weight; 0: translucent, alpha = opacity
-uniform float u_near;
-uniform float u_far;
-uniform float u_focus;
 uniform float u_coc_scale;  // blur circle in pixels per unit of |z - focus| / z (MicroscopeRig)
 uniform float u_sheen;
 
@@ -140,9 +143,7 @@ vec3 bumpGradient(vec3 p) {
 // fully blurred image by w = 1 - exp(-2 pi^2 (c/4)^2 / 16), the contrast a Gaussian of the blur disc's width
 // (sigma = c / 4) leaves of a pattern with a 4-pixel period: the mix then has the blur's fine-detail contrast.
 float dofWeight() {
-  float z_ndc = gl_FragCoord.z * 2.0 - 1.0;
-  float z = 2.0 * u_near * u_far / (u_far + u_near - z_ndc * (u_far - u_near));
-  float c = u_coc_scale * abs(z - u_focus) / z;
+  float c = u_coc_scale * v_defocus;  // |z - s| / z = |1 - s / z|; squared below
   return 1.0 - exp(-0.0771 * c * c);
 }
 
