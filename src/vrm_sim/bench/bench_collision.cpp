@@ -51,7 +51,9 @@ struct Row {
   int repetitions = 0;
   // Against the exact vertex reference (issue 19); verts_exact < 0: not scored.
   int verts_exact = -1, verts_found = 0, verts_hit = 0, tris_crossing_exact = -1;
-  double depth_err_um = -1;  // < 0: null (the method gives no depths)
+  double depth_err_um = -1;         // < 0: null (the method gives no depths)
+  double depth_err_inside_um = -1;  // the same RMS over the inside vertices only
+  double depth_exact_rms_um = -1;   // scale: RMS of the exact axial penetration over the inside vertices
 };
 
 // The exact vertex reference: per membrane vertex the penetration depth along the instrument axis (0 outside), and
@@ -133,7 +135,7 @@ void scoreVertices(Row* row, const CollisionResult& r, const VertexReference& re
   row->verts_exact = ref.inside;
   row->tris_crossing_exact = ref.crossing_triangles;
   row->verts_found = row->verts_hit = 0;
-  double sum = 0.0;
+  double sum = 0.0, sum_inside = 0.0, sum_exact = 0.0;
   int count = 0;
   for (std::size_t v = 0; v < ref.depth.size(); ++v) {
     const bool found = moved[v] >= 0.0, inside = ref.depth[v] > 0.0;
@@ -143,9 +145,15 @@ void scoreVertices(Row* row, const CollisionResult& r, const VertexReference& re
       const double d = ref.depth[v] - std::max(0.0, moved[v]);
       sum += d * d;
       ++count;
+      if (inside) {
+        sum_inside += d * d;
+        sum_exact += ref.depth[v] * ref.depth[v];
+      }
     }
   }
   row->depth_err_um = with_depths ? (count ? std::sqrt(sum / count) * 1e6 : 0.0) : -1.0;
+  row->depth_err_inside_um = with_depths && ref.inside ? std::sqrt(sum_inside / ref.inside) * 1e6 : -1.0;
+  row->depth_exact_rms_um = ref.inside ? std::sqrt(sum_exact / ref.inside) * 1e6 : -1.0;
 }
 
 InstrumentModel makeTeapot() {
@@ -675,6 +683,8 @@ int main(int argc, char** argv) {
       << "\"verts_hit\":\"verts_found that are in verts_exact\","
       << "\"depth_err_um\":\"RMS over vertices inside or moved of (exact axial penetration - method's displacement); "
          "axial penetration = displacement along the instrument axis out of the solid (0 outside); null: no depths\","
+      << "\"depth_err_inside_um\":\"the same over the vertices inside only\","
+      << "\"depth_exact_rms_um\":\"RMS exact axial penetration of the inside vertices (the scale of the errors)\","
       << "\"deform_err_um\":\"RMS against ZCOLL/F's own definition: per node the maximum exact axial penetration "
          "over its 1-ring (thesis 4.2.2), mean of the two membrane states\","
       << "\"ms_total\":\"median of 5 repetition medians (consecutive blocks of the iterations); ms_min/ms_max: their "
@@ -696,7 +706,9 @@ int main(int argc, char** argv) {
     if (r.verts_exact >= 0) {
       out << ",\"verts_exact\":" << r.verts_exact << ",\"verts_found\":" << r.verts_found
           << ",\"verts_hit\":" << r.verts_hit << ",\"tris_crossing_exact\":" << r.tris_crossing_exact
-          << ",\"depth_err_um\":" << (r.depth_err_um < 0 ? "null" : jsonNumber(r.depth_err_um));
+          << ",\"depth_err_um\":" << (r.depth_err_um < 0 ? "null" : jsonNumber(r.depth_err_um))
+          << ",\"depth_err_inside_um\":" << (r.depth_err_inside_um < 0 ? "null" : jsonNumber(r.depth_err_inside_um))
+          << ",\"depth_exact_rms_um\":" << jsonNumber(r.depth_exact_rms_um);
     }
     if (r.extra_depth_um >= 0) {
       out << ",\"depth_um\":" << jsonNumber(r.extra_depth_um)
