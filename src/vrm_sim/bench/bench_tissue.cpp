@@ -1,11 +1,20 @@
-// Tissue benchmark (issue 3): speed against error for every integrator × dt × mesh size on a pinned membrane that
-// is grasped in the middle and pulled up (thesis §5: 1,500 springs at 2 ms per step in 2003), error against a
-// converged reference trajectory (RK2 at a tiny dt) of the same scene, plus the hard cases (stable yes/no, max
-// strain, energy, watchdog fallbacks). Prints a table and writes JSON rows.
-// Peer (issue 3): Bullet's btSoftBody on the same mesh, dt and iteration count (10 position iterations), border
-// pinned, the same nodes grasped and pulled — time per step, our/Bullet ratio and the same hard cases. btSoftBody is
-// position-based (link stiffness in [0, 1] per iteration, not N/m), so its positions are not compared with the
-// reference (error null); its rows have peer "bullet".
+// Tissue benchmark (issues 3, 15, 19): speed against error for every integrator × dt × mesh size, and Bullet's
+// btSoftBody on the same meshes, each measured against a reference that none of them produced (issue 19):
+//  - static_sag_*: a pinned membrane settling under gravity, against the Newton static solve of the same spring
+//    network (tissue_reference.h; no time stepping, no integrator);
+//  - grasp_pull_*: grasped at the centre and pulled up, against implicit Euler at a tiny dt with CG to 1e-12 — a
+//    different method from the RK2 reference of earlier sessions, checked against RK2 at the same tiny dt (row
+//    "reference_check").
+// Bullet: same mesh and node order, border pinned, the same grasped nodes moved kinematically; its links are the
+// triangle edges, i.e. our springs one to one, with the springs' rest lengths. Its stiffness is a per-iteration
+// projection factor kLST in [0, 1], not N/m: every Bullet configuration (iterations × dt) is measured at each kLST of
+// kBulletStiffnesses and reported at the one closest to the reference (its best match, in its favour).
+// Headline rows (matched_*): for each Bullet configuration, our fastest configuration whose error rms is no worse,
+// and the ratio of the times per simulated ms; like_for_like_*: XPBD with 10 iterations against Bullet with 10.
+// full_step_*: TissueSimulator::advance with the forceps grasping and a probe pressed into the membrane (contacts per
+// step reported) against Bullet's stepSimulation with the same grasp and a kinematic sphere as the probe.
+// Every timed figure: median over repetitions in one run (ms_per_step), with ms_min/ms_max beside it.
+// Plus the hard cases (stable yes/no, max strain, energy, watchdog fallbacks; their reference stays RK2 at a tiny dt).
 // Usage: bench_tissue [--quick] [--out FILE]
 #include <algorithm>
 #include <chrono>
@@ -13,11 +22,14 @@
 #include <cstdio>
 #include <cstring>
 #include <fstream>
+#include <functional>
+#include <memory>
 #include <sstream>
 #include <string>
 #include <vector>
 
 #include "tissue_bench_scene.h"
+#include "tissue_reference.h"
 #include "vrm_sim/tissue/reference_scenes.h"
 #include "vrm_sim/tissue/tissue_simulator.h"
 
@@ -25,7 +37,10 @@
 #include <BulletCollision/BroadphaseCollision/btDbvtBroadphase.h>
 #include <BulletCollision/CollisionDispatch/btCollisionDispatcher.h>
 #include <BulletDynamics/ConstraintSolver/btSequentialImpulseConstraintSolver.h>
+#include <BulletCollision/CollisionShapes/btSphereShape.h>
+#include <BulletDynamics/Dynamics/btRigidBody.h>
 #include <BulletSoftBody/btSoftBody.h>
+#include <LinearMath/btDefaultMotionState.h>
 #include <BulletSoftBody/btSoftBodyHelpers.h>
 #include <BulletSoftBody/btSoftBodyRigidBodyCollisionConfiguration.h>
 #include <BulletSoftBody/btSoftRigidDynamicsWorld.h>
@@ -63,9 +78,11 @@ TissueConfig sceneConfig(const std::string& integrator, double dt, bool strain_l
 
 struct RunResult {
   std::vector<Eigen::Vector3d> final_positions;
+  std::vector<std::uint32_t> grasped;  // the nodes the forceps held (Bullet grasps the same ones)
   double ms_per_step = 0.0;
   double ms_per_step_median = 0.0;  // median over frames: a typical step, without the rare watchdog rollbacks
   double ms_per_step_max = 0.0;     // the worst frame
+  double contacts = 0.0;            // instrument contacts per step (mean over frames)
   std::string chosen;               // the integrator in use at the end (integrator: auto)
   int steps = 0;
   int iterations = 0;
@@ -77,30 +94,62 @@ struct RunResult {
   std::size_t nodes = 0, springs = 0;
 };
 
-// Grasp the centre, pull up by `lift` over `duration` in 1 ms frames.
-RunResult runGraspPull(const Scene& scene, const TissueConfig& config, double duration, double lift) {
+constexpr double kGravity = 9.81;  // m/s², static sag
+
+// What happens to the membrane: grasped at the centre and pulled up by `lift` over `duration`, or (sag) left to settle
+// under gravity for `duration`; `probe`: a second instrument (a 0.3 mm sphere, 1.2 mm from the centre) is pressed
+// 0.6 mm down into the membrane over the run, so the collision response has contacts to answer.
+struct SceneSpec {
+  int cells = 22;
+  double duration = 0.05;
+  double lift = 1e-3;
+  bool sag = false;
+  bool probe = false;
+};
+
+InstrumentInput probeAt(double progress) {
+  InstrumentInput probe;
+  probe.pose.translation() = Eigen::Vector3d(1.2e-3, 0.0, 3e-4 - 6e-4 * progress);
+  probe.radius = 3e-4;
+  probe.collides = true;
+  return probe;
+}
+
+RunResult runScene(const SceneSpec& spec, TissueConfig config) {
+  const Scene scene{spec.cells};
   auto membrane = vrm_sim::tissue::makeGridMembrane(scene.cells, kSize, kStiffness, scene.node_mass());
+  if (spec.sag) config.forces.gravity = Eigen::Vector3d(0.0, 0.0, -kGravity);
   TissueSimulator simulator(*membrane, config);
   RunResult result;
   result.nodes = membrane->nodeCount();
   result.springs = membrane->springCount();
   const double frame = 1e-3;
-  const int frames = static_cast<int>(std::lround(duration / frame));
+  const int frames = static_cast<int>(std::lround(spec.duration / frame));
   Eigen::Vector3d tip(0.0, 0.0, -2e-4);
-  simulator.setInstruments({forcepsAt(tip)});
+  const auto instruments = [&](int f) {
+    std::vector<InstrumentInput> list;
+    if (spec.sag) return list;
+    list.push_back(forcepsAt(tip));
+    if (spec.probe) list.push_back(probeAt(static_cast<double>(f) / frames));
+    return list;
+  };
+  simulator.setInstruments(instruments(0));
   std::vector<double> frame_ms_per_step;
-  double elapsed = 0.0;
+  double elapsed = 0.0, contacts = 0.0;
   for (int f = 0; f < frames; ++f) {
-    tip.z() += lift / frames;
-    simulator.setInstruments({forcepsAt(tip)});
+    tip.z() += spec.lift / frames;
+    simulator.setInstruments(instruments(f + 1));
     const double start = wallClock();
     const auto report = simulator.advance(frame, wallClock);
     const double frame_time = wallClock() - start;
     elapsed += frame_time;
     result.steps += report.steps;
+    contacts += static_cast<double>(simulator.lastContacts().size());
     if (report.steps > 0) frame_ms_per_step.push_back(1e3 * frame_time / report.steps);
+    if (f == 0) result.grasped = simulator.graspedNodes();
   }
   for (double ms : frame_ms_per_step) result.ms_per_step_max = std::max(result.ms_per_step_max, ms);
+  result.contacts = contacts / std::max(frames, 1);
   result.chosen = simulator.integratorLabel();
   result.ms_per_step = 1e3 * elapsed / std::max(result.steps, 1);
   if (!frame_ms_per_step.empty()) result.ms_per_step_median = vrm_sim::bench::medianOf(frame_ms_per_step);
@@ -112,6 +161,43 @@ RunResult runGraspPull(const Scene& scene, const TissueConfig& config, double du
   result.max_strain = simulator.maxStrain();
   result.energy = simulator.totalEnergy();
   return result;
+}
+
+// RMS and max node distance [m]; infinite when a run diverged.
+std::pair<double, double> distance(const std::vector<Eigen::Vector3d>& a, const std::vector<Eigen::Vector3d>& b) {
+  if (a.size() != b.size() || a.empty()) return {NAN, NAN};
+  double sum2 = 0.0, worst = 0.0;
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    const double e = (a[i] - b[i]).norm();
+    sum2 += std::isfinite(e) ? e * e : INFINITY;
+    worst = std::max(worst, std::isfinite(e) ? e : INFINITY);
+  }
+  return {std::sqrt(sum2 / a.size()), worst};
+}
+
+// Newton static solve of the sagging membrane (the reference of the static_sag rows).
+vrm_sim::bench::StaticSolution staticSagReference(int cells) {
+  const Scene scene{cells};
+  auto membrane = vrm_sim::tissue::makeGridMembrane(cells, kSize, kStiffness, scene.node_mass());
+  vrm_sim::bench::SpringNetwork net;
+  double half = 0.0;
+  for (std::size_t i = 0; i < membrane->nodeCount(); ++i) half = std::max(half, membrane->positions()[i].x());
+  for (std::size_t i = 0; i < membrane->nodeCount(); ++i) {
+    Eigen::Vector3d x = membrane->positions()[i];
+    const bool fixed = membrane->fixedFlags()[i] != 0;
+    // Initial guess: a 0.2 mm bulge (a flat, unstretched membrane has no transverse stiffness).
+    if (!fixed) x.z() -= 2e-4 * (1.0 - std::pow(x.x() / half, 2)) * (1.0 - std::pow(x.y() / half, 2));
+    net.positions.push_back(x);
+    net.fixed.push_back(fixed ? 1 : 0);
+    net.loads.emplace_back(0.0, 0.0, fixed ? 0.0 : -kGravity * membrane->masses()[i]);
+  }
+  for (std::size_t s = 0; s < membrane->springCount(); ++s) {
+    net.springs.push_back(membrane->springNodeSlots()[s]);
+    net.stiffness.push_back(membrane->stiffnesses()[s]);
+    net.rest_length.push_back(membrane->restLengths()[s]);
+  }
+  // 1e-12 of a node's weight: far below any force an integrator leaves behind.
+  return vrm_sim::bench::solveStatic(net, 1e-12 * kGravity * scene.node_mass());
 }
 
 // The plain baseline of issue 15 §1 (impl "naive_soa"): scalar structure-of-arrays spring forces with the scatter in
@@ -222,7 +308,20 @@ struct Row {
   std::string auto_fastest;       // hard cases, auto row: the fastest fixed integrator that stayed stable
   double auto_cost_ratio = NAN;   // ... auto's ms per step / its
   double auto_error_ratio = NAN;  // ... auto's error rms / its
-  double ratio_to_bullet = NAN;   // bullet rows: our median ms per step (same mesh, dt; quasi-static Euler) / Bullet's
+  double ratio_to_bullet = NAN;   // bullet full-step rows: our auto's ms per step / Bullet's (same mesh, dt)
+  std::string reference;          // what error_rms/error_max are measured against
+  double contacts = NAN;          // instrument contacts per step (mean)
+  double nodes_inside_probe = NAN;  // bullet full step: free nodes inside the probe sphere after a step (mean)
+  double ms_min = NAN, ms_max = NAN;  // extremes over the repetitions of the per-repetition ms per step
+  int repetitions = 0;
+  double bullet_klst = NAN;       // bullet rows: the link stiffness factor used
+  std::string timed;              // what the time covers
+  // Headline rows (matched_*, like_for_like_*): the peer's figures beside ours; ratio = ours / peer ms per simulated ms.
+  int peer_iterations = 0;
+  double peer_dt = NAN, peer_klst = NAN, peer_error_rms = NAN, peer_error_max = NAN;
+  double peer_ms = NAN, peer_ms_min = NAN, peer_ms_max = NAN;  // per simulated ms
+  double ours_ms = NAN, ours_ms_min = NAN, ours_ms_max = NAN;  // per simulated ms
+  double ratio = NAN, ratio_min = NAN, ratio_max = NAN;        // median / best case for us / worst case for us
 
   std::string json() const {
     std::ostringstream out;
@@ -238,6 +337,25 @@ struct Row {
         << peer << "\"";
     if (std::isfinite(ratio_to_bullet)) out << ", \"ratio_ours_to_bullet\": " << number(ratio_to_bullet);
     out << ", \"impl\": \"" << impl << "\"";
+    out << ", \"reference\": \"" << reference << "\"";
+    if (std::isfinite(contacts)) out << ", \"contacts\": " << number(contacts);
+    if (std::isfinite(nodes_inside_probe)) out << ", \"nodes_inside_probe\": " << number(nodes_inside_probe);
+    if (repetitions > 0) {
+      out << ", \"ms_min\": " << number(ms_min) << ", \"ms_max\": " << number(ms_max)
+          << ", \"repetitions\": " << repetitions;
+    }
+    if (std::isfinite(bullet_klst)) out << ", \"bullet_klst\": " << number(bullet_klst);
+    if (!timed.empty()) out << ", \"timed\": \"" << timed << "\"";
+    if (std::isfinite(ratio)) {
+      out << ", \"peer_iterations\": " << peer_iterations << ", \"peer_dt\": " << number(peer_dt)
+          << ", \"peer_klst\": " << number(peer_klst) << ", \"peer_error_rms\": " << number(peer_error_rms)
+          << ", \"peer_error_max\": " << number(peer_error_max)
+          << ", \"peer_ms_per_sim_ms\": " << number(peer_ms) << ", \"peer_ms_per_sim_ms_min\": " << number(peer_ms_min)
+          << ", \"peer_ms_per_sim_ms_max\": " << number(peer_ms_max) << ", \"ours_ms_per_sim_ms\": " << number(ours_ms)
+          << ", \"ours_ms_per_sim_ms_min\": " << number(ours_ms_min)
+          << ", \"ours_ms_per_sim_ms_max\": " << number(ours_ms_max) << ", \"ratio_ours_to_peer\": " << number(ratio)
+          << ", \"ratio_min\": " << number(ratio_min) << ", \"ratio_max\": " << number(ratio_max);
+    }
     if (!chosen.empty()) out << ", \"integrator_chosen\": \"" << chosen << "\"";
     if (std::isfinite(ratio_to_naive)) out << ", \"ratio_to_naive\": " << number(ratio_to_naive);
     if (std::isfinite(ms_per_step_max)) out << ", \"ms_per_step_max\": " << number(ms_per_step_max);
@@ -261,21 +379,46 @@ void printRow(const Row& row) {
   }
 }
 
+// Per-repetition timings → the row's ms_per_step (median), ms_min, ms_max.
+void setSpread(Row& row, const std::vector<double>& rep_ms) {
+  row.repetitions = static_cast<int>(rep_ms.size());
+  row.ms_per_step = vrm_sim::bench::medianOf(rep_ms);
+  row.ms_min = *std::min_element(rep_ms.begin(), rep_ms.end());
+  row.ms_max = *std::max_element(rep_ms.begin(), rep_ms.end());
+}
+
 #ifdef VRM_HAVE_BULLET
-// One btSoftBody in a soft-rigid world, built from the same triangle mesh (same node order), border pinned
-// (mass 0), no gravity, 10 position iterations. Velocity damping kDP matched to our c/m per step.
+// Bullet's link stiffness factors each Bullet configuration is measured at (its best match is reported).
+const std::vector<double> kBulletStiffnesses{0.01, 0.03, 0.1, 0.3, 1.0};
+// Bullet's world is in millimetres: its collision code (GJK/EPA tolerances ~1e-4 in world units, 0.25 voxels of the
+// signed distance field) misses a 0.3 mm sphere in metres. Position-based links, kDP and gravity scale exactly.
+constexpr double kBulletScale = 1e3;
+
+struct BulletSpec {
+  int iterations = 10;
+  double klst = 1.0;
+  double stiffness_ratio = 1.0, mass_ratio = 1.0;  // hard cases: the x > 0 half is stiffer / heavier
+  bool gravity = false;
+  bool probe = false;  // a kinematic 0.3 mm sphere, our probe's twin
+};
+
+// One btSoftBody in a soft-rigid world, built from the same triangle mesh (same node order: its links are the
+// triangle edges, our springs, with their rest lengths), border pinned (mass 0). Velocity damping kDP matched to our
+// c/m per step.
 class BulletMembrane {
  public:
-  BulletMembrane(int cells, double node_mass, double stiffness_ratio, double mass_ratio, double dt)
+  BulletMembrane(int cells, double node_mass, double dt, const BulletSpec& spec)
       : dispatcher_(&configuration_), world_(&dispatcher_, &broadphase_, &solver_, &configuration_) {
-    world_.setGravity(btVector3(0, 0, 0));
+    const btVector3 gravity(0, 0, spec.gravity ? -kGravity * kBulletScale : 0.0);
+    world_.setGravity(gravity);
     btSoftBodyWorldInfo& info = world_.getWorldInfo();
-    info.m_gravity.setValue(0, 0, 0);
+    info.m_gravity = gravity;
+    info.m_sparsesdf.setDefaultVoxelsz(static_cast<btScalar>(5e-5 * kBulletScale));
     info.m_sparsesdf.Initialize();
     const vrm_sim::TriangleMesh mesh = vrm_sim::tissue::makeGridMesh(cells, kSize, true);
     std::vector<btScalar> vertices;
     for (const auto& v : mesh.vertices) {
-      for (int c = 0; c < 3; ++c) vertices.push_back(static_cast<btScalar>(v[c]));
+      for (int c = 0; c < 3; ++c) vertices.push_back(static_cast<btScalar>(v[c] * kBulletScale));
     }
     std::vector<int> triangles;
     for (const auto& t : mesh.triangles) {
@@ -283,44 +426,96 @@ class BulletMembrane {
     }
     body_ = btSoftBodyHelpers::CreateFromTriMesh(info, vertices.data(), triangles.data(),
                                                  static_cast<int>(mesh.triangles.size()), false);
-    body_->m_cfg.piterations = 10;
+    body_->m_cfg.piterations = spec.iterations;
     body_->m_cfg.kDP = static_cast<btScalar>(std::min(1.0, 2e-3 / node_mass * dt));
-    // A soft half (x > 0 in our benchmark is the stiff one; here the stiff half keeps kLST = 1).
+    body_->m_materials[0]->m_kLST = static_cast<btScalar>(spec.klst);
+    // A soft half (x > 0 in our benchmark is the stiff one; here the stiff half keeps kLST = spec.klst).
     btSoftBody::Material* soft = body_->appendMaterial();
-    soft->m_kLST = static_cast<btScalar>(1.0 / stiffness_ratio);
+    soft->m_kLST = static_cast<btScalar>(spec.klst / spec.stiffness_ratio);
     for (int l = 0; l < body_->m_links.size(); ++l) {
       btSoftBody::Link& link = body_->m_links[l];
-      if (stiffness_ratio > 1.0 && link.m_n[0]->m_x.x() <= 0) link.m_material = soft;
+      if (spec.stiffness_ratio > 1.0 && link.m_n[0]->m_x.x() <= 0) link.m_material = soft;
     }
     body_->updateConstants();
+    body_->getCollisionShape()->setMargin(static_cast<btScalar>(1e-5 * kBulletScale));
     std::vector<bool> pinned(mesh.vertices.size(), false);
     for (auto v : mesh.fixed_vertices) pinned[v] = true;
     for (int i = 0; i < body_->m_nodes.size(); ++i) {
-      double mass = node_mass * (mesh.vertices[i].x() > 0.0 ? mass_ratio : 1.0);
+      double mass = node_mass * (mesh.vertices[i].x() > 0.0 ? spec.mass_ratio : 1.0);
       body_->setMass(i, pinned[i] ? 0 : static_cast<btScalar>(mass));
     }
     world_.addSoftBody(body_);
+    if (spec.probe) {
+      probe_shape_ = std::make_unique<btSphereShape>(static_cast<btScalar>(3e-4 * kBulletScale));
+      probe_state_ = std::make_unique<btDefaultMotionState>();
+      probe_ = std::make_unique<btRigidBody>(0.0, probe_state_.get(), probe_shape_.get());
+      // Mass 0 made it static; a static body is never moved by its motion state.
+      probe_->setCollisionFlags((probe_->getCollisionFlags() & ~btCollisionObject::CF_STATIC_OBJECT) |
+                                btCollisionObject::CF_KINEMATIC_OBJECT);
+      probe_->setActivationState(DISABLE_DEACTIVATION);
+      world_.addRigidBody(probe_.get());
+    }
   }
   ~BulletMembrane() {
+    if (probe_) world_.removeRigidBody(probe_.get());
     world_.removeSoftBody(body_);
     delete body_;
   }
 
-  // Grasps the nodes within `radius` of the z axis (our forceps' grasp) and moves them kinematically.
-  void grasp(double radius) {
-    for (int i = 0; i < body_->m_nodes.size(); ++i) {
-      const btVector3& x = body_->m_nodes[i].m_x;
-      if (std::hypot(x.x(), x.y()) <= radius && body_->m_nodes[i].m_im > 0) {
-        body_->setMass(i, 0);
-        grasped_.push_back(i);
-      }
+  // Grasps the given nodes (the ones our forceps held), pressed onto the jaws' mid-plane (y = 0) as our closed
+  // forceps do, and moves them kinematically: their positions are set before every step (a velocity alone would be
+  // damped by kDP, which Bullet applies to kinematic nodes too).
+  void grasp(const std::vector<std::uint32_t>& nodes) {
+    for (std::uint32_t i : nodes) {
+      if (body_->m_nodes[i].m_im <= 0) continue;
+      body_->setMass(static_cast<int>(i), 0);
+      grasped_.push_back(static_cast<int>(i));
+      btVector3 x = body_->m_nodes[i].m_x;
+      x.setY(0);
+      grasp_start_.push_back(x);
     }
   }
-  void setGraspVelocity(const Eigen::Vector3d& velocity) {
-    for (int i : grasped_) body_->m_nodes[i].m_v = btVector3(velocity.x(), velocity.y(), velocity.z());
+  void setGraspVelocity(const Eigen::Vector3d& velocity) { grasp_velocity_ = velocity * kBulletScale; }
+  void moveGrasp(double time) {
+    const btVector3 offset(grasp_velocity_.x() * time, grasp_velocity_.y() * time, grasp_velocity_.z() * time);
+    for (std::size_t g = 0; g < grasped_.size(); ++g) {
+      btSoftBody::Node& node = body_->m_nodes[grasped_[g]];
+      node.m_x = grasp_start_[g] + offset;
+      node.m_v.setZero();
+    }
+  }
+  void setProbe(const Eigen::Vector3d& centre) {
+    if (!probe_) return;
+    btTransform pose;
+    pose.setIdentity();
+    const Eigen::Vector3d c = centre * kBulletScale;
+    pose.setOrigin(btVector3(c.x(), c.y(), c.z()));
+    probe_state_->setWorldTransform(pose);
+    probe_->setWorldTransform(pose);
   }
   void step(double dt) { world_.stepSimulation(static_cast<btScalar>(dt), 0, static_cast<btScalar>(dt)); }
+  int contacts() const { return body_->m_rcontacts.size(); }
+  // Free nodes inside the probe sphere (with `scale`): penetration when Bullet's response misses them.
+  int nodesInside(double scale) const {
+    if (!probe_) return 0;
+    const btVector3 centre = probe_->getWorldTransform().getOrigin();
+    int inside = 0;
+    for (int i = 0; i < body_->m_nodes.size(); ++i) {
+      if (body_->m_nodes[i].m_im > 0 && (body_->m_nodes[i].m_x - centre).length() < scale * 3e-4 * kBulletScale) {
+        ++inside;
+      }
+    }
+    return inside;
+  }
 
+  std::vector<Eigen::Vector3d> positions() const {
+    std::vector<Eigen::Vector3d> x;
+    for (int i = 0; i < body_->m_nodes.size(); ++i) {
+      const btVector3& p = body_->m_nodes[i].m_x;
+      x.emplace_back(p.x() / kBulletScale, p.y() / kBulletScale, p.z() / kBulletScale);
+    }
+    return x;
+  }
   bool finite() const {
     for (int i = 0; i < body_->m_nodes.size(); ++i) {
       const btVector3& x = body_->m_nodes[i].m_x;
@@ -339,7 +534,6 @@ class BulletMembrane {
   }
   int nodes() const { return body_->m_nodes.size(); }
   int links() const { return body_->m_links.size(); }
-  std::size_t graspedCount() const { return grasped_.size(); }
 
  private:
   btSoftBodyRigidBodyCollisionConfiguration configuration_;
@@ -348,39 +542,58 @@ class BulletMembrane {
   btSequentialImpulseConstraintSolver solver_;
   btSoftRigidDynamicsWorld world_;
   btSoftBody* body_ = nullptr;
+  std::unique_ptr<btSphereShape> probe_shape_;
+  std::unique_ptr<btDefaultMotionState> probe_state_;
+  std::unique_ptr<btRigidBody> probe_;
   std::vector<int> grasped_;
+  std::vector<btVector3> grasp_start_;
+  Eigen::Vector3d grasp_velocity_ = Eigen::Vector3d::Zero();
 };
 
-// Grasp the centre and pull with `velocity` for `frames` steps of dt; the Bullet row for it.
-Row runBullet(const std::string& scene_name, int cells, double dt, int frames, const Eigen::Vector3d& velocity,
-              double stiffness_ratio = 1.0, double mass_ratio = 1.0) {
+struct BulletRun {
+  Row row;
+  std::vector<Eigen::Vector3d> positions;
+};
+
+// The scene for Bullet in steps of dt: the grasp (our grasped nodes) pulled with `velocity`, gravity, the probe.
+BulletRun runBullet(const std::string& scene_name, int cells, double dt, int frames, const Eigen::Vector3d& velocity,
+                    const std::vector<std::uint32_t>& grasped, const BulletSpec& spec, double probe_duration = 0.0) {
   const Scene scene{cells};
-  BulletMembrane membrane(cells, scene.node_mass(), stiffness_ratio, mass_ratio, dt);
-  membrane.grasp(3e-4);  // the forceps' grasp radius (TissueConfig::grasp_radius)
+  BulletMembrane membrane(cells, scene.node_mass(), dt, spec);
+  membrane.grasp(grasped);
   membrane.setGraspVelocity(velocity);
   std::vector<double> step_ms;
-  double elapsed = 0.0;
+  double elapsed = 0.0, contacts = 0.0, inside = 0.0;
   for (int f = 0; f < frames; ++f) {
+    if (spec.probe) membrane.setProbe(probeAt((f + 1) * dt / probe_duration).pose.translation());
     const double start = wallClock();
+    membrane.moveGrasp((f + 1) * dt);  // timed: our grasp update is inside advance() too
     membrane.step(dt);
     step_ms.push_back(1e3 * (wallClock() - start));
     elapsed += step_ms.back() * 1e-3;
+    contacts += membrane.contacts();
+    inside += membrane.nodesInside(1.0);
   }
-  Row row;
+  BulletRun run;
+  Row& row = run.row;
   row.peer = "bullet";
   row.scene = scene_name;
   row.integrator = "btSoftBody";
   row.nodes = membrane.nodes();
   row.springs = membrane.links();
   row.dt = dt;
-  row.iterations = 10;
+  row.iterations = spec.iterations;
+  row.bullet_klst = spec.klst;
   row.steps = frames;
   row.ms_per_step = 1e3 * elapsed / std::max(frames, 1);
   row.ms_per_step_median = vrm_sim::bench::medianOf(step_ms);
   row.max_strain = membrane.maxStrain();
+  row.contacts = spec.probe ? contacts / std::max(frames, 1) : NAN;
+  row.nodes_inside_probe = spec.probe ? inside / std::max(frames, 1) : NAN;
   // Survives = finite and no link torn apart beyond 10× its rest length.
   row.stable = membrane.finite() && row.max_strain < 10.0;
-  return row;
+  run.positions = membrane.positions();
+  return run;
 }
 #endif
 
@@ -405,132 +618,348 @@ int main(int argc, char** argv) {
   std::vector<std::string> integrators = vrm_sim::tissue::integratorNames();
   integrators.push_back(vrm_sim::tissue::kAutoIntegrator);
   const std::vector<int> sizes = quick ? std::vector<int>{22} : std::vector<int>{22, 100};
+  const std::vector<int> sag_sizes{22};
   const std::vector<double> dts =
       quick ? std::vector<double>{2.5e-4, 1e-3} : std::vector<double>{1e-4, 2.5e-4, 5e-4, 1e-3};
   const double duration = quick ? 0.01 : 0.05;
   const double lift = quick ? 2e-4 : 1e-3;  // 20 mm/s
+  const double sag_duration = quick ? 0.05 : 0.3;
+  const int repetitions = quick ? 2 : 5;  // issue 19: every timed figure is a median of >= 5 in one run
+  const std::vector<int> bullet_iterations = quick ? std::vector<int>{1, 10} : std::vector<int>{1, 5, 10, 20};
+  const std::vector<double> bullet_dts{1e-3, 2.5e-4};
   std::vector<Row> rows;
   std::printf("%-24s %-18s %6s %6s %8s %4s %9s %9s %10s %10s %-3s %5s %6s\n", "scene", "integrator", "nodes", "springs",
               "dt", "it", "ms/step", "median", "err_rms_m", "err_max_m", "ok", "fallb", "strain");
 
+  // The accuracy cases and their references.
+  struct AccuracyCase {
+    std::string name;
+    SceneSpec spec;
+    std::vector<Eigen::Vector3d> reference;
+    std::string reference_name;
+    std::vector<std::uint32_t> grasped;
+  };
+  std::vector<AccuracyCase> cases;
   for (int cells : sizes) {
-    const Scene scene{cells};
-    const std::string scene_name = "grasp_pull_" + std::to_string(cells) + "x" + std::to_string(cells);
-    // Converged reference: RK2 (second order) at a step far below every stability bound. Speed-vs-error rows run
-    // without the strain limit (a per-step projection whose effect grows with the step count would otherwise
-    // dominate the error); the "full_step" rows below time the complete step with it.
-    TissueConfig reference_config = sceneConfig("rk2", quick ? 2e-5 : 1e-5, false);
-    const RunResult reference = runGraspPull(scene, reference_config, duration, lift);
+    AccuracyCase c;
+    c.name = "grasp_pull_" + std::to_string(cells) + "x" + std::to_string(cells);
+    c.spec = SceneSpec{cells, duration, lift, false, false};
+    // Implicit Euler (first order, unconditionally stable, a linear solve per step) at a step far below every
+    // bound, CG to 1e-12: not the method of any row's error scale, and checked against RK2 (second order, explicit)
+    // at the same step — their distance bounds the reference's own error.
+    const double reference_dt = quick ? 1e-5 : (cells <= 22 ? 2e-6 : 5e-6);
+    TissueConfig implicit_config = sceneConfig("implicit_euler", reference_dt, false);
+    implicit_config.integrator_options.cg_max_iterations = 2000;
+    implicit_config.integrator_options.cg_tolerance = 1e-12;
+    const RunResult implicit_reference = runScene(c.spec, implicit_config);
+    c.reference = implicit_reference.final_positions;
+    c.grasped = implicit_reference.grasped;
+    std::ostringstream name;
+    name << "implicit_euler dt " << reference_dt << " s, CG to 1e-12";
+    c.reference_name = name.str();
+    for (const auto& [check_integrator, check_dt] :
+         std::vector<std::pair<std::string, double>>{{"rk2", reference_dt}, {"implicit_euler", 2 * reference_dt}}) {
+      TissueConfig check_config = sceneConfig(check_integrator, check_dt, false);
+      check_config.integrator_options.cg_max_iterations = 2000;
+      check_config.integrator_options.cg_tolerance = 1e-12;
+      const RunResult check = runScene(c.spec, check_config);
+      Row row;
+      row.scene = "reference_check_" + c.name;
+      row.integrator = check_integrator;
+      row.nodes = check.nodes;
+      row.springs = check.springs;
+      row.dt = check_dt;
+      row.iterations = check.iterations;
+      row.ms_per_step = check.ms_per_step;
+      row.steps = check.steps;
+      std::tie(row.error_rms, row.error_max) = distance(check.final_positions, c.reference);
+      row.stable = check.finite;
+      row.strain_limit = false;
+      row.reference = c.reference_name;
+      printRow(row);
+      rows.push_back(row);
+    }
+    cases.push_back(c);
+  }
+  for (int cells : sag_sizes) {
+    AccuracyCase c;
+    c.name = "static_sag_" + std::to_string(cells) + "x" + std::to_string(cells);
+    c.spec = SceneSpec{cells, sag_duration, 0.0, true, false};
+    const auto solution = staticSagReference(cells);
+    c.reference = solution.positions;
+    c.reference_name = "newton_static";
+    Row row;
+    row.scene = "reference_check_" + c.name;
+    row.integrator = "newton_static";
+    row.nodes = solution.positions.size();
+    row.iterations = solution.iterations;
+    row.stable = solution.converged;
+    row.error_max = solution.residual;  // here: N, the largest net force left on a free node
+    row.reference = "net force residual [N] in error_max";
+    double sag = 0.0;
+    for (const auto& x : solution.positions) sag = std::max(sag, -x.z());
+    std::printf("%-24s newton: %d iterations, residual %.2e N, centre sag %.4e m\n", row.scene.c_str(),
+                solution.iterations, solution.residual, sag);
+    row.max_strain = sag;  // m, the deepest node (stated in BENCHMARKS.md)
+    rows.push_back(row);
+    cases.push_back(c);
+  }
+
+  // Speed against error: every integrator × dt, timed `repetitions` times (the error is deterministic).
+  for (const AccuracyCase& c : cases) {
     for (const auto& integrator : integrators) {
       for (double dt : dts) {
-        const RunResult run = runGraspPull(scene, sceneConfig(integrator, dt, false), duration, lift);
+        std::vector<double> rep_ms;
+        RunResult run;
+        for (int rep = 0; rep < repetitions; ++rep) {
+          RunResult r = runScene(c.spec, sceneConfig(integrator, dt, false));
+          rep_ms.push_back(r.ms_per_step);
+          if (rep == 0) run = std::move(r);
+        }
         Row row;
         row.strain_limit = false;
+        row.scene = c.name;
+        row.integrator = integrator;
+        row.chosen = integrator == vrm_sim::tissue::kAutoIntegrator ? run.chosen : "";
+        row.nodes = run.nodes;
+        row.springs = run.springs;
+        row.dt = dt;
+        row.iterations = run.iterations;
+        setSpread(row, rep_ms);
+        row.ms_per_step_median = run.ms_per_step_median;
+        row.steps = run.steps;
+        std::tie(row.error_rms, row.error_max) = distance(run.final_positions, c.reference);
+        row.reference = c.reference_name;
+        row.stable = run.finite && run.unrecovered == 0;  // fallbacks (rescued steps) are reported separately
+        row.fallbacks = run.fallbacks;
+        row.max_strain = run.max_strain;
+        row.timed = "TissueSimulator::advance: forces + integration + watchdog (no strain limit, no contacts)";
+        printRow(row);
+        rows.push_back(row);
+      }
+    }
+  }
+
+  // Bullet's best kLST per case, iteration count and dt (for the full step below).
+  std::vector<std::tuple<std::string, int, double, double>> bullet_best;
+#ifdef VRM_HAVE_BULLET
+  for (const AccuracyCase& c : cases) {
+    for (int iterations : bullet_iterations) {
+      for (double dt : bullet_dts) {
+        const int frames = static_cast<int>(std::lround(c.spec.duration / dt));
+        const Eigen::Vector3d velocity(0.0, 0.0, c.spec.sag ? 0.0 : c.spec.lift / c.spec.duration);
+        BulletSpec spec;
+        spec.iterations = iterations;
+        spec.gravity = c.spec.sag;
+        BulletRun best;
+        double best_error = INFINITY;
+        for (double klst : quick ? std::vector<double>{0.1, 1.0} : kBulletStiffnesses) {
+          spec.klst = klst;
+          BulletRun run = runBullet(c.name, c.spec.cells, dt, frames, velocity, c.grasped, spec);
+          const double error = distance(run.positions, c.reference).first;
+          if (std::isfinite(error) && error < best_error) best_error = error, best = std::move(run);
+        }
+        if (!std::isfinite(best_error)) continue;
+        spec.klst = best.row.bullet_klst;
+        std::vector<double> rep_ms{best.row.ms_per_step};
+        for (int rep = 1; rep < repetitions; ++rep) {
+          rep_ms.push_back(runBullet(c.name, c.spec.cells, dt, frames, velocity, c.grasped, spec).row.ms_per_step);
+        }
+        Row row = best.row;
+        setSpread(row, rep_ms);
+        std::tie(row.error_rms, row.error_max) = distance(best.positions, c.reference);
+        row.reference = c.reference_name;
+        row.strain_limit = false;
+        row.timed = "btSoftRigidDynamicsWorld::stepSimulation (soft body only)";
+        printRow(row);
+        std::printf("%-24s bullet kLST %.2f (best of the set)\n", "", row.bullet_klst);
+        rows.push_back(row);
+        bullet_best.emplace_back(c.name, iterations, dt, row.bullet_klst);
+      }
+    }
+  }
+#endif
+
+  // Headline: for each Bullet configuration our fastest configuration (integrator × dt) with an error rms no worse,
+  // by ms per simulated ms; and the like-for-like XPBD (10 iterations) against Bullet (10 iterations), same dt.
+  {
+    const std::vector<Row> measured = rows;
+    const auto perSimulatedMs = [](const Row& row, double ms) { return ms * 1e-3 / row.dt; };
+    for (const Row& peer : measured) {
+      if (peer.peer != "bullet" || peer.scene.rfind("full_step", 0) == 0) continue;
+      const Row* fastest = nullptr;
+      const Row* like = nullptr;
+      for (const Row& ours : measured) {
+        if (ours.peer != "ours" || ours.scene != peer.scene || !ours.stable || ours.repetitions == 0) continue;
+        if (ours.integrator == "xpbd" && ours.dt == peer.dt) like = &ours;
+        if (!(ours.error_rms <= peer.error_rms)) continue;
+        if (fastest == nullptr ||
+            perSimulatedMs(ours, ours.ms_per_step) < perSimulatedMs(*fastest, fastest->ms_per_step)) {
+          fastest = &ours;
+        }
+      }
+      std::vector<std::pair<std::string, const Row*>> headline{{"matched_" + peer.scene, fastest}};
+      if (peer.iterations == 10) headline.emplace_back("like_for_like_" + peer.scene, like);
+      for (const auto& [scene, ours] : headline) {
+        Row row;
+        row.scene = scene;
+        row.peer = "bullet";
+        row.reference = peer.reference;
+        row.peer_iterations = peer.iterations;
+        row.peer_dt = peer.dt;
+        row.peer_klst = peer.bullet_klst;
+        row.peer_error_rms = peer.error_rms;
+        row.peer_error_max = peer.error_max;
+        row.peer_ms = perSimulatedMs(peer, peer.ms_per_step);
+        row.peer_ms_min = perSimulatedMs(peer, peer.ms_min);
+        row.peer_ms_max = perSimulatedMs(peer, peer.ms_max);
+        row.integrator = ours ? ours->integrator : "none";
+        if (ours != nullptr) {
+          row.chosen = ours->chosen;
+          row.nodes = ours->nodes;
+          row.springs = ours->springs;
+          row.dt = ours->dt;
+          row.iterations = ours->iterations;
+          row.ms_per_step = ours->ms_per_step;
+          row.ms_min = ours->ms_min;
+          row.ms_max = ours->ms_max;
+          row.repetitions = ours->repetitions;
+          row.error_rms = ours->error_rms;
+          row.error_max = ours->error_max;
+          row.stable = ours->stable;
+          row.ours_ms = perSimulatedMs(*ours, ours->ms_per_step);
+          row.ours_ms_min = perSimulatedMs(*ours, ours->ms_min);
+          row.ours_ms_max = perSimulatedMs(*ours, ours->ms_max);
+          row.ratio = row.ours_ms / row.peer_ms;
+          row.ratio_min = row.ours_ms_min / row.peer_ms_max;
+          row.ratio_max = row.ours_ms_max / row.peer_ms_min;
+        }
+        std::printf("%-34s bullet %2d it dt %.1e kLST %.2f err %.2e %.4f ms/sim-ms | ours %-18s dt %.1e err %.2e "
+                    "%.4f ms/sim-ms | ratio %.3f [%.3f, %.3f]\n",
+                    scene.c_str(), peer.iterations, peer.dt, peer.bullet_klst, peer.error_rms, row.peer_ms,
+                    row.integrator.c_str(), row.dt, row.error_rms, row.ours_ms, row.ratio, row.ratio_min,
+                    row.ratio_max);
+        rows.push_back(row);
+      }
+    }
+  }
+
+  // Full step: TissueSimulator::advance with the forceps grasping and pulling and the probe pressed into the
+  // membrane (forces + integration + Provot + collision response + grasp + watchdog), at the scene's Δt = 1 ms and at
+  // 0.25 ms, below the explicit bound of the 100×100 mesh (≈ 0.6 ms).
+  for (int cells : sizes) {
+    const Scene scene{cells};
+    const std::string scene_name = "full_step_" + std::to_string(cells) + "x" + std::to_string(cells);
+    const SceneSpec spec{cells, duration, lift, false, true};
+    for (double dt : {1e-3, 2.5e-4}) {
+      // The naive baseline first (issue 15): no collision response, no watchdog, no grasp logic.
+      Row naive;
+      {
+        const int steps = static_cast<int>(std::lround(duration / dt));
+        std::vector<double> rep_ms, step_ms;
+        bool finite = true;
+        for (int rep = 0; rep < repetitions; ++rep) {
+          NaiveSoaMembrane membrane(cells, scene.node_mass());
+          double elapsed = 0.0;
+          for (int k = 0; k < steps; ++k) {
+            const double start = wallClock();
+            membrane.step(dt, 2e-3, lift / steps, 1.1);
+            const double ms = 1e3 * (wallClock() - start);
+            if (rep == 0) step_ms.push_back(ms);
+            elapsed += ms;
+          }
+          rep_ms.push_back(elapsed / std::max(steps, 1));
+          finite = finite && membrane.finite();
+          naive.nodes = membrane.nodes();
+          naive.springs = membrane.springs();
+        }
+        naive.scene = scene_name;
+        naive.integrator = "symplectic_euler";
+        naive.impl = "naive_soa";
+        naive.dt = dt;
+        naive.iterations = 1;
+        naive.steps = steps;
+        setSpread(naive, rep_ms);
+        naive.ms_per_step_max = *std::max_element(step_ms.begin(), step_ms.end());
+        naive.ms_per_step_median = vrm_sim::bench::medianOf(step_ms);
+        naive.stable = finite;
+        naive.ratio_to_naive = 1.0;
+        naive.reference = "none (timing)";
+        naive.contacts = 0.0;
+        naive.timed = "naive_soa step: forces + symplectic Euler + one Provot pass (no collision, no watchdog)";
+        printRow(naive);
+        rows.push_back(naive);
+      }
+      for (const auto& integrator : integrators) {
+        std::vector<double> rep_ms;
+        RunResult run;
+        for (int rep = 0; rep < repetitions; ++rep) {
+          RunResult r = runScene(spec, sceneConfig(integrator, dt, true));
+          rep_ms.push_back(r.ms_per_step);
+          if (rep == 0) run = std::move(r);
+        }
+        Row row;
+        row.chosen = integrator == vrm_sim::tissue::kAutoIntegrator ? run.chosen : "";
+        row.ms_per_step_max = run.ms_per_step_max;
         row.scene = scene_name;
         row.integrator = integrator;
         row.nodes = run.nodes;
         row.springs = run.springs;
         row.dt = dt;
         row.iterations = run.iterations;
-        row.ms_per_step = run.ms_per_step;
-        row.ms_per_step_median = run.ms_per_step_median;
-        row.steps = run.steps;
-        double sum2 = 0.0, max_error = 0.0;
-        for (std::size_t i = 0; i < run.nodes; ++i) {
-          const double e = (run.final_positions[i] - reference.final_positions[i]).norm();
-          sum2 += e * e;
-          max_error = std::max(max_error, e);
-        }
-        row.error_rms = std::sqrt(sum2 / run.nodes);
-        row.error_max = max_error;
-        row.stable = run.finite && run.unrecovered == 0;  // fallbacks (rescued steps) are reported separately
-        row.fallbacks = run.fallbacks;
-        row.max_strain = run.max_strain;
-        row.energy_drift = reference.energy != 0.0 ? (run.energy - reference.energy) / std::abs(reference.energy) : NAN;
-        printRow(row);
-        rows.push_back(row);
-      }
-    }
-  }
-
-  // Full step (forces + integration + Provot + collision response + watchdog) at the scene's Δt = 1 ms, and at
-  // 0.25 ms, below the explicit bound of the 100×100 mesh (≈ 0.6 ms), where no step needs the watchdog.
-  for (int cells : sizes) {
-    const Scene scene{cells};
-    for (double dt : {1e-3, 2.5e-4}) {
-      // The naive baseline first: median ms per step over the same pull, 1 ms frames' worth of steps each.
-      Row naive;
-      {
-        NaiveSoaMembrane membrane(cells, scene.node_mass());
-        const int steps = static_cast<int>(std::lround(duration / dt));
-        std::vector<double> step_ms;
-        double elapsed = 0.0;
-        for (int k = 0; k < steps; ++k) {
-          const double start = wallClock();
-          membrane.step(dt, 2e-3, lift / steps, 1.1);
-          step_ms.push_back(1e3 * (wallClock() - start));
-          elapsed += step_ms.back();
-        }
-        naive.scene = "full_step_" + std::to_string(cells) + "x" + std::to_string(cells);
-        naive.integrator = "symplectic_euler";
-        naive.impl = "naive_soa";
-        naive.nodes = membrane.nodes();
-        naive.springs = membrane.springs();
-        naive.dt = dt;
-        naive.iterations = 1;
-        naive.steps = steps;
-        naive.ms_per_step = elapsed / std::max(steps, 1);
-        naive.ms_per_step_max = *std::max_element(step_ms.begin(), step_ms.end());
-        naive.ms_per_step_median = vrm_sim::bench::medianOf(step_ms);
-        naive.stable = membrane.finite();
-        naive.ratio_to_naive = 1.0;
-        printRow(naive);
-        rows.push_back(naive);
-      }
-      for (const auto& integrator : integrators) {
-        const RunResult run = runGraspPull(scene, sceneConfig(integrator, dt, true), duration, lift);
-        Row row;
-        row.chosen = integrator == vrm_sim::tissue::kAutoIntegrator ? run.chosen : "";
-        row.ms_per_step_max = run.ms_per_step_max;
-        row.ratio_to_naive = run.ms_per_step_median / naive.ms_per_step_median;
-        row.scene = "full_step_" + std::to_string(cells) + "x" + std::to_string(cells);
-        row.integrator = integrator;
-        row.nodes = run.nodes;
-        row.springs = run.springs;
-        row.dt = dt;
-        row.iterations = run.iterations;
-        row.ms_per_step = run.ms_per_step;
+        setSpread(row, rep_ms);
+        row.ratio_to_naive = row.ms_per_step / naive.ms_per_step;
         row.ms_per_step_median = run.ms_per_step_median;
         row.steps = run.steps;
         row.stable = run.finite && run.unrecovered == 0;
         row.fallbacks = run.fallbacks;
         row.max_strain = run.max_strain;
+        row.contacts = run.contacts;
+        row.reference = "none (timing)";
+        row.timed =
+            "TissueSimulator::advance: forces + integration + Provot + collision detection and response (probe) + "
+            "grasp + watchdog";
         printRow(row);
+        std::printf("%-24s contacts per step %.1f\n", "", row.contacts);
         rows.push_back(row);
       }
-    }
-  }
-
 #ifdef VRM_HAVE_BULLET
-  // Peer: btSoftBody on the same grasp-and-pull, same mesh and dt, 10 position iterations.
-  for (int cells : sizes) {
-    const std::string scene_name = "full_step_" + std::to_string(cells) + "x" + std::to_string(cells);
-    for (double dt : {1e-3, 2.5e-4}) {
+      // Bullet with the same grasp and a kinematic sphere as the probe, 10 iterations, its best kLST for the pull.
+      BulletSpec bullet;
+      bullet.probe = true;
+      for (const auto& [name, iterations, best_dt, klst] : bullet_best) {
+        if (name == "grasp_pull_" + std::to_string(cells) + "x" + std::to_string(cells) && iterations == 10 &&
+            best_dt == dt) {
+          bullet.klst = klst;
+        }
+      }
       const int frames = static_cast<int>(std::lround(duration / dt));
-      Row row = runBullet(scene_name, cells, dt, frames, Eigen::Vector3d(0.0, 0.0, lift / duration));
+      const RunResult grasp = runScene(SceneSpec{cells, 2e-3, lift, false, false}, sceneConfig("symplectic_euler", dt));
+      std::vector<double> rep_ms;
+      BulletRun first;
+      for (int rep = 0; rep < repetitions; ++rep) {
+        BulletRun run = runBullet(scene_name, cells, dt, frames, Eigen::Vector3d(0.0, 0.0, lift / duration),
+                                  grasp.grasped, bullet, duration);
+        rep_ms.push_back(run.row.ms_per_step);
+        if (rep == 0) first = std::move(run);
+      }
+      Row row = first.row;
+      setSpread(row, rep_ms);
+      row.reference = "none (timing)";
+      row.timed = "btSoftRigidDynamicsWorld::stepSimulation: soft body + kinematic sphere (collision, solve)";
       for (const Row& ours : rows) {
         if (ours.peer == "ours" && ours.impl == "ours" && ours.scene == scene_name && ours.dt == dt &&
             ours.integrator == vrm_sim::tissue::kAutoIntegrator) {
-          // Medians: robust against the load of a shared machine and against our rare watchdog rollbacks.
-          row.ratio_to_bullet = ours.ms_per_step_median / row.ms_per_step_median;
+          row.ratio_to_bullet = ours.ms_per_step / row.ms_per_step;
         }
       }
       printRow(row);
-      std::printf("%-24s ours/bullet (auto, median step): %.3f\n", "", row.ratio_to_bullet);
+      std::printf("%-24s bullet contacts per step %.1f, ours(auto)/bullet %.3f\n", "", row.contacts,
+                  row.ratio_to_bullet);
       rows.push_back(row);
+#endif
     }
   }
-#endif
 
   // Hard cases: stable / max strain / fallbacks per integrator and `auto`, error against a converged reference of the
   // same case (RK2 far below its bound), and for `auto` its cost and error relative to the fastest fixed integrator
@@ -546,7 +975,7 @@ int main(int argc, char** argv) {
     double stiffness_scale = 1.0, mass_scale = 1.0, damping = 2e-3;
     bool yank = false;  // grasp, then 0.6 m/s sideways and up
   };
-  std::vector<HardCase> cases{{"hard_stiffness_ratio_1e4", 22, 1e-3, 1e4, 1, 0.01, 0},
+  std::vector<HardCase> hard_cases{{"hard_stiffness_ratio_1e4", 22, 1e-3, 1e4, 1, 0.01, 0},
                               {"hard_stiffness_ratio_1e5", 22, 1e-3, 1e5, 1, 0.01, 0},
                               {"hard_stiff_k2000", 22, 1e-3, 1, 1, 0.01, 0, 1000.0},
                               {"hard_dt_5x_bound", 22, -5, 1, 1, 0.01, 0},
@@ -556,7 +985,7 @@ int main(int argc, char** argv) {
                               {"hard_fast_grasp_pull", 22, 1e-3, 1, 1, 0.1, 0},
                               {"hard_yank_0.6", 22, 1e-3, 1, 1, 0.01, 0, 1.0, 1.0, 2e-3, true},
                               {"hard_push_through", 22, 1e-3, 1, 1, 0, 0.1}};
-  if (!quick) cases.push_back({"hard_membrane_128", 128, -0.5, 1, 1, 0.01, 0});
+  if (!quick) hard_cases.push_back({"hard_membrane_128", 128, -0.5, 1, 1, 0.01, 0});
   struct HardRun {
     Row row;
     std::vector<Eigen::Vector3d> positions;
@@ -646,16 +1075,20 @@ int main(int argc, char** argv) {
     run.positions.assign(membrane->positions(), membrane->positions() + membrane->nodeCount());
     return run;
   };
-  for (const auto& hard : cases) {
+  for (const auto& hard : hard_cases) {
     // Reference: RK2 at a step far below its bound (at most 1e-5 s), with the same strain limit; the error of each
     // run is the final node distance to it. Skipped for the 128 mesh (too long for a benchmark run).
     std::vector<Eigen::Vector3d> reference;
+    std::string reference_name = "none";
     if (hard.cells <= 48) {
       double reference_dt = std::min(1e-5, setUpHard(hard).dt / 20.0);
       // The stiff cases need a step well below the explicit bound of their stiffest spring.
       reference_dt = std::min(reference_dt, 1e-3 / std::sqrt(hard.stiffness_ratio * hard.stiffness_scale) / 20.0);
       if (hard.damping > 0.0) reference_dt = std::min(reference_dt, 0.2 * (1e-5 * hard.mass_scale) / hard.damping);
       reference = runHard(hard, "rk2", reference_dt, true).positions;
+      std::ostringstream name;
+      name << "rk2 dt " << reference_dt << " s (our own integrator; hard cases only)";
+      reference_name = name.str();
     }
     std::vector<std::size_t> case_rows;
     for (const auto& integrator : integrators) {
@@ -669,6 +1102,7 @@ int main(int argc, char** argv) {
         }
         run.row.error_rms = std::sqrt(sum2 / reference.size());
         run.row.error_max = max_error;
+        run.row.reference = reference_name;
       }
       case_rows.push_back(rows.size());
       rows.push_back(run.row);
@@ -702,8 +1136,25 @@ int main(int argc, char** argv) {
         hard.cells != 48) {
       const double dt = setUpHard(hard).dt;
       const int frames = static_cast<int>(std::lround(0.04 / dt));  // our 40 frames of 1 ms
-      const Row row = runBullet(hard.name, hard.cells, dt, std::max(frames, 1),
-                                Eigen::Vector3d(0.0, 0.0, hard.pull_speed), hard.stiffness_ratio, hard.mass_ratio);
+      // The nodes our forceps grasp: within the grasp radius of the z axis.
+      std::vector<std::uint32_t> grasped;
+      {
+        auto membrane = setUpHard(hard).membrane;
+        for (std::size_t i = 0; i < membrane->nodeCount(); ++i) {
+          const Eigen::Vector3d& x = membrane->positions()[i];
+          if (std::hypot(x.x(), x.y()) <= 3e-4 && !membrane->fixedFlags()[i]) grasped.push_back(i);
+        }
+      }
+      BulletSpec spec;
+      spec.stiffness_ratio = hard.stiffness_ratio;
+      spec.mass_ratio = hard.mass_ratio;
+      BulletRun run = runBullet(hard.name, hard.cells, dt, std::max(frames, 1),
+                                Eigen::Vector3d(0.0, 0.0, hard.pull_speed), grasped, spec);
+      Row& row = run.row;
+      if (!reference.empty()) {
+        std::tie(row.error_rms, row.error_max) = distance(run.positions, reference);
+        row.reference = reference_name;
+      }
       printRow(row);
       rows.push_back(row);
     }
