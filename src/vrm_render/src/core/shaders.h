@@ -171,6 +171,7 @@ void main() {
 #else
   vec3 specular_colour = u_specular;
 #endif
+  float reflex = 0.0;
   if (cone > 0.0) {
 #if BUMP
     vec3 g = u_bump_amplitude * bumpGradient(v_object);
@@ -191,11 +192,11 @@ void main() {
     // Phong's cos^s lobe in Schlick's rational form t / (s - s t + t): no pow() per pixel (Schlick 1994).
     float t = max(dot(r, v), 0.0);
     float specular = diffuse > 0.0 ? t / (u_shininess - u_shininess * t + t) : 0.0;
-    // Sheen: the wet film's reflex grows towards grazing view (Schlick's Fresnel factor (1 - n.v)^5 softened to a
-    // square for a rough film), where a lifted membrane tilts away from the retina's orientation.
+    // Sheen: the wet film's reflex of the endoillumination grows towards grazing view (Schlick's Fresnel factor
+    // (1 - n.v)^5, softened to linear for a rough film): where a lifted membrane tilts away from the retina.
     float grazing = 1.0 - abs(dot(n, v));
-    float sheen = u_sheen * grazing * grazing * (0.3 + 0.7 * diffuse);
-    colour += cone * attenuation * visibility * (base.rgb * diffuse + specular_colour * specular + vec3(sheen));
+    reflex = cone * attenuation * visibility * u_sheen * grazing * (0.3 + 0.7 * diffuse);
+    colour += cone * attenuation * visibility * (base.rgb * diffuse + specular_colour * specular);
   }
 #if METAL
   // A metal mirrors its surroundings: below, the fundus lit by the light pipe (orange-red), above, the dark pupil;
@@ -211,6 +212,12 @@ void main() {
   // The light pipe's polished fibre end glows with the light it emits.
   colour += vec3(1.0, 0.97, 0.88) * 1.3 * smoothstep(-u_glow_length, 0.0, v_object_z) * step(0.0, u_glow_length - 1e-9);
 #endif
+  // The reflex is light reflected at the film's surface: on a translucent film it adds to what shows through
+  // instead of being diluted by the film's opacity (premultiplied: colour a + reflex over dst (1 - a - reflex)).
+  float lifted_alpha = min(1.0, alpha + reflex);
+  vec3 film = (colour * alpha + vec3(reflex)) / max(lifted_alpha, 1e-4);
+  colour = mix(film, colour + vec3(reflex), u_coc_alpha);
+  alpha = mix(lifted_alpha, alpha, u_coc_alpha);
   frag = vec4(colour, alpha);
 #endif
 }

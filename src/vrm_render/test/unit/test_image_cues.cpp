@@ -402,6 +402,68 @@ TEST(FundusMapApi, TheVesselMapIsQueryableAndSeeded) {
   EXPECT_NEAR(disc_distance, 0.0045f, 0.0002f);
 }
 
+// ---- Sheen: the endoillumination reflex shows where the membrane is lifted. ----
+
+TEST(MembraneSheen, ALiftedFlapGlistensAndTheAdherentFilmDoesNot) {
+  RenderOptions options;
+  options.width = 320;
+  options.height = 240;
+  options.stereo = false;
+  options.dof_pass = false;
+  options.bump_mapping = false;
+  options.shadow_pass = false;
+  StereoRenderer renderer(options);
+  MicroscopeState microscope;
+  microscope.zoom = 2.0;
+  microscope.ambient_light = 0.15;
+  renderer.setMicroscope(microscope);
+  renderer.setStyle("retina", matte({0.5f, 0.2f, 0.1f, 1.0f}));
+  renderer.updateMesh("retina", checker(0.0f, 0.0f, kFocalZ, 0.006f, 1).view(), 1);
+  // A film lying on the retina (left) and a flap of it lifted by 45 degrees about the y axis (right).
+  MeshData flat = checker(-0.002f, 0.0f, kFocalZ + 0.0001f, 0.001f, 1);
+  MeshData lifted = checker(0.002f, 0.0f, kFocalZ + 0.0001f, 0.001f, 1);
+  for (std::size_t v = 0; v < lifted.positions.size(); v += 3) {
+    const float dx = lifted.positions[v] - 0.001f;  // hinge at x = 1 mm
+    lifted.positions[v] = 0.001f + dx * std::sqrt(0.5f);
+    lifted.positions[v + 2] += dx * std::sqrt(0.5f);
+    lifted.normals[v] = -std::sqrt(0.5f);
+    lifted.normals[v + 2] = std::sqrt(0.5f);
+  }
+  LightPipe light;
+  light.enabled = true;
+  light.tip = Eigen::Vector3f(0.0f, -0.004f, kFocalZ + 0.005f);
+  light.direction = (Eigen::Vector3f(0.0f, 0.0f, kFocalZ) - light.tip).normalized();
+  light.cone_half_angle_rad = 1.0f;
+  renderer.setLightPipe(light);
+  auto film = [](float sheen) {
+    ObjectStyle style;
+    style.material.diffuse = {0.95f, 0.95f, 0.92f, 0.22f};
+    style.material.specular = Eigen::Vector3f::Zero();  // the sheen alone
+    style.material.sheen = sheen;
+    return style;
+  };
+  auto luminanceAt = [&](const RgbImage& image, const Eigen::Vector3f& p) {
+    const Eigen::Vector2f px = pixelOf(renderer, p);
+    return meanLuminance(image, int(px.x()) - 3, int(px.y()) - 3, int(px.x()) + 4, int(px.y()) + 4);
+  };
+  const Eigen::Vector3f flat_centre(-0.002f, 0.0f, kFocalZ + 0.0001f);
+  std::array<double, 2> flat_lum{}, lifted_lum{};
+  for (int k = 0; k < 2; ++k) {
+    renderer.setStyle("flat", film(k == 0 ? 0.0f : 1.2f));
+    renderer.setStyle("lifted", film(k == 0 ? 0.0f : 1.2f));
+    renderer.updateMesh("flat", flat.view(), 1);
+    renderer.updateMesh("lifted", lifted.view(), 1);
+    const StereoFrame frame = renderFrame(renderer);
+    flat_lum[k] = luminanceAt(frame.images[0], flat_centre);
+    // A point on the flap, 0.7 mm from its hinge (x = 1 mm): (1 + 0.7 cos 45°, 0, 0.1 + 0.7 sin 45°) mm.
+    lifted_lum[k] = luminanceAt(frame.images[0], Eigen::Vector3f(0.0015f, 0.0f, kFocalZ + 0.0006f));
+  }
+  std::printf("sheen: flat film +%.1f, lifted flap +%.1f grey levels\n", flat_lum[1] - flat_lum[0],
+              lifted_lum[1] - lifted_lum[0]);
+  EXPECT_LT(flat_lum[1] - flat_lum[0], 3.0) << "the adherent film shows no sheen";
+  EXPECT_GT(lifted_lum[1] - lifted_lum[0], 8.0) << "the lifted flap glistens";
+}
+
 // ---- Stereo: the disparity of a retina point is the microscope's geometry. ----
 
 TEST(StereoImage, TheDisparityOfARetinaPointMatchesTheMicroscopeGeometry) {
