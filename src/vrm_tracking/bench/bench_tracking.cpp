@@ -226,6 +226,16 @@ std::string toJson(const Row& row) {
   if (row.has_floor && row.floor_um > 0) {
     o << ", \"ratio_to_floor_min\": " << num(row.ratio_min) << ", \"ratio_to_floor_max\": " << num(row.ratio_max);
   }
+  if (row.repetitions > 1) {
+    o << ", \"tip_rms_um_each\": [";
+    for (std::size_t i = 0; i < row.tip_rms_each.size(); ++i) o << (i ? ", " : "") << num(row.tip_rms_each[i]);
+    o << "]";
+  }
+  if (row.motion == "circling" && row.ratio_to_three_cameras > 0) {  // per repetition against the 10 mm/s row
+    o << ", \"ratio_to_three_cameras\": " << num(row.ratio_to_three_cameras)
+      << ", \"ratio_to_three_cameras_min\": " << num(row.ratio_min)
+      << ", \"ratio_to_three_cameras_max\": " << num(row.ratio_max);
+  }
   if (row.estimated) {
     o << ", \"calibration_seeds\": [";
     for (std::size_t i = 0; i < row.calibration_seeds.size(); ++i) o << (i ? ", " : "") << row.calibration_seeds[i];
@@ -498,6 +508,21 @@ int main(int argc, char** argv) {
     });
     if (est) markEstimated(&row);
     row.occluded_camera = opt.occluded_camera;
+    if (c.label == "one camera occluded") {
+      // Same motion, speed and seeds as the "10 mm/s" row of the same calibration: the ratio repetition by repetition.
+      for (const Row& three : rows) {
+        if (three.source != "rendered" || three.label != "10 mm/s" || three.estimated != est ||
+            three.tip_rms_each.size() != row.tip_rms_each.size()) {
+          continue;
+        }
+        std::vector<double> ratios;
+        for (std::size_t k = 0; k < row.tip_rms_each.size(); ++k) ratios.push_back(row.tip_rms_each[k] / three.tip_rms_each[k]);
+        const Spread sp = spreadOf(ratios);
+        row.ratio_to_three_cameras = sp.median;
+        row.ratio_min = sp.min;
+        row.ratio_max = sp.max;
+      }
+    }
     rows.push_back(row);
    }
   }
