@@ -172,6 +172,18 @@ double pairedRatio(const Case& plain, const Case& c, int frames) {
   return median(ratios);
 }
 
+// What an element costs: the full case `all` against the case without it (`without`), frame by frame in turns,
+// median of the per-pair differences of the total frame time (ms).
+double pairedCost(const Case& all, const Case& without, int frames) {
+  Setup a(all), b(without);
+  std::vector<double> differences;
+  for (int i = 0; i < frames; ++i) {
+    const double ta = a.render(i).ms_total;
+    differences.push_back(ta - b.render(i).ms_total);
+  }
+  return median(differences);
+}
+
 Row run(const Case& c, int frames, const std::string& png_dir) {
   Setup setup(c);
   StereoRenderer& renderer = setup.renderer;
@@ -337,6 +349,19 @@ int main(int argc, char** argv) {
     }
     break;
   }
+  // The cost of each element of the full frame, paired against the row without it (stereo 800x600 only).
+  std::vector<std::pair<std::string, double>> element_costs;
+  for (const Row& all : rows) {
+    if (all.c.name != "stereo_800x600_all") continue;
+    for (const Row& r : rows) {
+      const std::string prefix = "stereo_800x600_no";
+      if (r.c.name.compare(0, prefix.size(), prefix) != 0) continue;
+      const std::string element = r.c.name.substr(prefix.size());
+      element_costs.emplace_back(element, pairedCost(all.c, r.c, frames));
+      std::printf("paired cost of %-8s %6.2f ms per stereo frame (%s - %s, median of %d differences)\n",
+                  element.c_str(), element_costs.back().second, all.c.name.c_str(), r.c.name.c_str(), frames);
+    }
+  }
   auto cpuRatioToPlain = [&](const Row& r) {
     for (const Row& p : rows) {
       if (p.c.plain && p.c.width == r.c.width && p.c.height == r.c.height && p.cpu_ms_per_frame > 0) {
@@ -353,8 +378,12 @@ int main(int argc, char** argv) {
     }
     file << "{\"suite\":\"render\",\"command\":\"" << command << "\",\"lp_num_threads\":\"" << lp_threads
          << "\",\"target_ms_total\":33.0,\"target_ratio_to_plain\":0.40,\"paired_case\":\"" << paired_case
-         << "\",\"paired_ratio_to_plain\":" << paired_ratio << ",\"fundus_bake_ms\":" << fundus_bake_ms
-         << ",\"rows\":[\n";
+         << "\",\"paired_ratio_to_plain\":" << paired_ratio << ",\"paired_cost_ms\":{";
+    for (std::size_t i = 0; i < element_costs.size(); ++i) {
+      file << (i ? "," : "") << "\"" << element_costs[i].first << "\":" << element_costs[i].second;
+    }
+    file << "}"
+         << ",\"fundus_bake_ms\":" << fundus_bake_ms << ",\"rows\":[\n";
     for (std::size_t i = 0; i < rows.size(); ++i) {
       const Row& r = rows[i];
       file << "{\"suite\":\"render\",\"case\":\"" << r.c.name << "\",\"width\":" << r.c.width
