@@ -390,9 +390,11 @@ void setSpread(Row& row, const std::vector<double>& rep_ms) {
 #ifdef VRM_HAVE_BULLET
 // Bullet's link stiffness factors each Bullet configuration is measured at (its best match is reported).
 const std::vector<double> kBulletStiffnesses{0.01, 0.03, 0.1, 0.3, 1.0};
-// Bullet's world is in millimetres: its collision code (GJK/EPA tolerances ~1e-4 in world units, 0.25 voxels of the
-// signed distance field) misses a 0.3 mm sphere in metres. Position-based links, kDP and gravity scale exactly.
-constexpr double kBulletScale = 1e3;
+// With the probe, Bullet's world is in millimetres: its collision code (GJK/EPA tolerances ~1e-4 in world units, 0.25
+// voxels of the signed distance field) misses a 0.3 mm sphere in metres. Position-based links, kDP and gravity scale
+// exactly. Without it, metres: the default margins (0.25 units, the slack of its node and face trees) then cover the
+// whole 5 mm membrane, so no node is re-inserted as it moves — in millimetres that re-insertion costs up to 4× a step.
+double bulletScale(bool probe) { return probe ? 1e3 : 1.0; }
 
 struct BulletSpec {
   int iterations = 10;
@@ -408,7 +410,9 @@ struct BulletSpec {
 class BulletMembrane {
  public:
   BulletMembrane(int cells, double node_mass, double dt, const BulletSpec& spec)
-      : dispatcher_(&configuration_), world_(&dispatcher_, &broadphase_, &solver_, &configuration_) {
+      : kBulletScale(bulletScale(spec.probe)),
+        dispatcher_(&configuration_),
+        world_(&dispatcher_, &broadphase_, &solver_, &configuration_) {
     const btVector3 gravity(0, 0, spec.gravity ? -kGravity * kBulletScale : 0.0);
     world_.setGravity(gravity);
     btSoftBodyWorldInfo& info = world_.getWorldInfo();
@@ -437,7 +441,8 @@ class BulletMembrane {
       if (spec.stiffness_ratio > 1.0 && link.m_n[0]->m_x.x() <= 0) link.m_material = soft;
     }
     body_->updateConstants();
-    body_->getCollisionShape()->setMargin(static_cast<btScalar>(1e-5 * kBulletScale));
+    // Probe runs: contact within 0.05 mm of the sphere (ours: the ε-shell, 0.015 mm); the others keep the default.
+    if (spec.probe) body_->getCollisionShape()->setMargin(static_cast<btScalar>(5e-5 * kBulletScale));
     std::vector<bool> pinned(mesh.vertices.size(), false);
     for (auto v : mesh.fixed_vertices) pinned[v] = true;
     for (int i = 0; i < body_->m_nodes.size(); ++i) {
@@ -536,6 +541,7 @@ class BulletMembrane {
   int links() const { return body_->m_links.size(); }
 
  private:
+  const double kBulletScale;  // world units per metre
   btSoftBodyRigidBodyCollisionConfiguration configuration_;
   btCollisionDispatcher dispatcher_;
   btDbvtBroadphase broadphase_;
