@@ -31,6 +31,9 @@ MeshData instrumentMesh(const vrm_sim::scene::InstrumentDescription& configured,
 // The rendered jaw opening in whole degrees: meshes are rebuilt only when this changes.
 int jawStepDeg(vrm_sim::scene::InstrumentType type, double jaw_angle_rad);
 
+// The endoilluminator's light (issue 16): a soft-edged cone (the fibre's light falls off towards the rim rather than
+// ending at it) at an intensity that lights the fundus without saturating it. Used by the nodelet and typicalScene.
+LightPipe endoilluminator();
 // Light pipe spotlight for an instrument pose: tip at the frame origin, shining along the frame's +z.
 LightPipe lightPipeAt(const Eigen::Isometry3f& world_from_instrument, const LightPipe& defaults = {});
 

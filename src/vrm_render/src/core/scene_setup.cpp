@@ -103,6 +103,13 @@ MeshData instrumentMesh(const scene::InstrumentDescription& configured, scene::I
   return toMeshData(scene::buildInstrumentMesh(instrument));
 }
 
+LightPipe endoilluminator() {
+  LightPipe light;
+  light.cone_softness = 0.6f;
+  light.intensity = 1.2f;
+  return light;
+}
+
 LightPipe lightPipeAt(const Eigen::Isometry3f& world_from_instrument, const LightPipe& defaults) {
   LightPipe light = defaults;
   light.enabled = true;
@@ -175,14 +182,7 @@ std::vector<SceneObject> typicalScene(LightPipe* light) {
   forceps.pose = instrumentPoseThroughTrocar(right_trocar, Eigen::Vector3f(0.0017f, 0.0f, -radius + 0.0004f), 0.0185f);
   objects.push_back(std::move(forceps));
 
-  if (light) {
-    // Endoillumination: a soft-edged cone (the fibre's light falls off towards the rim rather than ending at it)
-    // that lights the fundus without saturating it.
-    LightPipe defaults;
-    defaults.cone_softness = 0.6f;
-    defaults.intensity = 1.2f;
-    *light = lightPipeAt(objects[2].pose, defaults);
-  }
+  if (light) *light = lightPipeAt(objects[2].pose, endoilluminator());
   return objects;
 }
 

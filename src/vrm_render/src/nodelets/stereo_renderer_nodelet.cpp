@@ -629,7 +629,8 @@ class StereoRendererNodelet : public nodelet::Nodelet {
             frameToWorld(state->header.frame_id.empty() ? eye_frame_ : state->header.frame_id) *
             toIsometry(state->tip_pose);
         renderer_->setPose(slot.object_id, pose);
-        if (!slot.ghost && type == vrm_sim::scene::InstrumentType::kLightPipe) light = lightPipeAt(pose);
+        if (!slot.ghost && type == vrm_sim::scene::InstrumentType::kLightPipe)
+          light = lightPipeAt(pose, endoilluminator());
       } catch (const std::exception& error) {
         renderer_->setVisible(slot.object_id, false);
         NODELET_WARN_THROTTLE(1.0, "instrument '%s' ignored: %s", state->instrument_id.c_str(), error.what());

@@ -282,7 +282,11 @@ TEST(FundusImage, TheDiscAndTheFourArcadeVesselsAreFoundWhereTheFundusMapPutsThe
   MicroscopeState microscope;  // the default view, coaxial light only
   microscope.ambient_light = 1.0;
   renderer.setMicroscope(microscope);
-  auto fundus = std::make_shared<const FundusMap>(FundusParams{});
+  // Another seed's fundus: VRM_RENDER_FUNDUS_SEED=<n> (the detector must not depend on one tree).
+  FundusParams params;
+  if (const char* seed = std::getenv("VRM_RENDER_FUNDUS_SEED"))
+    params.seed = static_cast<std::uint32_t>(std::atoi(seed));
+  auto fundus = std::make_shared<const FundusMap>(params);
   renderer.setFundus(fundus);
   ObjectStyle retina;
   retina.fundus = true;
@@ -343,7 +347,7 @@ TEST(FundusImage, TheDiscAndTheFourArcadeVesselsAreFoundWhereTheFundusMapPutsThe
   std::vector<float> detected;  // angles of ridge peaks
   for (int k = 0; k < kSamples; ++k) {
     const float v = profile[k];
-    if (v < 50.0f) continue;  // arcade-sized vessels (the veins ~60-70, capillary-sized branches less)
+    if (v < 40.0f) continue;  // arcade-sized vessels (the veins ~60-70, capillary-sized branches less)
     bool peak = true;
     // Strict on one side: a plateau counts once.
     for (int o = -6; o <= 6 && peak; ++o)
@@ -351,7 +355,8 @@ TEST(FundusImage, TheDiscAndTheFourArcadeVesselsAreFoundWhereTheFundusMapPutsThe
     if (peak) detected.push_back(2.0f * static_cast<float>(M_PI) * k / kSamples);
   }
   // Where each arcade's trunk vein (generation 0) crosses the circle, from the fundus map.
-  int found = 0;
+  // As a control, the same positions turned by 0.6 rad must not all find a ridge (the check can fail).
+  int found = 0, control = 0;
   for (int arcade = 0; arcade < 4; ++arcade) {
     std::optional<float> expected;
     for (const VesselSegment& s : fundus->vessels()) {
@@ -363,19 +368,24 @@ TEST(FundusImage, TheDiscAndTheFourArcadeVesselsAreFoundWhereTheFundusMapPutsThe
       break;
     }
     ASSERT_TRUE(expected.has_value()) << "arcade " << arcade << " does not reach 2 mm from the disc";
-    const float tolerance = 4.0f / (circle * 1e3f * px_per_mm);  // 4 px along the circle
+    const float tolerance = 6.0f / (circle * 1e3f * px_per_mm);  // 6 px (a vein and its artery side by side)
     float nearest = 10.0f;
     for (float a : detected) nearest = std::min(nearest, std::abs(std::remainder(a - *expected, 2.0f * float(M_PI))));
     const bool hit = nearest <= tolerance;
+    float shifted = 10.0f;
+    for (float a : detected)
+      shifted = std::min(shifted, std::abs(std::remainder(a - *expected - 0.6f, 2.0f * float(M_PI))));
+    control += shifted <= tolerance ? 1 : 0;
     EXPECT_TRUE(hit) << "arcade " << arcade << " vein not detected at " << *expected << " rad (nearest ridge "
                      << nearest << " rad away, tolerance " << tolerance << ")";
     found += hit ? 1 : 0;
   }
   std::printf(
       "fundus: disc at (%.1f, %.1f) (expected %.1f, %.1f), %.2f mm across; %zu vessel crossings on the 2 mm "
-      "circle, %d/4 arcades\n",
-      disc_found.x(), disc_found.y(), disc_px.x(), disc_px.y(), diameter_mm, detected.size(), found);
+      "circle, %d/4 arcades (control %d/4)\n",
+      disc_found.x(), disc_found.y(), disc_px.x(), disc_px.y(), diameter_mm, detected.size(), found, control);
   EXPECT_GE(detected.size(), 6u) << "the four arcades' arteries and veins and their branches";
+  EXPECT_LT(control, 4) << "ridges everywhere: the arcade check could not fail";
 }
 
 TEST(FundusMapApi, TheVesselMapIsQueryableAndSeeded) {
