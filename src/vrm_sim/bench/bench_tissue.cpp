@@ -390,11 +390,11 @@ void setSpread(Row& row, const std::vector<double>& rep_ms) {
 #ifdef VRM_HAVE_BULLET
 // Bullet's link stiffness factors each Bullet configuration is measured at (its best match is reported).
 const std::vector<double> kBulletStiffnesses{0.01, 0.03, 0.1, 0.3, 1.0};
-// With the probe, Bullet's world is in millimetres: its collision code (GJK/EPA tolerances ~1e-4 in world units, 0.25
-// voxels of the signed distance field) misses a 0.3 mm sphere in metres. Position-based links, kDP and gravity scale
-// exactly. Without it, metres: the default margins (0.25 units, the slack of its node and face trees) then cover the
-// whole 5 mm membrane, so no node is re-inserted as it moves — in millimetres that re-insertion costs up to 4× a step.
-double bulletScale(bool probe) { return probe ? 1e3 : 1.0; }
+// Bullet's world is in millimetres. In metres (float btScalar) its link solver skips a link when c1 + |d|² =
+// rest² + length² < FLT_EPSILON, i.e. every link shorter than ~0.24 mm — all links of these meshes (0.23 mm at 22×22,
+// 0.05 mm at 100×100) — and its collision code (GJK/EPA tolerances ~1e-4 units, 0.25-unit SDF voxels) misses a 0.3 mm
+// sphere. Position-based links, kDP and gravity scale exactly.
+double bulletScale(bool /*probe*/) { return 1e3; }
 
 struct BulletSpec {
   int iterations = 10;
@@ -441,8 +441,10 @@ class BulletMembrane {
       if (spec.stiffness_ratio > 1.0 && link.m_n[0]->m_x.x() <= 0) link.m_material = soft;
     }
     body_->updateConstants();
-    // Probe runs: contact within 0.05 mm of the sphere (ours: the ε-shell, 0.015 mm); the others keep the default.
-    if (spec.probe) body_->getCollisionShape()->setMargin(static_cast<btScalar>(5e-5 * kBulletScale));
+    // The margin is also the slack of Bullet's node and face trees: a small one re-inserts every moving node each step
+    // (up to 4× the step time at 100×100). Probe runs need one for contact: 0.05 mm (ours: the ε-shell, 0.015 mm).
+    // The others get 0.25 m, Bullet's default margin in a metre world, which no node of the membrane ever leaves.
+    body_->getCollisionShape()->setMargin(static_cast<btScalar>((spec.probe ? 5e-5 : 0.25) * kBulletScale));
     std::vector<bool> pinned(mesh.vertices.size(), false);
     for (auto v : mesh.fixed_vertices) pinned[v] = true;
     for (int i = 0; i < body_->m_nodes.size(); ++i) {
