@@ -7,12 +7,7 @@
 #   3. the same launch straight through roslaunch: the manager's exit code is 1 and the reason is printed.
 # Prints PASS/FAIL lines; exits 1 on any failure.
 set -uo pipefail
-ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)
-source "$ROOT/scripts/common.sh"
-failures=0
-pass() { echo "PASS: $*"; }
-fail() { echo "FAIL: $*"; failures=$((failures + 1)); }
-TMP=$(mktemp -d)
+source "$(dirname "${BASH_SOURCE[0]}")/checks.sh"
 trap 'rm -rf "$TMP"' EXIT
 
 printf '%s\n' '================================================================================REQUIRED process [session_control-13] has died!' \

@@ -5,12 +5,7 @@
 # camera_info and the inputs, rosnode list and tf_echo world -> eye answer within their time limits.
 # Prints PASS/FAIL lines; exits 1 on any failure.
 set -uo pipefail
-ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)
-source "$ROOT/scripts/common.sh"
-failures=0
-pass() { echo "PASS: $*"; }
-fail() { echo "FAIL: $*"; failures=$((failures + 1)); }
-TMP=$(mktemp -d)
+source "$(dirname "${BASH_SOURCE[0]}")/checks.sh"
 PORT=${PORT:-11744}
 export ROS_MASTER_URI=http://localhost:$PORT
 setsid roslaunch -p "$PORT" "$ROOT/launch/simulator.launch" tracking:=true >"$TMP/launch.log" 2>&1 &
