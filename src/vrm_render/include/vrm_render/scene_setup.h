@@ -36,11 +36,6 @@ int jawStepDeg(vrm_sim::scene::InstrumentType type, double jaw_angle_rad);
 LightPipe endoilluminator();
 // Light pipe spotlight for an instrument pose: tip at the frame origin, shining along the frame's +z.
 LightPipe lightPipeAt(const Eigen::Isometry3f& world_from_instrument, const LightPipe& defaults = {});
-// A chandelier endoilluminator (a fibre fixed in the eye wall, as in bimanual vitrectomy): where the light comes from
-// while no light pipe is in the eye, so the fundus is lit and the instruments cast shadows (thesis §6). Eye frame:
-// in the superior pars plana (45° from the optical axis, azimuth 90°, between the usual trocars at 30° and 150°),
-// shining at the posterior pole; the pose's +z is the light's direction.
-Eigen::Isometry3f chandelierInEye(float eye_radius);
 
 struct SceneObject {
   std::string id;

@@ -118,14 +118,6 @@ LightPipe lightPipeAt(const Eigen::Isometry3f& world_from_instrument, const Ligh
   return light;
 }
 
-Eigen::Isometry3f chandelierInEye(float eye_radius) {
-  const float polar = 0.25f * static_cast<float>(M_PI);
-  const Eigen::Vector3f fibre = eye_radius * Eigen::Vector3f(0.0f, std::sin(polar), std::cos(polar));
-  const Eigen::Vector3f posterior_pole(0.0f, 0.0f, -eye_radius);
-  // The fibre's end reaches 0.5 mm into the vitreous (in a 12 mm eye).
-  return instrumentPoseThroughTrocar(fibre, posterior_pole, 0.0005f * eye_radius / 0.012f);
-}
-
 Eigen::Isometry3f instrumentPoseThroughTrocar(const Eigen::Vector3f& trocar_in_eye,
                                               const Eigen::Vector3f& target_in_eye, float depth) {
   const Eigen::Vector3f z = (target_in_eye - trocar_in_eye).normalized();

@@ -33,8 +33,6 @@
 //   microscope.
 // Service: ~save_snapshot (std_srvs/Trigger): writes the last rendered frame (left, right) as PNGs into
 //   ~snapshot_dir (/tmp when empty) and returns the path prefix.
-// Light: the light pipe instrument's spotlight; while none is in the eye, a chandelier fibre in the superior pars
-//   plana (~chandelier, default true; chandelierInEye) — false leaves only the dim coaxial light.
 
 #include <cv_bridge/cv_bridge.h>
 #include <diagnostic_msgs/DiagnosticArray.h>
@@ -218,7 +216,6 @@ class StereoRendererNodelet : public nodelet::Nodelet {
     pnh.param("shadow_map_size", options.shadow_map_size, options.shadow_map_size);
     pnh.param("dof_downsample", options.dof_downsample, options.dof_downsample);
     pnh.param("ghost_instruments", ghost_instruments_, false);
-    pnh.param("chandelier", chandelier_, true);
     // glFinish between passes: exact per-pass StageTiming, at the cost of some llvmpipe overlap (bench_render).
     pnh.param("time_passes", options.time_passes, options.time_passes);
     pnh.param("rate", rate_, 30.0);
@@ -641,12 +638,6 @@ class StereoRendererNodelet : public nodelet::Nodelet {
     };
     for (const auto& entry : slot_states_) applyInstrument(slots_.at(entry.first), entry.second);
     for (const auto& entry : ghost_states_) applyInstrument(ghost_slots_.at(entry.first), entry.second);
-    // No light pipe in the eye (a session that uses only the forceps): the chandelier lights the fundus, so the
-    // instruments still cast the shadows a trainee judges depth by (thesis §6); ~chandelier false: coaxial light only.
-    if (!light.enabled && chandelier_) {
-      light = lightPipeAt(frameToWorld(eye_frame_) * chandelierInEye(static_cast<float>(scene_.eye.radius)),
-                          endoilluminator());
-    }
     renderer_->setLightPipe(light);
     if (microscope_in_use_) {
       MicroscopeState knobs;
@@ -831,7 +822,6 @@ class StereoRendererNodelet : public nodelet::Nodelet {
   vrm_sim::scene::SceneDescription scene_;
   std::unique_ptr<StereoRenderer> renderer_;
   bool ghost_instruments_ = false;
-  bool chandelier_ = true;  // light from a chandelier fibre while no light pipe is in the eye
   Trigger trigger_ = Trigger::kSimulation;
   double rate_ = 30.0;
   double max_rate_ = 0.0;
