@@ -95,5 +95,25 @@ TEST(Conversions, CollisionReportCopiesTheResult) {
   EXPECT_DOUBLE_EQ(report.ms_total, 0.5);
 }
 
+TEST(Conversions, InstrumentTypeConstantsRoundTripAndUnknownIsNone) {
+  const std::pair<scene::InstrumentType, std::uint8_t> expected[] = {
+      {scene::InstrumentType::kLightPipe, vrm_msgs::InstrumentState::LIGHT_PIPE},
+      {scene::InstrumentType::kForceps, vrm_msgs::InstrumentState::FORCEPS},
+      {scene::InstrumentType::kVitrector, vrm_msgs::InstrumentState::VITRECTOR},
+      {scene::InstrumentType::kNeedle, vrm_msgs::InstrumentState::NEEDLE},
+      {scene::InstrumentType::kHook, vrm_msgs::InstrumentState::HOOK}};
+  for (const auto& [type, constant] : expected) {
+    EXPECT_EQ(toMsgType(type), constant);
+    ASSERT_TRUE(instrumentTypeFromMsg(constant).has_value());
+    EXPECT_EQ(*instrumentTypeFromMsg(constant), type);
+  }
+  EXPECT_FALSE(instrumentTypeFromMsg(vrm_msgs::InstrumentState::HOOK + 1).has_value());
+  EXPECT_FALSE(instrumentTypeFromMsg(255).has_value());
+  EXPECT_EQ(toMsgType(std::nullopt), 255);
+  vrm_msgs::InstrumentState message;
+  message.type = 200;  // a constant this build does not know: the slot keeps its type
+  EXPECT_FALSE(toWorld(message).type.has_value());
+}
+
 }  // namespace
 }  // namespace vrm_sim

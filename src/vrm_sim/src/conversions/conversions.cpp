@@ -184,18 +184,42 @@ world::EyeState toWorld(const vrm_msgs::EyeState& eye) {
   return state;
 }
 
+namespace {
+
+struct InstrumentTypeConstant {
+  scene::InstrumentType type;
+  std::uint8_t constant;
+};
+constexpr InstrumentTypeConstant kInstrumentTypeConstants[] = {
+    {scene::InstrumentType::kLightPipe, vrm_msgs::InstrumentState::LIGHT_PIPE},
+    {scene::InstrumentType::kForceps, vrm_msgs::InstrumentState::FORCEPS},
+    {scene::InstrumentType::kVitrector, vrm_msgs::InstrumentState::VITRECTOR},
+    {scene::InstrumentType::kNeedle, vrm_msgs::InstrumentState::NEEDLE},
+    {scene::InstrumentType::kHook, vrm_msgs::InstrumentState::HOOK}};
+constexpr std::uint8_t kNoInstrumentType = 255;
+
+}  // namespace
+
+std::optional<scene::InstrumentType> instrumentTypeFromMsg(std::uint8_t msg_type) {
+  for (const InstrumentTypeConstant& entry : kInstrumentTypeConstants) {
+    if (entry.constant == msg_type) return entry.type;
+  }
+  return std::nullopt;
+}
+
+std::uint8_t toMsgType(std::optional<scene::InstrumentType> type) {
+  if (!type) return kNoInstrumentType;
+  for (const InstrumentTypeConstant& entry : kInstrumentTypeConstants) {
+    if (entry.type == *type) return entry.constant;
+  }
+  return kNoInstrumentType;
+}
+
 world::InstrumentState toWorld(const vrm_msgs::InstrumentState& instrument) {
-  static_assert(static_cast<int>(scene::InstrumentType::kLightPipe) == vrm_msgs::InstrumentState::LIGHT_PIPE &&
-                    static_cast<int>(scene::InstrumentType::kForceps) == vrm_msgs::InstrumentState::FORCEPS &&
-                    static_cast<int>(scene::InstrumentType::kVitrector) == vrm_msgs::InstrumentState::VITRECTOR &&
-                    static_cast<int>(scene::InstrumentType::kNeedle) == vrm_msgs::InstrumentState::NEEDLE &&
-                    static_cast<int>(scene::InstrumentType::kHook) == vrm_msgs::InstrumentState::HOOK,
-                "scene::InstrumentType must follow the InstrumentState type constants");
   world::InstrumentState state;
   state.stamp = toStamp(instrument.header.stamp);
   state.slot = instrument.instrument_id;
-  if (instrument.type <= vrm_msgs::InstrumentState::HOOK)
-    state.type = static_cast<scene::InstrumentType>(instrument.type);
+  state.type = instrumentTypeFromMsg(instrument.type);
   // Copied number for number (the core rejects non-finite or zero quaternions).
   const geometry_msgs::Pose& pose = instrument.tip_pose;
   state.tip_position = Eigen::Vector3d(pose.position.x, pose.position.y, pose.position.z);
@@ -214,7 +238,7 @@ vrm_msgs::InstrumentState toMsg(const world::InstrumentState& instrument) {
   message.header.stamp = toRosTime(instrument.stamp);
   message.header.frame_id = instrument.frame_id;
   message.instrument_id = instrument.slot;
-  message.type = instrument.type ? static_cast<std::uint8_t>(*instrument.type) : 255;
+  message.type = toMsgType(instrument.type);
   message.tip_pose.position.x = instrument.tip_position.x();
   message.tip_pose.position.y = instrument.tip_position.y();
   message.tip_pose.position.z = instrument.tip_position.z();
