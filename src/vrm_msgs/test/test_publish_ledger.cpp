@@ -5,6 +5,8 @@
 #include "vrm_msgs/EyeState.h"
 #include "vrm_msgs/publish.h"
 
+TEST(PublishLedger, IsOffByDefault) { EXPECT_FALSE(vrm_msgs::PublishLedger::instance().enabled()); }
+
 TEST(PublishLedger, KnowsLiveMessagesOnly) {
   auto& ledger = vrm_msgs::PublishLedger::instance();
   auto message = boost::make_shared<vrm_msgs::EyeState>();
@@ -31,4 +33,23 @@ TEST(PublishLedger, ForgetsBeyondCapacity) {
   }
   EXPECT_FALSE(ledger.contains(first.get()));
   EXPECT_TRUE(ledger.contains(keep.back().get()));
+}
+
+TEST(PublishLedger, RecordsPublishesOnlyWhileEnabled) {
+  auto& ledger = vrm_msgs::PublishLedger::instance();
+  ledger.setEnabled(false);
+  auto unnoted = boost::make_shared<vrm_msgs::EyeState>();
+  const std::size_t before = ledger.recorded();
+  EXPECT_FALSE(ledger.recordIfEnabled(unnoted)) << "recording must be off by default / when disabled";
+  EXPECT_EQ(ledger.recorded(), before);
+  EXPECT_FALSE(ledger.contains(unnoted.get()));
+
+  ledger.setEnabled(true);
+  EXPECT_TRUE(ledger.enabled());
+  auto noted = boost::make_shared<vrm_msgs::EyeState>();
+  EXPECT_TRUE(ledger.recordIfEnabled(noted));
+  EXPECT_EQ(ledger.recorded(), before + 1);
+  EXPECT_TRUE(ledger.contains(noted.get()));
+  EXPECT_FALSE(ledger.contains(unnoted.get()));
+  ledger.setEnabled(false);
 }

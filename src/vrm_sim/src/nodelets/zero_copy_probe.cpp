@@ -2,12 +2,16 @@
 // pointers. For each input topic it counts the messages received and how many of them are the very objects a
 // publisher handed to vrm_msgs::publishShared() in this process (PublishLedger). A copy anywhere on the way
 // (publish(*msg), or a subscriber in another process) shows up as received > zero_copy.
+// The ledger records only while enabled (off in production); the probe switches it on when it loads. A publisher
+// that read the flag just before that may still be publishing an unrecorded message, so the probe subscribes only
+// after ~settle_time (default 0.2 s): every message it receives was then published with the ledger on.
 // Latched topics are left out on purpose: roscpp hands a late subscriber in the same process a deserialised copy
 // of the latched message (measured by this probe), which is fine for one-off scene data but not for streams.
 #include <diagnostic_msgs/DiagnosticArray.h>
 #include <nodelet/nodelet.h>
 #include <ros/ros.h>
 
+#include <algorithm>
 #include <atomic>
 #include <boost/make_shared.hpp>
 #include <map>
@@ -27,10 +31,18 @@ class ZeroCopyProbe : public nodelet::Nodelet {
  public:
   void onInit() override {
     ros::NodeHandle& nh = getNodeHandle();
-    subscribeTo<vrm_msgs::EyeState>(nh, "eye_state");
-    subscribeTo<vrm_msgs::InstrumentState>(nh, "instrument_state");
-    subscribeTo<vrm_msgs::PedalState>(nh, "pedals");
-    subscribeTo<vrm_msgs::MicroscopeSettings>(nh, "microscope");
+    vrm_msgs::PublishLedger::instance().setEnabled(true);
+    const double settle = std::max(0.0, getPrivateNodeHandle().param("settle_time", 0.2));
+    subscribe_timer_ = nh.createWallTimer(
+        ros::WallDuration(std::max(settle, 1e-3)),
+        [this](const ros::WallTimerEvent&) {
+          ros::NodeHandle& nh = getNodeHandle();
+          subscribeTo<vrm_msgs::EyeState>(nh, "eye_state");
+          subscribeTo<vrm_msgs::InstrumentState>(nh, "instrument_state");
+          subscribeTo<vrm_msgs::PedalState>(nh, "pedals");
+          subscribeTo<vrm_msgs::MicroscopeSettings>(nh, "microscope");
+        },
+        true);
     report_publisher_ = nh.advertise<diagnostic_msgs::DiagnosticArray>("diagnostics", 10);
     const double period = getPrivateNodeHandle().param("report_period", 0.5);
     report_timer_ = nh.createWallTimer(ros::WallDuration(period), [this](const ros::WallTimerEvent&) { report(); });
@@ -77,7 +89,8 @@ class ZeroCopyProbe : public nodelet::Nodelet {
     vrm_msgs::publishShared(report_publisher_, array);
   }
 
-  std::vector<ros::Subscriber> subscribers_;
+  std::vector<ros::Subscriber> subscribers_;  // filled once, by subscribe_timer_
+  ros::WallTimer subscribe_timer_;
   ros::Publisher report_publisher_;
   ros::WallTimer report_timer_;
   std::mutex mutex_;
