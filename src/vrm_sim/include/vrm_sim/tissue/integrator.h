@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "vrm_sim/registry.h"
 #include "vrm_sim/tissue/system.h"
 
 namespace vrm_sim {
@@ -23,7 +24,7 @@ struct IntegratorOptions {
   // implicit_euler: start CG from the previous step's Δv (scaled to this dt) instead of 0 (bench_implicit: 8× lower
   // residual and 14× lower error after 10 iterations at 10k nodes, for 0–5 % more time).
   bool cg_warm_start = true;
-  int xpbd_iterations = 10;    // constraint sweeps per step
+  int xpbd_iterations = 10;  // constraint sweeps per step
 };
 
 class Integrator {
@@ -38,8 +39,17 @@ class Integrator {
   virtual double lastResidual() const { return 0.0; }
 };
 
+using IntegratorFactory = std::unique_ptr<Integrator> (*)(const IntegratorOptions& options);
+
+// The names `tissue.integrator` accepts, in this order: "auto" first (the default: the integrator is chosen per
+// membrane by TissueSimulator, see integrator_choice.h; its factory builds the integrator "auto" starts with,
+// symplectic_euler, before the first choice), then the integrators proper. The scene schema check, makeIntegrator()
+// and the listings all read this table.
+const Registry<IntegratorFactory>& integratorRegistry();
+// The integrators proper: integratorRegistry()'s names without "auto", in table order.
 const std::vector<std::string>& integratorNames();
-// Throws std::invalid_argument naming the known integrators for an unknown name.
+// integratorRegistry().at(name).make(options): throws std::invalid_argument naming the known integrators for an
+// unknown name.
 std::unique_ptr<Integrator> makeIntegrator(const std::string& name, const IntegratorOptions& options = {});
 
 // Explicit stability bound of eq. 5.6 in its empirical form Δt ≤ 0.4π·sqrt(m0/k0) with k0 = max k_ij, m0 = min m_i

@@ -23,6 +23,7 @@
 #include "vrm_sim/tissue/refinement.h"
 #include "vrm_sim/tissue/strain_limit.h"
 #include "vrm_sim/tissue/system.h"
+#include "vrm_sim/tissue/tissue_model.h"
 
 namespace vrm_sim {
 namespace mge {
@@ -51,12 +52,13 @@ struct WatchdogConfig {
 };
 
 struct TissueConfig {
-  // "mass_spring" (integrated with `integrator`) or "chainmail" (Gibson 1997, inelastic: instruments move nodes,
-  // links drag neighbours within the `chainmail` limits; no integration).
+  // A name of tissueModelRegistry() (tissue_model.h): "mass_spring" (integrated with `integrator`) or "chainmail"
+  // (Gibson 1997, inelastic: instruments move nodes, links drag neighbours within the `chainmail` limits; no
+  // integration).
   std::string model = "mass_spring";
   ChainMailConfig chainmail;
-  // A name of integratorNames(), or "auto" (integrator_choice.h): chosen per membrane from its stiffness, masses,
-  // damping and dt, and chosen again when a grasp or a topology change alters them.
+  // A name of integratorRegistry(): an integrator, or "auto" (integrator_choice.h): chosen per membrane from its
+  // stiffness, masses, damping and dt, and chosen again when a grasp or a topology change alters them.
   std::string integrator = "quasi_static_euler";
   IntegratorOptions integrator_options;
   AutoIntegratorOptions auto_integrator;
@@ -153,8 +155,8 @@ using Clock = std::function<double()>;  // seconds, monotonic
 
 class TissueSimulator {
  public:
-  // Throws std::invalid_argument for an unknown integrator, a non-positive dt, a free node without positive mass
-  // (unless config.repair_massless_nodes) or non-finite positions.
+  // Throws std::invalid_argument for an unknown integrator or model, settings the model rejects, a non-positive dt, a
+  // free node without positive mass (unless config.repair_massless_nodes) or non-finite positions.
   TissueSimulator(mge::Membrane& membrane, const TissueConfig& config);
   ~TissueSimulator();
 
@@ -196,37 +198,26 @@ class TissueSimulator {
   double kineticEnergy();
   double totalEnergy();
   const std::vector<NodeDeformation>& lastContacts() const { return contacts_; }
-  int fallbackLevel() const { return fallback_level_; }
+  int fallbackLevel() const { return model_->fallbackLevel(); }
   std::uint64_t topologyChanges() const { return statistics_.topology_changes; }
-  ChainMail* chainmail() { return chainmail_.get(); }
+  const TissueModel& model() const { return *model_; }
+  // The ChainMail of the chainmail model, nullptr for another model.
+  ChainMail* chainmail();
   LocalRefinement* refinement() { return refinement_.get(); }
 
  private:
+  // The models are this simulator's step (tissue_model.h): they work on its state.
+  friend class MassSpringModel;
+  friend class ChainMailModel;
+
   void rebuildConstraints();
   // "auto": chooses the integrator for the current masses, springs, anchors and free nodes.
   void chooseIntegratorNow();
   void updateInstruments(double alpha);
   void updateGrasp(std::size_t index, const InstrumentInput& instrument, const Eigen::Isometry3d& pose,
                    const Eigen::Isometry3d& previous_pose, double dt);
-  // Integrate + respond + limit, no watchdog.
-  void rawStep(Integrator& integrator, double dt);
-  struct Energy {
-    double kinetic = 0.0, elastic = 0.0, gravity = 0.0;  // J; elastic = springs + anchors
-    double total() const { return kinetic + elastic + gravity; }
-  };
-  // The energy of the current state: a sweep over the nodes and one over the springs, or, given spring_energy, that
-  // value for the springs' part instead of the second sweep.
-  Energy energy(const double* spring_energy = nullptr);
-  // What an integration step may create beyond the balance (WatchdogConfig::energy_tolerance and the floor).
-  double energyAllowance(const Energy& before) const;
-  // Work of pressure and external forces during an integration step of dt just done (estimate, see the .cpp).
-  double externalWork(double dt) const;
-  // Non-finite, too fast, or an integration step that created energy (energy_excess_ > 0).
-  bool unstable();
   // Marks the nodes at an instrument (contacts, grasps) with a new epoch, returned.
   std::uint32_t markTouched(std::vector<std::uint32_t>& touched, std::uint32_t& epoch) const;
-  void saveState();
-  void restoreState();
   void sortSprings();
   // Largest static force on a free node (TissueConfig::early_stop_force) and whether the instruments rest.
   double maxFreeForce();
@@ -238,11 +229,11 @@ class TissueSimulator {
   void releaseOverloadedAdhesions();
   void finishRemoval(const std::vector<std::uint64_t>& grasped_ids);
   std::vector<std::uint64_t> graspedNodeIds() const;
-  // chainmail.cpp: one step of the ChainMail model.
-  void chainmailStep();
 
   mge::Membrane* membrane_;
   TissueConfig config_;
+  std::unique_ptr<TissueModel> model_;
+  // The integrator the mass-spring model steps with (chosen here for every model: "auto" is reported per tissue).
   std::unique_ptr<Integrator> integrator_;
   std::unique_ptr<Integrator> implicit_fallback_;
   bool auto_integrator_ = false;
@@ -273,24 +264,14 @@ class TissueSimulator {
   SpringSorter sorter_;
   bool sorted_valid_ = false;
 
-  std::vector<Eigen::Vector3d> saved_positions_, saved_velocities_;
-  std::vector<double> saved_rest_lengths_;
   std::vector<std::uint32_t> touched_;  // per node: epoch of the last early-stop check that saw it at an instrument
   std::uint32_t touched_epoch_ = 0;
-  std::vector<double> energy_scratch_;  // 3 per spring: the energy sweep's gathered spring vectors
-  bool measure_energy_ = false;         // rawStep() balances each integration (watchdog on, explicit attempt)
-  double energy_excess_ = 0.0;          // J: the most an integration of this step created beyond the allowance
-  double free_mass_ = 0.0;              // kg: of the integrated nodes (rebuildConstraints), for the floor
-  std::vector<NodeDeformation> pending_deformations_;  // external deformations, replayed after a rollback
+  double free_mass_ = 0.0;  // kg: of the integrated nodes (rebuildConstraints), for the watchdog's floor
   std::vector<Eigen::Vector3d> early_stop_forces_, early_stop_zero_;  // buffers of maxFreeForce()
   double frame_strain_ = -1.0;  // max strain of all springs after the last step (-1 = unknown)
-  int fallback_level_ = 0;
-  int hold_remaining_ = 0;
   double pending_time_ = 0.0;
   SimulatorStatistics statistics_;
-  std::unique_ptr<ChainMail> chainmail_;
   std::unique_ptr<LocalRefinement> refinement_;
-  std::vector<Eigen::Vector3d> chainmail_committed_;  // positions after the last ChainMail step
 };
 
 // The capsules an instrument pushes tissue with, in the membrane's frame (see InstrumentInput); a fixed-size set, so

@@ -8,8 +8,6 @@
 #include <string>
 
 #include "vrm_sim/mge/membrane.h"
-#include "vrm_sim/tissue/tissue_simulator.h"
-#include "vrm_sim/tissue/topology.h"
 
 namespace vrm_sim {
 namespace tissue {
@@ -231,72 +229,6 @@ std::size_t ChainMail::relax(const std::uint8_t* held) {
     }
   }
   return moved;
-}
-
-// ---------------------------------------------------------------------------------------------------------------------
-// The ChainMail model inside the TissueSimulator (declared in tissue_simulator.h).
-
-void TissueSimulator::chainmailStep() {
-  const std::size_t n = membrane_->nodeCount();
-  Eigen::Vector3d* x = membrane_->positions();
-  // updateGrasp() put the grasped nodes where the jaws are; put them back and let ChainMail move them there, so the
-  // tissue they pull follows. Other grasped nodes are held (they get their own move).
-  std::vector<Eigen::Vector3d> targets;
-  targets.reserve(grasped_nodes_.size());
-  for (std::uint32_t node : grasped_nodes_) {
-    targets.push_back(x[node]);
-    x[node] = chainmail_committed_[node];
-  }
-  for (std::size_t k = 0; k < grasped_nodes_.size(); ++k) {
-    const std::uint32_t node = grasped_nodes_[k];
-    chainmail_->move(node, targets[k] - x[node], grasped_.data());
-  }
-  // Elastic relaxation before the instruments push, so that the instruments have the last word.
-  for (int k = 0; k < chainmail_->config().relaxation_iterations; ++k) chainmail_->relax(constrained_.data());
-  // Pushing instruments: a node inside a capsule moves to its surface (re-measured before every move, since earlier
-  // moves drag nodes along); further rounds catch nodes dragged into the instrument.
-  contacts_.clear();
-  for (std::size_t i = 0; i < current_instruments_.size(); ++i) {
-    const InstrumentInput& instrument = current_instruments_[i];
-    if (!instrument.collides || !(instrument.radius > 0.0)) continue;
-    const Eigen::Vector3d a = instrument.pose * Eigen::Vector3d(0.0, 0.0, -instrument.radius);
-    const Eigen::Vector3d b =
-        instrument.pose * Eigen::Vector3d(0.0, 0.0, -std::max(instrument.length, instrument.radius));
-    for (int round = 0; round < 10; ++round) {
-      bool pushed = false;
-      for (std::size_t k = 0; k < n; ++k) {
-        if (constrained_[k]) continue;
-        const Eigen::Vector3d axis = b - a;
-        const double length2 = axis.squaredNorm();
-        const double s = length2 > 0.0 ? std::clamp((x[k] - a).dot(axis) / length2, 0.0, 1.0) : 0.0;
-        const Eigen::Vector3d offset = x[k] - (a + s * axis);
-        const double distance = offset.norm();
-        if (!(distance < instrument.radius) || !(distance > 0.0)) continue;
-        const Eigen::Vector3d push = offset * ((instrument.radius - distance) / distance);
-        chainmail_->move(static_cast<std::uint32_t>(k), push, grasped_.data());
-        NodeDeformation contact;
-        contact.node = static_cast<std::uint32_t>(k);
-        contact.deformation = push;
-        contact.normal = offset / distance;
-        contacts_.push_back(contact);
-        pushed = true;
-      }
-      if (!pushed) break;
-    }
-  }
-  for (const NodeDeformation& deformation : external_deformations_) {
-    if (deformation.node < n && !constrained_[deformation.node]) {
-      chainmail_->move(deformation.node, deformation.deformation, grasped_.data());
-    }
-  }
-  contacts_.insert(contacts_.end(), external_deformations_.begin(), external_deformations_.end());
-  external_deformations_.clear();
-  // Inelastic: no momentum.
-  Eigen::Vector3d* v = membrane_->velocities();
-  for (std::size_t k = 0; k < n; ++k) v[k].setZero();
-  chainmail_committed_.assign(x, x + n);
-  topologyBeforeStep();
-  topologyAfterStep();
 }
 
 }  // namespace tissue

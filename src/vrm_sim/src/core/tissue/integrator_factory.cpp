@@ -4,26 +4,39 @@
 #include <stdexcept>
 
 #include "integrators_impl.h"
+#include "vrm_sim/tissue/integrator_choice.h"
 
 namespace vrm_sim {
 namespace tissue {
 
+const Registry<IntegratorFactory>& integratorRegistry() {
+  static const Registry<IntegratorFactory> registry(
+      "tissue integrator",
+      {{kAutoIntegrator, [](const IntegratorOptions&) { return makeSymplecticEuler(); },
+        "chosen per membrane from its stiffness, masses, damping and dt (integrator_choice.h)"},
+       {"explicit_euler", [](const IntegratorOptions&) { return makeExplicitEuler(); }, "explicit Euler (eq. 5.4)"},
+       {"quasi_static_euler", [](const IntegratorOptions&) { return makeQuasiStaticEuler(); },
+        "quasi-static Euler, velocities reset every step (eq. 5.5)"},
+       {"rk2", [](const IntegratorOptions&) { return makeRk2(); }, "second-order Runge-Kutta (midpoint)"},
+       {"implicit_euler", makeImplicitEuler,
+        "implicit Euler, filtered conjugate gradients (eqs. 5.7-5.10, Baraff & Witkin 1998)"},
+       {"symplectic_euler", [](const IntegratorOptions&) { return makeSymplecticEuler(); },
+        "semi-implicit Euler (modern baseline)"},
+       {"xpbd", makeXpbd, "extended position based dynamics (Macklin et al. 2016, modern baseline)"}});
+  return registry;
+}
+
 const std::vector<std::string>& integratorNames() {
-  static const std::vector<std::string> names{"explicit_euler", "quasi_static_euler", "rk2",
-                                              "implicit_euler", "symplectic_euler",   "xpbd"};
+  static const std::vector<std::string> names = [] {
+    std::vector<std::string> proper = integratorRegistry().names();
+    proper.erase(std::remove(proper.begin(), proper.end(), std::string(kAutoIntegrator)), proper.end());
+    return proper;
+  }();
   return names;
 }
 
 std::unique_ptr<Integrator> makeIntegrator(const std::string& name, const IntegratorOptions& options) {
-  if (name == "explicit_euler") return makeExplicitEuler();
-  if (name == "quasi_static_euler") return makeQuasiStaticEuler();
-  if (name == "rk2") return makeRk2();
-  if (name == "implicit_euler") return makeImplicitEuler(options);
-  if (name == "symplectic_euler") return makeSymplecticEuler();
-  if (name == "xpbd") return makeXpbd(options);
-  std::string known;
-  for (const auto& known_name : integratorNames()) known += (known.empty() ? "" : ", ") + known_name;
-  throw std::invalid_argument("unknown tissue integrator '" + name + "' (known: " + known + ")");
+  return integratorRegistry().at(name).make(options);
 }
 
 double explicitStabilityBound(const SystemView& system, const ForceModel& forces) {

@@ -2,12 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstring>
-#include <limits>
 #include <stdexcept>
 #include <string>
 
-#include "spring_kernels.h"
 #include "vrm_sim/mge/membrane.h"
 
 namespace vrm_sim {
@@ -59,11 +56,7 @@ TissueSimulator::TissueSimulator(mge::Membrane& membrane, const TissueConfig& co
   fallback_options.cg_max_iterations = std::max(fallback_options.cg_max_iterations, 50);
   implicit_fallback_ = makeIntegrator("implicit_euler", fallback_options);
   forces_.params = config_.forces;
-  if (config_.model == "chainmail") {
-    chainmail_ = std::make_unique<ChainMail>(membrane, config_.chainmail);
-  } else if (config_.model != "mass_spring") {
-    throw std::invalid_argument("tissue: unknown model '" + config_.model + "' (mass_spring | chainmail)");
-  }
+  model_ = tissueModelRegistry().at(config_.model).make(membrane, config_);
   onTopologyChanged();
   if (config_.repair_massless_nodes) {
     // Degenerate input: a node only in zero-area triangles got no lumped mass; give it the mean node mass.
@@ -76,8 +69,9 @@ TissueSimulator::TissueSimulator(mge::Membrane& membrane, const TissueConfig& co
     rebuildConstraints();  // the free mass and the "auto" choice depend on the masses
   }
   if (config_.refinement.levels > 0) {
-    if (chainmail_ || config_.adhesion_stiffness > 0.0) {
-      throw std::invalid_argument("tissue: refinement needs the mass_spring model without adhesion");
+    if (!model_->supportsRefinement() || config_.adhesion_stiffness > 0.0) {
+      throw std::invalid_argument(std::string("tissue: refinement is not supported by the ") + model_->name() +
+                                  " model" + (model_->supportsRefinement() ? " with adhesion" : ""));
     }
     refinement_ = std::make_unique<LocalRefinement>(membrane, config_.refinement);
   }
@@ -123,10 +117,7 @@ void TissueSimulator::onTopologyChanged() {
   sorted_valid_ = false;
   rebuildConstraints();
   sorter_.rebuild(view());
-  if (chainmail_) {
-    chainmail_->rebuild();
-    chainmail_committed_.assign(membrane_->positions(), membrane_->positions() + n);
-  }
+  model_->onTopologyChanged(*this);
 }
 
 void TissueSimulator::rebuildConstraints() {
@@ -262,95 +253,6 @@ void TissueSimulator::sortSprings() {
   }
 }
 
-void TissueSimulator::rawStep(Integrator& integrator, double dt) {
-  const SystemView system = view();
-  if (measure_energy_) {
-    // The balance covers the integration only: the strain limit and the contact response that follow are
-    // projections (kinematic constraints, the instrument), whose work is given, not created by the integrator.
-    // The start energy's spring part comes from the integrator's first force evaluation (at the start state), at
-    // almost no cost; XPBD evaluates no spring forces, so it gets a sweep.
-    const bool sweep = std::strcmp(integrator.name(), "xpbd") == 0;
-    double start_springs = 0.0;
-    Energy before = energy(sweep ? nullptr : &start_springs);
-    if (!sweep) forces_.captureSpringEnergy(&start_springs);
-    integrator.step(system, forces_, dt);
-    forces_.captureSpringEnergy(nullptr);
-    before.elastic += sweep ? 0.0 : start_springs;
-    // Every integration is balanced exactly (a sweep over the springs). Skipping that sweep while the kinetic energy
-    // grows slowly was tried: it let explicit Euler's slow growth at the halved steps through
-    // (TissueWatchdog.UnstableStepIsCaughtWithinThreeSteps).
-    const Energy after = energy();
-    const double excess = after.total() - before.total() - externalWork(dt) - energyAllowance(before);
-    energy_excess_ = std::max(energy_excess_, excess);
-  } else {
-    integrator.step(system, forces_, dt);
-  }
-
-  // Strain limit first, then collision response: the instrument has the last word, so no node is left inside it
-  // (the few springs at the contact may then exceed τ_c slightly until the next step).
-  if (config_.strain_limit > 0.0) {
-    sortSprings();
-    for (int pass = 0; pass < config_.strain_limit_passes; ++pass) {
-      if (provotPass(system, config_.strain_limit, sorted_valid_ ? &sorter_ : nullptr, config_.strain_limit_outer_only)
-              .corrected == 0) {
-        break;
-      }
-    }
-  }
-  // Collision response (thesis §5.1): exact capsule test until the collision library's deformation vectors arrive.
-  contacts_.clear();
-  for (std::size_t i = 0; i < current_instruments_.size(); ++i) {
-    const InstrumentInput& instrument = current_instruments_[i];
-    if (!instrument.collides || isGrasping(i)) continue;
-    const Eigen::Vector3d velocity = (instrument.pose.translation() - step_start_poses_[i].translation()) / config_.dt;
-    for (const Capsule& capsule : instrumentCapsules(instrument)) {
-      detectCapsuleContacts(system, capsule, velocity, config_.shell_scale, contacts_);
-    }
-  }
-  if (config_.tear_strain > 0.0 && !external_deformations_.empty()) {
-    // The detector's vectors land in the frame's first step only; the nodes they moved stay "pressed" for the whole
-    // frame, so the dent they make relaxes instead of tearing in the next substep.
-    frame_pressed_.resize(membrane_->nodeCount(), 0);
-    for (const NodeDeformation& d : external_deformations_) {
-      if (d.node < frame_pressed_.size()) frame_pressed_[d.node] = 1;
-    }
-  }
-  contacts_.insert(contacts_.end(), external_deformations_.begin(), external_deformations_.end());
-  external_deformations_.clear();
-  applyDeformations(system, contacts_, config_.friction);
-  for (const NodeDeformation& contact : contacts_) addInteractionPoint(contact.node);
-
-  if (config_.plastic) {
-    for (std::size_t s = 0; s < system.spring_count; ++s) {
-      const auto& ends = system.springs[s];
-      const double length = (system.positions[ends[1]] - system.positions[ends[0]]).norm();
-      membrane_->restLengths()[s] = std::max(membrane_->restLengths()[s], length);
-    }
-  }
-}
-
-void TissueSimulator::saveState() {
-  // Plain copies into buffers sized once per topology: the rollback costs two memcpy per step.
-  const std::size_t n = membrane_->nodeCount();
-  if (saved_positions_.size() != n) {
-    saved_positions_.resize(n);
-    saved_velocities_.resize(n);
-  }
-  std::memcpy(static_cast<void*>(saved_positions_.data()), membrane_->positions(), n * sizeof(Eigen::Vector3d));
-  std::memcpy(static_cast<void*>(saved_velocities_.data()), membrane_->velocities(), n * sizeof(Eigen::Vector3d));
-  if (config_.plastic) {
-    saved_rest_lengths_.assign(membrane_->restLengths(), membrane_->restLengths() + membrane_->springCount());
-  }
-}
-
-void TissueSimulator::restoreState() {
-  const std::size_t n = saved_positions_.size();
-  std::memcpy(static_cast<void*>(membrane_->positions()), saved_positions_.data(), n * sizeof(Eigen::Vector3d));
-  std::memcpy(static_cast<void*>(membrane_->velocities()), saved_velocities_.data(), n * sizeof(Eigen::Vector3d));
-  if (config_.plastic) std::copy(saved_rest_lengths_.begin(), saved_rest_lengths_.end(), membrane_->restLengths());
-  frame_strain_ = -1.0;
-}
-
 std::uint32_t TissueSimulator::markTouched(std::vector<std::uint32_t>& touched, std::uint32_t& epoch) const {
   // Springs at an instrument (contact or grasp) are stretched by the instrument, not by an instability.
   ++epoch;
@@ -362,136 +264,9 @@ std::uint32_t TissueSimulator::markTouched(std::vector<std::uint32_t>& touched, 
   return epoch;
 }
 
-TissueSimulator::Energy TissueSimulator::energy(const double* spring_energy) {
-  const SystemView system = view();
-  Energy e;
-  const Eigen::Vector3d& g = config_.forces.gravity;
-  const bool gravity = g.squaredNorm() > 0.0;
-  for (std::size_t i = 0; i < system.node_count; ++i) {
-    if (!system.isFree(i)) continue;
-    e.kinetic += 0.5 * system.masses[i] * system.velocities[i].squaredNorm();
-    if (gravity) e.gravity -= system.masses[i] * g.dot(system.positions[i]);
-  }
-  if (spring_energy != nullptr) {
-    e.elastic = *spring_energy;
-  } else {
-    const std::size_t m = system.spring_count;
-    if (energy_scratch_.size() < 3 * m) energy_scratch_.resize(3 * m);
-    double* d = energy_scratch_.data();
-    e.elastic = kernels::springEnergy(m, system.springs, system.positions, system.stiffnesses, system.rest_lengths, d,
-                                      d + m, d + 2 * m);
-  }
-  for (const Anchor& anchor : forces_.anchors) {
-    e.elastic += 0.5 * anchor.stiffness * (system.positions[anchor.node] - anchor.point).squaredNorm();
-  }
-  return e;
-}
-
-double TissueSimulator::energyAllowance(const Energy& before) const {
-  const double floor_speed = config_.watchdog.energy_floor_speed;
-  return config_.watchdog.energy_tolerance * (before.kinetic + before.elastic) +
-         0.5 * free_mass_ * floor_speed * floor_speed;
-}
-
-double TissueSimulator::externalWork(double dt) const {
-  // F·Δx with Δx ≈ h·v after the step (exact for symplectic Euler), F at the end positions: an estimate, enough to
-  // keep pressure and external loads from counting as created energy.
-  if (forces_.external.empty() && (forces_.params.pressure == 0.0 || forces_.triangles == nullptr)) return 0.0;
-  const Eigen::Vector3d* x = membrane_->positions();
-  const Eigen::Vector3d* v = membrane_->velocities();
-  const std::size_t n = membrane_->nodeCount();
-  double work = 0.0;
-  for (std::size_t i = 0; i < n && i < forces_.external.size(); ++i) {
-    if (constrained_[i] == 0) work += dt * forces_.external[i].dot(v[i]);
-  }
-  if (forces_.params.pressure != 0.0 && forces_.triangles != nullptr) {
-    for (std::size_t t = 0; t < forces_.triangle_count; ++t) {
-      const auto& c = forces_.triangles[t];
-      const Eigen::Vector3d f = (forces_.params.pressure / 6.0) * (x[c[1]] - x[c[0]]).cross(x[c[2]] - x[c[0]]);
-      for (std::uint32_t corner : c) {
-        if (constrained_[corner] == 0) work += dt * f.dot(v[corner]);
-      }
-    }
-  }
-  return std::abs(work);
-}
-
-bool TissueSimulator::unstable() {
-  frame_strain_ = -1.0;
-  const SystemView system = view();
-  const double max_speed2 = config_.watchdog.max_speed * config_.watchdog.max_speed;
-  for (std::size_t i = 0; i < system.node_count; ++i) {
-    if (!system.isFree(i)) continue;
-    if (!system.positions[i].allFinite() || !system.velocities[i].allFinite()) {
-      ++statistics_.non_finite;
-      return true;
-    }
-    if (system.velocities[i].squaredNorm() > max_speed2) {
-      ++statistics_.too_fast;
-      return true;
-    }
-  }
-  if (!(energy_excess_ <= 0.0)) {
-    ++statistics_.energy_growth;
-    return true;
-  }
-  return false;
-}
-
 bool TissueSimulator::step() {
   frame_strain_ = -1.0;
-  if (chainmail_) {
-    chainmailStep();  // cuts and tears at its end
-    ++statistics_.steps;
-    return true;
-  }
-  topologyBeforeStep();
-  if (!config_.watchdog.enabled) {
-    for (int k = 0; k < choice_.substeps; ++k) rawStep(*integrator_, config_.dt / choice_.substeps);
-    topologyAfterStep();
-    ++statistics_.steps;
-    return true;
-  }
-  if (fallback_level_ > 0 && --hold_remaining_ <= 0) {
-    --fallback_level_;
-    hold_remaining_ = config_.watchdog.hold_steps;
-  }
-  saveState();
-  pending_deformations_.assign(external_deformations_.begin(), external_deformations_.end());
-  bool ok = false;
-  for (int level = fallback_level_; level <= config_.watchdog.max_halvings + 1 && !ok; ++level) {
-    energy_excess_ = -std::numeric_limits<double>::infinity();
-    // Implicit Euler is stable at any dt: its residual energy error (truncated CG) is no instability to roll back.
-    measure_energy_ = level <= config_.watchdog.max_halvings && std::strcmp(integrator_->name(), "implicit_euler") != 0;
-    if (level > fallback_level_) {
-      restoreState();
-      external_deformations_.assign(pending_deformations_.begin(), pending_deformations_.end());
-      ++statistics_.fallbacks;
-    }
-    if (level <= config_.watchdog.max_halvings) {
-      const int substeps = choice_.substeps << level;
-      for (int k = 0; k < substeps; ++k) rawStep(*integrator_, config_.dt / substeps);
-    } else {
-      ++statistics_.implicit_fallbacks;
-      rawStep(*implicit_fallback_, config_.dt);
-    }
-    ok = !unstable();
-    measure_energy_ = false;
-    if (ok && energy_excess_ > -std::numeric_limits<double>::infinity()) {
-      statistics_.max_energy_excess = std::max(statistics_.max_energy_excess, energy_excess_);
-    }
-    if (level > fallback_level_ && ok) {
-      fallback_level_ = std::min(level, config_.watchdog.max_halvings);
-      hold_remaining_ = config_.watchdog.hold_steps;
-    }
-  }
-  if (!ok) {
-    // Nothing worked: keep the last good state (frozen) rather than letting an explosion reach the renderer.
-    restoreState();
-    for (std::size_t i = 0; i < membrane_->nodeCount(); ++i) membrane_->velocities()[i].setZero();
-    ++statistics_.unrecovered;
-  }
-  if (ok) topologyAfterStep();
+  const bool ok = model_->step(*this);
   ++statistics_.steps;
   return ok;
 }
@@ -507,7 +282,7 @@ FrameReport TissueSimulator::advance(double frame_time, const Clock& clock) {
   const int planned =
       std::min(config_.max_steps_per_frame, static_cast<int>(std::floor(pending_time_ / config_.dt + 1e-9)));
   // Only with resting instruments: a moving one must reach its end-of-frame pose.
-  const bool early_stop = config_.early_stop_force > 0.0 && !chainmail_ && instrumentsAtRest();
+  const bool early_stop = config_.early_stop_force > 0.0 && model_->supportsEarlyStop() && instrumentsAtRest();
   for (int s = 0; s < planned; ++s) {
     if (s > 0 && clock() - start >= budget) {
       report.budget_exhausted = true;

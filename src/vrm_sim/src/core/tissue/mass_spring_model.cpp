@@ -1,0 +1,281 @@
+// The mass-spring model (thesis §5.1): the integrator-driven step of TissueSimulator — integrate with the simulator's
+// integrator, Provot strain limit (Alg. 5.1), collision response (eq. 5.12), plasticity — under the stability
+// watchdog (WatchdogConfig: halved steps, then implicit Euler, rolled back on failure).
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <vector>
+
+#include "spring_kernels.h"
+#include "tissue_models_impl.h"
+#include "vrm_sim/mge/membrane.h"
+#include "vrm_sim/tissue/tissue_simulator.h"
+
+namespace vrm_sim {
+namespace tissue {
+
+class MassSpringModel : public TissueModel {
+ public:
+  const char* name() const override { return "mass_spring"; }
+  bool supportsRefinement() const override { return true; }
+  bool supportsEarlyStop() const override { return true; }
+  bool step(TissueSimulator& simulator) override;
+  int fallbackLevel() const override { return fallback_level_; }
+
+ private:
+  struct Energy {
+    double kinetic = 0.0, elastic = 0.0, gravity = 0.0;  // J; elastic = springs + anchors
+    double total() const { return kinetic + elastic + gravity; }
+  };
+  // Integrate + respond + limit, no watchdog.
+  void rawStep(TissueSimulator& simulator, Integrator& integrator, double dt);
+  // The energy of the current state: a sweep over the nodes and one over the springs, or, given spring_energy, that
+  // value for the springs' part instead of the second sweep.
+  Energy energy(TissueSimulator& simulator, const double* spring_energy = nullptr);
+  // What an integration step may create beyond the balance (WatchdogConfig::energy_tolerance and the floor).
+  double energyAllowance(const TissueSimulator& simulator, const Energy& before) const;
+  // Work of pressure and external forces during an integration step of dt just done (estimate, see below).
+  double externalWork(const TissueSimulator& simulator, double dt) const;
+  // Non-finite, too fast, or an integration step that created energy (energy_excess_ > 0).
+  bool unstable(TissueSimulator& simulator);
+  void saveState(TissueSimulator& simulator);
+  void restoreState(TissueSimulator& simulator);
+
+  std::vector<Eigen::Vector3d> saved_positions_, saved_velocities_;
+  std::vector<double> saved_rest_lengths_;
+  std::vector<double> energy_scratch_;  // 3 per spring: the energy sweep's gathered spring vectors
+  bool measure_energy_ = false;         // rawStep() balances each integration (watchdog on, explicit attempt)
+  double energy_excess_ = 0.0;          // J: the most an integration of this step created beyond the allowance
+  std::vector<NodeDeformation> pending_deformations_;  // external deformations, replayed after a rollback
+  int fallback_level_ = 0;
+  int hold_remaining_ = 0;
+};
+
+std::unique_ptr<TissueModel> makeMassSpringModel(mge::Membrane& /*membrane*/, const TissueConfig& /*config*/) {
+  return std::make_unique<MassSpringModel>();
+}
+
+bool MassSpringModel::step(TissueSimulator& simulator) {
+  TissueSimulator& s = simulator;
+  const TissueConfig& config = s.config_;
+  s.topologyBeforeStep();
+  if (!config.watchdog.enabled) {
+    for (int k = 0; k < s.choice_.substeps; ++k) rawStep(s, *s.integrator_, config.dt / s.choice_.substeps);
+    s.topologyAfterStep();
+    return true;
+  }
+  if (fallback_level_ > 0 && --hold_remaining_ <= 0) {
+    --fallback_level_;
+    hold_remaining_ = config.watchdog.hold_steps;
+  }
+  saveState(s);
+  pending_deformations_.assign(s.external_deformations_.begin(), s.external_deformations_.end());
+  bool ok = false;
+  for (int level = fallback_level_; level <= config.watchdog.max_halvings + 1 && !ok; ++level) {
+    energy_excess_ = -std::numeric_limits<double>::infinity();
+    // Implicit Euler is stable at any dt: its residual energy error (truncated CG) is no instability to roll back.
+    measure_energy_ =
+        level <= config.watchdog.max_halvings && std::strcmp(s.integrator_->name(), "implicit_euler") != 0;
+    if (level > fallback_level_) {
+      restoreState(s);
+      s.external_deformations_.assign(pending_deformations_.begin(), pending_deformations_.end());
+      ++s.statistics_.fallbacks;
+    }
+    if (level <= config.watchdog.max_halvings) {
+      const int substeps = s.choice_.substeps << level;
+      for (int k = 0; k < substeps; ++k) rawStep(s, *s.integrator_, config.dt / substeps);
+    } else {
+      ++s.statistics_.implicit_fallbacks;
+      rawStep(s, *s.implicit_fallback_, config.dt);
+    }
+    ok = !unstable(s);
+    measure_energy_ = false;
+    if (ok && energy_excess_ > -std::numeric_limits<double>::infinity()) {
+      s.statistics_.max_energy_excess = std::max(s.statistics_.max_energy_excess, energy_excess_);
+    }
+    if (level > fallback_level_ && ok) {
+      fallback_level_ = std::min(level, config.watchdog.max_halvings);
+      hold_remaining_ = config.watchdog.hold_steps;
+    }
+  }
+  if (!ok) {
+    // Nothing worked: keep the last good state (frozen) rather than letting an explosion reach the renderer.
+    restoreState(s);
+    for (std::size_t i = 0; i < s.membrane_->nodeCount(); ++i) s.membrane_->velocities()[i].setZero();
+    ++s.statistics_.unrecovered;
+  }
+  if (ok) s.topologyAfterStep();
+  return ok;
+}
+
+void MassSpringModel::rawStep(TissueSimulator& s, Integrator& integrator, double dt) {
+  const TissueConfig& config = s.config_;
+  const SystemView system = s.view();
+  if (measure_energy_) {
+    // The balance covers the integration only: the strain limit and the contact response that follow are
+    // projections (kinematic constraints, the instrument), whose work is given, not created by the integrator.
+    // The start energy's spring part comes from the integrator's first force evaluation (at the start state), at
+    // almost no cost; XPBD evaluates no spring forces, so it gets a sweep.
+    const bool sweep = std::strcmp(integrator.name(), "xpbd") == 0;
+    double start_springs = 0.0;
+    Energy before = energy(s, sweep ? nullptr : &start_springs);
+    if (!sweep) s.forces_.captureSpringEnergy(&start_springs);
+    integrator.step(system, s.forces_, dt);
+    s.forces_.captureSpringEnergy(nullptr);
+    before.elastic += sweep ? 0.0 : start_springs;
+    // Every integration is balanced exactly (a sweep over the springs). Skipping that sweep while the kinetic energy
+    // grows slowly was tried: it let explicit Euler's slow growth at the halved steps through
+    // (TissueWatchdog.UnstableStepIsCaughtWithinThreeSteps).
+    const Energy after = energy(s);
+    const double excess = after.total() - before.total() - externalWork(s, dt) - energyAllowance(s, before);
+    energy_excess_ = std::max(energy_excess_, excess);
+  } else {
+    integrator.step(system, s.forces_, dt);
+  }
+
+  // Strain limit first, then collision response: the instrument has the last word, so no node is left inside it
+  // (the few springs at the contact may then exceed τ_c slightly until the next step).
+  if (config.strain_limit > 0.0) {
+    s.sortSprings();
+    for (int pass = 0; pass < config.strain_limit_passes; ++pass) {
+      if (provotPass(system, config.strain_limit, s.sorted_valid_ ? &s.sorter_ : nullptr,
+                     config.strain_limit_outer_only)
+              .corrected == 0) {
+        break;
+      }
+    }
+  }
+  // Collision response (thesis §5.1): exact capsule test until the collision library's deformation vectors arrive.
+  s.contacts_.clear();
+  for (std::size_t i = 0; i < s.current_instruments_.size(); ++i) {
+    const InstrumentInput& instrument = s.current_instruments_[i];
+    if (!instrument.collides || s.isGrasping(i)) continue;
+    const Eigen::Vector3d velocity = (instrument.pose.translation() - s.step_start_poses_[i].translation()) / config.dt;
+    for (const Capsule& capsule : instrumentCapsules(instrument)) {
+      detectCapsuleContacts(system, capsule, velocity, config.shell_scale, s.contacts_);
+    }
+  }
+  if (config.tear_strain > 0.0 && !s.external_deformations_.empty()) {
+    // The detector's vectors land in the frame's first step only; the nodes they moved stay "pressed" for the whole
+    // frame, so the dent they make relaxes instead of tearing in the next substep.
+    s.frame_pressed_.resize(s.membrane_->nodeCount(), 0);
+    for (const NodeDeformation& d : s.external_deformations_) {
+      if (d.node < s.frame_pressed_.size()) s.frame_pressed_[d.node] = 1;
+    }
+  }
+  s.contacts_.insert(s.contacts_.end(), s.external_deformations_.begin(), s.external_deformations_.end());
+  s.external_deformations_.clear();
+  applyDeformations(system, s.contacts_, config.friction);
+  for (const NodeDeformation& contact : s.contacts_) s.addInteractionPoint(contact.node);
+
+  if (config.plastic) {
+    for (std::size_t k = 0; k < system.spring_count; ++k) {
+      const auto& ends = system.springs[k];
+      const double length = (system.positions[ends[1]] - system.positions[ends[0]]).norm();
+      s.membrane_->restLengths()[k] = std::max(s.membrane_->restLengths()[k], length);
+    }
+  }
+}
+
+void MassSpringModel::saveState(TissueSimulator& s) {
+  // Plain copies into buffers sized once per topology: the rollback costs two memcpy per step.
+  mge::Membrane& membrane = *s.membrane_;
+  const std::size_t n = membrane.nodeCount();
+  if (saved_positions_.size() != n) {
+    saved_positions_.resize(n);
+    saved_velocities_.resize(n);
+  }
+  std::memcpy(static_cast<void*>(saved_positions_.data()), membrane.positions(), n * sizeof(Eigen::Vector3d));
+  std::memcpy(static_cast<void*>(saved_velocities_.data()), membrane.velocities(), n * sizeof(Eigen::Vector3d));
+  if (s.config_.plastic) {
+    saved_rest_lengths_.assign(membrane.restLengths(), membrane.restLengths() + membrane.springCount());
+  }
+}
+
+void MassSpringModel::restoreState(TissueSimulator& s) {
+  mge::Membrane& membrane = *s.membrane_;
+  const std::size_t n = saved_positions_.size();
+  std::memcpy(static_cast<void*>(membrane.positions()), saved_positions_.data(), n * sizeof(Eigen::Vector3d));
+  std::memcpy(static_cast<void*>(membrane.velocities()), saved_velocities_.data(), n * sizeof(Eigen::Vector3d));
+  if (s.config_.plastic) std::copy(saved_rest_lengths_.begin(), saved_rest_lengths_.end(), membrane.restLengths());
+}
+
+MassSpringModel::Energy MassSpringModel::energy(TissueSimulator& s, const double* spring_energy) {
+  const SystemView system = s.view();
+  Energy e;
+  const Eigen::Vector3d& g = s.config_.forces.gravity;
+  const bool gravity = g.squaredNorm() > 0.0;
+  for (std::size_t i = 0; i < system.node_count; ++i) {
+    if (!system.isFree(i)) continue;
+    e.kinetic += 0.5 * system.masses[i] * system.velocities[i].squaredNorm();
+    if (gravity) e.gravity -= system.masses[i] * g.dot(system.positions[i]);
+  }
+  if (spring_energy != nullptr) {
+    e.elastic = *spring_energy;
+  } else {
+    const std::size_t m = system.spring_count;
+    if (energy_scratch_.size() < 3 * m) energy_scratch_.resize(3 * m);
+    double* d = energy_scratch_.data();
+    e.elastic = kernels::springEnergy(m, system.springs, system.positions, system.stiffnesses, system.rest_lengths, d,
+                                      d + m, d + 2 * m);
+  }
+  for (const Anchor& anchor : s.forces_.anchors) {
+    e.elastic += 0.5 * anchor.stiffness * (system.positions[anchor.node] - anchor.point).squaredNorm();
+  }
+  return e;
+}
+
+double MassSpringModel::energyAllowance(const TissueSimulator& s, const Energy& before) const {
+  const double floor_speed = s.config_.watchdog.energy_floor_speed;
+  return s.config_.watchdog.energy_tolerance * (before.kinetic + before.elastic) +
+         0.5 * s.free_mass_ * floor_speed * floor_speed;
+}
+
+double MassSpringModel::externalWork(const TissueSimulator& s, double dt) const {
+  // F·Δx with Δx ≈ h·v after the step (exact for symplectic Euler), F at the end positions: an estimate, enough to
+  // keep pressure and external loads from counting as created energy.
+  const ForceModel& forces = s.forces_;
+  if (forces.external.empty() && (forces.params.pressure == 0.0 || forces.triangles == nullptr)) return 0.0;
+  const Eigen::Vector3d* x = s.membrane_->positions();
+  const Eigen::Vector3d* v = s.membrane_->velocities();
+  const std::size_t n = s.membrane_->nodeCount();
+  double work = 0.0;
+  for (std::size_t i = 0; i < n && i < forces.external.size(); ++i) {
+    if (s.constrained_[i] == 0) work += dt * forces.external[i].dot(v[i]);
+  }
+  if (forces.params.pressure != 0.0 && forces.triangles != nullptr) {
+    for (std::size_t t = 0; t < forces.triangle_count; ++t) {
+      const auto& c = forces.triangles[t];
+      const Eigen::Vector3d f = (forces.params.pressure / 6.0) * (x[c[1]] - x[c[0]]).cross(x[c[2]] - x[c[0]]);
+      for (std::uint32_t corner : c) {
+        if (s.constrained_[corner] == 0) work += dt * f.dot(v[corner]);
+      }
+    }
+  }
+  return std::abs(work);
+}
+
+bool MassSpringModel::unstable(TissueSimulator& s) {
+  const SystemView system = s.view();
+  const double max_speed2 = s.config_.watchdog.max_speed * s.config_.watchdog.max_speed;
+  for (std::size_t i = 0; i < system.node_count; ++i) {
+    if (!system.isFree(i)) continue;
+    if (!system.positions[i].allFinite() || !system.velocities[i].allFinite()) {
+      ++s.statistics_.non_finite;
+      return true;
+    }
+    if (system.velocities[i].squaredNorm() > max_speed2) {
+      ++s.statistics_.too_fast;
+      return true;
+    }
+  }
+  if (!(energy_excess_ <= 0.0)) {
+    ++s.statistics_.energy_growth;
+    return true;
+  }
+  return false;
+}
+
+}  // namespace tissue
+}  // namespace vrm_sim
