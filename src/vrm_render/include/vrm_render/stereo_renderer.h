@@ -80,6 +80,18 @@ class StereoRenderer {
 
  private:
   struct Impl;
+  struct FrameState;  // per frame: the light pipe's spotlight and shadow map, ambient light, the fundus
+  struct SceneDraw;   // per eye: the scene program variants in use and how an object is drawn with them
+
+  // The steps of render(), in order.
+  FrameState beginFrame();                              // light set-up; bakes / binds the fundus texture
+  void partitionForSpotlight(const FrameState& frame);  // before pass 1: rewrites index buffers
+  void renderShadowMap(const FrameState& frame, PassTimings* timings);              // pass 1
+  void renderScene(int eye, const FrameState& frame, PassTimings* timings);         // pass 2
+  void blurForDepthOfField(int eye, PassTimings* timings);                          // pass 3a, on the GPU
+  void readBack(int eye, int eye_count, StereoFrame* frame, PassTimings* timings);  // pass 3b, on the CPU
+  void waitForPass() const;  // glFinish when options().time_passes, so that per-pass times mean something
+
   std::unique_ptr<Impl> impl_;
   RenderOptions options_;
   MicroscopeRig rig_;

@@ -16,10 +16,7 @@
 #include <map>
 #include <unordered_map>
 
-#if defined(__SSE2__)
-#include <emmintrin.h>
-#endif
-
+#include "depth_of_field.h"
 #include "shaders.h"
 #include "vrm_gl/gl_context.h"
 
@@ -387,157 +384,6 @@ LightPartition partitionForLight(const std::vector<float>& positions, const std:
   return partition;
 }
 
-// Pass 3b on the CPU, fused with the readback: out (RGB, top row first) = mix(sharp, blurred, sharp.a / 255), the
-// blurred image sampled bilinearly at each pixel centre like texture() with GL_LINEAR and CLAMP_TO_EDGE. sharp
-// (width x height) and blurred are RGBA8 as glReadPixels returns them, bottom row first. On llvmpipe a
-// full-resolution composite pass costs several times this loop (generic texture sampling for every pixel).
-struct DofBlend {
-  const std::uint8_t* sharp = nullptr;
-  int width = 0;
-  int height = 0;
-  const std::uint8_t* blurred = nullptr;
-  int blurred_width = 0;
-  int blurred_height = 0;
-  const int* left = nullptr;  // per output column: offsets of the two blurred texels in an RGBA row
-  const int* right = nullptr;
-  const float* weight = nullptr;  // of the right texel
-
-  static void texel(float u, int size, int* i0, int* i1, float* f) {
-    const float fl = std::floor(u);
-    *f = u - fl;
-    *i0 = std::clamp(static_cast<int>(fl), 0, size - 1);
-    *i1 = std::clamp(static_cast<int>(fl) + 1, 0, size - 1);
-  }
-
-  void prepareColumns(std::vector<int>* columns, std::vector<float>* weights) {
-    columns->resize(2 * static_cast<std::size_t>(width));
-    weights->resize(width);
-    int* l = columns->data();
-    int* r = l + width;
-    for (int x = 0; x < width; ++x) {
-      texel((x + 0.5f) * blurred_width / width - 0.5f, blurred_width, &l[x], &r[x], &(*weights)[x]);
-      l[x] *= 4;
-      r[x] *= 4;
-    }
-    left = l;
-    right = r;
-    weight = weights->data();
-  }
-
-  // One output row: RGB = sharp + (lerp(b0, b1, g) - sharp) * sharp.a / 255. SSE2 (x86-64 baseline), one pixel per
-  // vector, the same float operations in the same order as the scalar reference (blendRowScalar, kept for the last
-  // pixel of a row and for other architectures): bit-identical output.
-  // Each pixel is stored as 4 bytes at 3 x; the next pixel overwrites the fourth, the row's last pixel is written
-  // with 3 byte stores so that no byte of another row (maybe another thread's) is touched.
-  static void blendRow(const std::uint8_t* __restrict sharp_row, const float* __restrict b0, const float* __restrict b1,
-                       float g, int n, std::uint8_t* __restrict out_row) {
-#if defined(__SSE2__)
-    const __m128 gv = _mm_set1_ps(g);
-    const __m128 half = _mm_set1_ps(0.5f);
-    const __m128 inv255 = _mm_set1_ps(1.0f / 255.0f);
-    const __m128i zero = _mm_setzero_si128();
-    int x = 0;
-    for (; x + 1 < n; ++x) {
-      std::uint32_t packed;
-      std::memcpy(&packed, sharp_row + 4 * x, 4);
-      const __m128i s16 = _mm_unpacklo_epi8(_mm_cvtsi32_si128(static_cast<int>(packed)), zero);
-      const __m128 v = _mm_cvtepi32_ps(_mm_unpacklo_epi16(s16, zero));
-      const __m128 w = _mm_mul_ps(_mm_shuffle_ps(v, v, _MM_SHUFFLE(3, 3, 3, 3)), inv255);
-      const __m128 lo = _mm_loadu_ps(b0 + 4 * x);
-      const __m128 b = _mm_add_ps(lo, _mm_mul_ps(_mm_sub_ps(_mm_loadu_ps(b1 + 4 * x), lo), gv));
-      const __m128 r = _mm_add_ps(_mm_add_ps(v, _mm_mul_ps(_mm_sub_ps(b, v), w)), half);
-      const __m128i i32 = _mm_cvttps_epi32(r);
-      const __m128i i8 = _mm_packus_epi16(_mm_packs_epi32(i32, zero), zero);
-      const std::uint32_t out = static_cast<std::uint32_t>(_mm_cvtsi128_si32(i8));
-      std::memcpy(out_row + 3 * x, &out, 4);
-    }
-    blendRowScalar(sharp_row + 4 * x, b0 + 4 * x, b1 + 4 * x, g, n - x, out_row + 3 * x);
-#else
-    blendRowScalar(sharp_row, b0, b1, g, n, out_row);
-#endif
-  }
-
-  static void blendRowScalar(const std::uint8_t* __restrict sharp_row, const float* __restrict b0,
-                             const float* __restrict b1, float g, int n, std::uint8_t* __restrict out_row) {
-    for (int x = 0; x < n; ++x) {
-      const float w = sharp_row[4 * x + 3] * (1.0f / 255.0f);
-      for (int c = 0; c < 3; ++c) {
-        const float b = b0[4 * x + c] + (b1[4 * x + c] - b0[4 * x + c]) * g;
-        const float v = sharp_row[4 * x + c];
-        out_row[3 * x + c] = static_cast<std::uint8_t>(v + (b - v) * w + 0.5f);
-      }
-    }
-  }
-
-  // Blurred row j upsampled to the output width (RGB floats, 4 per pixel; the fourth is not used).
-  void upsampleRow(int j, float* out) const {
-    const std::uint8_t* row = blurred + static_cast<std::size_t>(j) * blurred_width * 4;
-#if defined(__SSE2__)
-    const __m128i zero = _mm_setzero_si128();
-    auto load = [&](const std::uint8_t* p) {
-      std::uint32_t packed;
-      std::memcpy(&packed, p, 4);
-      return _mm_cvtepi32_ps(
-          _mm_unpacklo_epi16(_mm_unpacklo_epi8(_mm_cvtsi32_si128(static_cast<int>(packed)), zero), zero));
-    };
-    for (int x = 0; x < width; ++x) {
-      const __m128 a = load(row + left[x]);
-      const __m128 b = load(row + right[x]);
-      _mm_storeu_ps(out + 4 * x, _mm_add_ps(a, _mm_mul_ps(_mm_sub_ps(b, a), _mm_set1_ps(weight[x]))));
-    }
-#else
-    for (int x = 0; x < width; ++x) {
-      const std::uint8_t* a = row + left[x];
-      const std::uint8_t* b = row + right[x];
-      const float f = weight[x];
-      for (int c = 0; c < 3; ++c) out[4 * x + c] = a[c] + (b[c] - a[c]) * f;
-    }
-#endif
-  }
-
-  // Output rows [y0, y1) (GL order, bottom first); `scratch` is per thread. Each blurred row is upsampled once
-  // (kept while consecutive output rows share it), so the per-pixel loop reads contiguous memory only.
-  void rows(int y0, int y1, std::vector<float>* scratch, RgbImage* out) const {
-    scratch->resize(8 * static_cast<std::size_t>(width));
-    float* upper = scratch->data();
-    float* lower = upper + 4 * static_cast<std::size_t>(width);
-    int upper_row = -1, lower_row = -1;
-    for (int y = y0; y < y1; ++y) {
-      int j0, j1;
-      float g;
-      texel((y + 0.5f) * blurred_height / height - 0.5f, blurred_height, &j0, &j1, &g);
-      if (j0 != lower_row) {
-        if (j0 == upper_row) {
-          std::swap(lower, upper);
-          std::swap(lower_row, upper_row);
-        } else {
-          upsampleRow(j0, lower);
-          lower_row = j0;
-        }
-      }
-      if (j1 != upper_row) {
-        upsampleRow(j1, upper);
-        upper_row = j1;
-      }
-      blendRow(sharp + static_cast<std::size_t>(y) * width * 4, lower, upper, g, width,
-               out->data.data() + static_cast<std::size_t>(height - 1 - y) * width * 3);
-    }
-  }
-};
-
-// RGBA (bottom row first) to RGB (top row first).
-void rgbaToRgbFlipped(const std::uint8_t* rgba, int width, int height, RgbImage* out) {
-  for (int y = 0; y < height; ++y) {
-    const std::uint8_t* s = rgba + static_cast<std::size_t>(y) * width * 4;
-    std::uint8_t* o = out->data.data() + static_cast<std::size_t>(height - 1 - y) * width * 3;
-    for (int x = 0; x < width; ++x) {
-      o[3 * x] = s[4 * x];
-      o[3 * x + 1] = s[4 * x + 1];
-      o[3 * x + 2] = s[4 * x + 2];
-    }
-  }
-}
-
 }  // namespace
 
 struct StereoRenderer::Impl {
@@ -821,6 +667,21 @@ std::size_t StereoRenderer::triangleCount() const {
   return total;
 }
 
+struct StereoRenderer::FrameState {
+  bool light_on = false;  // lighting on and a usable light pipe
+  bool shadows = false;
+  bool split = false;  // RenderOptions::light_partition applies
+  bool fundus_in_view = false;
+  Eigen::Matrix4f light_view_proj = Eigen::Matrix4f::Identity();
+  float half_angle = 0.0f;  // of the spotlight's cone
+  float cos_outer = 0.0f;
+  float cos_inner = 0.0f;
+  Eigen::Vector3f light_dir = -Eigen::Vector3f::UnitZ();
+  Eigen::Vector3f light_pos = Eigen::Vector3f::Zero();
+  float ambient = 0.0f;
+  Eigen::Vector3f environment = Eigen::Vector3f::Zero();  // what metal mirrors
+};
+
 void StereoRenderer::render(StereoFrame* frame) {
   Impl& im = *impl_;
   im.context->makeCurrent();
@@ -828,37 +689,57 @@ void StereoRenderer::render(StereoFrame* frame) {
   timings.ms_upload = im.pending_upload_ms;
   im.pending_upload_ms = 0.0;
   const auto frame_start = Clock::now();
-  auto barrier = [&]() {
-    if (options_.time_passes) glFinish();
-  };
 
-  // Pass 1: shadow map from the light pipe tip.
-  const bool light_on = options_.lighting && light_.enabled && light_.tip.allFinite() && light_.direction.allFinite() &&
-                        light_.direction.norm() > 1e-6f;
-  const bool shadows = light_on && options_.shadow_pass;
-  Eigen::Matrix4f light_view_proj = Eigen::Matrix4f::Identity();
-  if (light_on) {
+  const FrameState state = beginFrame();
+  partitionForSpotlight(state);
+  if (state.shadows) renderShadowMap(state, &timings);
+  // Both eyes are submitted before either is read back: llvmpipe rasterises one eye while this thread bins the next
+  // and later blends and converts the previous one (with time_passes each pass is waited for instead).
+  const int eye_count = options_.stereo ? 2 : 1;
+  for (int e = 0; e < eye_count; ++e) {
+    renderScene(e, state, &timings);
+    if (options_.dof_pass) blurForDepthOfField(e, &timings);
+    glFlush();  // start rasterising this eye now
+  }
+  for (int e = 0; e < eye_count; ++e) readBack(e, eye_count, frame, &timings);
+  if (eye_count == 1) frame->images[1] = RgbImage();
+  glBindFramebuffer(GL_FRAMEBUFFER, 0);
+  const GLenum error = glGetError();
+  timings.ms_total = msSince(frame_start) + timings.ms_upload;
+  frame->timings = timings;
+  if (error != GL_NO_ERROR) throw RenderError("OpenGL error " + std::to_string(error) + " while rendering");
+}
+
+void StereoRenderer::waitForPass() const {
+  if (options_.time_passes) glFinish();
+}
+
+StereoRenderer::FrameState StereoRenderer::beginFrame() {
+  Impl& im = *impl_;
+  FrameState state;
+  state.light_on = options_.lighting && light_.enabled && light_.tip.allFinite() && light_.direction.allFinite() &&
+                   light_.direction.norm() > 1e-6f;
+  state.shadows = state.light_on && options_.shadow_pass;
+  if (state.light_on) {
     const float half_angle = std::clamp(light_.cone_half_angle_rad, 0.01f, 1.4f);
     const float extent = std::tan(half_angle) * light_.shadow_near;
-    light_view_proj = frustumMatrix(-extent, extent, -extent, extent, light_.shadow_near, light_.shadow_far) *
-                      lookAtMatrix(light_.tip, light_.direction, Eigen::Vector3f::UnitY());
+    state.light_view_proj = frustumMatrix(-extent, extent, -extent, extent, light_.shadow_near, light_.shadow_far) *
+                            lookAtMatrix(light_.tip, light_.direction, Eigen::Vector3f::UnitY());
   }
-  const int eye_count = options_.stereo ? 2 : 1;
-  const float half_angle = std::clamp(light_.cone_half_angle_rad, 0.01f, 1.5f);
-  const float cos_outer = std::cos(half_angle);
-  const float cos_inner = std::cos(std::clamp(light_.cone_half_angle_rad * (1.0f - light_.cone_softness), 0.0f, 1.5f));
-  const Eigen::Vector3f light_dir =
-      light_on ? Eigen::Vector3f(light_.direction.normalized()) : -Eigen::Vector3f::UnitZ();
-  const Eigen::Vector3f light_pos = light_on ? light_.tip : Eigen::Vector3f::Zero();
-  const float ambient = static_cast<float>(std::clamp(microscope_.ambient_light, 0.0, 1.0));
+  state.half_angle = std::clamp(light_.cone_half_angle_rad, 0.01f, 1.5f);
+  state.cos_outer = std::cos(state.half_angle);
+  state.cos_inner = std::cos(std::clamp(light_.cone_half_angle_rad * (1.0f - light_.cone_softness), 0.0f, 1.5f));
+  state.light_dir = state.light_on ? Eigen::Vector3f(light_.direction.normalized()) : -Eigen::Vector3f::UnitZ();
+  state.light_pos = state.light_on ? light_.tip : Eigen::Vector3f::Zero();
+  state.ambient = static_cast<float>(std::clamp(microscope_.ambient_light, 0.0, 1.0));
 
   // The fundus texture: baked at the first frame that shows a fundus-styled object (or by setFundus), then reused.
-  bool fundus_in_view = false;
   for (const auto& entry : im.objects) {
-    fundus_in_view = fundus_in_view || (entry.second.has_mesh && entry.second.visible && entry.second.style.fundus);
+    state.fundus_in_view =
+        state.fundus_in_view || (entry.second.has_mesh && entry.second.visible && entry.second.style.fundus);
   }
-  fundus_in_view = fundus_in_view && options_.fundus;
-  if (fundus_in_view) {
+  state.fundus_in_view = state.fundus_in_view && options_.fundus;
+  if (state.fundus_in_view) {
     fundus();  // bakes the default map if none was given
     im.uploadFundus();
     glActiveTexture(GL_TEXTURE1);
@@ -866,20 +747,24 @@ void StereoRenderer::render(StereoFrame* frame) {
     glActiveTexture(GL_TEXTURE0);
   }
   // What metal mirrors: the fundus lit by the light pipe and the coaxial light.
-  const Eigen::Vector3f environment = im.fundus_mean * (0.6f * ambient + (light_on ? 0.35f * light_.intensity : 0.0f));
+  state.environment = im.fundus_mean * (0.6f * state.ambient + (state.light_on ? 0.35f * light_.intensity : 0.0f));
+  state.split = options_.lighting && options_.light_partition;
+  return state;
+}
 
-  // Where the spotlight can reach. llvmpipe evaluates both sides of a branch for every pixel, so the lit shader
-  // would cost the same outside the cone, where only the ambient term remains. Instead, the triangles of each object
-  // the cone reaches are split (every frame, both eyes share it) into those that may reach into the pyramid around
-  // the cone, drawn with the lit program, and the rest, drawn with the ambient-only one: every triangle is drawn
-  // once, and the image is the same for a fraction of the cost (the lit program adds nothing outside the cone).
-  // Before pass 1, so that rewriting an index buffer never waits for a draw that uses it.
-  const bool split = options_.lighting && options_.light_partition;
-  const auto pyramid = spotPyramid(light_pos, light_dir, half_angle);
+// Where the spotlight can reach. llvmpipe evaluates both sides of a branch for every pixel, so the lit shader would
+// cost the same outside the cone, where only the ambient term remains. Instead, the triangles of each object the cone
+// reaches are split (every frame, both eyes share it) into those that may reach into the pyramid around the cone,
+// drawn with the lit program, and the rest, drawn with the ambient-only one: every triangle is drawn once, and the
+// image is the same for a fraction of the cost (the lit program adds nothing outside the cone). Before pass 1, so
+// that rewriting an index buffer never waits for a draw that uses it.
+void StereoRenderer::partitionForSpotlight(const FrameState& state) {
+  Impl& im = *impl_;
+  const auto pyramid = spotPyramid(state.light_pos, state.light_dir, state.half_angle);
   // Where a shadow can fall: the casters' rectangle in the shadow map, 2 texels wider (the 2x2 filter reaches 1).
   ShadowBox shadow_box;
-  shadow_box.light_view_proj = light_view_proj;
-  if (split && shadows) {
+  shadow_box.light_view_proj = state.light_view_proj;
+  if (state.split && state.shadows) {
     for (const auto& entry : im.objects) {
       const Object& object = entry.second;
       if (!object.has_mesh || !object.visible || !object.style.casts_shadow || object.style.ghost) continue;
@@ -892,15 +777,15 @@ void StereoRenderer::render(StereoFrame* frame) {
     Object& object = entry.second;
     object.in_cone = false;
     object.shadowed_triangles = object.lit_triangles = object.triangle_count;
-    if (!light_on || !object.has_mesh || !object.visible) continue;
-    if (isMetal(object.style)) continue;  // drawn lit as a whole (draw())
+    if (!state.light_on || !object.has_mesh || !object.visible) continue;
+    if (isMetal(object.style)) continue;  // drawn lit as a whole (SceneDraw::draw)
     const Eigen::Vector3f centre = object.pose * object.centre;
     bool reached = true;
     for (const Eigen::Vector4f& plane : pyramid)
       reached = reached && plane.head<3>().dot(centre) + plane.w() >= -object.radius;
     if (!reached) continue;
     object.in_cone = true;
-    if (!split) continue;
+    if (!state.split) continue;
     const LightPartition partition =
         partitionForLight(object.positions, object.triangles, object.pose, pyramid, shadow_box, &im.pyramid_codes,
                           &im.partition_scratch, &im.partitioned);
@@ -911,291 +796,304 @@ void StereoRenderer::render(StereoFrame* frame) {
                     im.partitioned.data());
   }
   glBindBuffer(GL_COPY_WRITE_BUFFER, 0);
+}
 
-  if (shadows) {
-    const auto start = Clock::now();
-    glBindFramebuffer(GL_FRAMEBUFFER, im.shadow_target.fbo);
-    glViewport(0, 0, im.shadow_target.width, im.shadow_target.height);
-    glEnable(GL_DEPTH_TEST);
-    glDepthMask(GL_TRUE);
-    glClear(GL_DEPTH_BUFFER_BIT);
-    glEnable(GL_POLYGON_OFFSET_FILL);
-    // A constant bias only: a slope-scaled one pushed the thin forceps jaws, seen edge-on by the light, behind the
-    // retina 1 mm below (their shadow vanished; test ShadowCue). Instruments, the casters that matter, do not look
-    // their own shadow up (draw()), so they cannot self-shadow.
-    glPolygonOffset(0.0f, 4.0f);
-    im.shadow.use();
-    glUniformMatrix4fv(im.shadow["u_light_view_proj"], 1, GL_FALSE, light_view_proj.data());
-    const auto planes = frustumPlanes(light_view_proj);
-    for (const auto& entry : im.objects) {
-      const Object& object = entry.second;
-      if (!object.has_mesh || !object.visible || !object.style.casts_shadow || object.style.ghost) continue;
-      if (!sphereVisible(planes, object.pose * object.centre, object.radius)) continue;
-      glUniformMatrix4fv(im.shadow["u_model"], 1, GL_FALSE, object.pose.matrix().data());
-      glBindVertexArray(object.vao);
-      glDrawElements(GL_TRIANGLES, static_cast<GLsizei>(object.triangle_count * 3), GL_UNSIGNED_INT, nullptr);
-    }
-    glDisable(GL_POLYGON_OFFSET_FILL);
-    barrier();
-    timings.ms_shadow = msSince(start);
+// Pass 1: shadow map from the light pipe tip.
+void StereoRenderer::renderShadowMap(const FrameState& state, PassTimings* timings) {
+  Impl& im = *impl_;
+  const auto start = Clock::now();
+  glBindFramebuffer(GL_FRAMEBUFFER, im.shadow_target.fbo);
+  glViewport(0, 0, im.shadow_target.width, im.shadow_target.height);
+  glEnable(GL_DEPTH_TEST);
+  glDepthMask(GL_TRUE);
+  glClear(GL_DEPTH_BUFFER_BIT);
+  glEnable(GL_POLYGON_OFFSET_FILL);
+  // A constant bias only: a slope-scaled one pushed the thin forceps jaws, seen edge-on by the light, behind the
+  // retina 1 mm below (their shadow vanished; test ShadowCue). Instruments, the casters that matter, do not look
+  // their own shadow up (SceneDraw::draw), so they cannot self-shadow.
+  glPolygonOffset(0.0f, 4.0f);
+  im.shadow.use();
+  glUniformMatrix4fv(im.shadow["u_light_view_proj"], 1, GL_FALSE, state.light_view_proj.data());
+  const auto planes = frustumPlanes(state.light_view_proj);
+  for (const auto& entry : im.objects) {
+    const Object& object = entry.second;
+    if (!object.has_mesh || !object.visible || !object.style.casts_shadow || object.style.ghost) continue;
+    if (!sphereVisible(planes, object.pose * object.centre, object.radius)) continue;
+    glUniformMatrix4fv(im.shadow["u_model"], 1, GL_FALSE, object.pose.matrix().data());
+    glBindVertexArray(object.vao);
+    glDrawElements(GL_TRIANGLES, static_cast<GLsizei>(object.triangle_count * 3), GL_UNSIGNED_INT, nullptr);
   }
+  glDisable(GL_POLYGON_OFFSET_FILL);
+  waitForPass();
+  timings->ms_shadow = msSince(start);
+}
 
-  // Both eyes are submitted before either is read back: llvmpipe rasterises one eye while this thread bins the next
-  // and later blends and converts the previous one (with time_passes each pass is waited for instead).
-  for (int e = 0; e < eye_count; ++e) {
-    Impl::EyeTargets& target = im.eyes[e];
-    const CameraView cam = camera(e == 0 ? Eye::kLeft : Eye::kRight);
-    const Eigen::Matrix4f view_proj = cam.viewProjection();
-    const auto planes = frustumPlanes(view_proj);
+// Pass 2 for one eye: which program variant draws what, with the eye's uniforms set once per variant.
+struct StereoRenderer::SceneDraw {
+  SceneDraw(StereoRenderer& renderer, const FrameState& state, Eye eye, PassTimings* timings)
+      : r(renderer),
+        im(*renderer.impl_),
+        state(state),
+        cam(renderer.camera(eye)),
+        view_proj(cam.viewProjection()),
+        timings(timings) {}
 
-    // Pass 2: the scene. Opaque front to back (early depth rejects hidden fragments), translucent back to front.
-    auto start = Clock::now();
-    std::vector<std::pair<float, const Object*>> opaque, translucent;
-    for (const auto& entry : im.objects) {
-      const Object& object = entry.second;
-      if (!object.has_mesh || !object.visible) continue;
-      const Eigen::Vector3f centre = object.pose * object.centre;
-      if (!sphereVisible(planes, centre, object.radius)) {
-        ++timings.objects_culled;
-        continue;
-      }
-      const float depth = (centre - cam.position).dot(cam.forward);
-      if (object.style.ghost || object.style.material.diffuse.w() < 1.0f) {
-        translucent.emplace_back(-depth, &object);
-      } else {
-        opaque.emplace_back(depth - object.radius, &object);
-      }
-    }
-    std::sort(opaque.begin(), opaque.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
-    std::sort(translucent.begin(), translucent.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+  Program& use(bool lit, bool bump, bool shadowed = true, bool fundus = false, bool metal = false);
+  // Triangles [first, first + count) of the object with program p (clamped to the object's triangles).
+  void drawWith(Program& p, const Object& object, float alpha_scale, bool opaque, std::size_t first = 0,
+                std::size_t count = std::numeric_limits<std::size_t>::max());
+  // One object in the current depth / blend state: its triangles the spotlight may reach lit, the rest ambient.
+  void draw(const Object& object, float alpha_scale, bool opaque);
 
-    glBindFramebuffer(GL_FRAMEBUFFER, target.scene.fbo);
-    glViewport(0, 0, options_.width, options_.height);
-    // Alpha 1: the background counts as far from the focal plane (fully blurred).
-    glClearColor(options_.background.x(), options_.background.y(), options_.background.z(), 1.0f);
-    glEnable(GL_DEPTH_TEST);
-    glDepthFunc(GL_LESS);
-    glDepthMask(GL_TRUE);
-    glDisable(GL_CULL_FACE);  // the retina is seen from inside, membranes from both sides
-    glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+  StereoRenderer& r;
+  Impl& im;
+  const FrameState& state;
+  const CameraView cam;
+  const Eigen::Matrix4f view_proj;
+  PassTimings* timings;
+  std::array<bool, 32> prepared{};  // per-eye uniforms set, per program variant
+  Program* current = nullptr;
+};
 
-    std::array<bool, 32> prepared{};  // per-eye uniforms set, per program variant
-    Program* current = nullptr;
-    auto use = [&](bool lit, bool bump, bool shadowed = true, bool fundus = false, bool metal = false) -> Program& {
-      const bool shadows_here = shadows && shadowed;
-      const bool bump_here = options_.bump_mapping && bump;
-      Program& p = im.sceneProgram(lit, shadows_here, bump_here, fundus, metal);
-      if (&p != current) {
-        current = &p;
-        p.use();
-      }
-      const int key = Impl::variantKey(lit, shadows_here, bump_here, fundus, metal);
-      if (prepared[key]) return p;
-      prepared[key] = true;
-      glUniformMatrix4fv(p["u_view_proj"], 1, GL_FALSE, view_proj.data());
-      glUniformMatrix4fv(p["u_light_view_proj"], 1, GL_FALSE, light_view_proj.data());
-      glUniform1f(p["u_colour_scale"], options_.lighting ? ambient : 1.0f);
-      glUniform3fv(p["u_camera_pos"], 1, cam.position.data());
-      glUniform1f(p["u_ambient"], ambient);
-      glUniform3fv(p["u_light_pos"], 1, light_pos.data());
-      glUniform3fv(p["u_light_dir"], 1, light_dir.data());
-      // No light pipe: a cone that nothing lies in (cos > 1) leaves only the ambient term.
-      glUniform1f(p["u_cos_outer"], light_on ? cos_outer : 2.0f);
-      glUniform1f(p["u_cos_inner"], light_on ? cos_inner : 3.0f);
-      glUniform1f(p["u_light_intensity"], light_.intensity);
-      glUniform1f(p["u_light_range"], light_.range);
-      glUniform1f(p["u_shadow_bias"], 2e-5f);
-      glUniform1f(p["u_bump_amplitude"], 1.4e-5f);
-      glUniform3fv(p["u_blood"], 1, options_.blood_colour.data());
-      glUniform1i(p["u_shadow_map"], 0);
-      glUniform1f(p["u_near"], cam.near_plane);
-      glUniform1f(p["u_far"], cam.far_plane);
-      glUniform1f(p["u_focus"], cam.focus_depth);
-      // Circle of confusion in pixels per unit of |z - s| / z (MicroscopeRig: aperture, zoom, field, image width).
-      glUniform1f(p["u_coc_scale"],
-                  rig_.aperture_diameter * static_cast<float>(options_.width * microscope_.zoom) / rig_.field_width);
-      glUniform1i(p["u_fundus"], 1);
-      if (im.fundus) {
-        const float n = static_cast<float>(im.fundus->textureSize());
-        glUniform1f(p["u_fundus_scale"], 0.5f * n / im.fundus->params().eye_radius);
-        glUniform1f(p["u_fundus_offset"], 0.5f * n);
-      }
-      glUniform3fv(p["u_environment"], 1, environment.data());
-      return p;
-    };
-    glActiveTexture(GL_TEXTURE0);
-    glBindTexture(GL_TEXTURE_2D, im.shadow_target.depth);
-    auto drawWith = [&](Program& p, const Object& object, float alpha_scale, bool opaque, std::size_t first = 0,
-                        std::size_t count = std::numeric_limits<std::size_t>::max()) {
-      count = std::min(count, object.triangle_count - std::min(first, object.triangle_count));
-      if (count == 0) return;
-      const Material& m = object.style.material;
-      glUniformMatrix4fv(p["u_model"], 1, GL_FALSE, object.pose.matrix().data());
-      const Eigen::Matrix3f normal_matrix = object.pose.linear().inverse().transpose();
-      glUniformMatrix3fv(p["u_normal_matrix"], 1, GL_FALSE, normal_matrix.data());
-      glUniform4fv(p["u_diffuse"], 1, m.diffuse.data());
-      glUniform3fv(p["u_specular"], 1, m.specular.data());
-      glUniform1f(p["u_shininess"], std::max(1.0f, m.shininess));
-      glUniform1f(p["u_alpha_scale"], alpha_scale);
-      glUniform1f(p["u_sheen"], m.sheen);
-      glUniform1f(p["u_metallic"], m.metallic);
-      glUniform1f(p["u_glow_length"], m.glow_tip_length);
-      glUniform1f(p["u_coc_alpha"], opaque ? 1.0f : 0.0f);
-      im.drawObject(object, first, count);
-    };
-    // One object in the current depth / blend state: its triangles the spotlight may reach lit, the rest ambient.
-    auto draw = [&](const Object& object, float alpha_scale, bool opaque) {
-      timings.triangles_drawn += object.triangle_count;
-      const bool fundus = fundus_in_view && object.style.fundus;
-      // The fundus texture replaces the procedural relief (its plane waves were the "wavy bump pattern" of the
-      // uniform retina, issue 16): the lit fundus pixels save the seven sines of bumpGradient.
-      const bool bump = object.style.bump_mapped && !fundus;
-      if (options_.lighting && isMetal(object.style)) {
-        // Instruments: few pixels, lit everywhere (the mirrored environment and the coaxial highlight are not
-        // bounded by the spotlight's cone).
-        drawWith(use(true, false, false, false, true), object, alpha_scale, opaque);
-        return;
-      }
-      if (!split) {
-        drawWith(use(options_.lighting, bump, true, fundus), object, alpha_scale, opaque);
-        return;
-      }
-      if (object.in_cone) {
-        drawWith(use(true, bump, true, fundus), object, alpha_scale, opaque, 0, object.shadowed_triangles);
-        drawWith(use(true, bump, false, fundus), object, alpha_scale, opaque, object.shadowed_triangles,
-                 object.lit_triangles - object.shadowed_triangles);
-        drawWith(use(false, false, true, fundus), object, alpha_scale, opaque, object.lit_triangles);
-      } else {
-        drawWith(use(false, false, true, fundus), object, alpha_scale, opaque);
-      }
-    };
-    for (const auto& entry : opaque) draw(*entry.second, 1.0f, true);
-    if (!translucent.empty()) {
-      glEnable(GL_BLEND);
-      // Colour blends; alpha keeps the DOF weight of the opaque surface behind (translucent objects write no depth).
-      glBlendFuncSeparate(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA, GL_ZERO, GL_ONE);
-      glDepthMask(GL_FALSE);
-      for (const auto& entry : translucent) {
-        const Object& object = *entry.second;
-        if (object.style.ghost) {
-          // Depth-only first, so a ghost shows only its nearest surface (like a glass instrument, not an x-ray).
-          glColorMask(GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
-          glDepthMask(GL_TRUE);
-          drawWith(use(false, false), object, 1.0f, false);
-          glColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
-          glDepthMask(GL_FALSE);
-          glDepthFunc(GL_LEQUAL);
-          draw(object, options_.ghost_alpha, false);
-          glDepthFunc(GL_LESS);
-        } else {
-          draw(object, 1.0f, false);
-        }
-      }
-      glDepthMask(GL_TRUE);
-      glDisable(GL_BLEND);
-    }
-    barrier();
-    timings.ms_scene += msSince(start);
-
-    // Pass 3: depth of field, blurred at reduced resolution on the GPU; the blend happens in the readback.
-    if (options_.dof_pass) {
-      start = Clock::now();
-      glDisable(GL_DEPTH_TEST);
-      glDepthMask(GL_FALSE);
-      glViewport(0, 0, target.half_a.width, target.half_a.height);
-      // Downsampled copy first; at full resolution the horizontal blur reads the scene itself.
-      const bool full_resolution = options_.dof_downsample == 1;
-      if (!full_resolution) {
-        glBindFramebuffer(GL_FRAMEBUFFER, target.half_a.fbo);
-        im.copy.use();
-        glBindTexture(GL_TEXTURE_2D, target.scene.color);
-        glUniform1i(im.copy["u_src"], 0);
-        im.drawFullscreen();
-      }
-      // Gaussian weights of taps 0..half, pairs (1,2), (3,4)[, (5,6)] merged into one bilinear fetch each.
-      const int half = options_.dof_taps / 2;
-      float g[7];
-      float sum = 0.0f;
-      for (int i = 0; i <= half; ++i) {
-        g[i] = std::exp(-0.5f * i * i / (options_.dof_sigma_px * options_.dof_sigma_px));
-        sum += i == 0 ? g[i] : 2.0f * g[i];
-      }
-      float weights[4] = {g[0] / sum, 0.0f, 0.0f, 0.0f};
-      float offsets[4] = {0.0f, 0.0f, 0.0f, 0.0f};
-      for (int k = 1; k <= half / 2; ++k) {
-        const float a = g[2 * k - 1], b = g[2 * k];
-        weights[k] = (a + b) / sum;
-        offsets[k] = (a * (2 * k - 1) + b * 2 * k) / (a + b);
-      }
-      Program& blur = im.blurProgram(options_.dof_taps);
-      blur.use();
-      glUniform1fv(blur["u_weight"], half / 2 + 1, weights);
-      glUniform1fv(blur["u_offset"], half / 2 + 1, offsets);
-      glUniform1i(blur["u_src"], 0);
-      glBindFramebuffer(GL_FRAMEBUFFER, target.half_b.fbo);
-      glBindTexture(GL_TEXTURE_2D, full_resolution ? target.scene.color : target.half_a.color);
-      glUniform2f(blur["u_step"], 1.0f / target.half_a.width, 0.0f);
-      im.drawFullscreen();
-      glBindFramebuffer(GL_FRAMEBUFFER, target.half_a.fbo);
-      glBindTexture(GL_TEXTURE_2D, target.half_b.color);
-      glUniform2f(blur["u_step"], 0.0f, 1.0f / target.half_a.height);
-      im.drawFullscreen();
-      glDepthMask(GL_TRUE);
-      barrier();
-      timings.ms_dof += msSince(start);
-    }
-
-    glFlush();  // start rasterising this eye now
+Program& StereoRenderer::SceneDraw::use(bool lit, bool bump, bool shadowed, bool fundus, bool metal) {
+  const RenderOptions& options = r.options_;
+  const bool shadows_here = state.shadows && shadowed;
+  const bool bump_here = options.bump_mapping && bump;
+  Program& p = im.sceneProgram(lit, shadows_here, bump_here, fundus, metal);
+  if (&p != current) {
+    current = &p;
+    p.use();
   }
+  const int key = Impl::variantKey(lit, shadows_here, bump_here, fundus, metal);
+  if (prepared[key]) return p;
+  prepared[key] = true;
+  const LightPipe& light = r.light_;
+  glUniformMatrix4fv(p["u_view_proj"], 1, GL_FALSE, view_proj.data());
+  glUniformMatrix4fv(p["u_light_view_proj"], 1, GL_FALSE, state.light_view_proj.data());
+  glUniform1f(p["u_colour_scale"], options.lighting ? state.ambient : 1.0f);
+  glUniform3fv(p["u_camera_pos"], 1, cam.position.data());
+  glUniform1f(p["u_ambient"], state.ambient);
+  glUniform3fv(p["u_light_pos"], 1, state.light_pos.data());
+  glUniform3fv(p["u_light_dir"], 1, state.light_dir.data());
+  // No light pipe: a cone that nothing lies in (cos > 1) leaves only the ambient term.
+  glUniform1f(p["u_cos_outer"], state.light_on ? state.cos_outer : 2.0f);
+  glUniform1f(p["u_cos_inner"], state.light_on ? state.cos_inner : 3.0f);
+  glUniform1f(p["u_light_intensity"], light.intensity);
+  glUniform1f(p["u_light_range"], light.range);
+  glUniform1f(p["u_shadow_bias"], 2e-5f);
+  glUniform1f(p["u_bump_amplitude"], 1.4e-5f);
+  glUniform3fv(p["u_blood"], 1, options.blood_colour.data());
+  glUniform1i(p["u_shadow_map"], 0);
+  glUniform1f(p["u_near"], cam.near_plane);
+  glUniform1f(p["u_far"], cam.far_plane);
+  glUniform1f(p["u_focus"], cam.focus_depth);
+  // Circle of confusion in pixels per unit of |z - s| / z (MicroscopeRig: aperture, zoom, field, image width).
+  glUniform1f(p["u_coc_scale"],
+              r.rig_.aperture_diameter * static_cast<float>(options.width * r.microscope_.zoom) / r.rig_.field_width);
+  glUniform1i(p["u_fundus"], 1);
+  if (im.fundus) {
+    const float n = static_cast<float>(im.fundus->textureSize());
+    glUniform1f(p["u_fundus_scale"], 0.5f * n / im.fundus->params().eye_radius);
+    glUniform1f(p["u_fundus_offset"], 0.5f * n);
+  }
+  glUniform3fv(p["u_environment"], 1, state.environment.data());
+  return p;
+}
 
-  // Readback (RGBA, the format of the targets: a plain copy in llvmpipe), then on the CPU: DOF blend, RGB, flip.
-  const int width = options_.width, height = options_.height;
-  for (int e = 0; e < eye_count; ++e) {
-    Impl::EyeTargets& target = im.eyes[e];
-    auto start = Clock::now();
-    RgbImage& image = frame->images[e];
-    image.width = width;
-    image.height = height;
-    image.data.resize(static_cast<std::size_t>(width) * height * 3);
-    im.sharp.resize(static_cast<std::size_t>(width) * height * 4);
-    glPixelStorei(GL_PACK_ALIGNMENT, 1);
-    glBindFramebuffer(GL_READ_FRAMEBUFFER, target.scene.fbo);
-    glReadBuffer(GL_COLOR_ATTACHMENT0);
-    glReadPixels(0, 0, width, height, GL_RGBA, GL_UNSIGNED_BYTE, im.sharp.data());
-    if (!options_.dof_pass) {
-      rgbaToRgbFlipped(im.sharp.data(), width, height, &image);
-      timings.ms_readback += msSince(start);
+void StereoRenderer::SceneDraw::drawWith(Program& p, const Object& object, float alpha_scale, bool opaque,
+                                         std::size_t first, std::size_t count) {
+  count = std::min(count, object.triangle_count - std::min(first, object.triangle_count));
+  if (count == 0) return;
+  const Material& m = object.style.material;
+  glUniformMatrix4fv(p["u_model"], 1, GL_FALSE, object.pose.matrix().data());
+  const Eigen::Matrix3f normal_matrix = object.pose.linear().inverse().transpose();
+  glUniformMatrix3fv(p["u_normal_matrix"], 1, GL_FALSE, normal_matrix.data());
+  glUniform4fv(p["u_diffuse"], 1, m.diffuse.data());
+  glUniform3fv(p["u_specular"], 1, m.specular.data());
+  glUniform1f(p["u_shininess"], std::max(1.0f, m.shininess));
+  glUniform1f(p["u_alpha_scale"], alpha_scale);
+  glUniform1f(p["u_sheen"], m.sheen);
+  glUniform1f(p["u_metallic"], m.metallic);
+  glUniform1f(p["u_glow_length"], m.glow_tip_length);
+  glUniform1f(p["u_coc_alpha"], opaque ? 1.0f : 0.0f);
+  im.drawObject(object, first, count);
+}
+
+void StereoRenderer::SceneDraw::draw(const Object& object, float alpha_scale, bool opaque) {
+  const RenderOptions& options = r.options_;
+  timings->triangles_drawn += object.triangle_count;
+  const bool fundus = state.fundus_in_view && object.style.fundus;
+  // The fundus texture replaces the procedural relief (its plane waves were the "wavy bump pattern" of the uniform
+  // retina, issue 16): the lit fundus pixels save the seven sines of bumpGradient.
+  const bool bump = object.style.bump_mapped && !fundus;
+  if (options.lighting && isMetal(object.style)) {
+    // Instruments: few pixels, lit everywhere (the mirrored environment and the coaxial highlight are not bounded by
+    // the spotlight's cone).
+    drawWith(use(true, false, false, false, true), object, alpha_scale, opaque);
+    return;
+  }
+  if (!state.split) {
+    drawWith(use(options.lighting, bump, true, fundus), object, alpha_scale, opaque);
+    return;
+  }
+  if (object.in_cone) {
+    drawWith(use(true, bump, true, fundus), object, alpha_scale, opaque, 0, object.shadowed_triangles);
+    drawWith(use(true, bump, false, fundus), object, alpha_scale, opaque, object.shadowed_triangles,
+             object.lit_triangles - object.shadowed_triangles);
+    drawWith(use(false, false, true, fundus), object, alpha_scale, opaque, object.lit_triangles);
+  } else {
+    drawWith(use(false, false, true, fundus), object, alpha_scale, opaque);
+  }
+}
+
+// Pass 2: the scene. Opaque front to back (early depth rejects hidden fragments), translucent back to front.
+void StereoRenderer::renderScene(int e, const FrameState& state, PassTimings* timings) {
+  Impl& im = *impl_;
+  Impl::EyeTargets& target = im.eyes[e];
+  SceneDraw scene(*this, state, e == 0 ? Eye::kLeft : Eye::kRight, timings);
+  const CameraView& cam = scene.cam;
+  const auto planes = frustumPlanes(scene.view_proj);
+  const auto start = Clock::now();
+  std::vector<std::pair<float, const Object*>> opaque, translucent;
+  for (const auto& entry : im.objects) {
+    const Object& object = entry.second;
+    if (!object.has_mesh || !object.visible) continue;
+    const Eigen::Vector3f centre = object.pose * object.centre;
+    if (!sphereVisible(planes, centre, object.radius)) {
+      ++timings->objects_culled;
       continue;
     }
-    DofBlend blend;
-    blend.sharp = im.sharp.data();
-    blend.width = width;
-    blend.height = height;
-    blend.blurred_width = target.half_a.width;
-    blend.blurred_height = target.half_a.height;
-    im.blurred.resize(static_cast<std::size_t>(blend.blurred_width) * blend.blurred_height * 4);
-    blend.blurred = im.blurred.data();
-    glBindFramebuffer(GL_READ_FRAMEBUFFER, target.half_a.fbo);
-    glReadPixels(0, 0, blend.blurred_width, blend.blurred_height, GL_RGBA, GL_UNSIGNED_BYTE, im.blurred.data());
-    timings.ms_readback += msSince(start);
-    start = Clock::now();
-    blend.prepareColumns(&im.dof_columns, &im.dof_weights);
-    if (e + 1 < eye_count) {
-      blend.rows(0, height, &im.dof_rows[0], &image);  // overlaps the rasterisation of the next eye
+    const float depth = (centre - cam.position).dot(cam.forward);
+    if (object.style.ghost || object.style.material.diffuse.w() < 1.0f) {
+      translucent.emplace_back(-depth, &object);
     } else {
-      // Nothing left to overlap with: two threads.
-      auto top = std::async(std::launch::async, [&] { blend.rows(0, height / 2, &im.dof_rows[1], &image); });
-      blend.rows(height / 2, height, &im.dof_rows[0], &image);
-      top.get();
+      opaque.emplace_back(depth - object.radius, &object);
     }
-    timings.ms_dof += msSince(start);
   }
-  if (eye_count == 1) frame->images[1] = RgbImage();
-  glBindFramebuffer(GL_FRAMEBUFFER, 0);
-  const GLenum error = glGetError();
-  timings.ms_total = msSince(frame_start) + timings.ms_upload;
-  frame->timings = timings;
-  if (error != GL_NO_ERROR) throw RenderError("OpenGL error " + std::to_string(error) + " while rendering");
+  std::sort(opaque.begin(), opaque.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+  std::sort(translucent.begin(), translucent.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+
+  glBindFramebuffer(GL_FRAMEBUFFER, target.scene.fbo);
+  glViewport(0, 0, options_.width, options_.height);
+  // Alpha 1: the background counts as far from the focal plane (fully blurred).
+  glClearColor(options_.background.x(), options_.background.y(), options_.background.z(), 1.0f);
+  glEnable(GL_DEPTH_TEST);
+  glDepthFunc(GL_LESS);
+  glDepthMask(GL_TRUE);
+  glDisable(GL_CULL_FACE);  // the retina is seen from inside, membranes from both sides
+  glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+  glActiveTexture(GL_TEXTURE0);
+  glBindTexture(GL_TEXTURE_2D, im.shadow_target.depth);
+  for (const auto& entry : opaque) scene.draw(*entry.second, 1.0f, true);
+  if (!translucent.empty()) {
+    glEnable(GL_BLEND);
+    // Colour blends; alpha keeps the DOF weight of the opaque surface behind (translucent objects write no depth).
+    glBlendFuncSeparate(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA, GL_ZERO, GL_ONE);
+    glDepthMask(GL_FALSE);
+    for (const auto& entry : translucent) {
+      const Object& object = *entry.second;
+      if (object.style.ghost) {
+        // Depth-only first, so a ghost shows only its nearest surface (like a glass instrument, not an x-ray).
+        glColorMask(GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
+        glDepthMask(GL_TRUE);
+        scene.drawWith(scene.use(false, false), object, 1.0f, false);
+        glColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
+        glDepthMask(GL_FALSE);
+        glDepthFunc(GL_LEQUAL);
+        scene.draw(object, options_.ghost_alpha, false);
+        glDepthFunc(GL_LESS);
+      } else {
+        scene.draw(object, 1.0f, false);
+      }
+    }
+    glDepthMask(GL_TRUE);
+    glDisable(GL_BLEND);
+  }
+  waitForPass();
+  timings->ms_scene += msSince(start);
+}
+
+// Pass 3a: depth of field, blurred at reduced resolution on the GPU; the blend happens in the readback (pass 3b).
+void StereoRenderer::blurForDepthOfField(int e, PassTimings* timings) {
+  Impl& im = *impl_;
+  Impl::EyeTargets& target = im.eyes[e];
+  const auto start = Clock::now();
+  glDisable(GL_DEPTH_TEST);
+  glDepthMask(GL_FALSE);
+  glViewport(0, 0, target.half_a.width, target.half_a.height);
+  // Downsampled copy first; at full resolution the horizontal blur reads the scene itself.
+  const bool full_resolution = options_.dof_downsample == 1;
+  if (!full_resolution) {
+    glBindFramebuffer(GL_FRAMEBUFFER, target.half_a.fbo);
+    im.copy.use();
+    glBindTexture(GL_TEXTURE_2D, target.scene.color);
+    glUniform1i(im.copy["u_src"], 0);
+    im.drawFullscreen();
+  }
+  const int half = options_.dof_taps / 2;
+  float weights[4];
+  float offsets[4];
+  dofBlurTaps(options_.dof_taps, options_.dof_sigma_px, weights, offsets);
+  Program& blur = im.blurProgram(options_.dof_taps);
+  blur.use();
+  glUniform1fv(blur["u_weight"], half / 2 + 1, weights);
+  glUniform1fv(blur["u_offset"], half / 2 + 1, offsets);
+  glUniform1i(blur["u_src"], 0);
+  glBindFramebuffer(GL_FRAMEBUFFER, target.half_b.fbo);
+  glBindTexture(GL_TEXTURE_2D, full_resolution ? target.scene.color : target.half_a.color);
+  glUniform2f(blur["u_step"], 1.0f / target.half_a.width, 0.0f);
+  im.drawFullscreen();
+  glBindFramebuffer(GL_FRAMEBUFFER, target.half_a.fbo);
+  glBindTexture(GL_TEXTURE_2D, target.half_b.color);
+  glUniform2f(blur["u_step"], 0.0f, 1.0f / target.half_a.height);
+  im.drawFullscreen();
+  glDepthMask(GL_TRUE);
+  waitForPass();
+  timings->ms_dof += msSince(start);
+}
+
+// Readback (RGBA, the format of the targets: a plain copy in llvmpipe), then on the CPU: DOF blend, RGB, flip.
+void StereoRenderer::readBack(int e, int eye_count, StereoFrame* frame, PassTimings* timings) {
+  Impl& im = *impl_;
+  Impl::EyeTargets& target = im.eyes[e];
+  const int width = options_.width, height = options_.height;
+  auto start = Clock::now();
+  RgbImage& image = frame->images[e];
+  image.width = width;
+  image.height = height;
+  image.data.resize(static_cast<std::size_t>(width) * height * 3);
+  im.sharp.resize(static_cast<std::size_t>(width) * height * 4);
+  glPixelStorei(GL_PACK_ALIGNMENT, 1);
+  glBindFramebuffer(GL_READ_FRAMEBUFFER, target.scene.fbo);
+  glReadBuffer(GL_COLOR_ATTACHMENT0);
+  glReadPixels(0, 0, width, height, GL_RGBA, GL_UNSIGNED_BYTE, im.sharp.data());
+  if (!options_.dof_pass) {
+    rgbaToRgbFlipped(im.sharp.data(), width, height, &image);
+    timings->ms_readback += msSince(start);
+    return;
+  }
+  DofBlend blend;
+  blend.sharp = im.sharp.data();
+  blend.width = width;
+  blend.height = height;
+  blend.blurred_width = target.half_a.width;
+  blend.blurred_height = target.half_a.height;
+  im.blurred.resize(static_cast<std::size_t>(blend.blurred_width) * blend.blurred_height * 4);
+  blend.blurred = im.blurred.data();
+  glBindFramebuffer(GL_READ_FRAMEBUFFER, target.half_a.fbo);
+  glReadPixels(0, 0, blend.blurred_width, blend.blurred_height, GL_RGBA, GL_UNSIGNED_BYTE, im.blurred.data());
+  timings->ms_readback += msSince(start);
+  start = Clock::now();
+  blend.prepareColumns(&im.dof_columns, &im.dof_weights);
+  if (e + 1 < eye_count) {
+    blend.rows(0, height, &im.dof_rows[0], &image);  // overlaps the rasterisation of the next eye
+  } else {
+    // Nothing left to overlap with: two threads.
+    auto top = std::async(std::launch::async, [&] { blend.rows(0, height / 2, &im.dof_rows[1], &image); });
+    blend.rows(height / 2, height, &im.dof_rows[0], &image);
+    top.get();
+  }
+  timings->ms_dof += msSince(start);
 }
 
 }  // namespace vrm_render
