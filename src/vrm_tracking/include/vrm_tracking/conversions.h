@@ -2,10 +2,13 @@
 // The one place where the ROS-free core types (surgeon_script.h) meet vrm_msgs. Header stamps and frame ids are
 // the caller's business: the core has no clock and no frame names.
 
+#include <diagnostic_msgs/DiagnosticStatus.h>
 #include <geometry_msgs/Point.h>
 #include <geometry_msgs/Quaternion.h>
+#include <geometry_msgs/TransformStamped.h>
 #include <geometry_msgs/Vector3.h>
 #include <ros/node_handle.h>
+#include <ros/time.h>
 #include <sensor_msgs/CameraInfo.h>
 #include <vrm_msgs/EyeState.h>
 #include <vrm_msgs/InstrumentState.h>
@@ -15,10 +18,14 @@
 
 #include <cstdint>
 #include <memory>
+#include <string>
+#include <vector>
 
 #include "vrm_tracking/camera_rig.h"
+#include "vrm_tracking/camera_watchdog.h"
 #include "vrm_tracking/pose_tracker.h"
 #include "vrm_tracking/surgeon_script.h"
+#include "vrm_tracking/tracker_diagnostics.h"
 
 namespace vrm_tracking {
 
@@ -29,10 +36,6 @@ Eigen::Quaterniond toEigen(const geometry_msgs::Quaternion& q);
 Eigen::Vector3d toEigen(const geometry_msgs::Point& p);
 Eigen::Vector3d toEigen(const geometry_msgs::Vector3& v);
 
-std::uint8_t toMsgType(InstrumentType type);
-// Throws std::invalid_argument for a value that is not one of the InstrumentState constants.
-InstrumentType fromMsgType(std::uint8_t type);
-
 // Ground truth: tracking_quality = 1, valid = true. The header is left untouched.
 void toMsg(const SurgeonSnapshot& snapshot, vrm_msgs::EyeState* msg);
 void toMsg(const InstrumentSample& sample, vrm_msgs::InstrumentState* msg);
@@ -40,6 +43,7 @@ void toMsg(const PedalSample& sample, vrm_msgs::PedalState* msg);
 void toMsg(const MicroscopeSample& sample, vrm_msgs::MicroscopeSettings* msg);
 
 // The message carries no trocar; it is recovered as tip - insertion_depth * shaft_axis (the trocar constraint).
+// Throws std::invalid_argument for a type that is not one of the InstrumentState constants.
 InstrumentSample fromMsg(const vrm_msgs::InstrumentState& msg);
 PedalSample fromMsg(const vrm_msgs::PedalState& msg);
 MicroscopeSample fromMsg(const vrm_msgs::MicroscopeSettings& msg);
@@ -61,6 +65,17 @@ std::vector<Blob> fromMsg(const vrm_msgs::MarkerObservations& msg);
 void toMsg(const EyeEstimate& eye, vrm_msgs::EyeState* msg);
 void toMsg(const InstrumentEstimate& estimate, const vrm_msgs::InstrumentState* sensors,
            vrm_msgs::InstrumentState* msg);
+
+// Stamps <-> the core's integer nanoseconds (exact both ways).
+StampNs toStampNs(const ros::Time& stamp);
+ros::Time toRosTime(StampNs stamp);
+
+// The tracker's health report as a DiagnosticStatus (name and hardware_id are the caller's).
+void toMsg(const DiagnosticReport& report, diagnostic_msgs::DiagnosticStatus* msg);
+
+// The static transforms eye_frame -> trocar_<slot> of the layout's instruments (the trocar frame is the eye frame
+// shifted to the insertion hole, no rotation); stamps left zero.
+std::vector<geometry_msgs::TransformStamped> trocarTransforms(const MarkerLayout& layout, const std::string& eye_frame);
 
 // The script every device twin plays: ~script (empty = the built-in demo, builtin:NAME, or a file), with ~loop
 // overriding the file's playback mode. Throws ScriptError (file, line, field) for a malformed script.

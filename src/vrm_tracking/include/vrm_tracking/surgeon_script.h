@@ -20,14 +20,12 @@
 #include <string>
 #include <vector>
 
+#include "vrm_sim/scene/scene_description.h"
+
 namespace vrm_tracking {
 
-// Values match the constants of vrm_msgs/InstrumentState, but conversions map them explicitly.
-enum class InstrumentType : std::uint8_t { kLightPipe = 0, kForceps = 1, kVitrector = 2, kNeedle = 3, kHook = 4 };
-
-// "light_pipe" | "forceps" | "vitrector" | "needle" | "hook"; parseInstrumentType throws std::invalid_argument.
-std::string toString(InstrumentType type);
-InstrumentType parseInstrumentType(const std::string& name);
+// Instrument types are vrm_sim's (scene::InstrumentType, names by scene::toString); vrm_sim::toMsgType /
+// instrumentTypeFromMsg (vrm_sim/conversions.h) are the one bridge to the InstrumentState constants.
 
 enum class Playback { kOnce, kLoop };
 
@@ -73,7 +71,7 @@ struct MicroscopeSample {
 
 struct InstrumentSample {
   std::string slot;  // "left" / "right": the trocar it goes through
-  InstrumentType type = InstrumentType::kLightPipe;
+  vrm_sim::scene::InstrumentType type = vrm_sim::scene::InstrumentType::kLightPipe;
   Eigen::Vector3d tip = Eigen::Vector3d::Zero();          // eye frame, m (tremor included)
   Eigen::Vector3d trocar = Eigen::Vector3d::Zero();       // eye frame, m
   Eigen::Vector3d shaft_axis = Eigen::Vector3d::UnitZ();  // unit, handle -> tip
@@ -127,7 +125,7 @@ struct SurfaceTarget {
 
 struct InstrumentKeyframe {
   double t = 0.0;
-  InstrumentType type = InstrumentType::kLightPipe;
+  vrm_sim::scene::InstrumentType type = vrm_sim::scene::InstrumentType::kLightPipe;
   Eigen::Vector3d tip = Eigen::Vector3d::Zero();  // what is played (the resolved point for a resolved target)
   SurfaceTarget target;
   double roll = 0.0;

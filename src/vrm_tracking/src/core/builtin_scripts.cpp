@@ -75,7 +75,7 @@ ScriptDefinition makeDemo() {
   for (int i = 0; i <= 4 * 36; ++i) {
     InstrumentKeyframe key;
     key.t = period * i / (4.0 * 36.0);
-    key.type = InstrumentType::kLightPipe;
+    key.type = vrm_sim::scene::InstrumentType::kLightPipe;
     const double angle = 2.0 * kPi * i / 36.0;
     key.tip = Eigen::Vector3d(0.003 * std::cos(angle), 0.003 * std::sin(angle), -0.004);
     left.keyframes.push_back(key);
@@ -100,7 +100,7 @@ ScriptDefinition makeDemo() {
   auto forceps = [&](double t, const Eigen::Vector3d& tip, double jaw) {
     InstrumentKeyframe key;
     key.t = t;
-    key.type = InstrumentType::kForceps;
+    key.type = vrm_sim::scene::InstrumentType::kForceps;
     key.tip = tip;
     key.jaw_angle = jaw;
     right.keyframes.push_back(key);

@@ -188,7 +188,7 @@ class Parser {
     if (!node["trocar"]) fail(node, join(base, "trocar"), "missing: every slot needs its fixed insertion point");
     track.trocar = readVector3(node["trocar"], join(base, "trocar"));
     bool have_type = false;
-    InstrumentType slot_type = InstrumentType::kLightPipe;
+    vrm_sim::scene::InstrumentType slot_type = vrm_sim::scene::InstrumentType::kLightPipe;
     if (const YAML::Node type = node["type"]) {
       slot_type = readType(type, join(base, "type"));
       have_type = true;
@@ -248,12 +248,17 @@ class Parser {
     key->target.written_tip = key->tip;  // `on` without `tip`: the previous keyframe's written tip
   }
 
-  InstrumentType readType(const YAML::Node& node, const std::string& field) const {
-    try {
-      return parseInstrumentType(readString(node, field));
-    } catch (const std::invalid_argument& e) {
-      fail(node, field, e.what());
+  // The names of the scene files (vrm_sim::scene::toString), so scripts and scenes spell instruments alike.
+  vrm_sim::scene::InstrumentType readType(const YAML::Node& node, const std::string& field) const {
+    using vrm_sim::scene::InstrumentType;
+    const std::string name = readString(node, field);
+    std::string expected;
+    for (InstrumentType type : {InstrumentType::kLightPipe, InstrumentType::kForceps, InstrumentType::kVitrector,
+                                InstrumentType::kNeedle, InstrumentType::kHook}) {
+      if (name == vrm_sim::scene::toString(type)) return type;
+      expected += (expected.empty() ? "" : "|") + std::string(vrm_sim::scene::toString(type));
     }
+    fail(node, field, "unknown instrument type '" + name + "' (expected " + expected + ")");
   }
 
   void parsePedalTrack(const YAML::Node& track, std::vector<PedalKeyframe>* keys) const {

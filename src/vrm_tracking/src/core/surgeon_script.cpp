@@ -44,31 +44,6 @@ std::string indexed(const std::string& base, std::size_t index) { return base + 
 
 // ---------------------------------------------------------------------------------------------------------------
 
-std::string toString(InstrumentType type) {
-  switch (type) {
-    case InstrumentType::kLightPipe:
-      return "light_pipe";
-    case InstrumentType::kForceps:
-      return "forceps";
-    case InstrumentType::kVitrector:
-      return "vitrector";
-    case InstrumentType::kNeedle:
-      return "needle";
-    case InstrumentType::kHook:
-      return "hook";
-  }
-  return "unknown";
-}
-
-InstrumentType parseInstrumentType(const std::string& name) {
-  for (InstrumentType type : {InstrumentType::kLightPipe, InstrumentType::kForceps, InstrumentType::kVitrector,
-                              InstrumentType::kNeedle, InstrumentType::kHook}) {
-    if (toString(type) == name) return type;
-  }
-  throw std::invalid_argument("unknown instrument type '" + name +
-                              "' (expected light_pipe|forceps|vitrector|needle|hook)");
-}
-
 ScriptError::ScriptError(const std::string& source, int line, const std::string& field, const std::string& message)
     : std::runtime_error(formatError(source, line, field, message)), source_(source), line_(line), field_(field) {}
 

@@ -4,9 +4,10 @@
 // A frame is rendered when the eye state and every instrument of one stamp have arrived; the images carry that
 // stamp (the exposure midpoint), never the wall clock. The wall time the triple took goes to tracking_timing
 // (vrm_msgs/StageTiming, stage "camera"; issue 12): the share of the tracking latency a real rig would not spend.
-// Calibration mode (calibration_views > 0): instead of markers, each camera shows a chessboard target from
-// `calibration_views` seeded poses in turn on <camera>/image_raw (+ camera_info), and the target on the world
-// fixture, latched, on <camera>/fixture/image_raw — what rig_calibrator (and a person with a real target) uses.
+// Lazy (image_proc's pattern): the ground truth is subscribed only while someone subscribes to a camera's image_raw /
+// camera_info or markers_exact, and a camera's image is rendered only while its image_raw or camera_info has a
+// subscriber (markers_exact alone costs a projection, not a render). tracking_timing does not count: it reports the
+// work and never asks for it. (The chessboard views for calibration are calibration_fixture's.)
 // Fault injection (tests, issue 14): `stop_camera`/`stop_after` stop one camera for good after a frame count;
 // ~fault (std_msgs/String, camera_fault.h) stops cameras for a wall duration or resumes them while running, e.g.
 // "stop camera_1 2.0", "stop all 2.0", "resume". A stopped camera publishes nothing (images, markers_exact).
@@ -36,7 +37,6 @@
 #include <string>
 #include <vector>
 
-#include "vrm_tracking/calibration.h"
 #include "vrm_tracking/camera_fault.h"
 #include "vrm_tracking/conversions.h"
 #include "vrm_tracking/rig_renderer.h"
@@ -83,36 +83,54 @@ class CameraRigSim : public nodelet::Nodelet {
     expected_slots_ = slots;
     pnh.param<std::string>("optical_frame_suffix", frame_suffix_, "_optical");
 
-    image_transport::ImageTransport it(nh);
-    for (const CameraModel& cam : rig_.cameras) {
-      camera_pubs_.push_back(it.advertiseCamera(cam.name + "/image_raw", 2));
-      exact_pubs_.push_back(nh.advertise<vrm_msgs::MarkerObservations>(cam.name + "/markers_exact", 5));
-    }
-    pnh.param("calibration_views", calibration_views_, 0);
-    if (calibration_views_ > 0) {
-      pnh.param("target_cols", target_.cols, target_.cols);
-      pnh.param("target_rows", target_.rows, target_.rows);
-      pnh.param("target_square", target_.square, target_.square);
-      double rate = 5.0;
-      pnh.param("calibration_rate", rate, rate);
-      for (const CameraModel& cam : rig_.cameras) {
-        fixture_pubs_.push_back(nh.advertise<sensor_msgs::Image>(cam.name + "/fixture/image_raw", 1, /*latch=*/true));
-        calibration_poses_.push_back(calibrationPoses(cam, target_, layout_.rotation_center, calibration_views_,
-                                                      17 + 101 * fixture_pubs_.size()));
-      }
-      calibration_timer_ = nh.createWallTimer(ros::WallDuration(1.0 / rate), &CameraRigSim::onCalibrationTick, this);
-      NODELET_INFO("camera_rig_sim: calibration mode, %d target views per camera", calibration_views_);
-      return;
+    int calibration_views = 0;
+    if (pnh.getParam("calibration_views", calibration_views) && calibration_views > 0) {
+      NODELET_FATAL(
+          "camera_rig_sim: calibration_views is no longer a mode of the rig twin: load "
+          "vrm_tracking/calibration_fixture (views, rate, target_*) instead");
+      throw std::invalid_argument("camera_rig_sim: calibration_views moved to vrm_tracking/calibration_fixture");
     }
     timing_pub_ = nh.advertise<vrm_msgs::StageTiming>("tracking_timing", 10);
-    // Queues of about one tick: a camera exposes the present, so a slow render skips ticks instead of queueing them
-    // (the tracker and the latency monitor see the gap).
-    eye_sub_ = nh.subscribe("ground_truth/eye_state", 2, &CameraRigSim::onEye, this);
-    instrument_sub_ = nh.subscribe("ground_truth/instrument_state",
-                                   static_cast<std::uint32_t>(2 * std::max<std::size_t>(1, expected_slots_.size())),
-                                   &CameraRigSim::onInstrument, this);
+    image_transport::ImageTransport it(nh);
+    {
+      // Held while advertising, so connectCb cannot subscribe before every publisher exists.
+      std::lock_guard<std::mutex> lock(connect_mutex_);
+      const image_transport::SubscriberStatusCallback image_cb =
+          [this](const image_transport::SingleSubscriberPublisher&) { connectCb(); };
+      const ros::SubscriberStatusCallback cb = [this](const ros::SingleSubscriberPublisher&) { connectCb(); };
+      for (const CameraModel& cam : rig_.cameras) {
+        camera_pubs_.push_back(it.advertiseCamera(cam.name + "/image_raw", 2, image_cb, image_cb, cb, cb));
+        exact_pubs_.push_back(nh.advertise<vrm_msgs::MarkerObservations>(cam.name + "/markers_exact", 5, cb, cb));
+      }
+    }
     NODELET_INFO("camera_rig_sim: %zu cameras, %zu instrument slots, seed %d", rig_.size(), expected_slots_.size(),
                  seed);
+  }
+
+  // Subscribes the ground truth when the first camera output gains a subscriber, drops it when the last one goes.
+  void connectCb() {
+    std::lock_guard<std::mutex> lock(connect_mutex_);
+    bool wanted = false;
+    for (std::size_t c = 0; c < rig_.size(); ++c) {
+      wanted |= camera_pubs_[c].getNumSubscribers() > 0 || exact_pubs_[c].getNumSubscribers() > 0;
+    }
+    if (!wanted && eye_sub_) {
+      eye_sub_.shutdown();
+      instrument_sub_.shutdown();
+      std::lock_guard<std::mutex> state_lock(mutex_);
+      pending_eye_.reset();
+      instruments_.clear();
+      previous_stamp_ = ros::Time();  // no motion blur across the gap
+      NODELET_DEBUG("camera_rig_sim: no subscriber left; ground truth unsubscribed");
+    } else if (wanted && !eye_sub_) {
+      ros::NodeHandle& nh = getNodeHandle();
+      // Queues of about one tick: a camera exposes the present, so a slow render skips ticks instead of queueing
+      // them (the tracker and the latency monitor see the gap).
+      eye_sub_ = nh.subscribe("ground_truth/eye_state", 2, &CameraRigSim::onEye, this);
+      instrument_sub_ = nh.subscribe("ground_truth/instrument_state",
+                                     static_cast<std::uint32_t>(2 * std::max<std::size_t>(1, expected_slots_.size())),
+                                     &CameraRigSim::onInstrument, this);
+    }
   }
 
   void onFault(const std_msgs::String::ConstPtr& msg) {
@@ -261,41 +279,6 @@ class CameraRigSim : public nodelet::Nodelet {
     vrm_msgs::publishShared(timing_pub_, timing);
   }
 
-  sensor_msgs::ImagePtr renderTargetImage(const CameraModel& cam, const Eigen::Isometry3d& pose,
-                                          const std_msgs::Header& header) const {
-    auto image = boost::make_shared<sensor_msgs::Image>();
-    image->header = header;
-    image->width = static_cast<std::uint32_t>(cam.width);
-    image->height = static_cast<std::uint32_t>(cam.height);
-    image->encoding = sensor_msgs::image_encodings::BGR8;
-    image->step = 3 * image->width;
-    image->data.resize(static_cast<std::size_t>(image->step) * image->height);
-    cv::Mat view(cam.height, cam.width, CV_8UC3, image->data.data(), image->step);
-    renderTarget(cam, pose, target_, &view, 3);
-    return image;
-  }
-
-  void onCalibrationTick(const ros::WallTimerEvent&) {
-    std_msgs::Header header;
-    header.stamp = ros::Time::now();  // a source: no ground truth drives the calibration views
-    header.seq = static_cast<std::uint32_t>(frame_);
-    for (std::size_t c = 0; c < rig_.size(); ++c) {
-      const CameraModel& cam = rig_.cameras[c];
-      header.frame_id = cam.name + frame_suffix_;
-      if (frame_ == 0) {
-        vrm_msgs::publishShared(fixture_pubs_[c],
-                                renderTargetImage(cam, fixturePose(target_, layout_.rotation_center), header));
-      }
-      if (camera_pubs_[c].getNumSubscribers() == 0) continue;
-      auto image = renderTargetImage(cam, calibration_poses_[c][frame_ % calibration_poses_[c].size()], header);
-      auto info = boost::make_shared<sensor_msgs::CameraInfo>();
-      info->header = header;
-      toMsg(cam, info.get());
-      camera_pubs_[c].publish(image, info);
-    }
-    ++frame_;
-  }
-
   // The exact projected centroids of the visible markers (ground truth for evaluation; the ideal FPGA output).
   void publishExact(std::size_t c, const std_msgs::Header& header, const std::vector<ProjectedMarker>& truth) {
     const CameraModel& cam = rig_.cameras[c];
@@ -338,12 +321,7 @@ class CameraRigSim : public nodelet::Nodelet {
   int stop_camera_ = -1;
   int stop_after_ = 0;
   std::vector<ros::WallTime> stopped_until_;  // per camera; zero = running (~fault)
-  // Calibration mode.
-  int calibration_views_ = 0;
-  ChessboardTarget target_;
-  std::vector<std::vector<Eigen::Isometry3d>> calibration_poses_;
-  std::vector<ros::Publisher> fixture_pubs_;
-  ros::WallTimer calibration_timer_;
+  std::mutex connect_mutex_;                  // subscribe / unsubscribe (connectCb)
 };
 
 }  // namespace vrm_tracking

@@ -7,6 +7,10 @@
 // truncated) or a missing CameraInfo; values: rate, rejections and why, colour classes found per frame.
 // Per image, the wall time of its detection goes to tracking_timing (vrm_msgs/StageTiming, stage
 // "detection_<camera>", header.stamp = the exposure stamp; issue 12).
+// Lazy (image_proc's pattern): a camera's images and CameraInfo are subscribed only while someone subscribes to its
+// <camera>/markers. Only the markers count: tracking_timing and /diagnostics describe the work, they do not ask for
+// it, so a latency monitor or a diagnostics aggregator alone never keeps the cameras rendering and this detecting.
+// An idle camera is reported OK ("idle") on /diagnostics, not as a stopped camera.
 
 #include "vrm_tracking/marker_detector.h"
 
@@ -39,9 +43,11 @@ class MarkerDetectorNodelet : public nodelet::Nodelet {
   struct Camera {
     std::string name;
     std::unique_ptr<RoiTracker> roi;
-    image_transport::Subscriber image_sub;
+    image_transport::Subscriber image_sub;  // both empty while nobody subscribes to markers_pub
     ros::Subscriber info_sub;
     ros::Publisher markers_pub;
+    ros::WallTime idle_since;     // zero while subscribed
+    ros::WallTime watched_since;  // when its images were last subscribed
     std::mutex mutex;
     int images_without_info = 0;
     bool have_info = false;
@@ -67,12 +73,12 @@ class MarkerDetectorNodelet : public nodelet::Nodelet {
     std::string layout_file;
     pnh.param<std::string>("layout_file", layout_file, "");
     try {
-      layout_ = layout_file.empty() ? makeDefaultLayout() : loadLayoutYaml(layout_file);
+      const MarkerLayout layout = layout_file.empty() ? makeDefaultLayout() : loadLayoutYaml(layout_file);
+      detector_ = std::make_unique<MarkerDetector>(layout.classes);
     } catch (const std::exception& e) {
       NODELET_FATAL("marker_detector: %s", e.what());
       throw;
     }
-    detector_ = std::make_unique<MarkerDetector>(layout_.classes);
     RoiTrackerConfig roi;
     pnh.param("roi_half", roi.roi_half, roi.roi_half);
     pnh.param("lost_search_interval", roi.lost_search_interval, roi.lost_search_interval);
@@ -84,30 +90,61 @@ class MarkerDetectorNodelet : public nodelet::Nodelet {
     double diagnostic_period = 1.0;
     pnh.param("diagnostic_period", diagnostic_period, diagnostic_period);
 
-    image_transport::ImageTransport it(nh);
-    for (const std::string& name : names) {
-      auto cam = std::make_unique<Camera>();
-      cam->name = name;
-      cam->roi = std::make_unique<RoiTracker>(detector_.get(), roi);
-      cam->markers_pub = nh.advertise<vrm_msgs::MarkerObservations>(name + "/markers", 5);
-      Camera* raw = cam.get();
-      // One image deep: the newest exposure wins when detection falls behind (no queue grows).
-      cam->image_sub = it.subscribe(name + "/image_raw", 1,
-                                    [this, raw](const sensor_msgs::ImageConstPtr& msg) { onImage(raw, msg); });
-      cam->info_sub = nh.subscribe<sensor_msgs::CameraInfo>(name + "/camera_info", 2,
-                                                            [raw](const sensor_msgs::CameraInfoConstPtr&) {
-                                                              std::lock_guard<std::mutex> lock(raw->mutex);
-                                                              raw->have_info = true;
-                                                            });
-      cameras_.push_back(std::move(cam));
+    it_ = std::make_unique<image_transport::ImageTransport>(nh);
+    {
+      // Held while advertising, so connectCb cannot run before every camera exists.
+      std::lock_guard<std::mutex> lock(connect_mutex_);
+      const ros::SubscriberStatusCallback connect_cb = [this](const ros::SingleSubscriberPublisher&) { connectCb(); };
+      for (const std::string& name : names) {
+        auto cam = std::make_unique<Camera>();
+        cam->name = name;
+        cam->roi = std::make_unique<RoiTracker>(detector_.get(), roi);
+        cam->idle_since = ros::WallTime::now();
+        cam->markers_pub = nh.advertise<vrm_msgs::MarkerObservations>(name + "/markers", 5, connect_cb, connect_cb);
+        cameras_.push_back(std::move(cam));
+      }
     }
     timing_pub_ = nh.advertise<vrm_msgs::StageTiming>("tracking_timing", 10);
-    start_wall_ = last_diag_wall_ = ros::WallTime::now();
+    last_diag_wall_ = ros::WallTime::now();
     diagnostics_pub_ = nh.advertise<diagnostic_msgs::DiagnosticArray>("/diagnostics", 10);
     diagnostic_timer_ =
         nh.createWallTimer(ros::WallDuration(diagnostic_period), &MarkerDetectorNodelet::publishDiagnostics, this);
-    NODELET_INFO("marker_detector: %zu cameras, %zu colour classes, ROI %s", cameras_.size(), layout_.classes.size(),
-                 roi.use_roi ? "on" : "off");
+    NODELET_INFO("marker_detector: %zu cameras, %zu colour classes, ROI %s", cameras_.size(),
+                 detector_->classes().size(), roi.use_roi ? "on" : "off");
+  }
+
+  // Subscribes a camera's inputs when its markers gain a first subscriber, drops them when they lose the last.
+  void connectCb() {
+    std::lock_guard<std::mutex> lock(connect_mutex_);
+    ros::NodeHandle& nh = getNodeHandle();
+    for (const auto& cam : cameras_) {
+      Camera* raw = cam.get();
+      if (cam->markers_pub.getNumSubscribers() == 0) {
+        if (!cam->image_sub) continue;
+        cam->image_sub.shutdown();
+        cam->info_sub.shutdown();
+        std::lock_guard<std::mutex> cam_lock(cam->mutex);
+        cam->idle_since = ros::WallTime::now();
+        NODELET_DEBUG("%s: nobody subscribes to its markers; images unsubscribed", cam->name.c_str());
+      } else if (!cam->image_sub) {
+        {
+          std::lock_guard<std::mutex> cam_lock(cam->mutex);
+          cam->idle_since = ros::WallTime();
+          cam->watched_since = ros::WallTime::now();  // the stale timeout counts from the subscription
+          cam->last_image = ros::WallTime();
+          cam->have_info = false;
+          cam->images_without_info = 0;
+        }
+        // One image deep: the newest exposure wins when detection falls behind (no queue grows).
+        cam->image_sub = it_->subscribe(cam->name + "/image_raw", 1,
+                                        [this, raw](const sensor_msgs::ImageConstPtr& msg) { onImage(raw, msg); });
+        cam->info_sub = nh.subscribe<sensor_msgs::CameraInfo>(cam->name + "/camera_info", 2,
+                                                              [raw](const sensor_msgs::CameraInfoConstPtr&) {
+                                                                std::lock_guard<std::mutex> lock(raw->mutex);
+                                                                raw->have_info = true;
+                                                              });
+      }
+    }
   }
 
   void onImage(Camera* cam, const sensor_msgs::ImageConstPtr& msg) {
@@ -205,8 +242,12 @@ class MarkerDetectorNodelet : public nodelet::Nodelet {
         level = std::max(level, l);
         problems.push_back(what);
       };
-      const double age = cam->last_image.isZero() ? (now - start_wall_).toSec() : (now - cam->last_image).toSec();
-      if (age > stale_timeout_) {
+      const bool idle = !cam->idle_since.isZero();
+      const double age =
+          cam->last_image.isZero() ? (now - cam->watched_since).toSec() : (now - cam->last_image).toSec();
+      if (idle) {
+        // Nobody wants its markers: not subscribed to its images, so silence is expected.
+      } else if (age > stale_timeout_) {
         std::snprintf(buf, sizeof(buf), "%.1f", age);
         raise(d::DiagnosticStatus::ERROR, cam->last_image.isZero()
                                               ? std::string("no image received")
@@ -218,7 +259,7 @@ class MarkerDetectorNodelet : public nodelet::Nodelet {
         raise(cam->images == 0 ? d::DiagnosticStatus::ERROR : d::DiagnosticStatus::WARN,
               std::to_string(cam->rejected) + " frame(s) rejected (" + reasons + ")");
       }
-      if (!cam->have_info) raise(d::DiagnosticStatus::WARN, "no CameraInfo on " + cam->name + "/camera_info");
+      if (!cam->have_info && !idle) raise(d::DiagnosticStatus::WARN, "no CameraInfo on " + cam->name + "/camera_info");
       std::snprintf(buf, sizeof(buf), "%.3g", cam->images / period);
       kv("rate hz", buf);
       kv("frames", std::to_string(cam->images));
@@ -229,7 +270,9 @@ class MarkerDetectorNodelet : public nodelet::Nodelet {
                     cam->images ? static_cast<double>(cam->found_classes) / cam->images : 0.0);
       kv("colour classes found per frame", buf);
       status.level = static_cast<std::uint8_t>(level);
-      if (problems.empty()) {
+      if (idle) {
+        status.message = "idle: nobody subscribes to " + cam->name + "/markers";
+      } else if (problems.empty()) {
         status.message = "detecting";
       } else {
         for (std::size_t i = 0; i < problems.size(); ++i) status.message += (i ? "; " : "") + problems[i];
@@ -241,12 +284,13 @@ class MarkerDetectorNodelet : public nodelet::Nodelet {
     vrm_msgs::publishShared(diagnostics_pub_, array);
   }
 
-  MarkerLayout layout_;
   std::unique_ptr<MarkerDetector> detector_;
+  std::unique_ptr<image_transport::ImageTransport> it_;
+  std::mutex connect_mutex_;  // subscribe / unsubscribe (connectCb)
   ros::Publisher timing_pub_;
   ros::Publisher diagnostics_pub_;
   ros::WallTimer diagnostic_timer_;
-  ros::WallTime start_wall_, last_diag_wall_;
+  ros::WallTime last_diag_wall_;
   double stale_timeout_ = 1.0;
   std::vector<std::unique_ptr<Camera>> cameras_;
 };

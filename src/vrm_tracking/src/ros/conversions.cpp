@@ -1,7 +1,10 @@
 #include "vrm_tracking/conversions.h"
 
+#include <optional>
 #include <stdexcept>
 #include <string>
+
+#include "vrm_sim/conversions.h"
 
 namespace vrm_tracking {
 
@@ -34,41 +37,6 @@ Eigen::Quaterniond toEigen(const geometry_msgs::Quaternion& q) { return Eigen::Q
 Eigen::Vector3d toEigen(const geometry_msgs::Point& p) { return Eigen::Vector3d(p.x, p.y, p.z); }
 Eigen::Vector3d toEigen(const geometry_msgs::Vector3& v) { return Eigen::Vector3d(v.x, v.y, v.z); }
 
-std::uint8_t toMsgType(InstrumentType type) {
-  using Msg = vrm_msgs::InstrumentState;
-  switch (type) {
-    case InstrumentType::kLightPipe:
-      return Msg::LIGHT_PIPE;
-    case InstrumentType::kForceps:
-      return Msg::FORCEPS;
-    case InstrumentType::kVitrector:
-      return Msg::VITRECTOR;
-    case InstrumentType::kNeedle:
-      return Msg::NEEDLE;
-    case InstrumentType::kHook:
-      return Msg::HOOK;
-  }
-  throw std::invalid_argument("unhandled InstrumentType");
-}
-
-InstrumentType fromMsgType(std::uint8_t type) {
-  using Msg = vrm_msgs::InstrumentState;
-  switch (type) {
-    case Msg::LIGHT_PIPE:
-      return InstrumentType::kLightPipe;
-    case Msg::FORCEPS:
-      return InstrumentType::kForceps;
-    case Msg::VITRECTOR:
-      return InstrumentType::kVitrector;
-    case Msg::NEEDLE:
-      return InstrumentType::kNeedle;
-    case Msg::HOOK:
-      return InstrumentType::kHook;
-    default:
-      throw std::invalid_argument("unknown InstrumentState type " + std::to_string(type));
-  }
-}
-
 void toMsg(const SurgeonSnapshot& snapshot, vrm_msgs::EyeState* msg) {
   msg->rotation = toQuaternionMsg(snapshot.eye_rotation);
   msg->rotation_center = toPointMsg(snapshot.rotation_center);
@@ -78,7 +46,7 @@ void toMsg(const SurgeonSnapshot& snapshot, vrm_msgs::EyeState* msg) {
 
 void toMsg(const InstrumentSample& sample, vrm_msgs::InstrumentState* msg) {
   msg->instrument_id = sample.slot;
-  msg->type = toMsgType(sample.type);
+  msg->type = vrm_sim::toMsgType(sample.type);
   msg->tip_pose.position = toPointMsg(sample.tip);
   msg->tip_pose.orientation = toQuaternionMsg(sample.orientation);
   msg->shaft_axis = toVector3Msg(sample.shaft_axis);
@@ -112,7 +80,10 @@ void toMsg(const MicroscopeSample& sample, vrm_msgs::MicroscopeSettings* msg) {
 InstrumentSample fromMsg(const vrm_msgs::InstrumentState& msg) {
   InstrumentSample sample;
   sample.slot = msg.instrument_id;
-  sample.type = fromMsgType(msg.type);
+  // An unknown type constant stays an error here (as fromMsgType threw before), unlike vrm_sim, which keeps the type.
+  const std::optional<vrm_sim::scene::InstrumentType> type = vrm_sim::instrumentTypeFromMsg(msg.type);
+  if (!type) throw std::invalid_argument("unknown InstrumentState type " + std::to_string(msg.type));
+  sample.type = *type;
   sample.tip = toEigen(msg.tip_pose.position);
   sample.orientation = toEigen(msg.tip_pose.orientation);
   sample.shaft_axis = toEigen(msg.shaft_axis);
@@ -228,6 +199,40 @@ void toMsg(const InstrumentEstimate& est, const vrm_msgs::InstrumentState* senso
   msg->insertion_depth = est.insertion_depth;
   msg->tracking_quality = static_cast<float>(est.quality);
   msg->valid = est.valid;
+}
+
+StampNs toStampNs(const ros::Time& stamp) { return static_cast<StampNs>(stamp.toNSec()); }
+
+ros::Time toRosTime(StampNs stamp) {
+  ros::Time time;
+  time.fromNSec(static_cast<std::uint64_t>(stamp));
+  return time;
+}
+
+void toMsg(const DiagnosticReport& report, diagnostic_msgs::DiagnosticStatus* msg) {
+  msg->level = static_cast<std::uint8_t>(report.level);
+  msg->message = report.message;
+  msg->values.clear();
+  for (const auto& [key, value] : report.values) {
+    diagnostic_msgs::KeyValue entry;
+    entry.key = key;
+    entry.value = value;
+    msg->values.push_back(entry);
+  }
+}
+
+std::vector<geometry_msgs::TransformStamped> trocarTransforms(const MarkerLayout& layout,
+                                                              const std::string& eye_frame) {
+  std::vector<geometry_msgs::TransformStamped> trocars;
+  for (const InstrumentMarker& m : layout.instruments) {
+    geometry_msgs::TransformStamped t;
+    t.header.frame_id = eye_frame;
+    t.child_frame_id = "trocar_" + m.slot;
+    t.transform.translation = toVector3Msg(m.trocar);
+    t.transform.rotation.w = 1.0;
+    trocars.push_back(t);
+  }
+  return trocars;
 }
 
 std::unique_ptr<SurgeonScript> loadScriptFromParams(const ros::NodeHandle& private_nh) {

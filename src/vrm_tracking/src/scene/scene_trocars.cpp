@@ -220,7 +220,7 @@ SurgeonScript scenarioScript(const scene::SceneDescription& scene, const std::st
       const scene::InstrumentWaypoint sample = scene::samplePath(instrument.path, t);
       InstrumentKeyframe key;
       key.t = t;
-      key.type = parseInstrumentType(scene::toString(instrument.type));
+      key.type = instrument.type;
       key.tip = sample.tip_in_eye + instrument.tremor.offset(t);
       key.jaw_angle = sample.jaw_angle_deg * kDegToRad;
       key.suction = sample.suction;

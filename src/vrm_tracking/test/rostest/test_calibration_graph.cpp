@@ -1,4 +1,4 @@
-// Calibration graph test (calibration.test): the rig file rig_calibrator writes from camera_rig_sim's chessboard
+// Calibration graph test (calibration.test): the rig file rig_calibrator writes from calibration_fixture's chessboard
 // views loads as camera_rig_sim loads a rig (loadRigYaml) and matches the true rig within the stated tolerances;
 // each camera's own file is standard camera calibration YAML (loadCameraYaml). Waits on the latched result topic
 // with a timeout.

@@ -7,14 +7,24 @@
 namespace vrm_tracking {
 namespace {
 
-TEST(Conversions, InstrumentTypesMatchMessageConstants) {
-  EXPECT_EQ(toMsgType(InstrumentType::kLightPipe), vrm_msgs::InstrumentState::LIGHT_PIPE);
-  EXPECT_EQ(toMsgType(InstrumentType::kForceps), vrm_msgs::InstrumentState::FORCEPS);
-  EXPECT_EQ(toMsgType(InstrumentType::kVitrector), vrm_msgs::InstrumentState::VITRECTOR);
-  EXPECT_EQ(toMsgType(InstrumentType::kNeedle), vrm_msgs::InstrumentState::NEEDLE);
-  EXPECT_EQ(toMsgType(InstrumentType::kHook), vrm_msgs::InstrumentState::HOOK);
-  for (std::uint8_t t = 0; t <= vrm_msgs::InstrumentState::HOOK; ++t) EXPECT_EQ(toMsgType(fromMsgType(t)), t);
-  EXPECT_THROW(fromMsgType(200), std::invalid_argument);
+// The instrument type travels through vrm_sim's one bridge; an unknown constant is an error (not a default type).
+TEST(Conversions, InstrumentTypeThroughTheMessageAndUnknownConstantsThrow) {
+  using vrm_sim::scene::InstrumentType;
+  InstrumentSample sample;
+  sample.slot = "right";
+  for (InstrumentType type : {InstrumentType::kLightPipe, InstrumentType::kForceps, InstrumentType::kVitrector,
+                              InstrumentType::kNeedle, InstrumentType::kHook}) {
+    sample.type = type;
+    vrm_msgs::InstrumentState msg;
+    toMsg(sample, &msg);
+    EXPECT_EQ(fromMsg(msg).type, type);
+  }
+  sample.type = InstrumentType::kHook;
+  vrm_msgs::InstrumentState msg;
+  toMsg(sample, &msg);
+  EXPECT_EQ(msg.type, vrm_msgs::InstrumentState::HOOK);
+  msg.type = 200;
+  EXPECT_THROW(fromMsg(msg), std::invalid_argument);
 }
 
 TEST(Conversions, InstrumentRoundTripRecoversTrocar) {

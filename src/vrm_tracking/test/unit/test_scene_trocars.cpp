@@ -197,7 +197,7 @@ TEST(SceneTargets, ResolvedTipLiesOnTheMembraneAndHeightFollowsTheInwardNormal) 
   // The keyframe keeps its other fields.
   EXPECT_DOUBLE_EQ(keys[1].jaw_angle, 0.3);
   EXPECT_DOUBLE_EQ(keys[1].roll, 0.2);
-  EXPECT_EQ(keys[1].type, InstrumentType::kForceps);
+  EXPECT_EQ(keys[1].type, scene::InstrumentType::kForceps);
   EXPECT_DOUBLE_EQ(keys[1].t, 6.0);
 
   // Height 0.5 mm from the same written tip: straight up the inward normal, which near the posterior pole is
@@ -335,7 +335,7 @@ TEST(SceneTargets, DemoGraspsTheShippedMembrane) {
   EXPECT_GT(report.resolved_keyframes, 0u);
   const auto forceps = [&](double t) { return demo.sample(t).instruments.at(1); };
   ASSERT_EQ(forceps(0.0).slot, "right");
-  ASSERT_EQ(forceps(0.0).type, InstrumentType::kForceps);
+  ASSERT_EQ(forceps(0.0).type, scene::InstrumentType::kForceps);
 
   // The keyframe where the jaws have closed, and the moment they pass vrm_sim's grasp threshold on the way.
   constexpr double kGraspJawAngle = 0.15;  // rad, vrm_sim's default TissueConfig::grasp_jaw_angle
@@ -420,7 +420,7 @@ vrm_sim::world::TissueReport playThroughTheCore(const scene::SceneDescription& s
       vrm_sim::world::InstrumentState state;
       state.stamp = eye.stamp;
       state.slot = sample.slot;
-      state.type = static_cast<scene::InstrumentType>(sample.type);
+      state.type = sample.type;
       state.tip_position = sample.tip;
       state.tip_orientation = sample.orientation;
       state.jaw_angle = sample.jaw_angle;

@@ -49,7 +49,7 @@ TEST(SurgeonScript, ParsesSimpleScript) {
   ASSERT_EQ(s.definition().instruments.size(), 1u);
   EXPECT_EQ(s.definition().instruments[0].slot, "right");
   // Unspecified fields carry over from the previous keyframe.
-  EXPECT_EQ(s.definition().instruments[0].keyframes[2].type, InstrumentType::kVitrector);
+  EXPECT_EQ(s.definition().instruments[0].keyframes[2].type, vrm_sim::scene::InstrumentType::kVitrector);
   EXPECT_DOUBLE_EQ(s.definition().instruments[0].keyframes[2].cut_rate, 30.0);
 }
 
@@ -59,7 +59,7 @@ TEST(SurgeonScript, ExactAtKeyframes) {
   ASSERT_EQ(a.instruments.size(), 1u);
   EXPECT_TRUE(a.instruments[0].tip.isApprox(Eigen::Vector3d(0.0, 0.0, -0.002), 1e-15));
   EXPECT_DOUBLE_EQ(a.instruments[0].jaw_angle, 0.4);
-  EXPECT_EQ(a.instruments[0].type, InstrumentType::kForceps);
+  EXPECT_EQ(a.instruments[0].type, vrm_sim::scene::InstrumentType::kForceps);
   EXPECT_TRUE(a.eye_rotation.isApprox(Eigen::Quaterniond::Identity()));
   EXPECT_TRUE(a.rotation_center.isApprox(Eigen::Vector3d(0.1, 0.2, 0.3)));
 
@@ -67,7 +67,7 @@ TEST(SurgeonScript, ExactAtKeyframes) {
   EXPECT_EQ((b.instruments[0].tip - Eigen::Vector3d(0.002, 0.0, -0.006)).norm(), 0.0);
   EXPECT_DOUBLE_EQ(b.instruments[0].roll, 1.0);
   EXPECT_DOUBLE_EQ(b.instruments[0].cut_rate, 30.0);
-  EXPECT_EQ(b.instruments[0].type, InstrumentType::kVitrector);
+  EXPECT_EQ(b.instruments[0].type, vrm_sim::scene::InstrumentType::kVitrector);
   const Eigen::Quaterniond yaw1(Eigen::AngleAxisd(1.0, Eigen::Vector3d::UnitZ()));
   EXPECT_LT(b.eye_rotation.angularDistance(yaw1), 1e-12);
 
@@ -84,8 +84,8 @@ TEST(SurgeonScript, LinearAtMidpointsStepForDiscrete) {
   EXPECT_NEAR(m.instruments[0].roll, 0.5, 1e-15);
   EXPECT_NEAR(m.instruments[0].cut_rate, 15.0, 1e-12);
   // Step: the instrument in hand is the previous keyframe's until the next keyframe time.
-  EXPECT_EQ(m.instruments[0].type, InstrumentType::kForceps);
-  EXPECT_EQ(s.sample(1.999).instruments[0].type, InstrumentType::kForceps);
+  EXPECT_EQ(m.instruments[0].type, vrm_sim::scene::InstrumentType::kForceps);
+  EXPECT_EQ(s.sample(1.999).instruments[0].type, vrm_sim::scene::InstrumentType::kForceps);
   // Slerp midpoint of a 1 rad yaw is a 0.5 rad yaw.
   const Eigen::Quaterniond yaw_half(Eigen::AngleAxisd(0.5, Eigen::Vector3d::UnitZ()));
   EXPECT_LT(m.eye_rotation.angularDistance(yaw_half), 1e-12);
