@@ -168,7 +168,8 @@ class TissueSimulator {
   // Integrates fixed steps until `frame_time` is covered or the budget (by `clock`) is spent; at least one step
   // runs when frame_time >= dt.
   FrameReport advance(double frame_time, const Clock& clock);
-  // One fixed step with the current instrument poses (plus watchdog); false if the watchdog could not recover.
+  // One fixed step of the tissue model with the current instrument poses; false if it could not be recovered
+  // (mass_spring: the watchdog rolled it back).
   bool step();
 
   // Must be called after a topology change of the membrane (cut, tear, refinement); releases all grasps.
@@ -235,7 +236,6 @@ class TissueSimulator {
   std::unique_ptr<TissueModel> model_;
   // The integrator the mass-spring model steps with (chosen here for every model: "auto" is reported per tissue).
   std::unique_ptr<Integrator> integrator_;
-  std::unique_ptr<Integrator> implicit_fallback_;
   bool auto_integrator_ = false;
   IntegratorChoice choice_;
   std::uint64_t choice_changes_ = 0;

@@ -17,6 +17,11 @@ namespace tissue {
 
 class MassSpringModel : public TissueModel {
  public:
+  explicit MassSpringModel(const TissueConfig& config) {
+    IntegratorOptions fallback_options = config.integrator_options;
+    fallback_options.cg_max_iterations = std::max(fallback_options.cg_max_iterations, 50);
+    implicit_fallback_ = makeIntegrator("implicit_euler", fallback_options);
+  }
   const char* name() const override { return "mass_spring"; }
   bool supportsRefinement() const override { return true; }
   bool supportsEarlyStop() const override { return true; }
@@ -42,6 +47,7 @@ class MassSpringModel : public TissueModel {
   void saveState(TissueSimulator& simulator);
   void restoreState(TissueSimulator& simulator);
 
+  std::unique_ptr<Integrator> implicit_fallback_;  // the watchdog's last resort, stable at any dt
   std::vector<Eigen::Vector3d> saved_positions_, saved_velocities_;
   std::vector<double> saved_rest_lengths_;
   std::vector<double> energy_scratch_;  // 3 per spring: the energy sweep's gathered spring vectors
@@ -52,8 +58,8 @@ class MassSpringModel : public TissueModel {
   int hold_remaining_ = 0;
 };
 
-std::unique_ptr<TissueModel> makeMassSpringModel(mge::Membrane& /*membrane*/, const TissueConfig& /*config*/) {
-  return std::make_unique<MassSpringModel>();
+std::unique_ptr<TissueModel> makeMassSpringModel(mge::Membrane& /*membrane*/, const TissueConfig& config) {
+  return std::make_unique<MassSpringModel>(config);
 }
 
 bool MassSpringModel::step(TissueSimulator& simulator) {
@@ -87,7 +93,7 @@ bool MassSpringModel::step(TissueSimulator& simulator) {
       for (int k = 0; k < substeps; ++k) rawStep(s, *s.integrator_, config.dt / substeps);
     } else {
       ++s.statistics_.implicit_fallbacks;
-      rawStep(s, *s.implicit_fallback_, config.dt);
+      rawStep(s, *implicit_fallback_, config.dt);
     }
     ok = !unstable(s);
     measure_energy_ = false;

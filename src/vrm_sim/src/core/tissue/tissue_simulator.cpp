@@ -52,9 +52,6 @@ TissueSimulator::TissueSimulator(mge::Membrane& membrane, const TissueConfig& co
   integrator_ = makeIntegrator(auto_integrator_ ? "symplectic_euler" : config_.integrator, config_.integrator_options);
   choice_.integrator = integrator_->name();
   choice_.reason = "configured";
-  IntegratorOptions fallback_options = config_.integrator_options;
-  fallback_options.cg_max_iterations = std::max(fallback_options.cg_max_iterations, 50);
-  implicit_fallback_ = makeIntegrator("implicit_euler", fallback_options);
   forces_.params = config_.forces;
   model_ = tissueModelRegistry().at(config_.model).make(membrane, config_);
   onTopologyChanged();
