@@ -91,8 +91,7 @@ int main(int argc, char** argv) {
   }
   if (scene_argument.empty()) return usage("--scene is required");
   try {
-    const vrm_sim::scene::SceneDescription scene =
-        vrm_sim::scene::loadScene(vrm_sim::scene::resolveScenePath(scene_argument), difficulty);
+    const vrm_sim::scene::SceneDescription scene = vrm_sim::scene::loadScene(scene_argument, difficulty);
     if (!scene.scenario) {
       std::fprintf(stderr, "scenario_offline: %s: scene '%s' has no scenario section (scenario_offline --list)\n",
                    scene.source_file.c_str(), scene.name.c_str());

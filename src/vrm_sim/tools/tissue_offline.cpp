@@ -7,7 +7,8 @@
 //    "final_state_hash"}.
 // Same scene, options and seed -> the same final_state_hash, bit for bit.
 //
-// Usage: rosrun vrm_sim tissue_offline --scene FILE.yaml|NAME --seconds T [--rate HZ] [--integrator auto|NAME] [--dt DT]
+// Usage: rosrun vrm_sim tissue_offline --scene FILE.yaml|NAME --seconds T [--rate HZ] [--integrator auto|NAME] [--dt
+// DT]
 //        [--detector NAME] [--seed N]
 // (NAME: a shipped scene, e.g. membrane_peeling). Exit status: 0 ran (see "stable"), 1 bad scene or options,
 // 2 usage.
@@ -70,8 +71,7 @@ int main(int argc, char** argv) {
   }
   if (scene_argument.empty() || !have_seconds) return usage("--scene and --seconds are required");
   try {
-    const vrm_sim::scene::SceneDescription scene =
-        vrm_sim::scene::loadScene(vrm_sim::scene::resolveScenePath(scene_argument));
+    const vrm_sim::scene::SceneDescription scene = vrm_sim::scene::loadScene(scene_argument);
     const vrm_sim::world::OfflineResult result = vrm_sim::world::runOffline(scene, options);
     std::printf("%s\n", result.json().c_str());
   } catch (const std::exception& error) {

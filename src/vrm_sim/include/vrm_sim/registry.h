@@ -7,12 +7,42 @@
 // Tables are built explicitly by the layer that owns the implementations (not self-registering: a static library
 // drops object files nothing references, and the order of static initialisation across libraries is unspecified).
 
+#include <algorithm>
 #include <stdexcept>
 #include <string>
 #include <utility>
 #include <vector>
 
 namespace vrm_sim {
+
+// Levenshtein distance (insertions, deletions, substitutions).
+inline std::size_t editDistance(const std::string& a, const std::string& b) {
+  std::vector<std::size_t> previous(b.size() + 1), current(b.size() + 1);
+  for (std::size_t j = 0; j <= b.size(); ++j) previous[j] = j;
+  for (std::size_t i = 1; i <= a.size(); ++i) {
+    current[0] = i;
+    for (std::size_t j = 1; j <= b.size(); ++j) {
+      current[j] = std::min({previous[j] + 1, current[j - 1] + 1, previous[j - 1] + (a[i - 1] == b[j - 1] ? 0 : 1)});
+    }
+    std::swap(previous, current);
+  }
+  return previous[b.size()];
+}
+
+// " (did you mean 'x'?)" for the nearest candidate within two edits, else "": only near misses are typos worth
+// pointing at.
+inline std::string typoSuggestion(const std::string& word, const std::vector<std::string>& candidates) {
+  std::string best;
+  std::size_t best_distance = 3;
+  for (const auto& candidate : candidates) {
+    const std::size_t distance = editDistance(word, candidate);
+    if (distance < best_distance) {
+      best_distance = distance;
+      best = candidate;
+    }
+  }
+  return best.empty() ? "" : " (did you mean '" + best + "'?)";
+}
 
 template <class Factory>
 class Registry {
@@ -47,7 +77,12 @@ class Registry {
   // The entry for `name`; std::invalid_argument naming the known ones otherwise.
   const Entry& at(const std::string& name) const {
     if (const Entry* entry = find(name)) return *entry;
-    throw std::invalid_argument("unknown " + what_ + " '" + name + "' (known: " + namesJoined() + ")");
+    throw std::invalid_argument(unknownMessage(name));
+  }
+
+  // "unknown <what> 'name' (did you mean ...?) (known: ...)".
+  std::string unknownMessage(const std::string& name) const {
+    return "unknown " + what_ + " '" + name + "'" + typoSuggestion(name, names()) + " (known: " + namesJoined() + ")";
   }
 
   // In table order (the first is the default where a variation point has one).

@@ -28,7 +28,7 @@
 #include "vrm_sim/mge/membrane.h"
 #include "vrm_sim/package_data.h"
 #include "vrm_sim/scene/scene_loader.h"
-#include "vrm_sim/tissue/offline_run.h"
+#include "vrm_sim/scene/tissue_setup.h"
 
 namespace vrm_sim {
 
@@ -63,9 +63,8 @@ class SceneManager : public nodelet::Nodelet {
     const std::string scene_parameter = private_nh.param<std::string>("scene", "membrane_peeling");
 
     usePackageData();  // shipped scenes by name: the devel space's source package or the installed share directory
-    const std::string scene_path = scene::resolveScenePath(scene_parameter);
     try {
-      scene_ = scene::loadScene(scene_path);
+      scene_ = scene::loadScene(scene_parameter);
       buildObjects();
     } catch (const std::exception& error) {
       // A broken scene ends the session with the reason, instead of a simulator running on half a scene.
@@ -74,7 +73,7 @@ class SceneManager : public nodelet::Nodelet {
       return;
     }
     NODELET_INFO("scene '%s' (%s): %zu objects, %zu deformable, %zu instruments", scene_.name.c_str(),
-                 scene_path.c_str(), scene_.objects.size(), membranes_.size(), scene_.instruments.size());
+                 scene_.source_file.c_str(), scene_.objects.size(), membranes_.size(), scene_.instruments.size());
 
     if (publish_pose_tf_) publishStaticFrames();
     publishSurfaces(nh);
@@ -90,7 +89,7 @@ class SceneManager : public nodelet::Nodelet {
       auto info = boost::make_shared<vrm_msgs::SessionInfo>();
       info->header.stamp = ros::Time::now();  // the session's start: a source stamp, recorded with the inputs
       info->scene = scene_.name;
-      info->scene_file = scene_path;
+      info->scene_file = scene_.source_file;
       info->difficulty = private_nh.param<std::string>("difficulty", "");
       info->collision_detector = private_nh.param<std::string>("collision_detector", "");
       info->auto_start = private_nh.param("auto_start", true);
@@ -112,7 +111,7 @@ class SceneManager : public nodelet::Nodelet {
       // Model only what the scene needs: mass-spring state exists for deformable objects only.
       if (object.isDeformable() && scene_.simulates(scene::Simulation::kTissue)) {
         membranes_[object.name] =
-            mge::buildMembrane(graph_, mesh, tissue::membraneOptionsFor(object.tissue, mesh.vertexCount()));
+            mge::buildMembrane(graph_, mesh, scene::membraneOptionsFor(object.tissue, mesh.vertexCount()));
       }
       meshes_.emplace(object.name, std::move(mesh));
     }

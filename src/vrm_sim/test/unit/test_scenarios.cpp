@@ -10,6 +10,7 @@
 #include <map>
 #include <memory>
 
+#include "vrm_sim/scenario/scenario.h"
 #include "vrm_sim/scene/scene_loader.h"
 #include "vrm_sim/world/offline.h"
 #include "vrm_sim/world/session.h"
@@ -159,7 +160,9 @@ simulations: []
 )";
   auto error_of = [&](const std::string& scenario, const std::string& difficulty = "") -> std::string {
     try {
-      scene::loadSceneFromString(base + scenario, "t.yaml", difficulty);
+      // What a session does: load, then build the scenario (its type is checked by the scenario registry).
+      const scene::SceneDescription scene = scene::loadSceneFromString(base + scenario, "t.yaml", difficulty);
+      if (scene.scenario) scenario::makeScenario(scene);
     } catch (const scene::SceneError& error) {
       return error.what();
     }
@@ -172,7 +175,10 @@ simulations: []
   EXPECT_NE(message.find("scenario.time_limit: expected a non-negative number, got 'soon'"), std::string::npos)
       << message;
   message = error_of("scenario: {type: steady_hol}\n");
-  EXPECT_NE(message.find("(did you mean 'steady_hold'?)"), std::string::npos) << message;
+  EXPECT_NE(message.find("t.yaml:5:"), std::string::npos) << message;
+  EXPECT_NE(message.find("scenario.type: unknown scenario type 'steady_hol' (did you mean 'steady_hold'?)"),
+            std::string::npos)
+      << message;
   message = error_of("scenario:\n  type: steady_hold\n  scoring: {time: {weight: 1, best: 3, worst: 3}}\n");
   EXPECT_NE(message.find("best and worst must differ"), std::string::npos) << message;
   const std::string levels = R"(scenario:

@@ -16,7 +16,7 @@ namespace bag {
 
 // How the VR part is set up for a bag: from its session_info, unless overridden.
 struct SessionSetup {
-  std::string scene;       // what scene::resolveScenePath takes (the recorded file if it exists, else the name)
+  std::string scene;       // what scene::loadScene takes (the recorded file if it exists, else the name)
   std::string scene_name;  // as recorded (or the override)
   std::string difficulty;
   std::string collision_detector;

@@ -40,6 +40,7 @@
 #include <string>
 #include <vector>
 
+#include "vrm_sim/registry.h"
 #include "vrm_sim/triangle_mesh.h"
 
 namespace vrm_sim {
@@ -174,14 +175,21 @@ class CollisionDetector {
   const CollisionOptions& options() const { return options_; }
   // Instrument (at `instrument_pose` in the surface frame) vs surface. Never throws for bad geometry: a status.
   virtual CollisionResult collide(const Eigen::Isometry3d& instrument_pose, const SurfaceView& surface) = 0;
+  // Whether this detector's deformation vectors are meant as the tissue's response (ZCOLL's image-space answer,
+  // thesis §4.2.5: push each colliding node along the projection direction): the simulation core then moves the
+  // tissue by them. The others report contacts (and the exact detector its z-line depths), and the tissue simulator's
+  // own contact with the instrument's capsules is their response.
+  virtual bool producesDeformations() const { return false; }
 
  protected:
   CollisionOptions options_;
 };
 
-// Detector names accepted by makeCollisionDetector (see the list at the top).
-const std::vector<std::string>& collisionDetectorNames();
-// Throws std::invalid_argument for an unknown name.
+// The detectors by name (the list at the top): what makeCollisionDetector builds from and the scene schema checks.
+using DetectorFactory = std::unique_ptr<CollisionDetector> (*)();
+const Registry<DetectorFactory>& detectorRegistry();
+std::vector<std::string> collisionDetectorNames();  // detectorRegistry().names()
+// Throws std::invalid_argument naming the known detectors for an unknown name.
 std::unique_ptr<CollisionDetector> makeCollisionDetector(const std::string& name, const CollisionOptions& options = {});
 
 }  // namespace collision

@@ -14,6 +14,8 @@
 #include <string>
 #include <vector>
 
+#include "vrm_sim/hash.h"
+#include "vrm_sim/registry.h"
 #include "vrm_sim/scene/scene_description.h"
 
 namespace vrm_sim {
@@ -100,8 +102,13 @@ class Scenario {
 // Builds the scene's scenario (scene.scenario must be set). Throws scene::SceneError with the location of the
 // offending parameter for a missing or wrong parameter or a scene object the type needs but the scene lacks.
 std::unique_ptr<Scenario> makeScenario(const scene::SceneDescription& scene);
+// The scenario types, one entry per class: the table makeScenario() builds from and the tools list (--list).
+using ScenarioFactory = std::unique_ptr<Scenario> (*)(const scene::SceneDescription& scene);
+const Registry<ScenarioFactory>& scenarioRegistry();
 
-void hashBytes(std::uint64_t& state, const void* data, std::size_t size);
+inline void hashBytes(std::uint64_t& state, const void* data, std::size_t size) {
+  state = ::vrm_sim::hashBytes(state, data, size);
+}
 template <typename T>
 void hashValue(std::uint64_t& state, const T& value) {
   hashBytes(state, &value, sizeof(value));

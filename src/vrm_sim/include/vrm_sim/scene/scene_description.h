@@ -33,14 +33,14 @@
 //       pose: {xyz: [x, y, z], rpy_deg: [r, p, y]}
 //       material: {diffuse: [r, g, b, a], specular: [r, g, b], shininess: 16}
 //       tissue:                              # absent or model: none = rigid
-//         model: mass_spring                 # required: none | mass_spring | chainmail
-//         integrator: auto                   # knownIntegrators(); auto = chosen per membrane (default)
+//         model: mass_spring                 # required: none | tissue::tissueModelRegistry() (mass_spring, chainmail)
+//         integrator: auto                   # tissue::integratorRegistry(); auto = chosen per membrane (default)
 //         stiffness: 2.0                     # and the other TissueParameters fields by name
 //         tear_strain: 1.5                   # > 1: springs longer than 1.5 x rest length tear; 0 = off
 //         adhesion_break_force: 1.0e-3       # N: an adhesion spring pulled harder lets go (peels off); 0 = never
 //         chainmail: {min_stretch: 0.8, max_stretch: 1.2, max_shear: 0.2, relaxation: 0.0}   # model chainmail only
 //         refinement: {levels: 1, radius: 0.001, element_budget: 2000}   # mass_spring only (thesis §5.2.4)
-//       collision: {detector: zcoll_f, resolution: 64, epsilon_shell_scale: 1.05}   # knownCollisionDetectors()
+//       collision: {detector: zcoll_f, resolution: 64, epsilon_shell_scale: 1.05}   # collision::detectorRegistry()
 //   instruments:
 //     - slot: right                          # required: left | right, one instrument per slot
 //       type: forceps                        # required: light_pipe | forceps | vitrector | needle | hook
@@ -56,7 +56,7 @@
 //   simulations: [tissue, collision, grasping, cutting, bleeding]   # required (may be []); lists 'tissue' if
 //                                            # and only if some object is deformable
 //   scenario:                                # optional: the scene is a training scenario (thesis §2.1-2.3, §7.4.1)
-//     type: navigation                       # required: knownScenarioTypes()
+//     type: navigation                       # required: scenario::scenarioRegistry() (checked by makeScenario)
 //     description: free text
 //     time_limit: 60                         # s of running time (pauses excluded); exceeded = failed; 0 = none
 //     params: {targets: [a, b], hold_time: 10}   # the type's parameters: numbers, names or lists of them
@@ -96,7 +96,6 @@ struct SourceLocation {
 enum class SceneKind { kAbstract, kSurgical };
 enum class ObjectRole { kRetina, kMembrane, kIlm, kRigid, kAbstractTarget, kDecoration };
 enum class ObjectFrame { kWorld, kEye };
-enum class TissueModel { kNone, kMassSpring, kChainmail };
 enum class InstrumentType { kLightPipe, kForceps, kVitrector, kNeedle, kHook };
 enum class InstrumentSlot { kLeft, kRight };
 enum class Simulation { kTissue, kCollision, kGrasping, kCutting, kBleeding };
@@ -105,20 +104,13 @@ enum class Simulation { kTissue, kCollision, kGrasping, kCutting, kBleeding };
 const char* toString(SceneKind kind);
 const char* toString(ObjectRole role);
 const char* toString(ObjectFrame frame);
-const char* toString(TissueModel model);
 const char* toString(InstrumentType type);
 const char* toString(InstrumentSlot slot);
 const char* toString(Simulation simulation);
 
-// Integrator and collision detector names the simulation accepts (thesis §5.1, §4). Checked at load time so a typo
-// fails in the loader, not as a silently substituted default inside the simulation.
-// explicit_euler, quasi_static_euler, rk2, implicit_euler, symplectic_euler, xpbd
-const std::vector<std::string>& knownIntegrators();
-// zcoll, zcoll_f (the thesis' algorithms, fastest backend), zcoll[_f]_cpu, zcoll[_f]_gl, myszkowski_cpu, geometric,
-// fcl, fcl_aabb, fcl_obbrss, fcl_kios, none
-const std::vector<std::string>& knownCollisionDetectors();
-// navigation, trajectory, pick_and_place, steady_hold, membrane_peeling, ilm_peeling, vitrectomy (vrm_sim/scenario)
-const std::vector<std::string>& knownScenarioTypes();
+// The tissue model of an object that does not deform (`model: none`); the deforming ones are
+// tissue::tissueModelRegistry()'s names.
+constexpr const char* kRigidTissueModel = "none";
 
 struct Pose {
   Eigen::Vector3d xyz = Eigen::Vector3d::Zero();
@@ -150,9 +142,9 @@ struct RefinementParameters {
 };
 
 // Mass-spring parameters (thesis §5.1); defaults are a soft epiretinal membrane at the resolution of the default
-// membrane patch. Only meaningful when model != kNone.
+// membrane patch. Only meaningful for a deforming model.
 struct TissueParameters {
-  TissueModel model = TissueModel::kNone;
+  std::string model = kRigidTissueModel;  // kRigidTissueModel or a tissue::tissueModelRegistry() name
   std::string integrator = "auto";
   double stiffness = 2.0;             // N/m, per spring (k in eq. 5.2)
   double damping = 0.01;              // N s/m
@@ -166,9 +158,9 @@ struct TissueParameters {
   bool plastic = false;               // rest length follows the maximum length reached (thesis §5.1)
   double early_stop_force = 0.0;      // N; > 0: a frame ends early once no free node feels more (at rest); 0 = off
   double tear_strain = 0.0;           // > 1: springs longer than tear_strain x rest length break (tearing); 0 = off
-  ChainMailParameters chainmail;      // only with model kChainmail
-  RefinementParameters refinement;    // only with model kMassSpring, no bending springs, no adhesion
-  bool isDeformable() const { return model != TissueModel::kNone; }
+  ChainMailParameters chainmail;      // only with model chainmail
+  RefinementParameters refinement;    // only with model mass_spring, no bending springs, no adhesion
+  bool isDeformable() const { return model != kRigidTissueModel; }
 };
 
 struct CollisionParameters {
@@ -280,7 +272,8 @@ struct ScriptedInstrument {
 };
 
 struct ScenarioDescription {
-  std::string type;  // knownScenarioTypes()
+  std::string type;  // scenario::scenarioRegistry()
+  SourceLocation type_location;
   std::string description;
   double time_limit = 0.0;  // s of running time; 0 = none
   std::map<std::string, ScenarioParam> params;

@@ -25,12 +25,13 @@ class SceneError : public std::runtime_error {
   std::string problem_;
 };
 
-// Parses and validates a scene file: unknown keys, wrong types, out-of-range values, inconsistent simulations,
-// unknown trocars and missing mesh files are all SceneErrors. Relative mesh paths are resolved against the scene
-// file's directory, then against the vrm_sim package directory (packageDirectory(), when set).
-// `difficulty`: the scenario's difficulty level whose overrides to apply (empty: its default level); a level the
+// Loads a scene by name or path (resolveScenePath: an existing file, else the shipped scene of that name), the one
+// entry point every package uses. Parses and validates the scene file: unknown keys, wrong types, out-of-range values,
+// inconsistent simulations, unknown trocars and missing mesh files are all SceneErrors. Relative mesh paths are
+// resolved against the scene file's directory, then against the vrm_sim package directory (packageDirectory(), when
+// set). `difficulty`: the scenario's difficulty level whose overrides to apply (empty: its default level); a level the
 // scenario does not have, or any level for a scene without levels, is a SceneError.
-SceneDescription loadScene(const std::string& path, const std::string& difficulty = "");
+SceneDescription loadScene(const std::string& name_or_path, const std::string& difficulty = "");
 // Same, from text; `virtual_path` names the document in messages and anchors relative mesh paths.
 SceneDescription loadSceneFromString(const std::string& yaml_text, const std::string& virtual_path,
                                      const std::string& difficulty = "");
@@ -49,8 +50,8 @@ std::string packageDirectory();
 // Path of a shipped scene, e.g. shippedScenePath("navigation") -> <package>/config/scenes/navigation.yaml. A
 // SceneError when the package directory was not set.
 std::string shippedScenePath(const std::string& scene_name);
-// What the nodes' and tools' `scene` arguments mean: an existing file; else, for a bare name (no '/', no '.'), the
-// shipped scene of that name; else the path as written (loadScene then reports it missing).
+// What loadScene's and the nodes' and tools' `scene` arguments mean: an existing file; else, for a bare name (no '/',
+// no '.'), the shipped scene of that name; else the path as written (loadScene then reports it missing).
 std::string resolveScenePath(const std::string& name_or_path);
 // Names of the shipped scenes (config/scenes/*.yaml), sorted; none when the package directory was not set.
 std::vector<std::string> shippedScenes();

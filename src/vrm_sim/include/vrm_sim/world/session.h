@@ -21,7 +21,7 @@ class Session {
   // Called after a LOAD replaced the world (the adapters advertise the new scene's topics).
   using LoadObserver = std::function<void(World&)>;
 
-  // The shipped-scene loader (scene::resolveScenePath + scene::loadScene).
+  // The shipped-scene loader (scene::loadScene: a name or a path).
   static scene::SceneDescription loadByName(const std::string& scene, const std::string& difficulty);
 
   explicit Session(scene::SceneDescription scene, WorldOptions options = {}, Loader loader = loadByName);

@@ -46,38 +46,36 @@ const char* toString(CollisionStatus status) {
   return "unknown";
 }
 
-const std::vector<std::string>& collisionDetectorNames() {
-  static const std::vector<std::string> names = {"zcoll_f_cpu", "zcoll_cpu", "zcoll_f_gl", "zcoll_gl", "myszkowski_cpu",
-                                                 "zcoll",       "zcoll_f",   "geometric",  "fcl",      "fcl_aabb",
-                                                 "fcl_obbrss",  "fcl_kios",  "none"};
-  return names;
+const Registry<DetectorFactory>& detectorRegistry() {
+  using internal::ZcollMode;
+  // The scene files' names first (the thesis' algorithms on the fastest backend here, the CPU), then one entry per
+  // backend.
+  static const Registry<DetectorFactory> registry(
+      "collision detector",
+      {{"zcoll", [] { return internal::makeZcollCpuDetector(ZcollMode::kParity); }, "ZCOLL (Alg. 4.2) = zcoll_cpu"},
+       {"zcoll_f", [] { return internal::makeZcollCpuDetector(ZcollMode::kFrontOnly); },
+        "ZCOLL/F (Alg. 4.3) = zcoll_f_cpu"},
+       {"zcoll_cpu", [] { return internal::makeZcollCpuDetector(ZcollMode::kParity); },
+        "ZCOLL on the software rasterizer"},
+       {"zcoll_f_cpu", [] { return internal::makeZcollCpuDetector(ZcollMode::kFrontOnly); },
+        "ZCOLL/F on the software rasterizer"},
+       {"zcoll_gl", [] { return internal::makeZcollGlDetector(false); }, "ZCOLL on OpenGL (OSMesa)"},
+       {"zcoll_f_gl", [] { return internal::makeZcollGlDetector(true); }, "ZCOLL/F on OpenGL (OSMesa)"},
+       {"myszkowski_cpu", [] { return internal::makeZcollCpuDetector(ZcollMode::kVolume); },
+        "Myszkowski's stencil test (Alg. 4.1): collision and triangles only"},
+       {"geometric", internal::makeGeometricDetector, "exact primitives vs the surface triangles"},
+       {"fcl", [] { return internal::makeFclDetector("obbrss"); }, "FCL mesh-mesh, OBBRSS = fcl_obbrss"},
+       {"fcl_aabb", [] { return internal::makeFclDetector("aabb"); }, "FCL mesh-mesh, AABB tree"},
+       {"fcl_obbrss", [] { return internal::makeFclDetector("obbrss"); }, "FCL mesh-mesh, OBBRSS tree"},
+       {"fcl_kios", [] { return internal::makeFclDetector("kios"); }, "FCL mesh-mesh, kIOS tree"},
+       {"none", internal::makeNoneDetector, "never collides"}});
+  return registry;
 }
 
+std::vector<std::string> collisionDetectorNames() { return detectorRegistry().names(); }
+
 std::unique_ptr<CollisionDetector> makeCollisionDetector(const std::string& name, const CollisionOptions& options) {
-  std::unique_ptr<CollisionDetector> detector;
-  if (name == "zcoll_f_cpu" || name == "zcoll_f") {
-    detector = internal::makeZcollCpuDetector(internal::ZcollMode::kFrontOnly);
-  } else if (name == "zcoll_cpu" || name == "zcoll") {
-    detector = internal::makeZcollCpuDetector(internal::ZcollMode::kParity);
-  } else if (name == "myszkowski_cpu") {
-    detector = internal::makeZcollCpuDetector(internal::ZcollMode::kVolume);
-  } else if (name == "zcoll_f_gl") {
-    detector = internal::makeZcollGlDetector(true);
-  } else if (name == "zcoll_gl") {
-    detector = internal::makeZcollGlDetector(false);
-  } else if (name == "geometric") {
-    detector = internal::makeGeometricDetector();
-  } else if (name == "fcl" || name == "fcl_obbrss") {
-    detector = internal::makeFclDetector("obbrss");
-  } else if (name == "fcl_aabb") {
-    detector = internal::makeFclDetector("aabb");
-  } else if (name == "fcl_kios") {
-    detector = internal::makeFclDetector("kios");
-  } else if (name == "none") {
-    detector = internal::makeNoneDetector();
-  } else {
-    throw std::invalid_argument("unknown collision detector '" + name + "'");
-  }
+  std::unique_ptr<CollisionDetector> detector = detectorRegistry().at(name).make();
   detector->setOptions(options);
   return detector;
 }

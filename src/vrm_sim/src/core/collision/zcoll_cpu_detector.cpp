@@ -23,6 +23,8 @@ class ZcollCpuDetector : public CollisionDetector {
            : mode_ == ZcollMode::kParity  ? "zcoll_cpu"
                                           : "myszkowski_cpu";
   }
+  // Alg. 4.1 answers only which pixels collide; ZCOLL and ZCOLL/F push nodes out of the instrument.
+  bool producesDeformations() const override { return mode_ != ZcollMode::kVolume; }
 
   void setInstrument(const InstrumentModel& instrument) override {
     instrument_ = instrument;

@@ -1,5 +1,3 @@
-#include <functional>
-#include <map>
 
 #include "scenarios.h"
 #include "vrm_sim/scene/scene_loader.h"
@@ -21,34 +19,29 @@ const TissueView* FrameView::tissue(const std::string& object) const {
   return nullptr;
 }
 
-void hashBytes(std::uint64_t& state, const void* data, std::size_t size) {
-  const auto* bytes = static_cast<const unsigned char*>(data);
-  for (std::size_t i = 0; i < size; ++i) {
-    state ^= bytes[i];
-    state *= 0x100000001b3ull;
-  }
+const Registry<ScenarioFactory>& scenarioRegistry() {
+  static const Registry<ScenarioFactory> registry(
+      "scenario type", {{"navigation", makeNavigation, "touch the targets in order (thesis §2.3.2, abstract)"},
+                        {"trajectory", makeTrajectory, "follow a path with the tip"},
+                        {"pick_and_place", makePickAndPlace, "carry objects to their targets with the forceps"},
+                        {"steady_hold", makeSteadyHold, "hold the tip still at a target"},
+                        {"membrane_peeling", makeMembranePeeling, "grasp and peel an epiretinal membrane"},
+                        {"ilm_peeling", makeIlmPeeling, "peel the inner limiting membrane"},
+                        {"vitrectomy", makeVitrectomy, "remove the vitreous with the vitrector"}});
+  return registry;
 }
 
 std::unique_ptr<Scenario> makeScenario(const scene::SceneDescription& scene) {
-  using Factory = std::function<std::unique_ptr<Scenario>(const scene::SceneDescription&)>;
-  // Explicit, not self-registering: a static library drops object files nothing references.
-  static const std::map<std::string, Factory> factories = {{"navigation", makeNavigation},
-                                                           {"trajectory", makeTrajectory},
-                                                           {"pick_and_place", makePickAndPlace},
-                                                           {"steady_hold", makeSteadyHold},
-                                                           {"membrane_peeling", makeMembranePeeling},
-                                                           {"ilm_peeling", makeIlmPeeling},
-                                                           {"vitrectomy", makeVitrectomy}};
   if (!scene.scenario) {
     scene::SourceLocation where;
     where.file = scene.source_file;
     throw scene::SceneError(where, "the scene has no scenario section");
   }
-  const auto factory = factories.find(scene.scenario->type);
-  if (factory == factories.end()) {
-    throw scene::SceneError(scene.scenario->location, "unknown scenario type '" + scene.scenario->type + "'");
+  const auto* entry = scenarioRegistry().find(scene.scenario->type);
+  if (entry == nullptr) {
+    throw scene::SceneError(scene.scenario->type_location, scenarioRegistry().unknownMessage(scene.scenario->type));
   }
-  return factory->second(scene);
+  return entry->make(scene);
 }
 
 }  // namespace scenario

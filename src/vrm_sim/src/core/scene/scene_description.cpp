@@ -35,18 +35,6 @@ const char* toString(ObjectRole role) {
 
 const char* toString(ObjectFrame frame) { return frame == ObjectFrame::kWorld ? "world" : "eye"; }
 
-const char* toString(TissueModel model) {
-  switch (model) {
-    case TissueModel::kNone:
-      return "none";
-    case TissueModel::kMassSpring:
-      return "mass_spring";
-    case TissueModel::kChainmail:
-      return "chainmail";
-  }
-  return "?";
-}
-
 const char* toString(InstrumentType type) {
   switch (type) {
     case InstrumentType::kLightPipe:
@@ -79,27 +67,6 @@ const char* toString(Simulation simulation) {
       return "bleeding";
   }
   return "?";
-}
-
-const std::vector<std::string>& knownIntegrators() {
-  // "auto" (tissue/integrator_choice.h) first: the default.
-  static const std::vector<std::string> names = {"auto",           "explicit_euler",   "quasi_static_euler", "rk2",
-                                                 "implicit_euler", "symplectic_euler", "xpbd"};
-  return names;
-}
-
-const std::vector<std::string>& knownCollisionDetectors() {
-  // zcoll / zcoll_f name the thesis' algorithms and use the fastest backend here (CPU); the rest pick a backend.
-  static const std::vector<std::string> names = {"zcoll",      "zcoll_f",        "zcoll_cpu", "zcoll_f_cpu", "zcoll_gl",
-                                                 "zcoll_f_gl", "myszkowski_cpu", "geometric", "fcl",         "fcl_aabb",
-                                                 "fcl_obbrss", "fcl_kios",       "none"};
-  return names;
-}
-
-const std::vector<std::string>& knownScenarioTypes() {
-  static const std::vector<std::string> names = {"navigation",       "trajectory",  "pick_and_place", "steady_hold",
-                                                 "membrane_peeling", "ilm_peeling", "vitrectomy"};
-  return names;
 }
 
 Eigen::Vector3d PathTremor::offset(double t) const {

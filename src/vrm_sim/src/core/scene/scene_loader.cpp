@@ -13,8 +13,12 @@
 #include <mutex>
 #include <sstream>
 
+#include "vrm_sim/collision/collision_detector.h"
+#include "vrm_sim/registry.h"
 #include "vrm_sim/scene/mesh_io.h"
 #include "vrm_sim/scene/mesh_utils.h"
+#include "vrm_sim/tissue/integrator.h"
+#include "vrm_sim/tissue/tissue_model.h"
 
 namespace vrm_sim {
 namespace scene {
@@ -30,30 +34,10 @@ std::string joinNames(const std::vector<std::string>& names) {
   return joined;
 }
 
-std::size_t editDistance(const std::string& a, const std::string& b) {
-  std::vector<std::size_t> previous(b.size() + 1), current(b.size() + 1);
-  for (std::size_t j = 0; j <= b.size(); ++j) previous[j] = j;
-  for (std::size_t i = 1; i <= a.size(); ++i) {
-    current[0] = i;
-    for (std::size_t j = 1; j <= b.size(); ++j) {
-      current[j] = std::min({previous[j] + 1, current[j - 1] + 1, previous[j - 1] + (a[i - 1] == b[j - 1] ? 0 : 1)});
-    }
-    std::swap(previous, current);
-  }
-  return previous[b.size()];
-}
+using vrm_sim::typoSuggestion;
 
 std::string suggestion(const std::string& word, const std::vector<std::string>& candidates) {
-  std::string best;
-  std::size_t best_distance = 3;  // only near misses are typos worth pointing at
-  for (const auto& candidate : candidates) {
-    const std::size_t distance = editDistance(word, candidate);
-    if (distance < best_distance) {
-      best_distance = distance;
-      best = candidate;
-    }
-  }
-  return best.empty() ? "" : " (did you mean '" + best + "'?)";
+  return typoSuggestion(word, candidates);
 }
 
 // One YAML node together with its field path and file, so every check can report where it failed.
@@ -413,10 +397,12 @@ Pose readPose(const Field& field) {
 TissueParameters readTissue(const Field& field) {
   TissueParameters tissue;
   MapFields fields(field);
-  tissue.model = fields.required("model").choice<TissueModel>({{"none", TissueModel::kNone},
-                                                               {"mass_spring", TissueModel::kMassSpring},
-                                                               {"chainmail", TissueModel::kChainmail}});
-  if (auto integrator = fields.optional("integrator")) tissue.integrator = integrator->name(knownIntegrators());
+  std::vector<std::string> models = {kRigidTissueModel};
+  for (const std::string& name : tissue::tissueModelRegistry().names()) models.push_back(name);
+  tissue.model = fields.required("model").name(models);
+  if (auto integrator = fields.optional("integrator")) {
+    tissue.integrator = integrator->name(tissue::integratorRegistry().names());
+  }
   readPositive(fields, "stiffness", tissue.stiffness);
   readNonNegative(fields, "damping", tissue.damping);
   readPositive(fields, "node_mass", tissue.node_mass);
@@ -439,7 +425,7 @@ TissueParameters readTissue(const Field& field) {
     }
   }
   if (auto chainmail = fields.optional("chainmail")) {
-    if (tissue.model != TissueModel::kChainmail) chainmail->fail("chainmail limits need model: chainmail");
+    if (tissue.model != "chainmail") chainmail->fail("chainmail limits need model: chainmail");
     MapFields limits(*chainmail);
     ChainMailParameters& c = tissue.chainmail;
     if (auto f = limits.optional("min_stretch")) c.min_stretch = f->number("a number in (0, 1]", 0.0, 1.0, false);
@@ -458,7 +444,7 @@ TissueParameters readTissue(const Field& field) {
     if (auto f = settings.optional("chain_stiffness_scaling")) r.chain_stiffness_scaling = f->boolean();
     settings.finish();
     if (r.levels > 0) {
-      if (tissue.model != TissueModel::kMassSpring) refinement->fail("refinement needs model: mass_spring");
+      if (tissue.model != "mass_spring") refinement->fail("refinement needs model: mass_spring");
       if (tissue.bending_stiffness > 0.0) refinement->fail("refinement does not support bending springs");
       if (tissue.adhesion_stiffness > 0.0) refinement->fail("refinement does not support adhesion_stiffness");
     }
@@ -470,7 +456,8 @@ TissueParameters readTissue(const Field& field) {
 CollisionParameters readCollision(const Field& field) {
   CollisionParameters collision;
   MapFields fields(field);
-  if (auto detector = fields.optional("detector")) collision.detector = detector->name(knownCollisionDetectors());
+  if (auto detector = fields.optional("detector"))
+    collision.detector = detector->name(collision::detectorRegistry().names());
   readInteger(fields, "resolution", collision.resolution, 1, 16384);
   if (auto scale = fields.optional("epsilon_shell_scale")) {
     collision.epsilon_shell_scale = scale->number("a scale factor in [1, 2]", 1.0, 2.0);
@@ -746,7 +733,11 @@ ScenarioDescription readScenario(const Field& field, const std::string& difficul
   ScenarioDescription scenario;
   scenario.location = field.location();
   MapFields fields(field);
-  scenario.type = fields.required("type").name(knownScenarioTypes());
+  // The scenario layer sits above the scene and checks the type against its registry (makeScenario, with this
+  // field's location).
+  const Field type = fields.required("type");
+  scenario.type = type.text();
+  scenario.type_location = type.location();
   if (auto description = fields.optional("description")) scenario.description = description->text();
   readNonNegative(fields, "time_limit", scenario.time_limit);
   if (auto params = fields.optional("params")) {
@@ -1017,11 +1008,18 @@ SceneError::SceneError(const SourceLocation& location, const std::string& proble
       location_(location),
       problem_(problem) {}
 
-SceneDescription loadScene(const std::string& path, const std::string& difficulty) {
+SceneDescription loadScene(const std::string& name_or_path, const std::string& difficulty) {
+  const std::string path = resolveScenePath(name_or_path);
   SourceLocation location;
   location.file = path;
   std::error_code error;
-  if (!fs::exists(path, error)) throw SceneError(location, "scene file not found");
+  if (!fs::exists(path, error)) {
+    if (path == name_or_path) throw SceneError(location, "scene file not found");
+    std::string shipped;
+    for (const std::string& name : shippedScenes()) shipped += (shipped.empty() ? "" : ", ") + name;
+    location.file = name_or_path;
+    throw SceneError(location, "neither a scene file nor a shipped scene (shipped: " + shipped + ")");
+  }
   std::ifstream stream(path);
   if (!stream || fs::is_directory(path, error)) throw SceneError(location, "cannot read the scene file");
   std::ostringstream text;
@@ -1099,9 +1097,10 @@ std::string shippedScenePath(const std::string& scene_name) {
   if (package.empty()) {
     SourceLocation location;
     location.file = scene_name;
-    throw SceneError(location, "not a scene file, and no shipped scenes: the vrm_sim package directory is unknown "
-                               "(ROS nodes and tools: vrm_sim must be on ROS_PACKAGE_PATH, source setup.bash; "
-                               "ROS-free code: scene::setPackageDirectory)");
+    throw SceneError(location,
+                     "not a scene file, and no shipped scenes: the vrm_sim package directory is unknown "
+                     "(ROS nodes and tools: vrm_sim must be on ROS_PACKAGE_PATH, source setup.bash; "
+                     "ROS-free code: scene::setPackageDirectory)");
   }
   return (fs::path(package) / "config" / "scenes" / (scene_name + ".yaml")).string();
 }

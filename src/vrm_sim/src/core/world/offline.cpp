@@ -9,8 +9,9 @@
 #include <stdexcept>
 
 #include "vrm_sim/mge/membrane.h"
+#include "vrm_sim/scene/instrument_model.h"
 #include "vrm_sim/scene/scene_loader.h"
-#include "vrm_sim/tissue/offline_run.h"
+#include "vrm_sim/tissue/integrator.h"
 #include "vrm_sim/tissue/tissue_simulator.h"
 
 namespace vrm_sim {
@@ -90,7 +91,7 @@ std::vector<InstrumentState> scriptedInputsAt(const scene::SceneDescription& sce
   std::vector<InstrumentState> inputs;
   for (const auto& instrument : scene.instruments) {
     if (instrument.path.empty()) continue;
-    const tissue::InstrumentInput scripted = tissue::scriptedInstrument(scene, instrument, t);
+    const tissue::InstrumentInput scripted = scene::scriptedInstrument(scene, instrument, t);
     InstrumentState state;
     state.stamp = stamp;
     state.slot = scene::toString(instrument.slot);
@@ -133,12 +134,9 @@ OfflineResult runOffline(const scene::SceneDescription& scene_in, const OfflineO
   }
   if (!options.integrator.empty()) {
     // The names a scene's `tissue.integrator` accepts ("auto" and the integrators).
-    const std::vector<std::string>& known = scene::knownIntegrators();
-    if (std::find(known.begin(), known.end(), options.integrator) == known.end()) {
-      std::string names;
-      for (const auto& name : known) names += (names.empty() ? "" : ", ") + name;
-      throw std::invalid_argument("tissue_offline: unknown integrator '" + options.integrator + "' (known: " + names +
-                                  ")");
+    if (!tissue::integratorRegistry().contains(options.integrator)) {
+      throw std::invalid_argument("tissue_offline: unknown integrator '" + options.integrator +
+                                  "' (known: " + tissue::integratorRegistry().namesJoined() + ")");
     }
   }
   scene::SceneDescription scene = scene_in;

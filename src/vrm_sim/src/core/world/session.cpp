@@ -6,7 +6,7 @@ namespace vrm_sim {
 namespace world {
 
 scene::SceneDescription Session::loadByName(const std::string& scene, const std::string& difficulty) {
-  return scene::loadScene(scene::resolveScenePath(scene), difficulty);
+  return scene::loadScene(scene, difficulty);
 }
 
 Session::Session(scene::SceneDescription scene, WorldOptions options, Loader loader)

@@ -7,10 +7,12 @@
 #include <unordered_map>
 #include <variant>
 
+#include "vrm_sim/hash.h"
 #include "vrm_sim/mge/membrane.h"
 #include "vrm_sim/scene/instrument_meshes.h"
+#include "vrm_sim/scene/instrument_model.h"
 #include "vrm_sim/scene/scene_loader.h"
-#include "vrm_sim/tissue/offline_run.h"
+#include "vrm_sim/scene/tissue_setup.h"
 #include "vrm_sim/tissue/tissue_simulator.h"
 
 namespace vrm_sim {
@@ -18,7 +20,6 @@ namespace world {
 
 namespace {
 
-constexpr double kRadToDeg = 180.0 / M_PI;
 constexpr double kLiftThreshold = 1e-4;         // m: a node this far from its rest position counts as lifted
 constexpr double kPeelLift = 5e-4;              // m: a grasped membrane lifted this far is peeling
 constexpr std::uint64_t kLogEveryFrames = 250;  // a repeated message at most every ~5 s at 50 Hz
@@ -31,7 +32,6 @@ constexpr double kGapConfirmation = 0.25;  // s of input time every source must 
 
 // The detectors whose deformation vectors drive the tissue response (thesis §4.2.2); the others report only and the
 // tissue's own exact capsule test is the response.
-bool deformsTissue(const std::string& detector) { return detector.rfind("zcoll", 0) == 0; }
 
 std::string sourceName(const char* kind, const std::string& slot) { return std::string(kind) + ":" + slot; }
 
@@ -87,6 +87,7 @@ struct World::Collider {
   std::string object;
   std::string frame_id;
   std::string detector_name;
+  bool produces_deformations = false;  // the detector's deformation vectors are the tissue's response
   collision::CollisionOptions options;
   struct PerInstrument {
     std::unique_ptr<collision::CollisionDetector> detector;
@@ -178,7 +179,8 @@ std::optional<World::Collider> World::makeCollider(const scene::ObjectDescriptio
   collider.detector_name = name;
   collider.options.resolution = object.collision.resolution;
   collider.options.max_pixel_size = options_.collision_max_pixel_size;
-  collision::makeCollisionDetector(name);  // throws for an unknown name (the loader checks the scene's names)
+  // Throws for an unknown name (the loader checks the scene's names; detector_override is the caller's).
+  collider.produces_deformations = collision::makeCollisionDetector(name)->producesDeformations();
   return collider;
 }
 
@@ -194,12 +196,8 @@ void World::buildInstruments() {
 // The slot's shape for `type`: the scene's parameters for its declared type, the generator defaults for an
 // alternative. The collision model is rebuilt on the next query.
 void World::setInstrumentType(Instrument& instrument, scene::InstrumentType type) {
-  instrument.current = *instrument.description;
-  if (type != instrument.description->type) {
-    instrument.current.type = type;
-    instrument.current.params = scene::defaultInstrumentParams(type);
-  }
-  instrument.shape = tissue::instrumentInputFor(instrument.current);
+  instrument.current = scene::instrumentOfType(*instrument.description, type);
+  instrument.shape = scene::tissueShape(instrument.current);
   instrument.model_version = 0;  // collide() rebuilds the collision model before the next query
   instrument.model_jaw_deg = -1000;
 }
@@ -208,9 +206,8 @@ void World::setInstrumentType(Instrument& instrument, scene::InstrumentType type
 // may take; any other type keeps the current one.
 bool World::switchInstrument(Instrument& instrument, scene::InstrumentType type) {
   if (type == instrument.current.type) return true;
-  const auto& allowed = instrument.description->alternatives;
   const std::string slot = scene::toString(instrument.description->slot);
-  if (type != instrument.description->type && std::find(allowed.begin(), allowed.end(), type) == allowed.end()) {
+  if (!scene::allowsType(*instrument.description, type)) {
     log(Severity::kWarning, "switch:" + slot,
         "instrument '" + slot + "': type " + scene::toString(type) +
             " is not allowed in this slot by the scene; keeping " + scene::toString(instrument.current.type));
@@ -230,7 +227,7 @@ void World::buildTissues() {
     tissue->frame_id = object.frame == scene::ObjectFrame::kEye ? "eye" : "world";
     tissue->peels = object.role == scene::ObjectRole::kMembrane || object.role == scene::ObjectRole::kIlm;
     if (scene_.simulates(scene::Simulation::kCollision)) tissue->collider = makeCollider(object);
-    tissue->detector_response = tissue->collider && deformsTissue(tissue->collider->detector_name);
+    tissue->detector_response = tissue->collider && tissue->collider->produces_deformations;
     tissues_[object.name] = std::move(tissue);
   }
   resetTissues();
@@ -242,8 +239,8 @@ void World::resetTissues() {
     const scene::ObjectDescription& object = *tissue->object;
     const TriangleMesh mesh = scene::buildMesh(object, scene::MeshFrame::kParent);
     tissue->simulator.reset();
-    tissue->membrane = mge::buildMembrane(mesh, tissue::membraneOptionsFor(object.tissue, mesh.vertexCount()));
-    tissue::TissueConfig config = tissue::tissueConfigFor(object.tissue, object.collision);
+    tissue->membrane = mge::buildMembrane(mesh, scene::membraneOptionsFor(object.tissue, mesh.vertexCount()));
+    tissue::TissueConfig config = scene::tissueConfigFor(object.tissue, object.collision);
     // A frame covers at most max_frame_time: every step of it must run (deterministic frames).
     config.max_steps_per_frame =
         std::max(config.max_steps_per_frame, static_cast<int>(std::ceil(options_.max_frame_time / config.dt)) + 1);
@@ -901,20 +898,9 @@ void World::bleed(RigidObject& object, FrameResult& result) {
 // jaw angle does not invalidate the detectors' cached depth images every frame).
 collision::CollisionResult World::collide(Collider& collider, const std::string& slot, Instrument& instrument,
                                           const Eigen::Isometry3d& pose, const collision::SurfaceView& surface) {
-  const int jaw_deg =
-      instrument.shape.jaws ? static_cast<int>(std::lround(std::clamp(instrument.jaw_angle, 0.0, 1.5) * kRadToDeg)) : 0;
+  const int jaw_deg = scene::jawStepDeg(instrument.current.type, instrument.jaw_angle);
   if (instrument.model_version == 0 || jaw_deg != instrument.model_jaw_deg) {
-    scene::InstrumentDescription description = instrument.current;
-    if (auto* forceps = std::get_if<scene::ForcepsParams>(&description.params)) forceps->jaw_angle_deg = jaw_deg;
-    instrument.model.mesh = scene::buildInstrumentMesh(description);
-    // The geometric detector's exact shape: the simulator's capsules at the same jaw opening.
-    tissue::InstrumentInput at_origin = instrument.shape;
-    at_origin.pose = Eigen::Isometry3d::Identity();
-    at_origin.jaw_angle = jaw_deg / kRadToDeg;
-    instrument.model.primitives.clear();
-    for (const tissue::Capsule& capsule : tissue::instrumentCapsules(at_origin)) {
-      instrument.model.primitives.push_back(collision::Primitive::capsule(capsule.a, capsule.b, capsule.radius));
-    }
+    instrument.model = scene::collisionModel(instrument.current, jaw_deg);
     instrument.model_jaw_deg = jaw_deg;
     ++instrument.model_version;
   }
@@ -937,24 +923,26 @@ collision::CollisionResult World::collide(Collider& collider, const std::string&
 // ---- state ----
 
 std::uint64_t World::stateHash() const {
-  std::uint64_t hash = 14695981039346656037ull;
+  std::uint64_t hash = kHashSeed;
   for (const auto& [name, tissue] : tissues_) {
     mge::Membrane& membrane = *tissue->membrane;
-    hash = tissue::stateHash(membrane, hash);
-    hash = tissue::hashBytes(hash, membrane.restLengths(), membrane.springCount() * sizeof(double));
+    const std::size_t n = membrane.nodeCount();
+    hash = hashBytes(hash, membrane.positions(), n * sizeof(Eigen::Vector3d));
+    hash = hashBytes(hash, membrane.velocities(), n * sizeof(Eigen::Vector3d));
+    hash = hashBytes(hash, membrane.restLengths(), membrane.springCount() * sizeof(double));
     const std::uint64_t topology = tissue->report.topology_version;
-    hash = tissue::hashBytes(hash, &topology, sizeof(topology));
+    hash = hashBytes(hash, &topology, sizeof(topology));
     const std::vector<std::uint32_t>& grasped = tissue->simulator->graspedNodes();
-    hash = tissue::hashBytes(hash, grasped.data(), grasped.size() * sizeof(std::uint32_t));
+    hash = hashBytes(hash, grasped.data(), grasped.size() * sizeof(std::uint32_t));
   }
   for (const auto& rigid : rigid_) {
     if (!rigid->bleeding) continue;
     const std::vector<float>& field = rigid->bleeding->field();
-    hash = tissue::hashBytes(hash, field.data(), field.size() * sizeof(float));
+    hash = hashBytes(hash, field.data(), field.size() * sizeof(float));
   }
   const std::uint8_t flags[] = {static_cast<std::uint8_t>(paused_), static_cast<std::uint8_t>(running_),
                                 static_cast<std::uint8_t>(started_)};
-  hash = tissue::hashBytes(hash, flags, sizeof(flags));
+  hash = hashBytes(hash, flags, sizeof(flags));
   if (runner_) runner_->hash(hash);
   return hash;
 }

@@ -1,0 +1,54 @@
+#pragma once
+// The instrument model: one definition of what an instrument slot is for every package — which types it may take,
+// its shape for a type and jaw opening, and what that shape is to the tissue, the collision detectors and the
+// renderer. The simulation core (world/world.h) and the renderer (vrm_render/scene_setup.h) both build from here, so
+// the drawn instrument is the one that collides.
+
+#include <Eigen/Geometry>
+#include <optional>
+#include <vector>
+
+#include "vrm_sim/collision/collision_detector.h"
+#include "vrm_sim/scene/scene_description.h"
+#include "vrm_sim/tissue/tissue_simulator.h"
+#include "vrm_sim/triangle_mesh.h"
+
+namespace vrm_sim {
+namespace scene {
+
+// The forceps open no further than this (rad, full opening): the grasp model's jaw capsules, the collision mesh and
+// the drawn mesh all stop here.
+constexpr double kMaxJawOpening = 1.5;
+
+// The slot's instrument when it holds `type`: the scene's parameters for its declared type, the generator defaults
+// for another type (instrument switching).
+InstrumentDescription instrumentOfType(const InstrumentDescription& configured, InstrumentType type);
+// Whether the slot may hold `type`: its declared type or one of the scene's `alternatives` (thesis §7: the trainee
+// changes instruments in a trocar; any other type keeps the one in use).
+bool allowsType(const InstrumentDescription& configured, InstrumentType type);
+// The type a slot holds after a request for `requested` (nullopt: no type said) while holding `current`.
+InstrumentType typeAfterRequest(const InstrumentDescription& configured, InstrumentType current,
+                                std::optional<InstrumentType> requested);
+
+// The jaw opening the meshes are built at, in whole degrees (so tracking noise does not rebuild meshes or invalidate
+// the detectors' cached depth images every frame): forceps only, clamped to [0, kMaxJawOpening], non-finite =
+// closed; 0 for the other types.
+int jawStepDeg(InstrumentType type, double jaw_angle_rad);
+// The instrument's surface mesh (instrument frame: tip at the origin, +z from the handle to the tip) with the jaws
+// at `jaw_deg` (a jawStepDeg value). SceneError with the instrument's location for bad generator parameters.
+TriangleMesh instrumentMesh(const InstrumentDescription& instrument, int jaw_deg);
+
+// The instrument's tissue-side shape: a capsule along the shaft; the forceps grasp with their jaws; the vitrector
+// cuts what its port aspirates. Pose and jaw angle are the caller's.
+tissue::InstrumentInput tissueShape(const InstrumentDescription& instrument);
+// The collision model at `jaw_deg`: the surface mesh for the image-space and mesh detectors and, for the exact
+// (geometric) detector, the tissue-side capsules at the same opening.
+collision::InstrumentModel collisionModel(const InstrumentDescription& instrument, int jaw_deg);
+
+// The scripted pose (tip and shaft direction from the trocar, in the eye frame) and jaw angle [rad] at time t; the
+// path is held at its ends. Requires a non-empty path (std::invalid_argument).
+tissue::InstrumentInput scriptedInstrument(const SceneDescription& scene, const InstrumentDescription& instrument,
+                                           double t);
+
+}  // namespace scene
+}  // namespace vrm_sim

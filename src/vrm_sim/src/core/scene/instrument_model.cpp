@@ -1,0 +1,118 @@
+#include "vrm_sim/scene/instrument_model.h"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <type_traits>
+#include <variant>
+
+#include "vrm_sim/scene/scene_loader.h"
+
+namespace vrm_sim {
+namespace scene {
+
+namespace {
+constexpr double kRadToDeg = 180.0 / M_PI;
+constexpr double kDegToRad = M_PI / 180.0;  // not 1 / kRadToDeg: the scripted jaw angles keep their bit patterns
+}  // namespace
+
+InstrumentDescription instrumentOfType(const InstrumentDescription& configured, InstrumentType type) {
+  InstrumentDescription instrument = configured;
+  if (type != configured.type) {
+    instrument.type = type;
+    instrument.params = defaultInstrumentParams(type);
+  }
+  return instrument;
+}
+
+bool allowsType(const InstrumentDescription& configured, InstrumentType type) {
+  return type == configured.type || std::find(configured.alternatives.begin(), configured.alternatives.end(), type) !=
+                                        configured.alternatives.end();
+}
+
+InstrumentType typeAfterRequest(const InstrumentDescription& configured, InstrumentType current,
+                                std::optional<InstrumentType> requested) {
+  return requested && allowsType(configured, *requested) ? *requested : current;
+}
+
+int jawStepDeg(InstrumentType type, double jaw_angle_rad) {
+  if (type != InstrumentType::kForceps || !std::isfinite(jaw_angle_rad)) return 0;
+  return static_cast<int>(std::lround(std::clamp(jaw_angle_rad, 0.0, kMaxJawOpening) * kRadToDeg));
+}
+
+TriangleMesh instrumentMesh(const InstrumentDescription& instrument, int jaw_deg) {
+  InstrumentDescription at_opening = instrument;
+  if (auto* forceps = std::get_if<ForcepsParams>(&at_opening.params)) forceps->jaw_angle_deg = jaw_deg;
+  return buildInstrumentMesh(at_opening);
+}
+
+tissue::InstrumentInput tissueShape(const InstrumentDescription& instrument) {
+  tissue::InstrumentInput shape;
+  const ShaftParams* shaft = nullptr;
+  std::visit(
+      [&](const auto& params) {
+        using T = std::decay_t<decltype(params)>;
+        if constexpr (std::is_same_v<T, LightPipeParams> || std::is_same_v<T, ForcepsParams> ||
+                      std::is_same_v<T, VitrectorParams> || std::is_same_v<T, NeedleParams> ||
+                      std::is_same_v<T, HookParams>) {
+          shaft = &params.shaft;
+        }
+        if constexpr (std::is_same_v<T, ForcepsParams>) {
+          shape.jaw_length = params.jaw_length;
+          shape.jaws = true;
+          shape.jaw_radius = 0.5 * std::max(params.jaw_thickness, params.jaw_tip_width);
+        }
+        // The vitrector removes what its port aspirates: a capsule over the port, as wide as the shaft. Whether it
+        // cuts is the driver's input (suction and cut rate), `cuts` stays false here.
+        if constexpr (std::is_same_v<T, VitrectorParams>) {
+          shape.cut_radius = 0.5 * params.shaft.diameter;
+          shape.cut_offset = params.port_distance_from_tip;
+          shape.cut_length = params.port_length;
+        }
+      },
+      instrument.params);
+  shape.radius = shaft ? 0.5 * shaft->diameter : 3e-4;
+  shape.length = shaft ? shaft->length : 0.0;
+  shape.can_grasp = instrument.type == InstrumentType::kForceps;
+  // Every instrument pushes tissue; the forceps with their jaw blades and shaft (not while they hold a grasp).
+  shape.collides = true;
+  return shape;
+}
+
+collision::InstrumentModel collisionModel(const InstrumentDescription& instrument, int jaw_deg) {
+  collision::InstrumentModel model;
+  model.mesh = instrumentMesh(instrument, jaw_deg);
+  // The geometric detector's exact shape: the simulator's capsules at the same jaw opening.
+  tissue::InstrumentInput at_origin = tissueShape(instrument);
+  at_origin.pose = Eigen::Isometry3d::Identity();
+  at_origin.jaw_angle = jaw_deg / kRadToDeg;
+  for (const tissue::Capsule& capsule : tissue::instrumentCapsules(at_origin)) {
+    model.primitives.push_back(collision::Primitive::capsule(capsule.a, capsule.b, capsule.radius));
+  }
+  return model;
+}
+
+tissue::InstrumentInput scriptedInstrument(const SceneDescription& scene, const InstrumentDescription& instrument,
+                                           double t) {
+  const auto& path = instrument.path;
+  if (path.empty()) throw std::invalid_argument("scriptedInstrument: instrument has no path");
+  const InstrumentWaypoint sample = samplePath(path, t);
+  const Eigen::Vector3d tip = sample.tip_in_eye + instrument.tremor.offset(t);
+  tissue::InstrumentInput input = tissueShape(instrument);
+  // Instrument frame: +z from the handle to the tip, i.e. from the trocar (the pivot) to the tip.
+  const Trocar* trocar = scene.findTrocar(instrument.trocar);
+  Eigen::Vector3d axis = trocar != nullptr ? Eigen::Vector3d(tip - trocar->position_in_eye) : Eigen::Vector3d(0, 0, -1);
+  if (axis.norm() < 1e-9) axis = Eigen::Vector3d(0, 0, -1);
+  const Eigen::Vector3d z = axis.normalized();
+  const Eigen::Vector3d x = z.unitOrthogonal();
+  input.pose = Eigen::Isometry3d::Identity();
+  input.pose.linear().col(0) = x;
+  input.pose.linear().col(1) = z.cross(x);
+  input.pose.linear().col(2) = z;
+  input.pose.translation() = tip;
+  input.jaw_angle = sample.jaw_angle_deg * kDegToRad;
+  return input;
+}
+
+}  // namespace scene
+}  // namespace vrm_sim

@@ -1,0 +1,46 @@
+#include "vrm_sim/scene/tissue_setup.h"
+
+#include <algorithm>
+
+namespace vrm_sim {
+namespace scene {
+
+tissue::TissueConfig tissueConfigFor(const TissueParameters& parameters, const CollisionParameters& collision) {
+  tissue::TissueConfig config;
+  config.model = parameters.model;
+  config.integrator = parameters.integrator;
+  config.dt = parameters.dt;
+  config.time_budget_ms = parameters.time_budget_ms;
+  config.forces.damping = parameters.damping;
+  config.strain_limit = parameters.strain_limit;
+  config.plastic = parameters.plastic;
+  config.adhesion_stiffness = parameters.adhesion_stiffness;
+  config.adhesion_break_force = parameters.adhesion_break_force;
+  config.tear_strain = parameters.tear_strain;
+  config.early_stop_force = parameters.early_stop_force;
+  config.chainmail.min_stretch = parameters.chainmail.min_stretch;
+  config.chainmail.max_stretch = parameters.chainmail.max_stretch;
+  config.chainmail.max_shear = parameters.chainmail.max_shear;
+  config.chainmail.relaxation = parameters.chainmail.relaxation;
+  config.chainmail.relaxation_iterations = parameters.chainmail.relaxation_iterations;
+  config.refinement.levels = parameters.refinement.levels;
+  config.refinement.radius = parameters.refinement.radius;
+  config.refinement.element_budget = static_cast<std::size_t>(std::max(0, parameters.refinement.element_budget));
+  config.refinement.chain_stiffness_scaling = parameters.refinement.chain_stiffness_scaling;
+  config.shell_scale = collision.epsilon_shell_scale;
+  config.integrator_options.cg_max_iterations = 10;
+  config.integrator_options.cg_tolerance = 1e-6;
+  return config;
+}
+
+mge::MembraneOptions membraneOptionsFor(const TissueParameters& parameters, std::size_t node_count) {
+  mge::MembraneOptions options;
+  options.total_mass = parameters.node_mass * static_cast<double>(node_count);
+  options.stretch_stiffness = parameters.stiffness;
+  options.bending_springs = parameters.bending_stiffness > 0.0;
+  options.bending_stiffness = parameters.bending_stiffness;
+  return options;
+}
+
+}  // namespace scene
+}  // namespace vrm_sim
