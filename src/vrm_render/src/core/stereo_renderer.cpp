@@ -2,10 +2,6 @@
 
 #include <malloc.h>
 
-#define GL_GLEXT_PROTOTYPES
-#include <GL/gl.h>
-#include <GL/glext.h>
-
 #include <algorithm>
 #include <array>
 #include <chrono>
@@ -19,6 +15,7 @@
 #include "depth_of_field.h"
 #include "shaders.h"
 #include "vrm_gl/gl_context.h"
+#include "vrm_gl/gl_objects.h"
 
 namespace vrm_render {
 namespace {
@@ -29,41 +26,16 @@ double msSince(Clock::time_point start) {
   return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
 }
 
-GLuint compileShader(GLenum type, const char* source, const char* name) {
-  GLuint shader = glCreateShader(type);
-  glShaderSource(shader, 1, &source, nullptr);
-  glCompileShader(shader);
-  GLint ok = 0;
-  glGetShaderiv(shader, GL_COMPILE_STATUS, &ok);
-  if (!ok) {
-    char log[2048] = {};
-    glGetShaderInfoLog(shader, sizeof(log), nullptr, log);
-    glDeleteShader(shader);
-    throw RenderError(std::string("shader ") + name + " does not compile: " + log);
-  }
-  return shader;
-}
-
 // A linked program with cached uniform locations.
 class Program {
  public:
   void build(const char* vertex, const char* fragment, const char* name, const std::string& prefix = "") {
     // Sources that carry their own #version are used as they are.
     auto source = [&](const char* s) { return std::strncmp(s, "#version", 8) == 0 ? std::string(s) : prefix + s; };
-    GLuint vs = compileShader(GL_VERTEX_SHADER, source(vertex).c_str(), name);
-    GLuint fs = compileShader(GL_FRAGMENT_SHADER, source(fragment).c_str(), name);
-    id_ = glCreateProgram();
-    glAttachShader(id_, vs);
-    glAttachShader(id_, fs);
-    glLinkProgram(id_);
-    glDeleteShader(vs);
-    glDeleteShader(fs);
-    GLint ok = 0;
-    glGetProgramiv(id_, GL_LINK_STATUS, &ok);
-    if (!ok) {
-      char log[2048] = {};
-      glGetProgramInfoLog(id_, sizeof(log), nullptr, log);
-      throw RenderError(std::string("program ") + name + " does not link: " + log);
+    try {
+      id_ = vrm_gl::linkProgram(source(vertex), source(fragment), name);
+    } catch (const vrm_gl::GlError& e) {
+      throw RenderError(e.what());
     }
   }
   void use() const { glUseProgram(id_); }
@@ -95,18 +67,6 @@ struct RenderTarget {
   }
 };
 
-GLuint makeTexture(GLint internal_format, int width, int height, GLenum format, GLenum type, GLint filter) {
-  GLuint texture = 0;
-  glGenTextures(1, &texture);
-  glBindTexture(GL_TEXTURE_2D, texture);
-  glTexImage2D(GL_TEXTURE_2D, 0, internal_format, width, height, 0, format, type, nullptr);
-  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, filter);
-  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, filter);
-  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
-  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
-  return texture;
-}
-
 enum class DepthKind { kNone, kDepth };
 
 RenderTarget makeTarget(int width, int height, bool with_color, DepthKind depth, const char* name) {
@@ -116,20 +76,22 @@ RenderTarget makeTarget(int width, int height, bool with_color, DepthKind depth,
   glGenFramebuffers(1, &target.fbo);
   glBindFramebuffer(GL_FRAMEBUFFER, target.fbo);
   if (with_color) {
-    target.color = makeTexture(GL_RGBA8, width, height, GL_RGBA, GL_UNSIGNED_BYTE, GL_LINEAR);
+    target.color = vrm_gl::makeTexture(GL_RGBA8, width, height, GL_RGBA, GL_UNSIGNED_BYTE, GL_LINEAR);
     glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, target.color, 0);
   } else {
     glDrawBuffer(GL_NONE);
     glReadBuffer(GL_NONE);
   }
   if (depth == DepthKind::kDepth) {
-    target.depth = makeTexture(GL_DEPTH_COMPONENT24, width, height, GL_DEPTH_COMPONENT, GL_UNSIGNED_INT, GL_NEAREST);
+    target.depth =
+        vrm_gl::makeTexture(GL_DEPTH_COMPONENT24, width, height, GL_DEPTH_COMPONENT, GL_UNSIGNED_INT, GL_NEAREST);
     glFramebufferTexture2D(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_TEXTURE_2D, target.depth, 0);
   }
-  const GLenum status = glCheckFramebufferStatus(GL_FRAMEBUFFER);
-  if (status != GL_FRAMEBUFFER_COMPLETE) {
+  try {
+    vrm_gl::checkFramebufferComplete(std::string("render target ") + name);
+  } catch (const vrm_gl::GlError& e) {
     target.release();
-    throw RenderError(std::string("render target ") + name + " is incomplete (status " + std::to_string(status) + ")");
+    throw RenderError(e.what());
   }
   return target;
 }

@@ -13,15 +13,12 @@
 // 2 x 2 quadrants down to one pixel (2 bytes read), the region of interest by OR-folding all rows onto one row and
 // all columns onto one column (4 r bytes read). Only the ROI of the collision is read back in full (mask, colour
 // ids and, if deformation vectors are wanted, depth); the pixel analysis is the one of the CPU backend.
-#define GL_GLEXT_PROTOTYPES
-#include <GL/gl.h>
-#include <GL/glext.h>
-
 #include <algorithm>
 #include <cmath>
 
 #include "detector_internals.h"
 #include "vrm_gl/gl_context.h"
+#include "vrm_gl/gl_objects.h"
 
 namespace vrm_sim {
 namespace collision {
@@ -86,46 +83,6 @@ void main() {
 }
 )";
 
-GLuint compile(GLenum type, const char* source) {
-  const GLuint shader = glCreateShader(type);
-  glShaderSource(shader, 1, &source, nullptr);
-  glCompileShader(shader);
-  GLint ok = 0;
-  glGetShaderiv(shader, GL_COMPILE_STATUS, &ok);
-  if (!ok) {
-    char log[1024] = {0};
-    glGetShaderInfoLog(shader, sizeof(log), nullptr, log);
-    throw vrm_gl::GlContextError(std::string("zcoll_gl: shader compilation failed: ") + log);
-  }
-  return shader;
-}
-
-GLuint link(const char* vertex_source, const char* fragment_source) {
-  const GLuint vs = compile(GL_VERTEX_SHADER, vertex_source);
-  const GLuint fs = compile(GL_FRAGMENT_SHADER, fragment_source);
-  const GLuint program = glCreateProgram();
-  glAttachShader(program, vs);
-  glAttachShader(program, fs);
-  glLinkProgram(program);
-  glDeleteShader(vs);
-  glDeleteShader(fs);
-  GLint ok = 0;
-  glGetProgramiv(program, GL_LINK_STATUS, &ok);
-  if (!ok) throw vrm_gl::GlContextError("zcoll_gl: program link failed");
-  return program;
-}
-
-GLuint makeTexture(GLenum internal_format, int width, int height, GLenum format, GLenum type) {
-  GLuint texture = 0;
-  glGenTextures(1, &texture);
-  glBindTexture(GL_TEXTURE_2D, texture);
-  glTexImage2D(GL_TEXTURE_2D, 0, internal_format, width, height, 0, format, type, nullptr);
-  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
-  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
-  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAX_LEVEL, 0);
-  return texture;
-}
-
 // A render target of one RG8 texture (the fold passes' output).
 struct FoldTarget {
   int width = 0, height = 0;
@@ -161,6 +118,7 @@ class ZcollGlDetector : public CollisionDetector {
   }
 
   std::string name() const override { return front_only_ ? "zcoll_f_gl" : "zcoll_gl"; }
+  bool producesDeformations() const override { return true; }
 
   // Thesis §4.1.4 on the GPU: additive stencil, then "any entry > 1" by a stencil-tested pass and the OR-fold.
   std::optional<bool> zConvex(const TriangleMesh& mesh, const ProjectionVolume& volume) {
@@ -365,9 +323,9 @@ class ZcollGlDetector : public CollisionDetector {
         vrm_gl::GlContextOptions options;
         options.width = options.height = 16;  // rendering goes to the own framebuffer object
         context_ = std::make_unique<vrm_gl::GlContext>(options);
-        id_program_ = link(kIdVertexShader, kIdFragmentShader);
-        mask_program_ = link(kFullScreenVertexShader, kMaskFragmentShader);
-        fold_program_ = link(kFullScreenVertexShader, kFoldFragmentShader);
+        id_program_ = vrm_gl::linkProgram(kIdVertexShader, kIdFragmentShader, "zcoll_gl id");
+        mask_program_ = vrm_gl::linkProgram(kFullScreenVertexShader, kMaskFragmentShader, "zcoll_gl mask");
+        fold_program_ = vrm_gl::linkProgram(kFullScreenVertexShader, kFoldFragmentShader, "zcoll_gl fold");
         to_clip_location_ = glGetUniformLocation(id_program_, "to_clip");
         mask_b_depth_test_ = glGetUniformLocation(mask_program_, "b_depth_test");
         mask_value_ = glGetUniformLocation(mask_program_, "value");
@@ -414,10 +372,8 @@ class ZcollGlDetector : public CollisionDetector {
     FoldTarget target;
     target.width = width;
     target.height = height;
-    target.texture = makeTexture(GL_RG8, width, height, GL_RG, GL_UNSIGNED_BYTE);
-    glGenFramebuffers(1, &target.fbo);
-    glBindFramebuffer(GL_FRAMEBUFFER, target.fbo);
-    glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, target.texture, 0);
+    target.texture = vrm_gl::makeTexture(GL_RG8, width, height, GL_RG, GL_UNSIGNED_BYTE);
+    target.fbo = vrm_gl::makeColorFramebuffer(target.texture, "zcoll_gl fold");
     return target;
   }
 
@@ -426,9 +382,9 @@ class ZcollGlDetector : public CollisionDetector {
     if (target_size_ == r) return;
     releaseTargets();
     target_size_ = r;
-    id_texture_ = makeTexture(GL_RGBA8, r, r, GL_RGBA, GL_UNSIGNED_BYTE);
-    mask_texture_ = makeTexture(GL_RG8, r, r, GL_RG, GL_UNSIGNED_BYTE);
-    b_depth_texture_ = makeTexture(GL_R32F, r, r, GL_RED, GL_FLOAT);
+    id_texture_ = vrm_gl::makeTexture(GL_RGBA8, r, r, GL_RGBA, GL_UNSIGNED_BYTE);
+    mask_texture_ = vrm_gl::makeTexture(GL_RG8, r, r, GL_RG, GL_UNSIGNED_BYTE);
+    b_depth_texture_ = vrm_gl::makeTexture(GL_R32F, r, r, GL_RED, GL_FLOAT);
     glGenRenderbuffers(1, &depth_stencil_);
     glBindRenderbuffer(GL_RENDERBUFFER, depth_stencil_);
     glRenderbufferStorage(GL_RENDERBUFFER, GL_DEPTH24_STENCIL8, r, r);
@@ -437,9 +393,7 @@ class ZcollGlDetector : public CollisionDetector {
     glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, id_texture_, 0);
     glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT1, GL_TEXTURE_2D, mask_texture_, 0);
     glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_STENCIL_ATTACHMENT, GL_RENDERBUFFER, depth_stencil_);
-    if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE) {
-      throw vrm_gl::GlContextError("zcoll_gl: incomplete framebuffer");
-    }
+    vrm_gl::checkFramebufferComplete("zcoll_gl");
     // Fig. 4.12 (1): halve both edges per pass (quadrants onto the lower left one) down to 1 x 1.
     for (int size = r; size > 1;) {
       size = (size + 1) / 2;
