@@ -211,6 +211,9 @@ class TissueSimulator {
   friend class MassSpringModel;
   friend class ChainMailModel;
 
+  void repairMasslessNodes();  // TissueConfig::repair_massless_nodes
+  // Throws std::invalid_argument for a non-finite position or a free node without positive mass.
+  void checkNodes();
   void rebuildConstraints();
   // "auto": chooses the integrator for the current masses, springs, anchors and free nodes.
   void chooseIntegratorNow();

@@ -21,6 +21,15 @@ class ChainMailModel : public TissueModel {
   ChainMail& chainmail() { return chainmail_; }
 
  private:
+  // updateGrasp() put the grasped nodes where the jaws are; put them back and let ChainMail move them there, so the
+  // tissue they pull follows. Other grasped nodes are held (they get their own move).
+  void followGrasps(TissueSimulator& simulator);
+  // Pushing instruments: a node inside a capsule moves to its surface (re-measured before every move, since earlier
+  // moves drag nodes along); further rounds catch nodes dragged into the instrument. Records the contacts.
+  void pushOutOfInstruments(TissueSimulator& simulator);
+  // The collision library's deformation vectors, as ChainMail moves.
+  void moveByDeformations(TissueSimulator& simulator);
+
   ChainMail chainmail_;
   std::vector<Eigen::Vector3d> committed_;  // positions after the last step
 };
@@ -42,10 +51,24 @@ void ChainMailModel::onTopologyChanged(TissueSimulator& simulator) {
 
 bool ChainMailModel::step(TissueSimulator& simulator) {
   TissueSimulator& s = simulator;
+  followGrasps(s);
+  // Elastic relaxation before the instruments push, so that the instruments have the last word.
+  for (int k = 0; k < chainmail_.config().relaxation_iterations; ++k) chainmail_.relax(s.constrained_.data());
+  pushOutOfInstruments(s);
+  moveByDeformations(s);
+  // Inelastic: no momentum.
   const std::size_t n = s.membrane_->nodeCount();
+  Eigen::Vector3d* v = s.membrane_->velocities();
+  for (std::size_t k = 0; k < n; ++k) v[k].setZero();
   Eigen::Vector3d* x = s.membrane_->positions();
-  // updateGrasp() put the grasped nodes where the jaws are; put them back and let ChainMail move them there, so the
-  // tissue they pull follows. Other grasped nodes are held (they get their own move).
+  committed_.assign(x, x + n);
+  s.topologyBeforeStep();  // cuts and tears at the end of the step
+  s.topologyAfterStep();
+  return true;
+}
+
+void ChainMailModel::followGrasps(TissueSimulator& s) {
+  Eigen::Vector3d* x = s.membrane_->positions();
   std::vector<Eigen::Vector3d> targets;
   targets.reserve(s.grasped_nodes_.size());
   for (std::uint32_t node : s.grasped_nodes_) {
@@ -56,10 +79,11 @@ bool ChainMailModel::step(TissueSimulator& simulator) {
     const std::uint32_t node = s.grasped_nodes_[k];
     chainmail_.move(node, targets[k] - x[node], s.grasped_.data());
   }
-  // Elastic relaxation before the instruments push, so that the instruments have the last word.
-  for (int k = 0; k < chainmail_.config().relaxation_iterations; ++k) chainmail_.relax(s.constrained_.data());
-  // Pushing instruments: a node inside a capsule moves to its surface (re-measured before every move, since earlier
-  // moves drag nodes along); further rounds catch nodes dragged into the instrument.
+}
+
+void ChainMailModel::pushOutOfInstruments(TissueSimulator& s) {
+  const std::size_t n = s.membrane_->nodeCount();
+  Eigen::Vector3d* x = s.membrane_->positions();
   s.contacts_.clear();
   for (std::size_t i = 0; i < s.current_instruments_.size(); ++i) {
     const InstrumentInput& instrument = s.current_instruments_[i];
@@ -89,6 +113,10 @@ bool ChainMailModel::step(TissueSimulator& simulator) {
       if (!pushed) break;
     }
   }
+}
+
+void ChainMailModel::moveByDeformations(TissueSimulator& s) {
+  const std::size_t n = s.membrane_->nodeCount();
   for (const NodeDeformation& deformation : s.external_deformations_) {
     if (deformation.node < n && !s.constrained_[deformation.node]) {
       chainmail_.move(deformation.node, deformation.deformation, s.grasped_.data());
@@ -96,13 +124,6 @@ bool ChainMailModel::step(TissueSimulator& simulator) {
   }
   s.contacts_.insert(s.contacts_.end(), s.external_deformations_.begin(), s.external_deformations_.end());
   s.external_deformations_.clear();
-  // Inelastic: no momentum.
-  Eigen::Vector3d* v = s.membrane_->velocities();
-  for (std::size_t k = 0; k < n; ++k) v[k].setZero();
-  committed_.assign(x, x + n);
-  s.topologyBeforeStep();  // cuts and tears at the end of the step
-  s.topologyAfterStep();
-  return true;
 }
 
 }  // namespace tissue

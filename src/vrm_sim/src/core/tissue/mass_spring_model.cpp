@@ -33,8 +33,19 @@ class MassSpringModel : public TissueModel {
     double kinetic = 0.0, elastic = 0.0, gravity = 0.0;  // J; elastic = springs + anchors
     double total() const { return kinetic + elastic + gravity; }
   };
-  // Integrate + respond + limit, no watchdog.
+  // The step at watchdog level `level` (0: nominal substeps, each level halves them, beyond max_halvings: implicit
+  // Euler); restores the saved state first when retrying. True if the result is stable.
+  bool attempt(TissueSimulator& simulator, int level);
+  // Integrate + limit + respond (+ yield), no watchdog.
   void rawStep(TissueSimulator& simulator, Integrator& integrator, double dt);
+  // One integration; balances its energy when measure_energy_.
+  void integrate(TissueSimulator& simulator, const SystemView& system, Integrator& integrator, double dt);
+  // Provot's strain limit (Alg. 5.1) in BFS order from the interaction points.
+  void limitStrain(TissueSimulator& simulator, const SystemView& system);
+  // Collision response (eq. 5.12): the instruments' capsules and the collision library's deformation vectors.
+  void respondToContacts(TissueSimulator& simulator, const SystemView& system);
+  // Plasticity (TissueConfig::plastic): rest lengths follow the longest length reached.
+  void yield(TissueSimulator& simulator, const SystemView& system);
   // The energy of the current state: a sweep over the nodes and one over the springs, or, given spring_energy, that
   // value for the springs' part instead of the second sweep.
   Energy energy(TissueSimulator& simulator, const double* spring_energy = nullptr);
@@ -78,33 +89,7 @@ bool MassSpringModel::step(TissueSimulator& simulator) {
   saveState(s);
   pending_deformations_.assign(s.external_deformations_.begin(), s.external_deformations_.end());
   bool ok = false;
-  for (int level = fallback_level_; level <= config.watchdog.max_halvings + 1 && !ok; ++level) {
-    energy_excess_ = -std::numeric_limits<double>::infinity();
-    // Implicit Euler is stable at any dt: its residual energy error (truncated CG) is no instability to roll back.
-    measure_energy_ =
-        level <= config.watchdog.max_halvings && std::strcmp(s.integrator_->name(), "implicit_euler") != 0;
-    if (level > fallback_level_) {
-      restoreState(s);
-      s.external_deformations_.assign(pending_deformations_.begin(), pending_deformations_.end());
-      ++s.statistics_.fallbacks;
-    }
-    if (level <= config.watchdog.max_halvings) {
-      const int substeps = s.choice_.substeps << level;
-      for (int k = 0; k < substeps; ++k) rawStep(s, *s.integrator_, config.dt / substeps);
-    } else {
-      ++s.statistics_.implicit_fallbacks;
-      rawStep(s, *implicit_fallback_, config.dt);
-    }
-    ok = !unstable(s);
-    measure_energy_ = false;
-    if (ok && energy_excess_ > -std::numeric_limits<double>::infinity()) {
-      s.statistics_.max_energy_excess = std::max(s.statistics_.max_energy_excess, energy_excess_);
-    }
-    if (level > fallback_level_ && ok) {
-      fallback_level_ = std::min(level, config.watchdog.max_halvings);
-      hold_remaining_ = config.watchdog.hold_steps;
-    }
-  }
+  for (int level = fallback_level_; level <= config.watchdog.max_halvings + 1 && !ok; ++level) ok = attempt(s, level);
   if (!ok) {
     // Nothing worked: keep the last good state (frozen) rather than letting an explosion reach the renderer.
     restoreState(s);
@@ -115,9 +100,46 @@ bool MassSpringModel::step(TissueSimulator& simulator) {
   return ok;
 }
 
-void MassSpringModel::rawStep(TissueSimulator& s, Integrator& integrator, double dt) {
+bool MassSpringModel::attempt(TissueSimulator& s, int level) {
   const TissueConfig& config = s.config_;
+  energy_excess_ = -std::numeric_limits<double>::infinity();
+  // Implicit Euler is stable at any dt: its residual energy error (truncated CG) is no instability to roll back.
+  measure_energy_ = level <= config.watchdog.max_halvings && std::strcmp(s.integrator_->name(), "implicit_euler") != 0;
+  if (level > fallback_level_) {
+    restoreState(s);
+    s.external_deformations_.assign(pending_deformations_.begin(), pending_deformations_.end());
+    ++s.statistics_.fallbacks;
+  }
+  if (level <= config.watchdog.max_halvings) {
+    const int substeps = s.choice_.substeps << level;
+    for (int k = 0; k < substeps; ++k) rawStep(s, *s.integrator_, config.dt / substeps);
+  } else {
+    ++s.statistics_.implicit_fallbacks;
+    rawStep(s, *implicit_fallback_, config.dt);
+  }
+  const bool ok = !unstable(s);
+  measure_energy_ = false;
+  if (ok && energy_excess_ > -std::numeric_limits<double>::infinity()) {
+    s.statistics_.max_energy_excess = std::max(s.statistics_.max_energy_excess, energy_excess_);
+  }
+  if (level > fallback_level_ && ok) {
+    fallback_level_ = std::min(level, config.watchdog.max_halvings);
+    hold_remaining_ = config.watchdog.hold_steps;
+  }
+  return ok;
+}
+
+void MassSpringModel::rawStep(TissueSimulator& s, Integrator& integrator, double dt) {
   const SystemView system = s.view();
+  integrate(s, system, integrator, dt);
+  // Strain limit first, then collision response: the instrument has the last word, so no node is left inside it
+  // (the few springs at the contact may then exceed τ_c slightly until the next step).
+  if (s.config_.strain_limit > 0.0) limitStrain(s, system);
+  respondToContacts(s, system);
+  if (s.config_.plastic) yield(s, system);
+}
+
+void MassSpringModel::integrate(TissueSimulator& s, const SystemView& system, Integrator& integrator, double dt) {
   if (measure_energy_) {
     // The balance covers the integration only: the strain limit and the contact response that follow are
     // projections (kinematic constraints, the instrument), whose work is given, not created by the integrator.
@@ -139,19 +161,21 @@ void MassSpringModel::rawStep(TissueSimulator& s, Integrator& integrator, double
   } else {
     integrator.step(system, s.forces_, dt);
   }
+}
 
-  // Strain limit first, then collision response: the instrument has the last word, so no node is left inside it
-  // (the few springs at the contact may then exceed τ_c slightly until the next step).
-  if (config.strain_limit > 0.0) {
-    s.sortSprings();
-    for (int pass = 0; pass < config.strain_limit_passes; ++pass) {
-      if (provotPass(system, config.strain_limit, s.sorted_valid_ ? &s.sorter_ : nullptr,
-                     config.strain_limit_outer_only)
-              .corrected == 0) {
-        break;
-      }
+void MassSpringModel::limitStrain(TissueSimulator& s, const SystemView& system) {
+  const TissueConfig& config = s.config_;
+  s.sortSprings();
+  for (int pass = 0; pass < config.strain_limit_passes; ++pass) {
+    if (provotPass(system, config.strain_limit, s.sorted_valid_ ? &s.sorter_ : nullptr, config.strain_limit_outer_only)
+            .corrected == 0) {
+      break;
     }
   }
+}
+
+void MassSpringModel::respondToContacts(TissueSimulator& s, const SystemView& system) {
+  const TissueConfig& config = s.config_;
   // Collision response (thesis §5.1): exact capsule test until the collision library's deformation vectors arrive.
   s.contacts_.clear();
   for (std::size_t i = 0; i < s.current_instruments_.size(); ++i) {
@@ -174,13 +198,13 @@ void MassSpringModel::rawStep(TissueSimulator& s, Integrator& integrator, double
   s.external_deformations_.clear();
   applyDeformations(system, s.contacts_, config.friction);
   for (const NodeDeformation& contact : s.contacts_) s.addInteractionPoint(contact.node);
+}
 
-  if (config.plastic) {
-    for (std::size_t k = 0; k < system.spring_count; ++k) {
-      const auto& ends = system.springs[k];
-      const double length = (system.positions[ends[1]] - system.positions[ends[0]]).norm();
-      s.membrane_->restLengths()[k] = std::max(s.membrane_->restLengths()[k], length);
-    }
+void MassSpringModel::yield(TissueSimulator& s, const SystemView& system) {
+  for (std::size_t k = 0; k < system.spring_count; ++k) {
+    const auto& ends = system.springs[k];
+    const double length = (system.positions[ends[1]] - system.positions[ends[0]]).norm();
+    s.membrane_->restLengths()[k] = std::max(s.membrane_->restLengths()[k], length);
   }
 }
 

@@ -48,23 +48,14 @@ TissueSimulator::TissueSimulator(mge::Membrane& membrane, const TissueConfig& co
     throw std::invalid_argument("tissue: dt must be positive, got " + std::to_string(config_.dt));
   }
   auto_integrator_ = config_.integrator == kAutoIntegrator;
-  // "auto" starts with the explicit candidate; onTopologyChanged() below decides.
-  integrator_ = makeIntegrator(auto_integrator_ ? "symplectic_euler" : config_.integrator, config_.integrator_options);
+  // "auto" starts with the explicit candidate its registry entry builds; onTopologyChanged() below decides.
+  integrator_ = makeIntegrator(config_.integrator, config_.integrator_options);
   choice_.integrator = integrator_->name();
   choice_.reason = "configured";
   forces_.params = config_.forces;
   model_ = tissueModelRegistry().at(config_.model).make(membrane, config_);
   onTopologyChanged();
-  if (config_.repair_massless_nodes) {
-    // Degenerate input: a node only in zero-area triangles got no lumped mass; give it the mean node mass.
-    double total = 0.0;
-    for (std::size_t i = 0; i < membrane_->nodeCount(); ++i) total += membrane_->masses()[i];
-    const double mean = membrane_->nodeCount() > 0 ? total / static_cast<double>(membrane_->nodeCount()) : 0.0;
-    for (std::size_t i = 0; i < membrane_->nodeCount(); ++i) {
-      if (!(membrane_->masses()[i] > 0.0)) membrane_->nodeAtSlot(i).mass() = mean;
-    }
-    rebuildConstraints();  // the free mass and the "auto" choice depend on the masses
-  }
+  if (config_.repair_massless_nodes) repairMasslessNodes();
   if (config_.refinement.levels > 0) {
     if (!model_->supportsRefinement() || config_.adhesion_stiffness > 0.0) {
       throw std::invalid_argument(std::string("tissue: refinement is not supported by the ") + model_->name() +
@@ -72,6 +63,21 @@ TissueSimulator::TissueSimulator(mge::Membrane& membrane, const TissueConfig& co
     }
     refinement_ = std::make_unique<LocalRefinement>(membrane, config_.refinement);
   }
+  checkNodes();
+}
+
+void TissueSimulator::repairMasslessNodes() {
+  // Degenerate input: a node only in zero-area triangles got no lumped mass; give it the mean node mass.
+  double total = 0.0;
+  for (std::size_t i = 0; i < membrane_->nodeCount(); ++i) total += membrane_->masses()[i];
+  const double mean = membrane_->nodeCount() > 0 ? total / static_cast<double>(membrane_->nodeCount()) : 0.0;
+  for (std::size_t i = 0; i < membrane_->nodeCount(); ++i) {
+    if (!(membrane_->masses()[i] > 0.0)) membrane_->nodeAtSlot(i).mass() = mean;
+  }
+  rebuildConstraints();  // the free mass and the "auto" choice depend on the masses
+}
+
+void TissueSimulator::checkNodes() {
   const SystemView system = view();
   for (std::size_t i = 0; i < system.node_count; ++i) {
     if (!system.positions[i].allFinite()) {
