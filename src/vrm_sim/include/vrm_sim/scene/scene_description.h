@@ -80,6 +80,7 @@
 #include <string>
 #include <vector>
 
+#include "vrm_sim/registry.h"
 #include "vrm_sim/scene/mesh_generators.h"
 
 namespace vrm_sim {
@@ -107,6 +108,11 @@ const char* toString(ObjectFrame frame);
 const char* toString(InstrumentType type);
 const char* toString(InstrumentSlot slot);
 const char* toString(Simulation simulation);
+
+// The instrument types by name (the registry's "factory" is the type itself): the scene schema, toString and the
+// surgeon scripts read this table.
+const Registry<InstrumentType>& instrumentTypeRegistry();
+std::optional<InstrumentType> instrumentTypeNamed(const std::string& name);  // nullopt for an unknown name
 
 // The tissue model of an object that does not deform (`model: none`); the deforming ones are
 // tissue::tissueModelRegistry()'s names.

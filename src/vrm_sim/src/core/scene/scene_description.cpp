@@ -35,20 +35,28 @@ const char* toString(ObjectRole role) {
 
 const char* toString(ObjectFrame frame) { return frame == ObjectFrame::kWorld ? "world" : "eye"; }
 
+const Registry<InstrumentType>& instrumentTypeRegistry() {
+  // Order = the InstrumentState type constants (vrm_sim/conversions.h maps them); each name is also the name of
+  // the type's mesh generator (scene/instrument_meshes.h).
+  static const Registry<InstrumentType> registry(
+      "instrument type", {{"light_pipe", InstrumentType::kLightPipe, "endoilluminator: the spotlight, no shadow"},
+                          {"forceps", InstrumentType::kForceps, "grasps with its jaws (membrane peeling)"},
+                          {"vitrector", InstrumentType::kVitrector, "aspirates and cuts at its port"},
+                          {"needle", InstrumentType::kNeedle, "a straight pointer (abstract scenarios)"},
+                          {"hook", InstrumentType::kHook, "a bent tip (abstract scenarios)"}});
+  return registry;
+}
+
 const char* toString(InstrumentType type) {
-  switch (type) {
-    case InstrumentType::kLightPipe:
-      return "light_pipe";
-    case InstrumentType::kForceps:
-      return "forceps";
-    case InstrumentType::kVitrector:
-      return "vitrector";
-    case InstrumentType::kNeedle:
-      return "needle";
-    case InstrumentType::kHook:
-      return "hook";
+  for (const auto& entry : instrumentTypeRegistry().entries()) {
+    if (entry.make == type) return entry.name.c_str();
   }
   return "?";
+}
+
+std::optional<InstrumentType> instrumentTypeNamed(const std::string& name) {
+  const auto* entry = instrumentTypeRegistry().find(name);
+  return entry != nullptr ? std::optional<InstrumentType>(entry->make) : std::nullopt;
 }
 
 const char* toString(InstrumentSlot slot) { return slot == InstrumentSlot::kLeft ? "left" : "right"; }

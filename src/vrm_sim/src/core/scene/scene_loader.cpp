@@ -586,11 +586,11 @@ ObjectDescription readObject(const Field& field, const EyeDescription& eye, cons
 }
 
 const std::vector<std::pair<std::string, InstrumentType>>& instrumentTypeNames() {
-  static const std::vector<std::pair<std::string, InstrumentType>> names = {{"light_pipe", InstrumentType::kLightPipe},
-                                                                            {"forceps", InstrumentType::kForceps},
-                                                                            {"vitrector", InstrumentType::kVitrector},
-                                                                            {"needle", InstrumentType::kNeedle},
-                                                                            {"hook", InstrumentType::kHook}};
+  static const std::vector<std::pair<std::string, InstrumentType>> names = [] {
+    std::vector<std::pair<std::string, InstrumentType>> result;
+    for (const auto& entry : instrumentTypeRegistry().entries()) result.emplace_back(entry.name, entry.make);
+    return result;
+  }();
   return names;
 }
 
