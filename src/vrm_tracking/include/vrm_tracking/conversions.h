@@ -78,7 +78,9 @@ void toMsg(const DiagnosticReport& report, diagnostic_msgs::DiagnosticStatus* ms
 std::vector<geometry_msgs::TransformStamped> trocarTransforms(const MarkerLayout& layout, const std::string& eye_frame);
 
 // The script every device twin plays: ~script (empty = the built-in demo, builtin:NAME, or a file), with ~loop
-// overriding the file's playback mode. Throws ScriptError (file, line, field) for a malformed script.
-std::unique_ptr<SurgeonScript> loadScriptFromParams(const ros::NodeHandle& private_nh);
+// overriding the file's playback mode; not validated yet: the caller applies its scene's trocars first (a file may
+// leave them to the scene), then constructs the SurgeonScript. Throws ScriptError (file, line, field) for a
+// malformed script.
+ScriptDefinition loadScriptFromParams(const ros::NodeHandle& private_nh);
 
 }  // namespace vrm_tracking

@@ -41,6 +41,9 @@ struct InstrumentMarker {
   std::string slot;
   int class_id = 0;
   Eigen::Vector3d trocar = Eigen::Vector3d::Zero();  // eye frame, m: the fixed insertion hole
+  // The layout names no trocar for this slot (the shipped files don't: the scene is the one source of the trocars):
+  // applySceneTrocars (scene_trocars.h) must fill it in before a PoseTracker takes the layout.
+  bool trocar_from_scene = false;
 };
 
 struct MarkerLayout {
@@ -64,7 +67,8 @@ struct MarkerLayout {
 MarkerLayout makeDefaultLayout();
 // YAML: {classes: [{name, bgr, h_min, h_max, chroma_min, s_min, v_min, area_min, area_max, roundness_min}],
 // eye_markers: [{class, position}], instruments: [{slot, class, trocar}], rotation_center, eye_marker_radius,
-// tip_marker_radius}; classes are referenced by name. Throws std::runtime_error naming the field.
+// tip_marker_radius}; classes are referenced by name; trocar is optional (absent: trocar_from_scene). Throws
+// std::runtime_error naming the file and the field.
 MarkerLayout layoutFromYamlString(const std::string& text, const std::string& source = "<string>");
 MarkerLayout loadLayoutYaml(const std::string& path);
 

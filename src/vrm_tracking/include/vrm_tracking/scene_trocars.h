@@ -1,11 +1,11 @@
 #pragma once
 // The scene file as the single source of truth for the trocars (the fixed insertion holes of the mechanical eye) and
-// for where tissue is. Surgeon scripts (surgeon_script.h) and marker layouts (marker_layout.h) carry their own trocar
-// per slot so they work without a scene; when a nodelet is given a scene (~scene), these functions replace those
-// copies by the scene's trocars, so the twin surgeon, the tracker and the VR part pivot the instruments at the same
-// points. Keyframes written `on` a scene object (SurfaceTarget) are put on that object's surface here, so a script
-// grasps the membrane where the scene has it, not where its author once measured it.
-// ROS-free; links vrm_sim's scene library (vrm_scene).
+// for where tissue is. The shipped marker layout and trajectory files name no trocars (trocar_from_scene): the
+// nodelets apply their ~scene, or without one the default scene (kDefaultScene), so the twin surgeon, the tracker and
+// the VR part pivot the instruments at the same points. (A layout or script may still write its own trocars, e.g.
+// the built-in ones for the ROS-free tools; a scene given to a nodelet replaces them.) Keyframes written `on` a scene
+// object (SurfaceTarget) are put on that object's surface here, so a script grasps the membrane where the scene has it,
+// not where its author once measured it. ROS-free; links vrm_sim's scene library (vrm_scene).
 
 #include <Eigen/Core>
 #include <string>
@@ -17,6 +17,14 @@
 #include "vrm_tracking/surgeon_script.h"
 
 namespace vrm_tracking {
+
+// The scene the nodelets use when no ~scene is given: the simulator's default scene (launch/simulator.launch
+// scene:=membrane_peeling, the default session of scripts/run.sh), whose trocars the shipped files leave out.
+extern const char* const kDefaultScene;
+// `spec`, or kDefaultScene when it is empty.
+std::string sceneOrDefault(const std::string& spec);
+// Whether some instrument track leaves its trocar to the scene (InstrumentTrack::trocar_from_scene).
+bool leavesTrocarsToScene(const ScriptDefinition& script);
 
 // What the nodelets' `scene` parameter means: vrm_sim::scene::resolveScenePath (an existing file, else a shipped
 // scene by name), loaded. Throws vrm_sim::scene::SceneError.

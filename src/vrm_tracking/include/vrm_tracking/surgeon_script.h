@@ -139,6 +139,9 @@ struct InstrumentKeyframe {
 struct InstrumentTrack {
   std::string slot;
   Eigen::Vector3d trocar = Eigen::Vector3d::Zero();
+  // The script names no trocar for this slot (the shipped files don't: the scene is the one source of the trocars):
+  // applySceneTrocars / applyScene (scene_trocars.h) must fill it in before the script is played (validated).
+  bool trocar_from_scene = false;
   int line = 0;
   std::vector<InstrumentKeyframe> keyframes;
 };
@@ -210,6 +213,10 @@ class SurgeonScript {
   // What the nodelets' `script` parameter means: "" -> builtin("demo"), "builtin:NAME" -> builtin(NAME),
   // anything else -> fromFile(spec).
   static SurgeonScript load(const std::string& spec);
+  // The same, not validated yet, for a caller that applies a scene first (a file may leave the trocars to the
+  // scene). Throws ScriptError for a malformed file, std::invalid_argument for an unknown built-in.
+  static ScriptDefinition loadDefinition(const std::string& spec);
+  static ScriptDefinition definitionFromFile(const std::string& path);
 
   // t: seconds since the start of playback. Loop wraps at duration(); once holds the last keyframe afterwards.
   SurgeonSnapshot sample(double t) const;

@@ -179,11 +179,17 @@ SurgeonScript SurgeonScript::builtin(const std::string& name) {
   return SurgeonScript(it->second());
 }
 
-SurgeonScript SurgeonScript::load(const std::string& spec) {
+SurgeonScript SurgeonScript::load(const std::string& spec) { return SurgeonScript(loadDefinition(spec)); }
+
+ScriptDefinition SurgeonScript::loadDefinition(const std::string& spec) {
   static const std::string kPrefix = "builtin:";
-  if (spec.empty()) return builtin("demo");
-  if (spec.compare(0, kPrefix.size(), kPrefix) == 0) return builtin(spec.substr(kPrefix.size()));
-  return fromFile(spec);
+  if (spec.empty() || spec.compare(0, kPrefix.size(), kPrefix) == 0) {
+    const std::string name = spec.empty() ? "demo" : spec.substr(kPrefix.size());
+    const auto it = registry().find(name);
+    if (it == registry().end()) throw std::invalid_argument("no built-in surgeon script named '" + name + "'");
+    return it->second();
+  }
+  return definitionFromFile(spec);
 }
 
 std::vector<std::string> SurgeonScript::builtinNames() {

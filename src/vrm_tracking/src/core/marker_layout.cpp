@@ -124,8 +124,15 @@ MarkerLayout layoutFromYamlString(const std::string& text, const std::string& so
       for (std::size_t i = 0; i < inst.size(); ++i) {
         const std::string field = "instruments[" + std::to_string(i) + "]";
         if (!inst[i]["slot"]) throw std::runtime_error(source + ": " + field + ".slot: missing");
-        layout.instruments.push_back({inst[i]["slot"].as<std::string>(), classId(inst[i]["class"], field + ".class"),
-                                      readVector(inst[i]["trocar"], source, field + ".trocar")});
+        InstrumentMarker marker;
+        marker.slot = inst[i]["slot"].as<std::string>();
+        marker.class_id = classId(inst[i]["class"], field + ".class");
+        if (inst[i]["trocar"]) {
+          marker.trocar = readVector(inst[i]["trocar"], source, field + ".trocar");
+        } else {
+          marker.trocar_from_scene = true;  // the scene's (applySceneTrocars)
+        }
+        layout.instruments.push_back(marker);
       }
     }
     if (root["rotation_center"])

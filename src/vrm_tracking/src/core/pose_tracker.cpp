@@ -2,6 +2,8 @@
 
 #include <Eigen/SVD>
 #include <cmath>
+#include <stdexcept>
+#include <string>
 
 namespace vrm_tracking {
 
@@ -19,6 +21,13 @@ Eigen::Quaterniond eyeRotationFromMarkers(const Eigen::Vector3d& a0, const Eigen
 
 PoseTracker::PoseTracker(CameraRig rig, MarkerLayout layout, TrackerConfig config)
     : rig_(std::move(rig)), layout_(std::move(layout)), config_(config) {
+  for (const InstrumentMarker& marker : layout_.instruments) {
+    if (marker.trocar_from_scene) {
+      throw std::invalid_argument("marker layout: instrument slot '" + marker.slot +
+                                  "' has no trocar: the layout leaves it to the scene, so apply the scene's first "
+                                  "(applySceneTrocars; the tracker nodelet does with its ~scene or the default scene)");
+    }
+  }
   reset();
 }
 

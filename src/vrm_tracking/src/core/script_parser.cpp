@@ -183,10 +183,13 @@ class Parser {
     track.slot = readString(name, "instruments");
     track.line = lineOf(name);
     const std::string base = "instruments." + track.slot;
-    if (!node.IsMap()) fail(node, base, "must be a mapping with trocar and keyframes");
+    if (!node.IsMap()) fail(node, base, "must be a mapping with keyframes (and type, trocar)");
     checkKeys(node, base, {"trocar", "type", "keyframes"});
-    if (!node["trocar"]) fail(node, join(base, "trocar"), "missing: every slot needs its fixed insertion point");
-    track.trocar = readVector3(node["trocar"], join(base, "trocar"));
+    if (node["trocar"]) {
+      track.trocar = readVector3(node["trocar"], join(base, "trocar"));
+    } else {
+      track.trocar_from_scene = true;  // the scene's (applySceneTrocars)
+    }
     bool have_type = false;
     vrm_sim::scene::InstrumentType slot_type = vrm_sim::scene::InstrumentType::kLightPipe;
     if (const YAML::Node type = node["type"]) {
@@ -302,7 +305,7 @@ class Parser {
   std::string source_;
 };
 
-SurgeonScript parseDocument(const std::string& text, const std::string& source) {
+ScriptDefinition parseDocument(const std::string& text, const std::string& source) {
   YAML::Node root;
   try {
     root = YAML::Load(text);
@@ -310,21 +313,23 @@ SurgeonScript parseDocument(const std::string& text, const std::string& source) 
     throw ScriptError(source, e.mark.is_null() ? 0 : e.mark.line + 1, "", "YAML syntax error: " + e.msg);
   }
   if (!root || root.IsNull()) throw ScriptError(source, 1, "", "empty script");
-  return SurgeonScript(Parser(source).parse(root));
+  return Parser(source).parse(root);
 }
 
 }  // namespace
 
 SurgeonScript SurgeonScript::fromYamlString(const std::string& text, const std::string& source) {
-  return parseDocument(text, source);
+  return SurgeonScript(parseDocument(text, source));
 }
 
-SurgeonScript SurgeonScript::fromFile(const std::string& path) {
+ScriptDefinition SurgeonScript::definitionFromFile(const std::string& path) {
   std::ifstream file(path);
   if (!file) throw ScriptError(path, 0, "", "cannot open trajectory file");
   std::stringstream text;
   text << file.rdbuf();
   return parseDocument(text.str(), path);
 }
+
+SurgeonScript SurgeonScript::fromFile(const std::string& path) { return SurgeonScript(definitionFromFile(path)); }
 
 }  // namespace vrm_tracking

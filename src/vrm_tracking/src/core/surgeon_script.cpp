@@ -184,6 +184,11 @@ void SurgeonScript::validate() const {
     const std::string base = "instruments." + track.slot;
     if (track.slot.empty()) throw ScriptError(src, track.line, "instruments", "slot name must not be empty");
     if (!slots.insert(track.slot).second) throw ScriptError(src, track.line, base, "duplicate slot");
+    if (track.trocar_from_scene) {
+      throw ScriptError(src, track.line, base + ".trocar",
+                        "not given: the slot's trocar comes from the scene; play the script with one "
+                        "(applySceneTrocars; the nodelets use their ~scene or the default scene)");
+    }
     finiteVector(track.trocar, track.line, base + ".trocar");
     const double trocar_radius = track.trocar.norm();
     if (trocar_radius < 0.5 * d.eye.radius || trocar_radius > d.eye.radius + d.eye.margin) {

@@ -13,9 +13,9 @@
 #include <string>
 #include <vector>
 
+#include "vrm_sim/package_data.h"
 #include "vrm_tracking/conversions.h"
 #include "vrm_tracking/scene_trocars.h"
-#include "vrm_sim/package_data.h"
 #include "vrm_tracking/surgeon_script.h"
 
 namespace vrm_tracking {
@@ -26,41 +26,34 @@ class ScriptedSurgeon : public nodelet::Nodelet {
     ros::NodeHandle& nh = getNodeHandle();
     ros::NodeHandle& pnh = getPrivateNodeHandle();
 
-    // Optional: the scene whose trocars the instruments pivot at and whose objects the keyframes written `on` an
-    // object are placed on (else the script's trocars and written tips).
-    std::string scene_spec;
-    pnh.param<std::string>("scene", scene_spec, "");
+    // The scene whose trocars the instruments pivot at and whose objects the keyframes written `on` an object are
+    // placed on; without ~scene the default scene (whose trocars the shipped trajectory files leave out).
+    std::string scene_param;
+    pnh.param<std::string>("scene", scene_param, "");
+    const std::string scene_spec = sceneOrDefault(scene_param);
     vrm_sim::usePackageData();  // a scene name means vrm_sim's shipped scene
     std::string script_spec;
     pnh.param<std::string>("script", script_spec, "");
     try {
       // "scenario:NAME": the scene's own scripted session (what scenario_offline plays), once.
+      const vrm_sim::scene::SceneDescription scene = loadSceneSpec(scene_spec);
       if (script_spec.rfind("scenario:", 0) == 0) {
-        if (scene_spec.empty()) throw std::invalid_argument("script '" + script_spec + "' needs the ~scene parameter");
-        script_ = std::make_unique<SurgeonScript>(scenarioScript(loadSceneSpec(scene_spec), script_spec.substr(9)));
+        if (scene_param.empty()) throw std::invalid_argument("script '" + script_spec + "' needs the ~scene parameter");
+        script_ = std::make_unique<SurgeonScript>(scenarioScript(scene, script_spec.substr(9)));
+        script_ = std::make_unique<SurgeonScript>(applyScene(scene, *script_));
       } else {
-        script_ = loadScriptFromParams(pnh);
-      }
-      if (!scene_spec.empty()) {
-        const vrm_sim::scene::SceneDescription scene = loadSceneSpec(scene_spec);
+        ScriptDefinition definition = loadScriptFromParams(pnh);
         SceneTargetReport targets;
-        script_ = std::make_unique<SurgeonScript>(applyScene(scene, *script_, &targets));
-        NODELET_INFO("trocars from scene '%s' (%s), overriding the script's; %zu keyframes placed on its objects",
-                     scene.name.c_str(), scene.source_file.c_str(), targets.resolved_keyframes);
+        applyScene(scene, &definition, &targets);
+        script_ = std::make_unique<SurgeonScript>(std::move(definition));
         if (!targets.missing_objects.empty()) {
           NODELET_WARN("scene '%s' has no object %s: %zu keyframes of script '%s' keep their written tips",
                        scene.name.c_str(), joinNames(targets.missing_objects).c_str(), targets.kept_keyframes,
                        script_->name().c_str());
         }
-      } else {
-        NODELET_INFO("trocars from the script (no ~scene given)");
-        const std::vector<std::string> objects = surfaceTargetObjects(script_->definition());
-        if (!objects.empty()) {
-          NODELET_WARN(
-              "script '%s' places keyframes on scene objects (%s) but no ~scene is given: they keep their "
-              "written tips",
-              script_->name().c_str(), joinNames(objects).c_str());
-        }
+        NODELET_INFO("trocars from scene '%s' (%s%s); %zu keyframes placed on its objects", scene.name.c_str(),
+                     scene.source_file.c_str(), scene_param.empty() ? ", the default: no ~scene given" : "",
+                     targets.resolved_keyframes);
       }
     } catch (const std::exception& e) {
       NODELET_FATAL("cannot load surgeon script or scene: %s", e.what());

@@ -125,21 +125,17 @@ class Tracker : public nodelet::Nodelet {
     return rig_file.empty() ? makeDefaultRig() : loadRigYaml(rig_file);
   }
 
-  // The layout's marker classes; the trocars from ~scene (name or path) when given, else the layout's.
+  // The layout's markers with the trocars of ~scene (name or path), or of the default scene without one.
   MarkerLayout loadLayout(const ros::NodeHandle& pnh) {
-    std::string layout_file, scene_spec;
+    std::string layout_file, scene_param;
     pnh.param<std::string>("layout_file", layout_file, "");
-    pnh.param<std::string>("scene", scene_spec, "");
+    pnh.param<std::string>("scene", scene_param, "");
     MarkerLayout layout = layout_file.empty() ? makeDefaultLayout() : loadLayoutYaml(layout_file);
-    if (!scene_spec.empty()) {
-      vrm_sim::usePackageData();  // a scene name means vrm_sim's shipped scene
-      const vrm_sim::scene::SceneDescription scene = loadSceneSpec(scene_spec);
-      applySceneTrocars(scene, &layout);
-      NODELET_INFO("tracker: trocars from scene '%s' (%s), overriding the layout's", scene.name.c_str(),
-                   scene.source_file.c_str());
-    } else {
-      NODELET_INFO("tracker: trocars from the marker layout (no ~scene given)");
-    }
+    vrm_sim::usePackageData();  // a scene name means vrm_sim's shipped scene
+    const vrm_sim::scene::SceneDescription scene = loadSceneSpec(sceneOrDefault(scene_param));
+    applySceneTrocars(scene, &layout);
+    NODELET_INFO("tracker: trocars from scene '%s' (%s%s)", scene.name.c_str(), scene.source_file.c_str(),
+                 scene_param.empty() ? ", the default: no ~scene given" : "");
     for (const InstrumentMarker& m : layout.instruments) {
       NODELET_INFO("tracker: trocar %s at [%.6f, %.6f, %.6f] m (eye frame)", m.slot.c_str(), m.trocar.x(), m.trocar.y(),
                    m.trocar.z());

@@ -235,13 +235,13 @@ std::vector<geometry_msgs::TransformStamped> trocarTransforms(const MarkerLayout
   return trocars;
 }
 
-std::unique_ptr<SurgeonScript> loadScriptFromParams(const ros::NodeHandle& private_nh) {
+ScriptDefinition loadScriptFromParams(const ros::NodeHandle& private_nh) {
   std::string spec;
   private_nh.param<std::string>("script", spec, "");
-  auto script = std::make_unique<SurgeonScript>(SurgeonScript::load(spec));
-  bool loop = script->playback() == Playback::kLoop;
+  ScriptDefinition script = SurgeonScript::loadDefinition(spec);
+  bool loop = script.playback == Playback::kLoop;
   private_nh.param("loop", loop, loop);
-  script->setPlayback(loop ? Playback::kLoop : Playback::kOnce);
+  script.playback = loop ? Playback::kLoop : Playback::kOnce;
   return script;
 }
 

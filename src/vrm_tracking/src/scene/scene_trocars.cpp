@@ -55,6 +55,15 @@ Eigen::Vector3d closestPointOnTriangle(const Eigen::Vector3d& p, const Eigen::Ve
 
 }  // namespace
 
+const char* const kDefaultScene = "membrane_peeling";
+
+std::string sceneOrDefault(const std::string& spec) { return spec.empty() ? kDefaultScene : spec; }
+
+bool leavesTrocarsToScene(const ScriptDefinition& script) {
+  return std::any_of(script.instruments.begin(), script.instruments.end(),
+                     [](const InstrumentTrack& track) { return track.trocar_from_scene; });
+}
+
 scene::SceneDescription loadSceneSpec(const std::string& spec) {
   return scene::loadScene(scene::resolveScenePath(spec));
 }
@@ -177,13 +186,19 @@ SurgeonScript applyScene(const scene::SceneDescription& scene, const SurgeonScri
 void applySceneTrocars(const scene::SceneDescription& scene, ScriptDefinition* script) {
   std::vector<Eigen::Vector3d> trocars;
   for (const InstrumentTrack& track : script->instruments) trocars.push_back(sceneTrocarForSlot(scene, track.slot));
-  for (std::size_t i = 0; i < trocars.size(); ++i) script->instruments[i].trocar = trocars[i];
+  for (std::size_t i = 0; i < trocars.size(); ++i) {
+    script->instruments[i].trocar = trocars[i];
+    script->instruments[i].trocar_from_scene = false;
+  }
 }
 
 void applySceneTrocars(const scene::SceneDescription& scene, MarkerLayout* layout) {
   std::vector<Eigen::Vector3d> trocars;
   for (const InstrumentMarker& marker : layout->instruments) trocars.push_back(sceneTrocarForSlot(scene, marker.slot));
-  for (std::size_t i = 0; i < trocars.size(); ++i) layout->instruments[i].trocar = trocars[i];
+  for (std::size_t i = 0; i < trocars.size(); ++i) {
+    layout->instruments[i].trocar = trocars[i];
+    layout->instruments[i].trocar_from_scene = false;
+  }
 }
 
 SurgeonScript applySceneTrocars(const scene::SceneDescription& scene, const SurgeonScript& script) {

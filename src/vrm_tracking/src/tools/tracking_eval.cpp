@@ -2,18 +2,24 @@
 // master, and prints one JSON object with the accuracy and timing fields of the `tracking` benchmark.
 //   tracking_eval --trajectory FILE [--noise-px X] [--occlude CAM] [--seed N] [--frames N] [--tremor-um A]
 //                 [--rig FILE] [--layout FILE] [--distractors N] [--filter none|one_euro|alpha_beta]
+//                 [--scene NAME|PATH]
+// --scene: where a trajectory or layout file leaves its trocars to the scene (the shipped ones do), this scene's are
+// used (default: the nodelets' default scene, membrane_peeling); trocars written in a file are kept.
 // --noise-px X > 0 evaluates the FPGA path (exact centroids + X px noise) instead of rendered images.
 // Exit codes: 0 ok, 2 usage or malformed input (the message names the file, line and field).
 
 #include <time.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <cstring>
 #include <string>
 #include <vector>
 
+#include "vrm_sim/package_data.h"
 #include "vrm_tracking/evaluation.h"
+#include "vrm_tracking/scene_trocars.h"
 
 using namespace vrm_tracking;
 
@@ -22,7 +28,7 @@ int usage(const char* message) {
   std::fprintf(stderr,
                "tracking_eval: %s\nusage: tracking_eval --trajectory FILE [--noise-px X] [--occlude CAM] [--seed N] "
                "[--frames N] [--tremor-um A] [--rig FILE] [--layout FILE] [--distractors N] [--filter "
-               "none|one_euro|alpha_beta]\n",
+               "none|one_euro|alpha_beta] [--scene NAME|PATH]\n",
                message);
   return 2;
 }
@@ -35,7 +41,7 @@ bool parseNumber(const char* text, double* value) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::string trajectory, rig_file, layout_file, filter = "none";
+  std::string trajectory, rig_file, layout_file, filter = "none", scene_spec = kDefaultScene;
   double noise_px = 0.0, occlude = -1, seed = 1, frames = 0, tremor_um = 0.0, distractors = 0;
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
@@ -48,6 +54,8 @@ int main(int argc, char** argv) {
       rig_file = value;
     } else if (arg == "--layout") {
       layout_file = value;
+    } else if (arg == "--scene") {
+      scene_spec = value;
     } else if (arg == "--filter") {
       filter = value;
       ok = filter == "none" || filter == "one_euro" || filter == "alpha_beta";
@@ -71,11 +79,20 @@ int main(int argc, char** argv) {
   if (trajectory.empty()) return usage("--trajectory is required");
 
   try {
-    SurgeonScript script = SurgeonScript::fromFile(trajectory);
+    ScriptDefinition definition = SurgeonScript::definitionFromFile(trajectory);
+    MarkerLayout layout = layout_file.empty() ? makeDefaultLayout() : loadLayoutYaml(layout_file);
+    const bool layout_needs_scene = std::any_of(layout.instruments.begin(), layout.instruments.end(),
+                                                [](const InstrumentMarker& m) { return m.trocar_from_scene; });
+    if (leavesTrocarsToScene(definition) || layout_needs_scene) {
+      vrm_sim::usePackageData();  // a scene name means vrm_sim's shipped scene (found like rosrun finds packages)
+      const vrm_sim::scene::SceneDescription scene = loadSceneSpec(scene_spec);
+      if (leavesTrocarsToScene(definition)) applySceneTrocars(scene, &definition);
+      if (layout_needs_scene) applySceneTrocars(scene, &layout);
+    }
+    SurgeonScript script(std::move(definition));
     script.setPlayback(Playback::kOnce);
     script.setTremor(tremor_um * 1e-6, static_cast<std::uint32_t>(seed));
     const CameraRig rig = rig_file.empty() ? makeDefaultRig() : loadRigYaml(rig_file);
-    const MarkerLayout layout = layout_file.empty() ? makeDefaultLayout() : loadLayoutYaml(layout_file);
     if (occlude >= static_cast<double>(rig.size())) return usage("--occlude names no camera of the rig");
     // 50 Hz over the script (§7: tracking at <= 50 Hz), or --frames samples.
     const int n = frames > 0 ? static_cast<int>(frames) : std::max(1, static_cast<int>(script.duration() * 50.0) + 1);

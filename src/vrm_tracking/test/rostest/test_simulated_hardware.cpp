@@ -19,6 +19,7 @@
 #include <string>
 #include <vector>
 
+#include "vrm_sim/package_data.h"
 #include "vrm_tracking/conversions.h"
 #include "vrm_tracking/scene_trocars.h"
 #include "vrm_tracking/surgeon_script.h"
@@ -124,14 +125,16 @@ TEST(SimulatedHardware, EyeStateAtTrackingRate) {
 }
 
 TEST(SimulatedHardware, InstrumentStatePerSlotWithTrocarConstraint) {
-  const SurgeonScript file_script = SurgeonScript::load(g_script_path);
-  // With a scene, the instruments pivot at the scene's trocars, not at the script's (the scene is the truth).
-  const SurgeonScript script = g_scene.empty() ? file_script : applySceneTrocars(loadSceneSpec(g_scene), file_script);
+  // The instruments pivot at the scene's trocars (the scene is the truth; without ~scene the default scene's).
+  ScriptDefinition file_script = SurgeonScript::loadDefinition(g_script_path);
+  applySceneTrocars(loadSceneSpec(sceneOrDefault(g_scene)), &file_script);
+  const SurgeonScript script(file_script);
   const ScriptDefinition& def = script.definition();
   ASSERT_EQ(def.instruments.size(), 2u);
   if (!g_scene.empty()) {
-    for (std::size_t i = 0; i < def.instruments.size(); ++i) {  // the test scene really moves them
-      EXPECT_GT((def.instruments[i].trocar - file_script.definition().instruments[i].trocar).norm(), 1e-4);
+    const vrm_sim::scene::SceneDescription fallback = loadSceneSpec(sceneOrDefault(""));
+    for (const InstrumentTrack& track : def.instruments) {  // the test scene really moves them
+      EXPECT_GT((track.trocar - sceneTrocarForSlot(fallback, track.slot)).norm(), 1e-4);
     }
   }
   auto& l = *g_listener;
@@ -247,6 +250,7 @@ TEST(SimulatedHardware, PedalCommandOverridesScriptAndDrivesZoom) {
 int main(int argc, char** argv) {
   testing::InitGoogleTest(&argc, argv);
   ros::init(argc, argv, "test_simulated_hardware");
+  vrm_sim::usePackageData();  // the default scene is a shipped scene
   ros::NodeHandle nh;
   ros::NodeHandle pnh("~");
   pnh.param<std::string>("script", vrm_tracking::g_script_path, "");

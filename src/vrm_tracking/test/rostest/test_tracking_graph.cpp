@@ -27,6 +27,7 @@
 #include <string>
 #include <vector>
 
+#include "vrm_sim/package_data.h"
 #include "vrm_tracking/conversions.h"
 #include "vrm_tracking/scene_trocars.h"
 
@@ -327,12 +328,14 @@ TEST(TrackingGraph, TfChainComposesTheStatesAtCameraStamps) {
 TEST(TrackingGraph, TrocarsComeFromTheScene) {
   if (g_scene.empty()) GTEST_SKIP() << "no ~scene given";
   const vrm_sim::scene::SceneDescription scene = loadSceneSpec(g_scene);
+  const vrm_sim::scene::SceneDescription fallback = loadSceneSpec(sceneOrDefault(""));
   const MarkerLayout layout = loadLayoutYaml(g_layout_file);
   ASSERT_EQ(layout.instruments.size(), 2u);
   for (const InstrumentMarker& marker : layout.instruments) {
     SCOPED_TRACE(marker.slot);
     const Eigen::Vector3d expected = sceneTrocarForSlot(scene, marker.slot);
-    ASSERT_GT((expected - marker.trocar).norm(), 1e-4) << "the test scene must move the trocars";
+    ASSERT_GT((expected - sceneTrocarForSlot(fallback, marker.slot)).norm(), 1e-4)
+        << "the test scene must move the trocars away from the default scene's";
     std::string error;
     ASSERT_TRUE(g_tf->canTransform("eye", "trocar_" + marker.slot, ros::Time(0), ros::Duration(10.0), &error)) << error;
     const geometry_msgs::TransformStamped frame = g_tf->lookupTransform("eye", "trocar_" + marker.slot, ros::Time(0));
@@ -438,6 +441,7 @@ TEST(TrackingGraph, DiagnosticsReportTheStoppedCameraAndBadInput) {
 int main(int argc, char** argv) {
   testing::InitGoogleTest(&argc, argv);
   ros::init(argc, argv, "test_tracking_graph");
+  vrm_sim::usePackageData();  // the default scene is a shipped scene
   ros::NodeHandle nh;
   ros::NodeHandle pnh("~");
   pnh.param("stop_after", vrm_tracking::g_stop_after, 150);

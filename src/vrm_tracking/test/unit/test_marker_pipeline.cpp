@@ -255,8 +255,13 @@ TEST(MarkerLayout, ShippedConfigIsTheDefaultLayout) {
   ASSERT_EQ(file.instruments.size(), def.instruments.size());
   for (std::size_t i = 0; i < def.instruments.size(); ++i) {
     EXPECT_EQ(file.instruments[i].slot, def.instruments[i].slot);
-    EXPECT_LT((file.instruments[i].trocar - def.instruments[i].trocar).norm(), 1e-15);
+    EXPECT_EQ(file.instruments[i].class_id, def.instruments[i].class_id);
+    // The file leaves the trocars to the scene (test_scene_trocars checks the nodelets' default scene gives them).
+    EXPECT_TRUE(file.instruments[i].trocar_from_scene);
+    EXPECT_FALSE(def.instruments[i].trocar_from_scene);
   }
+  // Until a scene filled them in, a tracker refuses the layout (it would pivot the shafts at the eye centre).
+  EXPECT_THROW(PoseTracker(makeDefaultRig(), file), std::invalid_argument);
 }
 
 }  // namespace

@@ -112,19 +112,28 @@ simulations: [collision]
   EXPECT_THROW(applySceneTrocars(one, SurgeonScript::builtin("demo")), std::runtime_error);
 }
 
-// The copies shipped in vrm_tracking still agree with the shipped scenes (they are what runs without ~scene).
-TEST(SceneTrocars, ShippedCopiesMatchTheShippedScenes) {
-  for (const std::string name : {"membrane_peeling", "navigation", "ilm_peeling"}) {
-    SCOPED_TRACE(name);
-    const scene::SceneDescription shipped = loadSceneSpec(name);
-    for (const InstrumentMarker& marker : loadLayoutYaml(kSourceDir + "/config/markers_default.yaml").instruments) {
-      expectNear(marker.trocar, sceneTrocarForSlot(shipped, marker.slot), 1e-9);
-    }
-    for (const std::string script : {"membrane_peeling_demo", "navigation_demo"}) {
-      const SurgeonScript file = SurgeonScript::fromFile(kSourceDir + "/config/trajectories/" + script + ".yaml");
-      for (const InstrumentTrack& track : file.definition().instruments) {
-        expectNear(track.trocar, sceneTrocarForSlot(shipped, track.slot), 1e-6);  // the files round to 0.1 um
-      }
+// The shipped layout and trajectories name no trocars: they take the scene's, by default the default scene's (what
+// the nodelets run without ~scene), so there are no copies to keep in sync.
+TEST(SceneTrocars, ShippedFilesTakeTheDefaultScenesTrocars) {
+  EXPECT_EQ(sceneOrDefault(""), "membrane_peeling");
+  EXPECT_EQ(sceneOrDefault("navigation"), "navigation");
+  const scene::SceneDescription fallback = loadSceneSpec(sceneOrDefault(""));
+  MarkerLayout layout = loadLayoutYaml(kSourceDir + "/config/markers_default.yaml");
+  ASSERT_EQ(layout.instruments.size(), 2u);
+  applySceneTrocars(fallback, &layout);
+  for (const InstrumentMarker& marker : layout.instruments) {
+    EXPECT_FALSE(marker.trocar_from_scene);
+    EXPECT_EQ(marker.trocar, sceneTrocarForSlot(fallback, marker.slot));
+  }
+  for (const std::string script : {"membrane_peeling_demo", "navigation_demo"}) {
+    SCOPED_TRACE(script);
+    ScriptDefinition file = SurgeonScript::definitionFromFile(kSourceDir + "/config/trajectories/" + script + ".yaml");
+    EXPECT_TRUE(leavesTrocarsToScene(file));
+    applySceneTrocars(fallback, &file);
+    EXPECT_FALSE(leavesTrocarsToScene(file));
+    const SurgeonScript played(file);  // validates
+    for (const InstrumentTrack& track : played.definition().instruments) {
+      EXPECT_EQ(track.trocar, sceneTrocarForSlot(fallback, track.slot));
     }
   }
 }
@@ -443,9 +452,10 @@ TEST(SceneTargets, TheDemoScriptsGraspAndPeelTheMembraneInTheSimulationCore) {
   EXPECT_GT(demo.max_lift, 5e-4);
   EXPECT_NE(demo.outcome, vrm_sim::world::PeelOutcome::kUntouched);
 
-  const SurgeonScript file =
-      SurgeonScript::load(std::string(VRM_TRACKING_SOURCE_DIR) + "/config/trajectories/membrane_peeling_demo.yaml");
-  const vrm_sim::world::TissueReport peel = playThroughTheCore(peeling, applyScene(peeling, file), 18.0, &grasped);
+  ScriptDefinition file = SurgeonScript::loadDefinition(std::string(VRM_TRACKING_SOURCE_DIR) +
+                                                        "/config/trajectories/membrane_peeling_demo.yaml");
+  applyScene(peeling, &file);
+  const vrm_sim::world::TissueReport peel = playThroughTheCore(peeling, SurgeonScript(file), 18.0, &grasped);
   EXPECT_GT(grasped, 0u) << "membrane_peeling_demo.yaml's grasp misses the membrane";
   EXPECT_GT(peel.max_lift, 5e-4);
 

@@ -214,15 +214,37 @@ TEST(Tremor, FrequencyBand) {
   EXPECT_LT(crossings, 220);
 }
 
+// The shipped files leave their trocars to the scene (test_scene_trocars plays them with one); given trocars here,
+// they play with the trocar constraint.
 TEST(SurgeonScript, ShippedTrajectoriesParse) {
   for (const char* file : {"membrane_peeling_demo.yaml", "navigation_demo.yaml"}) {
-    const SurgeonScript s = SurgeonScript::fromFile(kSourceDir + "/config/trajectories/" + file);
+    ScriptDefinition d = SurgeonScript::definitionFromFile(kSourceDir + "/config/trajectories/" + file);
+    ASSERT_EQ(d.instruments.size(), 2u) << file;
+    for (InstrumentTrack& track : d.instruments) {
+      EXPECT_TRUE(track.trocar_from_scene) << file << ": " << track.slot;
+      track.trocar = Eigen::Vector3d(track.slot == "left" ? -0.0073485 : 0.0073485, 0.0042426, 0.0084853);
+      track.trocar_from_scene = false;
+    }
+    const SurgeonScript s(d);
     EXPECT_GT(s.duration(), 10.0) << file;
-    EXPECT_EQ(s.definition().instruments.size(), 2u) << file;
     for (double t = 0.0; t < s.duration(); t += 0.25) expectTrocarConstraint(s, t);
   }
-  EXPECT_EQ(SurgeonScript::fromFile(kSourceDir + "/config/trajectories/navigation_demo.yaml").playback(),
+  EXPECT_EQ(SurgeonScript::definitionFromFile(kSourceDir + "/config/trajectories/navigation_demo.yaml").playback,
             Playback::kOnce);
+}
+
+// A script that leaves a trocar to the scene cannot be played without one: the error names the file and the slot.
+TEST(SurgeonScript, TrocarLeftToTheSceneIsAClearErrorWithoutOne) {
+  const std::string path = kSourceDir + "/config/trajectories/navigation_demo.yaml";
+  try {
+    SurgeonScript::fromFile(path);
+    FAIL() << "a script without trocars must not play without a scene";
+  } catch (const ScriptError& e) {
+    const std::string message = e.what();
+    EXPECT_NE(message.find("navigation_demo.yaml"), std::string::npos) << message;
+    EXPECT_EQ(e.field(), "instruments.left.trocar") << message;
+    EXPECT_NE(message.find("comes from the scene"), std::string::npos) << message;
+  }
 }
 
 TEST(SurgeonScript, BuiltinDemo) {
