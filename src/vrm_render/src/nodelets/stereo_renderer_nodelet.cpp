@@ -15,9 +15,16 @@
 // ~max_rate (event triggers, Hz, 0 = none) bounds the frame rate. ~max_input_age (event triggers, s, default 0.005):
 // a trigger that waited longer than this for the previous frame is skipped when the next input is due within the
 // tick, so frames start when their input arrives (latency before frame rate, eq. 2.5). The render thread and its
-// llvmpipe threads run at ~render_nice (default 10): inputs, tracking and simulation go first. Only images that are
-// watched (a subscriber on stereo/*/image_raw) or a snapshot due cause a frame: a headless session keeps its cores
-// for tracking and simulation.
+// llvmpipe threads run at ~render_nice (default 10): inputs, tracking and simulation go first.
+//
+// Lazy (image_pipeline's pattern): the renderer subscribes to its inputs only while somebody wants its output, and
+// renders only then; a headless session keeps its cores for tracking and simulation. "Wants output" means: a
+// subscriber on stereo/left or stereo/right (image_raw in any transport, or camera_info; in this process or another:
+// a viewer, the console, a recorder, a graph test), or snapshots still due (~snapshot_dir with ~snapshot_count or
+// ~snapshot_times). render_timing, /diagnostics and tf are by-products of frames, not reasons to render: a latency
+// monitor alone does not make the renderer work, and ~save_snapshot returns the last frame rendered for a watcher.
+// The publishers' connect / disconnect callbacks (and the last snapshot saved) switch the subscriptions; the latched
+// scene meshes arrive again on every subscription.
 //
 // Subscribes (node handle namespace): meshes/<object> (vrm_msgs/TissueMesh, latched, one per scene object; for
 //   deformable objects, and the retina of a scene that simulates bleeding, also tissue/<object> from the simulation),
@@ -73,6 +80,7 @@
 #include <string>
 #include <thread>
 
+#include "vrm_render/conversions.h"
 #include "vrm_render/image_io.h"
 #include "vrm_render/scene_setup.h"
 #include "vrm_render/stereo_renderer.h"
@@ -82,64 +90,6 @@
 namespace vrm_render {
 
 namespace {
-
-Eigen::Isometry3f toIsometry(const geometry_msgs::Pose& pose) {
-  Eigen::Isometry3f t = Eigen::Isometry3f::Identity();
-  t.translation() = Eigen::Vector3f(pose.position.x, pose.position.y, pose.position.z);
-  Eigen::Quaternionf q(pose.orientation.w, pose.orientation.x, pose.orientation.y, pose.orientation.z);
-  if (q.norm() < 1e-6f) q = Eigen::Quaternionf::Identity();
-  t.linear() = q.normalized().toRotationMatrix();
-  return t;
-}
-
-geometry_msgs::Transform toTransformMsg(const Eigen::Isometry3f& t) {
-  geometry_msgs::Transform msg;
-  msg.translation.x = t.translation().x();
-  msg.translation.y = t.translation().y();
-  msg.translation.z = t.translation().z();
-  const Eigen::Quaternionf q(t.linear());
-  msg.rotation.x = q.x();
-  msg.rotation.y = q.y();
-  msg.rotation.z = q.z();
-  msg.rotation.w = q.w();
-  return msg;
-}
-
-// REP-103 optical frame of a camera in the world: z forward, x right, y down (the GL view matrix has x right, y up,
-// z backward in its rows).
-Eigen::Isometry3f worldFromOptical(const CameraView& camera) {
-  Eigen::Isometry3f t = Eigen::Isometry3f::Identity();
-  const Eigen::Matrix3f rows = camera.view.topLeftCorner<3, 3>();
-  t.linear().col(0) = rows.row(0).transpose();
-  t.linear().col(1) = -rows.row(1).transpose();
-  t.linear().col(2) = -rows.row(2).transpose();
-  t.translation() = camera.position;
-  return t;
-}
-
-// The objective in REP-103 body axes: x along the optical axis, z up (the rig's up, made orthogonal), y left.
-Eigen::Isometry3f worldFromObjective(const MicroscopeRig& rig) {
-  Eigen::Isometry3f t = Eigen::Isometry3f::Identity();
-  const Eigen::Vector3f x = rig.view_direction.normalized();
-  const Eigen::Vector3f z = (rig.up - rig.up.dot(x) * x).normalized();
-  t.linear().col(0) = x;
-  t.linear().col(1) = z.cross(x);
-  t.linear().col(2) = z;
-  t.translation() = rig.objective;
-  return t;
-}
-
-MeshView toMeshView(const vrm_msgs::TissueMesh& msg) {
-  MeshView view;
-  view.positions = msg.positions.data();
-  view.vertex_count = msg.positions.size() / 3;
-  view.normals = msg.normals.size() == msg.positions.size() ? msg.normals.data() : nullptr;
-  view.colors = msg.colors.size() == view.vertex_count * 4 && view.vertex_count ? msg.colors.data() : nullptr;
-  view.injury = msg.injury.size() == view.vertex_count && view.vertex_count ? msg.injury.data() : nullptr;
-  view.triangles = msg.triangles.data();
-  view.triangle_count = msg.triangles.size() / 3;
-  return view;
-}
 
 enum class Trigger { kSimulation, kInput, kTimer };
 
@@ -205,39 +155,7 @@ class StereoRendererNodelet : public nodelet::Nodelet {
   void onInit() override {
     ros::NodeHandle& nh = getNodeHandle();
     ros::NodeHandle& pnh = getPrivateNodeHandle();
-    RenderOptions options;
-    pnh.param("width", options.width, options.width);
-    pnh.param("height", options.height, options.height);
-    pnh.param("stereo", options.stereo, options.stereo);
-    pnh.param("shadows", options.shadow_pass, options.shadow_pass);
-    pnh.param("lighting", options.lighting, options.lighting);
-    pnh.param("bump_mapping", options.bump_mapping, options.bump_mapping);
-    pnh.param("depth_of_field", options.dof_pass, options.dof_pass);
-    pnh.param("shadow_map_size", options.shadow_map_size, options.shadow_map_size);
-    pnh.param("dof_downsample", options.dof_downsample, options.dof_downsample);
-    pnh.param("ghost_instruments", ghost_instruments_, false);
-    // glFinish between passes: exact per-pass StageTiming, at the cost of some llvmpipe overlap (bench_render).
-    pnh.param("time_passes", options.time_passes, options.time_passes);
-    pnh.param("rate", rate_, 30.0);
-    pnh.param("max_rate", max_rate_, 0.0);
-    pnh.param("max_input_age", max_input_age_, 0.005);
-    pnh.param("render_nice", render_nice_, 10);
-    pnh.param("simulation_timeout", simulation_timeout_, 0.5);
-    pnh.param("snapshot_dir", snapshot_dir_, std::string());
-    pnh.param("snapshot_count", snapshot_count_, 0);
-    pnh.param("snapshot_every", snapshot_every_, 10);
-    // "6 8 10": save at these seconds of input time after the first input instead of every snapshot_every-th frame
-    // (so a bounded session's frames show its key moments, e.g. the grasp and the peel).
-    std::istringstream times(pnh.param<std::string>("snapshot_times", ""));
-    for (double t; times >> t;) snapshot_times_.push_back(t);
-    std::sort(snapshot_times_.begin(), snapshot_times_.end());
-    if (!snapshot_times_.empty()) snapshot_count_ = static_cast<int>(snapshot_times_.size());
-    pnh.param("world_frame", world_frame_, std::string("world"));
-    pnh.param("eye_frame", eye_frame_, std::string("eye"));
-    pnh.param("camera_frame", camera_frame_, std::string("microscope"));
-    pnh.param("ghost_topic", ghost_topic_, std::string("ghost/instrument_state"));
-    // llvmpipe's per-draw buffers would otherwise cost ~3,000 page faults per frame (see retainFreedHeapMemory).
-    if (pnh.param("retain_heap_memory", true)) retainFreedHeapMemory();
+    const RenderOptions options = readParameters(pnh);
     const std::string scene_parameter = pnh.param<std::string>("scene", "membrane_peeling");
     const std::string trigger_name = pnh.param<std::string>("trigger", "simulation");
 
@@ -259,40 +177,27 @@ class StereoRendererNodelet : public nodelet::Nodelet {
       NODELET_FATAL("stereo_renderer cannot start: %s", error.what());
       throw;
     }
-    for (const auto& object : scene_.objects) {
-      renderer_->setStyle(object.name, objectStyle(object));
-      mesh_subscribers_.push_back(nh.subscribe<vrm_msgs::TissueMesh>(
-          "meshes/" + object.name, 2,
-          boost::bind(&StereoRendererNodelet::onMesh, this, object.name, boost::placeholders::_1)));
-      // Deformable objects: the scene manager's latched rest shape first, then the simulation's deformed versions;
-      // the retina of a bleeding scene: the simulation's copy carries the injury field (bleeding colour, thesis §6).
-      const bool bleeds = object.role == vrm_sim::scene::ObjectRole::kRetina &&
-                          scene_.simulates(vrm_sim::scene::Simulation::kBleeding) &&
-                          scene_.simulates(vrm_sim::scene::Simulation::kCollision);
-      if ((object.isDeformable() && scene_.simulates(vrm_sim::scene::Simulation::kTissue)) || bleeds) {
-        mesh_subscribers_.push_back(nh.subscribe<vrm_msgs::TissueMesh>(
-            "tissue/" + object.name, 2,
-            boost::bind(&StereoRendererNodelet::onMesh, this, object.name, boost::placeholders::_1)));
-      }
-    }
+    for (const auto& object : scene_.objects) renderer_->setStyle(object.name, objectStyle(object));
     for (const auto& instrument : scene_.instruments) {
       const std::string slot_name = vrm_sim::scene::toString(instrument.slot);
       slots_[slot_name] = makeSlot(instrument, instrumentObjectId(instrument), false);
       // The instructor's instrument in the same slot, replayed (e.g. from a recorded session), translucent.
       if (ghost_instruments_) ghost_slots_[slot_name] = makeSlot(instrument, "ghost_" + slot_name, true);
     }
-    // Queues hold one tick of every source: the newest input wins (a slow frame must not make them grow).
-    eye_sub_ = nh.subscribe("eye_state", 5, &StereoRendererNodelet::onEyeState, this);
-    instrument_sub_ = nh.subscribe("instrument_state", 10, &StereoRendererNodelet::onInstrumentState, this);
-    simulation_sub_ = nh.subscribe("simulation_state", 5, &StereoRendererNodelet::onSimulationState, this);
-    if (ghost_instruments_) {
-      ghost_sub_ = nh.subscribe(ghost_topic_, 10, &StereoRendererNodelet::onGhostState, this);
-    }
-    microscope_sub_ = nh.subscribe("microscope", 5, &StereoRendererNodelet::onMicroscope, this);
 
-    image_transport::ImageTransport it(nh);
-    left_pub_ = it.advertiseCamera("stereo/left/image_raw", 1);
-    if (options.stereo) right_pub_ = it.advertiseCamera("stereo/right/image_raw", 1);
+    snapshots_pending_ = snapshot_count_ > 0 && !snapshot_dir_.empty();
+    {
+      // As image_proc does: a subscriber may connect while the publishers are being advertised; its callback waits
+      // for this lock, so it sees both publishers assigned.
+      std::lock_guard<std::mutex> lock(connect_mutex_);
+      image_transport::ImageTransport it(nh);
+      const auto image_cb = [this](const image_transport::SingleSubscriberPublisher&) { updateSubscriptions(); };
+      const auto info_cb = [this](const ros::SingleSubscriberPublisher&) { updateSubscriptions(); };
+      left_pub_ = it.advertiseCamera("stereo/left/image_raw", 1, image_cb, image_cb, info_cb, info_cb);
+      if (options.stereo)
+        right_pub_ = it.advertiseCamera("stereo/right/image_raw", 1, image_cb, image_cb, info_cb, info_cb);
+    }
+    updateSubscriptions();  // snapshots due: inputs from the start
     timing_pub_ = nh.advertise<vrm_msgs::StageTiming>("render_timing", 5);
     diagnostics_pub_ = nh.advertise<diagnostic_msgs::DiagnosticArray>("/diagnostics", 5);
     snapshot_srv_ = pnh.advertiseService("save_snapshot", &StereoRendererNodelet::onSaveSnapshot, this);
@@ -339,6 +244,90 @@ class StereoRendererNodelet : public nodelet::Nodelet {
         break;
     }
     return text;
+  }
+
+  RenderOptions readParameters(ros::NodeHandle& pnh) {
+    RenderOptions options;
+    pnh.param("width", options.width, options.width);
+    pnh.param("height", options.height, options.height);
+    pnh.param("stereo", options.stereo, options.stereo);
+    pnh.param("shadows", options.shadow_pass, options.shadow_pass);
+    pnh.param("lighting", options.lighting, options.lighting);
+    pnh.param("bump_mapping", options.bump_mapping, options.bump_mapping);
+    pnh.param("depth_of_field", options.dof_pass, options.dof_pass);
+    pnh.param("shadow_map_size", options.shadow_map_size, options.shadow_map_size);
+    pnh.param("dof_downsample", options.dof_downsample, options.dof_downsample);
+    pnh.param("ghost_instruments", ghost_instruments_, false);
+    // glFinish between passes: exact per-pass StageTiming, at the cost of some llvmpipe overlap (bench_render).
+    pnh.param("time_passes", options.time_passes, options.time_passes);
+    pnh.param("rate", rate_, 30.0);
+    pnh.param("max_rate", max_rate_, 0.0);
+    pnh.param("max_input_age", max_input_age_, 0.005);
+    pnh.param("render_nice", render_nice_, 10);
+    pnh.param("simulation_timeout", simulation_timeout_, 0.5);
+    pnh.param("snapshot_dir", snapshot_dir_, std::string());
+    pnh.param("snapshot_count", snapshot_count_, 0);
+    pnh.param("snapshot_every", snapshot_every_, 10);
+    // "6 8 10": save at these seconds of input time after the first input instead of every snapshot_every-th frame
+    // (so a bounded session's frames show its key moments, e.g. the grasp and the peel).
+    std::istringstream times(pnh.param<std::string>("snapshot_times", ""));
+    for (double t; times >> t;) snapshot_times_.push_back(t);
+    std::sort(snapshot_times_.begin(), snapshot_times_.end());
+    if (!snapshot_times_.empty()) snapshot_count_ = static_cast<int>(snapshot_times_.size());
+    pnh.param("world_frame", world_frame_, std::string("world"));
+    pnh.param("eye_frame", eye_frame_, std::string("eye"));
+    pnh.param("camera_frame", camera_frame_, std::string("microscope"));
+    pnh.param("ghost_topic", ghost_topic_, std::string("ghost/instrument_state"));
+    // llvmpipe's per-draw buffers would otherwise cost ~3,000 page faults per frame (see retainFreedHeapMemory).
+    if (pnh.param("retain_heap_memory", true)) retainFreedHeapMemory();
+    return options;
+  }
+
+  // --- lazy subscription (the rule: see the top of this file) ---
+
+  // Publisher connect / disconnect callbacks (manager threads), onInit, and the render thread after the last
+  // snapshot: subscribes to the inputs when output is wanted, drops them when not.
+  void updateSubscriptions() {
+    std::lock_guard<std::mutex> lock(connect_mutex_);
+    const bool watched = left_pub_.getNumSubscribers() > 0 || right_pub_.getNumSubscribers() > 0;
+    watched_ = watched;
+    const bool wanted = watched || snapshots_pending_;
+    if (wanted == subscribed_) return;
+    if (wanted) {
+      subscribeInputs();
+    } else {
+      for (ros::Subscriber& subscriber : input_subscribers_) subscriber.shutdown();
+      input_subscribers_.clear();
+    }
+    subscribed_ = wanted;
+    NODELET_DEBUG("stereo_renderer: inputs %s", wanted ? "subscribed (output wanted)" : "dropped (nobody watches)");
+  }
+
+  void subscribeInputs() {
+    ros::NodeHandle& nh = getNodeHandle();
+    for (const auto& object : scene_.objects) {
+      input_subscribers_.push_back(nh.subscribe<vrm_msgs::TissueMesh>(
+          "meshes/" + object.name, 2,
+          boost::bind(&StereoRendererNodelet::onMesh, this, object.name, boost::placeholders::_1)));
+      // Deformable objects: the scene manager's latched rest shape first, then the simulation's deformed versions;
+      // the retina of a bleeding scene: the simulation's copy carries the injury field (bleeding colour, thesis §6).
+      const bool bleeds = object.role == vrm_sim::scene::ObjectRole::kRetina &&
+                          scene_.simulates(vrm_sim::scene::Simulation::kBleeding) &&
+                          scene_.simulates(vrm_sim::scene::Simulation::kCollision);
+      if ((object.isDeformable() && scene_.simulates(vrm_sim::scene::Simulation::kTissue)) || bleeds) {
+        input_subscribers_.push_back(nh.subscribe<vrm_msgs::TissueMesh>(
+            "tissue/" + object.name, 2,
+            boost::bind(&StereoRendererNodelet::onMesh, this, object.name, boost::placeholders::_1)));
+      }
+    }
+    // Queues hold one tick of every source: the newest input wins (a slow frame must not make them grow).
+    input_subscribers_.push_back(nh.subscribe("eye_state", 5, &StereoRendererNodelet::onEyeState, this));
+    input_subscribers_.push_back(nh.subscribe("instrument_state", 10, &StereoRendererNodelet::onInstrumentState, this));
+    input_subscribers_.push_back(nh.subscribe("simulation_state", 5, &StereoRendererNodelet::onSimulationState, this));
+    if (ghost_instruments_) {
+      input_subscribers_.push_back(nh.subscribe(ghost_topic_, 10, &StereoRendererNodelet::onGhostState, this));
+    }
+    input_subscribers_.push_back(nh.subscribe("microscope", 5, &StereoRendererNodelet::onMicroscope, this));
   }
 
   Slot makeSlot(const vrm_sim::scene::InstrumentDescription& instrument, const std::string& id, bool ghost) {
@@ -577,9 +566,7 @@ class StereoRendererNodelet : public nodelet::Nodelet {
       snapshot_due = !first_stamp_.isZero() && (newest_stamp_ - first_stamp_).toSec() >=
                                                    snapshot_times_[static_cast<std::size_t>(snapshots_saved_)];
     }
-    const bool watched = left_pub_.getNumSubscribers() > 0 || right_pub_.getNumSubscribers() > 0;
-    watched_ = watched;
-    if (!snapshot_due && !watched) return;
+    if (!snapshot_due && !watched_) return;
     std::map<std::string, vrm_msgs::TissueMesh::ConstPtr> meshes;
     ros::Time stamp, simulation_shown;
     if (!takeInputs(limit, &meshes, &stamp, &simulation_shown)) return;
@@ -675,6 +662,10 @@ class StereoRendererNodelet : public nodelet::Nodelet {
         ++snapshots_saved_;
       } catch (const std::exception& error) {
         NODELET_WARN_THROTTLE(5.0, "snapshot failed: %s", error.what());
+      }
+      if (snapshots_saved_ >= snapshot_count_) {
+        snapshots_pending_ = false;
+        updateSubscriptions();  // the last one: the inputs stay only for watchers
       }
     }
   }
@@ -877,8 +868,10 @@ class StereoRendererNodelet : public nodelet::Nodelet {
   std::uint64_t frames_since_diagnostics_ = 0;
   ros::WallTime last_diagnostics_;
 
-  std::vector<ros::Subscriber> mesh_subscribers_;
-  ros::Subscriber eye_sub_, instrument_sub_, simulation_sub_, ghost_sub_, microscope_sub_;
+  std::mutex connect_mutex_;                        // the subscriptions below and the publishers' callbacks
+  std::vector<ros::Subscriber> input_subscribers_;  // meshes, tissue, poses, simulation, microscope, ghosts
+  bool subscribed_ = false;
+  std::atomic<bool> snapshots_pending_{false};
   tf2_ros::TransformBroadcaster broadcaster_;
   image_transport::CameraPublisher left_pub_, right_pub_;
   ros::Publisher timing_pub_, diagnostics_pub_;

@@ -16,6 +16,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <fstream>
+#include <functional>
 #include <map>
 #include <mutex>
 #include <vector>
@@ -150,6 +151,44 @@ TEST(StereoRendererGraph, PublishesPairedImagesAtTheRateWithMonotonicStamps) {
   EXPECT_LT(c.right_info.back()->P[3], 0.0) << "right camera info carries the stereo baseline (Tx < 0)";
   EXPECT_EQ(c.right_info.back()->header.frame_id, "microscope_right_optical");
   EXPECT_EQ(c.right.back()->header.frame_id, "microscope_right_optical");
+}
+
+// Lazy subscription (image_pipeline's pattern): the renderer listens to its inputs only while an image is watched.
+// ghost/instrument_state is subscribed by the renderer alone, so its subscriber count shows the renderer's inputs.
+bool waitFor(const std::function<bool()>& condition, double timeout) {
+  const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(timeout);
+  while (!condition()) {
+    if (ros::WallTime::now() > deadline) return false;
+    ros::WallDuration(0.05).sleep();
+  }
+  return true;
+}
+
+TEST(StereoRendererGraph, SubscribesToItsInputsOnlyWhileAnImageIsWatched) {
+  ros::NodeHandle nh;
+  ros::AsyncSpinner spinner(1);
+  spinner.start();
+  ros::Publisher ghost = nh.advertise<vrm_msgs::InstrumentState>("ghost/instrument_state", 1);
+  // Nobody watches (the previous test's subscribers are gone): no inputs.
+  EXPECT_TRUE(waitFor([&] { return ghost.getNumSubscribers() == 0; }, 20.0)) << "inputs subscribed while unwatched";
+
+  std::mutex mutex;
+  int images = 0;
+  {
+    auto left = nh.subscribe<sensor_msgs::Image>("stereo/left/image_raw", 5, [&](const sensor_msgs::Image::ConstPtr&) {
+      std::lock_guard<std::mutex> lock(mutex);
+      ++images;
+    });
+    EXPECT_TRUE(waitFor([&] { return ghost.getNumSubscribers() > 0; }, 20.0)) << "a watcher did not subscribe inputs";
+    EXPECT_TRUE(waitFor(
+        [&] {
+          std::lock_guard<std::mutex> lock(mutex);
+          return images >= 3;
+        },
+        60.0))
+        << "no frames for the watcher after it subscribed (" << images << ")";
+  }
+  EXPECT_TRUE(waitFor([&] { return ghost.getNumSubscribers() == 0; }, 20.0)) << "inputs kept after the watcher left";
 }
 
 }  // namespace
