@@ -26,10 +26,6 @@ std::string sceneOrDefault(const std::string& spec);
 // Whether some instrument track leaves its trocar to the scene (InstrumentTrack::trocar_from_scene).
 bool leavesTrocarsToScene(const ScriptDefinition& script);
 
-// What the nodelets' `scene` parameter means: vrm_sim::scene::resolveScenePath (an existing file, else a shipped
-// scene by name), loaded. Throws vrm_sim::scene::SceneError.
-vrm_sim::scene::SceneDescription loadSceneSpec(const std::string& spec);
-
 // The trocar (eye frame, m) an instrument in tracking slot `slot` ("left" / "right") goes through in `scene`: the
 // trocar named by the scene's instrument in that slot, else (no instrument in that slot) the trocar named like the
 // slot. Throws std::runtime_error naming the scene file, the slot and the scene's trocars if there is none.

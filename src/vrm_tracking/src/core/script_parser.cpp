@@ -251,15 +251,13 @@ class Parser {
     key->target.written_tip = key->tip;  // `on` without `tip`: the previous keyframe's written tip
   }
 
-  // The names of the scene files (vrm_sim::scene::toString), so scripts and scenes spell instruments alike.
+  // vrm_sim's instrument type table (instrumentTypeRegistry), so scripts and scenes spell instruments alike.
   vrm_sim::scene::InstrumentType readType(const YAML::Node& node, const std::string& field) const {
-    using vrm_sim::scene::InstrumentType;
     const std::string name = readString(node, field);
+    if (const auto type = vrm_sim::scene::instrumentTypeNamed(name)) return *type;
     std::string expected;
-    for (InstrumentType type : {InstrumentType::kLightPipe, InstrumentType::kForceps, InstrumentType::kVitrector,
-                                InstrumentType::kNeedle, InstrumentType::kHook}) {
-      if (name == vrm_sim::scene::toString(type)) return type;
-      expected += (expected.empty() ? "" : "|") + std::string(vrm_sim::scene::toString(type));
+    for (const std::string& known : vrm_sim::scene::instrumentTypeRegistry().names()) {
+      expected += (expected.empty() ? "" : "|") + known;
     }
     fail(node, field, "unknown instrument type '" + name + "' (expected " + expected + ")");
   }

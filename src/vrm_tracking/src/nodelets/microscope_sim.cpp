@@ -19,6 +19,7 @@
 #include <string>
 
 #include "vrm_sim/package_data.h"
+#include "vrm_sim/scene/scene_loader.h"
 #include "vrm_tracking/conversions.h"
 #include "vrm_tracking/microscope_knobs.h"
 #include "vrm_tracking/scene_trocars.h"
@@ -40,7 +41,7 @@ class MicroscopeSim : public nodelet::Nodelet {
         std::string scene_spec;
         pnh.param<std::string>("scene", scene_spec, "");
         vrm_sim::usePackageData();  // a scene name means vrm_sim's shipped scene
-        applySceneTrocars(loadSceneSpec(sceneOrDefault(scene_spec)), &definition);
+        applySceneTrocars(vrm_sim::scene::loadScene(sceneOrDefault(scene_spec)), &definition);
       }
       script_ = std::make_unique<SurgeonScript>(std::move(definition));
     } catch (const std::exception& e) {

@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "vrm_sim/package_data.h"
+#include "vrm_sim/scene/scene_loader.h"
 #include "vrm_tracking/conversions.h"
 #include "vrm_tracking/scene_trocars.h"
 #include "vrm_tracking/surgeon_script.h"
@@ -36,7 +37,7 @@ class ScriptedSurgeon : public nodelet::Nodelet {
     pnh.param<std::string>("script", script_spec, "");
     try {
       // "scenario:NAME": the scene's own scripted session (what scenario_offline plays), once.
-      const vrm_sim::scene::SceneDescription scene = loadSceneSpec(scene_spec);
+      const vrm_sim::scene::SceneDescription scene = vrm_sim::scene::loadScene(scene_spec);
       if (script_spec.rfind("scenario:", 0) == 0) {
         if (scene_param.empty()) throw std::invalid_argument("script '" + script_spec + "' needs the ~scene parameter");
         script_ = std::make_unique<SurgeonScript>(scenarioScript(scene, script_spec.substr(9)));

@@ -41,6 +41,7 @@
 #include <vector>
 
 #include "vrm_sim/package_data.h"
+#include "vrm_sim/scene/scene_loader.h"
 #include "vrm_tracking/camera_watchdog.h"
 #include "vrm_tracking/conversions.h"
 #include "vrm_tracking/frame_sync.h"
@@ -132,7 +133,7 @@ class Tracker : public nodelet::Nodelet {
     pnh.param<std::string>("scene", scene_param, "");
     MarkerLayout layout = layout_file.empty() ? makeDefaultLayout() : loadLayoutYaml(layout_file);
     vrm_sim::usePackageData();  // a scene name means vrm_sim's shipped scene
-    const vrm_sim::scene::SceneDescription scene = loadSceneSpec(sceneOrDefault(scene_param));
+    const vrm_sim::scene::SceneDescription scene = vrm_sim::scene::loadScene(sceneOrDefault(scene_param));
     applySceneTrocars(scene, &layout);
     NODELET_INFO("tracker: trocars from scene '%s' (%s%s)", scene.name.c_str(), scene.source_file.c_str(),
                  scene_param.empty() ? ", the default: no ~scene given" : "");

@@ -64,10 +64,6 @@ bool leavesTrocarsToScene(const ScriptDefinition& script) {
                      [](const InstrumentTrack& track) { return track.trocar_from_scene; });
 }
 
-scene::SceneDescription loadSceneSpec(const std::string& spec) {
-  return scene::loadScene(scene::resolveScenePath(spec));
-}
-
 Eigen::Vector3d sceneTrocarForSlot(const scene::SceneDescription& scene, const std::string& slot) {
   std::string trocar_name = slot;
   for (const scene::InstrumentDescription& instrument : scene.instruments) {

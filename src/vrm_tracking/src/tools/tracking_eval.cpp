@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "vrm_sim/package_data.h"
+#include "vrm_sim/scene/scene_loader.h"
 #include "vrm_tracking/evaluation.h"
 #include "vrm_tracking/scene_trocars.h"
 
@@ -85,7 +86,7 @@ int main(int argc, char** argv) {
                                                 [](const InstrumentMarker& m) { return m.trocar_from_scene; });
     if (leavesTrocarsToScene(definition) || layout_needs_scene) {
       vrm_sim::usePackageData();  // a scene name means vrm_sim's shipped scene (found like rosrun finds packages)
-      const vrm_sim::scene::SceneDescription scene = loadSceneSpec(scene_spec);
+      const vrm_sim::scene::SceneDescription scene = vrm_sim::scene::loadScene(scene_spec);
       if (leavesTrocarsToScene(definition)) applySceneTrocars(scene, &definition);
       if (layout_needs_scene) applySceneTrocars(scene, &layout);
     }

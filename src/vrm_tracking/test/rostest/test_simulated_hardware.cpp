@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "vrm_sim/package_data.h"
+#include "vrm_sim/scene/scene_loader.h"
 #include "vrm_tracking/conversions.h"
 #include "vrm_tracking/scene_trocars.h"
 #include "vrm_tracking/surgeon_script.h"
@@ -127,12 +128,12 @@ TEST(SimulatedHardware, EyeStateAtTrackingRate) {
 TEST(SimulatedHardware, InstrumentStatePerSlotWithTrocarConstraint) {
   // The instruments pivot at the scene's trocars (the scene is the truth; without ~scene the default scene's).
   ScriptDefinition file_script = SurgeonScript::loadDefinition(g_script_path);
-  applySceneTrocars(loadSceneSpec(sceneOrDefault(g_scene)), &file_script);
+  applySceneTrocars(vrm_sim::scene::loadScene(sceneOrDefault(g_scene)), &file_script);
   const SurgeonScript script(file_script);
   const ScriptDefinition& def = script.definition();
   ASSERT_EQ(def.instruments.size(), 2u);
   if (!g_scene.empty()) {
-    const vrm_sim::scene::SceneDescription fallback = loadSceneSpec(sceneOrDefault(""));
+    const vrm_sim::scene::SceneDescription fallback = vrm_sim::scene::loadScene(sceneOrDefault(""));
     for (const InstrumentTrack& track : def.instruments) {  // the test scene really moves them
       EXPECT_GT((track.trocar - sceneTrocarForSlot(fallback, track.slot)).norm(), 1e-4);
     }

@@ -28,6 +28,7 @@
 #include <vector>
 
 #include "vrm_sim/package_data.h"
+#include "vrm_sim/scene/scene_loader.h"
 #include "vrm_tracking/conversions.h"
 #include "vrm_tracking/scene_trocars.h"
 
@@ -327,8 +328,8 @@ TEST(TrackingGraph, TfChainComposesTheStatesAtCameraStamps) {
 // layout's or the script's own copies.
 TEST(TrackingGraph, TrocarsComeFromTheScene) {
   if (g_scene.empty()) GTEST_SKIP() << "no ~scene given";
-  const vrm_sim::scene::SceneDescription scene = loadSceneSpec(g_scene);
-  const vrm_sim::scene::SceneDescription fallback = loadSceneSpec(sceneOrDefault(""));
+  const vrm_sim::scene::SceneDescription scene = vrm_sim::scene::loadScene(g_scene);
+  const vrm_sim::scene::SceneDescription fallback = vrm_sim::scene::loadScene(sceneOrDefault(""));
   const MarkerLayout layout = loadLayoutYaml(g_layout_file);
   ASSERT_EQ(layout.instruments.size(), 2u);
   for (const InstrumentMarker& marker : layout.instruments) {

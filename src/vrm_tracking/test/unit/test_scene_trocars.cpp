@@ -117,7 +117,7 @@ simulations: [collision]
 TEST(SceneTrocars, ShippedFilesTakeTheDefaultScenesTrocars) {
   EXPECT_EQ(sceneOrDefault(""), "membrane_peeling");
   EXPECT_EQ(sceneOrDefault("navigation"), "navigation");
-  const scene::SceneDescription fallback = loadSceneSpec(sceneOrDefault(""));
+  const scene::SceneDescription fallback = vrm_sim::scene::loadScene(sceneOrDefault(""));
   MarkerLayout layout = loadLayoutYaml(kSourceDir + "/config/markers_default.yaml");
   ASSERT_EQ(layout.instruments.size(), 2u);
   applySceneTrocars(fallback, &layout);
@@ -139,10 +139,10 @@ TEST(SceneTrocars, ShippedFilesTakeTheDefaultScenesTrocars) {
 }
 
 TEST(SceneTrocars, SceneSpecIsANameOrAPath) {
-  const scene::SceneDescription by_name = loadSceneSpec("navigation");
+  const scene::SceneDescription by_name = vrm_sim::scene::loadScene("navigation");
   EXPECT_EQ(by_name.name, "navigation");
-  EXPECT_EQ(loadSceneSpec(by_name.source_file).name, "navigation");
-  EXPECT_THROW(loadSceneSpec("no_such_scene"), scene::SceneError);
+  EXPECT_EQ(vrm_sim::scene::loadScene(by_name.source_file).name, "navigation");
+  EXPECT_THROW(vrm_sim::scene::loadScene("no_such_scene"), scene::SceneError);
 }
 
 // ---- Keyframes written on scene objects (SurfaceTarget, applyScene) ----
@@ -179,7 +179,7 @@ instruments:
 )";
 
 TEST(SceneTargets, ResolvedTipLiesOnTheMembraneAndHeightFollowsTheInwardNormal) {
-  const scene::SceneDescription peeling = loadSceneSpec("membrane_peeling");
+  const scene::SceneDescription peeling = vrm_sim::scene::loadScene("membrane_peeling");
   const vrm_sim::TriangleMesh membrane = sceneMesh(peeling, "membrane");
   const SurgeonScript written = SurgeonScript::fromYamlString(kOnMembrane, "on_membrane.yaml");
   SceneTargetReport report;
@@ -265,7 +265,7 @@ TEST(SceneTargets, ClosestPointOnAFlatSquare) {
 }
 
 TEST(SceneTargets, MissingObjectIsAnErrorNamingItTheKeyframeAndTheScene) {
-  const scene::SceneDescription navigation = loadSceneSpec("navigation");  // has no membrane
+  const scene::SceneDescription navigation = vrm_sim::scene::loadScene("navigation");  // has no membrane
   const SurgeonScript written = SurgeonScript::fromYamlString(kOnMembrane, "on_membrane.yaml");
   try {
     applyScene(navigation, written);
@@ -292,7 +292,7 @@ TEST(SceneTargets, BuiltinScriptOnAMissingObjectKeepsTheWrittenTips) {
   const SurgeonScript demo = SurgeonScript::builtin("demo");
   ASSERT_TRUE(demo.definition().targets_optional);
   ASSERT_EQ(surfaceTargetObjects(demo.definition()), std::vector<std::string>{"membrane"});
-  const scene::SceneDescription navigation = loadSceneSpec("navigation");
+  const scene::SceneDescription navigation = vrm_sim::scene::loadScene("navigation");
   SceneTargetReport report;
   const SurgeonScript applied = applyScene(navigation, demo, &report);
   EXPECT_EQ(report.resolved_keyframes, 0u);
@@ -335,7 +335,7 @@ simulations: [collision]
 // centre 0.75 mm behind the tip, and within 0.3 mm of the shaft axis) holds membrane nodes; it peels and lets go
 // early enough for a 20 s session.
 TEST(SceneTargets, DemoGraspsTheShippedMembrane) {
-  const scene::SceneDescription peeling = loadSceneSpec("membrane_peeling");
+  const scene::SceneDescription peeling = vrm_sim::scene::loadScene("membrane_peeling");
   const vrm_sim::TriangleMesh membrane = sceneMesh(peeling, "membrane");
   SceneTargetReport report;
   SurgeonScript demo = applyScene(peeling, SurgeonScript::builtin("demo"), &report);
@@ -444,7 +444,7 @@ vrm_sim::world::TissueReport playThroughTheCore(const scene::SceneDescription& s
 }
 
 TEST(SceneTargets, TheDemoScriptsGraspAndPeelTheMembraneInTheSimulationCore) {
-  const scene::SceneDescription peeling = loadSceneSpec("membrane_peeling");
+  const scene::SceneDescription peeling = vrm_sim::scene::loadScene("membrane_peeling");
   std::size_t grasped = 0;
   const vrm_sim::world::TissueReport demo =
       playThroughTheCore(peeling, applyScene(peeling, SurgeonScript::builtin("demo")), 12.0, &grasped);
