@@ -560,18 +560,46 @@ class StereoRendererNodelet : public nodelet::Nodelet {
     std::lock_guard<std::mutex> render_lock(render_mutex_);
     // Render only what somebody sees: with no image subscriber and no snapshot due, the frame is skipped (a headless
     // session keeps its cores for tracking and simulation). Inputs stay as the latest state.
-    bool snapshot_due = snapshot_count_ > 0 && !snapshot_dir_.empty() && snapshots_saved_ < snapshot_count_;
-    if (snapshot_due && !snapshot_times_.empty()) {
-      std::lock_guard<std::mutex> lock(mutex_);
-      snapshot_due = !first_stamp_.isZero() && (newest_stamp_ - first_stamp_).toSec() >=
-                                                   snapshot_times_[static_cast<std::size_t>(snapshots_saved_)];
-    }
+    const bool snapshot_due = snapshotDue();
     if (!snapshot_due && !watched_) return;
     std::map<std::string, vrm_msgs::TissueMesh::ConstPtr> meshes;
     ros::Time stamp, simulation_shown;
     if (!takeInputs(limit, &meshes, &stamp, &simulation_shown)) return;
     last_frame_wall_ = ros::WallTime::now();
     const ros::Time start = ros::Time::now();  // measurement only (render_timing)
+    applyInputs(meshes);
+    try {
+      renderer_->render(&last_frame_);
+    } catch (const RenderError& error) {
+      NODELET_ERROR_THROTTLE(1.0, "render failed: %s", error.what());
+      return;
+    }
+    const ros::Time end = ros::Time::now();
+    ++frame_count_;
+    ++frames_since_diagnostics_;
+    last_frame_stamp_ = stamp;
+    publishFrames(stamp);
+    publishEye(0, left_pub_, stamp);
+    if (renderer_->options().stereo) publishEye(1, right_pub_, stamp);
+    const ros::Time published = ros::Time::now();
+    publishTiming(stamp, start, end, published, simulation_shown);
+    saveSnapshotIfDue(snapshot_due, stamp);
+  }
+
+  // A snapshot is still to be saved and, with ~snapshot_times, its input time has come.
+  bool snapshotDue() {
+    bool snapshot_due = snapshot_count_ > 0 && !snapshot_dir_.empty() && snapshots_saved_ < snapshot_count_;
+    if (snapshot_due && !snapshot_times_.empty()) {
+      std::lock_guard<std::mutex> lock(mutex_);
+      snapshot_due = !first_stamp_.isZero() && (newest_stamp_ - first_stamp_).toSec() >=
+                                                   snapshot_times_[static_cast<std::size_t>(snapshots_saved_)];
+    }
+    return snapshot_due;
+  }
+
+  // The frame's inputs into the renderer: meshes, the eye and the poses, instrument types and jaws, the light pipe,
+  // the microscope knobs.
+  void applyInputs(const std::map<std::string, vrm_msgs::TissueMesh::ConstPtr>& meshes) {
     for (const auto& entry : meshes) {
       try {
         renderer_->updateMesh(entry.first, toMeshView(*entry.second), entry.second->version);
@@ -580,13 +608,7 @@ class StereoRendererNodelet : public nodelet::Nodelet {
         NODELET_ERROR_THROTTLE(1.0, "mesh '%s' rejected: %s", entry.first.c_str(), error.what());
       }
     }
-    Eigen::Isometry3f world_from_eye = Eigen::Isometry3f::Identity();
-    if (eye_in_use_) {
-      geometry_msgs::Pose pose;
-      pose.position = eye_in_use_->rotation_center;
-      pose.orientation = eye_in_use_->rotation;
-      world_from_eye = toIsometry(pose);
-    }
+    const Eigen::Isometry3f world_from_eye = eye_in_use_ ? worldFromEye(*eye_in_use_) : Eigen::Isometry3f::Identity();
     auto frameToWorld = [&](const std::string& frame) {
       return frame == world_frame_ ? Eigen::Isometry3f::Identity() : world_from_eye;
     };
@@ -627,33 +649,16 @@ class StereoRendererNodelet : public nodelet::Nodelet {
     for (const auto& entry : ghost_states_) applyInstrument(ghost_slots_.at(entry.first), entry.second);
     renderer_->setLightPipe(light);
     if (microscope_in_use_) {
-      MicroscopeState knobs;
-      knobs.focus_distance = microscope_in_use_->focus_distance;
-      knobs.zoom = microscope_in_use_->zoom;
-      knobs.ambient_light = microscope_in_use_->ambient_light;
-      knobs.disparity_scale = microscope_in_use_->disparity_scale;
       try {
-        renderer_->setMicroscope(knobs);
+        renderer_->setMicroscope(toMicroscopeState(*microscope_in_use_));
       } catch (const RenderError& error) {
         NODELET_WARN_THROTTLE(1.0, "microscope settings ignored: %s", error.what());
       }
     }
-    try {
-      renderer_->render(&last_frame_);
-    } catch (const RenderError& error) {
-      NODELET_ERROR_THROTTLE(1.0, "render failed: %s", error.what());
-      return;
-    }
-    const ros::Time end = ros::Time::now();
-    ++frame_count_;
-    ++frames_since_diagnostics_;
-    last_frame_stamp_ = stamp;
-    publishFrames(stamp);
-    publishEye(0, left_pub_, stamp);
-    if (renderer_->options().stereo) publishEye(1, right_pub_, stamp);
-    const ros::Time published = ros::Time::now();
-    publishTiming(stamp, start, end, published, simulation_shown);
-    // Snapshots after the images: a PNG takes longer than the frame and must not delay what is watched.
+  }
+
+  // Snapshots after the images: a PNG takes longer than the frame and must not delay what is watched.
+  void saveSnapshotIfDue(bool snapshot_due, const ros::Time& stamp) {
     const bool every_nth = snapshot_times_.empty() && frame_count_ % std::max(1, snapshot_every_) == 0;
     if (snapshot_count_ > 0 && !snapshot_dir_.empty() && snapshots_saved_ < snapshot_count_ &&
         (snapshot_due && !snapshot_times_.empty() ? true : every_nth)) {
@@ -705,21 +710,10 @@ class StereoRendererNodelet : public nodelet::Nodelet {
     image->encoding = "rgb8";
     image->step = rgb.width * 3;
     image->data = rgb.data;  // the snapshot service keeps last_frame_, so this is the one copy
-    auto info = boost::make_shared<sensor_msgs::CameraInfo>();
+    // Tx of the right eye: its offset from the left one (the stereo convention of sensor_msgs/CameraInfo).
+    auto info = boost::make_shared<sensor_msgs::CameraInfo>(
+        toCameraInfo(camera, renderer_->camera(Eye::kLeft), rgb.width, rgb.height));
     info->header = image->header;
-    info->width = rgb.width;
-    info->height = rgb.height;
-    info->distortion_model = "plumb_bob";
-    info->D.assign(5, 0.0);
-    const Eigen::Matrix4f& p = camera.projection;
-    const double fx = p(0, 0) * rgb.width / 2.0, fy = p(1, 1) * rgb.height / 2.0;
-    const double cx = (1.0 - p(0, 2)) * rgb.width / 2.0, cy = (1.0 + p(1, 2)) * rgb.height / 2.0;
-    info->K = {fx, 0, cx, 0, fy, cy, 0, 0, 1};
-    info->R = {1, 0, 0, 0, 1, 0, 0, 0, 1};
-    // Tx = -fx * (offset of this eye from the left eye): the stereo convention of sensor_msgs/CameraInfo.
-    const CameraView left = renderer_->camera(Eye::kLeft);
-    const double tx = -fx * (camera.position - left.position).norm();
-    info->P = {fx, 0, cx, tx, 0, fy, cy, 0, 0, 0, 1, 0};
     publisher.publish(image, info);
   }
 
