@@ -70,7 +70,8 @@ SurgeonScript applyScene(const vrm_sim::scene::SceneDescription& scene, const Su
                          SceneTargetReport* report = nullptr);
 
 // The trocars only (keyframes on scene objects keep their tips): replaces every instrument track's / instrument
-// marker's trocar by the scene's (sceneTrocarForSlot). All slots are resolved before anything changes, so on an
+// marker's trocar by the scene's (sceneTrocarForSlot); a script without an `eye:` block (EyeGeometry::from_scene)
+// also takes the scene's eye radius and rotation centre. All slots are resolved before anything changes, so on an
 // exception the input is untouched.
 void applySceneTrocars(const vrm_sim::scene::SceneDescription& scene, ScriptDefinition* script);
 void applySceneTrocars(const vrm_sim::scene::SceneDescription& scene, MarkerLayout* layout);

@@ -50,6 +50,9 @@ struct EyeGeometry {
   double margin = 0.001;                                      // m, tips may be this far outside the sphere
   Eigen::Vector3d rotation_center = Eigen::Vector3d::Zero();  // m, in world
   int line = 0;
+  // The file has no `eye:` block (the shipped ones don't): applySceneTrocars takes radius and rotation centre from
+  // the scene (until then the defaults above, which are the shipped scenes' values).
+  bool from_scene = false;
 };
 
 struct PedalSample {

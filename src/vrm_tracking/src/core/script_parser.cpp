@@ -37,7 +37,11 @@ class Parser {
         fail(playback, "playback", "must be 'once' or 'loop', got '" + mode + "'");
       }
     }
-    if (const YAML::Node eye = root["eye"]) parseEye(eye, &d.eye);
+    if (const YAML::Node eye = root["eye"]) {
+      parseEye(eye, &d.eye);
+    } else {
+      d.eye.from_scene = true;  // the scene's (applySceneTrocars)
+    }
     if (const YAML::Node track = root["eye_track"]) parseEyeTrack(track, &d.eye_track);
     if (const YAML::Node instruments = root["instruments"]) {
       if (!instruments.IsMap()) fail(instruments, "instruments", "must be a mapping slot -> track");

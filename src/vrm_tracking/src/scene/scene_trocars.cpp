@@ -186,6 +186,10 @@ void applySceneTrocars(const scene::SceneDescription& scene, ScriptDefinition* s
     script->instruments[i].trocar = trocars[i];
     script->instruments[i].trocar_from_scene = false;
   }
+  if (script->eye.from_scene) {
+    script->eye.radius = scene.eye.radius;
+    script->eye.rotation_center = scene.eye.centre_in_world;
+  }
 }
 
 void applySceneTrocars(const scene::SceneDescription& scene, MarkerLayout* layout) {

@@ -129,7 +129,11 @@ TEST(SceneTrocars, ShippedFilesTakeTheDefaultScenesTrocars) {
     SCOPED_TRACE(script);
     ScriptDefinition file = SurgeonScript::definitionFromFile(kSourceDir + "/config/trajectories/" + script + ".yaml");
     EXPECT_TRUE(leavesTrocarsToScene(file));
+    EXPECT_TRUE(file.eye.from_scene);
+    file.eye.radius = 0.0;  // must come from the scene
     applySceneTrocars(fallback, &file);
+    EXPECT_EQ(file.eye.radius, fallback.eye.radius);
+    EXPECT_EQ(file.eye.rotation_center, fallback.eye.centre_in_world);
     EXPECT_FALSE(leavesTrocarsToScene(file));
     const SurgeonScript played(file);  // validates
     for (const InstrumentTrack& track : played.definition().instruments) {
