@@ -23,13 +23,9 @@ ObjectStyle objectStyle(const vrm_sim::scene::ObjectDescription& object);
 ObjectStyle instrumentStyle(const vrm_sim::scene::InstrumentDescription& instrument, bool ghost = false);
 std::string instrumentObjectId(const vrm_sim::scene::InstrumentDescription& instrument);  // "instrument_<slot>"
 
-// The mesh an instrument slot shows: `type` with the scene's parameters when it is the configured instrument, else
-// the generator defaults (switching instruments, InstrumentState.type); forceps with their jaws opened to
-// `jaw_angle_rad` (full opening, InstrumentState.jaw_angle; clamped to [0, pi], non-finite = closed).
-MeshData instrumentMesh(const vrm_sim::scene::InstrumentDescription& configured, vrm_sim::scene::InstrumentType type,
-                        double jaw_angle_rad = 0.0);
-// The rendered jaw opening in whole degrees: meshes are rebuilt only when this changes.
-int jawStepDeg(vrm_sim::scene::InstrumentType type, double jaw_angle_rad);
+// An instrument slot's mesh for a type and jaw opening comes from the instrument model
+// (vrm_sim/scene/instrument_model.h: instrumentOfType, jawStepDeg, instrumentMesh), the one the simulation collides
+// with; toMeshData() converts it.
 
 // The endoilluminator's light (issue 16): a soft-edged cone (the fibre's light falls off towards the rim rather than
 // ending at it) at an intensity that lights the fundus without saturating it. Used by the nodelet and typicalScene.

@@ -87,22 +87,6 @@ std::string instrumentObjectId(const scene::InstrumentDescription& instrument) {
   return std::string("instrument_") + scene::toString(instrument.slot);
 }
 
-int jawStepDeg(scene::InstrumentType type, double jaw_angle_rad) {
-  if (type != scene::InstrumentType::kForceps || !std::isfinite(jaw_angle_rad)) return 0;
-  return static_cast<int>(std::lround(std::clamp(jaw_angle_rad * 180.0 / M_PI, 0.0, 180.0)));
-}
-
-MeshData instrumentMesh(const scene::InstrumentDescription& configured, scene::InstrumentType type,
-                        double jaw_angle_rad) {
-  scene::InstrumentDescription instrument = configured;
-  instrument.type = type;
-  if (type != configured.type) instrument.params = scene::defaultInstrumentParams(type);
-  if (auto* forceps = std::get_if<scene::ForcepsParams>(&instrument.params)) {
-    forceps->jaw_angle_deg = jawStepDeg(type, jaw_angle_rad);
-  }
-  return toMeshData(scene::buildInstrumentMesh(instrument));
-}
-
 LightPipe endoilluminator() {
   LightPipe light;
   light.cone_softness = 0.6f;

@@ -84,7 +84,9 @@
 #include "vrm_render/image_io.h"
 #include "vrm_render/scene_setup.h"
 #include "vrm_render/stereo_renderer.h"
+#include "vrm_sim/conversions.h"
 #include "vrm_sim/package_data.h"
+#include "vrm_sim/scene/instrument_model.h"
 #include "vrm_sim/scene/scene_loader.h"
 
 namespace vrm_render {
@@ -162,7 +164,7 @@ class StereoRendererNodelet : public nodelet::Nodelet {
     try {
       trigger_ = parseTrigger(trigger_name);
       vrm_sim::usePackageData();  // a scene name means vrm_sim's shipped scene (devel or install space)
-      scene_ = vrm_sim::scene::loadScene(vrm_sim::scene::resolveScenePath(scene_parameter));
+      scene_ = vrm_sim::scene::loadScene(scene_parameter);
       const std::set<pid_t> threads_before = processThreads();
       renderer_ = std::make_unique<StereoRenderer>(options);
       // The retina's fundus (disc, vessels, macula), baked once; the seed from the scene (or ~fundus_seed).
@@ -343,11 +345,10 @@ class StereoRendererNodelet : public nodelet::Nodelet {
   // Uploads the slot's mesh for `type` and `jaw_angle` when either changed what is drawn (instrument switching,
   // forceps jaws in whole degrees).
   void showInstrument(Slot* slot, vrm_sim::scene::InstrumentType type, double jaw_angle) {
-    const int jaw = jawStepDeg(type, jaw_angle);
+    const int jaw = vrm_sim::scene::jawStepDeg(type, jaw_angle);
     if (renderer_->hasObject(slot->object_id) && type == slot->shown_type && jaw == slot->shown_jaw_deg) return;
-    vrm_sim::scene::InstrumentDescription shown = slot->description;
-    shown.type = type;
-    const MeshData mesh = instrumentMesh(slot->description, type, jaw_angle);
+    const vrm_sim::scene::InstrumentDescription shown = vrm_sim::scene::instrumentOfType(slot->description, type);
+    const MeshData mesh = toMeshData(vrm_sim::scene::instrumentMesh(shown, jaw));
     renderer_->setStyle(slot->object_id, instrumentStyle(shown, slot->ghost));
     renderer_->updateMesh(slot->object_id, mesh.view(), ++instrument_mesh_version_);
     slot->shown_type = type;
@@ -625,12 +626,17 @@ class StereoRendererNodelet : public nodelet::Nodelet {
       const bool valid = state && state->valid;
       renderer_->setVisible(slot.object_id, valid);
       if (!valid) return;
-      vrm_sim::scene::InstrumentType type = slot.shown_type;
-      if (state->type <= vrm_msgs::InstrumentState::HOOK) {
-        type = static_cast<vrm_sim::scene::InstrumentType>(state->type);  // same order as the message constants
-      } else {
+      // The simulation's rule (instrument model): a type the scene does not allow in this slot keeps the shown one.
+      const std::optional<vrm_sim::scene::InstrumentType> requested = vrm_sim::instrumentTypeFromMsg(state->type);
+      const vrm_sim::scene::InstrumentType type =
+          vrm_sim::scene::typeAfterRequest(slot.description, slot.shown_type, requested);
+      if (!requested) {
         NODELET_WARN_THROTTLE(1.0, "instrument '%s': unknown type %d, keeping %s", state->instrument_id.c_str(),
                               state->type, vrm_sim::scene::toString(type));
+      } else if (*requested != type) {
+        NODELET_WARN_THROTTLE(1.0, "instrument '%s': type %s is not allowed in this slot by the scene, keeping %s",
+                              state->instrument_id.c_str(), vrm_sim::scene::toString(*requested),
+                              vrm_sim::scene::toString(type));
       }
       try {
         showInstrument(&slot, type, state->jaw_angle);

@@ -16,6 +16,7 @@
 #include "vrm_render/stereo_renderer.h"
 #include "vrm_sim/scene/eye_meshes.h"
 #include "vrm_sim/scene/instrument_meshes.h"
+#include "vrm_sim/scene/instrument_model.h"
 #include "vrm_sim/scene/scene_loader.h"
 
 namespace vrm_render {
@@ -422,14 +423,18 @@ TEST(InstrumentMesh, ForcepsJawsOpenWithTheAngleAndSwitchingChangesTheMesh) {
     }
     return hi - lo;
   };
-  const MeshData closed = instrumentMesh(forceps, forceps.type, 0.0);
-  const MeshData open = instrumentMesh(forceps, forceps.type, 0.6);
+  auto drawn = [&](scene::InstrumentType type, double jaw_angle) {  // what the nodelet uploads for a slot
+    return toMeshData(
+        scene::instrumentMesh(scene::instrumentOfType(forceps, type), scene::jawStepDeg(type, jaw_angle)));
+  };
+  const MeshData closed = drawn(forceps.type, 0.0);
+  const MeshData open = drawn(forceps.type, 0.6);
   EXPECT_EQ(closed.triangles.size(), open.triangles.size());
   EXPECT_GT(spread(open), spread(closed) + 0.0003f) << "0.6 rad over 1.5 mm jaws: the tips ~0.9 mm apart";
-  EXPECT_EQ(jawStepDeg(forceps.type, 0.6), 34);
-  EXPECT_EQ(jawStepDeg(forceps.type, std::nan("")), 0);
-  EXPECT_EQ(jawStepDeg(scene::InstrumentType::kVitrector, 0.6), 0) << "only forceps have jaws";
-  const MeshData vitrector = instrumentMesh(forceps, scene::InstrumentType::kVitrector, 0.6);
+  EXPECT_EQ(scene::jawStepDeg(forceps.type, 0.6), 34);
+  EXPECT_EQ(scene::jawStepDeg(forceps.type, std::nan("")), 0);
+  EXPECT_EQ(scene::jawStepDeg(scene::InstrumentType::kVitrector, 0.6), 0) << "only forceps have jaws";
+  const MeshData vitrector = drawn(scene::InstrumentType::kVitrector, 0.6);
   const MeshData reference =
       toMeshData(scene::buildInstrumentMesh({scene::InstrumentSlot::kLeft, scene::InstrumentType::kVitrector, "left",
                                              scene::defaultInstrumentParams(scene::InstrumentType::kVitrector)}));
