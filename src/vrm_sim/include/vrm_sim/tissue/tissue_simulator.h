@@ -271,7 +271,6 @@ class TissueSimulator {
   std::uint32_t touched_epoch_ = 0;
   double free_mass_ = 0.0;  // kg: of the integrated nodes (rebuildConstraints), for the watchdog's floor
   std::vector<Eigen::Vector3d> early_stop_forces_, early_stop_zero_;  // buffers of maxFreeForce()
-  double frame_strain_ = -1.0;  // max strain of all springs after the last step (-1 = unknown)
   double pending_time_ = 0.0;
   SimulatorStatistics statistics_;
   std::unique_ptr<LocalRefinement> refinement_;
