@@ -10,6 +10,7 @@
 #include <ros/node_handle.h>
 #include <ros/time.h>
 #include <sensor_msgs/CameraInfo.h>
+#include <sensor_msgs/Image.h>
 #include <vrm_msgs/EyeState.h>
 #include <vrm_msgs/InstrumentState.h>
 #include <vrm_msgs/MarkerObservations.h>
@@ -76,6 +77,10 @@ void toMsg(const DiagnosticReport& report, diagnostic_msgs::DiagnosticStatus* ms
 // The static transforms eye_frame -> trocar_<slot> of the layout's instruments (the trocar frame is the eye frame
 // shifted to the insertion hole, no rotation); stamps left zero.
 std::vector<geometry_msgs::TransformStamped> trocarTransforms(const MarkerLayout& layout, const std::string& eye_frame);
+
+// A BGR8 image message of width x height pixels with its buffer allocated, for a renderer to draw straight into
+// (no copy between the renderer and the subscribers in the manager).
+sensor_msgs::ImagePtr makeBgr8Image(const std_msgs::Header& header, int width, int height);
 
 // The script every device twin plays: ~script (empty = the built-in demo, builtin:NAME, or a file), with ~loop
 // overriding the file's playback mode; not validated yet: the caller applies its scene's trocars first (a file may

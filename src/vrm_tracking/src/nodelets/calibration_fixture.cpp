@@ -66,13 +66,7 @@ class CalibrationFixture : public nodelet::Nodelet {
 
   sensor_msgs::ImagePtr renderTargetImage(const CameraModel& cam, const Eigen::Isometry3d& pose,
                                           const std_msgs::Header& header) const {
-    auto image = boost::make_shared<sensor_msgs::Image>();
-    image->header = header;
-    image->width = static_cast<std::uint32_t>(cam.width);
-    image->height = static_cast<std::uint32_t>(cam.height);
-    image->encoding = sensor_msgs::image_encodings::BGR8;
-    image->step = 3 * image->width;
-    image->data.resize(static_cast<std::size_t>(image->step) * image->height);
+    sensor_msgs::ImagePtr image = makeBgr8Image(header, cam.width, cam.height);
     cv::Mat view(cam.height, cam.width, CV_8UC3, image->data.data(), image->step);
     renderTarget(cam, pose, target_, &view, 3);
     return image;

@@ -246,13 +246,7 @@ class CameraRigSim : public nodelet::Nodelet {
         continue;
       }
       // Render straight into the message buffer: no copy between renderer and subscribers in the manager.
-      auto image = boost::make_shared<sensor_msgs::Image>();
-      image->header = header;
-      image->width = static_cast<std::uint32_t>(cam.width);
-      image->height = static_cast<std::uint32_t>(cam.height);
-      image->encoding = sensor_msgs::image_encodings::BGR8;
-      image->step = 3 * image->width;
-      image->data.resize(static_cast<std::size_t>(image->step) * image->height);
+      sensor_msgs::ImagePtr image = makeBgr8Image(header, cam.width, cam.height);
       cv::Mat view(cam.height, cam.width, CV_8UC3, image->data.data(), image->step);
       renderer_->render(c, scene, frame_, &view, &truth);
 

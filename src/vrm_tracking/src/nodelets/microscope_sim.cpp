@@ -18,8 +18,7 @@
 #include <pluginlib/class_list_macros.hpp>
 #include <string>
 
-#include "vrm_sim/package_data.h"
-#include "vrm_sim/scene/scene_loader.h"
+#include "device_script.h"
 #include "vrm_tracking/conversions.h"
 #include "vrm_tracking/microscope_knobs.h"
 #include "vrm_tracking/scene_trocars.h"
@@ -34,16 +33,7 @@ class MicroscopeSim : public nodelet::Nodelet {
     ros::NodeHandle& pnh = getPrivateNodeHandle();
 
     try {
-      // Only the instrument tracks (not played here) can need a scene: a file that leaves its trocars to the scene
-      // gets ~scene's, or the default scene's, so it validates as the scripted surgeon's copy does.
-      ScriptDefinition definition = loadScriptFromParams(pnh);
-      if (leavesTrocarsToScene(definition)) {
-        std::string scene_spec;
-        pnh.param<std::string>("scene", scene_spec, "");
-        vrm_sim::usePackageData();  // a scene name means vrm_sim's shipped scene
-        applySceneTrocars(vrm_sim::scene::loadScene(sceneOrDefault(scene_spec)), &definition);
-      }
-      script_ = std::make_unique<SurgeonScript>(std::move(definition));
+      script_ = std::make_unique<SurgeonScript>(loadDeviceScript(pnh));
     } catch (const std::exception& e) {
       NODELET_FATAL("cannot load surgeon script: %s", e.what());
       throw;

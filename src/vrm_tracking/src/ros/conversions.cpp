@@ -1,5 +1,8 @@
 #include "vrm_tracking/conversions.h"
 
+#include <sensor_msgs/image_encodings.h>
+
+#include <boost/make_shared.hpp>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -233,6 +236,17 @@ std::vector<geometry_msgs::TransformStamped> trocarTransforms(const MarkerLayout
     trocars.push_back(t);
   }
   return trocars;
+}
+
+sensor_msgs::ImagePtr makeBgr8Image(const std_msgs::Header& header, int width, int height) {
+  auto image = boost::make_shared<sensor_msgs::Image>();
+  image->header = header;
+  image->width = static_cast<std::uint32_t>(width);
+  image->height = static_cast<std::uint32_t>(height);
+  image->encoding = sensor_msgs::image_encodings::BGR8;
+  image->step = 3 * image->width;
+  image->data.resize(static_cast<std::size_t>(image->step) * image->height);
+  return image;
 }
 
 ScriptDefinition loadScriptFromParams(const ros::NodeHandle& private_nh) {
