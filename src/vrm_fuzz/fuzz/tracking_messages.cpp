@@ -84,7 +84,7 @@ VRM_FUZZ_TARGET(tracking_messages) {
         try {
           snapshot.instruments.push_back(fromMsg(msg));
           if (snapshot.instruments.size() > 4) snapshot.instruments.erase(snapshot.instruments.begin());
-        } catch (const std::invalid_argument&) {  // an unknown instrument type (fromMsgType)
+        } catch (const std::invalid_argument&) {  // an unknown instrument type (fromMsg)
         }
         worldSceneFromSnapshot(snapshot, layout);
         break;
