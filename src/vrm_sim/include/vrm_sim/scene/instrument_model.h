@@ -16,9 +16,9 @@
 namespace vrm_sim {
 namespace scene {
 
-// The forceps open no further than this (rad, full opening): the grasp model's jaw capsules, the collision mesh and
-// the drawn mesh all stop here.
-constexpr double kMaxJawOpening = 1.5;
+// The forceps open no further than tissue::kMaxJawOpening (1.5 rad, full opening): the grasp model's jaw capsules,
+// the collision mesh and the drawn mesh all stop there.
+using tissue::kMaxJawOpening;
 
 // The slot's instrument when it holds `type`: the scene's parameters for its declared type, the generator defaults
 // for another type (instrument switching).

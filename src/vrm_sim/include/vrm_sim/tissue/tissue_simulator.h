@@ -103,6 +103,10 @@ struct TissueConfig {
 // each jaw is a capsule of `jaw_radius` from the hinge towards its tip, opened by ±jaw_angle/2 towards ±y — so the
 // open jaws push tissue only under the blades, and tissue between them can be grasped. Their mid-plane is the
 // instrument's xz plane. An instrument that holds a grasp pushes nothing (its grasped nodes follow it instead).
+// The forceps open no further than this (rad, full opening): the jaw capsules here and the instrument model's meshes
+// (scene/instrument_model.h) stop at the same angle.
+constexpr double kMaxJawOpening = 1.5;
+
 struct InstrumentInput {
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
   double radius = 3e-4;

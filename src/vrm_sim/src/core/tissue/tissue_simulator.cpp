@@ -23,7 +23,7 @@ InstrumentCapsules instrumentCapsules(const InstrumentInput& instrument) {
   add({pose * Eigen::Vector3d(0.0, 0.0, hinge_z - r),
        pose * Eigen::Vector3d(0.0, 0.0, std::min(hinge_z - r, -std::max(instrument.length, r))), r});
   // Jaw blades from the hinge; the capsule's rounded end stops at the blade's tip.
-  const double half_angle = 0.5 * std::clamp(instrument.jaw_angle, 0.0, 1.5);
+  const double half_angle = 0.5 * std::clamp(instrument.jaw_angle, 0.0, kMaxJawOpening);
   const double reach = std::max(instrument.jaw_length - instrument.jaw_radius, 0.0);
   for (const double side : {1.0, -1.0}) {
     const Eigen::Vector3d direction(0.0, side * std::sin(half_angle), std::cos(half_angle));
