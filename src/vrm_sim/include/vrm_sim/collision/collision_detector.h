@@ -25,7 +25,7 @@
 // shaft towards the tip), with an orthographic volume fitted around the tip region (thesis Fig. 4.8: V and z are
 // object-fixed).
 //
-// Use from a simulation (e.g. the tissue_sim nodelet):
+// Use from a simulation (e.g. world::World, which the scenario_manager nodelet wraps):
 //   auto detector = makeCollisionDetector("zcoll_f_cpu");
 //   detector->setInstrument(model);                        // once, and whenever the jaws move
 //   CollisionResult r = detector->collide(pose, SurfaceView::of(membrane));

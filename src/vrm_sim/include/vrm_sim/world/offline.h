@@ -1,8 +1,8 @@
 #pragma once
 // Headless runs of a scene without ROS (`rosrun vrm_sim tissue_offline`): the instruments follow their scripted
 // paths (scene key instruments[].path), sampled into instrument states at `rate` Hz exactly as a device twin would
-// publish them, and drive the same World the tissue_sim nodelet wraps. No wall clock enters the result, so the same
-// scene, options and seed give the same final state bit for bit — and the same state as the graph given the same
+// publish them, and drive the same World the scenario_manager nodelet wraps. No wall clock enters the result, so the
+// same scene, options and seed give the same final state bit for bit — and the same state as the graph given the same
 // input sequence (test/graph/core_equivalence). The wall clock only measures the cost.
 
 #include <cstdint>

@@ -1,7 +1,7 @@
 #pragma once
 // The simulation core of the VR part (thesis §2.4: VR objects, simulations and the scenario behind the mediators):
 // one ROS-free World that owns the loaded scene, its deformable tissues, the colliders of every object, the
-// instruments and the session state, and advances one *frame* per input tick. The tissue_sim nodelet, the offline
+// instruments and the session state, and advances one *frame* per input tick. The scenario_manager nodelet, the offline
 // tools (tissue_offline, and the replay tools built on it) and the tests all drive this one class through the same
 // handle() calls — the cartographer_ros pattern of one handler path for live and recorded input.
 //
@@ -115,9 +115,9 @@ struct TissueReport {
   std::string object;
   std::string frame_id;  // "eye" | "world"
   const mge::Membrane* membrane = nullptr;
-  int steps = 0;            // this frame
-  int fallbacks = 0;        // watchdog rollbacks this frame
-  std::string integrator;   // in use, with its substeps per dt ("symplectic_euler x2"; TissueSimulator::integratorLabel)
+  int steps = 0;           // this frame
+  int fallbacks = 0;       // watchdog rollbacks this frame
+  std::string integrator;  // in use, with its substeps per dt ("symplectic_euler x2"; TissueSimulator::integratorLabel)
   double max_strain = 0.0;  // after this frame
   std::size_t grasped_nodes = 0;
   bool changed = false;                  // positions or topology changed this frame
