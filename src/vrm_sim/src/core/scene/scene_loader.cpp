@@ -34,12 +34,6 @@ std::string joinNames(const std::vector<std::string>& names) {
   return joined;
 }
 
-using vrm_sim::typoSuggestion;
-
-std::string suggestion(const std::string& word, const std::vector<std::string>& candidates) {
-  return typoSuggestion(word, candidates);
-}
-
 // One YAML node together with its field path and file, so every check can report where it failed.
 class Field {
  public:
@@ -127,7 +121,7 @@ class Field {
       }
     }
     fail("expected one of " + joinNames(names) + ", got " + shown() +
-         (node_.IsScalar() ? suggestion(node_.Scalar(), names) : ""));
+         (node_.IsScalar() ? typoSuggestion(node_.Scalar(), names) : ""));
   }
 
   std::string name(const std::vector<std::string>& allowed) const {
@@ -205,7 +199,7 @@ class MapFields {
     for (const auto& key : order_) {
       if (std::find(known_.begin(), known_.end(), key) != known_.end()) continue;
       field_.child(entries_.at(key).key, key)
-          .fail("unknown key" + suggestion(key, known_) + "; allowed keys: " + joinNames(known_));
+          .fail("unknown key" + typoSuggestion(key, known_) + "; allowed keys: " + joinNames(known_));
     }
   }
 
@@ -649,7 +643,7 @@ InstrumentDescription readInstrument(const Field& field, const EyeDescription& e
     std::vector<std::string> names;
     for (const auto& known : eye.trocars) names.push_back(known.name);
     (trocar ? *trocar : field)
-        .fail("unknown trocar '" + instrument.trocar + "'" + suggestion(instrument.trocar, names) +
+        .fail("unknown trocar '" + instrument.trocar + "'" + typoSuggestion(instrument.trocar, names) +
               "; the eye has: " + joinNames(names));
   }
   if (auto alternatives = fields.optional("alternatives")) {
@@ -862,7 +856,7 @@ std::string applyDifficulty(YAML::Node root, const std::string& file, const std:
     level = difficulty["default"].Scalar();
   }
   if (std::find(names.begin(), names.end(), level) == names.end()) {
-    difficulty_field.fail("unknown difficulty level '" + level + "'" + suggestion(level, names) +
+    difficulty_field.fail("unknown difficulty level '" + level + "'" + typoSuggestion(level, names) +
                           "; levels: " + joinNames(names));
   }
   // Every level's paths must resolve (a typo in "hard" fails even while "easy" is loaded); only `level` is applied.
