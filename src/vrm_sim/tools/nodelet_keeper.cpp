@@ -1,8 +1,8 @@
 // nodelet_keeper: `nodelet load` that survives a crash of its manager (issue 14). The stock loader loads a nodelet
 // once; with --no-bond it never notices that the manager died and came back empty, and with a bond it exits and
-// needs a respawn (and bonds break spuriously on a loaded two-core machine and abort at teardown under rostest,
-// ROS_TOOLCHAIN.md). This loader asks the master for the manager's URI twice a second and loads the nodelet again
-// into every new manager process (a new URI), with the same name, type, remappings and arguments, and unloads it
+// needs a respawn (and bonds break spuriously on a loaded two-core machine and abort at teardown under rostest
+// with boost::lock_error). This loader asks the master for the manager's URI twice a second and loads the nodelet
+// again into every new manager process (a new URI), with the same name, type, remappings and arguments, and unloads it
 // when the launch stops it. Drop-in for the stock loader:
 //   <node pkg="vrm_sim" type="nodelet_keeper" name="scene_manager" args="load vrm_sim/scene_manager MANAGER"/>
 // Parameters: none (the nodelet's own parameters live under its name, which it keeps across reloads).

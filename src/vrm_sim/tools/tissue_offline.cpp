@@ -1,6 +1,6 @@
-// tissue_offline: runs a scene headless, without a ROS master, through the same simulation core as the tissue_sim
-// nodelet (vrm_sim::world::World): the instruments follow their scripted paths from the scene file, sampled into
-// instrument states at --rate Hz; prints one JSON object
+// tissue_offline: runs a scene headless, without a ROS master, through the same simulation core as the
+// scenario_manager nodelet (vrm_sim::world::World): the instruments follow their scripted paths from the scene file,
+// sampled into instrument states at --rate Hz; prints one JSON object
 //   {"stable", "frames", "steps", "ms_per_step", "ms_per_frame", "ms_per_frame_max", "max_strain",
 //    "max_grasped_nodes", "energy_drift", "fallbacks", "retina_contacts", "max_injury",
 //    "tissues": [{"object", "outcome", "torn_springs", "released_adhesions", "topology_version", "max_lift"}],

@@ -1006,7 +1006,6 @@ void MainWindow::autopilotStep() {
   };
   auto finish = [this](int code, const QString& why) {
     autopilot_timer_->stop();
-    autopilot_exit_code_ = code;
     note("autopilot: " + why);
     emit autopilotFinished(code);
   };

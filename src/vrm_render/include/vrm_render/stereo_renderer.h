@@ -52,7 +52,6 @@ class StereoRenderer {
   void setStyle(const std::string& id, const ObjectStyle& style);  // objects may be styled before their mesh exists
   void setPose(const std::string& id, const Eigen::Isometry3f& world_from_object);
   void setVisible(const std::string& id, bool visible);
-  void removeObject(const std::string& id);
   bool hasObject(const std::string& id) const;
   std::uint64_t version(const std::string& id) const;  // 0 when unknown
 

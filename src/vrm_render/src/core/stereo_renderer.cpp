@@ -600,17 +600,6 @@ void StereoRenderer::setPose(const std::string& id, const Eigen::Isometry3f& wor
 
 void StereoRenderer::setVisible(const std::string& id, bool visible) { impl_->objects[id].visible = visible; }
 
-void StereoRenderer::removeObject(const std::string& id) {
-  auto it = impl_->objects.find(id);
-  if (it == impl_->objects.end()) return;
-  impl_->context->makeCurrent();
-  if (it->second.vao) {
-    glDeleteVertexArrays(1, &it->second.vao);
-    glDeleteBuffers(5, it->second.buffers);
-  }
-  impl_->objects.erase(it);
-}
-
 bool StereoRenderer::hasObject(const std::string& id) const {
   auto it = impl_->objects.find(id);
   return it != impl_->objects.end() && it->second.has_mesh;

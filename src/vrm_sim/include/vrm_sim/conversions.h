@@ -1,6 +1,6 @@
 #pragma once
-// The one place where vrm_sim's core types meet ROS messages (STYLE.md point 2). Everything else in the core is
-// ROS-free.
+// The one place where vrm_sim's core types meet ROS messages (one conversions file per package). Everything else in
+// the core is ROS-free.
 
 #include <geometry_msgs/Pose.h>
 #include <geometry_msgs/Transform.h>

@@ -48,7 +48,6 @@ class RigRenderer {
 
   const CameraRig& rig() const { return rig_; }
   const RenderConfig& config() const { return config_; }
-  void setConfig(const RenderConfig& config);
 
  private:
   void buildBackgrounds();

@@ -68,14 +68,6 @@ RigRenderer::RigRenderer(CameraRig rig, MarkerLayout layout, RenderConfig config
   buildBackgrounds();
 }
 
-void RigRenderer::setConfig(const RenderConfig& config) {
-  const bool rebuild = config.seed != config_.seed || config.clutter != config_.clutter ||
-                       config.background != config_.background || config.exposure != config_.exposure ||
-                       config.read_noise != config_.read_noise || config.shot_gain != config_.shot_gain;
-  config_ = config;
-  if (rebuild) buildBackgrounds();
-}
-
 void RigRenderer::buildBackgrounds() {
   backgrounds_.clear();
   for (std::size_t c = 0; c < rig_.size(); ++c) {

@@ -61,7 +61,6 @@ class MainWindow : public QMainWindow {
   Screen screen() const;
   QString currentUser() const { return user_ ? QString::fromStdString(user_->name) : QString(); }
   std::int64_t lastStoredSession() const { return last_stored_session_; }
-  int autopilotExitCode() const { return autopilot_exit_code_; }
   // Saves what the window shows (the X server's framebuffer under a real display, the widget under offscreen).
   bool saveScreenshot(const QString& path);
 
@@ -174,7 +173,6 @@ class MainWindow : public QMainWindow {
   // autopilot
   int autopilot_stage_ = -1;
   double autopilot_elapsed_ = 0.0;
-  int autopilot_exit_code_ = 1;
   QTimer* autopilot_timer_ = nullptr;
 };
 

@@ -52,8 +52,6 @@ class Element {
   std::vector<Label> labels() const;
   // Total number of outgoing edges over all labels.
   std::size_t degree() const;
-  // Releases spare capacity of all label ranges (e.g. after building a large graph).
-  void shrinkAdjacency();
 
  protected:
   Element() : holes_(0), block_in_arena_(0) {}
@@ -109,9 +107,9 @@ class Element {
   // Copies the adjacency into a new heap block with room for `range_capacity` labels and `capacity` entries, layout
   // unchanged (holes kept).
   void reallocateBlock(std::uint32_t range_capacity, std::uint32_t capacity);
-  // Packs the ranges in order without holes into a new block; tight drops spare capacity (of table and ranges).
-  void compactRanges(bool tight);
-  // Bytes of the tight block compactRanges(true) would make (0 without block).
+  // Packs the ranges in order without holes into a new block; each range keeps its spare capacity.
+  void compactRanges();
+  // Bytes of the block with every range packed without spare capacity (0 without block).
   std::size_t tightBlockBytes() const;
   // Writes the tight block into `memory` (tightBlockBytes() bytes, owned by the graph's arena) and adopts it.
   void moveBlockToArena(void* memory);

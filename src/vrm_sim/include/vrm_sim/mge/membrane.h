@@ -76,8 +76,6 @@ class Membrane {
   // Contiguous arrays in slot order, for solvers and the renderer.
   NodeArrays& nodeArrays() { return node_arrays_; }
   const NodeArrays& nodeArrays() const { return node_arrays_; }
-  const SpringArrays& springArrays() const { return spring_arrays_; }
-  const TriangleArrays& triangleArrays() const { return triangle_arrays_; }
   Eigen::Vector3d* positions() { return node_arrays_.data<kNodePosition>(); }
   Eigen::Vector3d* velocities() { return node_arrays_.data<kNodeVelocity>(); }
   const double* masses() const { return node_arrays_.data<kNodeMass>(); }

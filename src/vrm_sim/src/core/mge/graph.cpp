@@ -47,10 +47,6 @@ std::size_t Element::degree() const {
   return total;
 }
 
-void Element::shrinkAdjacency() {
-  if (block_ != nullptr) compactRanges(/*tight=*/true);
-}
-
 void Element::adoptBlock(Block* block, bool in_arena) {
   releaseBlock();
   block_ = block;
@@ -118,7 +114,7 @@ void Element::growRange(std::uint32_t range_index) {
     range.begin = new_begin;
   }
   range.capacity = new_capacity;
-  if (holes_ > block_->size / 2) compactRanges(/*tight=*/false);
+  if (holes_ > block_->size / 2) compactRanges();
 }
 
 std::size_t Element::tightBlockBytes() const {
@@ -126,11 +122,11 @@ std::size_t Element::tightBlockBytes() const {
   return Block::bytes(block_->range_count, degree());
 }
 
-void Element::compactRanges(bool tight) {
+void Element::compactRanges() {
   const std::uint32_t range_count = block_->range_count;
   std::uint64_t total = 0;
-  for (std::uint32_t r = 0; r < range_count; ++r) total += tight ? range(r).count : range(r).capacity;
-  const std::uint32_t range_capacity = tight ? range_count : block_->range_capacity;
+  for (std::uint32_t r = 0; r < range_count; ++r) total += range(r).capacity;
+  const std::uint32_t range_capacity = block_->range_capacity;
   Block* block = static_cast<Block*>(::operator new(Block::bytes(range_capacity, total)));
   block->range_count = range_count;
   block->range_capacity = range_capacity;
@@ -140,9 +136,8 @@ void Element::compactRanges(bool tight) {
   for (std::uint32_t r = 0; r < range_count; ++r) {
     LabelRange entry = range(r);
     std::copy_n(rangeData(r), entry.count, packed + size);
-    if (!tight) std::fill(packed + size + entry.count, packed + size + entry.capacity, nullptr);
+    std::fill(packed + size + entry.count, packed + size + entry.capacity, nullptr);
     entry.begin = size;
-    if (tight) entry.capacity = entry.count;
     size += entry.capacity;
     block->ranges()[r] = entry;
   }
