@@ -16,12 +16,16 @@
 #include <algorithm>
 #include <cstdio>
 #include <fstream>
-#include <functional>
 #include <map>
 #include <mutex>
 #include <vector>
 
+#include "vrm_sim/testing/graph_test.h"
+
 namespace {
+
+using vrm_sim::testing::waitFor;
+using vrm_sim::testing::waitForSubscribers;
 
 struct Collected {
   std::mutex mutex;
@@ -62,15 +66,14 @@ TEST(StereoRendererGraph, PublishesPairedImagesAtTheRateWithMonotonicStamps) {
   tf2_ros::TransformListener tf_listener(tf_buffer);
   ros::AsyncSpinner spinner(2);
   spinner.start();
-  // Wait on the condition (enough frames), bounded by a generous timeout; no fixed sleeps.
-  const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(90.0);
-  while (ros::ok() && ros::WallTime::now() < deadline) {
-    {
-      std::lock_guard<std::mutex> lock(c.mutex);
-      if (static_cast<int>(std::min(c.left.size(), c.right.size())) >= frames + 2) break;
-    }
-    ros::WallDuration(0.05).sleep();
-  }
+  // Wait on the condition (enough frames), bounded by a generous timeout; no fixed sleeps. The counts are
+  // asserted below.
+  waitFor(
+      [&] {
+        std::lock_guard<std::mutex> lock(c.mutex);
+        return static_cast<int>(std::min(c.left.size(), c.right.size())) >= frames + 2;
+      },
+      90.0);
   // Camera frames on tf at the stamp of an image (the frame is published with the images).
   sensor_msgs::Image::ConstPtr tf_image;
   {
@@ -112,9 +115,7 @@ TEST(StereoRendererGraph, PublishesPairedImagesAtTheRateWithMonotonicStamps) {
 
   // The replayed instructor's instruments (ghost_instruments) are listened to.
   ros::Publisher ghost = nh.advertise<vrm_msgs::InstrumentState>("ghost/instrument_state", 1);
-  const ros::WallTime ghost_deadline = ros::WallTime::now() + ros::WallDuration(10.0);
-  while (ghost.getNumSubscribers() == 0 && ros::WallTime::now() < ghost_deadline) ros::WallDuration(0.05).sleep();
-  EXPECT_GT(ghost.getNumSubscribers(), 0u) << "ghost/instrument_state not subscribed";
+  EXPECT_TRUE(waitForSubscribers(ghost, 10.0)) << "ghost/instrument_state not subscribed";
 
   spinner.stop();
   std::lock_guard<std::mutex> lock(c.mutex);
@@ -155,15 +156,6 @@ TEST(StereoRendererGraph, PublishesPairedImagesAtTheRateWithMonotonicStamps) {
 
 // Lazy subscription (image_pipeline's pattern): the renderer listens to its inputs only while an image is watched.
 // ghost/instrument_state is subscribed by the renderer alone, so its subscriber count shows the renderer's inputs.
-bool waitFor(const std::function<bool()>& condition, double timeout) {
-  const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(timeout);
-  while (!condition()) {
-    if (ros::WallTime::now() > deadline) return false;
-    ros::WallDuration(0.05).sleep();
-  }
-  return true;
-}
-
 TEST(StereoRendererGraph, SubscribesToItsInputsOnlyWhileAnImageIsWatched) {
   ros::NodeHandle nh;
   ros::AsyncSpinner spinner(1);

@@ -1,5 +1,6 @@
 #pragma once
-// Shared by the graph tests that drive scenario_manager with a scripted input sequence.
+// Shared by the graph tests that drive scenario_manager with a scripted input sequence; waiting itself is
+// vrm_sim/testing/graph_test.h.
 
 #include <gtest/gtest.h>
 #include <ros/ros.h>
@@ -12,20 +13,10 @@
 
 #include "vrm_msgs/InstrumentState.h"
 #include "vrm_sim/conversions.h"
+#include "vrm_sim/testing/graph_test.h"
 #include "vrm_sim/world/world.h"
 
 namespace vrm_sim {
-
-// Polls `condition` until it holds or `seconds` of wall time passed (never a fixed sleep).
-template <typename Condition>
-bool waitFor(Condition condition, double seconds) {
-  const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(seconds);
-  while (ros::ok() && ros::WallTime::now() < deadline) {
-    if (condition()) return true;
-    ros::WallDuration(0.002).sleep();
-  }
-  return condition();
-}
 
 // Publishes `inputs` tick by tick: all states of one stamp, then it waits until the frame of the previous stamp has
 // closed (`last_frame` returns the stamp of the newest simulation_state), so no subscriber queue overflows and
@@ -41,13 +32,13 @@ inline ::testing::AssertionResult playTicks(
   std::size_t index = 0;
   for (const auto& [stamp, tick] : ticks) {
     for (const auto& input : tick) instruments.publish(boost::make_shared<vrm_msgs::InstrumentState>(toMsg(input)));
-    if (previous && !waitFor([&] { return last_frame() >= *previous; }, 10.0)) {
+    if (previous && !testing::waitFor([&] { return last_frame() >= *previous; }, 10.0)) {
       return ::testing::AssertionFailure() << "no frame for stamp " << *previous;
     }
     previous = stamp;
     if (!after_tick(stamp, ++index)) return ::testing::AssertionSuccess();
   }
-  if (previous && !waitFor([&] { return last_frame() == *previous; }, 10.0)) {
+  if (previous && !testing::waitFor([&] { return last_frame() == *previous; }, 10.0)) {
     return ::testing::AssertionFailure() << "the last tick's frame did not close";
   }
   return ::testing::AssertionSuccess();

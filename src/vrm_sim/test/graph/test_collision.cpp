@@ -1,5 +1,5 @@
-// scenario_manager's collision detection in a manager: the light pipe, posed in the world frame of an eye rotated by 20°,
-// is pushed 0.15 mm through the membrane along the membrane's normal. Expected: CollisionReports (stamped with the
+// scenario_manager's collision detection in a manager: the light pipe, posed in the world frame of an eye rotated by
+// 20°, is pushed 0.15 mm through the membrane along the membrane's normal. Expected: CollisionReports (stamped with the
 // input stamps, in the eye frame, from the scene's detector) with colliding triangles and deformation vectors along
 // the normal, no longer than the penetration; markers for exactly the colliding triangles; the membrane pushed
 // along the normal; a collision stage in the StageTiming; and no collision once withdrawn. Every wait is on a
@@ -21,10 +21,13 @@
 #include "vrm_msgs/TissueMesh.h"
 #include "vrm_sim/conversions.h"
 #include "vrm_sim/scene/scene_loader.h"
+#include "vrm_sim/testing/graph_test.h"
 
 namespace {
 
 using Eigen::Vector3d;
+using vrm_sim::testing::waitFor;
+using vrm_sim::testing::waitForSubscribers;
 
 struct Observed {
   int reports = 0, colliding_reports = 0, non_colliding_since_reset = 0;
@@ -166,15 +169,10 @@ TEST(CollisionGraph, PushedInstrumentReportsTrianglesAndNormalDeformations) {
   Watcher watcher(nh, object_name, detector, mesh.vertices, normal);
   ros::Publisher instrument_publisher = nh.advertise<vrm_msgs::InstrumentState>("instrument_state", 20);
   ros::Publisher eye_publisher = nh.advertise<vrm_msgs::EyeState>("eye_state", 20);
-  const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(30.0);
-  while (ros::ok() && ros::WallTime::now() < deadline &&
-         (instrument_publisher.getNumSubscribers() == 0 || eye_publisher.getNumSubscribers() == 0 ||
-          !watcher.connected())) {
-    ros::WallDuration(0.01).sleep();
-  }
-  ASSERT_GT(instrument_publisher.getNumSubscribers(), 0u) << "scenario_manager does not subscribe instrument_state";
-  ASSERT_GT(eye_publisher.getNumSubscribers(), 0u) << "scenario_manager does not subscribe eye_state";
-  ASSERT_TRUE(watcher.connected()) << "scenario_manager does not advertise collision_report / collision_markers";
+  ASSERT_TRUE(waitForSubscribers(instrument_publisher, 30.0)) << "scenario_manager does not subscribe instrument_state";
+  ASSERT_TRUE(waitForSubscribers(eye_publisher, 30.0)) << "scenario_manager does not subscribe eye_state";
+  ASSERT_TRUE(waitFor([&] { return watcher.connected(); }, 30.0))
+      << "scenario_manager does not advertise collision_report / collision_markers";
   ros::AsyncSpinner spinner(1);
   spinner.start();
 

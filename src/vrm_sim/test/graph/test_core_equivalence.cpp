@@ -20,6 +20,8 @@
 namespace vrm_sim {
 namespace {
 
+using testing::waitFor;
+
 constexpr double kSeconds = 1.2;
 constexpr double kRate = 50.0;
 

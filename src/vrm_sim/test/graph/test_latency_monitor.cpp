@@ -13,11 +13,13 @@
 #include <string>
 #include <thread>
 
-#include "graph_test_util.h"
 #include "vrm_msgs/StageTiming.h"
+#include "vrm_sim/testing/graph_test.h"
 
 namespace vrm_sim {
 namespace {
+
+using testing::waitFor;
 
 vrm_msgs::StageStamp span(const std::string& stage, const ros::Time& stamp, double from_ms, double to_ms) {
   vrm_msgs::StageStamp s;

@@ -12,11 +12,14 @@
 #include <set>
 #include <string>
 
-#include "graph_test_util.h"
 #include "vrm_msgs/EyeState.h"
+#include "vrm_sim/testing/graph_test.h"
 
 namespace vrm_sim {
 namespace {
+
+using testing::waitFor;
+using testing::waitForSubscribers;
 
 const std::set<std::string> kInputs = {"eye_state", "instrument_state", "pedals", "microscope"};
 
@@ -82,7 +85,7 @@ class NoDevices : public ::testing::Test {
 TEST_F(NoDevices, TheUserIsToldWhatTheSimulatorWaitsFor) {
   // The monitor is up once it subscribes to the inputs (the manager loads it with the rest of the graph).
   ros::Publisher eye = nh_.advertise<vrm_msgs::EyeState>("eye_state", 10);
-  ASSERT_TRUE(waitFor([&] { return eye.getNumSubscribers() > 0; }, 60.0)) << "the graph did not come up";
+  ASSERT_TRUE(waitForSubscribers(eye, 60.0)) << "the graph did not come up";
   // Our own publisher counts as one: drop it until the "nothing connected" part is checked.
   eye.shutdown();
   ASSERT_TRUE(waitFor([&] { return allMissing(); }, 5.0))
@@ -95,7 +98,7 @@ TEST_F(NoDevices, TheUserIsToldWhatTheSimulatorWaitsFor) {
 
   // A device that delivers at its rate turns OK; one far below it is reported slow (the check can fail).
   eye = nh_.advertise<vrm_msgs::EyeState>("eye_state", 10);
-  ASSERT_TRUE(waitFor([&] { return eye.getNumSubscribers() > 0; }, 10.0));
+  ASSERT_TRUE(waitForSubscribers(eye, 10.0));
   auto publishFor = [&](double seconds, double rate_hz) {
     const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(seconds);
     ros::WallRate rate(rate_hz);

@@ -15,10 +15,12 @@
 #include <vector>
 
 #include "child_process.h"
+#include "vrm_sim/testing/graph_test.h"
 
 namespace {
 
 using vrm_sim::ChildProcess;
+using vrm_sim::testing::waitFor;
 namespace fs = std::filesystem;
 
 bool nodeSubscribesTo(const std::string& node, const std::vector<std::string>& topics) {
@@ -91,11 +93,8 @@ TEST(RecordReplay, ReplayedInputStreamEqualsTheRecordedOne) {
   recorder_args.insert(recorder_args.end(), topics.begin(), topics.end());
   ChildProcess topic_recorder(recorder_args);
   ASSERT_TRUE(topic_recorder.started());
-  const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(30.0);
-  while (!nodeSubscribesTo("/replay_check_recorder", topics) && ros::WallTime::now() < deadline) {
-    ros::WallDuration(0.05).sleep();
-  }
-  ASSERT_TRUE(nodeSubscribesTo("/replay_check_recorder", topics)) << "re-recorder never subscribed";
+  ASSERT_TRUE(waitFor([&] { return nodeSubscribesTo("/replay_check_recorder", topics); }, 30.0, 0.05))
+      << "re-recorder never subscribed";
 
   {
     ChildProcess replay({"roslaunch", launch_dir + "/replay.launch", "bag:=" + recorded});
@@ -106,8 +105,7 @@ TEST(RecordReplay, ReplayedInputStreamEqualsTheRecordedOne) {
   EXPECT_EQ(topic_recorder.waitFor(20.0), 0);
   // The recorder renames <bag>.active to <bag> when it has closed the file; on a loaded machine that may trail
   // the exit of the process that was signalled.
-  const ros::WallTime closed_deadline = ros::WallTime::now() + ros::WallDuration(20.0);
-  while (!fs::exists(replayed) && ros::WallTime::now() < closed_deadline) ros::WallDuration(0.05).sleep();
+  waitFor([&] { return fs::exists(replayed); }, 20.0, 0.05);
   EXPECT_FALSE(fs::exists(replayed + ".active") && !fs::exists(replayed)) << "the re-recorder never closed its bag";
   ASSERT_TRUE(fs::exists(replayed)) << "the re-recorder left no bag";
 

@@ -24,6 +24,8 @@
 namespace vrm_sim {
 namespace {
 
+using testing::waitFor;
+
 struct Observed {
   std::mutex mutex;
   vrm_msgs::ScenarioStatus status;

@@ -9,7 +9,11 @@
 #include <sstream>
 #include <string>
 
+#include "vrm_sim/testing/graph_test.h"
+
 namespace {
+
+using vrm_sim::testing::waitFor;
 
 struct TopicCounts {
   std::uint64_t received = 0;
@@ -65,12 +69,12 @@ TEST(ZeroCopyGraph, SameManagerGetsThePublishedPointerAnotherProcessGetsCopies) 
   const std::vector<std::string> streaming_topics = {"/eye_state", "/instrument_state", "/pedals", "/microscope"};
 
   ProbeListener listener(nh);
-  const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(60.0);
-  while (ros::ok() && ros::WallTime::now() < deadline &&
-         !(everyTopicHasAtLeast(listener.latest(probe), streaming_topics, min_messages) &&
-           everyTopicHasAtLeast(listener.latest(control_probe), streaming_topics, min_messages))) {
-    ros::WallDuration(0.05).sleep();
-  }
+  waitFor(
+      [&] {
+        return everyTopicHasAtLeast(listener.latest(probe), streaming_topics, min_messages) &&
+               everyTopicHasAtLeast(listener.latest(control_probe), streaming_topics, min_messages);
+      },
+      60.0, 0.05);
 
   const ProbeReport local = listener.latest(probe);
   const ProbeReport remote = listener.latest(control_probe);

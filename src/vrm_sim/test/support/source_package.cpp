@@ -1,5 +1,6 @@
-// Linked into the tests and benchmarks, which run in a checkout: shipped scenes come from the source package
-// (VRM_SIM_PACKAGE_DIR, set by CMake). Installed code finds the package at run time instead (package_data.h).
+// Linked into the tests and benchmarks (vrm_sim's, and vrm_tracking's tests of scene trocars), which run in a
+// checkout: vrm_sim's shipped scenes come from its source package (VRM_SIM_PACKAGE_DIR, set by each CMakeLists).
+// Installed code finds the package at run time instead (package_data.h).
 #include "vrm_sim/scene/scene_loader.h"
 
 namespace {

@@ -22,11 +22,8 @@
 #include <vrm_msgs/TissueMesh.h>
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
-#include <condition_variable>
 #include <cstdio>
-#include <functional>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -34,8 +31,12 @@
 #include <string>
 #include <vector>
 
+#include "vrm_sim/testing/graph_test.h"
+
 namespace vrm_tracking {
 namespace {
+
+using vrm_sim::testing::waitForSubscribers;
 
 constexpr double kTimeout = 60.0;  // s; three cameras rendered on a shared 2-core machine can be slow
 constexpr double kPeriod = 0.02;   // the rig's nominal frame period (50 Hz)
@@ -85,7 +86,7 @@ struct Status {
 
 double wallNow() { return ros::WallTime::now().toSec(); }
 
-class Listener {
+class Listener : public vrm_sim::testing::AwaitedState {
  public:
   explicit Listener(ros::NodeHandle& nh) {
     subs_.push_back(nh.subscribe("instrument_state", 2000, &Listener::onInstrument, this));
@@ -99,14 +100,9 @@ class Listener {
           name + "/markers", 200, [this, name](const vrm_msgs::MarkerObservations::ConstPtr& m) {
             std::set<int> classes;
             for (const auto& marker : m->markers) classes.insert(marker.class_id);
-            locked([&] { cameras[name].push_back({wallNow(), m->header.stamp, classes}); });
+            update([&] { cameras[name].push_back({wallNow(), m->header.stamp, classes}); });
           }));
     }
-  }
-
-  bool waitFor(const std::function<bool()>& pred, double timeout_s) {
-    std::unique_lock<std::mutex> lock(mutex_);
-    return cv_.wait_for(lock, std::chrono::duration<double>(timeout_s), pred);
   }
 
   struct CameraFrame {
@@ -115,7 +111,6 @@ class Listener {
     std::set<int> classes;
   };
 
-  std::mutex mutex_;
   std::vector<Received> instruments;
   std::vector<vrm_msgs::EyeState::ConstPtr> eyes;
   std::map<ros::Time, vrm_msgs::SimulationState::ConstPtr> simulation;
@@ -126,19 +121,11 @@ class Listener {
   std::string first_problem;
 
  private:
-  template <class F>
-  void locked(F f) {
-    {
-      std::lock_guard<std::mutex> lock(mutex_);
-      f();
-    }
-    cv_.notify_all();
-  }
   void problem(const std::string& what) {
     if (first_problem.empty()) first_problem = what;
   }
   void onInstrument(const vrm_msgs::InstrumentState::ConstPtr& m) {
-    locked([&] {
+    update([&] {
       instruments.push_back({wallNow(), m});
       if (!finite(*m)) {
         ++nonfinite;
@@ -153,7 +140,7 @@ class Listener {
     });
   }
   void onEye(const vrm_msgs::EyeState::ConstPtr& m) {
-    locked([&] {
+    update([&] {
       eyes.push_back(m);
       if (!finite(*m)) {
         ++nonfinite;
@@ -162,7 +149,7 @@ class Listener {
     });
   }
   void onSimulation(const vrm_msgs::SimulationState::ConstPtr& m) {
-    locked([&] {
+    update([&] {
       simulation[m->header.stamp] = m;
       if (!finite(*m)) {
         ++nonfinite;
@@ -172,7 +159,7 @@ class Listener {
   }
   void onMesh(const vrm_msgs::TissueMesh::ConstPtr& m) {
     const bool ok = std::all_of(m->positions.begin(), m->positions.end(), [](float v) { return std::isfinite(v); });
-    locked([&] {
+    update([&] {
       ++meshes;
       if (!ok) {
         ++nonfinite;
@@ -181,14 +168,13 @@ class Listener {
     });
   }
   void onDiagnostics(const diagnostic_msgs::DiagnosticArray::ConstPtr& m) {
-    locked([&] {
+    update([&] {
       for (const auto& s : m->status) {
         if (s.name.find("tracker") != std::string::npos) tracker_status.push_back({wallNow(), s});
       }
     });
   }
 
-  std::condition_variable cv_;
   std::vector<ros::Subscriber> subs_;
 };
 
@@ -244,8 +230,7 @@ void waitForTracking() {
       },
       kTimeout))
       << "no tracked instrument_state / simulation_state";
-  ASSERT_TRUE(l.waitFor([&] { return g_fault.getNumSubscribers() > 0; }, kTimeout))
-      << "camera_rig_sim/fault not subscribed";
+  ASSERT_TRUE(waitForSubscribers(g_fault, kTimeout)) << "camera_rig_sim/fault not subscribed";
 }
 
 TEST(CameraDropout, AllCamerasStoppedHoldTheLastPoseInvalidAndMoveNoTissue) {

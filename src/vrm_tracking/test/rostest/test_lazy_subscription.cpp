@@ -9,15 +9,19 @@
 #include <vrm_msgs/StageTiming.h>
 
 #include <atomic>
-#include <functional>
 #include <map>
 #include <mutex>
 #include <string>
 #include <vector>
 
+#include "vrm_sim/testing/graph_test.h"
+
 namespace {
 
+using vrm_sim::testing::waitFor;
+
 constexpr double kTimeout = 20.0;
+constexpr double kMasterPoll = 0.05;  // s between queries of the master
 
 // Subscribers of `topic` per the master (node names).
 std::vector<std::string> subscribersOf(const std::string& topic) {
@@ -36,18 +40,9 @@ std::vector<std::string> subscribersOf(const std::string& topic) {
 
 bool managerSubscribes(const std::string& topic) {
   for (const std::string& node : subscribersOf(topic)) {
-    if (node == "/lazy_manager") return true;
+    if (node == "/vrm_manager") return true;  // simulator.launch's manager
   }
   return false;
-}
-
-bool waitFor(const std::function<bool()>& condition, double timeout = kTimeout) {
-  const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(timeout);
-  while (ros::ok() && ros::WallTime::now() < end) {
-    if (condition()) return true;
-    ros::WallDuration(0.05).sleep();
-  }
-  return condition();
 }
 
 struct Diagnostics {
@@ -74,7 +69,7 @@ TEST(LazySubscription, InputsAreSubscribedOnlyWhileMarkersAreWanted) {
   const boost::function<void(const vrm_msgs::StageTiming::ConstPtr&)> ignore =
       [](const vrm_msgs::StageTiming::ConstPtr&) {};
   ros::Subscriber timing_sub = nh.subscribe<vrm_msgs::StageTiming>("tracking_timing", 10, ignore);
-  ASSERT_TRUE(waitFor([&] { return diagnostics.of("camera_1").rfind("idle", 0) == 0; }))
+  ASSERT_TRUE(waitFor([&] { return diagnostics.of("camera_1").rfind("idle", 0) == 0; }, kTimeout))
       << "detector camera_1: " << diagnostics.of("camera_1");
   EXPECT_FALSE(managerSubscribes("/camera_1/image_raw"));
   EXPECT_FALSE(managerSubscribes("/ground_truth/eye_state")) << "the rig twin renders for nobody";
@@ -82,17 +77,17 @@ TEST(LazySubscription, InputsAreSubscribedOnlyWhileMarkersAreWanted) {
   std::atomic<int> markers{0};
   ros::Subscriber markers_sub = nh.subscribe<vrm_msgs::MarkerObservations>(
       "camera_1/markers", 10, [&](const vrm_msgs::MarkerObservations::ConstPtr&) { ++markers; });
-  EXPECT_TRUE(waitFor([&] { return markers > 5; })) << "no markers once subscribed";
+  EXPECT_TRUE(waitFor([&] { return markers > 5; }, kTimeout)) << "no markers once subscribed";
   EXPECT_TRUE(managerSubscribes("/camera_1/image_raw"));
   EXPECT_TRUE(managerSubscribes("/ground_truth/eye_state"));
   EXPECT_FALSE(managerSubscribes("/camera_0/image_raw")) << "camera_0's markers are still unwanted";
-  EXPECT_TRUE(waitFor([&] { return diagnostics.of("camera_1") == "detecting"; }))
+  EXPECT_TRUE(waitFor([&] { return diagnostics.of("camera_1") == "detecting"; }, kTimeout))
       << "detector camera_1: " << diagnostics.of("camera_1");
 
   markers_sub.shutdown();
-  EXPECT_TRUE(waitFor([&] { return !managerSubscribes("/camera_1/image_raw"); }));
-  EXPECT_TRUE(waitFor([&] { return !managerSubscribes("/ground_truth/eye_state"); }));
-  EXPECT_TRUE(waitFor([&] { return diagnostics.of("camera_1").rfind("idle", 0) == 0; }))
+  EXPECT_TRUE(waitFor([&] { return !managerSubscribes("/camera_1/image_raw"); }, kTimeout, kMasterPoll));
+  EXPECT_TRUE(waitFor([&] { return !managerSubscribes("/ground_truth/eye_state"); }, kTimeout, kMasterPoll));
+  EXPECT_TRUE(waitFor([&] { return diagnostics.of("camera_1").rfind("idle", 0) == 0; }, kTimeout))
       << "detector camera_1: " << diagnostics.of("camera_1");
 }
 

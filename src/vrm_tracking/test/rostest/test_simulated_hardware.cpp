@@ -9,10 +9,7 @@
 #include <vrm_msgs/PedalState.h>
 
 #include <boost/make_shared.hpp>
-#include <chrono>
 #include <cmath>
-#include <condition_variable>
-#include <functional>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -21,6 +18,7 @@
 
 #include "vrm_sim/package_data.h"
 #include "vrm_sim/scene/scene_loader.h"
+#include "vrm_sim/testing/graph_test.h"
 #include "vrm_tracking/conversions.h"
 #include "vrm_tracking/scene_trocars.h"
 #include "vrm_tracking/surgeon_script.h"
@@ -35,7 +33,7 @@ struct Stream {
   std::vector<double> received;  // wall seconds
 };
 
-class Listener {
+class Listener : public vrm_sim::testing::AwaitedState {
  public:
   explicit Listener(ros::NodeHandle& nh) {
     eye_sub_ = nh.subscribe("eye_state", 100, &Listener::onEye, this);
@@ -44,13 +42,6 @@ class Listener {
     microscope_sub_ = nh.subscribe("microscope", 100, &Listener::onMicroscope, this);
   }
 
-  // Waits until pred() holds (evaluated under the lock, after every message) or the timeout expires.
-  bool waitFor(const std::function<bool()>& pred, double timeout_s) {
-    std::unique_lock<std::mutex> lock(mutex_);
-    return cv_.wait_for(lock, std::chrono::duration<double>(timeout_s), pred);
-  }
-
-  std::mutex mutex_;
   Stream<vrm_msgs::EyeState> eye;
   std::map<std::string, Stream<vrm_msgs::InstrumentState>> instruments;  // by instrument_id
   Stream<vrm_msgs::PedalState> pedals;
@@ -59,12 +50,10 @@ class Listener {
  private:
   template <class M>
   void add(Stream<M>* stream, const typename M::ConstPtr& msg) {
-    {
-      std::lock_guard<std::mutex> lock(mutex_);
+    update([&] {
       stream->messages.push_back(msg);
       stream->received.push_back(ros::WallTime::now().toSec());
-    }
-    cv_.notify_all();
+    });
   }
   void onEye(const vrm_msgs::EyeState::ConstPtr& msg) { add(&eye, msg); }
   void onInstrument(const vrm_msgs::InstrumentState::ConstPtr& msg) {
@@ -78,7 +67,6 @@ class Listener {
   void onPedals(const vrm_msgs::PedalState::ConstPtr& msg) { add(&pedals, msg); }
   void onMicroscope(const vrm_msgs::MicroscopeSettings::ConstPtr& msg) { add(&microscope, msg); }
 
-  std::condition_variable cv_;
   ros::Subscriber eye_sub_, instrument_sub_, pedal_sub_, microscope_sub_;
 };
 

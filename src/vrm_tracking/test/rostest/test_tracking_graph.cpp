@@ -17,10 +17,7 @@
 
 #include <algorithm>
 #include <boost/make_shared.hpp>
-#include <chrono>
 #include <cmath>
-#include <condition_variable>
-#include <functional>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -29,15 +26,18 @@
 
 #include "vrm_sim/package_data.h"
 #include "vrm_sim/scene/scene_loader.h"
+#include "vrm_sim/testing/graph_test.h"
 #include "vrm_tracking/conversions.h"
 #include "vrm_tracking/scene_trocars.h"
 
 namespace vrm_tracking {
 namespace {
 
+using vrm_sim::testing::waitForSubscribers;
+
 constexpr double kTimeout = 60.0;  // s; rendering three cameras on a shared 2-core machine can be slow
 
-class Listener {
+class Listener : public vrm_sim::testing::AwaitedState {
  public:
   explicit Listener(ros::NodeHandle& nh) {
     subs_.push_back(nh.subscribe("ground_truth/eye_state", 500, &Listener::onTruthEye, this));
@@ -49,12 +49,6 @@ class Listener {
     subs_.push_back(nh.subscribe("/diagnostics", 100, &Listener::onDiagnostics, this));
   }
 
-  bool waitFor(const std::function<bool()>& pred, double timeout_s) {
-    std::unique_lock<std::mutex> lock(mutex_);
-    return cv_.wait_for(lock, std::chrono::duration<double>(timeout_s), pred);
-  }
-
-  std::mutex mutex_;
   std::map<ros::Time, vrm_msgs::EyeState::ConstPtr> truth_eye;
   std::map<std::pair<std::string, ros::Time>, vrm_msgs::InstrumentState::ConstPtr> truth_instrument;
   std::vector<vrm_msgs::EyeState::ConstPtr> eye;
@@ -64,37 +58,28 @@ class Listener {
   std::vector<diagnostic_msgs::DiagnosticStatus> diagnostics;
 
  private:
-  template <class F>
-  void locked(F f) {
-    {
-      std::lock_guard<std::mutex> lock(mutex_);
-      f();
-    }
-    cv_.notify_all();
-  }
   void onTruthEye(const vrm_msgs::EyeState::ConstPtr& m) {
-    locked([&] { truth_eye[m->header.stamp] = m; });
+    update([&] { truth_eye[m->header.stamp] = m; });
   }
   void onTruthInstrument(const vrm_msgs::InstrumentState::ConstPtr& m) {
-    locked([&] { truth_instrument[{m->instrument_id, m->header.stamp}] = m; });
+    update([&] { truth_instrument[{m->instrument_id, m->header.stamp}] = m; });
   }
   void onEye(const vrm_msgs::EyeState::ConstPtr& m) {
-    locked([&] { eye.push_back(m); });
+    update([&] { eye.push_back(m); });
   }
   void onInstrument(const vrm_msgs::InstrumentState::ConstPtr& m) {
-    locked([&] { instrument.push_back(m); });
+    update([&] { instrument.push_back(m); });
   }
   void onCamera2(const vrm_msgs::MarkerObservations::ConstPtr& m) {
-    locked([&] { camera2.push_back(m->header.stamp); });
+    update([&] { camera2.push_back(m->header.stamp); });
   }
   void onBad(const vrm_msgs::MarkerObservations::ConstPtr& m) {
-    locked([&] { bad.push_back(m); });
+    update([&] { bad.push_back(m); });
   }
   void onDiagnostics(const diagnostic_msgs::DiagnosticArray::ConstPtr& m) {
-    locked([&] { diagnostics.insert(diagnostics.end(), m->status.begin(), m->status.end()); });
+    update([&] { diagnostics.insert(diagnostics.end(), m->status.begin(), m->status.end()); });
   }
 
-  std::condition_variable cv_;
   std::vector<ros::Subscriber> subs_;
 };
 
@@ -228,7 +213,7 @@ TEST(TrackingGraph, DetectorSurvivesMalformedImages) {
   auto& l = *g_listener;
   ros::NodeHandle nh;
   ros::Publisher pub = nh.advertise<sensor_msgs::Image>("bad/cam_bad/image_raw", 10);
-  ASSERT_TRUE(l.waitFor([&] { return pub.getNumSubscribers() > 0; }, kTimeout)) << "detector not subscribed";
+  ASSERT_TRUE(waitForSubscribers(pub, kTimeout)) << "detector not subscribed";
   // Malformed frames: wrong encoding, empty, truncated. None may produce output or stop the detector.
   pub.publish(image(sensor_msgs::image_encodings::MONO8, 64, 48, 1, ros::Time(1.0)));
   pub.publish(image(sensor_msgs::image_encodings::TYPE_32FC1, 64, 48, 4, ros::Time(2.0)));
@@ -377,7 +362,7 @@ TEST(TrackingGraph, DiagnosticsReportTheStoppedCameraAndBadInput) {
   // A wrong encoding, repeated until reported (the detector's input queue is short: a burst may lose frames).
   ros::NodeHandle nh;
   ros::Publisher pub = nh.advertise<sensor_msgs::Image>("bad/cam_bad/image_raw", 10);
-  ASSERT_TRUE(l.waitFor([&] { return pub.getNumSubscribers() > 0; }, kTimeout)) << "detector not subscribed";
+  ASSERT_TRUE(waitForSubscribers(pub, kTimeout)) << "detector not subscribed";
   bool reported = false;
   const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(kTimeout);
   while (!reported && ros::WallTime::now() < deadline) {

@@ -17,8 +17,11 @@
 #include "vrm_msgs/TissueMesh.h"
 #include "vrm_sim/conversions.h"
 #include "vrm_sim/scene/scene_loader.h"
+#include "vrm_sim/testing/graph_test.h"
 
 namespace {
+
+using vrm_sim::testing::waitForSubscribers;
 
 class MeshWatcher {
  public:
@@ -144,15 +147,6 @@ MembraneUnderTest membraneUnderTest() {
   return membrane;
 }
 
-// Waits (30 s at most) until tissue_sim subscribes the publisher.
-bool waitForSubscriber(const ros::Publisher& publisher) {
-  const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(30.0);
-  while (ros::ok() && publisher.getNumSubscribers() == 0 && ros::WallTime::now() < deadline) {
-    ros::WallDuration(0.01).sleep();
-  }
-  return publisher.getNumSubscribers() > 0;
-}
-
 TEST(TissueSimGraph, GraspPullDeformsAndReleaseReturnsTowardRest) {
   ros::NodeHandle nh;
   const MembraneUnderTest membrane = membraneUnderTest();
@@ -168,7 +162,7 @@ TEST(TissueSimGraph, GraspPullDeformsAndReleaseReturnsTowardRest) {
 
   MeshWatcher watcher(nh, "tissue/" + membrane.object_name, rest);
   ros::Publisher publisher = nh.advertise<vrm_msgs::InstrumentState>("instrument_state", 20);
-  ASSERT_TRUE(waitForSubscriber(publisher)) << "tissue_sim does not subscribe instrument_state";
+  ASSERT_TRUE(waitForSubscribers(publisher, 30.0)) << "scenario_manager does not subscribe instrument_state";
   ros::AsyncSpinner spinner(1);
   spinner.start();
 
@@ -257,10 +251,10 @@ TEST(TissueSimGraph, VitrectorCutsOnlyWithSuctionAndKeepsTheMeshConsistent) {
 
   TopologyWatcher watcher(nh, "tissue/" + membrane.object_name);
   ros::Publisher publisher = nh.advertise<vrm_msgs::InstrumentState>("instrument_state", 20);
-  ASSERT_TRUE(waitForSubscriber(publisher)) << "tissue_sim does not subscribe instrument_state";
+  ASSERT_TRUE(waitForSubscribers(publisher, 30.0)) << "scenario_manager does not subscribe instrument_state";
   // The other test may have peeled this membrane: start from the rest state (applied with the next frame).
   ros::Publisher commands = nh.advertise<vrm_msgs::ScenarioCommand>("scenario_command", 1, true);
-  ASSERT_TRUE(waitForSubscriber(commands)) << "tissue_sim does not subscribe scenario_command";
+  ASSERT_TRUE(waitForSubscribers(commands, 30.0)) << "scenario_manager does not subscribe scenario_command";
   vrm_msgs::ScenarioCommand reset;
   reset.header.stamp = ros::Time::now();
   reset.command = vrm_msgs::ScenarioCommand::RESET;
@@ -295,6 +289,6 @@ TEST(TissueSimGraph, VitrectorCutsOnlyWithSuctionAndKeepsTheMeshConsistent) {
 
 int main(int argc, char** argv) {
   testing::InitGoogleTest(&argc, argv);
-  ros::init(argc, argv, "test_tissue_sim");
+  ros::init(argc, argv, "test_tissue_deformation");
   return RUN_ALL_TESTS();
 }
