@@ -1,44 +1,138 @@
 #!/usr/bin/env bash
-# Set-up + build, then every unit test (plain gtest) and every rostest (nodelet graphs), with the real verdict:
-# catkin's run_tests target exits 0 even when tests fail, so catkin_test_results decides.
-# scripts/test.sh --sanitize: the same tests built with ASan + UBSan in build_asan/ (scripts/sanitizers/run_tests.sh).
+# The test tiers, each with the real verdict as its exit code (catkin's run_tests target exits 0 even when tests fail).
+#
+#   scripts/test.sh              everything, what CI runs (.ci/run): set-up + build, every unit test, every graph test
+#                                (rostest), the main job (run.sh --check) and the script tests; catkin_test_results
+#                                decides.
+#   scripts/test.sh --fast       the inner loop: every unit-test binary of every package (plain gtest, no master, no
+#                                graph), two at a time, after building only what they need (on an up-to-date build
+#                                that check is the only build step). Prints the list it ran.
+#   scripts/test.sh PKG [PKG..]  one package's unit tests (two at a time), then its graph tests (one at a time).
+#   scripts/test.sh --sanitize   the unit and graph tests built with ASan + UBSan in build_asan/.
+#
+# The unit tests are catkin_add_gtest targets, the graph tests add_rostest_gtest targets; the top-level CMakeLists.txt
+# groups them into the build targets unit_tests and tests_<package>, and CTest (which catkin registers them with) runs
+# them, longest first from its recorded costs.
 set -euo pipefail
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
-if [[ ${1:-} == --sanitize ]]; then
-  exec "$ROOT/scripts/sanitizers/run_tests.sh"
-fi
+BUILD="$ROOT/build"
+RESULTS="$BUILD/test_results"
+
+usage() {
+  sed -n '2,10p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'
+  echo "packages: $(cd "$ROOT/src" && ls -d */ | tr -d / | tr '\n' ' ')"
+}
+
+# ctest_tier LABEL REGEX JOBS: the catkin tests whose CTest name matches REGEX (catkin names them
+# _ctest_<package>_<gtest|rostest>_<name>), JOBS at a time; returns ctest's verdict.
+ctest_tier() {
+  local label=$1 regex=$2 jobs=$3 start status
+  start=$(date +%s%N)
+  set +e
+  ctest --test-dir "$BUILD/src" --tests-regex "$regex" --parallel "$jobs" --output-on-failure --timeout 1500 \
+    | sed -E '/^ +Start +[0-9]+: /d; s/_ctest_//; /^Internal ctest changing into directory/d'
+  status=${PIPESTATUS[0]}
+  set -e
+  echo "test.sh: $label: $((($(date +%s%N) - start) / 1000000000)) s wall"
+  return "$status"
+}
+
+# Builds the given targets, or everything through setup.sh on a machine without a configured build.
+build_targets() {
+  if [[ ! -f "$BUILD/CMakeCache.txt" ]]; then
+    "$ROOT/scripts/setup.sh"
+  fi
+  # A pyenv python3 may come first on PATH and lacks catkin_pkg: catkin must use the system interpreter.
+  # Only what was built is worth a line: the up-to-date targets are not listed.
+  PATH="/usr/bin:$PATH" cmake --build "$BUILD" --target "$@" -j"$(nproc)" | sed -E '/^\[ *[0-9]+%\] Built target /d'
+}
+
+case ${1:-} in
+  -h | --help)
+    usage
+    exit 0
+    ;;
+  --sanitize)
+    exec "$ROOT/scripts/sanitizers/run_tests.sh"
+    ;;
+  --fast)
+    start=$(date +%s)
+    build_targets unit_tests
+    source "$ROOT/scripts/common.sh"
+    rm -rf "$RESULTS"
+    status=0
+    ctest_tier "unit tests of every package" '^_ctest_[a-z_]+_gtest_' 2 || status=$?
+    /usr/bin/python3 "$ROOT/scripts/test_summary.py" "$RESULTS" || status=1
+    echo "test.sh --fast: $(($(date +%s) - start)) s wall, build check included"
+    exit $status
+    ;;
+  -*)
+    usage >&2
+    exit 2
+    ;;
+  ?*)
+    targets=() unit_regex="" graph_regex=""
+    for package in "$@"; do
+      if [[ ! -f "$ROOT/src/$package/package.xml" ]]; then
+        echo "test.sh: no package '$package' in src/" >&2
+        usage >&2
+        exit 2
+      fi
+      targets+=("tests_$package")
+      unit_regex+="${unit_regex:+|}^_ctest_${package}_gtest_"
+      graph_regex+="${graph_regex:+|}^_ctest_${package}_rostest_"
+    done
+    start=$(date +%s)
+    # The graph tests launch nodelets and tools of other packages too: the product is checked with the tests.
+    build_targets all "${targets[@]}"
+    source "$ROOT/scripts/common.sh"
+    rm -rf "$RESULTS"
+    status=0
+    ctest_tier "unit tests of $*" "$unit_regex" 2 || status=$?
+    # Graph tests start their own master and nodelet manager each: one at a time on two cores.
+    ctest_tier "graph tests of $*" "$graph_regex" 1 || status=$?
+    /usr/bin/python3 "$ROOT/scripts/test_summary.py" "$RESULTS" || status=1
+    echo "test.sh $*: $(($(date +%s) - start)) s wall, build check included"
+    exit $status
+    ;;
+esac
+
+# --- everything (CI) ---
 "$ROOT/scripts/setup.sh"
 source "$ROOT/scripts/common.sh"
 
 cmake --build "$ROOT/build" --target tests -j"$(nproc)"
-rm -rf "$ROOT/build/test_results"
-# One test at a time: rostests start their own masters and the machine has two cores.
-cmake --build "$ROOT/build" --target run_tests -j1 || true
+tests_start=$(date +%s)
+rm -rf "$RESULTS"
+# The unit tests two at a time, the graph tests one at a time (each starts its own master and manager; the machine has
+# two cores). Their verdicts are the JUnit files catkin_test_results reads below.
+ctest_tier "unit tests" '^_ctest_[a-z_]+_gtest_' 2 || true
+ctest_tier "graph tests" '^_ctest_[a-z_]+_rostest_' 1 || true
 
 # The main job as a user runs it (short form, through the first grasp and peel): the default session must grasp the
 # membrane and publish it deformed (run.sh --check). Its verdict joins the others as a JUnit case.
 echo "test.sh: ./scripts/run.sh --duration 12 --check"
-mkdir -p "$ROOT/build/test_results/main_job"
+mkdir -p "$RESULTS/main_job"
 failures=0 failure=""
 if ! main_job=$("$ROOT/scripts/run.sh" --duration 12 --check 2>&1); then
   failures=1 failure="<failure message=\"the default session did not do its job (scripts/run.sh --check: frames, tissue grasped, scenario finished, replay bit-identical)\"/>"
 fi
 echo "$main_job" | tail -n 4
 printf '<?xml version="1.0"?>\n<testsuite name="main_job" tests="1" failures="%s" errors="0"><testcase classname="run_sh" name="default_session_grasps_and_peels">%s</testcase></testsuite>\n' \
-  "$failures" "$failure" >"$ROOT/build/test_results/main_job/TEST-main_job.xml"
+  "$failures" "$failure" >"$RESULTS/main_job/TEST-main_job.xml"
 
 # Script tests (a real X window under Xvfb, a console on a second ROS host): each a JUnit case.
 script_test() {  # script_test SUITE CASE COMMAND...
   local suite=$1 name=$2 failure="" failed=0 output
   shift 2
   echo "test.sh: $*"
-  mkdir -p "$ROOT/build/test_results/$suite"
+  mkdir -p "$RESULTS/$suite"
   if ! output=$("$@" 2>&1); then
     failed=1 failure="<failure message=\"$* failed\"><![CDATA[$(echo "$output" | tail -n 30)]]></failure>"
   fi
   echo "$output" | grep -E '^(PASS|FAIL|SKIP|remote-host)|: PASS|FAILED' | tail -n 30
   printf '<?xml version="1.0"?>\n<testsuite name="%s" tests="1" failures="%s" errors="0"><testcase classname="%s" name="%s">%s</testcase></testsuite>\n' \
-    "$suite" "$failed" "$suite" "$name" "$failure" >"$ROOT/build/test_results/$suite/TEST-$suite.xml"
+    "$suite" "$failed" "$suite" "$name" "$failure" >"$RESULTS/$suite/TEST-$suite.xml"
 }
 script_test console_real_window console_runs_a_session_in_a_real_window \
   "$ROOT/src/eyesi_gui/test/console_real_window.sh"
@@ -58,11 +152,12 @@ script_test readme_clients readme_ros_clients_answer "$ROOT/scripts/tests/readme
 script_test install_space installed_simulator_runs_without_the_source_tree "$ROOT/scripts/install-test.sh"
 
 set +e
-summary=$(catkin_test_results "$ROOT/build/test_results" --all 2>&1)
+summary=$(catkin_test_results "$RESULTS" --all 2>&1)
 verdict=$?
 set -e
 echo "$summary" | grep -vE '^(Skipping|$)' | tail -n 40
-if ! /usr/bin/python3 "$ROOT/scripts/test_summary.py" "$ROOT/build/test_results"; then
+echo "test.sh: $(($(date +%s) - tests_start)) s wall after the build"
+if ! /usr/bin/python3 "$ROOT/scripts/test_summary.py" "$RESULTS"; then
   echo "test.sh: no test results found" >&2
   exit 1
 fi
