@@ -19,7 +19,7 @@ BUILD="$ROOT/build"
 RESULTS="$BUILD/test_results"
 
 usage() {
-  sed -n '2,10p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'
+  sed -n '2,11p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'
   echo "packages: $(cd "$ROOT/src" && ls -d */ | tr -d / | tr '\n' ' ')"
 }
 
