@@ -147,7 +147,7 @@ MembraneUnderTest membraneUnderTest() {
   return membrane;
 }
 
-TEST(TissueSimGraph, GraspPullDeformsAndReleaseReturnsTowardRest) {
+TEST(TissueDeformationGraph, GraspPullDeformsAndReleaseReturnsTowardRest) {
   ros::NodeHandle nh;
   const MembraneUnderTest membrane = membraneUnderTest();
   std::vector<float> rest;
@@ -239,7 +239,7 @@ class TopologyWatcher {
 // The vitrector (an alternative of the forceps' slot in this scene) removes membrane only while it aspirates and
 // cuts: switched in by the message's type, held at the membrane with suction 0 (nothing removed), then with
 // suction and cutter on (triangles removed, topology_version raised, indices valid).
-TEST(TissueSimGraph, VitrectorCutsOnlyWithSuctionAndKeepsTheMeshConsistent) {
+TEST(TissueDeformationGraph, VitrectorCutsOnlyWithSuctionAndKeepsTheMeshConsistent) {
   ros::NodeHandle nh;
   const MembraneUnderTest membrane = membraneUnderTest();
   const auto vitrector = std::get<vrm_sim::scene::VitrectorParams>(
