@@ -1,10 +1,13 @@
 #!/usr/bin/env python3
 """What the simulation did in a session, from the outputs bag run.sh records (vrm_msgs/SimulationState per frame and
 vrm_msgs/StageTiming): frames, per tissue the meshes published, grasped nodes, strain, lift and peel outcome, retina
-contacts, and the frame cost; then the training scenario's end state and score table (vrm_msgs/ScenarioStatus). With
---check, exit 1 unless frames were produced, where the scene has tissue the tissue was published deformed and grasped,
-and the scenario finished (the scripted expert completes its task).
+contacts, and the frame cost; the view's frame rate and latency (render_timing, display_timing), with a warning when
+this machine is too slow for real time; then the training scenario's end state and score table
+(vrm_msgs/ScenarioStatus). With --check, exit 1 unless frames were produced, where the scene has tissue the tissue was
+published deformed and grasped, and the scenario finished (the scripted expert completes its task); a slow machine
+only warns (CI machines are noisy).
 Usage: session_summary.py [--check] OUTPUTS.bag"""
+import math
 import sys
 
 import rosbag
@@ -32,6 +35,70 @@ def percentile(values, fraction):
     return ordered[min(len(ordered) - 1, int(fraction * (len(ordered) - 1) + 0.5))]
 
 
+# Real time as EyeSi defined it (thesis §7.4.2, eq. 7.1; §1.3): 47-57 ms from input to image at >= 25 Hz; below 20 Hz
+# the view no longer counts as real time. The latency monitor warns at the same limits (launch/include/latency.launch).
+REAL_TIME_MIN_FPS = 20.0
+REAL_TIME_MAX_P50_MS = 57.0
+
+
+def nearest_rank(values, fraction):
+    """vrm_sim::world::nearestRank (latency.h): the percentiles bench_latency and the latency monitor report."""
+    if not values:
+        return 0.0
+    ordered = sorted(values)
+    index = max(1, math.ceil(fraction * len(ordered))) - 1
+    return ordered[min(index, len(ordered) - 1)]
+
+
+def stage(timing, name):
+    return next((s for s in timing.stages if s.stage == name), None)
+
+
+def view_summary(render, display):
+    """The view's line (and a warning on a slow machine) from render_timing and display_timing: frames per second
+    shown (the display twin pairs the eyes), end to end = input stamp -> image published (latency.h's end_to_end),
+    input stamp -> both eyes shown, and the stereo frame's render time."""
+    end_to_end, render_ms = [], []
+    for timing in render:
+        published, rendered = stage(timing, "image_published"), stage(timing, "render")
+        if published is not None:
+            end_to_end.append(1e3 * (published.end - timing.header.stamp).to_sec())
+        if rendered is not None:
+            render_ms.append(1e3 * (rendered.end - rendered.start).to_sec())
+    shown_at, shown_ms = [], []
+    for timing in display:
+        shown = stage(timing, "displayed")
+        if shown is not None:
+            shown_at.append(shown.end.to_sec())
+            shown_ms.append(1e3 * (shown.end - timing.header.stamp).to_sec())
+    if not render and not display:
+        print("view: no render_timing or display_timing recorded (render:=false?)")
+        return
+    if shown_at:
+        frames, what = len(shown_at), "stereo frames shown"
+        seconds = max(shown_at) - min(shown_at)
+    else:  # display:=false: the frames rendered for whoever watched (or for the snapshots)
+        ends = [stage(t, "image_published").end.to_sec() for t in render if stage(t, "image_published") is not None]
+        frames, what = len(ends), "frames rendered, no display twin (display:=false)"
+        seconds = max(ends) - min(ends) if ends else 0.0
+    fps = (frames - 1) / seconds if frames > 1 and seconds > 0 else 0.0
+    p50 = nearest_rank(end_to_end, 0.50)
+    line = (f"view: {fps:.1f} fps ({frames} {what} in {seconds:.1f} s); end to end (input stamp -> image published) "
+            f"p50 {p50:.0f} ms, p99 {nearest_rank(end_to_end, 0.99):.0f} ms")
+    if shown_ms:
+        line += f"; shown p50 {nearest_rank(shown_ms, 0.50):.0f} / p99 {nearest_rank(shown_ms, 0.99):.0f} ms"
+    print(line + f"; render p50 {nearest_rank(render_ms, 0.50):.0f} ms")
+    slow = []
+    if fps < REAL_TIME_MIN_FPS:
+        slow.append(f"{fps:.1f} fps < {REAL_TIME_MIN_FPS:.0f} fps")
+    if p50 > REAL_TIME_MAX_P50_MS:
+        slow.append(f"end-to-end p50 {p50:.0f} ms > {REAL_TIME_MAX_P50_MS:.0f} ms")
+    if slow:
+        print(f"view: WARNING: this machine is too slow for real time ({', '.join(slow)}): EyeSi showed an input "
+              f"47-57 ms later at >= 25 Hz, and below {REAL_TIME_MIN_FPS:.0f} Hz a view no longer counts as real "
+              "time (thesis §7.4.2, §1.3). The session and its replay are still exact; only the view lags.")
+
+
 def main(arguments):
     check = "--check" in arguments
     paths = [a for a in arguments if a != "--check"]
@@ -44,6 +111,7 @@ def main(arguments):
         print(f"session_summary: cannot open {paths[0]}: {error}", file=sys.stderr)
         return 1
     frames, wall_ms, last, tissues, late = 0, [], None, {}, 0
+    render, display = [], []
     with bag:
         for _, state, _ in bag.read_messages(topics=["/simulation_state"]):
             frames += 1
@@ -63,6 +131,8 @@ def main(arguments):
                     entry["first_grasp"] = state.header.stamp.to_sec()
                 entry["last"] = tissue
         start = bag.get_start_time() if frames else 0.0
+        for topic, timing, _ in bag.read_messages(topics=["/render_timing", "/display_timing"]):
+            (render if topic == "/render_timing" else display).append(timing)
         status = None
         for _, message, _ in bag.read_messages(topics=["/scenario_status"]):
             status = message
@@ -81,6 +151,7 @@ def main(arguments):
               f"adhesions released {final.released_adhesions}, topology v{final.topology_version})")
         ok = ok and entry["meshes"] > 0 and entry["grasped"] > 0
     print(f"  retina: {last.retina_contacts} contacts, max injury {last.max_injury:.2f}")
+    view_summary(render, display)
     if check and not ok:
         print("session_summary: --check failed: the tissue was not published deformed and grasped", file=sys.stderr)
         return 1
