@@ -10,6 +10,10 @@
 #   scripts/test.sh PKG [PKG..]  one package's unit tests (two at a time), then its graph tests (one at a time).
 #   scripts/test.sh --sanitize   the unit and graph tests built with ASan + UBSan in build_asan/.
 #
+# Every tier first checks that bench/results/latency.json is newer than the last commit that changed what it measures
+# (scripts/check_bench_fresh.sh, milliseconds, before building). A stale result does not stop the tests — a developer
+# sees both verdicts — but the tier then exits non-zero and repeats why at the end.
+#
 # The unit tests are catkin_add_gtest targets, the graph tests add_rostest_gtest targets; the top-level CMakeLists.txt
 # groups them into the build targets unit_tests and tests_<package>, and CTest (which catkin registers them with) runs
 # them, longest first from its recorded costs.
@@ -19,7 +23,7 @@ BUILD="$ROOT/build"
 RESULTS="$BUILD/test_results"
 
 usage() {
-  sed -n '2,11p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'
+  sed -n '2,15p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'
   echo "packages: $(cd "$ROOT/src" && ls -d */ | tr -d / | tr '\n' ' ')"
 }
 
@@ -47,13 +51,36 @@ build_targets() {
   PATH="/usr/bin:$PATH" cmake --build "$BUILD" --target "$@" -j"$(nproc)" | sed -E '/^\[ *[0-9]+%\] Built target /d'
 }
 
+# The bench freshness check's verdict joins the tier's: finish VERDICT exits with VERDICT, or 1 when latency.json is
+# stale (and says so again, after the tests' output).
+fresh_status=0
+fresh_report=""
+check_bench_fresh() {
+  fresh_report=$("$ROOT/scripts/check_bench_fresh.sh" 2>&1) || fresh_status=1
+  echo "$fresh_report"
+}
+finish() {
+  if ((fresh_status != 0)); then
+    echo "$fresh_report" >&2
+    echo "test.sh: FAILED: bench/results/latency.json is stale (above); the tests' own verdict: exit status $1" >&2
+    exit 1
+  fi
+  exit "$1"
+}
+
 case ${1:-} in
   -h | --help)
     usage
     exit 0
     ;;
+  --fast | --sanitize | '' | [!-]*) check_bench_fresh ;;
+esac
+
+case ${1:-} in
   --sanitize)
-    exec "$ROOT/scripts/sanitizers/run_tests.sh"
+    status=0
+    "$ROOT/scripts/sanitizers/run_tests.sh" || status=$?
+    finish $status
     ;;
   --fast)
     start=$(date +%s)
@@ -64,7 +91,7 @@ case ${1:-} in
     ctest_tier "unit tests of every package" '^_ctest_[a-z_]+_gtest_' 2 || status=$?
     /usr/bin/python3 "$ROOT/scripts/test_summary.py" "$RESULTS" || status=1
     echo "test.sh --fast: $(($(date +%s) - start)) s wall, build check included"
-    exit $status
+    finish $status
     ;;
   -*)
     usage >&2
@@ -93,7 +120,7 @@ case ${1:-} in
     ctest_tier "graph tests of $*" "$graph_regex" 1 || status=$?
     /usr/bin/python3 "$ROOT/scripts/test_summary.py" "$RESULTS" || status=1
     echo "test.sh $*: $(($(date +%s) - start)) s wall, build check included"
-    exit $status
+    finish $status
     ;;
 esac
 
@@ -108,6 +135,12 @@ rm -rf "$RESULTS"
 # two cores). Their verdicts are the JUnit files catkin_test_results reads below.
 ctest_tier "unit tests" '^_ctest_[a-z_]+_gtest_' 2 || true
 ctest_tier "graph tests" '^_ctest_[a-z_]+_rostest_' 1 || true
+# The bench freshness check (run first, above) as a JUnit case, so CI's report lists it beside the tests.
+mkdir -p "$RESULTS/bench_fresh"
+fresh_failure=""
+((fresh_status == 0)) || fresh_failure="<failure message=\"bench/results/latency.json is stale (scripts/check_bench_fresh.sh)\"><![CDATA[$fresh_report]]></failure>"
+printf '<?xml version="1.0"?>\n<testsuite name="bench_fresh" tests="1" failures="%s" errors="0"><testcase classname="check_bench_fresh" name="latency_json_newer_than_what_it_measures">%s</testcase></testsuite>\n' \
+  "$fresh_status" "$fresh_failure" >"$RESULTS/bench_fresh/TEST-bench_fresh.xml"
 
 # The main job as a user runs it (short form, through the first grasp and peel): the default session must grasp the
 # membrane and publish it deformed (run.sh --check). Its verdict joins the others as a JUnit case.
@@ -159,6 +192,6 @@ echo "$summary" | grep -vE '^(Skipping|$)' | tail -n 40
 echo "test.sh: $(($(date +%s) - tests_start)) s wall after the build"
 if ! /usr/bin/python3 "$ROOT/scripts/test_summary.py" "$RESULTS"; then
   echo "test.sh: no test results found" >&2
-  exit 1
+  finish 1
 fi
-exit $verdict
+finish $verdict
