@@ -25,6 +25,11 @@ struct RenderConfig {
   bool shafts = true;            // instrument shafts occlude markers behind them
   double background = 45.0;      // mean background level (DN)
   std::uint32_t seed = 1;
+  // Issue 30 item 4: false (default) draws and exposes only the rows of pixels a marker, shaft or distractor can
+  // reach and gives the rest of the frame its noise from a bank of normal draws (RigRenderer::render); true keeps
+  // the earlier renderer (rectangular boxes per drawable and shaft piece, a noise-table lookup per untouched byte) as
+  // the reference the benchmark and the tests compare against. Both have the same sensor model and statistics.
+  bool reference_path = false;
 };
 
 // The exact centroid a perfect detector would report: the projection of the marker centre at mid-exposure.
@@ -40,7 +45,8 @@ class RigRenderer {
   RigRenderer(CameraRig rig, MarkerLayout layout, RenderConfig config);
 
   // Renders camera `camera` into `image` (resized to CV_8UC3 BGR of the camera's size; may wrap a message
-  // buffer). frame_index selects the noise and distractor draws.
+  // buffer). frame_index selects the noise and distractor draws. Markers whose position does not project (behind
+  // the camera, non-finite) are skipped and reported invisible.
   void render(std::size_t camera, const WorldScene& scene, std::uint64_t frame_index, cv::Mat* image,
               std::vector<ProjectedMarker>* truth = nullptr) const;
   // Exact projected centroids without rendering (the FPGA path and the centroid-noise benchmark).
@@ -52,6 +58,13 @@ class RigRenderer {
  private:
   void buildBackgrounds();
   float sensorSigma(int level) const;  // read + shot noise σ (DN) at a signal level
+  void renderReference(std::size_t camera, const WorldScene& scene, std::uint64_t frame_index, cv::Mat* image,
+                       std::vector<ProjectedMarker>* truth) const;
+  void renderSpans(std::size_t camera, const WorldScene& scene, std::uint64_t frame_index, cv::Mat* image,
+                   std::vector<ProjectedMarker>* truth) const;
+  // Sensor model of the pixels nothing is drawn on, for the whole frame: level + σ(level)·z with z from the
+  // normal bank at a random offset per row (fixed point, one multiply per byte; see rig_renderer.cpp).
+  void exposeBackground(std::size_t camera, std::uint64_t frame_key, cv::Mat* image) const;
 
   CameraRig rig_;
   MarkerLayout layout_;
@@ -59,6 +72,9 @@ class RigRenderer {
   std::vector<cv::Mat> backgrounds_;                          // CV_32FC3 per camera, static clutter
   std::vector<std::vector<std::uint8_t>> background_levels_;  // per camera: exposed background, 8 bit
   std::vector<std::uint8_t> noise_lut_;  // 256 levels × 256 noisy samples (sensor model of untouched pixels)
+  // Per camera, per pixel and channel: σ of the exposed background level in Q11 (σ · 2048; the span path's
+  // untouched pixels). Empty when some σ ≥ 16 DN does not fit: the span path then uses noise_lut_ too.
+  std::vector<std::vector<std::int16_t>> background_sigma_q11_;
 };
 
 }  // namespace vrm_tracking
