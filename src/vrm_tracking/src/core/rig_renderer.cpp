@@ -525,8 +525,7 @@ void RigRenderer::exposeBackground(std::size_t camera, std::uint64_t frame_key, 
 
 // The same scene, drawables, painter's order, coverage model, distractor draws and sensor model as
 // renderReference, restricted to the pixels that can change: each marker's rows of pixels within reach of a disc at
-// one of its sub-frame positions, each shaft's rows within reach of its capsule (every pixel of a shaft drawn once,
-// by the piece its projection falls on, against the distance to the whole shaft), each distractor's box. The rest
+// one of its sub-frame positions, each shaft piece's rows within reach of its capsule, each distractor's box. The rest
 // of the frame is exposeBackground. Cost follows the markers' and shafts' pixel count, not the frame's.
 void RigRenderer::renderSpans(std::size_t camera, const WorldScene& scene, std::uint64_t frame_index, cv::Mat* image,
                               std::vector<ProjectedMarker>* truth) const {
@@ -540,10 +539,6 @@ void RigRenderer::renderSpans(std::size_t camera, const WorldScene& scene, std::
   const int samples = std::max(1, config_.motion_samples);
   const double* erfc_table = halfErfcTable().data();
 
-  struct Shaft {
-    Eigen::Vector2d a, b;  // the projected shaft (its first and last projecting piece ends)
-    std::vector<Span> spans;
-  };
   struct Drawable {
     double depth = 0.0;
     bool is_marker = true;
@@ -556,7 +551,6 @@ void RigRenderer::renderSpans(std::size_t camera, const WorldScene& scene, std::
     std::vector<Span> spans;  // marker
   };
   std::vector<Drawable> drawables;
-  std::vector<Shaft> shafts;
   std::vector<Span> touched;
   for (std::size_t i = 0; i < scene.markers.size(); ++i) {
     if (!projected[i].visible && projected[i].radius_px <= 0.0) continue;
@@ -598,50 +592,28 @@ void RigRenderer::renderSpans(std::size_t camera, const WorldScene& scene, std::
   if (config_.shafts) {
     for (const WorldSegment& seg : scene.shafts) {
       constexpr int kPieces = 24;  // the reference's pieces: the same depth order against the markers
-      std::vector<Eigen::Vector2d> ends(kPieces + 1);
-      std::vector<bool> ok(kPieces + 1);
-      for (int k = 0; k <= kPieces; ++k) ok[k] = cam.project(seg.a + (seg.b - seg.a) * (double(k) / kPieces), &ends[k]);
-      // The first run of projecting piece ends (a shaft crossing the camera plane keeps its visible part).
-      int first = 0;
-      while (first <= kPieces && !ok[first]) ++first;
-      int last = first;
-      while (last + 1 <= kPieces && ok[last + 1]) ++last;
-      if (last - first < 1) continue;
-      Shaft shaft;
-      shaft.a = ends[first];
-      shaft.b = ends[last];
-      const Eigen::Vector2d ab = shaft.b - shaft.a;
-      const double len2 = std::max(ab.squaredNorm(), 1e-18);
-      const std::size_t shaft_index = shafts.size();
-      double max_radius = 0.0;
-      for (int k = first; k < last; ++k) {
+      for (int k = 0; k < kPieces; ++k) {
+        const Eigen::Vector3d pa = seg.a + (seg.b - seg.a) * (static_cast<double>(k) / kPieces);
+        const Eigen::Vector3d pb = seg.a + (seg.b - seg.a) * (static_cast<double>(k + 1) / kPieces);
         Drawable d;
         d.is_marker = false;
-        d.index = shaft_index;
-        d.a = ends[k];
-        d.b = ends[k + 1];
-        const Eigen::Vector3d pa = seg.a + (seg.b - seg.a) * (double(k) / kPieces);
-        const Eigen::Vector3d pb = seg.a + (seg.b - seg.a) * (double(k + 1) / kPieces);
+        if (!cam.project(pa, &d.a) || !cam.project(pb, &d.b)) continue;
         d.depth = (cam.world_to_camera * (0.5 * (pa + pb))).z();
         d.radius_px = cam.K(0, 0) * seg.radius / d.depth;
-        d.t_lo = k == first ? -std::numeric_limits<double>::infinity() : (ends[k] - shaft.a).dot(ab) / len2;
-        d.t_hi = k + 1 == last ? std::numeric_limits<double>::infinity() : (ends[k + 1] - shaft.a).dot(ab) / len2;
-        max_radius = std::max(max_radius, d.radius_px);
+        // Each piece is its own capsule, as in the reference (where two pieces overlap at a joint both blend).
+        const double rr = d.radius_px + reach;
+        const int row0 = static_cast<int>(std::ceil(std::max(std::min(d.a.y(), d.b.y()) - rr, 0.0)));
+        const int row1 = static_cast<int>(std::floor(std::min(std::max(d.a.y(), d.b.y()) + rr, cam.height - 1.0)));
+        for (int y = row0; y <= row1; ++y) {
+          double xl, xr;
+          int x0, x1;
+          if (capsuleRowSpan(d.a, d.b, rr, y, &xl, &xr) && pixelRange(xl, xr, cam.width, &x0, &x1)) {
+            d.spans.push_back({y, x0, x1});
+          }
+        }
+        touched.insert(touched.end(), d.spans.begin(), d.spans.end());
         drawables.push_back(std::move(d));
       }
-      const double rr = max_radius + reach;
-      const int row0 = static_cast<int>(std::ceil(std::max(std::min(shaft.a.y(), shaft.b.y()) - rr, 0.0)));
-      const int row1 =
-          static_cast<int>(std::floor(std::min(std::max(shaft.a.y(), shaft.b.y()) + rr, cam.height - 1.0)));
-      for (int y = row0; y <= row1; ++y) {
-        double xl, xr;
-        int x0, x1;
-        if (capsuleRowSpan(shaft.a, shaft.b, rr, y, &xl, &xr) && pixelRange(xl, xr, cam.width, &x0, &x1)) {
-          shaft.spans.push_back({y, x0, x1});
-        }
-      }
-      touched.insert(touched.end(), shaft.spans.begin(), shaft.spans.end());
-      shafts.push_back(std::move(shaft));
     }
   }
   std::sort(drawables.begin(), drawables.end(), [](const Drawable& x, const Drawable& y) { return x.depth > y.depth; });
@@ -717,25 +689,16 @@ void RigRenderer::renderSpans(std::size_t camera, const WorldScene& scene, std::
       }
       continue;
     }
-    // A shaft piece: the pixels of its shaft whose projection parameter falls in its share, within reach of it.
-    const Shaft& shaft = shafts[d.index];
-    const Eigen::Vector2d ab = shaft.b - shaft.a;
-    const double len2 = std::max(ab.squaredNorm(), 1e-18);
-    const double rr = d.radius_px + reach;
-    const int row0 = static_cast<int>(std::ceil(std::max(std::min(d.a.y(), d.b.y()) - rr, 0.0)));
-    const int row1 = static_cast<int>(std::floor(std::min(std::max(d.a.y(), d.b.y()) + rr, cam.height - 1.0)));
-    for (int y = row0; y <= row1; ++y) {
-      double xl, xr;
-      int x0, x1;
-      if (!capsuleRowSpan(d.a, d.b, rr, y, &xl, &xr) || !pixelRange(xl, xr, cam.width, &x0, &x1)) continue;
-      cv::Vec3f* row = radiance.ptr<cv::Vec3f>(y);
-      const double ry = y - shaft.a.y();
-      for (int x = x0; x <= x1; ++x) {
-        const double rx = x - shaft.a.x();
-        const double t = (rx * ab.x() + ry * ab.y()) / len2;
-        if (t < d.t_lo || t >= d.t_hi) continue;
-        const double tc = std::clamp(t, 0.0, 1.0);
-        const double ex = rx - tc * ab.x(), ey = ry - tc * ab.y();
+    // A shaft piece: coverage by the distance to its own segment, on its capsule's rows.
+    const Eigen::Vector2d ab = d.b - d.a;
+    const double len2 = ab.squaredNorm();
+    for (const Span& sp : d.spans) {
+      cv::Vec3f* row = radiance.ptr<cv::Vec3f>(sp.y);
+      const double ry = sp.y - d.a.y();
+      for (int x = sp.x0; x <= sp.x1; ++x) {
+        const double rx = x - d.a.x();
+        const double t = len2 > 0.0 ? std::clamp((rx * ab.x() + ry * ab.y()) / len2, 0.0, 1.0) : 0.0;
+        const double ex = rx - t * ab.x(), ey = ry - t * ab.y();
         const double a = tabulatedCoverage((std::sqrt(ex * ex + ey * ey) - d.radius_px) * inv_sqrt2_sigma, erfc_table);
         if (a < 1e-4) continue;
         row[x] = row[x] * static_cast<float>(1.0 - a) + steel * static_cast<float>(a);
