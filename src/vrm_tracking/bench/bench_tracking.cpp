@@ -8,6 +8,11 @@
 //   (4) calibration error (issue 19): the headline rows again with the tracker reconstructing through a rig estimated
 //       by calibrate_rig's procedure (calibration.h: Zhang via OpenCV) from synthetic chessboard views with sensor
 //       noise and blur (`calibration: estimated`), beside the perfect rig (`calibration: true`).
+//   (5) rig twin cost (issue 30 item 4): every rendered case through the reference renderer
+//       (RenderConfig::reference_path: full-frame sensor pass, boxes per drawable) and the span renderer (the
+//       default), in this run with the same seed and frames: ms per camera triple (mean, p99, worst), tip RMS / max
+//       and their ratios span/reference, and image statistics of both (background mean and noise σ from two
+//       exposures of one scene, marker peak, detected blob area). JSON: "rig_twin".
 // Headline rows repeat `repetitions` times in this run (seed + k; estimated rows: a new calibration per repetition);
 // each metric is the median over the repetitions with _min/_max beside it.
 // Usage: bench_tracking [--quick] [--out FILE]   (writes JSON; prints a table)
@@ -21,12 +26,11 @@
 #include <cstring>
 #include <fstream>
 #include <functional>
+#include <opencv2/imgproc.hpp>
+#include <random>
 #include <sstream>
 #include <string>
 #include <vector>
-
-#include <opencv2/imgproc.hpp>
-#include <random>
 
 #include "vrm_tracking/calibration.h"
 #include "vrm_tracking/evaluation.h"
@@ -211,7 +215,8 @@ std::string toJson(const Row& row) {
     << ", \"crlb_um\": " << (row.has_floor ? num(row.crlb_um) : "null")
     << ", \"ratio_to_floor\": " << (row.has_floor && row.floor_um > 0 ? num(row.r.tip_rms_um / row.floor_um) : "null")
     << ", \"tip_eye_rms_um\": " << num(row.r.tip_eye_rms_um) << ", \"eye_err_deg\": " << num(row.r.eye_err_deg)
-    << ", \"eye_err_max_deg\": " << num(row.r.eye_err_max_deg)
+    << ", \"eye_err_max_deg\": "
+    << num(row.r.eye_err_max_deg)
     // Centroid path: the centroids are given, not detected (every visible marker counts as found by construction).
     << ", \"detect_rate\": " << (row.source == "centroid_noise" ? "null" : num(row.r.detect_rate))
     << ", \"track_rate\": " << num(row.r.track_rate) << ", \"ms_detect\": " << num(row.r.ms_detect)
@@ -239,8 +244,9 @@ std::string toJson(const Row& row) {
   if (row.estimated) {
     o << ", \"calibration_seeds\": [";
     for (std::size_t i = 0; i < row.calibration_seeds.size(); ++i) o << (i ? ", " : "") << row.calibration_seeds[i];
-    o << "], \"calib_reproj_rms_px\": " << num(row.reproj_rms) << ", \"calib_reproj_rms_px_min\": "
-      << num(row.reproj_rms_min) << ", \"calib_reproj_rms_px_max\": " << num(row.reproj_rms_max);
+    o << "], \"calib_reproj_rms_px\": " << num(row.reproj_rms)
+      << ", \"calib_reproj_rms_px_min\": " << num(row.reproj_rms_min)
+      << ", \"calib_reproj_rms_px_max\": " << num(row.reproj_rms_max);
   }
   if (row.source == "rendered") {
     o << ", \"read_noise_dn\": " << num(row.render.read_noise) << ", \"blur_px\": " << num(row.render.blur_px)
@@ -257,11 +263,130 @@ std::string toJson(const Row& row) {
         o << ", \"ratio_to_three_cameras_min\": " << num(row.ratio_min)
           << ", \"ratio_to_three_cameras_max\": " << num(row.ratio_max);
       }
-      o
-        << ", \"camera_skew_ms\": " << num(row.camera_skew_ms);
+      o << ", \"camera_skew_ms\": " << num(row.camera_skew_ms);
     }
   }
   o << "}";
+  return o.str();
+}
+
+// (5) Image statistics of one renderer over a trajectory (camera triples at f/50 s, f < frames): the background
+// mean and the sensor noise σ in a 64×64 corner box (std of the difference of two exposures of the same scene / √2,
+// so the static clutter cancels), the peak (brightest channel) within each visible marker's disc, and the area of
+// the detected blob of that marker's class nearest to it (within 3 px).
+struct ImageStats {
+  double background_mean = 0, noise_sigma = 0, marker_peak = 0, blob_area = 0;
+  long markers = 0, blobs = 0;
+};
+
+ImageStats imageStats(const CameraRig& rig, const MarkerLayout& layout, const RenderConfig& render,
+                      const std::function<SurgeonSnapshot(double)>& truth, int frames) {
+  const RigRenderer renderer(rig, layout, render);
+  const MarkerDetector detector(layout.classes);
+  ImageStats st;
+  double sum = 0, diff_sum = 0, diff_sum2 = 0, peak_sum = 0, area_sum = 0;
+  long n = 0;
+  for (int f = 0; f < frames; ++f) {
+    const double t = f / 50.0;
+    WorldScene scene = worldSceneFromSnapshot(truth(t), layout);
+    setVelocities(worldSceneFromSnapshot(truth(t - 1e-3), layout), worldSceneFromSnapshot(truth(t + 1e-3), layout),
+                  2e-3, &scene);
+    for (std::size_t c = 0; c < rig.size(); ++c) {
+      cv::Mat a, b;
+      std::vector<ProjectedMarker> projected;
+      renderer.render(c, scene, 2 * f, &a, &projected);
+      renderer.render(c, scene, 2 * f + 1, &b);
+      for (int y = 8; y < 72; ++y) {
+        const std::uint8_t* pa = a.ptr<std::uint8_t>(y) + 3 * 8;
+        const std::uint8_t* pb = b.ptr<std::uint8_t>(y) + 3 * 8;
+        for (int i = 0; i < 3 * 64; ++i, ++n) {
+          sum += pa[i];
+          const double d = static_cast<double>(pa[i]) - pb[i];
+          diff_sum += d;
+          diff_sum2 += d * d;
+        }
+      }
+      const std::vector<Blob> blobs = detector.detect(a);
+      for (const ProjectedMarker& p : projected) {
+        if (!p.visible) continue;
+        ++st.markers;
+        int peak = 0;
+        const int r = static_cast<int>(std::ceil(p.radius_px));
+        for (int y = std::max(0, static_cast<int>(p.pixel.y()) - r);
+             y <= std::min(a.rows - 1, static_cast<int>(p.pixel.y()) + r); ++y) {
+          for (int x = std::max(0, static_cast<int>(p.pixel.x()) - r);
+               x <= std::min(a.cols - 1, static_cast<int>(p.pixel.x()) + r); ++x) {
+            if (std::hypot(x - p.pixel.x(), y - p.pixel.y()) > p.radius_px) continue;
+            const cv::Vec3b v = a.at<cv::Vec3b>(y, x);
+            peak = std::max({peak, static_cast<int>(v[0]), static_cast<int>(v[1]), static_cast<int>(v[2])});
+          }
+        }
+        peak_sum += peak;
+        const Blob* best = nullptr;
+        for (const Blob& bl : blobs) {
+          const double d = std::hypot(bl.u - p.pixel.x(), bl.v - p.pixel.y());
+          if (bl.class_id == p.class_id && d < 3.0 &&
+              (!best || d < std::hypot(best->u - p.pixel.x(), best->v - p.pixel.y())))
+            best = &bl;
+        }
+        if (best) {
+          ++st.blobs;
+          area_sum += best->area;
+        }
+      }
+    }
+  }
+  st.background_mean = n ? sum / n : 0;
+  st.noise_sigma = n ? std::sqrt(std::max(0.0, diff_sum2 / n - (diff_sum / n) * (diff_sum / n)) / 2.0) : 0;
+  st.marker_peak = st.markers ? peak_sum / st.markers : 0;
+  st.blob_area = st.blobs ? area_sum / st.blobs : 0;
+  return st;
+}
+
+struct TwinRow {
+  std::string label;
+  int frames = 0;
+  std::uint32_t seed = 0;
+  int repetitions = 1;
+  EvalResult ref, span;  // pooled over the repetitions
+  std::vector<double> ref_rms_each, span_rms_each, ref_max_each, span_max_each;
+  ImageStats ref_stats, span_stats;
+  double ratio(double EvalResult::*f) const { return ref.*f > 0 ? span.*f / ref.*f : 0.0; }
+  bool within() const { return ratio(&EvalResult::tip_rms_um) <= 1.2 && ratio(&EvalResult::tip_max_um) <= 1.2; }
+};
+
+std::string toJson(const ImageStats& s) {
+  std::ostringstream o;
+  o << "{\"background_mean_dn\": " << num(s.background_mean) << ", \"noise_sigma_dn\": " << num(s.noise_sigma)
+    << ", \"marker_peak_dn\": " << num(s.marker_peak) << ", \"blob_area_px\": " << num(s.blob_area)
+    << ", \"markers\": " << s.markers << ", \"blobs\": " << s.blobs << "}";
+  return o.str();
+}
+
+std::string toJson(const TwinRow& row) {
+  std::ostringstream o;
+  auto list = [](const std::vector<double>& v) {
+    std::string out = "[";
+    for (std::size_t i = 0; i < v.size(); ++i) out += (i ? ", " : "") + num(v[i]);
+    return out + "]";
+  };
+  o << "{\"label\": \"" << row.label << "\", \"frames\": " << row.frames << ", \"seed\": " << row.seed
+    << ", \"repetitions\": " << row.repetitions;
+  for (const auto& [name, r] : {std::make_pair("reference", &row.ref), std::make_pair("span", &row.span)}) {
+    o << ", \"" << name << "\": {\"ms_render\": " << num(r->ms_render)
+      << ", \"ms_render_p99\": " << num(r->ms_render_p99) << ", \"ms_render_max\": " << num(r->ms_render_max)
+      << ", \"ms_detect\": " << num(r->ms_detect) << ", \"ms_detect_p99\": " << num(r->ms_detect_p99)
+      << ", \"tip_rms_um\": " << num(r->tip_rms_um) << ", \"tip_max_um\": " << num(r->tip_max_um)
+      << ", \"detect_rate\": " << num(r->detect_rate) << ", \"track_rate\": " << num(r->track_rate)
+      << ", \"tip_rms_um_each\": " << list(r == &row.ref ? row.ref_rms_each : row.span_rms_each)
+      << ", \"tip_max_um_each\": " << list(r == &row.ref ? row.ref_max_each : row.span_max_each)
+      << ", \"image\": " << toJson(r == &row.ref ? row.ref_stats : row.span_stats) << "}";
+  }
+  o << ", \"ratio_ms_render\": " << num(row.ratio(&EvalResult::ms_render))
+    << ", \"ratio_ms_render_p99\": " << num(row.ratio(&EvalResult::ms_render_p99))
+    << ", \"ratio_tip_rms\": " << num(row.ratio(&EvalResult::tip_rms_um))
+    << ", \"ratio_tip_max\": " << num(row.ratio(&EvalResult::tip_max_um))
+    << ", \"within_1_2\": " << (row.within() ? "true" : "false") << "}";
   return o.str();
 }
 
@@ -357,8 +482,7 @@ int main(int argc, char** argv) {
           row.has_floor = true;
           const std::vector<std::size_t> cams =
               occluded ? std::vector<std::size_t>{0, 1} : std::vector<std::size_t>{0, 1, 2};
-          row.floor_um =
-              noise > 0 ? idealFloorUm(rig, floor_points, noise, cams, floor_trials, 99, &row.crlb_um) : 0.0;
+          row.floor_um = noise > 0 ? idealFloorUm(rig, floor_points, noise, cams, floor_trials, 99, &row.crlb_um) : 0.0;
           if (row.floor_um > 0) {
             row.ratio_min = row.tip_rms_min / row.floor_um;
             row.ratio_max = row.tip_rms_max / row.floor_um;
@@ -466,65 +590,67 @@ int main(int argc, char** argv) {
   };
   for (const Case& c : cases) {
     if (!wanted(c.label)) continue;
-   for (bool est : {false, true}) {
-    if (est && !estimatedToo(c.label)) continue;
-    MarkerLayout l = layout;
-    l.tip_marker_radius = c.tip_marker_mm * 1e-3;
-    DefaultRigGeometry g;
-    g.width = static_cast<int>(640 * c.scale);
-    g.height = static_cast<int>(480 * c.scale);
-    g.focal_px *= c.scale;
-    const CameraRig r = makeDefaultRig(g);
-    const auto truth = circlingSurgeon(l, c.speed_mm_s * 1e-3);
-    std::vector<double> times;
-    for (int f = 0; f < frames_rendered; ++f) times.push_back(f / 50.0);
-    Row row;
-    row.source = "rendered";
-    row.label = c.label;
-    row.noise_px = 0.0;
-    row.width = g.width;
-    row.height = g.height;
-    row.occluded_cams = c.occluded;
-    row.speed_mm_s = c.speed_mm_s;
-    row.render = c.render;
-    row.tip_marker_mm = c.tip_marker_mm;
-    row.roi = c.roi;
-    EvalOptions opt;
-    opt.rendered = true;
-    opt.render = c.render;
-    opt.roi.use_roi = c.roi;
-    opt.occluded_camera = c.occluded ? 2 : -1;
-    opt.seed = 21;
-    opt.clock = now;
-    opt.tracker.filter = c.filter;
-    opt.tracker.clean_quality_ratio = c.clean_quality_ratio;
-    row.filter = c.filter;
-    row.filter_lag_ms = c.filter.type == FilterType::kNone ? 0.0 : 1e3 * measureRampLag(c.filter, 0.010, 50.0);
-    repeatInto(&row, headline(c.label) ? repetitions : 1, [&](int k) {
-      EvalOptions o = opt;
-      o.seed = opt.seed + k;
-      if (est) o.tracker_rig = &estimated[k].rig;
-      return evaluate(r, l, truth, times, o);
-    });
-    if (est) markEstimated(&row);
-    row.occluded_camera = opt.occluded_camera;
-    if (c.label == "one camera occluded") {
-      // Same motion, speed and seeds as the "10 mm/s" row of the same calibration: the ratio repetition by repetition.
-      for (const Row& three : rows) {
-        if (three.source != "rendered" || three.label != "10 mm/s" || three.estimated != est ||
-            three.tip_rms_each.size() != row.tip_rms_each.size()) {
-          continue;
+    for (bool est : {false, true}) {
+      if (est && !estimatedToo(c.label)) continue;
+      MarkerLayout l = layout;
+      l.tip_marker_radius = c.tip_marker_mm * 1e-3;
+      DefaultRigGeometry g;
+      g.width = static_cast<int>(640 * c.scale);
+      g.height = static_cast<int>(480 * c.scale);
+      g.focal_px *= c.scale;
+      const CameraRig r = makeDefaultRig(g);
+      const auto truth = circlingSurgeon(l, c.speed_mm_s * 1e-3);
+      std::vector<double> times;
+      for (int f = 0; f < frames_rendered; ++f) times.push_back(f / 50.0);
+      Row row;
+      row.source = "rendered";
+      row.label = c.label;
+      row.noise_px = 0.0;
+      row.width = g.width;
+      row.height = g.height;
+      row.occluded_cams = c.occluded;
+      row.speed_mm_s = c.speed_mm_s;
+      row.render = c.render;
+      row.tip_marker_mm = c.tip_marker_mm;
+      row.roi = c.roi;
+      EvalOptions opt;
+      opt.rendered = true;
+      opt.render = c.render;
+      opt.roi.use_roi = c.roi;
+      opt.occluded_camera = c.occluded ? 2 : -1;
+      opt.seed = 21;
+      opt.clock = now;
+      opt.tracker.filter = c.filter;
+      opt.tracker.clean_quality_ratio = c.clean_quality_ratio;
+      row.filter = c.filter;
+      row.filter_lag_ms = c.filter.type == FilterType::kNone ? 0.0 : 1e3 * measureRampLag(c.filter, 0.010, 50.0);
+      repeatInto(&row, headline(c.label) ? repetitions : 1, [&](int k) {
+        EvalOptions o = opt;
+        o.seed = opt.seed + k;
+        if (est) o.tracker_rig = &estimated[k].rig;
+        return evaluate(r, l, truth, times, o);
+      });
+      if (est) markEstimated(&row);
+      row.occluded_camera = opt.occluded_camera;
+      if (c.label == "one camera occluded") {
+        // Same motion, speed and seeds as the "10 mm/s" row of the same calibration: the ratio repetition by
+        // repetition.
+        for (const Row& three : rows) {
+          if (three.source != "rendered" || three.label != "10 mm/s" || three.estimated != est ||
+              three.tip_rms_each.size() != row.tip_rms_each.size()) {
+            continue;
+          }
+          std::vector<double> ratios;
+          for (std::size_t k = 0; k < row.tip_rms_each.size(); ++k)
+            ratios.push_back(row.tip_rms_each[k] / three.tip_rms_each[k]);
+          const Spread sp = spreadOf(ratios);
+          row.ratio_to_three_cameras = sp.median;
+          row.ratio_min = sp.min;
+          row.ratio_max = sp.max;
         }
-        std::vector<double> ratios;
-        for (std::size_t k = 0; k < row.tip_rms_each.size(); ++k) ratios.push_back(row.tip_rms_each[k] / three.tip_rms_each[k]);
-        const Spread sp = spreadOf(ratios);
-        row.ratio_to_three_cameras = sp.median;
-        row.ratio_min = sp.min;
-        row.ratio_max = sp.max;
       }
+      rows.push_back(row);
     }
-    rows.push_back(row);
-   }
   }
 
   // (3) The hard case: fast eye, fast tips, tips at the back of the eye, with all cameras and with each one occluded
@@ -600,6 +726,86 @@ int main(int argc, char** argv) {
     }
   }
 
+  // (5) Rig twin cost: the reference and the span renderer on every rendered case, in this run.
+  std::vector<TwinRow> twin;
+  {
+    const int stat_frames = quick ? 2 : 10;
+    const int twin_repetitions = quick ? 1 : 3;
+    auto twinRow = [&](const std::string& label, const CameraRig& r, const MarkerLayout& l,
+                       const std::function<SurgeonSnapshot(double)>& truth, int frames, EvalOptions opt) {
+      TwinRow row;
+      row.label = label;
+      row.frames = frames;
+      row.seed = opt.seed;
+      std::vector<double> times;
+      for (int f = 0; f < frames; ++f) times.push_back(f / 50.0);
+      row.repetitions = twin_repetitions;
+      for (bool reference : {true, false}) {
+        // Repetitions k = seed + k, pooled: RMS over all of them, worst of all, mean time, median p99, worst time.
+        std::vector<EvalResult> each;
+        for (int k = 0; k < twin_repetitions; ++k) {
+          EvalOptions o = opt;
+          o.seed = opt.seed + k;
+          o.render.reference_path = reference;
+          each.push_back(evaluate(r, l, truth, times, o));
+        }
+        EvalResult pooled = each.front();
+        double rms2 = 0;
+        std::vector<double> p99s, rms_each, max_each;
+        for (const EvalResult& e : each) {
+          rms2 += e.tip_rms_um * e.tip_rms_um / each.size();
+          pooled.tip_max_um = std::max(pooled.tip_max_um, e.tip_max_um);
+          pooled.ms_render_max = std::max(pooled.ms_render_max, e.ms_render_max);
+          p99s.push_back(e.ms_render_p99);
+          rms_each.push_back(e.tip_rms_um);
+          max_each.push_back(e.tip_max_um);
+        }
+        for (double EvalResult::*f : {&EvalResult::ms_render, &EvalResult::ms_detect, &EvalResult::ms_detect_p99,
+                                      &EvalResult::detect_rate, &EvalResult::track_rate}) {
+          pooled.*f = 0;
+          for (const EvalResult& e : each) pooled.*f += e.*f / each.size();
+        }
+        pooled.tip_rms_um = std::sqrt(rms2);
+        pooled.ms_render_p99 = spreadOf(p99s).median;
+        (reference ? row.ref : row.span) = pooled;
+        (reference ? row.ref_rms_each : row.span_rms_each) = rms_each;
+        (reference ? row.ref_max_each : row.span_max_each) = max_each;
+        RenderConfig rc = opt.render;
+        rc.reference_path = reference;
+        rc.seed = opt.seed;
+        (reference ? row.ref_stats : row.span_stats) = imageStats(r, l, rc, truth, stat_frames);
+      }
+      twin.push_back(row);
+    };
+    for (const Case& c : cases) {
+      if (!wanted(c.label)) continue;
+      MarkerLayout l = layout;
+      l.tip_marker_radius = c.tip_marker_mm * 1e-3;
+      DefaultRigGeometry g;
+      g.width = static_cast<int>(640 * c.scale);
+      g.height = static_cast<int>(480 * c.scale);
+      g.focal_px *= c.scale;
+      EvalOptions opt;
+      opt.rendered = true;
+      opt.render = c.render;
+      opt.roi.use_roi = c.roi;
+      opt.occluded_camera = c.occluded ? 2 : -1;
+      opt.seed = 21;
+      opt.clock = now;
+      opt.tracker.filter = c.filter;
+      opt.tracker.clean_quality_ratio = c.clean_quality_ratio;
+      twinRow(c.label, makeDefaultRig(g), l, circlingSurgeon(l, c.speed_mm_s * 1e-3), frames_rendered, opt);
+    }
+    const std::string fast_label = "fast eye, tips 50 mm/s at pole, 3 cameras";
+    if (wanted(fast_label)) {
+      EvalOptions opt;
+      opt.rendered = true;
+      opt.seed = 23;
+      opt.clock = now;
+      twinRow(fast_label, rig, layout, fastPosteriorSurgeon(layout, FastSurgeonConfig()), frames_fast, opt);
+    }
+  }
+
   std::printf("calibration (estimated rig; blur %.1f px, read noise %.1f DN, shot gain %.2f, %d views + fixture):\n",
               kCalibBlurPx, kCalibReadNoiseDn, kCalibShotGain, kCalibViews);
   for (const EstimatedRig& e : estimated) {
@@ -607,22 +813,39 @@ int main(int argc, char** argv) {
     for (std::size_t c = 0; c < e.cameras.size(); ++c) {
       std::printf("  %s rms %.3f/%.3f px corner err %.3f px focal %.3f%% pos %.3f mm rot %.3f deg",
                   e.cameras[c].camera.name.c_str(), e.cameras[c].intrinsic_rms_px, e.cameras[c].extrinsic_rms_px,
-                  e.corner_err_px[c], e.errors[c].focal_percent, 1e3 * e.errors[c].position_m, e.errors[c].rotation_deg);
+                  e.corner_err_px[c], e.errors[c].focal_percent, 1e3 * e.errors[c].position_m,
+                  e.errors[c].rotation_deg);
     }
     std::printf("\n");
   }
   std::printf("%-15s %-52s %-4s %5s %4s %5s %9s %-17s %9s %9s %9s %7s %8s %7s %8s %8s\n", "source", "case", "cal",
-              "noise", "occ", "mm/s", "tip_rms", "[min, max]", "tip_max", "eye_frm", "floor", "ratio", "eye_deg", "detect",
-              "ms_det", "ms_rec");
+              "noise", "occ", "mm/s", "tip_rms", "[min, max]", "tip_max", "eye_frm", "floor", "ratio", "eye_deg",
+              "detect", "ms_det", "ms_rec");
   for (const Row& row : rows) {
     char range[64];
     std::snprintf(range, sizeof(range), "[%.2f, %.2f]", row.tip_rms_min, row.tip_rms_max);
     std::printf("%-15s %-52s %-4s %5.2f %4d %5.0f %9.2f %-17s %9.2f %9.2f %9s %7s %8.4f %7.3f %8.3f %8.3f\n",
-                row.source.c_str(), row.label.c_str(), row.estimated ? "est" : "true", row.noise_px,
-                row.occluded_cams, row.speed_mm_s, row.r.tip_rms_um, range, row.r.tip_max_um,
-                row.r.tip_eye_rms_um, row.has_floor ? num(row.floor_um).c_str() : "-",
+                row.source.c_str(), row.label.c_str(), row.estimated ? "est" : "true", row.noise_px, row.occluded_cams,
+                row.speed_mm_s, row.r.tip_rms_um, range, row.r.tip_max_um, row.r.tip_eye_rms_um,
+                row.has_floor ? num(row.floor_um).c_str() : "-",
                 row.has_floor && row.floor_um > 0 ? num(row.r.tip_rms_um / row.floor_um).c_str() : "-",
                 row.r.eye_err_deg, row.r.detect_rate, row.r.ms_detect, row.r.ms_reconstruct);
+  }
+
+  std::printf(
+      "\nrig twin (issue 30 item 4): reference vs span renderer, same run, seed and frames (ms per camera triple)\n");
+  std::printf("%-42s %6s %7s %7s %7s %7s %7s %7s %8s %8s %8s %8s %6s %6s %5s  %s\n", "case", "frames", "ref_ms",
+              "ref_p99", "ref_max", "new_ms", "new_p99", "new_max", "ref_rms", "new_rms", "ref_max", "new_max", "r_rms",
+              "r_max", "ok", "sigma ref/new, peak ref/new, blob ref/new");
+  for (const TwinRow& row : twin) {
+    std::printf(
+        "%-42s %6d %7.2f %7.2f %7.2f %7.2f %7.2f %7.2f %8.2f %8.2f %8.2f %8.2f %6.3f %6.3f %5s  %.2f/%.2f %.0f/%.0f "
+        "%.1f/%.1f\n",
+        row.label.c_str(), row.frames, row.ref.ms_render, row.ref.ms_render_p99, row.ref.ms_render_max,
+        row.span.ms_render, row.span.ms_render_p99, row.span.ms_render_max, row.ref.tip_rms_um, row.span.tip_rms_um,
+        row.ref.tip_max_um, row.span.tip_max_um, row.ratio(&EvalResult::tip_rms_um), row.ratio(&EvalResult::tip_max_um),
+        row.within() ? "yes" : "NO", row.ref_stats.noise_sigma, row.span_stats.noise_sigma, row.ref_stats.marker_peak,
+        row.span_stats.marker_peak, row.ref_stats.blob_area, row.span_stats.blob_area);
   }
 
   std::ofstream file(out);
@@ -658,7 +881,16 @@ int main(int argc, char** argv) {
   }
   file << "]},\n \"rows\": [\n";
   for (std::size_t i = 0; i < rows.size(); ++i) file << "  " << toJson(rows[i]) << (i + 1 < rows.size() ? ",\n" : "\n");
-  file << " ]}\n";
+  file << " ],\n \"rig_twin\": {\"issue\": \"30 item 4\", "
+       << "\"timing\": \"thread CPU time of RigRenderer::render per camera triple (the camera stage's work); p99: "
+       << "nearest rank per repetition, median over them; max: over all\", "
+       << "\"accuracy\": \"tip RMS pooled over the repetitions (seed, seed + 1, ...), tip max the worst of them\", "
+       << "\"reference\": \"RenderConfig::reference_path = true\", \"span\": \"RenderConfig default\", "
+       << "\"image_stats\": \"64x64 corner box at (8,8): mean; noise sigma = std of the difference of two exposures "
+       << "of one scene / sqrt 2; marker peak = brightest channel inside the projected disc; blob area of the "
+       << "detected blob of the class within 3 px\", \"rows\": [\n";
+  for (std::size_t i = 0; i < twin.size(); ++i) file << "  " << toJson(twin[i]) << (i + 1 < twin.size() ? ",\n" : "\n");
+  file << " ]}}\n";
   std::printf("wrote %s\n", out.c_str());
   return 0;
 }

@@ -44,11 +44,14 @@ struct EvalResult {
   double tip_eye_max_um = 0.0;
   double eye_err_deg = 0.0;  // RMS angular error of the eye rotation
   double eye_err_max_deg = 0.0;
-  double detect_rate = 0.0;      // visible (marker, camera) pairs with a centroid within 3 px
-  double track_rate = 0.0;       // instrument-frames with a valid pose
-  double ms_detect = 0.0;        // per camera triple
-  double ms_reconstruct = 0.0;   // per frame (all markers, eye and instruments)
-  double ms_render = 0.0;        // rendered mode: the synthetic rig's cost per camera triple (not the pipeline's)
+  double detect_rate = 0.0;     // visible (marker, camera) pairs with a centroid within 3 px
+  double track_rate = 0.0;      // instrument-frames with a valid pose
+  double ms_detect = 0.0;       // per camera triple
+  double ms_reconstruct = 0.0;  // per frame (all markers, eye and instruments)
+  double ms_render = 0.0;       // rendered mode: the synthetic rig's cost per camera triple (not the pipeline's)
+  double ms_render_p99 = 0.0;   // rendered mode: 99th percentile and worst over the frames (per triple)
+  double ms_render_max = 0.0;
+  double ms_detect_p99 = 0.0;
   double full_frame_rate = 0.0;  // fraction of camera frames that needed a full-frame pass
 };
 

@@ -1,6 +1,7 @@
 #include "vrm_tracking/evaluation.h"
 
 #include <Eigen/Dense>
+#include <algorithm>
 #include <cmath>
 #include <random>
 
@@ -91,6 +92,7 @@ EvalResult evaluate(const CameraRig& rig, const MarkerLayout& layout,
 
   double tip2 = 0.0, tip_eye2 = 0.0, eye2 = 0.0, t_detect = 0.0, t_rec = 0.0, t_render = 0.0;
   long tips = 0, tips_valid = 0, visible = 0, detected = 0, camera_frames = 0, full_frames = 0;
+  std::vector<double> render_each, detect_each;  // per camera triple (s)
   cv::Mat image;
   for (std::size_t f = 0; f < times.size(); ++f) {
     const double t = times[f];
@@ -101,6 +103,7 @@ EvalResult evaluate(const CameraRig& rig, const MarkerLayout& layout,
                     2e-3, &scene);
     }
     std::vector<CameraObservations> frame;
+    const double render_before = t_render, detect_before = t_detect;
     for (std::size_t c = 0; c < rig.size(); ++c) {
       if (static_cast<int>(c) == options.occluded_camera) continue;
       CameraObservations obs;
@@ -150,6 +153,8 @@ EvalResult evaluate(const CameraRig& rig, const MarkerLayout& layout,
       }
       frame.push_back(std::move(obs));
     }
+    render_each.push_back(t_render - render_before);
+    detect_each.push_back(t_detect - detect_before);
     const double t0 = options.clock ? options.clock() : 0.0;
     const TrackingResult r = tracker.update(frame, t);
     if (options.clock) t_rec += options.clock() - t0;
@@ -185,6 +190,14 @@ EvalResult evaluate(const CameraRig& rig, const MarkerLayout& layout,
     result.ms_detect = 1e3 * t_detect / times.size();
     result.ms_reconstruct = 1e3 * t_rec / times.size();
     result.ms_render = 1e3 * t_render / times.size();
+    // Nearest-rank 99th percentile.
+    auto p99 = [](std::vector<double> v) {
+      std::sort(v.begin(), v.end());
+      return v[std::min(v.size() - 1, static_cast<std::size_t>(std::ceil(0.99 * v.size())) - 1)];
+    };
+    result.ms_render_p99 = 1e3 * p99(render_each);
+    result.ms_render_max = 1e3 * *std::max_element(render_each.begin(), render_each.end());
+    result.ms_detect_p99 = 1e3 * p99(detect_each);
   }
   result.detect_rate = visible > 0 ? static_cast<double>(detected) / visible : 0.0;
   result.track_rate = tips > 0 ? static_cast<double>(tips_valid) / tips : 0.0;

@@ -67,6 +67,8 @@ class CameraRigSim : public nodelet::Nodelet {
     pnh.param("clutter", config.clutter, config.clutter);
     pnh.param("distractors", config.distractors, config.distractors);
     pnh.param("shafts", config.shafts, config.shafts);
+    // The earlier full-frame renderer (rig_renderer.h, issue 30 item 4): same images, about 3x the cost.
+    pnh.param("reference_renderer", config.reference_path, config.reference_path);
     int seed = 1;
     pnh.param("seed", seed, seed);  // a parameter, so a session's noise is reproducible (§2.4.2)
     config.seed = static_cast<std::uint32_t>(seed);
