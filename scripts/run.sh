@@ -4,7 +4,8 @@
 # tracking, pedals, knobs; the scenario manager (simulation core: collision, tissue, bleeding, scenario and score);
 # the renderer. It runs for a bounded time, records the session's inputs to a bag, saves three stereo frames and
 # writes the session's result JSON, then prints a summary of what was recorded and of what the simulation did
-# (outputs.bag) and the score table, and replays the bag offline (session_replay) to show the replay ends in the
+# (outputs.bag: frame cost; the view's fps and end-to-end latency from the display twin, with a warning when the
+# machine is too slow for real time) and the score table, and replays the bag offline (session_replay) to show the replay ends in the
 # live session's final state, bit for bit.
 # With --check the exit status says whether the session did its job: simulation frames were produced, in a scene
 # with tissue the tissue was published deformed and grasped, the scenario finished, and the replay of the bag ended
@@ -29,7 +30,7 @@ while (($#)); do
     --script) script=$2; shift 2 ;;
     --bag) bag=$2; shift 2 ;;
     --check) check=(--check); shift ;;
-    -h | --help) sed -n '2,12p' "$0"; exit 0 ;;
+    -h | --help) sed -n '2,13p' "$0"; exit 0 ;;
     *) extra+=("$1"); shift ;;
   esac
 done
