@@ -40,6 +40,8 @@ struct Case {
   int shadow_map = 512;
   int dof_downsample = 4;
   bool light_partition = true;  // lit shader only for the triangles the spotlight may reach
+  bool cache_static = true;     // issue 30: the retina's ambient-only layer kept per eye while it is unchanged
+  bool eye_moving = false;      // the worst case of the cache: the eye turns every frame, the layer is redrawn
   bool fundus = true;           // issue 16: the fundus texture on the retina
   bool metal = true;            // issue 16: metallic instruments, glowing light pipe tip, membrane sheen
   // The plain reference frame (issue 16): one shadow pass, two Phong + spotlight eye passes over every triangle (no
@@ -101,6 +103,7 @@ RenderOptions optionsOf(const Case& c) {
   options.shadow_map_size = c.shadow_map;
   options.dof_downsample = c.dof_downsample;
   options.light_partition = c.light_partition;
+  options.cache_static = c.cache_static;
   options.fundus = c.fundus;
   if (c.plain) {
     options.bump_mapping = false;
@@ -152,6 +155,16 @@ struct Setup {
         membrane->positions[3 * v + 2] = base[3 * v + 2] + 5e-5f * std::sin(0.3f * i + 2000.0f * base[3 * v]);
       }
       renderer.updateMesh("membrane", membrane->view(), 2 + i);
+    }
+    if (c.eye_moving) {
+      // The eye turns (± 0.6 deg about x, alternating): everything in the eye frame moves; here the retina, whose
+      // static layer must then be redrawn every frame.
+      for (const auto& object : scene) {
+        if (object.id != "retina") continue;
+        const float angle = (i % 2 ? 1.0f : -1.0f) * 0.01f;
+        renderer.setPose(object.id,
+                         Eigen::Isometry3f(Eigen::AngleAxisf(angle, Eigen::Vector3f::UnitX())) * object.pose);
+      }
     }
     renderer.render(&frame);
     return frame.timings;
@@ -268,6 +281,8 @@ int main(int argc, char** argv) {
       {"stereo_800x600_noshadow", 800, 600, true, false, true, true, true, true},
       {"stereo_800x600_nofundus", 800, 600, true, true, true, true, true, true},
       {"stereo_800x600_nometal", 800, 600, true, true, true, true, true, true},
+      {"stereo_800x600_nocache", 800, 600, true, true, true, true, true, true},
+      {"stereo_800x600_all_eye_moving", 800, 600, true, true, true, true, true, true},
       {"stereo_800x600_nodof", 800, 600, true, true, true, false, true, true},
       {"stereo_800x600_flat", 800, 600, true, false, false, false, true, true},
       {"stereo_800x600_static", 800, 600, true, true, true, true, false, true},
@@ -301,6 +316,8 @@ int main(int argc, char** argv) {
   for (Case& c : cases) {
     if (c.name.find("nofundus") != std::string::npos) c.fundus = false;
     if (c.name.find("nometal") != std::string::npos) c.metal = false;
+    if (c.name.find("nocache") != std::string::npos) c.cache_static = false;
+    if (c.name.find("eye_moving") != std::string::npos) c.eye_moving = true;
   }
   if (frames_override > 0) frames = frames_override;
   // Set-up cost of the fundus (baked once per scene, not per frame).

@@ -132,6 +132,14 @@ struct RenderOptions {
   // Lit shader only for the triangles the spotlight may reach (the shadow lookup only for those a shadow may reach),
   // the ambient-only one for the rest (same image; off: the lit shader everywhere, for comparison).
   bool light_partition = true;
+  // Issue 30: the opaque static objects (not deformable, not metal, not casting shadows: the retina) are kept per eye
+  // as an ambient-only layer (colour, DOF weight, depth) and re-drawn only when they, the eye's camera, the
+  // microscope or the fundus change; each frame starts from a copy of it and draws only the triangles the spotlight
+  // may reach lit over it (same image; off: every triangle every frame, for comparison). Needs light_partition.
+  bool cache_static = true;
+  // cache_static: a static object is drawn at its previous (anchor) pose while its new pose moves no point of it by
+  // more than this many pixels (at the focal plane): the tracker's sub-pixel jitter of the eye then keeps the layer.
+  float static_pose_tolerance_px = 0.5f;
   int shadow_map_size = 512;
   int dof_downsample = 4;     // blur at 1/4 (or 1/2, 1) resolution, separable 9 taps: §7.4.2 pass 3 is the costliest
   float dof_sigma_px = 1.5f;  // Gaussian sigma at the reduced resolution (x dof_downsample at full resolution)
@@ -158,6 +166,7 @@ struct PassTimings {
   double ms_total = 0.0;
   std::size_t triangles_drawn = 0;  // scene pass, both eyes
   std::size_t objects_culled = 0;
+  int static_layers_drawn = 0;  // eyes whose static layer was (re)drawn this frame (cache_static: 0 while unchanged)
 };
 
 struct StereoFrame {

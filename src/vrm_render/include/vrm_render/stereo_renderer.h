@@ -83,6 +83,7 @@ class StereoRenderer {
   struct SceneDraw;   // per eye: the scene program variants in use and how an object is drawn with them
 
   // The steps of render(), in order.
+  void anchorStaticPoses();                             // static objects: anchor pose within tolerance (cache_static)
   FrameState beginFrame();                              // light set-up; bakes / binds the fundus texture
   void partitionForSpotlight(const FrameState& frame);  // before pass 1: rewrites index buffers
   void renderShadowMap(const FrameState& frame, PassTimings* timings);              // pass 1

@@ -100,7 +100,9 @@ struct Object {
   bool has_mesh = false;
   std::uint64_t version = 0;
   ObjectStyle style;
-  Eigen::Isometry3f pose = Eigen::Isometry3f::Identity();
+  Eigen::Isometry3f pose = Eigen::Isometry3f::Identity();            // as drawn this frame
+  Eigen::Isometry3f requested_pose = Eigen::Isometry3f::Identity();  // setPose's
+  bool anchored = false;  // cache_static: `pose` is the anchor, kept while requested_pose stays within tolerance
   bool visible = true;
   GLuint vao = 0;
   GLuint buffers[5] = {};  // positions, normals, colours, injury, indices
@@ -235,6 +237,35 @@ constexpr GLint kFundusMinFilter = GL_NEAREST;
 
 bool isMetal(const ObjectStyle& style) {
   return style.material.metallic > 0.0f || style.material.glow_tip_length > 0.0f;
+}
+
+// What the static layer (RenderOptions::cache_static) depends on: its objects (identity, mesh version, pose, the
+// style terms of the ambient-only shader) and the eye's camera, microscope and fundus. Equal keys, equal layer.
+struct StaticLayerKey {
+  std::vector<const void*> objects;
+  std::vector<std::uint64_t> versions;
+  std::vector<float> values;
+  bool operator==(const StaticLayerKey& other) const {
+    return objects == other.objects && versions == other.versions && values == other.values;
+  }
+  void add(const float* data, std::size_t count) { values.insert(values.end(), data, data + count); }
+  void add(float value) { values.push_back(value); }
+};
+
+// Objects the static layer holds (RenderOptions::cache_static): opaque, not deformable, not metal, casting no shadow.
+bool isStatic(const ObjectStyle& style) {
+  return !style.deformable && !style.casts_shadow && !style.ghost && style.material.diffuse.w() >= 1.0f &&
+         !isMetal(style);
+}
+
+// An upper bound of how far (pixels at the focal plane) any point of a bounding sphere (centre, radius; object
+// frame) moves between two poses: |b c - a c| + |b R - a R| r, with |ΔR| = 2 sin(θ/2) <= θ.
+float displacementPx(const Eigen::Isometry3f& a, const Eigen::Isometry3f& b, const Eigen::Vector3f& centre,
+                     float radius, float pixels_per_metre) {
+  const Eigen::Matrix3f relative = a.linear().transpose() * b.linear();
+  const float cos_angle = std::clamp(0.5f * (relative.trace() - 1.0f), -1.0f, 1.0f);
+  const float angle = std::acos(cos_angle);
+  return ((b * centre - a * centre).norm() + angle * radius) * pixels_per_metre;
 }
 
 // Where the shadow map can hold a caster: a rectangle in the light's normalised device coordinates (x0, y0, x1, y1),
@@ -411,9 +442,13 @@ struct StereoRenderer::Impl {
   RenderTarget shadow_target;
   // Per eye, so that both eyes can be in flight at once.
   struct EyeTargets {
-    RenderTarget scene;   // colour (alpha: DOF weight) + depth
-    RenderTarget half_a;  // reduced: downsampled, then the blurred result
-    RenderTarget half_b;  // reduced: after the horizontal blur
+    RenderTarget scene;           // colour (alpha: DOF weight) + depth
+    RenderTarget half_a;          // reduced: downsampled, then the blurred result
+    RenderTarget half_b;          // reduced: after the horizontal blur
+    RenderTarget static_layer;    // cache_static: the static objects ambient-only over the background (+ depth)
+    StaticLayerKey static_key;    // what static_layer shows; valid only while static_valid
+    StaticLayerKey previous_key;  // what the previous frame's static objects were
+    bool static_valid = false;
   };
   std::array<EyeTargets, 2> eyes;
   std::map<std::string, Object> objects;
@@ -431,7 +466,8 @@ struct StereoRenderer::Impl {
   void allocateTargets(const RenderOptions& options) {
     shadow_target.release();
     for (EyeTargets& eye : eyes) {
-      for (RenderTarget* t : {&eye.scene, &eye.half_a, &eye.half_b}) t->release();
+      for (RenderTarget* t : {&eye.scene, &eye.half_a, &eye.half_b, &eye.static_layer}) t->release();
+      eye.static_valid = false;
     }
     shadow_target = makeTarget(options.shadow_map_size, options.shadow_map_size, false, DepthKind::kDepth, "shadow");
     glBindTexture(GL_TEXTURE_2D, shadow_target.depth);
@@ -446,6 +482,9 @@ struct StereoRenderer::Impl {
       eyes[e].scene = makeTarget(options.width, options.height, true, DepthKind::kDepth, "scene");
       eyes[e].half_a = makeTarget(w, h, true, DepthKind::kNone, "blur_a");
       eyes[e].half_b = makeTarget(w, h, true, DepthKind::kNone, "blur_b");
+      if (options.cache_static) {
+        eyes[e].static_layer = makeTarget(options.width, options.height, true, DepthKind::kDepth, "static_layer");
+      }
     }
     glBindFramebuffer(GL_FRAMEBUFFER, 0);
   }
@@ -498,7 +537,8 @@ void StereoRenderer::setOptions(const RenderOptions& options) {
   impl_->context->makeCurrent();
   const bool resize = options.width != options_.width || options.height != options_.height ||
                       options.shadow_map_size != options_.shadow_map_size ||
-                      options.dof_downsample != options_.dof_downsample || options.stereo != options_.stereo;
+                      options.dof_downsample != options_.dof_downsample || options.stereo != options_.stereo ||
+                      options.cache_static != options_.cache_static;
   options_ = options;
   if (resize) impl_->allocateTargets(options_);
 }
@@ -595,7 +635,9 @@ const FundusMap& StereoRenderer::fundus() {
 
 void StereoRenderer::setPose(const std::string& id, const Eigen::Isometry3f& world_from_object) {
   if (!world_from_object.matrix().allFinite()) throw RenderError("pose of '" + id + "' is not finite");
-  impl_->objects[id].pose = world_from_object;
+  Object& object = impl_->objects[id];
+  object.requested_pose = world_from_object;
+  if (!object.anchored) object.pose = world_from_object;
 }
 
 void StereoRenderer::setVisible(const std::string& id, bool visible) { impl_->objects[id].visible = visible; }
@@ -641,6 +683,7 @@ void StereoRenderer::render(StereoFrame* frame) {
   im.pending_upload_ms = 0.0;
   const auto frame_start = Clock::now();
 
+  anchorStaticPoses();
   const FrameState state = beginFrame();
   partitionForSpotlight(state);
   if (state.shadows) renderShadowMap(state, &timings);
@@ -659,6 +702,24 @@ void StereoRenderer::render(StereoFrame* frame) {
   timings.ms_total = msSince(frame_start) + timings.ms_upload;
   frame->timings = timings;
   if (error != GL_NO_ERROR) throw RenderError("OpenGL error " + std::to_string(error) + " while rendering");
+}
+
+// Tracked poses jitter by a fraction of a pixel from frame to frame (the tracker's noise), which would redraw the
+// static layer every frame. A static object therefore keeps being drawn at its anchor pose while its requested pose
+// stays within static_pose_tolerance_px of it (a sub-pixel, invisible lag that also steadies the jitter); beyond,
+// the requested pose becomes the new anchor.
+void StereoRenderer::anchorStaticPoses() {
+  const bool cache = options_.cache_static && options_.lighting && options_.light_partition;
+  const float pixels_per_metre =
+      static_cast<float>(options_.width * microscope_.zoom) / std::max(1e-6f, rig_.field_width);
+  for (auto& entry : impl_->objects) {
+    Object& object = entry.second;
+    const bool keep = cache && object.anchored && isStatic(object.style) && object.has_mesh &&
+                      displacementPx(object.pose, object.requested_pose, object.centre, object.radius,
+                                     pixels_per_metre) <= options_.static_pose_tolerance_px;
+    if (!keep) object.pose = object.requested_pose;
+    object.anchored = cache && isStatic(object.style);
+  }
 }
 
 void StereoRenderer::waitForPass() const {
@@ -793,8 +854,11 @@ struct StereoRenderer::SceneDraw {
   // Triangles [first, first + count) of the object with program p (clamped to the object's triangles).
   void drawWith(Program& p, const Object& object, float alpha_scale, bool opaque, std::size_t first = 0,
                 std::size_t count = std::numeric_limits<std::size_t>::max());
-  // One object in the current depth / blend state: its triangles the spotlight may reach lit, the rest ambient.
-  void draw(const Object& object, float alpha_scale, bool opaque);
+  // Which of an object's triangles draw() draws: all (lit where the spotlight may reach, ambient elsewhere), all
+  // ambient-only (the static layer), or only those the spotlight may reach, lit (over the static layer).
+  enum class Part { kAll, kAmbientOnly, kLitOnly };
+  // One object in the current depth / blend state.
+  void draw(const Object& object, float alpha_scale, bool opaque, Part part = Part::kAll);
 
   StereoRenderer& r;
   Impl& im;
@@ -870,13 +934,26 @@ void StereoRenderer::SceneDraw::drawWith(Program& p, const Object& object, float
   im.drawObject(object, first, count);
 }
 
-void StereoRenderer::SceneDraw::draw(const Object& object, float alpha_scale, bool opaque) {
+void StereoRenderer::SceneDraw::draw(const Object& object, float alpha_scale, bool opaque, Part part) {
   const RenderOptions& options = r.options_;
-  timings->triangles_drawn += object.triangle_count;
   const bool fundus = state.fundus_in_view && object.style.fundus;
   // The fundus texture replaces the procedural relief (its plane waves were the "wavy bump pattern" of the uniform
   // retina, issue 16): the lit fundus pixels save the seven sines of bumpGradient.
   const bool bump = object.style.bump_mapped && !fundus;
+  if (part == Part::kAmbientOnly) {
+    timings->triangles_drawn += object.triangle_count;
+    drawWith(use(false, false, true, fundus), object, alpha_scale, opaque);
+    return;
+  }
+  if (part == Part::kLitOnly) {
+    if (!object.in_cone) return;
+    timings->triangles_drawn += object.lit_triangles;
+    drawWith(use(true, bump, true, fundus), object, alpha_scale, opaque, 0, object.shadowed_triangles);
+    drawWith(use(true, bump, false, fundus), object, alpha_scale, opaque, object.shadowed_triangles,
+             object.lit_triangles - object.shadowed_triangles);
+    return;
+  }
+  timings->triangles_drawn += object.triangle_count;
   if (options.lighting && isMetal(object.style)) {
     // Instruments: few pixels, lit everywhere (the mirrored environment and the coaxial highlight are not bounded by
     // the spotlight's cone).
@@ -905,7 +982,9 @@ void StereoRenderer::renderScene(int e, const FrameState& state, PassTimings* ti
   const CameraView& cam = scene.cam;
   const auto planes = frustumPlanes(scene.view_proj);
   const auto start = Clock::now();
-  std::vector<std::pair<float, const Object*>> opaque, translucent;
+  // The static layer applies where the spotlight is partitioned (its lit triangles are drawn over the layer).
+  bool cache = options_.cache_static && state.split && target.static_layer.fbo != 0;
+  std::vector<std::pair<float, const Object*>> opaque, translucent, static_objects;
   for (const auto& entry : im.objects) {
     const Object& object = entry.second;
     if (!object.has_mesh || !object.visible) continue;
@@ -917,25 +996,82 @@ void StereoRenderer::renderScene(int e, const FrameState& state, PassTimings* ti
     const float depth = (centre - cam.position).dot(cam.forward);
     if (object.style.ghost || object.style.material.diffuse.w() < 1.0f) {
       translucent.emplace_back(-depth, &object);
+    } else if (cache && isStatic(object.style)) {
+      static_objects.emplace_back(depth - object.radius, &object);
     } else {
       opaque.emplace_back(depth - object.radius, &object);
     }
   }
-  std::sort(opaque.begin(), opaque.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
-  std::sort(translucent.begin(), translucent.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+  auto nearest_first = [](const auto& a, const auto& b) { return a.first < b.first; };
+  std::sort(opaque.begin(), opaque.end(), nearest_first);
+  std::sort(static_objects.begin(), static_objects.end(), nearest_first);
+  std::sort(translucent.begin(), translucent.end(), nearest_first);
 
-  glBindFramebuffer(GL_FRAMEBUFFER, target.scene.fbo);
-  glViewport(0, 0, options_.width, options_.height);
   // Alpha 1: the background counts as far from the focal plane (fully blurred).
   glClearColor(options_.background.x(), options_.background.y(), options_.background.z(), 1.0f);
   glEnable(GL_DEPTH_TEST);
   glDepthFunc(GL_LESS);
   glDepthMask(GL_TRUE);
   glDisable(GL_CULL_FACE);  // the retina is seen from inside, membranes from both sides
-  glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
   glActiveTexture(GL_TEXTURE0);
   glBindTexture(GL_TEXTURE_2D, im.shadow_target.depth);
+  glViewport(0, 0, options_.width, options_.height);
+  if (cache) {
+    StaticLayerKey key;
+    key.add(scene.view_proj.data(), 16);
+    key.add(cam.focus_depth);
+    key.add(state.ambient);
+    key.add(rig_.aperture_diameter * static_cast<float>(options_.width * microscope_.zoom) / rig_.field_width);
+    key.add(state.fundus_in_view ? 1.0f : 0.0f);
+    key.add(options_.background.data(), 3);
+    key.add(options_.blood_colour.data(), 3);
+    key.objects.push_back(im.uploaded_fundus);
+    for (const auto& entry : static_objects) {
+      const Object& object = *entry.second;
+      key.objects.push_back(&object);
+      key.versions.push_back(object.version);
+      key.add(object.pose.matrix().data(), 16);
+      key.add(object.style.material.diffuse.data(), 4);
+      key.add(object.style.fundus ? 1.0f : 0.0f);
+    }
+    const bool hit = target.static_valid && key == target.static_key;
+    // While the layer's content keeps changing (the eye turning), drawing it and copying it every frame would cost
+    // more than drawing the frame directly: the layer is redrawn only once its content held still for a frame.
+    const bool steady = key == target.previous_key;
+    target.previous_key = key;
+    if (!hit && !steady) {
+      cache = false;
+      opaque.insert(opaque.end(), static_objects.begin(), static_objects.end());
+      std::sort(opaque.begin(), opaque.end(), nearest_first);
+      static_objects.clear();
+    } else if (!hit) {
+      glBindFramebuffer(GL_FRAMEBUFFER, target.static_layer.fbo);
+      glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+      for (const auto& entry : static_objects) scene.draw(*entry.second, 1.0f, true, SceneDraw::Part::kAmbientOnly);
+      target.static_key = std::move(key);
+      target.static_valid = true;
+      ++timings->static_layers_drawn;
+    }
+  }
+  if (cache) {
+    // The frame starts as a copy of the layer (colour with its DOF weight, and depth): llvmpipe copies it.
+    glBindFramebuffer(GL_READ_FRAMEBUFFER, target.static_layer.fbo);
+    glBindFramebuffer(GL_DRAW_FRAMEBUFFER, target.scene.fbo);
+    glBlitFramebuffer(0, 0, options_.width, options_.height, 0, 0, options_.width, options_.height,
+                      GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT, GL_NEAREST);
+    glBindFramebuffer(GL_FRAMEBUFFER, target.scene.fbo);
+  } else {
+    glBindFramebuffer(GL_FRAMEBUFFER, target.scene.fbo);
+    glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+  }
   for (const auto& entry : opaque) scene.draw(*entry.second, 1.0f, true);
+  if (!static_objects.empty()) {
+    // The lit triangles over their own ambient-only fragments: equal depths pass (the vertex stage is invariant),
+    // anything nearer (an instrument) keeps its pixel.
+    glDepthFunc(GL_LEQUAL);
+    for (const auto& entry : static_objects) scene.draw(*entry.second, 1.0f, true, SceneDraw::Part::kLitOnly);
+    glDepthFunc(GL_LESS);
+  }
   if (!translucent.empty()) {
     glEnable(GL_BLEND);
     // Colour blends; alpha keeps the DOF weight of the opaque surface behind (translucent objects write no depth).

@@ -406,6 +406,135 @@ TEST(Renderer, SpotlightPartitionRendersTheSameImageAsLightingEverywhere) {
   }
 }
 
+// The static layer (issue 30, RenderOptions::cache_static): the retina kept per eye ambient-only and the lit
+// triangles drawn over it each frame must give exactly the image of drawing every triangle every frame — while the
+// light pipe and the forceps move, the retina bleeds (new mesh version), the eye turns, the focus changes — and the
+// layer must be redrawn exactly when what it shows changed and then held still for a frame (a stale layer would show
+// the old retina; one redrawn while the eye keeps turning would cost more than it saves).
+TEST(Renderer, StaticLayerCacheRendersTheSameImagesAndIsRedrawnOnlyWhenItsContentChanges) {
+  RenderOptions options;
+  options.width = kWidth;
+  options.height = kHeight;
+  options.cache_static = false;
+  StereoRenderer reference(options);
+  options.cache_static = true;
+  StereoRenderer cached(options);
+  LightPipe light;
+  std::vector<SceneObject> scene = typicalScene(&light);
+  for (StereoRenderer* renderer : {&reference, &cached}) {
+    for (const SceneObject& object : scene) {
+      renderer->setStyle(object.id, object.style);
+      renderer->setPose(object.id, object.pose);
+      renderer->updateMesh(object.id, object.mesh.view(), 1);
+    }
+    renderer->setLightPipe(light);
+  }
+  SceneObject* retina = nullptr;
+  SceneObject* forceps = nullptr;
+  for (SceneObject& object : scene) {
+    if (object.id == "retina") retina = &object;
+    if (object.id == "instrument_right") forceps = &object;
+  }
+  ASSERT_NE(retina, nullptr);
+  ASSERT_NE(forceps, nullptr);
+  ASSERT_FALSE(retina->style.deformable || retina->style.casts_shadow) << "the retina must be static for this test";
+  std::uint64_t retina_version = 1;
+  bool changed_before = true;  // the first frame has no layer yet
+  for (int frame = 0; frame < 12; ++frame) {
+    // Every frame the light pipe and the forceps move (the layer must not hold them).
+    LightPipe moved = light;
+    moved.tip += Eigen::Vector3f(0.0004f * (frame % 5), -0.0003f * (frame % 4), 0.0f);
+    Eigen::Isometry3f forceps_pose = forceps->pose;
+    forceps_pose.translation() += Eigen::Vector3f(-0.0002f * frame, 0.0001f * frame, 0.0002f * (frame % 3));
+    for (StereoRenderer* renderer : {&reference, &cached}) {
+      renderer->setLightPipe(moved);
+      renderer->setPose("instrument_right", forceps_pose);
+    }
+    bool changed = frame == 0;
+    if (frame == 3) {  // the retina bleeds: its mesh comes with a new version
+      retina->mesh.injury.assign(retina->mesh.positions.size() / 3, 0.0f);
+      for (std::size_t v = 0; v < retina->mesh.injury.size(); v += 7) retina->mesh.injury[v] = 0.8f;
+      ++retina_version;
+      for (StereoRenderer* renderer : {&reference, &cached}) {
+        renderer->updateMesh("retina", retina->mesh.view(), retina_version);
+      }
+      changed = true;
+    }
+    if (frame == 6 || frame == 7) {  // the eye turns for two frames: the retina's pose changes
+      retina->pose = Eigen::Isometry3f(Eigen::AngleAxisf(0.03f, Eigen::Vector3f::UnitX())) * retina->pose;
+      for (StereoRenderer* renderer : {&reference, &cached}) renderer->setPose("retina", retina->pose);
+      changed = true;
+    }
+    if (frame == 10) {  // the surgeon refocuses: the layer's DOF weights change
+      MicroscopeState microscope;
+      microscope.focus_distance = 0.199;
+      for (StereoRenderer* renderer : {&reference, &cached}) renderer->setMicroscope(microscope);
+      changed = true;
+    }
+    // A changed layer is drawn directly; the first frame it holds still, the layer is redrawn (one per eye).
+    const int expected_layers = !changed && changed_before ? 2 : 0;
+    changed_before = changed;
+    const StereoFrame a = renderFrame(reference);
+    const StereoFrame b = renderFrame(cached);
+    EXPECT_EQ(a.timings.static_layers_drawn, 0);
+    EXPECT_EQ(b.timings.static_layers_drawn, expected_layers) << "frame " << frame;
+    for (int eye = 0; eye < 2; ++eye) {
+      EXPECT_EQ(a.images[eye].data, b.images[eye].data)
+          << "frame " << frame << " eye " << eye << ": " << fractionDifferent(a.images[eye], b.images[eye], 0)
+          << " of the pixels differ";
+    }
+  }
+}
+
+// Tracked eye poses jitter by a fraction of a pixel every frame. Within RenderOptions::static_pose_tolerance_px the
+// retina stays at its anchor pose (the layer is kept, the image is that of the anchor pose); a larger move is drawn
+// where it is asked for.
+TEST(Renderer, StaticObjectsKeepTheirAnchorPoseWhileTheyMoveLessThanTheTolerance) {
+  RenderOptions options;
+  options.width = kWidth;
+  options.height = kHeight;
+  options.cache_static = false;
+  StereoRenderer reference(options);
+  options.cache_static = true;
+  StereoRenderer cached(options);
+  LightPipe light;
+  const std::vector<SceneObject> scene = typicalScene(&light);
+  Eigen::Isometry3f retina_pose = Eigen::Isometry3f::Identity();
+  for (StereoRenderer* renderer : {&reference, &cached}) {
+    for (const SceneObject& object : scene) {
+      renderer->setStyle(object.id, object.style);
+      renderer->setPose(object.id, object.pose);
+      renderer->updateMesh(object.id, object.mesh.view(), 1);
+      if (object.id == "retina") retina_pose = object.pose;
+    }
+    renderer->setLightPipe(light);
+  }
+  for (int frame = 0; frame < 3; ++frame) {  // anchor and layer in place
+    renderFrame(reference);
+    renderFrame(cached);
+  }
+  // Pixels per metre at the focal plane: 160 px over the 30 mm field. 0.1 px of translation: kept.
+  const float metres_per_pixel = 0.03f / kWidth;
+  Eigen::Isometry3f jittered = retina_pose;
+  jittered.translation() += Eigen::Vector3f(0.1f * metres_per_pixel, 0.0f, 0.0f);
+  cached.setPose("retina", jittered);
+  StereoFrame a = renderFrame(reference);  // still at the anchor pose
+  StereoFrame b = renderFrame(cached);
+  EXPECT_EQ(b.timings.static_layers_drawn, 0);
+  EXPECT_EQ(a.images[0].data, b.images[0].data) << "within the tolerance the retina is drawn at its anchor pose";
+  // 3 px: drawn where asked (as the reference, given the same pose).
+  Eigen::Isometry3f moved = retina_pose;
+  moved.translation() += Eigen::Vector3f(3.0f * metres_per_pixel, 0.0f, 0.0f);
+  cached.setPose("retina", moved);
+  reference.setPose("retina", moved);
+  a = renderFrame(reference);
+  b = renderFrame(cached);
+  EXPECT_EQ(a.images[0].data, b.images[0].data);
+  EXPECT_EQ(a.images[1].data, b.images[1].data);
+  StereoFrame before = renderFrame(cached);
+  EXPECT_EQ(before.timings.static_layers_drawn, 2) << "held still for a frame: the layer follows the new anchor";
+}
+
 // Instrument switching and jaw animation (InstrumentState.type, .jaw_angle): the forceps' jaws open with the angle
 // (the mesh widens across the jaws), other instruments ignore it, and a switched slot draws the other instrument.
 TEST(InstrumentMesh, ForcepsJawsOpenWithTheAngleAndSwitchingChangesTheMesh) {
