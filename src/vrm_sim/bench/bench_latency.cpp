@@ -1,7 +1,9 @@
 // End-to-end latency of the running graph (issue 12) and the thesis' synchronisation patterns (§2.5.2, Fig. 2.6) as
-// configurations of the same graph. Per configuration the bench starts launch/simulator.launch (scripted surgeon's
-// built-in demo at 50 Hz, membrane scene, scenario running) on its own master, watches the stereo view as a viewer
-// in its own process would (both eyes subscribed), and for `seconds` of input collects every stage's StageTiming
+// configurations of the same graph. Per configuration the bench starts launch/simulator.launch as scripts/run.sh
+// runs it (issue 30: record:=true, the membrane scene's scripted expert session looped at 50 Hz, the outputs bag,
+// snapshots, 800x600 per eye with shadows, depth of field and fundus; the JSON lists the launch arguments) on its
+// own master, watches the stereo view as a viewer in its own process would (both eyes subscribed), and for
+// `seconds` of input collects every stage's StageTiming
 // (tracking_timing, tissue_timing, render_timing), the input ticks and the images' arrival. Rows: per stage the
 // compute time (p50/p95/p99/max) and the time since the input stamp, per configuration end_to_end (input stamp →
 // image published in the manager), end_to_end_world (input stamp of the simulation frame shown → image published),
@@ -12,8 +14,13 @@
 //   parallel_async  render_trigger:=timer       the renderer samples on its own 30 Hz clock (eq. 2.4)
 //   pipelined       render_trigger:=input       a frame starts with a tick's poses and the previous tissue (eq. 2.7)
 // each with tracking:=false (scripted poses) and tracking:=true (rig twin renders three cameras, detection, tracker).
-// Usage: bench_latency [--quick] [--out FILE] [--seconds S] [--only CONFIG_SUBSTRING] [--param /NODE/NAME=VALUE ...]
-// (--param: an experiment, e.g. --param /stereo_renderer/render_nice=0; a launch file's own value wins.)
+// Each configuration runs `runs` times (default 5), each after the machine is idle (1-minute load average below
+// --idle-load, recorded); the summary per configuration is the median run and the worst, judged against issue 30's
+// targets.
+// Usage: bench_latency [--quick] [--out FILE] [--seconds S] [--runs N] [--idle-load L] [--only CONFIG_SUBSTRING]
+//                      [--param /NODE/NAME=VALUE ...] [--launch-arg NAME:=VALUE ...]
+// (--param: an experiment, e.g. --param /stereo_renderer/render_nice=0; a launch file's own value wins.
+//  --launch-arg: another launch argument, appended after the bench's own, e.g. --launch-arg display:=false.)
 #include <fcntl.h>
 #include <netinet/in.h>
 #include <ros/ros.h>
@@ -23,14 +30,18 @@
 #include <sys/wait.h>
 #include <unistd.h>
 #include <vrm_msgs/EyeState.h>
+#include <vrm_msgs/ScenarioCommand.h>
+#include <vrm_msgs/ScenarioStatus.h>
 #include <vrm_msgs/StageTiming.h>
 
 #include <algorithm>
+#include <boost/make_shared.hpp>
 #include <chrono>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <iostream>
 #include <map>
 #include <mutex>
 #include <set>
@@ -166,6 +177,26 @@ std::vector<pid_t> childrenOf(pid_t parent) {
   return children;
 }
 
+std::vector<pid_t> descendantsOf(pid_t root) {
+  std::vector<pid_t> all, frontier = {root};
+  while (!frontier.empty()) {
+    const pid_t parent = frontier.back();
+    frontier.pop_back();
+    for (pid_t child : childrenOf(parent)) {
+      all.push_back(child);
+      frontier.push_back(child);
+    }
+  }
+  return all;
+}
+
+double loadAverage1() {
+  std::ifstream file("/proc/loadavg");
+  double load = -1.0;
+  file >> load;
+  return load;
+}
+
 // CPU seconds of the manager's threads by role, of the manager, of the rest of the launch and of this viewer.
 struct CpuSample {
   double render_thread = 0.0, llvmpipe = 0.0, manager = 0.0, launch_rest = 0.0, viewer = 0.0, master = 0.0;
@@ -183,7 +214,7 @@ CpuSample sampleCpu(pid_t manager, pid_t launch) {
   }
   TaskCpu task;
   if (readStat("/proc/" + std::to_string(launch) + "/stat", &task)) sample.launch_rest += task.seconds;
-  for (pid_t child : childrenOf(launch)) {
+  for (pid_t child : descendantsOf(launch)) {
     if (child != manager && readStat("/proc/" + std::to_string(child) + "/stat", &task))
       sample.launch_rest += task.seconds;
   }
@@ -213,7 +244,31 @@ struct Collected {
   std::map<Nanoseconds, int> eyes;                           // eyes arrived per image stamp
   std::set<Nanoseconds> ticks, ground_truth, cameras, tracked, simulated, shown, rendered;
   std::uint64_t images = 0;
+  bool episode_running = false;  // a RUNNING status came since the last restart
+  std::uint64_t restarts = 0;    // scenario restarts (RESET + START once it finished) during the measurement
 };
+
+// The trainee repeats the exercise: once the scenario has finished (or failed) the bench sends RESET and START, as
+// the console does, so the measurement sees the tissue simulated (a finished scenario simulates nothing).
+void onStatus(Collected* c, ros::Publisher* commands, const vrm_msgs::ScenarioStatus::ConstPtr& status) {
+  {
+    // Once per episode: the status of the finished one may come again (a command's reply) before the restart.
+    std::lock_guard<std::mutex> lock(c->mutex);
+    if (status->state == vrm_msgs::ScenarioStatus::RUNNING) c->episode_running = true;
+    if (status->state != vrm_msgs::ScenarioStatus::FINISHED && status->state != vrm_msgs::ScenarioStatus::FAILED) {
+      return;
+    }
+    if (!c->episode_running) return;
+    c->episode_running = false;
+    if (c->recording) ++c->restarts;
+  }
+  for (std::uint8_t command : {vrm_msgs::ScenarioCommand::RESET, vrm_msgs::ScenarioCommand::START}) {
+    auto message = boost::make_shared<vrm_msgs::ScenarioCommand>();
+    message->header.stamp = ros::Time::now();  // an input device's stamp, like the console's
+    message->command = command;
+    commands->publish(message);
+  }
+}
 
 void onTiming(Collected* c, const vrm_msgs::StageTiming::ConstPtr& timing) {
   const Nanoseconds stamp = static_cast<Nanoseconds>(timing->header.stamp.toNSec());
@@ -275,6 +330,9 @@ struct StageRow {
 
 struct Result {
   Config config;
+  int run = 0;                    // 0-based repetition of the configuration
+  double load_before = -1.0;      // 1-minute load average when the run started
+  std::vector<std::string> args;  // roslaunch's arguments
   double seconds = 0.0;
   std::vector<StageRow> rows;
   double t_s = 0.0, t_b = 0.0, t_r = 0.0;  // p50 stage times used for the predictions (ms)
@@ -286,7 +344,7 @@ struct Result {
   // Per tissue: its scene time budget (ms, thesis §5.1) and the share of frames whose tissue stage exceeded it.
   std::map<std::string, std::pair<double, double>> tissue_budget;  // the renderer's passes and the simulation's stages
   std::vector<int> histogram_end_to_end, histogram_world;          // 1 ms bins
-  std::uint64_t ticks = 0, frames = 0;
+  std::uint64_t ticks = 0, frames = 0, restarts = 0;
   bool ok = false;
 };
 
@@ -308,17 +366,49 @@ double sum(const std::vector<double>& values) {
   return total;
 }
 
+// roslaunch's arguments: scripts/run.sh's session (recorded, the scene's expert, outputs bag, snapshots) with the
+// configuration's tracking and render trigger. The expert's script loops, so every run sees the same mix of
+// approach, grasp and peel for as long as it lasts; the recorded session outlasts the measurement.
+std::vector<std::string> launchArguments(const Config& config, const std::string& session_dir, double seconds,
+                                         const std::vector<std::string>& extra) {
+  std::vector<std::string> args = {"sim:=true",
+                                   "headless:=true",
+                                   "record:=true",
+                                   "bag:=" + session_dir + "/session.bag",
+                                   "outputs_bag:=" + session_dir + "/outputs.bag",
+                                   "result_file:=" + session_dir + "/result.json",
+                                   "snapshot_dir:=" + session_dir,
+                                   "snapshot_times:=2.5 4.3 5.9",
+                                   "duration:=" + std::to_string(static_cast<int>(seconds) + 120),
+                                   "scene:=membrane_peeling",
+                                   "script:=scenario:expert",
+                                   "script_loop:=true",
+                                   std::string("tracking:=") + (config.tracking ? "true" : "false"),
+                                   "render_trigger:=" + config.trigger,
+                                   "latency_monitor:=true"};
+  args.insert(args.end(), extra.begin(), extra.end());
+  return args;
+}
+
 Result runConfig(const Config& config, ros::NodeHandle& nh, Collected& collected, const std::string& log_dir,
-                 double seconds, double warmup, const vrm_sim::scene::SceneDescription& scene) {
+                 double seconds, double warmup, const vrm_sim::scene::SceneDescription& scene, int run,
+                 const std::vector<std::string>& extra_args) {
   Result result;
   result.config = config;
-  const std::string log =
-      log_dir + "/latency_" + config.pattern + "_tracking_" + (config.tracking ? "1" : "0") + ".log";
-  const pid_t launch = spawn({"roslaunch", VRM_SIMULATOR_LAUNCH, "sim:=true", "headless:=true", "record:=false",
-                              std::string("tracking:=") + (config.tracking ? "true" : "false"),
-                              "render_trigger:=" + config.trigger, "scene:=membrane_peeling", "latency_monitor:=true"},
-                             log);
-  std::printf("%-30s starting (log %s)\n", config.name().c_str(), log.c_str());
+  result.run = run;
+  result.load_before = loadAverage1();
+  const std::string tag = config.pattern + "_tracking_" + (config.tracking ? "1" : "0") + "_run" + std::to_string(run);
+  const std::string log = log_dir + "/latency_" + tag + ".log";
+  const std::string session_dir = log_dir + "/latency_session_" + tag;
+  std::error_code ignored;
+  std::filesystem::remove_all(session_dir, ignored);
+  std::filesystem::create_directories(session_dir);
+  result.args = launchArguments(config, session_dir, seconds, extra_args);
+  std::vector<std::string> command = {"roslaunch", VRM_SIMULATOR_LAUNCH};
+  command.insert(command.end(), result.args.begin(), result.args.end());
+  const pid_t launch = spawn(command, log);
+  std::printf("%-30s run %d starting, load average %.2f (log %s)\n", config.name().c_str(), run + 1, result.load_before,
+              log.c_str());
   std::fflush(stdout);
   // Wait for the first images (scene loading, GL context), then let the graph settle.
   const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(120.0);
@@ -337,9 +427,14 @@ Result runConfig(const Config& config, ros::NodeHandle& nh, Collected& collected
   }
   ros::WallDuration(warmup).sleep();
 
+  // The nodelet manager process (supervised_manager starts it as its child and restarts it after a crash).
   pid_t manager = 0;
-  for (pid_t child : childrenOf(launch)) {
-    if (commandLine(child).find("__name:=vrm_manager") != std::string::npos) manager = child;
+  for (pid_t child : descendantsOf(launch)) {
+    const std::string command_line = commandLine(child);
+    if (command_line.find("__name:=vrm_manager") != std::string::npos &&
+        command_line.find("nodelet manager") != std::string::npos) {
+      manager = child;
+    }
   }
   {
     std::lock_guard<std::mutex> lock(collected.mutex);
@@ -356,7 +451,8 @@ Result runConfig(const Config& config, ros::NodeHandle& nh, Collected& collected
     collected.recording = false;
   }
   stop(launch, 20.0);
-  ros::WallDuration(0.5).sleep();  // messages of the ended launch still in the spinner's queue
+  std::filesystem::remove_all(session_dir, ignored);  // the bags: only the timing is the bench's result
+  ros::WallDuration(0.5).sleep();                     // messages of the ended launch still in the spinner's queue
   std::lock_guard<std::mutex> lock(collected.mutex);
   result.seconds = wall;
 
@@ -365,6 +461,7 @@ Result runConfig(const Config& config, ros::NodeHandle& nh, Collected& collected
   const std::set<Nanoseconds>& ticks = config.tracking ? collected.ground_truth : collected.ticks;
   result.ticks = ticks.size();
   result.frames = collected.rendered.size();
+  result.restarts = collected.restarts;
   auto summary = [](const std::vector<double>& v) { return w::summarizeLatencies(v); };
   auto p50 = [&](const std::string& stage) {
     auto found = collected.time.find(stage);
@@ -474,6 +571,8 @@ Result runConfig(const Config& config, ros::NodeHandle& nh, Collected& collected
     set->clear();
   }
   collected.images = 0;
+  collected.restarts = 0;
+  collected.episode_running = false;
   return result;
 }
 
@@ -489,6 +588,99 @@ std::string intList(const std::vector<int>& values) {
   return text;
 }
 
+std::string stringList(const std::vector<std::string>& values) {
+  std::string text;
+  for (const std::string& value : values) {
+    std::string escaped;
+    for (char c : value) escaped += (c == '"' || c == '\\') ? std::string("\\") + c : std::string(1, c);
+    text += (text.empty() ? "\"" : ",\"") + escaped + "\"";
+  }
+  return "[" + text + "]";
+}
+
+double median(std::vector<double> values) {
+  if (values.empty()) return 0.0;
+  std::sort(values.begin(), values.end());
+  const std::size_t n = values.size();
+  return n % 2 ? values[n / 2] : 0.5 * (values[n / 2 - 1] + values[n / 2]);
+}
+
+// Issue 30's targets for the row a configuration is judged by (end_to_end; pipelined: end_to_end_world): the median
+// run meets each target and the worst run is within 10 % of it. tracking:=true: >= 25 fps, p50 <= 57 ms, p99 <= 90 ms
+// (first stage: >= 20 fps, p50 <= 57 ms); tracking:=false: p99 <= 47 ms; both: p99 <= 1.5 p50.
+struct Target {
+  std::string name;
+  double limit;
+  bool at_least;  // fps: at least; latencies: at most
+};
+
+std::string summarize(const std::vector<Result>& results, const std::vector<Config>& configs, std::ostream* log) {
+  std::string json;
+  for (const Config& config : configs) {
+    std::vector<double> fps, p50, p95, p99, ratio, viewer_p50, viewer_p99, load;
+    const std::string judged = config.pattern == "pipelined" ? w::kEndToEndWorldStage : w::kEndToEndStage;
+    for (const Result& result : results) {
+      if (result.config.name() != config.name()) continue;
+      load.push_back(result.load_before);
+      for (const StageRow& row : result.rows) {
+        if (row.stage == judged) {
+          fps.push_back(row.fps);
+          p50.push_back(row.summary.p50);
+          p95.push_back(row.summary.p95);
+          p99.push_back(row.summary.p99);
+          ratio.push_back(row.summary.p50 > 0.0 ? row.summary.p99 / row.summary.p50 : 0.0);
+        } else if (row.stage == "end_to_end_viewer") {
+          viewer_p50.push_back(row.summary.p50);
+          viewer_p99.push_back(row.summary.p99);
+        }
+      }
+    }
+    if (fps.empty()) continue;
+    auto worst = [](const std::vector<double>& v, bool at_least) {
+      return at_least ? *std::min_element(v.begin(), v.end()) : *std::max_element(v.begin(), v.end());
+    };
+    std::vector<Target> targets;
+    if (config.tracking) {
+      targets = {{"fps", 25.0, true}, {"p50_ms", 57.0, false}, {"p99_ms", 90.0, false}, {"p99_over_p50", 1.5, false}};
+    } else {
+      targets = {{"fps", 25.0, true}, {"p99_ms", 47.0, false}, {"p99_over_p50", 1.5, false}};
+    }
+    auto values = [&](const std::string& name) -> const std::vector<double>& {
+      return name == "fps" ? fps : name == "p50_ms" ? p50 : name == "p99_ms" ? p99 : ratio;
+    };
+    std::string judged_targets;
+    bool all_met = true;
+    *log << config.name() << " over " << fps.size() << " runs (median / worst): " << judged << " fps " << median(fps)
+         << " / " << worst(fps, true) << ", p50 " << median(p50) << " / " << worst(p50, false) << " ms, p99 "
+         << median(p99) << " / " << worst(p99, false) << " ms, p99/p50 " << median(ratio) << " / "
+         << worst(ratio, false) << "\n";
+    for (const Target& target : targets) {
+      const double m = median(values(target.name)), bad = worst(values(target.name), target.at_least);
+      const bool met = target.at_least ? (m >= target.limit && bad >= 0.9 * target.limit)
+                                       : (m <= target.limit && bad <= 1.1 * target.limit);
+      all_met = all_met && met;
+      *log << "  target " << target.name << (target.at_least ? " >= " : " <= ") << target.limit << ": "
+           << (met ? "met" : "NOT met") << "\n";
+      judged_targets += (judged_targets.empty() ? "" : ",") + std::string("{\"target\":\"") + target.name +
+                        "\",\"limit\":" + number(target.limit) +
+                        ",\"at_least\":" + (target.at_least ? "true" : "false") + ",\"median\":" + number(m) +
+                        ",\"worst\":" + number(bad) + ",\"met\":" + (met ? "true" : "false") + "}";
+    }
+    json += (json.empty() ? "" : ",\n") + std::string("{\"config\":\"") + config.name() + "\",\"judged_stage\":\"" +
+            judged + "\",\"runs\":" + std::to_string(fps.size()) + ",\"fps_median\":" + number(median(fps)) +
+            ",\"fps_worst\":" + number(worst(fps, true)) + ",\"p50_ms_median\":" + number(median(p50)) +
+            ",\"p50_ms_worst\":" + number(worst(p50, false)) + ",\"p95_ms_median\":" + number(median(p95)) +
+            ",\"p99_ms_median\":" + number(median(p99)) + ",\"p99_ms_worst\":" + number(worst(p99, false)) +
+            ",\"p99_over_p50_median\":" + number(median(ratio)) +
+            ",\"p99_over_p50_worst\":" + number(worst(ratio, false)) +
+            ",\"viewer_p50_ms_median\":" + number(median(viewer_p50)) +
+            ",\"viewer_p99_ms_median\":" + number(median(viewer_p99)) +
+            ",\"load_average_before_max\":" + number(worst(load, false)) + ",\"targets\":[" + judged_targets +
+            "],\"all_targets_met\":" + (all_met ? "true" : "false") + "}";
+  }
+  return json;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -496,7 +688,10 @@ int main(int argc, char** argv) {
   std::string out_path = "bench/results/latency.json";
   double seconds = 60.0;
   std::string only;
-  std::vector<std::string> params;  // experiments: /node/param=value set on the master before every launch
+  int runs = 5;
+  double idle_load = 0.3, idle_wait_s = 300.0;
+  std::vector<std::string> params;       // experiments: /node/param=value set on the master before every launch
+  std::vector<std::string> launch_args;  // experiments: NAME:=VALUE after the bench's own launch arguments
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
     if (arg == "--quick") {
@@ -509,11 +704,19 @@ int main(int argc, char** argv) {
       only = argv[++i];
     } else if (arg == "--param" && i + 1 < argc) {
       params.push_back(argv[++i]);
+    } else if (arg == "--launch-arg" && i + 1 < argc) {
+      launch_args.push_back(argv[++i]);
+    } else if (arg == "--runs" && i + 1 < argc) {
+      runs = std::max(1, std::atoi(argv[++i]));
+    } else if (arg == "--idle-load" && i + 1 < argc) {
+      idle_load = std::stod(argv[++i]);
+    } else if (arg == "--idle-wait" && i + 1 < argc) {
+      idle_wait_s = std::stod(argv[++i]);
     } else {
-      std::fprintf(
-          stderr,
-          "usage: %s [--quick] [--out FILE] [--seconds S] [--only CONFIG_SUBSTRING] [--param /NODE/NAME=VALUE]\n",
-          argv[0]);
+      std::fprintf(stderr,
+                   "usage: %s [--quick] [--out FILE] [--seconds S] [--runs N] [--idle-load L] [--idle-wait S] "
+                   "[--only CONFIG_SUBSTRING] [--param /NODE/NAME=VALUE] [--launch-arg NAME:=VALUE]\n",
+                   argv[0]);
       return 2;
     }
   }
@@ -526,6 +729,8 @@ int main(int argc, char** argv) {
   if (quick) {
     configs.resize(1);
     seconds = std::min(seconds, 5.0);
+    runs = 1;
+    idle_wait_s = 0.0;
   }
   if (!only.empty()) {
     configs.erase(std::remove_if(configs.begin(), configs.end(),
@@ -593,52 +798,61 @@ int main(int argc, char** argv) {
         topic, 4, [&collected](const sensor_msgs::Image::ConstPtr& m) { onImage(&collected, m); }, ros::VoidConstPtr(),
         ros::TransportHints().tcpNoDelay()));
   }
+  ros::Publisher commands = nh.advertise<vrm_msgs::ScenarioCommand>("scenario_command", 4);
+  subscribers.push_back(nh.subscribe<vrm_msgs::ScenarioStatus>(
+      "scenario_status", 10,
+      [&collected, &commands](const vrm_msgs::ScenarioStatus::ConstPtr& m) { onStatus(&collected, &commands, m); }));
   ros::AsyncSpinner spinner(1);
   spinner.start();
 
   std::vector<Result> results;
+  std::size_t failed = 0;
   for (const Config& config : configs) {
-    Result result = runConfig(config, nh, collected, out_dir.string(), seconds, warmup, scene);
-    if (!result.ok) {
-      std::fprintf(stderr, "bench_latency: %s failed\n", config.name().c_str());
-      continue;
-    }
-    std::printf(
-        "%-30s %5.1f s, %lu input ticks, %lu frames; T_S %.2f  T_B %.2f  T_R %.2f ms; CPU manager %.0f %% "
-        "(renderer %.0f %%, other threads %.0f %%), viewer %.0f %%, master %.0f %%, rest of the launch %.0f %%\n",
-        config.name().c_str(), result.seconds, static_cast<unsigned long>(result.ticks),
-        static_cast<unsigned long>(result.frames), result.t_s, result.t_b, result.t_r, result.cpu_manager,
-        result.cpu_render, result.cpu_workers, result.cpu_viewer, result.cpu_master, result.cpu_launch_rest);
-    for (const auto& entry : result.tissue_budget) {
-      std::printf("  tissue %s: %.1f %% of frames over its %.1f ms time budget\n", entry.first.c_str(),
-                  100.0 * entry.second.second, entry.second.first);
-    }
-    std::printf("  busy (wall time in the stage, %% of a core):");
-    for (const auto& entry : result.busy) std::printf(" %s %.1f", entry.first.c_str(), entry.second);
-    std::printf("\n");
-    std::printf("  passes and simulation stages p50 / p99 ms:");
-    for (const auto& entry : result.passes) {
-      std::printf(" %s %.2f / %.2f", entry.first.c_str(), entry.second.p50, entry.second.p99);
-    }
-    std::printf("\n");
-    std::printf("  %-19s %8s %8s %8s %8s %7s %7s %9s %9s\n", "stage", "p50", "p95", "p99", "max", "fps", "dropped",
-                "predicted", "(eq.)");
-    for (const StageRow& row : result.rows) {
-      std::printf("  %-19s %8.2f %8.2f %8.2f %8.2f %7.1f %7lu", row.stage.c_str(), row.summary.p50, row.summary.p95,
-                  row.summary.p99, row.summary.max, row.fps, static_cast<unsigned long>(row.dropped));
-      if (row.has_prediction) std::printf(" %9.2f %9s", row.predicted_ms, ("(" + row.predicted_eq + ")").c_str());
+    for (int run = 0; run < runs; ++run) {
+      // Issue 30: every run starts on an idle machine (the previous run's load decays with the 1-minute average).
+      const ros::WallTime idle_deadline = ros::WallTime::now() + ros::WallDuration(idle_wait_s);
+      while (loadAverage1() >= idle_load && ros::WallTime::now() < idle_deadline) ros::WallDuration(1.0).sleep();
+      Result result = runConfig(config, nh, collected, out_dir.string(), seconds, warmup, scene, run, launch_args);
+      if (!result.ok) {
+        std::fprintf(stderr, "bench_latency: %s run %d failed\n", config.name().c_str(), run + 1);
+        ++failed;
+        continue;
+      }
+      std::printf(
+          "%-30s %5.1f s, %lu input ticks, %lu frames; T_S %.2f  T_B %.2f  T_R %.2f ms; CPU manager %.0f %% "
+          "(renderer %.0f %%, other threads %.0f %%), viewer %.0f %%, master %.0f %%, rest of the launch %.0f %%\n",
+          config.name().c_str(), result.seconds, static_cast<unsigned long>(result.ticks),
+          static_cast<unsigned long>(result.frames), result.t_s, result.t_b, result.t_r, result.cpu_manager,
+          result.cpu_render, result.cpu_workers, result.cpu_viewer, result.cpu_master, result.cpu_launch_rest);
+      for (const auto& entry : result.tissue_budget) {
+        std::printf("  tissue %s: %.1f %% of frames over its %.1f ms time budget\n", entry.first.c_str(),
+                    100.0 * entry.second.second, entry.second.first);
+      }
+      std::printf("  busy (wall time in the stage, %% of a core):");
+      for (const auto& entry : result.busy) std::printf(" %s %.1f", entry.first.c_str(), entry.second);
       std::printf("\n");
+      std::printf("  passes and simulation stages p50 / p99 ms:");
+      for (const auto& entry : result.passes) {
+        std::printf(" %s %.2f / %.2f", entry.first.c_str(), entry.second.p50, entry.second.p99);
+      }
+      std::printf("\n");
+      std::printf("  %-19s %8s %8s %8s %8s %7s %7s %9s %9s\n", "stage", "p50", "p95", "p99", "max", "fps", "dropped",
+                  "predicted", "(eq.)");
+      for (const StageRow& row : result.rows) {
+        std::printf("  %-19s %8.2f %8.2f %8.2f %8.2f %7.1f %7lu", row.stage.c_str(), row.summary.p50, row.summary.p95,
+                    row.summary.p99, row.summary.max, row.fps, static_cast<unsigned long>(row.dropped));
+        if (row.has_prediction) std::printf(" %9.2f %9s", row.predicted_ms, ("(" + row.predicted_eq + ")").c_str());
+        std::printf("\n");
+      }
+      std::fflush(stdout);
+      results.push_back(result);
     }
-    std::fflush(stdout);
-    results.push_back(result);
   }
   spinner.stop();
   subscribers.clear();
   ros::shutdown();
   stop(roscore, 15.0);
 
-  // Targets (issue 12): tracking:=false p99 <= 47 ms and p50 <= 1.25x the frame's compute; tracking:=true p50 <= 57,
-  // p99 <= 90 ms, >= 25 fps.
   std::string rows, details;
   for (const Result& result : results) {
     for (const StageRow& row : result.rows) {
@@ -653,7 +867,7 @@ int main(int argc, char** argv) {
       }
       if (row.stage == w::kEndToEndStage) extra += ",\"frame_compute_ms\":" + number(result.frame_compute_ms);
       rows += (rows.empty() ? "" : ",\n") + std::string("{\"suite\":\"latency\",\"config\":\"") + result.config.name() +
-              "\",\"pattern\":\"" + result.config.pattern +
+              "\",\"run\":" + std::to_string(result.run) + ",\"pattern\":\"" + result.config.pattern +
               "\",\"tracking\":" + (result.config.tracking ? "true" : "false") + ",\"render_trigger\":\"" +
               result.config.trigger + "\",\"stage\":\"" + row.stage + "\",\"p50_ms\":" + number(row.summary.p50) +
               ",\"p95_ms\":" + number(row.summary.p95) + ",\"p99_ms\":" + number(row.summary.p99) +
@@ -675,12 +889,14 @@ int main(int argc, char** argv) {
     for (const auto& entry : result.busy)
       busy += (busy.empty() ? "" : ",") + ("\"" + entry.first + "\":" + number(entry.second));
     details +=
-        (details.empty() ? "" : ",\n") + std::string("{\"config\":\"") + result.config.name() + "\",\"pattern\":\"" +
-        result.config.pattern + "\",\"tracking\":" + (result.config.tracking ? "true" : "false") +
-        ",\"render_trigger\":\"" + result.config.trigger + "\",\"seconds\":" + number(result.seconds) +
+        (details.empty() ? "" : ",\n") + std::string("{\"config\":\"") + result.config.name() +
+        "\",\"run\":" + std::to_string(result.run) + ",\"load_average_before\":" + number(result.load_before) +
+        ",\"launch_args\":" + stringList(result.args) + ",\"pattern\":\"" + result.config.pattern +
+        "\",\"tracking\":" + (result.config.tracking ? "true" : "false") + ",\"render_trigger\":\"" +
+        result.config.trigger + "\",\"seconds\":" + number(result.seconds) +
         ",\"input_ticks\":" + std::to_string(result.ticks) + ",\"frames\":" + std::to_string(result.frames) +
-        ",\"t_s_ms\":" + number(result.t_s) + ",\"t_b_ms\":" + number(result.t_b) +
-        ",\"t_r_ms\":" + number(result.t_r) +
+        ",\"scenario_restarts\":" + std::to_string(result.restarts) + ",\"t_s_ms\":" + number(result.t_s) +
+        ",\"t_b_ms\":" + number(result.t_b) + ",\"t_r_ms\":" + number(result.t_r) +
         ",\"predicted_eq_2_3_ms\":" + number(w::sequentialLatency(result.t_s, result.t_b, result.t_r)) +
         ",\"predicted_eq_2_4_ms\":" + number(w::parallelAsyncLatency(result.t_s, result.t_b, result.t_r)) +
         ",\"cpu_manager_pct\":" + number(result.cpu_manager) + ",\"cpu_renderer_pct\":" + number(result.cpu_render) +
@@ -691,12 +907,15 @@ int main(int argc, char** argv) {
         "}" + ",\"histogram_bin_ms\":1,\"histogram_end_to_end\":[" + intList(result.histogram_end_to_end) +
         "],\"histogram_end_to_end_world\":[" + intList(result.histogram_world) + "]}";
   }
+  const std::string summary = summarize(results, configs, &std::cout);
   std::ofstream out(out_path);
   out << "{\"suite\":\"latency\",\"command\":\"./scripts/bench.sh" << (quick ? " --quick" : "")
-      << " latency\",\"quick\":" << (quick ? "true" : "false") << ",\"seconds_per_config\":" << seconds
+      << " latency\",\"quick\":" << (quick ? "true" : "false") << ",\"runs_per_config\":" << runs
+      << ",\"idle_load_threshold\":" << idle_load << ",\"seconds_per_config\":" << seconds
       << ",\"input_rate_hz\":" << kInputRateHz << ",\"timer_rate_hz\":" << kTimerRateHz
       << ",\"cores\":" << std::thread::hardware_concurrency() << ",\"configs\":[\n"
-      << details << "\n],\"rows\":[\n"
+      << details << "\n],\"summary\":[\n"
+      << summary << "\n],\"rows\":[\n"
       << rows << "\n]}\n";
-  return out && results.size() == configs.size() ? 0 : 1;
+  return out && failed == 0 ? 0 : 1;
 }

@@ -42,6 +42,10 @@ class ScriptedSurgeon : public nodelet::Nodelet {
         if (scene_param.empty()) throw std::invalid_argument("script '" + script_spec + "' needs the ~scene parameter");
         script_ = std::make_unique<SurgeonScript>(scenarioScript(scene, script_spec.substr(9)));
         script_ = std::make_unique<SurgeonScript>(applyScene(scene, *script_));
+        // A session plays it once; a benchmark that needs minutes of the same work loops it (~loop).
+        bool loop = false;
+        pnh.param("loop", loop, loop);
+        if (loop) script_->setPlayback(Playback::kLoop);
       } else {
         ScriptDefinition definition = loadScriptFromParams(pnh);
         SceneTargetReport targets;
