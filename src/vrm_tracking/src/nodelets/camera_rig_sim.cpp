@@ -172,6 +172,11 @@ class CameraRigSim : public nodelet::Nodelet {
     std::lock_guard<std::mutex> lock(mutex_);
     // A newer eye state closes the previous stamp even if an instrument never came (a script with fewer slots).
     if (pending_eye_ && pending_eye_->header.stamp < msg->header.stamp && !rendered_pending_) renderLocked();
+    if (pending_eye_ && msg->header.stamp > pending_eye_->header.stamp) {
+      last_eye_period_ = msg->header.stamp - pending_eye_->header.stamp;
+    }
+    // Slots never seen count as seen at the first tick, so they are waited for until they stay away.
+    for (const std::string& slot : expected_slots_) last_seen_.emplace(slot, msg->header.stamp);
     pending_eye_ = msg;
     rendered_pending_ = false;
     instruments_.erase(std::remove_if(instruments_.begin(), instruments_.end(),
@@ -184,6 +189,8 @@ class CameraRigSim : public nodelet::Nodelet {
 
   void onInstrument(const vrm_msgs::InstrumentState::ConstPtr& msg) {
     std::lock_guard<std::mutex> lock(mutex_);
+    ros::Time& seen = last_seen_[msg->instrument_id];
+    seen = std::max(seen, msg->header.stamp);
     if (!pending_eye_ || msg->header.stamp != pending_eye_->header.stamp || rendered_pending_) {
       // Instruments of a stamp whose eye state has not arrived yet are kept for it.
       if (!pending_eye_ || msg->header.stamp > pending_eye_->header.stamp) instruments_.push_back(msg);
@@ -193,9 +200,17 @@ class CameraRigSim : public nodelet::Nodelet {
     if (complete()) renderLocked();
   }
 
+  // A tick is complete when the eye state and every instrument the truth currently publishes have arrived. A slot the
+  // truth has not published for kSlotAbsentTicks ticks (a script that plays one hand, an instrument withdrawn) is not
+  // waited for: else every tick would wait for the next eye state to close it (a whole input period of latency).
   bool complete() const {
     if (!pending_eye_ || rendered_pending_) return false;
     for (const std::string& slot : expected_slots_) {
+      auto seen = last_seen_.find(slot);
+      if (seen != last_seen_.end() && !last_eye_period_.isZero() &&
+          pending_eye_->header.stamp - seen->second > last_eye_period_ * kSlotAbsentTicks) {
+        continue;
+      }
       bool found = false;
       for (const auto& i : instruments_)
         found |= i->instrument_id == slot && i->header.stamp == pending_eye_->header.stamp;
@@ -302,6 +317,9 @@ class CameraRigSim : public nodelet::Nodelet {
   MarkerLayout layout_;
   std::unique_ptr<RigRenderer> renderer_;
   std::vector<std::string> expected_slots_;
+  static constexpr int kSlotAbsentTicks = 5;
+  std::map<std::string, ros::Time> last_seen_;  // newest stamp per instrument slot of the truth
+  ros::Duration last_eye_period_;               // between the last two eye states
   std::string frame_suffix_;
   std::vector<image_transport::CameraPublisher> camera_pubs_;
   std::vector<ros::Publisher> exact_pubs_;
