@@ -344,6 +344,7 @@ struct Result {
   // Per tissue: its scene time budget (ms, thesis §5.1) and the share of frames whose tissue stage exceeded it.
   std::map<std::string, std::pair<double, double>> tissue_budget;  // the renderer's passes and the simulation's stages
   std::vector<int> histogram_end_to_end, histogram_world;          // 1 ms bins
+  double static_layer_redraw_fraction = 0.0;
   std::uint64_t ticks = 0, frames = 0, restarts = 0;
   bool ok = false;
 };
@@ -540,6 +541,10 @@ Result runConfig(const Config& config, ros::NodeHandle& nh, Collected& collected
   viewer.dropped = frame_drops;
   result.rows.push_back(viewer);
   for (const auto& entry : collected.passes) result.passes[entry.first] = summary(entry.second);
+  // The renderer's static layer (issue 30): the share of frames that had to redraw it.
+  result.static_layer_redraw_fraction =
+      result.frames > 0 ? static_cast<double>(collected.passes["render_static_layer_redrawn"].size()) / result.frames
+                        : 0.0;
   for (const auto& object : scene.objects) {
     if (!object.isDeformable()) continue;
     const std::vector<double>& steps = collected.passes["tissue_" + object.name];
@@ -824,6 +829,8 @@ int main(int argc, char** argv) {
           config.name().c_str(), result.seconds, static_cast<unsigned long>(result.ticks),
           static_cast<unsigned long>(result.frames), result.t_s, result.t_b, result.t_r, result.cpu_manager,
           result.cpu_render, result.cpu_workers, result.cpu_viewer, result.cpu_master, result.cpu_launch_rest);
+      std::printf("  scenario restarts %lu; static layer redrawn in %.1f %% of the frames\n",
+                  static_cast<unsigned long>(result.restarts), 100.0 * result.static_layer_redraw_fraction);
       for (const auto& entry : result.tissue_budget) {
         std::printf("  tissue %s: %.1f %% of frames over its %.1f ms time budget\n", entry.first.c_str(),
                     100.0 * entry.second.second, entry.second.first);
@@ -895,8 +902,10 @@ int main(int argc, char** argv) {
         "\",\"tracking\":" + (result.config.tracking ? "true" : "false") + ",\"render_trigger\":\"" +
         result.config.trigger + "\",\"seconds\":" + number(result.seconds) +
         ",\"input_ticks\":" + std::to_string(result.ticks) + ",\"frames\":" + std::to_string(result.frames) +
-        ",\"scenario_restarts\":" + std::to_string(result.restarts) + ",\"t_s_ms\":" + number(result.t_s) +
-        ",\"t_b_ms\":" + number(result.t_b) + ",\"t_r_ms\":" + number(result.t_r) +
+        ",\"scenario_restarts\":" + std::to_string(result.restarts) +
+        ",\"static_layer_redraw_fraction\":" + number(result.static_layer_redraw_fraction) +
+        ",\"t_s_ms\":" + number(result.t_s) + ",\"t_b_ms\":" + number(result.t_b) +
+        ",\"t_r_ms\":" + number(result.t_r) +
         ",\"predicted_eq_2_3_ms\":" + number(w::sequentialLatency(result.t_s, result.t_b, result.t_r)) +
         ",\"predicted_eq_2_4_ms\":" + number(w::parallelAsyncLatency(result.t_s, result.t_b, result.t_r)) +
         ",\"cpu_manager_pct\":" + number(result.cpu_manager) + ",\"cpu_renderer_pct\":" + number(result.cpu_render) +

@@ -749,6 +749,8 @@ class StereoRendererNodelet : public nodelet::Nodelet {
       timing->stages.push_back(s);
     };
     add("render", start, end);
+    // A marker (no duration) for the frames that redrew the static layer (issue 30): its redraw rate in the graph.
+    if (t.static_layers_drawn > 0) add("render_static_layer_redrawn", start, start);
     add("image_published", end, published);
     if (!simulation_shown.isZero()) add("simulation_input", simulation_shown, simulation_shown);
     vrm_msgs::publishShared(timing_pub_, timing);
