@@ -233,6 +233,9 @@ void RigRenderer::buildBackgrounds() {
           static_cast<std::uint8_t>(std::clamp(static_cast<int>(v + 256.5f) - 256, 0, 255));
     }
   }
+  // The span path's tables, built here rather than inside the first frame (a 1 Mi-draw bank costs ~20 ms).
+  normalBankQ12();
+  halfErfcTable();
   // The span path's untouched pixels: σ(level) per pixel and channel in Q11, if every σ < 16 DN fits an int16.
   background_sigma_q11_.clear();
   if (sensorSigma(255) < 15.99f) {
