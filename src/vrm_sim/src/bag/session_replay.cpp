@@ -3,6 +3,7 @@
 #include <rosbag/bag.h>
 #include <rosbag/view.h>
 
+#include <algorithm>
 #include <chrono>
 #include <filesystem>
 #include <sstream>
@@ -80,18 +81,45 @@ ReplayResult replaySession(const PreparedBag& prepared, const SessionSetup& setu
     if (!first || stamp < *first) first = stamp;
     if (!last || stamp > *last) last = stamp;
   };
+  // The inputs in the order of their stamps (stable: equal stamps keep the recorded order). The simulation node
+  // receives them in-process in the order the devices published them; the recorder, a process of its own, may fall
+  // behind on one topic under load (instrument states were seen 188 ms behind the eye states), and replayed in the
+  // recorded order those inputs would arrive late to a World that closes frames by stamp.
+  struct Input {
+    ros::Time stamp;
+    vrm_msgs::EyeState::ConstPtr eye;
+    vrm_msgs::InstrumentState::ConstPtr instrument;
+    vrm_msgs::PedalState::ConstPtr pedals;
+    vrm_msgs::ScenarioCommand::ConstPtr command;
+  };
+  std::vector<Input> inputs;
   for (const rosbag::MessageInstance& message : view) {
+    Input input;
+    input.stamp = message.getTime();
+    if ((input.eye = message.instantiate<vrm_msgs::EyeState>())) {
+      input.stamp = input.eye->header.stamp;
+    } else if ((input.instrument = message.instantiate<vrm_msgs::InstrumentState>())) {
+      input.stamp = input.instrument->header.stamp;
+    } else if ((input.pedals = message.instantiate<vrm_msgs::PedalState>())) {
+      input.stamp = input.pedals->header.stamp;
+    } else if ((input.command = message.instantiate<vrm_msgs::ScenarioCommand>())) {
+      input.stamp = input.command->header.stamp;
+    }
+    inputs.push_back(std::move(input));
+  }
+  std::stable_sort(inputs.begin(), inputs.end(), [](const Input& a, const Input& b) { return a.stamp < b.stamp; });
+  for (const Input& input : inputs) {
     ++result.inputs;
-    if (auto eye = message.instantiate<vrm_msgs::EyeState>()) {
-      note(toStamp(eye->header.stamp));
-      session.handle(toWorld(*eye));
-    } else if (auto instrument = message.instantiate<vrm_msgs::InstrumentState>()) {
-      note(toStamp(instrument->header.stamp));
-      session.handle(toWorld(*instrument));
-    } else if (auto pedals = message.instantiate<vrm_msgs::PedalState>()) {
-      session.handle(toWorld(*pedals));
-    } else if (auto command = message.instantiate<vrm_msgs::ScenarioCommand>()) {
-      if (auto converted = toWorld(*command)) session.handle(*converted);
+    if (input.eye) {
+      note(toStamp(input.eye->header.stamp));
+      session.handle(toWorld(*input.eye));
+    } else if (input.instrument) {
+      note(toStamp(input.instrument->header.stamp));
+      session.handle(toWorld(*input.instrument));
+    } else if (input.pedals) {
+      session.handle(toWorld(*input.pedals));
+    } else if (input.command) {
+      if (auto converted = toWorld(*input.command)) session.handle(*converted);
     }
   }
   session.flush();

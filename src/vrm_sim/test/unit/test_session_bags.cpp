@@ -177,6 +177,42 @@ TEST_F(WorkFolder, AnUnfinishedBagIsRecoveredIntoACopyAndTheOriginalIsLeftAlone)
   EXPECT_GT(std::stoi(jsonField(process.out, "simulated_frames")), 0);
 }
 
+// Under load the recorder, a process of its own, falls behind on one topic: instrument states were recorded up to
+// 188 ms after the eye states of their stamps. The live simulation received them in-process in stamp order, so the
+// replay must follow the stamps, not the recorded order (else it counts late inputs the live session never had and
+// ends in another state).
+TEST_F(WorkFolder, ABagWhoseRecorderFellBehindOnOneTopicReplaysToTheSameStateAsInOrder) {
+  const PreparedBag reference = prepareSessionBag((kBags / "membrane_peeling_novice.bag").string());
+  const ReplayResult in_order = replaySession(reference, resolveSession(reference));
+  const fs::path late = work_ / "late_instruments.bag";
+  {
+    rosbag::Bag source(reference.usable, rosbag::bagmode::Read);
+    rosbag::Bag out(late.string(), rosbag::bagmode::Write);
+    for (const rosbag::MessageInstance& message : rosbag::View(source)) {
+      const bool instrument = message.getDataType() == "vrm_msgs/InstrumentState";
+      out.write(message.getTopic(), message.getTime() + ros::Duration(instrument ? 0.15 : 0.0), message);
+    }
+  }
+  {
+    // The rewritten bag really is out of order: some eye state is recorded after a later-stamped instrument's tick.
+    rosbag::Bag bag(late.string(), rosbag::bagmode::Read);
+    ros::Time newest_eye_stamp;
+    bool eye_ahead = false;
+    for (const rosbag::MessageInstance& message : rosbag::View(bag)) {
+      if (auto eye = message.instantiate<vrm_msgs::EyeState>()) newest_eye_stamp = eye->header.stamp;
+      if (auto instrument = message.instantiate<vrm_msgs::InstrumentState>()) {
+        eye_ahead = eye_ahead || newest_eye_stamp > instrument->header.stamp + ros::Duration(0.1);
+      }
+    }
+    ASSERT_TRUE(eye_ahead) << "the test bag must have instruments recorded behind the eye states";
+  }
+  const PreparedBag prepared = prepareSessionBag(late.string());
+  const ReplayResult result = replaySession(prepared, resolveSession(prepared));
+  EXPECT_EQ(result.late_inputs, in_order.late_inputs);
+  EXPECT_EQ(result.frames, in_order.frames);
+  EXPECT_EQ(world::hashString(result.final_state_hash), world::hashString(in_order.final_state_hash));
+}
+
 TEST_F(WorkFolder, ABagCutOffInTheMiddleReplaysItsIntactPart) {
   const std::string bytes = readText(kBags / "navigation_expert.bag");
   const fs::path cut = work_ / "cut.bag";
