@@ -21,6 +21,12 @@
 //           overlaps the next eye's binning and the previous eye's blend.
 // Static geometry lives in GPU buffers uploaded once; deformable meshes are streamed only when their version
 // changes. Objects outside a frustum are not drawn.
+// The static layer (issue 30, RenderOptions::cache_static): the opaque static objects (the retina) are kept per eye
+// as an ambient-only image with its DOF weight and depth, redrawn only when they, the eye's camera, the microscope or
+// the fundus change (and then held still for a frame); a frame starts from a copy of it and pass 2 draws over it
+// only the instruments, the translucent objects and the static triangles the spotlight may reach. Same image (test
+// StaticLayerCache...); a static object moved by less than static_pose_tolerance_px (tracker jitter) is drawn at
+// its anchor pose.
 
 #include <cstdint>
 #include <memory>
