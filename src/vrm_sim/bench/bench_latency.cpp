@@ -246,7 +246,7 @@ struct Collected {
   std::map<Nanoseconds, int> eyes;                           // eyes arrived per image stamp
   std::set<Nanoseconds> ticks, ground_truth, cameras, tracked, simulated, shown, rendered;
   std::uint64_t images = 0;
-  std::vector<double> display;  // input stamp -> shown by the display twin (in the manager), ms
+  std::vector<double> display;   // input stamp -> shown by the display twin (in the manager), ms
   bool episode_running = false;  // a RUNNING status came since the last restart
   std::uint64_t restarts = 0;    // scenario restarts (RESET + START once it finished) during the measurement
 };
@@ -748,10 +748,11 @@ int main(int argc, char** argv) {
     } else if (arg == "--idle-wait" && i + 1 < argc) {
       idle_wait_s = std::stod(argv[++i]);
     } else {
-      std::fprintf(stderr,
-                   "usage: %s [--quick] [--out FILE] [--seconds S] [--runs N] [--idle-load L] [--idle-wait S] "
-                   "[--only CONFIG_SUBSTRING] [--param /NODE/NAME=VALUE] [--launch-arg NAME:=VALUE] [--external-viewer]\n",
-                   argv[0]);
+      std::fprintf(
+          stderr,
+          "usage: %s [--quick] [--out FILE] [--seconds S] [--runs N] [--idle-load L] [--idle-wait S] "
+          "[--only CONFIG_SUBSTRING] [--param /NODE/NAME=VALUE] [--launch-arg NAME:=VALUE] [--external-viewer]\n",
+          argv[0]);
       return 2;
     }
   }
@@ -952,8 +953,11 @@ int main(int argc, char** argv) {
   }
   const std::string summary = summarize(results, configs, &std::cout);
   std::ofstream out(out_path);
-  out << "{\"suite\":\"latency\",\"command\":\"./scripts/bench.sh" << (quick ? " --quick" : "")
-      << " latency\",\"quick\":" << (quick ? "true" : "false") << ",\"runs_per_config\":" << runs
+  std::string command = "rosrun vrm_sim bench_latency";  // as invoked (scripts/bench.sh latency adds only --out)
+  for (int i = 1; i < argc; ++i) command += std::string(" ") + argv[i];
+  const std::string quoted_command = stringList({command});  // ["..."]
+  out << "{\"suite\":\"latency\",\"command\":" << quoted_command.substr(1, quoted_command.size() - 2)
+      << ",\"quick\":" << (quick ? "true" : "false") << ",\"runs_per_config\":" << runs
       << ",\"idle_load_threshold\":" << idle_load << ",\"seconds_per_config\":" << seconds
       << ",\"input_rate_hz\":" << kInputRateHz << ",\"timer_rate_hz\":" << kTimerRateHz
       << ",\"cores\":" << std::thread::hardware_concurrency() << ",\"configs\":[\n"

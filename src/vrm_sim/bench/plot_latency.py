@@ -29,7 +29,10 @@ def row(config, stage):
 
 patterns = ["sequential", "parallel_async", "pipelined"]
 tracking_values = [False, True]
-present = {(c["pattern"], c["tracking"]): c for c in configs}
+# With several runs per configuration (bench_latency --runs), the first run is drawn (rows and histogram alike).
+present = {}
+for c in configs:
+    present.setdefault((c["pattern"], c["tracking"]), c)
 columns = [p for p in patterns if any((p, t) in present for t in tracking_values)]
 lines = [t for t in tracking_values if any((p, t) in present for p in patterns)]
 fig, axes = plt.subplots(len(lines), len(columns), figsize=(5 * len(columns), 3.6 * len(lines)), squeeze=False,
