@@ -62,8 +62,11 @@ fi
   echo "  last offending commit: $(describe "${stale[0]}")"
   for commit in "${stale[@]:1:4}"; do echo "  also: $(describe "$commit")"; done
   ((${#stale[@]} <= 5)) || echo "  ... and $((${#stale[@]} - 5)) more since ${result_commit:0:9} (the paths: MEASURED in scripts/check_bench_fresh.sh)"
-  echo "  refresh it on an otherwise idle machine (6 configurations x 60 s): ./scripts/bench.sh latency"
-  echo "  (= rosrun vrm_sim bench_latency --out $RESULT, plus the histogram PNG), then commit $RESULT and"
+  echo "  refresh it on an otherwise idle machine (run.sh's session, tracking off and on, 5 runs x 60 s each, every run"
+  echo "  after the load average fell below 0.3; ~35 min):"
+  echo "    rosrun vrm_sim bench_latency --only sequential --out $RESULT"
+  echo "    src/vrm_sim/bench/plot_latency.py $RESULT"
+  echo "  (./scripts/bench.sh latency runs all six synchronisation patterns: ~100 min), then commit $RESULT and"
   echo "  bench/results/latency_histogram.png"
 } >&2
 exit 1
