@@ -403,7 +403,14 @@ std::vector<std::string> launchArguments(const Config& config, const std::string
                                    std::string("tracking:=") + (config.tracking ? "true" : "false"),
                                    "render_trigger:=" + config.trigger,
                                    "latency_monitor:=true"};
-  args.insert(args.end(), extra.begin(), extra.end());
+  // roslaunch keeps the first of two equal names, so an experiment's --launch-arg replaces the bench's own.
+  for (const std::string& argument : extra) {
+    const std::string name = argument.substr(0, argument.find(":="));
+    args.erase(std::remove_if(args.begin(), args.end(),
+                              [&](const std::string& own) { return own.substr(0, own.find(":=")) == name; }),
+               args.end());
+    args.push_back(argument);
+  }
   return args;
 }
 
