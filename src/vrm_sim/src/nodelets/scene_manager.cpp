@@ -1,7 +1,11 @@
 // The VR part's entry point (thesis §2.4: object manager + scenario manager). Loads the scene, builds only what
-// it needs (MGE membranes for deformable objects only), takes every input topic of the VR part, keeps the frame
-// tree on tf2 (world -> eye -> trocar_* -> instrument_*) and publishes the scene's surfaces for rendering, collision
-// and RViz. Stamps come from the inputs, so a replayed bag produces the same frames.
+// it needs (MGE membranes for deformable objects only), keeps the frame tree on tf2 (world -> eye -> trocar_* ->
+// instrument_*) and publishes the scene's surfaces for rendering, collision and RViz.
+// The pose tf follows the simulation's decisions, not the raw device topics (issue 31): scenario_manager publishes
+// every input frame it closed (vrm_msgs/InputFrame, topic input_frame) with the poses the World applied, and this
+// node broadcasts exactly those, stamped with the frame's stamp — a source the mediator left out, an input the World
+// rejected or a refused type switch look the same on tf as in the simulation, and a replay produces the same tf.
+// Only KIND_FRAME frames carry poses (KIND_STATE / KIND_LOAD frames apply pedals and commands only).
 #include <geometry_msgs/TransformStamped.h>
 #include <nodelet/nodelet.h>
 #include <ros/ros.h>
@@ -15,8 +19,7 @@
 #include <memory>
 #include <pluginlib/class_list_macros.hpp>
 
-#include "vrm_msgs/EyeState.h"
-#include "vrm_msgs/InstrumentState.h"
+#include "vrm_msgs/InputFrame.h"
 #include "vrm_msgs/MicroscopeSettings.h"
 #include "vrm_msgs/PedalState.h"
 #include "vrm_msgs/ScenarioCommand.h"
@@ -78,8 +81,7 @@ class SceneManager : public nodelet::Nodelet {
     if (publish_pose_tf_) publishStaticFrames();
     publishSurfaces(nh);
 
-    eye_subscriber_ = nh.subscribe("eye_state", 10, &SceneManager::onEyeState, this);
-    instrument_subscriber_ = nh.subscribe("instrument_state", 20, &SceneManager::onInstrumentState, this);
+    if (publish_pose_tf_) frame_subscriber_ = nh.subscribe("input_frame", 10, &SceneManager::onInputFrame, this);
     pedal_subscriber_ = nh.subscribe("pedals", 10, &SceneManager::onPedals, this);
     microscope_subscriber_ = nh.subscribe("microscope", 10, &SceneManager::onMicroscope, this);
     command_subscriber_ = nh.subscribe("scenario_command", 10, &SceneManager::onScenarioCommand, this);
@@ -179,43 +181,47 @@ class SceneManager : public nodelet::Nodelet {
     vrm_msgs::publishShared(marker_publisher_, markers);
   }
 
-  void onEyeState(const vrm_msgs::EyeState::ConstPtr& eye) {
-    geometry_msgs::Pose pose;
-    pose.position = eye->rotation_center;
-    pose.orientation = eye->rotation;
-    if (!eye->valid || !publish_pose_tf_) return;
-    if (!isFinite(pose)) {
-      NODELET_WARN_THROTTLE(1.0, "eye_state with a non-finite pose ignored");
-      return;
+  // tf from the poses the World applied in this frame. An instrument that is not valid (lost by the tracker, its
+  // input rejected, its source silent) is not broadcast: tf keeps its last applied pose, and so do the scene markers,
+  // which are frame-locked to instrument_<slot> (drawn where it was last applied, not hidden).
+  void onInputFrame(const vrm_msgs::InputFrame::ConstPtr& frame) {
+    if (frame->kind != vrm_msgs::InputFrame::KIND_FRAME) return;
+    std::vector<geometry_msgs::TransformStamped> transforms;
+    if (frame->eye_valid) {
+      if (isFinite(frame->eye_pose)) {
+        geometry_msgs::TransformStamped transform;
+        transform.header.stamp = frame->header.stamp;
+        transform.header.frame_id = world_frame_;
+        transform.child_frame_id = eye_frame_;
+        transform.transform = toTransformMsg(toEigen(frame->eye_pose));
+        transforms.push_back(transform);
+      } else {
+        NODELET_WARN_THROTTLE(1.0, "input frame %lu with a non-finite eye pose: eye not on tf",
+                              static_cast<unsigned long>(frame->sequence));
+      }
     }
-    geometry_msgs::TransformStamped frame;
-    frame.header.stamp = eye->header.stamp;
-    frame.header.frame_id = world_frame_;
-    frame.child_frame_id = eye_frame_;
-    frame.transform = toTransformMsg(toEigen(pose));
-    broadcaster_.sendTransform(frame);
-  }
-
-  void onInstrumentState(const vrm_msgs::InstrumentState::ConstPtr& instrument) {
-    if (!instrument->valid || !publish_pose_tf_) return;
-    if (!isFinite(instrument->tip_pose) || instrument->instrument_id.empty()) {
-      NODELET_WARN_THROTTLE(1.0, "instrument_state '%s' with a non-finite pose or no id ignored",
-                            instrument->instrument_id.c_str());
-      return;
+    for (const vrm_msgs::AppliedInstrument& instrument : frame->instruments) {
+      if (!instrument.valid) continue;
+      if (!isFinite(instrument.pose) || instrument.slot.empty()) {
+        NODELET_WARN_THROTTLE(1.0, "input frame %lu: instrument '%s' with a non-finite pose or no slot ignored",
+                              static_cast<unsigned long>(frame->sequence), instrument.slot.c_str());
+        continue;
+      }
+      geometry_msgs::TransformStamped transform;
+      transform.header.stamp = frame->header.stamp;
+      transform.header.frame_id = instrument.header.frame_id.empty() ? eye_frame_ : instrument.header.frame_id;
+      transform.child_frame_id = "instrument_" + instrument.slot;
+      Eigen::Isometry3d tip = toEigen(instrument.pose);
+      // world -> eye -> trocar_* -> instrument_*: the instrument hangs below its trocar (an eye-frame translation).
+      const scene::Trocar* trocar = scene_.findTrocar(instrument.slot);
+      if (trocar && transform.header.frame_id == eye_frame_) {
+        transform.header.frame_id = "trocar_" + trocar->name;
+        tip.translation() -= trocar->position_in_eye;
+      }
+      transform.transform = toTransformMsg(tip);
+      transforms.push_back(transform);
     }
-    geometry_msgs::TransformStamped frame;
-    frame.header.stamp = instrument->header.stamp;
-    frame.header.frame_id = instrument->header.frame_id.empty() ? eye_frame_ : instrument->header.frame_id;
-    frame.child_frame_id = "instrument_" + instrument->instrument_id;
-    Eigen::Isometry3d tip = toEigen(instrument->tip_pose);
-    // world -> eye -> trocar_* -> instrument_*: the instrument hangs below its trocar (an eye-frame translation).
-    const scene::Trocar* trocar = scene_.findTrocar(instrument->instrument_id);
-    if (trocar && frame.header.frame_id == eye_frame_) {
-      frame.header.frame_id = "trocar_" + trocar->name;
-      tip.translation() -= trocar->position_in_eye;
-    }
-    frame.transform = toTransformMsg(tip);
-    broadcaster_.sendTransform(frame);
+    if (!transforms.empty()) broadcaster_.sendTransform(transforms);
   }
 
   // Pedals, knobs and scenario commands are consumed by the simulation, rendering and scenario layers as they
@@ -252,8 +258,8 @@ class SceneManager : public nodelet::Nodelet {
   std::vector<ros::Publisher> mesh_publishers_;
   ros::Publisher marker_publisher_;
   ros::Publisher session_publisher_;
-  ros::Subscriber eye_subscriber_, instrument_subscriber_, pedal_subscriber_, microscope_subscriber_,
-      command_subscriber_, session_subscriber_;
+  ros::Subscriber frame_subscriber_, pedal_subscriber_, microscope_subscriber_, command_subscriber_,
+      session_subscriber_;
   vrm_msgs::PedalState::ConstPtr last_pedals_;
   vrm_msgs::MicroscopeSettings::ConstPtr last_microscope_;
 };
