@@ -70,7 +70,7 @@ void publishFrame(world::Session& session, const world::FrameResult& frame) {
     }
   }
   vrm_msgs::SimulationState state;
-  fillSimulationState(frame, session.world().statistics().late_inputs, state);
+  fillSimulationState(frame, session.world().statistics(), state);
   if (const scenario::Status* status = session.world().scenarioStatus()) {
     vrm_msgs::ScenarioStatus message;
     fillScenarioStatus(*status, message);

@@ -3,7 +3,8 @@
 // subscriber (nothing is lost at the start), ends when the bag is done. The bag it plays (~bag) is what
 // `session_replay --prepare` checked before the launch started anything — the original, or a recovered copy of an
 // unfinished one — and it plays only the session's topics that the bag has (a topic nobody subscribes to would stall
-// the start).
+// the start). A bag recorded with input frames (issue 31) plays /input_frame remapped to /recorded_input_frame and
+// not the raw device topics; an older bag plays the device topics.
 // Parameters (private): bag (path), rate (time scale, default 1).
 #include <ros/ros.h>
 #include <rosbag/bag.h>
@@ -11,6 +12,7 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <algorithm>
 #include <cstring>
 #include <exception>
 #include <set>
@@ -37,12 +39,19 @@ int main(int argc, char** argv) {
     return 2;
   }
   std::vector<std::string> topics;
+  bool frames = false;
   try {
     std::set<std::string> present;
     rosbag::Bag bag(bag_path, rosbag::bagmode::Read);
     rosbag::View view(bag);
     for (const rosbag::ConnectionInfo* connection : view.getConnections()) present.insert(connection->topic);
+    // A bag with input frames plays them (onto recorded_input_frame: scenario_manager with ~input:=frames applies
+    // them and publishes its own input_frame for renderer and tf), not the device topics; an older bag plays those.
+    frames = present.count(vrm_sim::bag::inputFrameTopic()) > 0;
     for (const std::string& topic : vrm_sim::bag::sessionTopics()) {
+      const bool device = std::find(vrm_sim::bag::deviceTopics().begin(), vrm_sim::bag::deviceTopics().end(),
+                                    topic) != vrm_sim::bag::deviceTopics().end();
+      if (frames && device) continue;
       if (present.count(topic)) topics.push_back(topic);
     }
   } catch (const std::exception& error) {
@@ -53,6 +62,7 @@ int main(int argc, char** argv) {
   std::vector<std::string> arguments = {
       player, "--clock", "--wait-for-subscribers", "--quiet", "--rate=" + std::to_string(rate), bag_path, "--topics"};
   arguments.insert(arguments.end(), topics.begin(), topics.end());
+  if (frames) arguments.push_back(vrm_sim::bag::inputFrameTopic() + ":=/recorded_input_frame");
   // roslaunch's __name / __log remappings, so the player keeps this node's name.
   for (int i = 1; i < argc; ++i) {
     if (std::strncmp(argv[i], "__", 2) == 0) arguments.push_back(argv[i]);

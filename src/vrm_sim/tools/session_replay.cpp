@@ -27,7 +27,7 @@ namespace {
 int usage(const std::string& problem) {
   std::fprintf(stderr,
                "session_replay: %s\nusage: session_replay --bag FILE [--scene NAME_OR_PATH] "
-               "[--prepare | --print scene|difficulty|collision_detector|auto_start|seed]\n",
+               "[--prepare | --print scene|difficulty|collision_detector|auto_start|seed|input]\n",
                problem.c_str());
   return 2;
 }
@@ -69,8 +69,8 @@ int main(int argc, char** argv) {
       scene = value;
     } else if (flag == "--print") {
       if (value != "scene" && value != "difficulty" && value != "collision_detector" && value != "auto_start" &&
-          value != "seed") {
-        return usage("--print takes scene, difficulty, collision_detector, auto_start or seed");
+          value != "seed" && value != "input") {
+        return usage("--print takes scene, difficulty, collision_detector, auto_start, seed or input");
       }
       print = value;
     } else {
@@ -90,6 +90,7 @@ int main(int argc, char** argv) {
       if (print == "collision_detector") std::printf("%s", setup.collision_detector.c_str());
       if (print == "auto_start") std::printf("%s", setup.auto_start ? "true" : "false");
       if (print == "seed") std::printf("%u", setup.seed);
+      if (print == "input") std::printf("%s", vrm_sim::bag::recordsInputFrames(bag) ? "frames" : "devices");
       return 0;
     }
     reportRecovery(bag);

@@ -14,6 +14,7 @@
 
 #include "vrm_msgs/CollisionReport.h"
 #include "vrm_msgs/EyeState.h"
+#include "vrm_msgs/InputFrame.h"
 #include "vrm_msgs/InstrumentState.h"
 #include "vrm_msgs/PedalState.h"
 #include "vrm_msgs/ScenarioCommand.h"
@@ -68,8 +69,17 @@ vrm_msgs::InstrumentState toMsg(const world::InstrumentState& instrument);
 world::PedalState toWorld(const vrm_msgs::PedalState& pedals);
 // Returns nullopt for an unknown command value.
 std::optional<world::ScenarioCommand> toWorld(const vrm_msgs::ScenarioCommand& command);
+vrm_msgs::EyeState toMsg(const world::EyeState& eye);
+vrm_msgs::PedalState toMsg(const world::PedalState& pedals);
+vrm_msgs::ScenarioCommand toMsg(const world::ScenarioCommand& command);
+// An input frame as the simulation node publishes and records it, and back (number for number: a replayed frame
+// applies the very inputs the live one did). frame_id is the world frame's name. A recorded command of an unknown
+// value is dropped.
+void fillInputFrame(const world::InputFrame& frame, const std::string& world_frame, const std::string& eye_frame,
+                    vrm_msgs::InputFrame& message);
+world::InputFrame toWorld(const vrm_msgs::InputFrame& message);
 // The frame's report (header, tissues, injuries); header.frame_id stays empty.
-void fillSimulationState(const world::FrameResult& frame, std::uint64_t late_inputs,
+void fillSimulationState(const world::FrameResult& frame, const world::WorldStatistics& statistics,
                          vrm_msgs::SimulationState& message);
 // The scenario's state, progress message and score (header left to the caller).
 void fillScenarioStatus(const scenario::Status& status, vrm_msgs::ScenarioStatus& message);

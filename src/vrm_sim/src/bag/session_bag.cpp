@@ -15,6 +15,7 @@
 #include <sstream>
 
 #include "vrm_msgs/EyeState.h"
+#include "vrm_msgs/InputFrame.h"
 #include "vrm_msgs/InstrumentState.h"
 #include "vrm_msgs/PedalState.h"
 #include "vrm_msgs/ScenarioCommand.h"
@@ -242,14 +243,27 @@ void verify(const rosbag::MessageInstance& message) {
     message.instantiate<vrm_msgs::ScenarioCommand>();
   } else if (type == "vrm_msgs/SessionInfo") {
     message.instantiate<vrm_msgs::SessionInfo>();
+  } else if (type == "vrm_msgs/InputFrame") {
+    message.instantiate<vrm_msgs::InputFrame>();
   }
 }
 
 }  // namespace
 
 const std::vector<std::string>& inputTopics() {
+  static const std::vector<std::string> topics = {"/input_frame", "/eye_state", "/instrument_state", "/pedals",
+                                                   "/scenario_command"};
+  return topics;
+}
+
+const std::vector<std::string>& deviceTopics() {
   static const std::vector<std::string> topics = {"/eye_state", "/instrument_state", "/pedals", "/scenario_command"};
   return topics;
+}
+
+bool recordsInputFrames(const PreparedBag& bag) {
+  const auto frames = bag.topics.find(inputFrameTopic());
+  return frames != bag.topics.end() && frames->second > 0;
 }
 
 const std::vector<std::string>& sessionTopics() {

@@ -6,9 +6,11 @@
 #include <algorithm>
 #include <chrono>
 #include <filesystem>
+#include <iomanip>
 #include <sstream>
 
 #include "vrm_msgs/EyeState.h"
+#include "vrm_msgs/InputFrame.h"
 #include "vrm_msgs/InstrumentState.h"
 #include "vrm_msgs/PedalState.h"
 #include "vrm_msgs/ScenarioCommand.h"
@@ -75,51 +77,87 @@ ReplayResult replaySession(const PreparedBag& prepared, const SessionSetup& setu
   ReplayResult result;
   result.setup = setup;
   rosbag::Bag bag(prepared.usable, rosbag::bagmode::Read);
-  rosbag::View view(bag, rosbag::TopicQuery(inputTopics()));
   std::optional<world::Stamp> first, last;
   auto note = [&](world::Stamp stamp) {
     if (!first || stamp < *first) first = stamp;
     if (!last || stamp > *last) last = stamp;
   };
-  // The inputs in the order of their stamps (stable: equal stamps keep the recorded order). The simulation node
-  // receives them in-process in the order the devices published them; the recorder, a process of its own, may fall
-  // behind on one topic under load (instrument states were seen 188 ms behind the eye states), and replayed in the
-  // recorded order those inputs would arrive late to a World that closes frames by stamp.
-  struct Input {
-    ros::Time stamp;
-    vrm_msgs::EyeState::ConstPtr eye;
-    vrm_msgs::InstrumentState::ConstPtr instrument;
-    vrm_msgs::PedalState::ConstPtr pedals;
-    vrm_msgs::ScenarioCommand::ConstPtr command;
-  };
-  std::vector<Input> inputs;
-  for (const rosbag::MessageInstance& message : view) {
-    Input input;
-    input.stamp = message.getTime();
-    if ((input.eye = message.instantiate<vrm_msgs::EyeState>())) {
-      input.stamp = input.eye->header.stamp;
-    } else if ((input.instrument = message.instantiate<vrm_msgs::InstrumentState>())) {
-      input.stamp = input.instrument->header.stamp;
-    } else if ((input.pedals = message.instantiate<vrm_msgs::PedalState>())) {
-      input.stamp = input.pedals->header.stamp;
-    } else if ((input.command = message.instantiate<vrm_msgs::ScenarioCommand>())) {
-      input.stamp = input.command->header.stamp;
+  if (recordsInputFrames(prepared)) {
+    // The frames the live session's mediator closed, in their sequence: every decision that depended on arrival
+    // order or on a silent source is in them, so the replay repeats the session whatever the load was.
+    result.input = "input_frame";
+    std::vector<vrm_msgs::InputFrame::ConstPtr> frames;
+    rosbag::View view(bag, rosbag::TopicQuery(std::vector<std::string>{inputFrameTopic()}));
+    for (const rosbag::MessageInstance& message : view) {
+      if (auto frame = message.instantiate<vrm_msgs::InputFrame>()) frames.push_back(frame);
     }
-    inputs.push_back(std::move(input));
-  }
-  std::stable_sort(inputs.begin(), inputs.end(), [](const Input& a, const Input& b) { return a.stamp < b.stamp; });
-  for (const Input& input : inputs) {
-    ++result.inputs;
-    if (input.eye) {
-      note(toStamp(input.eye->header.stamp));
-      session.handle(toWorld(*input.eye));
-    } else if (input.instrument) {
-      note(toStamp(input.instrument->header.stamp));
-      session.handle(toWorld(*input.instrument));
-    } else if (input.pedals) {
-      session.handle(toWorld(*input.pedals));
-    } else if (input.command) {
-      if (auto converted = toWorld(*input.command)) session.handle(*converted);
+    std::stable_sort(frames.begin(), frames.end(),
+                     [](const auto& a, const auto& b) { return a->sequence < b->sequence; });
+    for (std::size_t i = 1; i < frames.size(); ++i) {
+      if (frames[i]->sequence == frames[i - 1]->sequence + 1) continue;
+      std::ostringstream what;
+      what << prepared.original << ": the recorded input frames jump from sequence " << frames[i - 1]->sequence
+           << " to " << frames[i]->sequence << " (frame " << i + 1 << " of " << frames.size() << ", input time "
+           << std::fixed << std::setprecision(3) << frames[i]->header.stamp.toSec() << " s): "
+           << (frames[i]->sequence == frames[i - 1]->sequence ? "a frame recorded twice"
+                                                              : std::to_string(frames[i]->sequence -
+                                                                               frames[i - 1]->sequence - 1) +
+                                                                    " frames lost")
+           << "; the bag cannot reproduce its session";
+      throw BagError(what.str());
+    }
+    for (const auto& message : frames) {
+      ++result.inputs;
+      if (message->kind == vrm_msgs::InputFrame::KIND_FRAME) note(toStamp(message->header.stamp));
+      session.handle(toWorld(*message));
+    }
+  } else {
+    result.input = "devices";
+    result.setup.warnings.push_back(
+        "the bag predates input frames (no " + inputFrameTopic() +
+        "): replayed from the device topics through the mediator, which may decide a frame differently than the "
+        "live session did when the recording machine was loaded");
+    rosbag::View view(bag, rosbag::TopicQuery(deviceTopics()));
+    // The inputs in the order of their stamps (stable: equal stamps keep the recorded order). The simulation node
+    // receives them in-process in the order the devices published them; the recorder, a process of its own, may
+    // fall behind on one topic under load (instrument states were seen 188 ms behind the eye states), and replayed
+    // in the recorded order those inputs would arrive late to a mediator that closes frames by stamp.
+    struct Input {
+      ros::Time stamp;
+      vrm_msgs::EyeState::ConstPtr eye;
+      vrm_msgs::InstrumentState::ConstPtr instrument;
+      vrm_msgs::PedalState::ConstPtr pedals;
+      vrm_msgs::ScenarioCommand::ConstPtr command;
+    };
+    std::vector<Input> inputs;
+    for (const rosbag::MessageInstance& message : view) {
+      Input input;
+      input.stamp = message.getTime();
+      if ((input.eye = message.instantiate<vrm_msgs::EyeState>())) {
+        input.stamp = input.eye->header.stamp;
+      } else if ((input.instrument = message.instantiate<vrm_msgs::InstrumentState>())) {
+        input.stamp = input.instrument->header.stamp;
+      } else if ((input.pedals = message.instantiate<vrm_msgs::PedalState>())) {
+        input.stamp = input.pedals->header.stamp;
+      } else if ((input.command = message.instantiate<vrm_msgs::ScenarioCommand>())) {
+        input.stamp = input.command->header.stamp;
+      }
+      inputs.push_back(std::move(input));
+    }
+    std::stable_sort(inputs.begin(), inputs.end(), [](const Input& a, const Input& b) { return a.stamp < b.stamp; });
+    for (const Input& input : inputs) {
+      ++result.inputs;
+      if (input.eye) {
+        note(toStamp(input.eye->header.stamp));
+        session.handle(toWorld(*input.eye));
+      } else if (input.instrument) {
+        note(toStamp(input.instrument->header.stamp));
+        session.handle(toWorld(*input.instrument));
+      } else if (input.pedals) {
+        session.handle(toWorld(*input.pedals));
+      } else if (input.command) {
+        if (auto converted = toWorld(*input.command)) session.handle(*converted);
+      }
     }
   }
   session.flush();
@@ -128,6 +166,7 @@ ReplayResult replaySession(const PreparedBag& prepared, const SessionSetup& setu
   result.simulated_frames = world.statistics().simulated_frames;
   result.late_inputs = world.statistics().late_inputs;
   result.rejected_inputs = world.statistics().rejected_inputs;
+  result.frames_without_source = world.statistics().frames_without_source;
   result.final_state_hash = world.stateHash();
   if (const scenario::Status* status = world.scenarioStatus()) {
     result.score_total = status->score.total;
@@ -155,6 +194,7 @@ std::string ReplayResult::json(const PreparedBag& bag) const {
   }
   out << ", \"state\": " << (scenario_state.empty() ? "null" : quoted(scenario_state)) << ", \"inputs\": " << inputs
       << ", \"late_inputs\": " << late_inputs << ", \"rejected_inputs\": " << rejected_inputs
+      << ", \"frames_without_source\": " << frames_without_source << ", \"input\": " << quoted(input)
       << ", \"input_seconds\": " << input_seconds << ", \"wall_seconds\": " << wall_seconds
       << ", \"speedup\": " << speedup << ", \"recovered_messages\": " << (bag.recovery ? bag.recovery->messages : 0)
       << ", \"recovered_seconds\": " << (bag.recovery ? bag.recovery->seconds : 0.0) << ", \"warnings\": [";

@@ -288,13 +288,130 @@ std::optional<world::ScenarioCommand> toWorld(const vrm_msgs::ScenarioCommand& c
   return result;
 }
 
+vrm_msgs::EyeState toMsg(const world::EyeState& eye) {
+  vrm_msgs::EyeState message;
+  message.header.stamp = toRosTime(eye.stamp);
+  message.header.frame_id = "world";
+  message.rotation.w = eye.rotation.w();
+  message.rotation.x = eye.rotation.x();
+  message.rotation.y = eye.rotation.y();
+  message.rotation.z = eye.rotation.z();
+  message.rotation_center.x = eye.rotation_center.x();
+  message.rotation_center.y = eye.rotation_center.y();
+  message.rotation_center.z = eye.rotation_center.z();
+  message.tracking_quality = eye.valid ? 1.0f : 0.0f;
+  message.valid = eye.valid;
+  return message;
+}
+
+vrm_msgs::PedalState toMsg(const world::PedalState& pedals) {
+  vrm_msgs::PedalState message;
+  message.header.stamp = toRosTime(pedals.stamp);
+  message.travel = pedals.travel;
+  message.reflux = pedals.reflux;
+  message.instrument_switch = pedals.instrument_switch;
+  message.zoom_in = pedals.zoom_in;
+  message.zoom_out = pedals.zoom_out;
+  message.focus_near = pedals.focus_near;
+  message.focus_far = pedals.focus_far;
+  return message;
+}
+
+vrm_msgs::ScenarioCommand toMsg(const world::ScenarioCommand& command) {
+  using Type = world::ScenarioCommand::Type;
+  static const std::map<Type, std::uint8_t> kValues = {
+      {Type::kLoad, vrm_msgs::ScenarioCommand::LOAD},       {Type::kStart, vrm_msgs::ScenarioCommand::START},
+      {Type::kPause, vrm_msgs::ScenarioCommand::PAUSE},     {Type::kResume, vrm_msgs::ScenarioCommand::RESUME},
+      {Type::kStop, vrm_msgs::ScenarioCommand::STOP},       {Type::kReset, vrm_msgs::ScenarioCommand::RESET},
+      {Type::kSelectInstrument, vrm_msgs::ScenarioCommand::SELECT_INSTRUMENT}};
+  vrm_msgs::ScenarioCommand message;
+  message.header.stamp = toRosTime(command.stamp);
+  message.command = kValues.at(command.command);
+  message.scenario = command.scenario;
+  message.argument = command.argument;
+  message.seed = command.seed;
+  return message;
+}
+
+void fillInputFrame(const world::InputFrame& frame, const std::string& world_frame, const std::string& eye_frame,
+                    vrm_msgs::InputFrame& message) {
+  using Kind = world::InputFrame::Kind;
+  message.header.stamp = toRosTime(frame.stamp);
+  message.header.frame_id = world_frame;
+  message.sequence = frame.sequence;
+  message.kind = frame.kind == Kind::kFrame   ? vrm_msgs::InputFrame::KIND_FRAME
+                 : frame.kind == Kind::kState ? vrm_msgs::InputFrame::KIND_STATE
+                                              : vrm_msgs::InputFrame::KIND_LOAD;
+  message.eye_inputs.clear();
+  for (const world::EyeState& eye : frame.eye_inputs) message.eye_inputs.push_back(toMsg(eye));
+  message.instrument_inputs.clear();
+  for (const world::InstrumentState& state : frame.instrument_inputs) message.instrument_inputs.push_back(toMsg(state));
+  message.pedals.clear();
+  for (const world::PedalState& pedals : frame.pedals) message.pedals.push_back(toMsg(pedals));
+  message.commands.clear();
+  for (const world::ScenarioCommand& command : frame.commands) message.commands.push_back(toMsg(command));
+  message.missing = frame.missing;
+  message.late = frame.late;
+  message.silenced = frame.silenced;
+  message.held_back = frame.held_back;
+  message.inputs = frame.inputs;
+  message.late_inputs = frame.late_inputs;
+  message.rejected_inputs = frame.rejected_inputs;
+  message.eye_pose = toPoseMsg(frame.world_from_eye);
+  message.eye_valid = frame.eye_valid;
+  message.instruments.clear();
+  for (const world::AppliedInstrument& applied : frame.instruments) {
+    vrm_msgs::AppliedInstrument instrument;
+    instrument.slot = applied.slot;
+    instrument.type = scene::toString(applied.type);
+    instrument.header.stamp = message.header.stamp;
+    instrument.header.frame_id = applied.frame_id == "world" ? world_frame : eye_frame;
+    instrument.pose = toPoseMsg(applied.pose);
+    instrument.jaw_angle = applied.jaw_angle;
+    instrument.suction = applied.suction;
+    instrument.cut_rate = applied.cut_rate;
+    instrument.cutting = applied.cutting;
+    instrument.valid = applied.valid;
+    instrument.delivered = applied.delivered;
+    message.instruments.push_back(std::move(instrument));
+  }
+}
+
+world::InputFrame toWorld(const vrm_msgs::InputFrame& message) {
+  using Kind = world::InputFrame::Kind;
+  world::InputFrame frame;
+  frame.stamp = toStamp(message.header.stamp);
+  frame.sequence = message.sequence;
+  frame.kind = message.kind == vrm_msgs::InputFrame::KIND_STATE  ? Kind::kState
+               : message.kind == vrm_msgs::InputFrame::KIND_LOAD ? Kind::kLoad
+                                                                  : Kind::kFrame;
+  for (const vrm_msgs::EyeState& eye : message.eye_inputs) frame.eye_inputs.push_back(toWorld(eye));
+  for (const vrm_msgs::InstrumentState& state : message.instrument_inputs) {
+    frame.instrument_inputs.push_back(toWorld(state));
+  }
+  for (const vrm_msgs::PedalState& pedals : message.pedals) frame.pedals.push_back(toWorld(pedals));
+  for (const vrm_msgs::ScenarioCommand& command : message.commands) {
+    if (auto converted = toWorld(command)) frame.commands.push_back(*converted);
+  }
+  frame.missing = message.missing;
+  frame.late = message.late;
+  frame.silenced = message.silenced;
+  frame.held_back = message.held_back;
+  frame.inputs = message.inputs;
+  frame.late_inputs = message.late_inputs;
+  frame.rejected_inputs = message.rejected_inputs;
+  frame.world_from_eye = toEigen(message.eye_pose);
+  frame.eye_valid = message.eye_valid;
+  return frame;  // the applied instruments are the World's to fill when it applies the frame
+}
+
 static_assert(static_cast<int>(world::PeelOutcome::kUntouched) == vrm_msgs::TissueState::UNTOUCHED &&
                   static_cast<int>(world::PeelOutcome::kGrasped) == vrm_msgs::TissueState::GRASPED &&
                   static_cast<int>(world::PeelOutcome::kLifted) == vrm_msgs::TissueState::LIFTED &&
                   static_cast<int>(world::PeelOutcome::kTorn) == vrm_msgs::TissueState::TORN,
               "world::PeelOutcome must follow the TissueState outcome constants");
 
-void fillSimulationState(const world::FrameResult& frame, std::uint64_t late_inputs,
+void fillSimulationState(const world::FrameResult& frame, const world::WorldStatistics& statistics,
                          vrm_msgs::SimulationState& message) {
   message.header.stamp = toRosTime(frame.stamp);
   message.frame = frame.frame;
@@ -302,7 +419,9 @@ void fillSimulationState(const world::FrameResult& frame, std::uint64_t late_inp
   message.frame_time = frame.frame_time;
   message.wall_time = frame.wall_time;
   message.paused = frame.paused;
-  message.late_inputs = late_inputs;
+  message.late_inputs = statistics.late_inputs;
+  message.frames_without_source = statistics.frames_without_source;
+  message.input_sequence = statistics.input_sequence;
   message.tissues.clear();
   for (const world::TissueReport& report : frame.tissues) {
     vrm_msgs::TissueState tissue;

@@ -5,9 +5,15 @@
 // The offline tools (tissue_offline, scenario_offline, session replays) drive the very same core, so the same inputs
 // give the same state and score here and there (test/graph/core_equivalence).
 //
-// Subscribes: eye_state, instrument_state, pedals, scenario_command (LOAD with `scenario` = scene name or path and
-// `argument` = difficulty switches the scene at run time; START, PAUSE, RESUME, STOP, RESET, SELECT_INSTRUMENT).
+// Subscribes (~input = devices, the default): eye_state, instrument_state, pedals, scenario_command (LOAD with
+// `scenario` = scene name or path and `argument` = difficulty switches the scene at run time; START, PAUSE, RESUME,
+// STOP, RESET, SELECT_INSTRUMENT) — through the session's mediator (world/mediator.h), which closes input frames.
+// With ~input = frames (replay.launch): recorded_input_frame (vrm_msgs/InputFrame, a session bag's input_frame),
+// applied frame by frame as the live session applied them; a gap in their sequence is reported.
 // Publishes (zero copy, stamps = the frame's input stamp):
+//   input_frame         vrm_msgs/InputFrame for every frame, once its inputs are applied and before it steps (the
+//                       applied eye and instrument states: what renderer, tf and markers draw; the session bag
+//                       records it and a replay feeds it back)
 //   scenario_status     vrm_msgs/ScenarioStatus, latched: on every state change, every 0.1 s of input time while
 //                       running, and after every command (a refused one says why in `message`)
 //   score               vrm_msgs/Score, latched: the final score when the scenario finishes or fails
@@ -93,6 +99,11 @@ class ScenarioManager : public nodelet::Nodelet {
     };
     eye_frame_ = private_nh.param<std::string>("eye_frame", "eye");
     world_frame_ = private_nh.param<std::string>("world_frame", "world");
+    input_mode_ = private_nh.param<std::string>("input", "devices");
+    if (input_mode_ != "devices" && input_mode_ != "frames") {
+      failGraph("scenario_manager: ~input must be 'devices' or 'frames', got '" + input_mode_ + "'");
+      return;
+    }
     result_file_ = private_nh.param<std::string>("result_file", "");
     bag_path_ = private_nh.param<std::string>("bag", "");
     if (!bag_path_.empty()) {
@@ -114,6 +125,7 @@ class ScenarioManager : public nodelet::Nodelet {
       failGraph("scenario_manager: cannot set up scene '" + scene_parameter + "': " + error.what());
       return;
     }
+    input_frame_publisher_ = nh.advertise<vrm_msgs::InputFrame>("input_frame", 100);
     state_publisher_ = nh.advertise<vrm_msgs::SimulationState>("simulation_state", 50);
     timing_publisher_ = nh.advertise<vrm_msgs::StageTiming>("tissue_timing", 5);
     report_publisher_ = nh.advertise<vrm_msgs::CollisionReport>("collision_report", 20);
@@ -122,19 +134,25 @@ class ScenarioManager : public nodelet::Nodelet {
     score_publisher_ = nh.advertise<vrm_msgs::Score>("score", 2, true);
     result_publisher_ = nh.advertise<vrm_msgs::SessionResult>("session_result", 1, true);
     session_->setFrameObserver([this](const world::FrameResult& frame) { publish(frame); });
+    session_->setInputObserver([this](const world::InputFrame& frame) { publishInputFrame(frame); });
     session_->setLoadObserver([this](world::World& world) { onLoaded(world); });
     onLoaded(session_->world());
     // Deep queues (pointers only, zero copy): on a loaded machine an input dropped here would be missing from the
     // live session but present in its bag, and the replay would differ. Two seconds of every input at 50 Hz.
-    eye_subscriber_ = nh.subscribe("eye_state", 100, &ScenarioManager::onEyeState, this);
-    instrument_subscriber_ = nh.subscribe("instrument_state", 200, &ScenarioManager::onInstrumentState, this);
-    pedal_subscriber_ = nh.subscribe("pedals", 100, &ScenarioManager::onPedals, this);
-    command_subscriber_ = nh.subscribe("scenario_command", 50, &ScenarioManager::onScenarioCommand, this);
+    if (input_mode_ == "frames") {
+      frame_subscriber_ = nh.subscribe("recorded_input_frame", 200, &ScenarioManager::onRecordedFrame, this);
+    } else {
+      eye_subscriber_ = nh.subscribe("eye_state", 100, &ScenarioManager::onEyeState, this);
+      instrument_subscriber_ = nh.subscribe("instrument_state", 200, &ScenarioManager::onInstrumentState, this);
+      pedal_subscriber_ = nh.subscribe("pedals", 100, &ScenarioManager::onPedals, this);
+      command_subscriber_ = nh.subscribe("scenario_command", 50, &ScenarioManager::onScenarioCommand, this);
+    }
     diagnostics_publisher_ = nh.advertise<diagnostic_msgs::DiagnosticArray>("/diagnostics", 5);
     diagnostics_timer_ = nh.createWallTimer(ros::WallDuration(1.0), &ScenarioManager::publishDiagnostics, this);
-    NODELET_INFO("scenario_manager: deterministic frames: %s, scenario start: %s",
+    NODELET_INFO("scenario_manager: deterministic frames: %s, scenario start: %s, input: %s",
                  options.wall_clock_budget ? "no (wall-clock budget)" : "yes",
-                 options.auto_start ? "with the first input" : "on START");
+                 options.auto_start ? "with the first input" : "on START",
+                 input_mode_ == "frames" ? "recorded input frames" : "devices through the mediator");
   }
 
   // A session that never ended (Ctrl-C, a crash of another node) still leaves its result.
@@ -171,6 +189,30 @@ class ScenarioManager : public nodelet::Nodelet {
     session_->handle(*converted);
     // The command takes effect with the next frame (stamp order); a refusal or a LOAD shows at once.
     publishStatus(command->header.stamp, true);
+  }
+
+  // A recorded frame (replay): applied as it was live. Frames come in sequence; a gap is a lost frame, and the
+  // replay then cannot be the session.
+  void onRecordedFrame(const vrm_msgs::InputFrame::ConstPtr& message) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    prepareReports();
+    if (last_recorded_sequence_ != 0 && message->sequence != last_recorded_sequence_ + 1) {
+      ++sequence_gaps_;
+      NODELET_ERROR("scenario_manager: recorded input frames jump from sequence %lu to %lu: %s lost; this replay is "
+                    "not the recorded session",
+                    static_cast<unsigned long>(last_recorded_sequence_), static_cast<unsigned long>(message->sequence),
+                    message->sequence > last_recorded_sequence_ ? "frames" : "order");
+    }
+    last_recorded_sequence_ = message->sequence;
+    const world::InputFrame frame = toWorld(*message);
+    session_->handle(frame);
+    if (!frame.commands.empty()) publishStatus(message->header.stamp, true);
+  }
+
+  void publishInputFrame(const world::InputFrame& frame) {
+    auto message = boost::make_shared<vrm_msgs::InputFrame>();
+    fillInputFrame(frame, world_frame_, eye_frame_, *message);
+    vrm_msgs::publishShared(input_frame_publisher_, message);
   }
 
   // A (new) scene: its tissue and retina topics, and its scenario's first status.
@@ -277,7 +319,7 @@ class ScenarioManager : public nodelet::Nodelet {
     vrm_msgs::publishShared(timing_publisher_, timing);
 
     auto state = boost::make_shared<vrm_msgs::SimulationState>();
-    fillSimulationState(frame, session_->world().statistics().late_inputs, *state);
+    fillSimulationState(frame, session_->world().statistics(), *state);
     vrm_msgs::publishShared(state_publisher_, state);
     publishStatus(stamp, false);
     // A scene without a scenario ends with STOP (a scenario's end is handled with its status).
@@ -426,6 +468,8 @@ class ScenarioManager : public nodelet::Nodelet {
         << "\", \"frames\": " << current.statistics().frames
         << ", \"simulated_frames\": " << current.statistics().simulated_frames
         << ", \"late_inputs\": " << current.statistics().late_inputs
+        << ", \"frames_without_source\": " << current.statistics().frames_without_source
+        << ", \"input_frames\": " << current.statistics().input_sequence
         << ", \"last_frame_stamp\": " << (last_stamp ? world::toSeconds(*last_stamp) : 0.0)
         << ", \"software_version\": " << quoted(VRM_SIM_VERSION)
         << ", \"bag\": " << (bag_path_.empty() ? "null" : quoted(bag_path_))
@@ -474,6 +518,8 @@ class ScenarioManager : public nodelet::Nodelet {
     add("rejected_per_s", rate);
     add("rejected_total", std::to_string(statistics.rejected_inputs));
     add("late_total", std::to_string(statistics.late_inputs));
+    add("frames_without_source_total", std::to_string(statistics.frames_without_source));
+    if (input_mode_ == "frames") add("recorded_frame_gaps", std::to_string(sequence_gaps_));
     add("frames_total", std::to_string(statistics.frames));
     // The integrator each membrane runs (with "auto", the one chosen for its stiffness, masses and dt).
     for (const std::string& name : session_->world().tissueNames()) {
@@ -526,7 +572,10 @@ class ScenarioManager : public nodelet::Nodelet {
   ros::Publisher state_publisher_, timing_publisher_, report_publisher_, marker_publisher_, status_publisher_,
       score_publisher_, result_publisher_;
   std::string user_, station_;
-  ros::Subscriber eye_subscriber_, instrument_subscriber_, pedal_subscriber_, command_subscriber_;
+  ros::Subscriber eye_subscriber_, instrument_subscriber_, pedal_subscriber_, command_subscriber_, frame_subscriber_;
+  std::string input_mode_;
+  std::uint64_t last_recorded_sequence_ = 0, sequence_gaps_ = 0;
+  ros::Publisher input_frame_publisher_;
   ros::Time last_provisional_;
   ros::Publisher diagnostics_publisher_;
   ros::WallTimer diagnostics_timer_;

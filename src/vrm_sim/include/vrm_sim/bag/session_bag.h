@@ -27,8 +27,15 @@ class BagError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-// The topics the VR part consumes (frame sources and state inputs), and the rest of a session's record.
-const std::vector<std::string>& inputTopics();
+// The topics the VR part consumes: the input frames its mediator closed (issue 31) and the raw device topics (frame
+// sources and state inputs; the only input of a bag recorded before input frames), and the rest of a session's
+// record.
+inline const std::string& inputFrameTopic() {
+  static const std::string topic = "/input_frame";
+  return topic;
+}
+const std::vector<std::string>& inputTopics();   // inputFrameTopic() + deviceTopics()
+const std::vector<std::string>& deviceTopics();  // /eye_state /instrument_state /pedals /scenario_command
 const std::vector<std::string>& sessionTopics();  // inputTopics() + /microscope + /session_info
 
 struct RecoveryReport {
@@ -70,6 +77,9 @@ RecoveryReport recoverBag(const std::string& broken, const std::string& copy);
 // Scans the record structure of a bag file: the offset of the first record that is not well-formed, or nullopt when
 // every record up to the end of the file is.
 std::optional<std::uint64_t> firstBrokenRecord(const std::string& path);
+
+// Whether the bag holds the session's input frames (else it predates them and replays from the device topics).
+bool recordsInputFrames(const PreparedBag& bag);
 
 // The software version a session records in session_info and a replay compares against.
 std::string softwareVersion();

@@ -1,6 +1,8 @@
 #pragma once
-// Offline replay of a recorded session (rosrun vrm_sim session_replay): the bag's inputs, in bag order, through the
-// simulation core the scenario_manager nodelet wraps (world::Session), as fast as the CPU allows — cartographer_ros'
+// Offline replay of a recorded session (rosrun vrm_sim session_replay): the bag's input frames (the frames the live
+// session's mediator closed, in sequence; a bag recorded before them: its device inputs in stamp order through the
+// mediator, with a warning) through the simulation core the scenario_manager nodelet wraps (world::Session), as fast
+// as the CPU allows — cartographer_ros'
 // offline node pattern: one handler path for live and recorded input, so the replay ends in the live session's
 // final state hash bit for bit.
 
@@ -35,6 +37,8 @@ struct ReplayResult {
   std::uint64_t inputs = 0;            // input messages fed
   std::uint64_t late_inputs = 0;
   std::uint64_t rejected_inputs = 0;
+  std::uint64_t frames_without_source = 0;  // frames closed while a source was silent
+  std::string input;                        // "input_frame" (recorded frames) or "devices" (an older bag)
   std::uint64_t final_state_hash = 0;
   std::optional<double> score_total;  // nullopt: the scene has no scenario
   std::string scenario_state;         // idle | running | paused | finished | failed ("" without a scenario)
@@ -48,7 +52,8 @@ struct ReplayResult {
   std::string json(const PreparedBag& bag) const;
 };
 
-// Replays every input of `bag` (bag time order). Throws scene::SceneError for a scene that does not load.
+// Replays `bag`. Throws scene::SceneError for a scene that does not load, and BagError for recorded input frames with
+// a gap in their sequence (a lost frame: which, and where).
 ReplayResult replaySession(const PreparedBag& bag, const SessionSetup& setup);
 
 }  // namespace bag

@@ -1,9 +1,12 @@
 #pragma once
-// A session of the VR part: the World of the loaded scene, replaced as a whole when ScenarioCommand LOAD names
-// another scene or difficulty (thesis §2.4: the scenario manager owns the VR objects and simulations; a new scenario
+// A session of the VR part: the mediator (world/mediator.h) that turns the device inputs into input frames, and the
+// World of the loaded scene that consumes them, replaced as a whole when ScenarioCommand LOAD names another scene or
+// difficulty (thesis §2.4: the scenario manager owns the VR objects and simulations; a new scenario
 // brings its own, and nothing of the old one keeps running). Every other input goes to the current World unchanged.
 // A LOAD that fails (unknown scene, broken YAML, a scene the simulation cannot run) leaves the running session as it
-// was and says why in the scenario status and the log. ROS-free; the scenario_manager nodelet wraps it.
+// was and says why in the scenario status and the log. Every frame — a LOAD included — reaches the input observer
+// (the simulation node publishes and records it); a replay hands the recorded frames to handle(InputFrame) and
+// repeats the session frame by frame. ROS-free; the scenario_manager nodelet wraps it.
 
 #include <functional>
 #include <memory>
@@ -26,11 +29,17 @@ class Session {
 
   explicit Session(scene::SceneDescription scene, WorldOptions options = {}, Loader loader = loadByName);
 
-  void handle(const EyeState& eye) { world_->handle(eye); }
-  void handle(const InstrumentState& instrument) { world_->handle(instrument); }
-  void handle(const PedalState& pedals) { world_->handle(pedals); }
-  void handle(const ScenarioCommand& command);
-  void flush() { world_->flush(); }
+  void handle(const EyeState& eye) { mediator_.handle(eye); }
+  void handle(const InstrumentState& instrument) { mediator_.handle(instrument); }
+  void handle(const PedalState& pedals) { mediator_.handle(pedals); }
+  void handle(const ScenarioCommand& command) { mediator_.handle(command); }
+  void flush() { mediator_.flush(); }
+  // A recorded input frame (replay): applied as the live session applied it.
+  void handle(const InputFrame& frame);
+
+  // Every input frame once the World applied its inputs (a LOAD's after the switch): see World::setInputObserver.
+  void setInputObserver(InputObserver observer);
+  const MediatorStatistics& mediatorStatistics() const { return mediator_.statistics(); }
 
   World& world() { return *world_; }
   const World& world() const { return *world_; }
@@ -40,10 +49,15 @@ class Session {
   std::uint64_t loads() const { return loads_; }
 
  private:
+  void onFrame(InputFrame& frame);
+  void load(InputFrame& frame);
+
   WorldOptions options_;
   Loader loader_;
   std::unique_ptr<World> world_;
+  Mediator mediator_;
   FrameObserver frame_observer_;
+  InputObserver input_observer_;
   LoadObserver load_observer_;
   std::uint32_t seed_ = 0;
   std::uint64_t loads_ = 0;

@@ -5,20 +5,12 @@
 // tools (tissue_offline, and the replay tools built on it) and the tests all drive this one class through the same
 // handle() calls — the cartographer_ros pattern of one handler path for live and recorded input.
 //
-// Frames. Inputs carry their stamps (ns, from header.stamp; nothing here reads a clock for the simulation):
-//   * eye and instrument states are *frame sources*: all of them that carry the same stamp S belong to the frame at
-//     S. Inputs are buffered per frame and applied when the frame closes, so frames close in stamp order whatever
-//     order their inputs arrive in (callbacks on several threads, a frame arriving while a step runs). Every source
-//     delivers in stamp order (one topic is one FIFO), so frame S is complete — and closes (inputs applied →
-//     collision → tissue step → bleeding → scenario → hash → observer) — as soon as every known source has
-//     delivered at S or later. A source that falls silent holds frames back for at most kReorderFrames later
-//     frames; then the oldest frame closes without it and it stops being waited for until it delivers again. The
-//     very first frame, whose sources are not known yet, closes when a later stamp arrives; flush() closes whatever
-//     is pending.
-//     A source state older than the last closed frame is late: it takes effect in the next frame and is counted
-//     (statistics().late_inputs).
-//   * pedal states and scenario commands are *state inputs*: buffered and applied, in stamp order, when the first
-//     frame with a stamp >= theirs closes, so their arrival order relative to the poses does not matter.
+// Frames. The World consumes input frames (world/mediator.h): the mediator groups the device inputs by stamp and
+// decides which inputs belong to a frame, which came late and which source fell silent; the World applies a frame's
+// inputs (eye first, then the instruments in the given order, then pedals and commands in stamp order) and closes
+// it (collision → tissue step → bleeding → scenario → hash → observer). A session (world/session.h) owns the
+// mediator and publishes every frame; a replay feeds the recorded frames, so both apply the same sequence. handle()
+// of a device input goes through the World's own mediator (offline tools, tests) with the same rules.
 // The simulated time of a frame is the stamp difference to the previous frame (capped by max_frame_time); tissue
 // steps are fixed-Δt substeps of it (the time budget is a step count, never wall time, unless wall_clock_budget is
 // set). With the default options no wall clock enters the result, so the same input sequence gives the same state
@@ -45,6 +37,8 @@
 #include "vrm_sim/scenario/runner.h"
 #include "vrm_sim/scene/scene_description.h"
 #include "vrm_sim/world/bleeding.h"
+#include "vrm_sim/world/inputs.h"
+#include "vrm_sim/world/mediator.h"
 
 namespace vrm_sim {
 namespace mge {
@@ -56,54 +50,6 @@ struct SimulatorStatistics;
 }  // namespace tissue
 
 namespace world {
-
-using Stamp = std::int64_t;  // ns since the epoch of the input stamps
-constexpr double toSeconds(Stamp stamp) { return 1e-9 * static_cast<double>(stamp); }
-Stamp fromSeconds(double seconds);
-
-// ---- inputs (core types; vrm_sim/conversions.h converts the messages) ----
-
-struct EyeState {
-  Stamp stamp = 0;
-  Eigen::Quaterniond rotation = Eigen::Quaterniond::Identity();  // world <- eye about the rotation centre
-  Eigen::Vector3d rotation_center = Eigen::Vector3d::Zero();     // m, world
-  bool valid = true;
-};
-
-struct InstrumentState {
-  Stamp stamp = 0;
-  std::string slot;                           // "left" | "right"
-  std::optional<scene::InstrumentType> type;  // nullopt: keep the slot's current type
-  // The instrument frame (origin at the tip, +z from the handle towards the tip) in frame_id, as position and unit
-  // quaternion like the message, so converting a message is lossless and a replay feeds the very same numbers.
-  Eigen::Vector3d tip_position = Eigen::Vector3d::Zero();
-  Eigen::Quaterniond tip_orientation = Eigen::Quaterniond::Identity();
-  std::string frame_id = "eye";  // "eye" | "world" ("" = eye)
-  double jaw_angle = 1.0;        // rad, forceps opening
-  double suction = 0.0;          // 0..1
-  double cut_rate = 0.0;         // Hz
-  bool valid = true;             // false: not tracked; keeps its pose, stops interacting
-
-  void setPose(const Eigen::Isometry3d& pose);
-  Eigen::Isometry3d pose() const;  // the quaternion normalised
-};
-
-struct PedalState {
-  Stamp stamp = 0;
-  double travel = 0.0;
-  bool reflux = false;
-  bool instrument_switch = false;
-  bool zoom_in = false, zoom_out = false, focus_near = false, focus_far = false;
-};
-
-struct ScenarioCommand {
-  enum class Type { kLoad, kStart, kPause, kResume, kStop, kReset, kSelectInstrument };
-  Stamp stamp = 0;
-  Type command = Type::kStart;
-  std::string scenario;  // kLoad
-  std::string argument;  // kSelectInstrument: "slot:type", e.g. "right:vitrector"; kLoad: difficulty; kStop: reason
-  std::uint32_t seed = 0;
-};
 
 // ---- outputs ----
 
@@ -183,6 +129,8 @@ struct WorldStatistics {
   std::uint64_t simulated_frames = 0;  // frames in which the world advanced (the session ran)
   std::uint64_t late_inputs = 0;       // frame sources older than the last closed frame
   std::uint64_t rejected_inputs = 0;   // non-finite values, unknown slot or frame
+  std::uint64_t frames_without_source = 0;  // frames closed while a known source had not delivered (it fell silent)
+  std::uint64_t input_sequence = 0;         // of the last input frame applied
   std::uint64_t tissue_steps = 0;
   double max_strain = 0.0;
   std::size_t max_grasped_nodes = 0;
@@ -190,10 +138,9 @@ struct WorldStatistics {
   double total_frame_wall_time = 0.0;
 };
 
-enum class Severity { kInfo, kWarning };
-using Log = std::function<void(Severity, const std::string&)>;
 using Clock = std::function<double()>;  // s, monotonic
 using FrameObserver = std::function<void(const FrameResult&)>;
+using InputObserver = std::function<void(const InputFrame&)>;
 
 struct WorldOptions {
   std::string detector_override;  // non-empty: this collision detector for every object
@@ -219,6 +166,9 @@ struct WorldOptions {
   bool auto_start = true;
 };
 
+// The mediator set-up for a scene: its slots, the world's stamp-jump limit and log.
+MediatorOptions mediatorOptionsFor(const scene::SceneDescription& scene, const WorldOptions& options);
+
 class World {
  public:
   // Builds tissues, colliders and instruments from `scene`. Throws scene::SceneError / std::invalid_argument for a
@@ -228,22 +178,36 @@ class World {
   World(const World&) = delete;
   World& operator=(const World&) = delete;
 
-  void handle(const EyeState& eye);
-  void handle(const InstrumentState& instrument);
-  void handle(const PedalState& pedals);
+  // Device inputs through the World's own mediator (offline tools, tests); a session feeds frames instead.
+  void handle(const EyeState& eye) { mediator_.handle(eye); }
+  void handle(const InstrumentState& instrument) { mediator_.handle(instrument); }
+  void handle(const PedalState& pedals) { mediator_.handle(pedals); }
   void handle(const ScenarioCommand& command);
-  // End of input: closes the pending frame, if any.
-  void flush();
+  // End of input: closes the pending frames, if any.
+  void flush() { mediator_.flush(); }
 
-  // Called after every frame (synchronously, from handle() / flush()).
+  // One closed input frame (a session's mediator, or a recorded one in a replay): its inputs are checked again (a
+  // recorded frame may be corrupt) and applied, and a kFrame steps the world. A kLoad frame is the session's
+  // business: here it only resets when it names this scene.
+  void handle(const InputFrame& frame);
+
+  // Called after every kFrame (synchronously, from handle() / flush()).
   void setFrameObserver(FrameObserver observer) { observer_ = std::move(observer); }
+  // Called for every input frame once its inputs are applied — before the frame's collision, tissue and scenario run
+  // — with the applied eye and instrument states filled in (what the simulation node publishes and records).
+  void setInputObserver(InputObserver observer) { input_observer_ = std::move(observer); }
+  // The applied eye and instrument states now (what a frame's applied fields hold).
+  void fillApplied(InputFrame& frame) const;
   // Whether rigid objects without bleeding are collided too (only for reports; never changes the state).
   void setRigidReports(bool enabled) { rigid_reports_ = enabled; }
 
   const scene::SceneDescription& scene() const { return scene_; }
-  const WorldStatistics& statistics() const { return statistics_; }
+  // Counted from the frames applied, plus what the World's own mediator counted since its last frame.
+  WorldStatistics statistics() const;
   std::uint64_t frame() const { return statistics_.frames; }
   std::optional<Stamp> lastFrameStamp() const { return last_frame_stamp_; }
+  // The World's own mediator (handle() of device inputs): its numbering continues a session's.
+  Mediator& mediator() { return mediator_; }
   bool paused() const { return paused_; }
   bool simulatesAnything() const;
   // FNV-1a over every tissue's node positions, velocities and rest lengths, its topology version and grasped
@@ -285,24 +249,10 @@ class World {
   // Repeated warnings (same key) at most every kLogEveryFrames frames; an empty key is never throttled.
   void log(Severity severity, const std::string& key, const std::string& message);
 
-  // The inputs of one frame, applied when it closes (eye first, then the instruments by slot).
-  struct FrameInputs {
-    std::optional<EyeState> eye;
-    std::map<std::string, InstrumentState> instruments;  // by slot
-  };
-  // Buffers a frame source's input (nullptr: the source delivered, but nothing valid to apply) and closes the frames
-  // that are complete.
-  void acceptSource(Stamp stamp, const std::string& source, const EyeState* eye, const InstrumentState* instrument);
-  void assembleSource(Stamp stamp, const std::string& source, const EyeState* eye, const InstrumentState* instrument);
-  // Stale (far behind the last frame; rejected), ahead (far ahead of every source; held back), a gap (every source
-  // has jumped ahead: the held inputs and this one are accepted) or normal.
-  enum class StampCheck { kNormal, kStale, kAhead, kGap };
-  StampCheck classifyStamp(Stamp stamp, const std::string& source);
-  void closeReadyFrames();
-  void closeFrame(Stamp stamp, const FrameInputs& inputs);
-  void applyInputs(const FrameInputs& inputs);
+  void apply(InputFrame& frame);
+  void applyEye(const EyeState& eye);
   void applyInstrument(const InstrumentState& state);
-  void applyStateInputs(Stamp up_to);
+  void closeFrame(InputFrame& frame);
   void apply(const ScenarioCommand& command);
   void setInstrumentType(Instrument& instrument, scene::InstrumentType type);
   bool switchInstrument(Instrument& instrument, scene::InstrumentType type);
@@ -321,27 +271,12 @@ class World {
   std::map<std::string, std::unique_ptr<Tissue>> tissues_;
   std::vector<std::unique_ptr<RigidObject>> rigid_;
   Eigen::Isometry3d world_from_eye_ = Eigen::Isometry3d::Identity();
+  bool eye_valid_ = false;
 
-  // Frame assembly (see the top of the file).
-  static constexpr std::size_t kReorderFrames = 2;
-  std::map<Stamp, FrameInputs> pending_;        // frames not closed yet, by stamp
-  std::map<std::string, Stamp> known_sources_;  // the newest stamp each source delivered
-  // Sources that delivered stamps far ahead since the last normal input: the first and last such stamp.
-  std::map<std::string, std::pair<Stamp, Stamp>> jumped_sources_;
-  struct HeldInput {
-    Stamp stamp;
-    std::string source;
-    std::optional<EyeState> eye;
-    std::optional<InstrumentState> instrument;
-  };
-  static constexpr std::size_t kMaxHeldBack = 256;
-  std::vector<HeldInput> held_back_;  // inputs far ahead, until every source has jumped or a normal one arrives
-  FrameInputs late_;                  // inputs older than the last frame, for the next one
+  Mediator mediator_;
   std::optional<Stamp> last_frame_stamp_;
   std::optional<Stamp> simulation_origin_;  // stamp of the first frame the world advanced in (bleeding's clock)
   std::map<std::string, std::uint64_t> logged_at_frame_;
-  std::vector<PedalState> buffered_pedals_;
-  std::vector<ScenarioCommand> buffered_commands_;
   PedalState pedals_;
   bool paused_ = false;
   bool running_ = true;
@@ -351,6 +286,7 @@ class World {
   bool auto_started_ = false;
 
   FrameObserver observer_;
+  InputObserver input_observer_;
   WorldStatistics statistics_;
   std::vector<InjuryReport> last_injuries_;
 };

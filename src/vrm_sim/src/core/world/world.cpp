@@ -23,33 +23,13 @@ namespace {
 constexpr double kLiftThreshold = 1e-4;         // m: a node this far from its rest position counts as lifted
 constexpr double kPeelLift = 5e-4;              // m: a grasped membrane lifted this far is peeling
 constexpr std::uint64_t kLogEveryFrames = 250;  // a repeated message at most every ~5 s at 50 Hz
-// Plausibility of the device inputs (issue 14): anything outside is a broken or hostile message, not a pose.
-constexpr double kMaxInputDistance = 1.0;  // m from the eye (or the world origin) — the eye is 24 mm across
-constexpr double kUnitTolerance = 1e-3;    // |‖q‖ − 1| of a rotation quaternion
-constexpr double kMaxJawAngle = M_PI;      // rad
-constexpr double kMaxCutRate = 1e4;        // Hz (vitrectors cut at up to ~170 Hz)
-constexpr double kGapConfirmation = 0.25;  // s of input time every source must go on after a jump far ahead
 
 // The detectors whose deformation vectors drive the tissue response (thesis §4.2.2); the others report only and the
 // tissue's own exact capsule test is the response.
 
-std::string sourceName(const char* kind, const std::string& slot) { return std::string(kind) + ":" + slot; }
 
 }  // namespace
 
-void InstrumentState::setPose(const Eigen::Isometry3d& pose) {
-  tip_position = pose.translation();
-  tip_orientation = Eigen::Quaterniond(pose.rotation());
-}
-
-Eigen::Isometry3d InstrumentState::pose() const {
-  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
-  pose.linear() = tip_orientation.normalized().toRotationMatrix();
-  pose.translation() = tip_position;
-  return pose;
-}
-
-Stamp fromSeconds(double seconds) { return static_cast<Stamp>(std::llround(seconds * 1e9)); }
 
 const char* toString(PeelOutcome outcome) {
   switch (outcome) {
@@ -63,6 +43,14 @@ const char* toString(PeelOutcome outcome) {
       return "torn";
   }
   return "?";
+}
+
+MediatorOptions mediatorOptionsFor(const scene::SceneDescription& scene, const WorldOptions& options) {
+  MediatorOptions mediator;
+  mediator.max_stamp_jump = options.max_stamp_jump;
+  mediator.log = options.log;
+  for (const auto& instrument : scene.instruments) mediator.slots.insert(scene::toString(instrument.slot));
+  return mediator;
 }
 
 struct World::Instrument {
@@ -126,7 +114,9 @@ struct World::RigidObject {
 };
 
 World::World(scene::SceneDescription scene, WorldOptions options)
-    : scene_(std::move(scene)), options_(std::move(options)) {
+    : scene_(std::move(scene)),
+      options_(std::move(options)),
+      mediator_(mediatorOptionsFor(scene_, options_), [this](InputFrame& frame) { apply(frame); }) {
   if (!options_.clock) {
     options_.clock = [] {
       return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
@@ -309,238 +299,83 @@ std::optional<Eigen::Isometry3d> World::transform(const std::string& target, con
   return std::nullopt;
 }
 
-// ---- frame assembly ----
+// ---- input frames ----
 
-void World::acceptSource(Stamp stamp, const std::string& source, const EyeState* eye,
-                         const InstrumentState* instrument) {
-  ++statistics_.inputs;
-  switch (classifyStamp(stamp, source)) {
-    case StampCheck::kStale:
-      return;
-    case StampCheck::kAhead:
-      held_back_.push_back({stamp, source, eye ? std::optional<EyeState>(*eye) : std::nullopt,
-                            instrument ? std::optional<InstrumentState>(*instrument) : std::nullopt});
-      if (held_back_.size() > kMaxHeldBack) {
-        ++statistics_.rejected_inputs;
-        held_back_.erase(held_back_.begin());
-      }
-      return;
-    case StampCheck::kGap: {
-      // Every source jumped: the inputs held back so far are the first of the new stretch.
-      std::vector<HeldInput> held;
-      held.swap(held_back_);
-      for (const HeldInput& input : held) {
-        assembleSource(input.stamp, input.source, input.eye ? &*input.eye : nullptr,
-                       input.instrument ? &*input.instrument : nullptr);
-      }
-      break;
-    }
-    case StampCheck::kNormal:
-      if (!held_back_.empty()) {
-        statistics_.rejected_inputs += held_back_.size();
-        log(Severity::kWarning, "stamp:ahead",
-            std::to_string(held_back_.size()) + " inputs with stamps far ahead of the others ignored");
-        held_back_.clear();
-      }
-      break;
-  }
-  assembleSource(stamp, source, eye, instrument);
+
+void World::handle(const ScenarioCommand& command) { mediator_.handle(command); }
+
+WorldStatistics World::statistics() const {
+  WorldStatistics statistics = statistics_;
+  const Mediator::Unreported unreported = mediator_.unreported();
+  statistics.inputs += unreported.inputs;
+  statistics.late_inputs += unreported.late_inputs;
+  statistics.rejected_inputs += unreported.rejected_inputs;
+  return statistics;
 }
 
-void World::assembleSource(Stamp stamp, const std::string& source, const EyeState* eye,
-                           const InstrumentState* instrument) {
-  Stamp& latest = known_sources_[source];
-  latest = std::max(latest, stamp);
-  if (last_frame_stamp_ && stamp <= *last_frame_stamp_) {
-    ++statistics_.late_inputs;  // its state takes effect in the next frame
-    if (eye) late_.eye = *eye;
-    if (instrument) late_.instruments[instrument->slot] = *instrument;
-  } else if (eye || instrument || pending_.count(stamp) > 0) {
-    FrameInputs& frame = pending_[stamp];
-    if (eye) frame.eye = *eye;
-    if (instrument) frame.instruments[instrument->slot] = *instrument;
-  }  // a rejected input at a new stamp opens no frame: a flood of garbage must not make the world step for it
-  closeReadyFrames();
+void World::handle(const InputFrame& recorded) {
+  InputFrame frame = recorded;
+  // A recorded frame may be corrupt or hostile: the mediator's rules again (a live frame passes them all).
+  const auto drop = [this](auto& inputs, auto check, const char* key) {
+    const auto bad = std::remove_if(inputs.begin(), inputs.end(), [&](const auto& input) {
+      const std::string problem = check(input);
+      if (problem.empty()) return false;
+      ++statistics_.rejected_inputs;
+      log(Severity::kWarning, key, "input frame: " + problem + " ignored");
+      return true;
+    });
+    inputs.erase(bad, inputs.end());
+  };
+  drop(frame.eye_inputs, checkEye, "frame:eye");
+  drop(frame.instrument_inputs,
+       [this](const InstrumentState& state) {
+         return instruments_.count(state.slot) ? checkInstrument(state) : "instrument of unknown slot '" + state.slot + "'";
+       },
+       "frame:instrument");
+  drop(frame.pedals, checkPedals, "frame:pedals");
+  apply(frame);
 }
 
-World::StampCheck World::classifyStamp(Stamp stamp, const std::string& source) {
-  const Stamp jump = fromSeconds(options_.max_stamp_jump);
-  if (last_frame_stamp_ && stamp < *last_frame_stamp_ - jump) {
-    ++statistics_.rejected_inputs;
-    log(Severity::kWarning, "stamp:stale:" + source,
-        source + " delivered a stamp " + std::to_string(toSeconds(*last_frame_stamp_ - stamp)) +
-            " s older than the last frame; ignored");
-    return StampCheck::kStale;
-  }
-  if (known_sources_.empty()) return StampCheck::kNormal;
-  Stamp newest = known_sources_.begin()->second;
-  for (const auto& known : known_sources_) newest = std::max(newest, known.second);
-  if (stamp <= newest + jump) {
-    jumped_sources_.clear();
-    return StampCheck::kNormal;
-  }
-  // A real gap (the input paused, a device restarted) moves every source, and each goes on at its rate from there;
-  // garbage stamps interleave with the devices' normal ones, which clear the count. So the jump is followed once
-  // every known source has delivered far-ahead stamps spanning kGapConfirmation of input time, none normal between.
-  auto [span, inserted] = jumped_sources_.try_emplace(source, stamp, stamp);
-  if (!inserted) {
-    span->second.first = std::min(span->second.first, stamp);
-    span->second.second = std::max(span->second.second, stamp);
-  }
-  const Stamp confirmation = fromSeconds(kGapConfirmation);
-  const bool every_source_jumped = std::all_of(known_sources_.begin(), known_sources_.end(), [&](const auto& known) {
-    const auto jumped = jumped_sources_.find(known.first);
-    return jumped != jumped_sources_.end() && jumped->second.second - jumped->second.first >= confirmation;
-  });
-  if (every_source_jumped) {
-    jumped_sources_.clear();
-    log(Severity::kInfo, "stamp:gap",
-        "the input resumed " + std::to_string(toSeconds(stamp - newest)) + " s later (every source jumped)");
-    return StampCheck::kGap;
-  }
-  log(Severity::kWarning, "stamp:ahead:" + source,
-      source + " delivered a stamp " + std::to_string(toSeconds(stamp - newest)) +
-          " s ahead of the other inputs; held back until every source has jumped likewise");
-  return StampCheck::kAhead;
-}
-
-void World::closeReadyFrames() {
-  while (!pending_.empty()) {
-    const Stamp stamp = pending_.begin()->first;
-    bool ready;
-    if (!last_frame_stamp_) {
-      // The first frame cannot know its sources yet: it closes when a later stamp arrives.
-      ready = pending_.size() > 1;
-    } else {
-      ready = std::all_of(known_sources_.begin(), known_sources_.end(),
-                          [stamp](const auto& source) { return source.second >= stamp; });
-    }
-    if (!ready && pending_.size() > kReorderFrames) {
-      // A source fell silent: do not hold the view back for it any longer.
-      ready = true;
-      for (auto source = known_sources_.begin(); source != known_sources_.end();) {
-        if (source->second < stamp) {
-          log(Severity::kWarning, "silent:" + source->first,
-              source->first + " stopped delivering; frames close without it until it is back");
-          source = known_sources_.erase(source);
-        } else {
-          ++source;
-        }
-      }
-    }
-    if (!ready) return;
-    const FrameInputs inputs = std::move(pending_.begin()->second);
-    pending_.erase(pending_.begin());
-    closeFrame(stamp, inputs);
-  }
-}
-
-void World::flush() {
-  while (!pending_.empty()) {
-    const Stamp stamp = pending_.begin()->first;
-    const FrameInputs inputs = std::move(pending_.begin()->second);
-    pending_.erase(pending_.begin());
-    closeFrame(stamp, inputs);
-  }
-}
-
-void World::handle(const EyeState& eye) {
-  const bool finite = eye.rotation.coeffs().allFinite() && eye.rotation_center.allFinite() &&
-                      eye.rotation_center.norm() < kMaxInputDistance &&
-                      std::abs(eye.rotation.norm() - 1.0) < kUnitTolerance;
-  if (!finite) {
-    ++statistics_.rejected_inputs;
-    log(Severity::kWarning, "eye:nonfinite", "eye_state with a non-finite or non-unit rotation ignored");
-  }
-  // A rejected eye state still counts as delivered, so its frame does not wait for it.
-  acceptSource(eye.stamp, "eye", finite ? &eye : nullptr, nullptr);
-}
-
-void World::handle(const InstrumentState& state) {
-  auto slot = instruments_.find(state.slot);
-  if (slot == instruments_.end()) {
-    ++statistics_.rejected_inputs;
-    log(Severity::kWarning, "slot:" + state.slot,
-        "instrument_state for slot '" + state.slot + "', which the scene does not have, ignored");
+void World::apply(InputFrame& frame) {
+  statistics_.inputs += frame.inputs;
+  statistics_.late_inputs += frame.late_inputs;
+  statistics_.rejected_inputs += frame.rejected_inputs;
+  statistics_.input_sequence = frame.sequence;
+  if (frame.kind == InputFrame::Kind::kFrame) {
+    closeFrame(frame);
     return;
   }
-  if (!transform("eye", state.frame_id)) {
-    ++statistics_.rejected_inputs;
-    log(Severity::kWarning, "frame:" + state.slot,
-        "instrument_state '" + state.slot + "' in unknown frame '" + state.frame_id +
-            "' ignored (eye or world expected)");
-    return;
-  }
-  const double norm = state.tip_orientation.norm();
-  // Finite and physically possible: within a metre of the eye, a unit quaternion, controls in their ranges (a
-  // 1e300 position is finite, and would put the instrument's collision geometry anywhere).
-  const bool finite = state.tip_position.allFinite() && state.tip_position.norm() < kMaxInputDistance &&
-                      std::isfinite(norm) && std::abs(norm - 1.0) < kUnitTolerance && std::isfinite(state.jaw_angle) &&
-                      std::abs(state.jaw_angle) <= kMaxJawAngle && std::isfinite(state.suction) &&
-                      state.suction >= 0.0 && state.suction <= 1.0 && std::isfinite(state.cut_rate) &&
-                      state.cut_rate >= 0.0 && state.cut_rate <= kMaxCutRate;
-  if (!finite) {
-    ++statistics_.rejected_inputs;
-    log(Severity::kWarning, "nonfinite:" + state.slot,
-        "instrument_state '" + state.slot + "' with non-finite or implausible values ignored");
-  }
-  acceptSource(state.stamp, sourceName("instrument", state.slot), nullptr, finite ? &state : nullptr);
+  // Between frames: pedals and commands only (a LOAD of this scene is a RESET; a session switches scenes itself).
+  if (!frame.pedals.empty()) pedals_ = frame.pedals.back();
+  for (const ScenarioCommand& command : frame.commands) apply(command);
+  fillApplied(frame);
+  if (input_observer_) input_observer_(frame);
 }
 
-void World::applyInputs(const FrameInputs& inputs) {
-  if (inputs.eye && inputs.eye->valid) {
-    world_from_eye_ = Eigen::Translation3d(inputs.eye->rotation_center) * inputs.eye->rotation.normalized();
-  }
-  for (const auto& [slot, state] : inputs.instruments) applyInstrument(state);
-}
-
-void World::applyInstrument(const InstrumentState& state) {
-  Instrument& instrument = *instruments_.at(state.slot);
-  // Invalid tracking: the instrument keeps its last pose but stops interacting (no phantom grasps). The pose of an
-  // invalid state is not used: whatever its sender put there (the tracker holds the last valid one, another source
-  // may send zeros) is not a measurement.
-  if (state.valid) {
-    instrument.pose = state.pose();
-    instrument.frame_id = state.frame_id.empty() ? "eye" : state.frame_id;
-  }
-  instrument.jaw_angle = state.valid ? state.jaw_angle : 1.0;
-  instrument.active = state.valid;
-  instrument.suction = state.valid ? state.suction : 0.0;
-  if (state.type) switchInstrument(instrument, *state.type);
-  instrument.cut_rate = state.valid ? state.cut_rate : 0.0;
-  instrument.cutting = state.valid && instrument.current.type == scene::InstrumentType::kVitrector &&
-                       state.suction > 0.0 && state.cut_rate > 0.0;
-}
-
-void World::handle(const PedalState& pedals) {
-  ++statistics_.inputs;
-  if (!std::isfinite(pedals.travel) || std::abs(pedals.travel) > 1.5) {
-    ++statistics_.rejected_inputs;
-    log(Severity::kWarning, "pedals:nonfinite", "pedals with a non-finite travel ignored");
-    return;
-  }
-  buffered_pedals_.push_back(pedals);
-  if (last_frame_stamp_ && pedals.stamp <= *last_frame_stamp_ && pending_.empty()) applyStateInputs(*last_frame_stamp_);
-}
-
-void World::handle(const ScenarioCommand& command) {
-  ++statistics_.inputs;
-  buffered_commands_.push_back(command);
-  if (last_frame_stamp_ && command.stamp <= *last_frame_stamp_ && pending_.empty()) {
-    applyStateInputs(*last_frame_stamp_);
+void World::fillApplied(InputFrame& frame) const {
+  frame.world_from_eye = world_from_eye_;
+  frame.eye_valid = eye_valid_;
+  frame.instruments.clear();
+  for (const auto& [slot, instrument] : instruments_) {
+    AppliedInstrument applied;
+    applied.slot = slot;
+    applied.type = instrument->current.type;
+    applied.pose = instrument->pose;
+    applied.frame_id = instrument->frame_id;
+    applied.jaw_angle = instrument->jaw_angle;
+    applied.suction = instrument->suction;
+    applied.cut_rate = instrument->cut_rate;
+    applied.cutting = instrument->cutting;
+    applied.valid = instrument->active;
+    applied.delivered = std::any_of(frame.instrument_inputs.begin(), frame.instrument_inputs.end(),
+                                    [&slot = slot](const InstrumentState& state) { return state.slot == slot; });
+    frame.instruments.push_back(std::move(applied));
   }
 }
 
-void World::applyStateInputs(Stamp up_to) {
-  auto by_stamp = [](const auto& a, const auto& b) { return a.stamp < b.stamp; };
-  std::stable_sort(buffered_pedals_.begin(), buffered_pedals_.end(), by_stamp);
-  std::stable_sort(buffered_commands_.begin(), buffered_commands_.end(), by_stamp);
-  auto pedal = buffered_pedals_.begin();
-  for (; pedal != buffered_pedals_.end() && pedal->stamp <= up_to; ++pedal) pedals_ = *pedal;
-  buffered_pedals_.erase(buffered_pedals_.begin(), pedal);
-  auto command = buffered_commands_.begin();
-  for (; command != buffered_commands_.end() && command->stamp <= up_to; ++command) apply(*command);
-  buffered_commands_.erase(buffered_commands_.begin(), command);
+void World::applyEye(const EyeState& eye) {
+  eye_valid_ = eye.valid;
+  if (eye.valid) world_from_eye_ = Eigen::Translation3d(eye.rotation_center) * eye.rotation.normalized();
 }
 
 void World::refuse(const std::string& message) {
@@ -622,16 +457,38 @@ void World::apply(const ScenarioCommand& command) {
   if (!refused.empty()) refuse(refused);
 }
 
+void World::applyInstrument(const InstrumentState& state) {
+  Instrument& instrument = *instruments_.at(state.slot);
+  // Invalid tracking: the instrument keeps its last pose but stops interacting (no phantom grasps). The pose of an
+  // invalid state is not used: whatever its sender put there (the tracker holds the last valid one, another source
+  // may send zeros) is not a measurement.
+  if (state.valid) {
+    instrument.pose = state.pose();
+    instrument.frame_id = state.frame_id.empty() ? "eye" : state.frame_id;
+  }
+  instrument.jaw_angle = state.valid ? state.jaw_angle : 1.0;
+  instrument.active = state.valid;
+  instrument.suction = state.valid ? state.suction : 0.0;
+  if (state.type) switchInstrument(instrument, *state.type);
+  instrument.cut_rate = state.valid ? state.cut_rate : 0.0;
+  instrument.cutting = state.valid && instrument.current.type == scene::InstrumentType::kVitrector &&
+                       state.suction > 0.0 && state.cut_rate > 0.0;
+}
+
 // ---- one frame ----
 
-void World::closeFrame(Stamp stamp, const FrameInputs& inputs) {
+void World::closeFrame(InputFrame& frame) {
+  const Stamp stamp = frame.stamp;
   double frame_time = 0.0;
   if (last_frame_stamp_) frame_time = std::min(toSeconds(stamp - *last_frame_stamp_), options_.max_frame_time);
-  applyInputs(late_);
-  late_ = FrameInputs{};
-  applyInputs(inputs);
-  applyStateInputs(stamp);
+  for (const EyeState& eye : frame.eye_inputs) applyEye(eye);
+  for (const InstrumentState& state : frame.instrument_inputs) applyInstrument(state);
+  if (!frame.pedals.empty()) pedals_ = frame.pedals.back();
+  for (const ScenarioCommand& command : frame.commands) apply(command);
   last_frame_stamp_ = stamp;
+  if (!frame.missing.empty()) ++statistics_.frames_without_source;
+  fillApplied(frame);
+  if (input_observer_) input_observer_(frame);
   if (runner_ && options_.auto_start && !auto_started_ && runner_->status().state == scenario::State::kIdle) {
     auto_started_ = true;
     runner_->start(toSeconds(stamp));
