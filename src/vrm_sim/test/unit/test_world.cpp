@@ -410,6 +410,42 @@ TEST(World, AGraspOnTheMembraneLiftsIt) {
   EXPECT_EQ(world.tissueReport("membrane").outcome, PeelOutcome::kLifted);
 }
 
+// The World decides which type a slot holds, and says so in every input frame (what the renderer draws): a forceps
+// that holds the membrane cannot be switched to the vitrector until it lets go.
+TEST(World, AnInstrumentThatHoldsTissueIsNotSwitchedAndTheFrameSaysWhichTypeIsInUse) {
+  World world(testScene());
+  std::vector<InputFrame> frames;
+  world.setInputObserver([&frames](const InputFrame& frame) { frames.push_back(frame); });
+  const auto right_type = [&frames] {
+    for (const AppliedInstrument& applied : frames.back().instruments) {
+      if (applied.slot == "right") return applied.type;
+    }
+    ADD_FAILURE() << "no right slot in the frame";
+    return scene::InstrumentType::kLightPipe;
+  };
+  Stamp stamp = 0;
+  const Eigen::Vector3d grasp = pole(0.00025);
+  moveForceps(world, pole(0.0015), grasp, 0.35, 0.35, 30, stamp);
+  moveForceps(world, grasp, grasp, 0.35, 0.0, 10, stamp);
+  ASSERT_GT(world.tissueReport("membrane").grasped_nodes, 0u);
+  ScenarioCommand select;
+  select.command = ScenarioCommand::Type::kSelectInstrument;
+  select.argument = "right:vitrector";
+  select.stamp = stamp;
+  world.handle(select);
+  moveForceps(world, grasp, grasp, 0.0, 0.0, 3, stamp);
+  EXPECT_EQ(right_type(), scene::InstrumentType::kForceps) << "switched while holding the membrane";
+  // Open the jaws (the grasp is released), then the same command switches.
+  moveForceps(world, grasp, pole(0.0015), 0.0, 0.6, 10, stamp);
+  ASSERT_EQ(world.tissueReport("membrane").grasped_nodes, 0u);
+  select.stamp = stamp;
+  world.handle(select);
+  moveForceps(world, pole(0.0015), pole(0.0015), 0.6, 0.6, 2, stamp);
+  EXPECT_EQ(right_type(), scene::InstrumentType::kVitrector);
+  // Every frame is numbered without a gap.
+  for (std::size_t i = 1; i < frames.size(); ++i) ASSERT_EQ(frames[i].sequence, frames[i - 1].sequence + 1);
+}
+
 TEST(World, ARetinaContactInjuresUnderTheTipWithinOneFrameAndNowhereElse) {
   World world(testScene());
   const std::vector<float>& injury = *world.injury("retina");

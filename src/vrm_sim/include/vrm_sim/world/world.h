@@ -126,9 +126,9 @@ struct FrameResult {
 struct WorldStatistics {
   std::uint64_t frames = 0;
   std::uint64_t inputs = 0;
-  std::uint64_t simulated_frames = 0;  // frames in which the world advanced (the session ran)
-  std::uint64_t late_inputs = 0;       // frame sources older than the last closed frame
-  std::uint64_t rejected_inputs = 0;   // non-finite values, unknown slot or frame
+  std::uint64_t simulated_frames = 0;       // frames in which the world advanced (the session ran)
+  std::uint64_t late_inputs = 0;            // frame sources older than the last closed frame
+  std::uint64_t rejected_inputs = 0;        // non-finite values, unknown slot or frame
   std::uint64_t frames_without_source = 0;  // frames closed while a known source had not delivered (it fell silent)
   std::uint64_t input_sequence = 0;         // of the last input frame applied
   std::uint64_t tissue_steps = 0;

@@ -27,9 +27,7 @@ constexpr std::uint64_t kLogEveryFrames = 250;  // a repeated message at most ev
 // The detectors whose deformation vectors drive the tissue response (thesis §4.2.2); the others report only and the
 // tissue's own exact capsule test is the response.
 
-
 }  // namespace
-
 
 const char* toString(PeelOutcome outcome) {
   switch (outcome) {
@@ -203,6 +201,17 @@ bool World::switchInstrument(Instrument& instrument, scene::InstrumentType type)
             " is not allowed in this slot by the scene; keeping " + scene::toString(instrument.current.type));
     return false;
   }
+  // An instrument that holds tissue cannot leave its trocar: the switch waits until the jaws let go (the frame
+  // says which type is in use, so the view shows the forceps that still holds the membrane).
+  const std::size_t index = static_cast<std::size_t>(std::distance(instruments_.begin(), instruments_.find(slot)));
+  for (const auto& [name, tissue] : tissues_) {
+    if (tissue->simulator && tissue->simulator->isGrasping(index)) {
+      log(Severity::kWarning, "switch-grasp:" + slot,
+          "instrument '" + slot + "' holds " + name + ": switching to " + scene::toString(type) +
+              " refused until it lets go");
+      return false;
+    }
+  }
   log(Severity::kInfo, "", "instrument '" + slot + "' switched to " + scene::toString(type));
   setInstrumentType(instrument, type);
   return true;
@@ -301,7 +310,6 @@ std::optional<Eigen::Isometry3d> World::transform(const std::string& target, con
 
 // ---- input frames ----
 
-
 void World::handle(const ScenarioCommand& command) { mediator_.handle(command); }
 
 WorldStatistics World::statistics() const {
@@ -327,11 +335,13 @@ void World::handle(const InputFrame& recorded) {
     inputs.erase(bad, inputs.end());
   };
   drop(frame.eye_inputs, checkEye, "frame:eye");
-  drop(frame.instrument_inputs,
-       [this](const InstrumentState& state) {
-         return instruments_.count(state.slot) ? checkInstrument(state) : "instrument of unknown slot '" + state.slot + "'";
-       },
-       "frame:instrument");
+  drop(
+      frame.instrument_inputs,
+      [this](const InstrumentState& state) {
+        return instruments_.count(state.slot) ? checkInstrument(state)
+                                              : "instrument of unknown slot '" + state.slot + "'";
+      },
+      "frame:instrument");
   drop(frame.pedals, checkPedals, "frame:pedals");
   apply(frame);
 }
