@@ -1,5 +1,8 @@
 #include "vrm_render/conversions.h"
 
+#include "vrm_sim/conversions.h"
+#include "vrm_sim/scene/scene_description.h"
+
 namespace vrm_render {
 
 Eigen::Isometry3f toIsometry(const geometry_msgs::Pose& pose) {
@@ -29,6 +32,21 @@ Eigen::Isometry3f worldFromEye(const vrm_msgs::EyeState& eye) {
   pose.position = eye.rotation_center;
   pose.orientation = eye.rotation;
   return toIsometry(pose);
+}
+
+vrm_msgs::AppliedInstrument toAppliedInstrument(const vrm_msgs::InstrumentState& state) {
+  vrm_msgs::AppliedInstrument applied;
+  applied.slot = state.instrument_id;
+  const std::optional<vrm_sim::scene::InstrumentType> type = vrm_sim::instrumentTypeFromMsg(state.type);
+  applied.type = type ? vrm_sim::scene::toString(*type) : "";
+  applied.header = state.header;
+  applied.pose = state.tip_pose;
+  applied.jaw_angle = state.jaw_angle;
+  applied.suction = state.suction;
+  applied.cut_rate = state.cut_rate;
+  applied.valid = state.valid;
+  applied.delivered = true;
+  return applied;
 }
 
 MeshView toMeshView(const vrm_msgs::TissueMesh& msg) {

@@ -5,7 +5,9 @@
 #include <geometry_msgs/Pose.h>
 #include <geometry_msgs/Transform.h>
 #include <sensor_msgs/CameraInfo.h>
+#include <vrm_msgs/AppliedInstrument.h>
 #include <vrm_msgs/EyeState.h>
+#include <vrm_msgs/InstrumentState.h>
 #include <vrm_msgs/MicroscopeSettings.h>
 #include <vrm_msgs/TissueMesh.h>
 
@@ -21,6 +23,9 @@ Eigen::Isometry3f toIsometry(const geometry_msgs::Pose& pose);
 geometry_msgs::Transform toTransformMsg(const Eigen::Isometry3f& transform);
 // The eye's pose in the world (rotation centre, rotation).
 Eigen::Isometry3f worldFromEye(const vrm_msgs::EyeState& eye);
+// A raw instrument state as if the World had applied it unchanged (type by name; empty for an unknown constant):
+// only for ghosts from a bag recorded before vrm_msgs/InputFrame existed.
+vrm_msgs::AppliedInstrument toAppliedInstrument(const vrm_msgs::InstrumentState& state);
 
 // A view of the message's arrays (valid while the message lives). Normals, colours and injury are used only when
 // their sizes match the vertex count; the renderer validates the rest (MeshView, StereoRenderer::updateMesh).

@@ -1,15 +1,29 @@
-// Thin ROS wrapper of vrm_render::StereoRenderer (thesis §6, §7.4.2): collects the latest scene meshes, eye and
-// instrument poses and microscope knobs, renders a stereo frame and publishes left/right rgb8 images with CameraInfo.
-// Stamps are the input stamp the frame reflects; nothing reads a clock for them.
+// Thin ROS wrapper of vrm_render::StereoRenderer (thesis §6, §7.4.2): collects the latest scene meshes, the input
+// frames the simulation closed and microscope knobs, renders a stereo frame and publishes left/right rgb8 images
+// with CameraInfo. Stamps are the input stamp the frame reflects; nothing reads a clock for them.
+//
+// What is drawn (issue 31): the eye and the instruments as the World applied them, from vrm_msgs/InputFrame on
+// input_frame (scenario_manager publishes one per frame it closes, before it steps that frame): eye_pose, and per
+// slot the applied type (the drawn mesh switches), jaw_angle (the forceps' jaws) and valid (an instrument that is not
+// valid is hidden, as an untracked one always was). The raw inputs the frame also carries (instrument_inputs, ...)
+// are never drawn: a type switch the World refused or an input it rejected shows as the World decided, so the drawn
+// instrument is the colliding one. The renderer keeps no pose history of its own, only the last kHistory frames, so
+// a frame can show the frame of its own stamp although newer ones arrived while the simulation computed it. Frames
+// of kind STATE / LOAD (pedals and commands between simulation frames) carry nothing to draw.
 //
 // When a frame starts (~trigger, the synchronisation patterns of thesis §2.5.2, Fig. 2.6; issue 12):
-//   simulation (default; sequential, eq. 2.3) — when the simulation finished the frame of a new input stamp S
-//     (simulation_state), drawn with the poses of S: instruments and the tissue they deform belong to one input.
-//     Without a running simulation (no simulation_state for ~simulation_timeout s) the poses trigger, as in `input`.
-//   input (pipelined / interleaved, eq. 2.7) — as soon as every pose source delivered stamp S, drawn with the newest
-//     tissue (the simulation of S runs meanwhile, so the tissue is one input tick older than the instruments).
+//   simulation (default; sequential, eq. 2.3) — when the simulation finished the frame of input stamp S
+//     (simulation_state), drawn with input frame S (its applied poses) and the tissue of S. A simulation_state that
+//     comes before its input frame (the renderer in another process: topics are not ordered among each other) waits
+//     for that frame. Input frames come from the simulation node even while its scenario is paused or not started
+//     (simulation_state flows then, too), so the fallback of the pose-driven renderer is only a fallback now: when no
+//     simulation_state came for ~simulation_timeout s (a graph that plays input frames without a simulation, a
+//     simulation step that stalls), input frames trigger as in `input`.
+//   input (pipelined / interleaved, eq. 2.7) — as soon as input frame S arrives (the mediator closed it, so every
+//     source has delivered or been declared silent), drawn with the newest tissue (the simulation of S runs
+//     meanwhile, so the tissue is one frame older than the instruments).
 //   timer (parallel asynchronous, eq. 2.4; the behaviour before issue 12) — on a ~rate Hz timer when an input
-//     changed, with the newest inputs.
+//     changed: the newest input frame with the newest tissue.
 // Frames are rendered on the nodelet's own thread, always from the newest inputs: while a frame renders, newer
 // triggers replace the pending one (no queue grows when rendering is slow); each replaced trigger counts as dropped.
 // ~max_rate (event triggers, Hz, 0 = none) bounds the frame rate. ~max_input_age (event triggers, s, default 0.005):
@@ -28,9 +42,11 @@
 //
 // Subscribes (node handle namespace): meshes/<object> (vrm_msgs/TissueMesh, latched, one per scene object; for
 //   deformable objects, and the retina of a scene that simulates bleeding, also tissue/<object> from the simulation),
-//   simulation_state (frame done), eye_state, instrument_state (pose, instrument type: the drawn mesh switches;
-//   forceps jaw angle: the jaws open), microscope, and with ~ghost_instruments the replayed instructor's instruments
-//   on ~ghost_topic (default ghost/instrument_state), drawn translucent.
+//   input_frame (vrm_msgs/InputFrame), simulation_state (frame done), microscope (not part of a frame: the newest
+//   settings up to the frame's stamp), and with ~ghost_instruments the instructor's recorded input frames replayed
+//   on ~ghost_topic (default ghost/input_frame): their valid instruments[] drawn translucent, their stamps never
+//   stamp a frame. A bag recorded before input frames has only instrument_state: the station plays it onto
+//   ~legacy_ghost_topic (default ghost/instrument_state), drawn the same way (a warning says the bag is old).
 // Publishes: stereo/left/image_raw + camera_info, stereo/right/image_raw + camera_info (image_transport; frame ids
 //   <camera_frame>_left_optical / _right_optical); render_timing (vrm_msgs/StageTiming: render_<pass>, render,
 //   image_published, and simulation_input = the input stamp of the simulation frame shown, as start = end);
@@ -54,7 +70,8 @@
 #include <sys/syscall.h>
 #include <tf2_ros/transform_broadcaster.h>
 #include <unistd.h>
-#include <vrm_msgs/EyeState.h>
+#include <vrm_msgs/AppliedInstrument.h>
+#include <vrm_msgs/InputFrame.h>
 #include <vrm_msgs/InstrumentState.h>
 #include <vrm_msgs/MicroscopeSettings.h>
 #include <vrm_msgs/SimulationState.h>
@@ -102,11 +119,9 @@ Trigger parseTrigger(const std::string& name) {
   throw std::invalid_argument("trigger '" + name + "' (expected simulation, input or timer)");
 }
 
-// Ticks of input history kept per source, so a frame can show the inputs of its own stamp although newer ones
-// arrived while the simulation computed it (8 ticks = 160 ms at 50 Hz).
+// Input frames (and microscope settings) kept, so a frame can show the inputs of its own stamp although newer ones
+// arrived while the simulation computed it (8 frames = 160 ms at 50 Hz).
 constexpr std::size_t kHistory = 8;
-// A pose source silent for this long no longer holds back a tick (an instrument taken out of the tracked volume).
-const ros::Duration kStaleSource(0.1);
 
 template <class M>
 void remember(std::deque<boost::shared_ptr<const M>>* history, const boost::shared_ptr<const M>& message) {
@@ -224,7 +239,6 @@ class StereoRendererNodelet : public nodelet::Nodelet {
     vrm_sim::scene::InstrumentDescription description;  // as configured in the scene
     std::string object_id;
     bool ghost = false;
-    std::deque<vrm_msgs::InstrumentState::ConstPtr> states;  // newest inputs (guarded by mutex_)
     // What the renderer shows (render thread): type and jaw step of the uploaded mesh.
     vrm_sim::scene::InstrumentType shown_type = vrm_sim::scene::InstrumentType::kLightPipe;
     int shown_jaw_deg = 0;
@@ -238,7 +252,7 @@ class StereoRendererNodelet : public nodelet::Nodelet {
                       max_rate_ > 0.0 ? ", rate-limited" : "");
         break;
       case Trigger::kInput:
-        std::snprintf(text, sizeof(text), "when a pose input arrives (pipelined)%s",
+        std::snprintf(text, sizeof(text), "when an input frame arrives (pipelined)%s",
                       max_rate_ > 0.0 ? ", rate-limited" : "");
         break;
       case Trigger::kTimer:
@@ -279,7 +293,8 @@ class StereoRendererNodelet : public nodelet::Nodelet {
     pnh.param("world_frame", world_frame_, std::string("world"));
     pnh.param("eye_frame", eye_frame_, std::string("eye"));
     pnh.param("camera_frame", camera_frame_, std::string("microscope"));
-    pnh.param("ghost_topic", ghost_topic_, std::string("ghost/instrument_state"));
+    pnh.param("ghost_topic", ghost_topic_, std::string("ghost/input_frame"));
+    pnh.param("legacy_ghost_topic", legacy_ghost_topic_, std::string("ghost/instrument_state"));
     // llvmpipe's per-draw buffers would otherwise cost ~3,000 page faults per frame (see retainFreedHeapMemory).
     if (pnh.param("retain_heap_memory", true)) retainFreedHeapMemory();
     return options;
@@ -322,12 +337,13 @@ class StereoRendererNodelet : public nodelet::Nodelet {
             boost::bind(&StereoRendererNodelet::onMesh, this, object.name, boost::placeholders::_1)));
       }
     }
-    // Queues hold one tick of every source: the newest input wins (a slow frame must not make them grow).
-    input_subscribers_.push_back(nh.subscribe("eye_state", 5, &StereoRendererNodelet::onEyeState, this));
-    input_subscribers_.push_back(nh.subscribe("instrument_state", 10, &StereoRendererNodelet::onInstrumentState, this));
+    // Short queues: the newest input wins (a slow frame must not make them grow).
+    input_subscribers_.push_back(nh.subscribe("input_frame", 5, &StereoRendererNodelet::onInputFrame, this));
     input_subscribers_.push_back(nh.subscribe("simulation_state", 5, &StereoRendererNodelet::onSimulationState, this));
     if (ghost_instruments_) {
-      input_subscribers_.push_back(nh.subscribe(ghost_topic_, 10, &StereoRendererNodelet::onGhostState, this));
+      input_subscribers_.push_back(nh.subscribe(ghost_topic_, 5, &StereoRendererNodelet::onGhostFrame, this));
+      input_subscribers_.push_back(
+          nh.subscribe(legacy_ghost_topic_, 10, &StereoRendererNodelet::onLegacyGhostState, this));
     }
     input_subscribers_.push_back(nh.subscribe("microscope", 5, &StereoRendererNodelet::onMicroscope, this));
   }
@@ -383,17 +399,6 @@ class StereoRendererNodelet : public nodelet::Nodelet {
     if (trigger_ != Trigger::kTimer) wake_.notify_one();
   }
 
-  // Pose tick complete: every live pose source (eye, each instrument slot) has delivered `stamp`.
-  void notePose(const std::string& source, const ros::Time& stamp) {
-    ros::Time& newest = pose_sources_[source];
-    if (stamp > newest) newest = stamp;
-    if (stamp <= last_offered_) return;
-    for (const auto& entry : pose_sources_) {
-      if (entry.second < stamp && entry.second + kStaleSource >= stamp) return;
-    }
-    if (trigger_ == Trigger::kInput || !simulationRunning()) offer(stamp);
-  }
-
   void onMesh(const std::string& name, const vrm_msgs::TissueMesh::ConstPtr& mesh) {
     std::lock_guard<std::mutex> lock(mutex_);
     // A late latched rest shape must not replace a newer deformed version of the same object.
@@ -403,38 +408,61 @@ class StereoRendererNodelet : public nodelet::Nodelet {
     pending_meshes_[name] = mesh;
     noteStamp(mesh->header.stamp);
   }
-  void onEyeState(const vrm_msgs::EyeState::ConstPtr& eye) {
-    if (!eye->valid) return;
+  // A frame the simulation closed: kept for the frame of its stamp; with the trigger `input` (or no simulation_state
+  // for a while) it starts a frame itself.
+  void onInputFrame(const vrm_msgs::InputFrame::ConstPtr& frame) {
     std::lock_guard<std::mutex> lock(mutex_);
-    remember(&eyes_, eye);
-    noteStamp(eye->header.stamp);
-    notePose("eye", eye->header.stamp);
-  }
-  void onInstrumentState(const vrm_msgs::InstrumentState::ConstPtr& state) {
-    std::lock_guard<std::mutex> lock(mutex_);
-    auto slot = slots_.find(state->instrument_id);
-    if (slot == slots_.end()) return;
-    remember(&slot->second.states, state);
-    noteStamp(state->header.stamp);
-    notePose("instrument " + state->instrument_id, state->header.stamp);
+    const ros::Time& stamp = frame->header.stamp;
+    if (stamp > newest_frame_stamp_) newest_frame_stamp_ = stamp;
+    if (frame->kind == vrm_msgs::InputFrame::KIND_FRAME) {
+      remember(&frames_, frame);
+      noteStamp(stamp);
+    }
+    // The simulation_state that came first (or, had its frame been lost, the newest frame before it).
+    if (!awaited_frame_.isZero() && stamp >= awaited_frame_) {
+      offer(awaited_frame_);
+      awaited_frame_ = ros::Time();
+    }
+    if (frame->kind == vrm_msgs::InputFrame::KIND_FRAME && (trigger_ == Trigger::kInput || !simulationRunning())) {
+      offer(stamp);
+    }
   }
   // The simulation finished the frame of this input stamp (its tissue meshes were published before, so they are
-  // already here: one callback queue, in publishing order).
+  // already here: one callback queue, in publishing order). Its input frame was published before, too; from another
+  // process it may still be on its way, and then the frame starts when it arrives.
   void onSimulationState(const vrm_msgs::SimulationState::ConstPtr& state) {
     std::lock_guard<std::mutex> lock(mutex_);
     simulation_wall_ = ros::WallTime::now();
-    if (!simulation_stamps_.empty() && state->header.stamp <= simulation_stamps_.back()) return;
-    simulation_stamps_.push_back(state->header.stamp);
+    const ros::Time& stamp = state->header.stamp;
+    if (!simulation_stamps_.empty() && stamp <= simulation_stamps_.back()) return;
+    simulation_stamps_.push_back(stamp);
     while (simulation_stamps_.size() > kHistory) simulation_stamps_.pop_front();
-    if (trigger_ != Trigger::kInput) offer(state->header.stamp);
+    if (trigger_ == Trigger::kInput) return;
+    if (stamp > newest_frame_stamp_) {
+      awaited_frame_ = stamp;
+      return;
+    }
+    offer(stamp);
   }
-  // Replayed ghost instruments: shown with the next frame, but their (recorded) stamps do not stamp the frame.
-  void onGhostState(const vrm_msgs::InstrumentState::ConstPtr& state) {
+  // The instructor's recorded frames, replayed: their applied instruments are shown with the next frame, but their
+  // (recorded) stamps do not stamp the frame.
+  void onGhostFrame(const vrm_msgs::InputFrame::ConstPtr& frame) {
+    if (frame->kind != vrm_msgs::InputFrame::KIND_FRAME) return;
     std::lock_guard<std::mutex> lock(mutex_);
-    auto slot = ghost_slots_.find(state->instrument_id);
-    if (slot == ghost_slots_.end()) return;
-    slot->second.states.clear();
-    slot->second.states.push_back(state);
+    for (const vrm_msgs::AppliedInstrument& applied : frame->instruments) {
+      if (ghost_slots_.count(applied.slot) > 0) ghost_applied_[applied.slot] = applied;
+    }
+    dirty_ = true;
+  }
+  // A bag recorded before input frames: its raw instrument states, drawn as if applied.
+  void onLegacyGhostState(const vrm_msgs::InstrumentState::ConstPtr& state) {
+    NODELET_WARN_ONCE(
+        "stereo_renderer: ghost instruments from %s: the instructor's bag predates input frames, so they are drawn "
+        "from its raw instrument states (types and validity as recorded, not as the simulation applied them)",
+        legacy_ghost_topic_.c_str());
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (ghost_slots_.count(state->instrument_id) == 0) return;
+    ghost_applied_[state->instrument_id] = toAppliedInstrument(*state);
     dirty_ = true;
   }
   void onMicroscope(const vrm_msgs::MicroscopeSettings::ConstPtr& settings) {
@@ -539,14 +567,9 @@ class StereoRendererNodelet : public nodelet::Nodelet {
       (*meshes)[it->first] = it->second;
       it = pending_meshes_.erase(it);
     }
-    eye_in_use_ = newestUpTo(eyes_, *stamp);
+    frame_in_use_ = newestUpTo(frames_, *stamp);
     microscope_in_use_ = newestUpTo(microscopes_, *stamp);
-    slot_states_.clear();
-    for (const auto& entry : slots_) slot_states_[entry.first] = newestUpTo(entry.second.states, *stamp);
-    ghost_states_.clear();
-    for (const auto& entry : ghost_slots_) {
-      ghost_states_[entry.first] = entry.second.states.empty() ? nullptr : entry.second.states.back();
-    }
+    ghosts_in_use_ = ghost_applied_;
     *simulation_shown = ros::Time();
     for (auto it = simulation_stamps_.rbegin(); it != simulation_stamps_.rend(); ++it) {
       if (*it <= *stamp) {
@@ -609,7 +632,9 @@ class StereoRendererNodelet : public nodelet::Nodelet {
         NODELET_ERROR_THROTTLE(1.0, "mesh '%s' rejected: %s", entry.first.c_str(), error.what());
       }
     }
-    const Eigen::Isometry3f world_from_eye = eye_in_use_ ? worldFromEye(*eye_in_use_) : Eigen::Isometry3f::Identity();
+    // The eye as the World applied it (it keeps the last valid rotation while the eye is not tracked).
+    const Eigen::Isometry3f world_from_eye =
+        frame_in_use_ ? toIsometry(frame_in_use_->eye_pose) : Eigen::Isometry3f::Identity();
     auto frameToWorld = [&](const std::string& frame) {
       return frame == world_frame_ ? Eigen::Isometry3f::Identity() : world_from_eye;
     };
@@ -622,37 +647,43 @@ class StereoRendererNodelet : public nodelet::Nodelet {
       }
     }
     LightPipe light;
-    auto applyInstrument = [&](Slot& slot, const vrm_msgs::InstrumentState::ConstPtr& state) {
-      const bool valid = state && state->valid;
+    // The slot as applied: the World's type (a switch it refused keeps the old one), its jaw angle, and hidden
+    // while it is not valid (untracked, rejected or silent: it does not interact either). nullptr: not in the frame.
+    auto applyInstrument = [&](Slot& slot, const vrm_msgs::AppliedInstrument* applied) {
+      const bool valid = applied && applied->valid;
       renderer_->setVisible(slot.object_id, valid);
       if (!valid) return;
-      // The simulation's rule (instrument model): a type the scene does not allow in this slot keeps the shown one.
-      const std::optional<vrm_sim::scene::InstrumentType> requested = vrm_sim::instrumentTypeFromMsg(state->type);
-      const vrm_sim::scene::InstrumentType type =
-          vrm_sim::scene::typeAfterRequest(slot.description, slot.shown_type, requested);
-      if (!requested) {
-        NODELET_WARN_THROTTLE(1.0, "instrument '%s': unknown type %d, keeping %s", state->instrument_id.c_str(),
-                              state->type, vrm_sim::scene::toString(type));
-      } else if (*requested != type) {
-        NODELET_WARN_THROTTLE(1.0, "instrument '%s': type %s is not allowed in this slot by the scene, keeping %s",
-                              state->instrument_id.c_str(), vrm_sim::scene::toString(*requested),
-                              vrm_sim::scene::toString(type));
+      const std::optional<vrm_sim::scene::InstrumentType> type = vrm_sim::scene::instrumentTypeNamed(applied->type);
+      if (!type) {
+        NODELET_WARN_THROTTLE(1.0, "instrument '%s': unknown type '%s', keeping %s", applied->slot.c_str(),
+                              applied->type.c_str(), vrm_sim::scene::toString(slot.shown_type));
       }
       try {
-        showInstrument(&slot, type, state->jaw_angle);
+        showInstrument(&slot, type.value_or(slot.shown_type), applied->jaw_angle);
         const Eigen::Isometry3f pose =
-            frameToWorld(state->header.frame_id.empty() ? eye_frame_ : state->header.frame_id) *
-            toIsometry(state->tip_pose);
+            frameToWorld(applied->header.frame_id.empty() ? eye_frame_ : applied->header.frame_id) *
+            toIsometry(applied->pose);
         renderer_->setPose(slot.object_id, pose);
-        if (!slot.ghost && type == vrm_sim::scene::InstrumentType::kLightPipe)
+        if (!slot.ghost && slot.shown_type == vrm_sim::scene::InstrumentType::kLightPipe)
           light = lightPipeAt(pose, endoilluminator());
       } catch (const std::exception& error) {
         renderer_->setVisible(slot.object_id, false);
-        NODELET_WARN_THROTTLE(1.0, "instrument '%s' ignored: %s", state->instrument_id.c_str(), error.what());
+        NODELET_WARN_THROTTLE(1.0, "instrument '%s' ignored: %s", applied->slot.c_str(), error.what());
       }
     };
-    for (const auto& entry : slot_states_) applyInstrument(slots_.at(entry.first), entry.second);
-    for (const auto& entry : ghost_states_) applyInstrument(ghost_slots_.at(entry.first), entry.second);
+    std::map<std::string, const vrm_msgs::AppliedInstrument*> applied;
+    if (frame_in_use_) {
+      for (const vrm_msgs::AppliedInstrument& instrument : frame_in_use_->instruments)
+        applied[instrument.slot] = &instrument;
+    }
+    for (auto& entry : slots_) {
+      const auto found = applied.find(entry.first);
+      applyInstrument(entry.second, found == applied.end() ? nullptr : found->second);
+    }
+    for (auto& entry : ghost_slots_) {
+      const auto found = ghosts_in_use_.find(entry.first);
+      applyInstrument(entry.second, found == ghosts_in_use_.end() ? nullptr : &found->second);
+    }
     renderer_->setLightPipe(light);
     if (microscope_in_use_) {
       try {
@@ -831,6 +862,7 @@ class StereoRendererNodelet : public nodelet::Nodelet {
   std::string eye_frame_;
   std::string camera_frame_;
   std::string ghost_topic_;
+  std::string legacy_ghost_topic_;
   std::uint64_t instrument_mesh_version_ = 0;
 
   std::mutex mutex_;  // inputs and triggers
@@ -840,11 +872,13 @@ class StereoRendererNodelet : public nodelet::Nodelet {
   std::map<std::string, std::uint64_t> newest_mesh_version_;
   std::map<std::string, Slot> slots_;        // live instruments by slot ("left", "right")
   std::map<std::string, Slot> ghost_slots_;  // replayed ones (with ~ghost_instruments)
-  std::deque<vrm_msgs::EyeState::ConstPtr> eyes_;
+  std::deque<vrm_msgs::InputFrame::ConstPtr> frames_;  // the newest simulation frames (kind FRAME)
+  ros::Time newest_frame_stamp_;                       // of any input frame
+  ros::Time awaited_frame_;  // a simulation frame done whose input frame has not arrived yet (zero: none)
+  std::map<std::string, vrm_msgs::AppliedInstrument> ghost_applied_;  // newest replayed ones by slot
   std::deque<vrm_msgs::MicroscopeSettings::ConstPtr> microscopes_;
   std::deque<ros::Time> simulation_stamps_;  // newest simulation frames
   ros::WallTime simulation_wall_;            // when the newest simulation_state arrived
-  std::map<std::string, ros::Time> pose_sources_;
   ros::Time first_stamp_;
   ros::Time newest_stamp_;
   bool dirty_ = false;
@@ -858,9 +892,8 @@ class StereoRendererNodelet : public nodelet::Nodelet {
 
   std::mutex render_mutex_;  // renderer and last frame (render thread, snapshot service)
   std::map<std::string, std::string> mesh_frames_;
-  std::map<std::string, vrm_msgs::InstrumentState::ConstPtr> slot_states_;
-  std::map<std::string, vrm_msgs::InstrumentState::ConstPtr> ghost_states_;
-  vrm_msgs::EyeState::ConstPtr eye_in_use_;
+  vrm_msgs::InputFrame::ConstPtr frame_in_use_;
+  std::map<std::string, vrm_msgs::AppliedInstrument> ghosts_in_use_;
   vrm_msgs::MicroscopeSettings::ConstPtr microscope_in_use_;
   StereoFrame last_frame_;
   ros::Time last_stamp_;        // of the newest frame taken (written with both mutexes held)
@@ -871,7 +904,7 @@ class StereoRendererNodelet : public nodelet::Nodelet {
   ros::WallTime last_diagnostics_;
 
   std::mutex connect_mutex_;                        // the subscriptions below and the publishers' callbacks
-  std::vector<ros::Subscriber> input_subscribers_;  // meshes, tissue, poses, simulation, microscope, ghosts
+  std::vector<ros::Subscriber> input_subscribers_;  // meshes, tissue, frames, simulation, microscope, ghosts
   bool subscribed_ = false;
   std::atomic<bool> snapshots_pending_{false};
   tf2_ros::TransformBroadcaster broadcaster_;

@@ -1,8 +1,9 @@
-// Graph test of the stereo_renderer nodelet: with a scripted scene running, left and right images arrive in pairs
-// with equal stamps, the stamps increase monotonically, the stamp spacing matches the configured rate (stamps are
-// input stamps, so this is not a wall-clock assertion), and the images show the lit scene. The camera frames are on
-// tf with the images' stamps (REP-103 optical axes looking down at the eye), CameraInfo carries the same frame id,
-// the snapshot service writes the stereo pair, and the replayed ghost instruments are subscribed.
+// Graph test of the stereo_renderer nodelet: with input frames coming (the test stands in for scenario_manager),
+// left and right images arrive in pairs with equal stamps, the stamps increase monotonically, the stamp spacing
+// matches the configured rate (stamps are input stamps, so this is not a wall-clock assertion), and the images show
+// the lit scene. The camera frames are on tf with the images' stamps (REP-103 optical axes looking down at the eye),
+// CameraInfo carries the same frame id, the snapshot service writes the stereo pair, and the replayed ghost
+// instruments are subscribed (input frames, and instrument states of a bag recorded before them).
 
 #include <gtest/gtest.h>
 #include <ros/ros.h>
@@ -10,16 +11,22 @@
 #include <sensor_msgs/Image.h>
 #include <std_srvs/Trigger.h>
 #include <tf2_ros/transform_listener.h>
+#include <vrm_msgs/InputFrame.h>
 #include <vrm_msgs/InstrumentState.h>
 
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <atomic>
 #include <cstdio>
 #include <fstream>
 #include <map>
 #include <mutex>
+#include <thread>
 #include <vector>
 
+#include "input_frames.h"
+#include "vrm_sim/package_data.h"
+#include "vrm_sim/scene/scene_loader.h"
 #include "vrm_sim/testing/graph_test.h"
 
 namespace {
@@ -31,6 +38,41 @@ struct Collected {
   std::mutex mutex;
   std::vector<sensor_msgs::Image::ConstPtr> left, right;
   std::vector<sensor_msgs::CameraInfo::ConstPtr> right_info;
+};
+
+// Stands in for scenario_manager: an input frame every 20 ms of wall time (50 Hz, stamped now), with the scene's
+// instruments valid and held still (the light pipe aimed at the posterior pole, the forceps at the start of the
+// scripted peel).
+class FrameSource {
+ public:
+  explicit FrameSource(ros::NodeHandle& nh) : publisher_(nh.advertise<vrm_msgs::InputFrame>("input_frame", 10)) {
+    vrm_sim::usePackageData();
+    const vrm_sim::scene::SceneDescription scene = vrm_sim::scene::loadScene("membrane_peeling");
+    for (const auto& instrument : scene.instruments) {
+      const Eigen::Vector3d tip =
+          instrument.path.empty() ? Eigen::Vector3d(-0.002, 0.001, -0.006) : instrument.path.front().tip_in_eye;
+      instruments_.push_back(vrm_render::testing::appliedInstrument(
+          vrm_sim::scene::toString(instrument.slot), vrm_sim::scene::toString(instrument.type),
+          vrm_render::testing::poseThroughTrocar(scene, instrument, tip), 0.3, true));
+    }
+    thread_ = std::thread([this] {
+      ros::WallRate rate(50.0);
+      for (std::uint64_t sequence = 1; running_ && ros::ok(); ++sequence) {
+        publisher_.publish(vrm_render::testing::simulationFrame(ros::Time::now(), sequence, instruments_));
+        rate.sleep();
+      }
+    });
+  }
+  ~FrameSource() {
+    running_ = false;
+    thread_.join();
+  }
+
+ private:
+  ros::Publisher publisher_;
+  std::vector<vrm_msgs::AppliedInstrument> instruments_;
+  std::atomic<bool> running_{true};
+  std::thread thread_;
 };
 
 bool isPng(const std::string& path) {
@@ -66,6 +108,7 @@ TEST(StereoRendererGraph, PublishesPairedImagesAtTheRateWithMonotonicStamps) {
   tf2_ros::TransformListener tf_listener(tf_buffer);
   ros::AsyncSpinner spinner(2);
   spinner.start();
+  FrameSource frames_source(nh);
   // Wait on the condition (enough frames), bounded by a generous timeout; no fixed sleeps. The counts are
   // asserted below.
   waitFor(
@@ -113,9 +156,12 @@ TEST(StereoRendererGraph, PublishesPairedImagesAtTheRateWithMonotonicStamps) {
   std::remove((prefix + "_left.png").c_str());
   std::remove((prefix + "_right.png").c_str());
 
-  // The replayed instructor's instruments (ghost_instruments) are listened to.
-  ros::Publisher ghost = nh.advertise<vrm_msgs::InstrumentState>("ghost/instrument_state", 1);
-  EXPECT_TRUE(waitForSubscribers(ghost, 10.0)) << "ghost/instrument_state not subscribed";
+  // The replayed instructor's instruments (ghost_instruments) are listened to: recorded input frames, and the
+  // instrument states of a bag recorded before them.
+  ros::Publisher ghost = nh.advertise<vrm_msgs::InputFrame>("ghost/input_frame", 1);
+  EXPECT_TRUE(waitForSubscribers(ghost, 10.0)) << "ghost/input_frame not subscribed";
+  ros::Publisher legacy_ghost = nh.advertise<vrm_msgs::InstrumentState>("ghost/instrument_state", 1);
+  EXPECT_TRUE(waitForSubscribers(legacy_ghost, 10.0)) << "ghost/instrument_state not subscribed";
 
   spinner.stop();
   std::lock_guard<std::mutex> lock(c.mutex);
@@ -136,7 +182,7 @@ TEST(StereoRendererGraph, PublishesPairedImagesAtTheRateWithMonotonicStamps) {
   }
   std::sort(deltas.begin(), deltas.end());
   const double median = deltas[deltas.size() / 2];
-  // Each frame reflects the newest input (50 Hz surgeon), rendered at most `rate` times a second.
+  // Each frame reflects the newest input frame (50 Hz), rendered at most `rate` times a second.
   EXPECT_GT(median, 0.5 / rate);
   EXPECT_LT(median, 3.0 / rate);
 
@@ -155,12 +201,13 @@ TEST(StereoRendererGraph, PublishesPairedImagesAtTheRateWithMonotonicStamps) {
 }
 
 // Lazy subscription (image_pipeline's pattern): the renderer listens to its inputs only while an image is watched.
-// ghost/instrument_state is subscribed by the renderer alone, so its subscriber count shows the renderer's inputs.
+// ghost/input_frame is subscribed by the renderer alone, so its subscriber count shows the renderer's inputs.
 TEST(StereoRendererGraph, SubscribesToItsInputsOnlyWhileAnImageIsWatched) {
   ros::NodeHandle nh;
   ros::AsyncSpinner spinner(1);
   spinner.start();
-  ros::Publisher ghost = nh.advertise<vrm_msgs::InstrumentState>("ghost/instrument_state", 1);
+  FrameSource frames_source(nh);
+  ros::Publisher ghost = nh.advertise<vrm_msgs::InputFrame>("ghost/input_frame", 1);
   // Nobody watches (the previous test's subscribers are gone): no inputs.
   EXPECT_TRUE(waitFor([&] { return ghost.getNumSubscribers() == 0; }, 20.0)) << "inputs subscribed while unwatched";
 

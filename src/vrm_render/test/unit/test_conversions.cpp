@@ -31,6 +31,28 @@ TEST(Conversions, ZeroQuaternionIsIdentity) {
   EXPECT_FLOAT_EQ(worldFromEye(eye).translation().z(), 0.5f);
 }
 
+// Ghosts of a bag recorded before input frames: the raw state as if applied, its type constant by name.
+TEST(Conversions, InstrumentStateBecomesAnAppliedInstrument) {
+  vrm_msgs::InstrumentState state;
+  state.header.frame_id = "eye";
+  state.instrument_id = "right";
+  state.type = vrm_msgs::InstrumentState::VITRECTOR;
+  state.tip_pose.position.z = -0.008;
+  state.jaw_angle = 0.25;
+  state.valid = true;
+  const vrm_msgs::AppliedInstrument applied = toAppliedInstrument(state);
+  EXPECT_EQ(applied.slot, "right");
+  EXPECT_EQ(applied.type, "vitrector");
+  EXPECT_EQ(applied.header.frame_id, "eye");
+  EXPECT_DOUBLE_EQ(applied.pose.position.z, -0.008);
+  EXPECT_DOUBLE_EQ(applied.jaw_angle, 0.25);
+  EXPECT_TRUE(applied.valid);
+  state.type = 200;  // no such instrument
+  state.valid = false;
+  EXPECT_EQ(toAppliedInstrument(state).type, "");
+  EXPECT_FALSE(toAppliedInstrument(state).valid);
+}
+
 TEST(Conversions, MeshViewUsesOnlyArraysOfMatchingSize) {
   vrm_msgs::TissueMesh mesh;
   mesh.positions = {0, 0, 0, 1, 0, 0, 0, 1, 0};
