@@ -18,6 +18,8 @@
 #include <fcntl.h>
 #include <ros/master.h>
 #include <ros/ros.h>
+#include <rosbag/bag.h>
+#include <rosbag/view.h>
 #include <signal.h>
 #include <std_srvs/Trigger.h>
 #include <sys/stat.h>
@@ -70,6 +72,16 @@ std::string fileSafe(const std::string& text) {
   std::string out;
   for (char c : text) out += std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_' ? c : '_';
   return out.empty() ? "guest" : out;
+}
+
+// Whether the bag holds messages on `topic` (its index only; false when it cannot be read).
+bool bagHasTopic(const std::string& path, const std::string& topic) {
+  try {
+    rosbag::Bag bag(path, rosbag::bagmode::Read);
+    return rosbag::View(bag, rosbag::TopicQuery(topic)).size() > 0;
+  } catch (const rosbag::BagException&) {
+    return false;
+  }
 }
 
 std::string hostName() {
@@ -339,11 +351,14 @@ class SessionStation {
       return true;
     }
     const double rate = request.rate > 0.0 ? request.rate : 1.0;
-    // The recorded instruments, under the ghost topic the renderer draws translucent; their stamps stay the
-    // recorded ones (the renderer does not let ghost stamps stamp a frame).
+    // The recorded input frames (the instruments as the instructor's World applied them), under the ghost topic the
+    // renderer draws translucent; their stamps stay the recorded ones (the renderer does not let ghost stamps stamp
+    // a frame). A bag recorded before input frames (issue 31) has only the raw instrument states: those, onto the
+    // renderer's legacy ghost topic.
+    const std::string topic = bagHasTopic(request.bag, "/input_frame") ? "/input_frame" : "/instrument_state";
     ghost_ = std::make_unique<ChildProcess>(
         std::vector<std::string>{"rosbag", "play", "--quiet", "-r", std::to_string(rate), request.bag, "--topics",
-                                 "/instrument_state", "/instrument_state:=/ghost/instrument_state"},
+                                 topic, topic + ":=/ghost" + topic},
         records_dir_ + "/ghost.log");
     response.accepted = true;
     response.message = "ghost of " + request.bag;
