@@ -1,8 +1,11 @@
 // Camera rig twin (issue 5, thesis §7.3.2): renders the three tracking cameras from the scripted surgeon's ground
 // truth and publishes what real cameras would — sensor_msgs/Image + CameraInfo per camera through image_transport —
 // plus, for evaluation only, the exact projected centroids (<camera>/markers_exact, the ideal FPGA output).
-// A frame is rendered when the eye state and every instrument of one stamp have arrived; the images carry that
-// stamp (the exposure midpoint), never the wall clock. The wall time the triple took goes to tracking_timing
+// The ticks are the VR part's mediator's input frames (vrm_sim/world/mediator.h, issue 31) with the no-wait policy:
+// a frame closes as soon as the eye state and every instrument the truth publishes have arrived at its stamp, or a
+// later stamp arrives (a slot the script does not play is never waited for; a state that comes late is drawn in the
+// next frame). A slot without a state in a frame is drawn at its last state. The images carry the frame's stamp (the
+// exposure midpoint), never the wall clock. The wall time the triple took goes to tracking_timing
 // (vrm_msgs/StageTiming, stage "camera"; issue 12): the share of the tracking latency a real rig would not spend.
 // Lazy (image_proc's pattern): the ground truth is subscribed only while someone subscribes to a camera's image_raw /
 // camera_info or markers_exact, and a camera's image is rendered only while its image_raw or camera_info has a
@@ -33,10 +36,15 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <pluginlib/class_list_macros.hpp>
+#include <set>
 #include <string>
+#include <utility>
 #include <vector>
 
+#include "vrm_sim/conversions.h"
+#include "vrm_sim/world/mediator.h"
 #include "vrm_tracking/camera_fault.h"
 #include "vrm_tracking/conversions.h"
 #include "vrm_tracking/rig_renderer.h"
@@ -83,6 +91,7 @@ class CameraRigSim : public nodelet::Nodelet {
     for (const InstrumentMarker& m : layout_.instruments) slots.push_back(m.slot);
     pnh.param("instrument_slots", slots, slots);
     expected_slots_ = slots;
+    resetMediatorLocked();
     pnh.param<std::string>("optical_frame_suffix", frame_suffix_, "_optical");
 
     int calibration_views = 0;
@@ -120,8 +129,7 @@ class CameraRigSim : public nodelet::Nodelet {
       eye_sub_.shutdown();
       instrument_sub_.shutdown();
       std::lock_guard<std::mutex> state_lock(mutex_);
-      pending_eye_.reset();
-      instruments_.clear();
+      resetMediatorLocked();
       previous_stamp_ = ros::Time();  // no motion blur across the gap
       NODELET_DEBUG("camera_rig_sim: no subscriber left; ground truth unsubscribed");
     } else if (wanted && !eye_sub_) {
@@ -168,73 +176,79 @@ class CameraRigSim : public nodelet::Nodelet {
     return false;
   }
 
+  // A new mediator: the frames after a gap in the subscription start afresh, with no state held from before it.
+  void resetMediatorLocked() {
+    vrm_sim::world::MediatorOptions options;
+    options.policy = vrm_sim::world::WaitPolicy::kNoWait;  // a camera exposes the present: it never waits
+    options.slots = std::set<std::string>(expected_slots_.begin(), expected_slots_.end());
+    options.log = [this](vrm_sim::world::Severity severity, const std::string& message) {
+      // Repetitions are limited by the mediator (log_every_frames).
+      if (severity == vrm_sim::world::Severity::kWarning) {
+        NODELET_WARN("camera_rig_sim: ground truth: %s", message.c_str());
+      } else {
+        NODELET_INFO("camera_rig_sim: ground truth: %s", message.c_str());
+      }
+    };
+    mediator_ = std::make_unique<vrm_sim::world::Mediator>(
+        std::move(options), [this](vrm_sim::world::InputFrame& frame) { renderLocked(frame); });
+    samples_.clear();
+    slot_order_.clear();
+    last_samples_.clear();
+    last_eye_.reset();
+  }
+
   void onEye(const vrm_msgs::EyeState::ConstPtr& msg) {
     std::lock_guard<std::mutex> lock(mutex_);
-    // A newer eye state closes the previous stamp even if an instrument never came (a script with fewer slots).
-    if (pending_eye_ && pending_eye_->header.stamp < msg->header.stamp && !rendered_pending_) renderLocked();
-    if (pending_eye_ && msg->header.stamp > pending_eye_->header.stamp) {
-      last_eye_period_ = msg->header.stamp - pending_eye_->header.stamp;
-    }
-    // Slots never seen count as seen at the first tick, so they are waited for until they stay away.
-    for (const std::string& slot : expected_slots_) last_seen_.emplace(slot, msg->header.stamp);
-    pending_eye_ = msg;
-    rendered_pending_ = false;
-    instruments_.erase(std::remove_if(instruments_.begin(), instruments_.end(),
-                                      [&](const vrm_msgs::InstrumentState::ConstPtr& i) {
-                                        return i->header.stamp != msg->header.stamp;
-                                      }),
-                       instruments_.end());
-    if (complete()) renderLocked();
+    mediator_->handle(vrm_sim::toWorld(*msg));
   }
 
   void onInstrument(const vrm_msgs::InstrumentState::ConstPtr& msg) {
+    const vrm_sim::world::InstrumentState state = vrm_sim::toWorld(*msg);
     std::lock_guard<std::mutex> lock(mutex_);
-    ros::Time& seen = last_seen_[msg->instrument_id];
-    seen = std::max(seen, msg->header.stamp);
-    if (!pending_eye_ || msg->header.stamp != pending_eye_->header.stamp || rendered_pending_) {
-      // Instruments of a stamp whose eye state has not arrived yet are kept for it.
-      if (!pending_eye_ || msg->header.stamp > pending_eye_->header.stamp) instruments_.push_back(msg);
-      return;
-    }
-    instruments_.push_back(msg);
-    if (complete()) renderLocked();
-  }
-
-  // A tick is complete when the eye state and every instrument the truth currently publishes have arrived. A slot the
-  // truth has not published for kSlotAbsentTicks ticks (a script that plays one hand, an instrument withdrawn) is not
-  // waited for: else every tick would wait for the next eye state to close it (a whole input period of latency).
-  bool complete() const {
-    if (!pending_eye_ || rendered_pending_) return false;
-    for (const std::string& slot : expected_slots_) {
-      auto seen = last_seen_.find(slot);
-      if (seen != last_seen_.end() && !last_eye_period_.isZero() &&
-          pending_eye_->header.stamp - seen->second > last_eye_period_ * kSlotAbsentTicks) {
-        continue;
+    // The core state has no trocar (shaft axis, insertion depth), which the shaft's image needs: the sample is kept
+    // until the mediator puts this state into a frame.
+    try {
+      samples_[{state.stamp, state.slot}] = fromMsg(*msg);
+      if (std::find(slot_order_.begin(), slot_order_.end(), state.slot) == slot_order_.end()) {
+        slot_order_.push_back(state.slot);  // the truth's slot order (the script's), as drawn before
       }
-      bool found = false;
-      for (const auto& i : instruments_)
-        found |= i->instrument_id == slot && i->header.stamp == pending_eye_->header.stamp;
-      if (!found) return false;
+    } catch (const std::invalid_argument& e) {
+      NODELET_WARN_THROTTLE(1.0, "camera_rig_sim: ground-truth instrument '%s' not drawn: %s", state.slot.c_str(),
+                            e.what());
     }
-    return true;
+    if (samples_.size() > kMaxKeptSamples) samples_.erase(samples_.begin());
+    // Handed over even when it cannot be drawn, so no frame waits for it.
+    mediator_->handle(state);
   }
 
-  void renderLocked() {
-    rendered_pending_ = true;
-    const std_msgs::Header truth_header = pending_eye_->header;
+  // The mediator's sink: renders the frame it closed (its inputs in the order they apply: a late one first).
+  void renderLocked(const vrm_sim::world::InputFrame& frame) {
+    for (const vrm_sim::world::EyeState& eye : frame.eye_inputs) last_eye_ = eye;
+    for (const vrm_sim::world::InstrumentState& state : frame.instrument_inputs) {
+      auto sample = samples_.find({state.stamp, state.slot});
+      if (sample == samples_.end()) continue;  // not drawable (see onInstrument): the slot keeps its last sample
+      if (sample->second.tip.allFinite() && sample->second.trocar.allFinite()) {
+        last_samples_[state.slot] = sample->second;
+      }
+      samples_.erase(sample);
+    }
+    // States the mediator rejected (stale, implausible) never come in a frame.
+    samples_.erase(samples_.begin(), samples_.lower_bound({frame.stamp - kKeptSampleAge, std::string()}));
+    if (!last_eye_) return;  // nothing to expose before the first eye state
+
+    std_msgs::Header truth_header;
+    truth_header.stamp = toRosTime(frame.stamp);
     SurgeonSnapshot snap;
-    snap.eye_rotation = toEigen(pending_eye_->rotation);
-    snap.rotation_center = toEigen(pending_eye_->rotation_center);
+    snap.eye_rotation = last_eye_->rotation;
+    snap.rotation_center = last_eye_->rotation_center;
     if (!snap.eye_rotation.coeffs().allFinite() || !snap.rotation_center.allFinite()) {
       NODELET_WARN_THROTTLE(1.0, "camera_rig_sim: non-finite ground-truth eye state ignored");
       return;
     }
     snap.eye_rotation.normalize();
-    for (const auto& i : instruments_) {
-      if (i->header.stamp != truth_header.stamp) continue;
-      InstrumentSample s = fromMsg(*i);
-      if (!s.tip.allFinite() || !s.trocar.allFinite()) continue;
-      snap.instruments.push_back(s);
+    for (const std::string& slot : slot_order_) {
+      auto sample = last_samples_.find(slot);
+      if (sample != last_samples_.end()) snap.instruments.push_back(sample->second);
     }
     WorldScene scene = worldSceneFromSnapshot(snap, layout_);
     // Motion blur from the velocity against the previous truth frame.
@@ -317,18 +331,20 @@ class CameraRigSim : public nodelet::Nodelet {
   MarkerLayout layout_;
   std::unique_ptr<RigRenderer> renderer_;
   std::vector<std::string> expected_slots_;
-  static constexpr int kSlotAbsentTicks = 5;
-  std::map<std::string, ros::Time> last_seen_;  // newest stamp per instrument slot of the truth
-  ros::Duration last_eye_period_;               // between the last two eye states
   std::string frame_suffix_;
   std::vector<image_transport::CameraPublisher> camera_pubs_;
   std::vector<ros::Publisher> exact_pubs_;
   ros::Publisher timing_pub_;
   ros::Subscriber eye_sub_, instrument_sub_, fault_sub_;
-  std::mutex mutex_;
-  vrm_msgs::EyeState::ConstPtr pending_eye_;
-  bool rendered_pending_ = false;
-  std::vector<vrm_msgs::InstrumentState::ConstPtr> instruments_;
+  std::mutex mutex_;  // guards the mediator and everything below (its sink renders)
+  std::unique_ptr<vrm_sim::world::Mediator> mediator_;
+  // The truth's instrument samples until their state is in a frame, by (stamp, slot).
+  std::map<std::pair<vrm_sim::world::Stamp, std::string>, InstrumentSample> samples_;
+  static constexpr std::size_t kMaxKeptSamples = 1024;
+  static constexpr vrm_sim::world::Stamp kKeptSampleAge = 2'000'000'000;  // ns; beyond the mediator's stale limit
+  std::vector<std::string> slot_order_;                   // slots in the order the truth first delivered them
+  std::map<std::string, InstrumentSample> last_samples_;  // per slot, the newest drawn
+  std::optional<vrm_sim::world::EyeState> last_eye_;
   WorldScene previous_scene_;
   ros::Time previous_stamp_;
   std::uint64_t frame_ = 0;
