@@ -5,7 +5,9 @@
 // the bag's session_info unless --scene overrides the scene. Unfinished (.active) or cut-off bags are recovered into
 // a copy first; the original is never modified.
 //
-// Usage: rosrun vrm_sim session_replay --bag FILE [--scene NAME_OR_PATH]
+// Usage: rosrun vrm_sim session_replay --bag FILE [--scene NAME_OR_PATH] [--input devices]
+//            --input devices: the bag's device topics through the mediator even when it recorded input frames (how
+//            a bag replayed before input frames existed: the "before" of live = replay under load, issue 31)
 //        rosrun vrm_sim session_replay --bag FILE [--scene NAME_OR_PATH] --prepare
 //            checks (and if needed recovers) the bag and prints the path to play (replay.launch runs this before it
 //            starts anything, so a bag it cannot use stops the launch with the reason)
@@ -27,7 +29,7 @@ namespace {
 int usage(const std::string& problem) {
   std::fprintf(stderr,
                "session_replay: %s\nusage: session_replay --bag FILE [--scene NAME_OR_PATH] "
-               "[--prepare | --print scene|difficulty|collision_detector|auto_start|seed|input]\n",
+               "[--input devices] [--prepare | --print scene|difficulty|collision_detector|auto_start|seed|input]\n",
                problem.c_str());
   return 2;
 }
@@ -53,6 +55,7 @@ void reportRecovery(const vrm_sim::bag::PreparedBag& bag) {
 int main(int argc, char** argv) {
   vrm_sim::usePackageData();  // the recorded scene by name when its file is not on this machine
   std::string bag_path, scene, print;
+  vrm_sim::bag::ReplayInput input = vrm_sim::bag::ReplayInput::kAsRecorded;
   bool prepare_only = false;
   for (int i = 1; i < argc; ++i) {
     const std::string flag = argv[i];
@@ -67,6 +70,9 @@ int main(int argc, char** argv) {
       bag_path = value;
     } else if (flag == "--scene") {
       scene = value;
+    } else if (flag == "--input") {
+      if (value != "devices") return usage("--input takes devices");
+      input = vrm_sim::bag::ReplayInput::kDevices;
     } else if (flag == "--print") {
       if (value != "scene" && value != "difficulty" && value != "collision_detector" && value != "auto_start" &&
           value != "seed" && value != "input") {
@@ -105,7 +111,7 @@ int main(int argc, char** argv) {
       std::printf("%s", bag.usable.c_str());
       return 0;
     }
-    const vrm_sim::bag::ReplayResult result = vrm_sim::bag::replaySession(bag, setup);
+    const vrm_sim::bag::ReplayResult result = vrm_sim::bag::replaySession(bag, setup, input);
     std::printf("%s\n", result.json(bag).c_str());
     return 0;
   } catch (const vrm_sim::bag::BagError& error) {

@@ -66,7 +66,7 @@ SessionSetup resolveSession(const PreparedBag& bag, const std::string& scene_ove
   return setup;
 }
 
-ReplayResult replaySession(const PreparedBag& prepared, const SessionSetup& setup) {
+ReplayResult replaySession(const PreparedBag& prepared, const SessionSetup& setup, ReplayInput input_choice) {
   const auto wall_start = std::chrono::steady_clock::now();
   world::WorldOptions options;
   options.detector_override = setup.collision_detector;
@@ -82,7 +82,8 @@ ReplayResult replaySession(const PreparedBag& prepared, const SessionSetup& setu
     if (!first || stamp < *first) first = stamp;
     if (!last || stamp > *last) last = stamp;
   };
-  if (recordsInputFrames(prepared)) {
+  const bool has_frames = recordsInputFrames(prepared);
+  if (has_frames && input_choice == ReplayInput::kAsRecorded) {
     // The frames the live session's mediator closed, in their sequence: every decision that depended on arrival
     // order or on a silent source is in them, so the replay repeats the session whatever the load was.
     result.input = "input_frame";
@@ -113,10 +114,12 @@ ReplayResult replaySession(const PreparedBag& prepared, const SessionSetup& setu
     }
   } else {
     result.input = "devices";
-    result.setup.warnings.push_back(
-        "the bag predates input frames (no " + inputFrameTopic() +
-        "): replayed from the device topics through the mediator, which may decide a frame differently than the "
-        "live session did when the recording machine was loaded");
+    if (!has_frames) {
+      result.setup.warnings.push_back(
+          "the bag predates input frames (no " + inputFrameTopic() +
+          "): replayed from the device topics through the mediator, which may decide a frame differently than the "
+          "live session did when the recording machine was loaded");
+    }
     rosbag::View view(bag, rosbag::TopicQuery(deviceTopics()));
     // The inputs in the order of their stamps (stable: equal stamps keep the recorded order). The simulation node
     // receives them in-process in the order the devices published them; the recorder, a process of its own, may

@@ -52,9 +52,15 @@ struct ReplayResult {
   std::string json(const PreparedBag& bag) const;
 };
 
+// Which inputs a replay feeds: the bag's input frames when it has them (else its device topics), or its device topics
+// through the mediator even when it has frames (session_replay --input devices: how a bag replayed before input
+// frames existed, to compare against).
+enum class ReplayInput { kAsRecorded, kDevices };
+
 // Replays `bag`. Throws scene::SceneError for a scene that does not load, and BagError for recorded input frames with
 // a gap in their sequence (a lost frame: which, and where).
-ReplayResult replaySession(const PreparedBag& bag, const SessionSetup& setup);
+ReplayResult replaySession(const PreparedBag& bag, const SessionSetup& setup,
+                           ReplayInput input = ReplayInput::kAsRecorded);
 
 }  // namespace bag
 }  // namespace vrm_sim
