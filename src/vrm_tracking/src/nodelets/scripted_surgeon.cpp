@@ -1,5 +1,8 @@
 // Scripted surgeon: the mediator twin of the tracked eye and instruments (thesis §2.4.1). It plays a SurgeonScript
-// and publishes what the optical tracking would report, at the tracking rate, as ground truth.
+// and publishes what the optical tracking would report, at the tracking rate, as ground truth. Parameters (private):
+// script, scene, loop, tremor_um, seed, eye_frame, world_frame, rate (Hz, default 50: instruments, and the eye unless
+// eye_rate differs), eye_rate (Hz, default rate: the eye state on ticks of its own, stamped with them — devices at
+// different rates, as the mediator must handle, issue 31).
 
 #include <nodelet/nodelet.h>
 #include <ros/ros.h>
@@ -9,6 +12,7 @@
 
 #include <boost/make_shared.hpp>
 #include <memory>
+#include <mutex>
 #include <pluginlib/class_list_macros.hpp>
 #include <string>
 #include <vector>
@@ -84,6 +88,13 @@ class ScriptedSurgeon : public nodelet::Nodelet {
       NODELET_FATAL("rate must be > 0 (got %g)", rate);
       throw std::invalid_argument("scripted_surgeon: rate must be > 0");
     }
+    double eye_rate = rate;
+    pnh.param("eye_rate", eye_rate, eye_rate);
+    if (!(eye_rate > 0.0)) {
+      NODELET_FATAL("eye_rate must be > 0 (got %g)", eye_rate);
+      throw std::invalid_argument("scripted_surgeon: eye_rate must be > 0");
+    }
+    separate_eye_ = eye_rate != rate;
 
     eye_pub_ = nh.advertise<vrm_msgs::EyeState>("eye_state", 10);
     // One message per instrument per tick; room for a few ticks of every slot.
@@ -91,11 +102,13 @@ class ScriptedSurgeon : public nodelet::Nodelet {
         "instrument_state",
         static_cast<uint32_t>(10 * std::max<std::size_t>(1, script_->definition().instruments.size())));
     timer_ = nh.createTimer(ros::Duration(1.0 / rate), &ScriptedSurgeon::onTick, this);
+    if (separate_eye_) eye_timer_ = nh.createTimer(ros::Duration(1.0 / eye_rate), &ScriptedSurgeon::onEyeTick, this);
 
-    NODELET_INFO("playing script '%s' (%s, %zu instruments, %.1f s, %s) at %.1f Hz, tremor %.1f um (seed %d)",
-                 script_->name().c_str(), script_->definition().source.c_str(),
-                 script_->definition().instruments.size(), script_->duration(),
-                 script_->playback() == Playback::kLoop ? "loop" : "once", rate, tremor_um, seed);
+    NODELET_INFO(
+        "playing script '%s' (%s, %zu instruments, %.1f s, %s) at %.1f Hz (eye %.1f Hz), tremor %.1f um "
+        "(seed %d)",
+        script_->name().c_str(), script_->definition().source.c_str(), script_->definition().instruments.size(),
+        script_->duration(), script_->playback() == Playback::kLoop ? "loop" : "once", rate, eye_rate, tremor_um, seed);
   }
 
   static std::string joinNames(const std::vector<std::string>& names) {
@@ -104,12 +117,35 @@ class ScriptedSurgeon : public nodelet::Nodelet {
     return joined;
   }
 
-  void onTick(const ros::TimerEvent& event) {
-    // A device is where stamps originate: the tick's scheduled time, like a camera's exposure clock.
+  // A device is where stamps originate: the tick's scheduled time, like a camera's exposure clock. Zero: simulated
+  // time is not running yet. The script's clock starts at the first tick of either timer.
+  ros::Time tickStamp(const ros::TimerEvent& event) {
     ros::Time stamp = event.current_expected;
     if (stamp.isZero()) stamp = ros::Time::now();
-    if (stamp.isZero()) return;  // simulated time not running yet
-    if (start_.isZero()) start_ = stamp;
+    if (!stamp.isZero() && (start_.isZero() || stamp < start_)) start_ = stamp;
+    return stamp;
+  }
+
+  void publishEye(const SurgeonSnapshot& snap, const ros::Time& stamp) {
+    auto eye = boost::make_shared<vrm_msgs::EyeState>();
+    eye->header.stamp = stamp;
+    eye->header.frame_id = world_frame_;
+    toMsg(snap, eye.get());
+    vrm_msgs::publishShared(eye_pub_, eye);
+  }
+
+  // The manager's worker threads may run both timers at once: one at a time through the script.
+  void onEyeTick(const ros::TimerEvent& event) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    const ros::Time stamp = tickStamp(event);
+    if (stamp.isZero()) return;
+    publishEye(script_->sample((stamp - start_).toSec()), stamp);
+  }
+
+  void onTick(const ros::TimerEvent& event) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    const ros::Time stamp = tickStamp(event);
+    if (stamp.isZero()) return;
 
     const SurgeonSnapshot snap = script_->sample((stamp - start_).toSec());
     if (snap.finished && !announced_end_) {
@@ -118,11 +154,7 @@ class ScriptedSurgeon : public nodelet::Nodelet {
                    script_->duration());
     }
 
-    auto eye = boost::make_shared<vrm_msgs::EyeState>();
-    eye->header.stamp = stamp;
-    eye->header.frame_id = world_frame_;
-    toMsg(snap, eye.get());
-    vrm_msgs::publishShared(eye_pub_, eye);
+    if (!separate_eye_) publishEye(snap, stamp);
 
     for (const InstrumentSample& sample : snap.instruments) {
       auto msg = boost::make_shared<vrm_msgs::InstrumentState>();
@@ -139,7 +171,9 @@ class ScriptedSurgeon : public nodelet::Nodelet {
   std::string world_frame_;
   ros::Publisher eye_pub_;
   ros::Publisher instrument_pub_;
-  ros::Timer timer_;
+  ros::Timer timer_, eye_timer_;
+  bool separate_eye_ = false;
+  std::mutex mutex_;
   ros::Time start_;
   bool announced_end_ = false;
 };
