@@ -167,6 +167,10 @@ script_test() {  # script_test SUITE CASE COMMAND...
   printf '<?xml version="1.0"?>\n<testsuite name="%s" tests="1" failures="%s" errors="0"><testcase classname="%s" name="%s">%s</testcase></testsuite>\n' \
     "$suite" "$failed" "$suite" "$name" "$failure" >"$RESULTS/$suite/TEST-$suite.xml"
 }
+# Live = replay under load (issue 31): run.sh's session recorded under two busy loops, a relay that delays and
+# silences the instrument on its way to the simulation node only, and the eye at 100 Hz: live = offline replay =
+# replay.launch, bit for bit; the perturbation bit; the frames have no gap (~1.5 min).
+script_test determinism live_equals_replay_under_load /usr/bin/python3 "$ROOT/src/vrm_sim/test/graph/determinism.py" test
 script_test console_real_window console_runs_a_session_in_a_real_window \
   "$ROOT/src/eyesi_gui/test/console_real_window.sh"
 script_test console_remote_station console_on_a_second_host \
