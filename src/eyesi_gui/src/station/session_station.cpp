@@ -459,11 +459,14 @@ class SessionStation {
     int topics = 0;
     for (int i = 0; i < subscriptions.size(); ++i) {
       const std::string topic = static_cast<std::string>(subscriptions[i][0]);
-      if (topic != "/scenario_command" && topic != "/instrument_state" && topic != "/session_info") continue;
+      // The input frames too: a START lost there would never start the replay's scenario.
+      if (topic != "/scenario_command" && topic != "/instrument_state" && topic != "/session_info" &&
+          topic != "/input_frame")
+        continue;
       for (int j = 0; j < subscriptions[i][1].size(); ++j)
         if (static_cast<std::string>(subscriptions[i][1][j]) == "/session_recorder") ++topics;
     }
-    return topics == 3;
+    return topics == 4;
   }
 
   void stopGraph() {

@@ -8,6 +8,7 @@
 #include <rosbag/view.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdlib>
 #include <filesystem>
 #include <map>
@@ -51,6 +52,9 @@ SerializedStream readBag(const std::string& path, const std::vector<std::string>
     std::vector<std::uint8_t> bytes(message.size());
     ros::serialization::OStream out(bytes.data(), bytes.size());
     message.write(out);
+    // The replay's simulation node publishes input_frame anew (from the recorded frames): its header.seq is roscpp's
+    // count of that publisher's messages, not data; every other byte must be equal.
+    if (message.getTopic() == "/input_frame" && bytes.size() >= 4) std::fill(bytes.begin(), bytes.begin() + 4, 0);
     stream[message.getTopic()].push_back(std::move(bytes));
   }
   return stream;

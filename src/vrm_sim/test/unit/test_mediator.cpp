@@ -247,6 +247,33 @@ TEST(Mediator, TheNoWaitPolicyClosesAFrameAsSoonAsALaterStampArrives) {
   EXPECT_EQ(out.frames.back().late, std::vector<std::string>{"instrument:right"});
 }
 
+TEST(Mediator, TheNoWaitPolicyStopsExpectingASourceThatLeftAndExpectsItAgainOnceBack) {
+  MediatorOptions options;
+  options.policy = WaitPolicy::kNoWait;
+  Recorder out(options);
+  Stamp t = 0;
+  for (int i = 0; i < 3; ++i) {
+    t += kTick;
+    out.mediator.handle(eyeAt(t));
+    out.mediator.handle(instrumentAt(t));
+  }
+  // The instrument leaves. After reorder_frames frames without it, each eye state closes its own frame at once.
+  for (int i = 0; i < 5; ++i) {
+    t += kTick;
+    out.mediator.handle(eyeAt(t));
+  }
+  EXPECT_EQ(out.stamps().back(), t) << "a frame waits for a source that left";
+  EXPECT_EQ(out.mediator.statistics().silenced, 1u);
+  // Back: expected again (its frame closes only once it delivered, or the next stamp arrives).
+  t += kTick;
+  out.mediator.handle(instrumentAt(t));
+  t += kTick;
+  out.mediator.handle(eyeAt(t));
+  EXPECT_LT(out.stamps().back(), t) << "the instrument that is back is not waited for";
+  out.mediator.handle(instrumentAt(t));
+  EXPECT_EQ(out.stamps().back(), t);
+}
+
 TEST(Mediator, StateInputsGoIntoTheFirstFrameAtOrAfterTheirStampOrAFrameOfTheirOwn) {
   Recorder out;
   out.mediator.handle(eyeAt(kTick));

@@ -12,7 +12,9 @@
 //     closes without it (the frame names it in `missing`, the source is `silenced`) and it is not waited for until it
 //     delivers again. The very first frame, whose sources are not known yet, closes when a later stamp arrives;
 //     flush() closes whatever is pending. With the kNoWait policy (a consumer that must never wait, like the rig
-//     twin upstream of tracking) a frame closes as soon as it is complete or any later stamp arrives.
+//     twin upstream of tracking) a frame closes as soon as it is complete or any later stamp arrives, and a source
+//     that missed more than `reorder_frames` frames in a row is not expected until it delivers again (so a hand that
+//     left does not make every frame wait for the next stamp).
 //     A source state older than the last closed frame is *late*: it is applied first in the next frame and counted.
 //     A stamp more than max_stamp_jump ahead of every source is held back as implausible until every known source has
 //     jumped likewise (a real gap: the input paused, a device restarted); one that far behind the last frame is
@@ -160,6 +162,7 @@ class Mediator {
   };
   static constexpr std::size_t kMaxHeldBack = 256;
   std::vector<HeldInput> held_back_;
+  std::map<std::string, std::size_t> missed_frames_;  // kNoWait: frames in a row closed without the source
   Pending late_;  // inputs older than the last frame, for the next one
   std::vector<std::string> late_sources_;
   std::optional<Stamp> last_frame_stamp_;

@@ -287,6 +287,25 @@ void Mediator::closeReadyFrames() {
         }
       }
     }
+    if (ready && options_.policy == WaitPolicy::kNoWait) {
+      // A source that missed more than reorder_frames frames in a row is not expected any longer: else every frame
+      // would wait for the next stamp of another source to close it (a whole input period of latency).
+      for (auto source = known_sources_.begin(); source != known_sources_.end();) {
+        if (source->second >= stamp) {
+          missed_frames_.erase(source->first);
+          ++source;
+        } else if (++missed_frames_[source->first] > options_.reorder_frames) {
+          log(Severity::kInfo, "silent:" + source->first,
+              source->first + " stopped delivering; frames close without waiting for it until it is back");
+          silenced.push_back(source->first);
+          ++statistics_.silenced;
+          missed_frames_.erase(source->first);
+          source = known_sources_.erase(source);
+        } else {
+          ++source;
+        }
+      }
+    }
     if (!ready) return;
     Pending inputs = std::move(pending_.begin()->second);
     pending_.erase(pending_.begin());
