@@ -5,8 +5,10 @@ compares the live result (final state hash and score) with two offline replays o
 input frames (what session_replay and replay.launch do since issue 31) and from its device topics through the mediator
 (session_replay --input devices: how a bag replayed before). Prints a table, writes JSON.
 
-Usage (scripts/bench.sh determinism): bench_determinism [--quick] [--runs N] [--out FILE]
+Usage (scripts/bench.sh determinism): bench_determinism [--quick] [--runs N] [--configs a,b] [--out FILE]
   --quick: one recording of the all-at-once configuration.
+  --configs: only these configurations; their records replace those in an existing --out file (the others are kept),
+             e.g. to measure again the runs a shared machine's rebuild broke (the JSON lists every command).
 Perturbations (src/vrm_sim/test/graph/determinism.py): busy = two shell busy loops on the two cores for the
 recording; delay = the test relay holds instrument:right back by 3 of its messages on its way to the simulation
 node only; eye_100hz = the eye state at 100 Hz, instruments at 50 Hz; silence = the relay drops instrument:right for
@@ -37,11 +39,20 @@ def main():
     parser.add_argument("--quick", action="store_true")
     parser.add_argument("--runs", type=int, default=5)
     parser.add_argument("--duration", type=float, default=12.0)
+    parser.add_argument("--configs", default="")
     parser.add_argument("--out", default="")
     args = parser.parse_args()
     configs = [c for c in CONFIGS if c[0] == "all"] if args.quick else CONFIGS
+    if args.configs:
+        wanted = args.configs.split(",")
+        unknown = set(wanted) - {c[0] for c in CONFIGS}
+        if unknown:
+            parser.error("unknown configs %s (have %s)" % (sorted(unknown), [c[0] for c in CONFIGS]))
+        configs = [c for c in CONFIGS if c[0] in wanted]
     runs = 1 if args.quick else args.runs
     command = "./scripts/bench.sh " + ("--quick " if args.quick else "") + "determinism"
+    if args.configs:
+        command = "build/devel/lib/vrm_sim/bench_determinism --configs %s --out %s" % (args.configs, args.out)
     work = tempfile.mkdtemp(prefix="bench_determinism_")
     records = []
     start = time.monotonic()
@@ -61,8 +72,18 @@ def main():
                 "=" if record["equal_devices"] else "differs",
                 " (%s)" % record["replay_devices"].get("final_state_hash") if "replay_devices" in record else "",
                 record.get("load_after", 0.0)), flush=True)
+    commands = [command]
+    if args.configs and args.out and os.path.exists(args.out):
+        with open(args.out) as f:
+            previous = json.load(f)
+        kept = [r for r in previous["records"] if r["config"] not in {c[0] for c in configs}]
+        records = kept + records
+        commands = previous.get("commands", [previous["command"]]) + commands
+        command = previous["command"]
     summary = []
-    for name, _ in configs:
+    for name, _ in CONFIGS:
+        if not any(r["config"] == name for r in records):
+            continue
         rows = [r for r in records if r["config"] == name]
         late = [r["live"].get("late_inputs") or 0 for r in rows]
         without = [r["live"].get("frames_without_source") or 0 for r in rows]
@@ -82,7 +103,8 @@ def main():
             s["config"], "%d of %d" % (s["live_equals_replay_frames"], s["runs"]),
             "%d of %d" % (s["live_equals_replay_devices"], s["runs"]), "%d-%d" % tuple(s["late_inputs"]),
             "%d-%d" % tuple(s["frames_without_source"]), s["load_max"]))
-    result = {"suite": "determinism", "command": command, "quick": args.quick, "runs_per_config": runs,
+    result = {"suite": "determinism", "command": command, "commands": commands, "quick": args.quick,
+              "runs_per_config": runs,
               "duration": args.duration, "wall_seconds": round(time.monotonic() - start, 1),
               "summary": summary, "records": records}
     if args.out:
