@@ -285,8 +285,8 @@ TEST(Mediator, StateInputsGoIntoTheFirstFrameAtOrAfterTheirStampOrAFrameOfTheirO
   start.stamp = kTick + 1;
   out.mediator.handle(start);
   out.mediator.handle(eyeAt(2 * kTick));  // closes frame 1 (the first frame: a later stamp), then frame 2 (complete)
-  out.mediator.handle(eyeAt(3 * kTick));
-  ASSERT_EQ(out.stamps().size(), 3u);
+  out.mediator.handle(eyeAt(3 * kTick));  // waits for the pedals, which delivered up to 2 ticks only
+  ASSERT_EQ(out.stamps().size(), 2u);
   EXPECT_TRUE(out.frames[0].pedals.empty());
   EXPECT_EQ(out.frames[1].pedals.size(), 1u);
   EXPECT_EQ(out.frames[1].commands.size(), 1u);
@@ -298,6 +298,36 @@ TEST(Mediator, StateInputsGoIntoTheFirstFrameAtOrAfterTheirStampOrAFrameOfTheirO
   out.mediator.handle(pause);
   ASSERT_EQ(out.frames.back().kind, InputFrame::Kind::kState);
   EXPECT_EQ(out.frames.back().commands.size(), 1u);
+}
+
+TEST(Mediator, AFrameWaitsForThePedalsSoItsPedalStateDoesNotDependOnArrivalOrder) {
+  // The pedals at 100 Hz with a phase of their own, the poses at 50 Hz; in one delivery the pedal state of a tick
+  // comes after the poses of the next tick. Both deliveries must give every frame the same pedal state.
+  const auto deliver = [](bool pedals_late) {
+    Recorder out;
+    for (int k = 1; k <= 20; ++k) {
+      const Stamp t = k * kTick;
+      PedalState before, at;
+      before.stamp = t - kTick / 2 - 1000;
+      before.travel = 0.01 * k;
+      at.stamp = t - 1000;
+      at.travel = 0.01 * k + 0.005;
+      out.mediator.handle(before);
+      if (!pedals_late) out.mediator.handle(at);
+      out.mediator.handle(eyeAt(t));
+      out.mediator.handle(instrumentAt(t));
+      if (pedals_late) out.mediator.handle(at);
+    }
+    out.mediator.flush();
+    std::vector<double> travel;
+    double last = 0.0;
+    for (const InputFrame& frame : out.frames) {
+      if (!frame.pedals.empty()) last = frame.pedals.back().travel;
+      if (frame.kind == InputFrame::Kind::kFrame) travel.push_back(last);
+    }
+    return travel;
+  };
+  EXPECT_EQ(deliver(false), deliver(true));
 }
 
 TEST(Mediator, ALoadClosesEverythingPendingAndIsAFrameOfItsOwn) {

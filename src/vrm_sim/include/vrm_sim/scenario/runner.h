@@ -6,6 +6,7 @@
 // Items every scenario reports besides its own: time (s, running; scores nothing for a failed session), completed (1
 // once FINISHED, else 0).
 
+#include <cmath>
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -59,11 +60,19 @@ class ScenarioRunner {
   ~ScenarioRunner();
 
   // Commands at input time `time` (s). Each returns "" when applied, else why not (the state is then unchanged).
-  std::string start(double time);
-  std::string pause(double time);
-  std::string resume(double time);
+  // With `time_ns`, the exact input stamp (the World passes it): the running time is counted from it, not from the
+  // double `time`, which cannot hold an epoch stamp to the nanosecond (1.8e9 s is 256 ns apart from its neighbours),
+  // so sessions at different wall times count the same running time and hash alike.
+  std::string start(double time) { return start(time, nanoseconds(time)); }
+  std::string start(double time, std::int64_t time_ns);
+  std::string pause(double time) { return pause(time, nanoseconds(time)); }
+  std::string pause(double time, std::int64_t time_ns);
+  std::string resume(double time) { return resume(time, nanoseconds(time)); }
+  std::string resume(double time, std::int64_t time_ns);
   // Ends a running or paused session as failed; `reason` is its message ("" = "stopped by the trainee").
-  std::string stop(double time, const std::string& reason = "");
+  std::string stop(double time, const std::string& reason = "") { return stop(time, nanoseconds(time), reason); }
+  std::string stop(double time, std::int64_t time_ns, const std::string& reason);
+  static std::int64_t nanoseconds(double time) { return static_cast<std::int64_t>(std::llround(time * 1e9)); }
   void reset();  // back to IDLE with a fresh scenario (the world resets its tissues alongside)
   // A note for the trainee in status().message, e.g. why a command was refused (the state is unchanged).
   void setMessage(const std::string& message) { status_.message = message; }
@@ -79,7 +88,7 @@ class ScenarioRunner {
 
  private:
   void refreshScore();
-  void advance(double time);
+  void advance(std::int64_t time_ns);
   void finish(State state, const std::string& message, double time);
 
   scene::SceneDescription scene_;

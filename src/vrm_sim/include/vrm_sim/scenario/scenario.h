@@ -12,6 +12,7 @@
 #include <cstdint>
 #include <memory>
 #include <string>
+#include <optional>
 #include <vector>
 
 #include "vrm_sim/hash.h"
@@ -66,6 +67,7 @@ struct RetinaView {
 
 struct FrameView {
   double time = 0.0;  // s: the frame's input stamp
+  std::optional<std::int64_t> stamp_ns;  // the same, exact (ns), when the caller has it: the running time counts it
   double dt = 0.0;    // s of simulated time the frame covered
   Eigen::Isometry3d world_from_eye = Eigen::Isometry3d::Identity();
   std::vector<InstrumentView> instruments;

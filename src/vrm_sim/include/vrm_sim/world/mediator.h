@@ -20,7 +20,8 @@
 //     jumped likewise (a real gap: the input paused, a device restarted); one that far behind the last frame is
 //     rejected as stale.
 //   * pedal states and scenario commands are *state inputs*: they go into the first frame with a stamp >= theirs, in
-//     stamp order. One that arrives when nothing is pending and its stamp is not newer than the last frame is a frame
+//     stamp order. The pedals ("pedals") are also a source the kWait policy waits for like the poses (a frame takes
+//     the pedal state of its stamp, whenever it arrives), though they never open a frame. One that arrives when nothing is pending and its stamp is not newer than the last frame is a frame
 //     of its own (kind kState), so a console's START takes effect without waiting for the next pose. A LOAD closes
 //     everything pending and is a frame of its own (kind kLoad): the session switches scenes there.
 // Inputs with non-finite or implausible values, an unknown slot or frame are rejected (counted; a rejected source

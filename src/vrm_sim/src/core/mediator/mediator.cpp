@@ -17,6 +17,7 @@ constexpr double kMaxPedalTravel = 1.5;
 constexpr double kGapConfirmation = 0.25;  // s of input time every source must go on after a jump far ahead
 
 const std::string kEyeSource = "eye";
+const std::string kPedalSource = "pedals";
 std::string instrumentSource(const std::string& slot) { return "instrument:" + slot; }
 
 }  // namespace
@@ -110,6 +111,13 @@ void Mediator::handle(const PedalState& pedals) {
     return;
   }
   buffered_pedals_.push_back(pedals);
+  // The pedals are a source a frame waits for (kWait): the frame at S takes the newest pedal state up to S, and
+  // closing it before that state arrived would make the pedal values of a frame depend on arrival order.
+  if (options_.policy == WaitPolicy::kWait) {
+    Stamp& latest = known_sources_[kPedalSource];
+    latest = std::max(latest, pedals.stamp);
+    closeReadyFrames();
+  }
   // Nothing pending that would take it, and its frame has passed: it takes effect now, as a frame of its own.
   if (last_frame_stamp_ && pedals.stamp <= *last_frame_stamp_ && pending_.empty()) {
     InputFrame frame;
@@ -242,6 +250,7 @@ Mediator::StampCheck Mediator::classifyStamp(Stamp stamp, const std::string& sou
   }
   const Stamp confirmation = fromSeconds(kGapConfirmation);
   const bool every_source_jumped = std::all_of(known_sources_.begin(), known_sources_.end(), [&](const auto& known) {
+    if (known.first == kPedalSource) return true;  // a state source: its stamps are not checked for jumps
     const auto jumped = jumped_sources_.find(known.first);
     return jumped != jumped_sources_.end() && jumped->second.second - jumped->second.first >= confirmation;
   });

@@ -69,8 +69,8 @@ Score computeScore(const std::vector<scene::ScoringRule>& rules, const std::vect
 namespace {
 
 // Running time is summed in integer nanoseconds of the input stamps, so it does not depend on where the stamps start
-// (a session at t = 0 offline and at t = 1.7e9 live give the same elapsed time, bit for bit).
-std::int64_t nanoseconds(double time) { return static_cast<std::int64_t>(std::llround(time * 1e9)); }
+// (a session at t = 0 offline and at t = 1.7e9 live give the same elapsed time, bit for bit, when the caller passes
+// the exact stamps; ScenarioRunner::nanoseconds rounds a double).
 
 std::string seconds(double value) {
   char text[32];
@@ -112,7 +112,7 @@ ScenarioRunner::ScenarioRunner(const scene::SceneDescription& scene) : scene_(sc
 
 ScenarioRunner::~ScenarioRunner() = default;
 
-std::string ScenarioRunner::start(double time) {
+std::string ScenarioRunner::start(double time, std::int64_t time_ns) {
   if (status_.state == State::kRunning || status_.state == State::kPaused) {
     return "START refused: the scenario is already " + std::string(toString(status_.state)) + " (STOP or RESET first)";
   }
@@ -120,34 +120,36 @@ std::string ScenarioRunner::start(double time) {
   status_.state = State::kRunning;
   status_.start_time = time;
   status_.message = "started";
-  last_time_ = nanoseconds(time);
+  last_time_ = time_ns;
   return "";
 }
 
-std::string ScenarioRunner::pause(double time) {
+std::string ScenarioRunner::pause(double time, std::int64_t time_ns) {
+  (void)time;
   if (status_.state != State::kRunning) {
     return "PAUSE refused: the scenario is " + std::string(toString(status_.state));
   }
-  advance(time);
+  advance(time_ns);
   status_.state = State::kPaused;
   status_.message = "paused";
   refreshScore();
   return "";
 }
 
-std::string ScenarioRunner::resume(double time) {
+std::string ScenarioRunner::resume(double time, std::int64_t time_ns) {
+  (void)time;
   if (status_.state != State::kPaused) return "RESUME refused: the scenario is " + std::string(toString(status_.state));
   status_.state = State::kRunning;
   status_.message = "resumed";
-  last_time_ = nanoseconds(time);
+  last_time_ = time_ns;
   return "";
 }
 
-std::string ScenarioRunner::stop(double time, const std::string& reason) {
+std::string ScenarioRunner::stop(double time, std::int64_t time_ns, const std::string& reason) {
   if (status_.state != State::kRunning && status_.state != State::kPaused) {
     return "STOP refused: the scenario is " + std::string(toString(status_.state));
   }
-  if (status_.state == State::kRunning) advance(time);
+  if (status_.state == State::kRunning) advance(time_ns);
   finish(State::kFailed, reason.empty() ? "stopped by the trainee" : reason, time);
   return "";
 }
@@ -171,8 +173,7 @@ void ScenarioRunner::finish(State state, const std::string& message, double time
   refreshScore();
 }
 
-void ScenarioRunner::advance(double time) {
-  const std::int64_t now = nanoseconds(time);
+void ScenarioRunner::advance(std::int64_t now) {
   elapsed_ns_ += std::max<std::int64_t>(0, now - last_time_);
   last_time_ = std::max(last_time_, now);
   status_.elapsed = 1e-9 * static_cast<double>(elapsed_ns_);
@@ -180,7 +181,7 @@ void ScenarioRunner::advance(double time) {
 
 void ScenarioRunner::frame(const FrameView& frame) {
   if (status_.state != State::kRunning) return;
-  advance(frame.time);
+  advance(frame.stamp_ns ? *frame.stamp_ns : nanoseconds(frame.time));
   scenario_->update(frame, status_.elapsed);
   status_.progress = scenario_->progress();
   refreshScore();

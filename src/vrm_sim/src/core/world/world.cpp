@@ -399,15 +399,15 @@ void World::apply(const ScenarioCommand& command) {
   std::string refused;
   switch (command.command) {
     case Type::kPause:
-      if (runner_) refused = runner_->pause(time);
+      if (runner_) refused = runner_->pause(time, command.stamp);
       if (refused.empty()) paused_ = true;
       break;
     case Type::kResume:
-      if (runner_) refused = runner_->resume(time);
+      if (runner_) refused = runner_->resume(time, command.stamp);
       if (refused.empty()) paused_ = false;
       break;
     case Type::kStart:
-      if (runner_) refused = runner_->start(time);
+      if (runner_) refused = runner_->start(time, command.stamp);
       if (refused.empty()) {
         running_ = true;
         paused_ = false;
@@ -416,7 +416,7 @@ void World::apply(const ScenarioCommand& command) {
       break;
     case Type::kStop:
       if (runner_) {
-        refused = runner_->stop(time, command.argument);
+        refused = runner_->stop(time, command.stamp, command.argument);
       } else {
         running_ = false;
       }
@@ -501,7 +501,7 @@ void World::closeFrame(InputFrame& frame) {
   if (input_observer_) input_observer_(frame);
   if (runner_ && options_.auto_start && !auto_started_ && runner_->status().state == scenario::State::kIdle) {
     auto_started_ = true;
-    runner_->start(toSeconds(stamp));
+    runner_->start(toSeconds(stamp), stamp);
   }
   if (simulating() && !simulation_origin_) simulation_origin_ = stamp;
 
@@ -818,6 +818,7 @@ std::uint64_t World::stateHash() const {
 void World::advanceScenario(const FrameResult& result) {
   scenario::FrameView view;
   view.time = toSeconds(result.stamp);
+  view.stamp_ns = result.stamp;
   view.dt = result.frame_time;
   view.world_from_eye = world_from_eye_;
   for (const auto& [slot, instrument] : instruments_) {
