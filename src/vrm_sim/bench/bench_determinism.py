@@ -9,10 +9,11 @@ Usage (scripts/bench.sh determinism): bench_determinism [--quick] [--runs N] [--
   --quick: one recording of the all-at-once configuration.
   --configs: only these configurations; their records replace those in an existing --out file (the others are kept),
              e.g. to measure again the runs a shared machine's rebuild broke (the JSON lists every command).
-Perturbations (src/vrm_sim/test/graph/determinism.py): busy = two shell busy loops on the two cores for the
+Perturbations (src/vrm_sim/test/graph/determinism.py): idle = none; busy = two shell busy loops on the two cores for the
 recording; delay = the test relay holds instrument:right back by 3 of its messages on its way to the simulation
 node only; eye_100hz = the eye state at 100 Hz, instruments at 50 Hz; silence = the relay drops instrument:right for
 1 s from 1 s after START; all = every one at once (the CI test's configuration).
+idle and busy play the same inputs: their live final states must be one (idle_vs_loaded in the JSON).
 """
 import argparse
 import json
@@ -26,6 +27,7 @@ sys.path.insert(0, "@PROJECT_SOURCE_DIR@/test/graph")
 import determinism  # noqa: E402
 
 CONFIGS = [
+    ("idle", dict()),
     ("busy", dict(busy=2)),
     ("delay", dict(delay="instrument:right")),
     ("eye_100hz", dict(eye_rate=100.0)),
@@ -95,7 +97,18 @@ def main():
             "late_inputs": [min(late), max(late)],
             "frames_without_source": [min(without), max(without)],
             "load_max": max(r.get("load_after", 0.0) for r in rows),
+            "distinct_live_hashes": len({r["live"].get("final_state_hash") for r in rows}),
         })
+    # The same script with the same inputs, idle and under busy loops: one live state (issue 31 item 5).
+    same_inputs = [r for r in records if r["config"] in ("idle", "busy")]
+    idle_vs_loaded = {
+        "runs": len(same_inputs),
+        "distinct_live_hashes": len({r["live"].get("final_state_hash") for r in same_inputs}),
+        "distinct_live_totals": len({r["live"].get("total") for r in same_inputs}),
+    }
+    if same_inputs:
+        print("idle and busy: %d runs, %d distinct live state hash(es), %d distinct score(s)" % (
+            idle_vs_loaded["runs"], idle_vs_loaded["distinct_live_hashes"], idle_vs_loaded["distinct_live_totals"]))
     print("\n%-10s %-30s %-31s %-13s %-15s %s" % ("config", "live == replay (frames)", "live == replay (devices)",
                                                   "late_inputs", "without_source", "load"))
     for s in summary:
@@ -106,7 +119,7 @@ def main():
     result = {"suite": "determinism", "command": command, "commands": commands, "quick": args.quick,
               "runs_per_config": runs,
               "duration": args.duration, "wall_seconds": round(time.monotonic() - start, 1),
-              "summary": summary, "records": records}
+              "summary": summary, "idle_vs_loaded": idle_vs_loaded, "records": records}
     if args.out:
         with open(args.out, "w") as f:
             json.dump(result, f, indent=1)

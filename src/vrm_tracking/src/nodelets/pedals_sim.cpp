@@ -1,12 +1,19 @@
 // Foot pedal twin (thesis §7): plays the script's pedal track; a PedalState on pedals_sim/command (keyboard teleop,
 // GUI) takes over, the way the mediator swaps a real device for another input (§2.4.1).
+// With ~start_with_session (default true) a ScenarioCommand START restarts the track at the START's stamp, like the
+// scripted surgeon, and the track is read on its own period's grid from there (the last whole period before the
+// tick): the pedal timer's phase against the surgeon's ticks differs from run to run, and the frame the mediator
+// closes at a surgeon tick takes the newest pedal state before it — so every run, idle or loaded, applies the same
+// pedal values in the same frames (issue 31).
 
 #include <nodelet/nodelet.h>
 #include <ros/ros.h>
 #include <vrm_msgs/PedalState.h>
+#include <vrm_msgs/ScenarioCommand.h>
 #include <vrm_msgs/publish.h>
 
 #include <boost/make_shared.hpp>
+#include <cmath>
 #include <memory>
 #include <mutex>
 #include <pluginlib/class_list_macros.hpp>
@@ -44,7 +51,11 @@ class PedalsSim : public nodelet::Nodelet {
 
     pub_ = nh.advertise<vrm_msgs::PedalState>("pedals", 10);
     command_sub_ = nh.subscribe("pedals_sim/command", 10, &PedalsSim::onCommand, this);
-    timer_ = nh.createTimer(ros::Duration(1.0 / rate), &PedalsSim::onTick, this);
+    period_ = 1.0 / rate;
+    if (pnh.param("start_with_session", true)) {
+      session_sub_ = nh.subscribe("scenario_command", 10, &PedalsSim::onSessionCommand, this);
+    }
+    timer_ = nh.createTimer(ros::Duration(period_), &PedalsSim::onTick, this);
     NODELET_INFO("pedal track of '%s' at %.1f Hz; overrides on %s", script_->name().c_str(), rate,
                  command_sub_.getTopic().c_str());
   }
@@ -58,21 +69,29 @@ class PedalsSim : public nodelet::Nodelet {
     overriding_ = true;
   }
 
+  void onSessionCommand(const vrm_msgs::ScenarioCommand::ConstPtr& command) {
+    if (command->command != vrm_msgs::ScenarioCommand::START || command->header.stamp.isZero()) return;
+    std::lock_guard<std::mutex> lock(mutex_);
+    start_ = command->header.stamp;
+    session_clock_ = true;
+  }
+
   void onTick(const ros::TimerEvent& event) {
     ros::Time stamp = event.current_expected;
     if (stamp.isZero()) stamp = ros::Time::now();
     if (stamp.isZero()) return;
-    if (start_.isZero()) start_ = stamp;
-
     PedalSample pedals;
     {
       std::lock_guard<std::mutex> lock(mutex_);
+      if (start_.isZero()) start_ = stamp;
+      double script_time = (stamp - start_).toSec();
+      if (session_clock_) script_time = std::max(0.0, std::floor(script_time / period_) * period_);
       if (overriding_ && override_timeout_ > 0.0 &&
           (ros::Time::now() - override_received_).toSec() > override_timeout_) {
         overriding_ = false;
         NODELET_INFO("no pedal command for %.2f s; back to the script", override_timeout_);
       }
-      pedals = overriding_ ? override_ : script_->sample((stamp - start_).toSec()).pedals;
+      pedals = overriding_ ? override_ : script_->sample(script_time).pedals;
     }
 
     auto msg = boost::make_shared<vrm_msgs::PedalState>();
@@ -87,6 +106,9 @@ class PedalsSim : public nodelet::Nodelet {
   ros::Subscriber command_sub_;
   ros::Timer timer_;
   ros::Time start_;
+  double period_ = 0.01;
+  bool session_clock_ = false;  // start_ is a START's stamp
+  ros::Subscriber session_sub_;
 
   std::mutex mutex_;  // the command callback may run on another manager thread than the timer
   bool overriding_ = false;

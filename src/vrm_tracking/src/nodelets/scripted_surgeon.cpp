@@ -2,12 +2,17 @@
 // and publishes what the optical tracking would report, at the tracking rate, as ground truth. Parameters (private):
 // script, scene, loop, tremor_um, seed, eye_frame, world_frame, rate (Hz, default 50: instruments, and the eye unless
 // eye_rate differs), eye_rate (Hz, default rate: the eye state on ticks of its own, stamped with them — devices at
-// different rates, as the mediator must handle, issue 31).
+// different rates, as the mediator must handle, issue 31), start_with_session (default true: a ScenarioCommand START
+// on scenario_command restarts the script at the START's stamp, as a trainee begins when the session does; until
+// then, or without a START, the script runs from the first tick). With the session's clock the same script gives
+// the same inputs relative to the session's start in every run, idle or loaded (session_control stamps START on the
+// tick grid), so the session ends in the same state (issue 31).
 
 #include <nodelet/nodelet.h>
 #include <ros/ros.h>
 #include <vrm_msgs/EyeState.h>
 #include <vrm_msgs/InstrumentState.h>
+#include <vrm_msgs/ScenarioCommand.h>
 #include <vrm_msgs/publish.h>
 
 #include <boost/make_shared.hpp>
@@ -101,6 +106,9 @@ class ScriptedSurgeon : public nodelet::Nodelet {
     instrument_pub_ = nh.advertise<vrm_msgs::InstrumentState>(
         "instrument_state",
         static_cast<uint32_t>(10 * std::max<std::size_t>(1, script_->definition().instruments.size())));
+    if (pnh.param("start_with_session", true)) {
+      command_sub_ = nh.subscribe("scenario_command", 10, &ScriptedSurgeon::onCommand, this);
+    }
     timer_ = nh.createTimer(ros::Duration(1.0 / rate), &ScriptedSurgeon::onTick, this);
     if (separate_eye_) eye_timer_ = nh.createTimer(ros::Duration(1.0 / eye_rate), &ScriptedSurgeon::onEyeTick, this);
 
@@ -122,8 +130,19 @@ class ScriptedSurgeon : public nodelet::Nodelet {
   ros::Time tickStamp(const ros::TimerEvent& event) {
     ros::Time stamp = event.current_expected;
     if (stamp.isZero()) stamp = ros::Time::now();
-    if (!stamp.isZero() && (start_.isZero() || stamp < start_)) start_ = stamp;
+    if (!stamp.isZero() && !session_clock_ && (start_.isZero() || stamp < start_)) start_ = stamp;
     return stamp;
+  }
+
+  // The session starts (START, also after a RESET): the script starts over at the command's stamp. Ticks before it
+  // hold the script's first pose.
+  void onCommand(const vrm_msgs::ScenarioCommand::ConstPtr& command) {
+    if (command->command != vrm_msgs::ScenarioCommand::START || command->header.stamp.isZero()) return;
+    std::lock_guard<std::mutex> lock(mutex_);
+    start_ = command->header.stamp;
+    session_clock_ = true;
+    announced_end_ = false;
+    NODELET_INFO("script '%s' starts with the session at %.3f s", script_->name().c_str(), start_.toSec());
   }
 
   void publishEye(const SurgeonSnapshot& snap, const ros::Time& stamp) {
@@ -175,6 +194,8 @@ class ScriptedSurgeon : public nodelet::Nodelet {
   bool separate_eye_ = false;
   std::mutex mutex_;
   ros::Time start_;
+  bool session_clock_ = false;  // start_ is a START's stamp
+  ros::Subscriber command_sub_;
   bool announced_end_ = false;
 };
 
