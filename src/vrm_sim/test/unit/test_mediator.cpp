@@ -330,6 +330,40 @@ TEST(Mediator, AFrameWaitsForThePedalsSoItsPedalStateDoesNotDependOnArrivalOrder
   EXPECT_EQ(deliver(false), deliver(true));
 }
 
+TEST(Mediator, GarbageForASlotNoDeviceServesDoesNotHoldFramesBack) {
+  Recorder out;
+  InstrumentState garbage = instrumentAt(0, "left");
+  garbage.tip_position.x() = std::nan("");
+  for (int k = 1; k <= 10; ++k) {
+    out.mediator.handle(eyeAt(k * kTick));
+    out.mediator.handle(instrumentAt(k * kTick));
+    garbage.stamp = (k - 1) * kTick;  // a hostile stream one tick behind, for a slot nobody plays
+    out.mediator.handle(garbage);
+  }
+  // Every frame closed as soon as its poses were in: never waited for "instrument:left", never declared it silent.
+  EXPECT_EQ(out.stamps().size(), 10u);
+  EXPECT_EQ(out.mediator.statistics().silenced, 0u);
+  EXPECT_EQ(out.mediator.statistics().frames_without_source, 0u);
+}
+
+TEST(Mediator, APedalStateNewerThanTheStampMinusThePedalPeriodMeansNoWait) {
+  Recorder out;
+  // Pedals at 100 Hz, 3 ms before each pose tick and 7 ms after it: a frame needs no later pedal state than the one
+  // 3 ms before its stamp, so it closes with its poses.
+  for (int k = 1; k <= 10; ++k) {
+    PedalState before, after;
+    before.stamp = k * kTick - 3'000'000;
+    after.stamp = k * kTick + 7'000'000;
+    out.mediator.handle(before);
+    out.mediator.handle(eyeAt(k * kTick));
+    out.mediator.handle(instrumentAt(k * kTick));
+    if (k >= 3) {
+      EXPECT_EQ(out.stamps().back(), k * kTick) << "frame " << k << " waited for the pedals";
+    }
+    out.mediator.handle(after);
+  }
+}
+
 TEST(Mediator, ALoadClosesEverythingPendingAndIsAFrameOfItsOwn) {
   Recorder out;
   out.mediator.handle(eyeAt(kTick));

@@ -21,7 +21,9 @@
 //     rejected as stale.
 //   * pedal states and scenario commands are *state inputs*: they go into the first frame with a stamp >= theirs, in
 //     stamp order. The pedals ("pedals") are also a source the kWait policy waits for like the poses (a frame takes
-//     the pedal state of its stamp, whenever it arrives), though they never open a frame. One that arrives when nothing is pending and its stamp is not newer than the last frame is a frame
+//     the pedal state of its stamp, whenever it arrives), though they never open a frame — but only when a pedal
+//     state may still be missing: with one newer than the frame's stamp minus the pedals' period (the shortest step
+//     between their stamps) there is none between it and the frame. One that arrives when nothing is pending and its stamp is not newer than the last frame is a frame
 //     of its own (kind kState), so a console's START takes effect without waiting for the next pose. A LOAD closes
 //     everything pending and is a frame of its own (kind kLoad): the session switches scenes there.
 // Inputs with non-finite or implausible values, an unknown slot or frame are rejected (counted; a rejected source
@@ -163,6 +165,9 @@ class Mediator {
   };
   static constexpr std::size_t kMaxHeldBack = 256;
   std::vector<HeldInput> held_back_;
+  // Whether `source`, newest stamp `newest`, has delivered what the frame at `stamp` needs.
+  bool delivered(const std::string& source, Stamp newest, Stamp stamp) const;
+  Stamp pedal_period_ = 0;  // ns, 0 = not known yet
   std::map<std::string, std::size_t> missed_frames_;  // kNoWait: frames in a row closed without the source
   Pending late_;  // inputs older than the last frame, for the next one
   std::vector<std::string> late_sources_;

@@ -115,6 +115,12 @@ void Mediator::handle(const PedalState& pedals) {
   // closing it before that state arrived would make the pedal values of a frame depend on arrival order.
   if (options_.policy == WaitPolicy::kWait) {
     Stamp& latest = known_sources_[kPedalSource];
+    // The pedals' period (the shortest step between their stamps): a frame at S already has the newest pedal state
+    // up to S once a pedal state newer than S - period arrived, so it does not wait for the next one.
+    if (latest > 0 && pedals.stamp > latest) {
+      const Stamp step = pedals.stamp - latest;
+      pedal_period_ = pedal_period_ > 0 ? std::min(pedal_period_, step) : step;
+    }
     latest = std::max(latest, pedals.stamp);
     closeReadyFrames();
   }
@@ -207,8 +213,14 @@ void Mediator::acceptSource(Stamp stamp, const std::string& source, const EyeSta
 
 void Mediator::assembleSource(Stamp stamp, const std::string& source, const EyeState* eye,
                               const InstrumentState* instrument) {
-  Stamp& latest = known_sources_[source];
-  latest = std::max(latest, stamp);
+  // A rejected input of a source the frames already wait for counts as delivered (its frame need not wait for it);
+  // garbage alone never makes a source one to wait for (a hostile stream for a slot no device serves would hold
+  // every frame back until the source is declared silent, again and again).
+  const bool usable = eye != nullptr || instrument != nullptr;
+  if (usable || known_sources_.count(source) > 0) {
+    Stamp& latest = known_sources_[source];
+    latest = std::max(latest, stamp);
+  }
   if (last_frame_stamp_ && stamp <= *last_frame_stamp_) {
     ++late_inputs_;  // its state takes effect in the next frame
     if (eye) late_.eye = *eye;
@@ -266,11 +278,17 @@ Mediator::StampCheck Mediator::classifyStamp(Stamp stamp, const std::string& sou
   return StampCheck::kAhead;
 }
 
+bool Mediator::delivered(const std::string& source, Stamp newest, Stamp stamp) const {
+  if (newest >= stamp) return true;
+  return source == kPedalSource && pedal_period_ > 0 && newest + pedal_period_ > stamp;
+}
+
 void Mediator::closeReadyFrames() {
   while (!pending_.empty()) {
     const Stamp stamp = pending_.begin()->first;
-    const bool complete = std::all_of(known_sources_.begin(), known_sources_.end(),
-                                      [stamp](const auto& source) { return source.second >= stamp; });
+    const bool complete = std::all_of(known_sources_.begin(), known_sources_.end(), [&](const auto& source) {
+      return delivered(source.first, source.second, stamp);
+    });
     bool ready;
     if (!last_frame_stamp_) {
       // The first frame cannot know its sources yet: it closes when a later stamp arrives.
@@ -280,12 +298,19 @@ void Mediator::closeReadyFrames() {
     } else {
       ready = complete;
     }
+    if (!ready && options_.policy == WaitPolicy::kWait && pending_.size() > 1) {
+      // The pedals hold a frame back one frame at most: a later pose stamp has arrived, so the view goes on without
+      // the pedal state (the frame names them missing; they are waited for again from the next frame).
+      ready = std::all_of(known_sources_.begin(), known_sources_.end(), [&](const auto& source) {
+        return source.first == kPedalSource || delivered(source.first, source.second, stamp);
+      });
+    }
     std::vector<std::string> silenced;
     if (!ready && options_.policy == WaitPolicy::kWait && pending_.size() > options_.reorder_frames) {
       // A source fell silent: do not hold the view back for it any longer.
       ready = true;
       for (auto source = known_sources_.begin(); source != known_sources_.end();) {
-        if (source->second < stamp) {
+        if (!delivered(source->first, source->second, stamp)) {
           log(Severity::kWarning, "silent:" + source->first,
               source->first + " stopped delivering; frames close without it until it is back");
           silenced.push_back(source->first);
@@ -300,7 +325,7 @@ void Mediator::closeReadyFrames() {
       // A source that missed more than reorder_frames frames in a row is not expected any longer: else every frame
       // would wait for the next stamp of another source to close it (a whole input period of latency).
       for (auto source = known_sources_.begin(); source != known_sources_.end();) {
-        if (source->second >= stamp) {
+        if (delivered(source->first, source->second, stamp)) {
           missed_frames_.erase(source->first);
           ++source;
         } else if (++missed_frames_[source->first] > options_.reorder_frames) {
@@ -336,7 +361,7 @@ void Mediator::closeFrame(Stamp stamp, Pending inputs, std::vector<std::string> 
   late_sources_.clear();
   // Sources known before this frame that had not delivered its stamp (silenced ones included).
   for (const auto& [source, newest] : known_sources_) {
-    if (newest < stamp) frame.missing.push_back(source);
+    if (!delivered(source, newest, stamp)) frame.missing.push_back(source);
   }
   for (const std::string& source : silenced) frame.missing.push_back(source);
   std::sort(frame.missing.begin(), frame.missing.end());
