@@ -87,25 +87,45 @@ ReplayResult replaySession(const PreparedBag& prepared, const SessionSetup& setu
     // The frames the live session's mediator closed, in their sequence: every decision that depended on arrival
     // order or on a silent source is in them, so the replay repeats the session whatever the load was.
     result.input = "input_frame";
-    std::vector<vrm_msgs::InputFrame::ConstPtr> frames;
+    std::vector<vrm_msgs::InputFrame::ConstPtr> recorded;
     rosbag::View view(bag, rosbag::TopicQuery(std::vector<std::string>{inputFrameTopic()}));
     for (const rosbag::MessageInstance& message : view) {
-      if (auto frame = message.instantiate<vrm_msgs::InputFrame>()) frames.push_back(frame);
+      if (auto frame = message.instantiate<vrm_msgs::InputFrame>()) recorded.push_back(frame);
     }
-    std::stable_sort(frames.begin(), frames.end(),
-                     [](const auto& a, const auto& b) { return a->sequence < b->sequence; });
-    for (std::size_t i = 1; i < frames.size(); ++i) {
-      if (frames[i]->sequence == frames[i - 1]->sequence + 1) continue;
-      std::ostringstream what;
-      what << prepared.original << ": the recorded input frames jump from sequence " << frames[i - 1]->sequence
-           << " to " << frames[i]->sequence << " (frame " << i + 1 << " of " << frames.size() << ", input time "
-           << std::fixed << std::setprecision(3) << frames[i]->header.stamp.toSec() << " s): "
-           << (frames[i]->sequence == frames[i - 1]->sequence ? "a frame recorded twice"
-                                                              : std::to_string(frames[i]->sequence -
-                                                                               frames[i - 1]->sequence - 1) +
-                                                                    " frames lost")
-           << "; the bag cannot reproduce its session";
-      throw BagError(what.str());
+    // A simulation node restarted after a crash numbers its frames from 1 again under a new run: the runs in the
+    // order the recorder saw them, each in its sequence.
+    std::vector<std::uint64_t> runs;
+    for (const auto& frame : recorded) {
+      if (std::find(runs.begin(), runs.end(), frame->run) == runs.end()) runs.push_back(frame->run);
+    }
+    std::vector<vrm_msgs::InputFrame::ConstPtr> frames;
+    for (std::size_t run = 0; run < runs.size(); ++run) {
+      std::vector<vrm_msgs::InputFrame::ConstPtr> of_run;
+      for (const auto& frame : recorded) {
+        if (frame->run == runs[run]) of_run.push_back(frame);
+      }
+      std::stable_sort(of_run.begin(), of_run.end(),
+                       [](const auto& a, const auto& b) { return a->sequence < b->sequence; });
+      for (std::size_t i = 1; i < of_run.size(); ++i) {
+        if (of_run[i]->sequence == of_run[i - 1]->sequence + 1) continue;
+        std::ostringstream what;
+        what << prepared.original << ": the recorded input frames jump from sequence " << of_run[i - 1]->sequence
+             << " to " << of_run[i]->sequence << " (frame " << frames.size() + i + 1 << " of " << recorded.size()
+             << ", input time " << std::fixed << std::setprecision(3) << of_run[i]->header.stamp.toSec() << " s"
+             << (runs.size() > 1 ? ", run " + std::to_string(run + 1) + " of " + std::to_string(runs.size()) : "")
+             << "): "
+             << (of_run[i]->sequence == of_run[i - 1]->sequence
+                     ? std::string("a frame recorded twice")
+                     : std::to_string(of_run[i]->sequence - of_run[i - 1]->sequence - 1) + " frames lost")
+             << "; the bag cannot reproduce its session";
+        throw BagError(what.str());
+      }
+      if (run > 0) {
+        result.setup.warnings.push_back("the simulation node restarted during the recording (run " +
+                                        std::to_string(run + 1) + " from frame " +
+                                        std::to_string(of_run.front()->sequence) + ")");
+      }
+      frames.insert(frames.end(), of_run.begin(), of_run.end());
     }
     for (const auto& message : frames) {
       ++result.inputs;

@@ -165,12 +165,10 @@ class ScenarioManager : public nodelet::Nodelet {
   // The manager runs callbacks on several threads; the core is one state machine.
   void onEyeState(const vrm_msgs::EyeState::ConstPtr& eye) {
     std::lock_guard<std::mutex> lock(mutex_);
-    prepareReports();
     session_->handle(toWorld(*eye));
   }
   void onInstrumentState(const vrm_msgs::InstrumentState::ConstPtr& instrument) {
     std::lock_guard<std::mutex> lock(mutex_);
-    prepareReports();
     session_->handle(toWorld(*instrument));
   }
   void onPedals(const vrm_msgs::PedalState::ConstPtr& pedals) {
@@ -195,23 +193,35 @@ class ScenarioManager : public nodelet::Nodelet {
   // replay then cannot be the session.
   void onRecordedFrame(const vrm_msgs::InputFrame::ConstPtr& message) {
     std::lock_guard<std::mutex> lock(mutex_);
-    prepareReports();
+    if (message->run != run_) {
+      if (last_recorded_sequence_ != 0) {
+        NODELET_WARN("scenario_manager: the recorded simulation node restarted here (a new run from sequence %lu)",
+                     static_cast<unsigned long>(message->sequence));
+      }
+      last_recorded_sequence_ = 0;
+    }
     if (last_recorded_sequence_ != 0 && message->sequence != last_recorded_sequence_ + 1) {
       ++sequence_gaps_;
-      NODELET_ERROR("scenario_manager: recorded input frames jump from sequence %lu to %lu: %s lost; this replay is "
-                    "not the recorded session",
-                    static_cast<unsigned long>(last_recorded_sequence_), static_cast<unsigned long>(message->sequence),
-                    message->sequence > last_recorded_sequence_ ? "frames" : "order");
+      NODELET_ERROR(
+          "scenario_manager: recorded input frames jump from sequence %lu to %lu: %s lost; this replay is "
+          "not the recorded session",
+          static_cast<unsigned long>(last_recorded_sequence_), static_cast<unsigned long>(message->sequence),
+          message->sequence > last_recorded_sequence_ ? "frames" : "order");
     }
     last_recorded_sequence_ = message->sequence;
+    run_ = message->run;  // republished under the recorded run, so the replay's frames are the recorded ones
     const world::InputFrame frame = toWorld(*message);
     session_->handle(frame);
     if (!frame.commands.empty()) publishStatus(message->header.stamp, true);
   }
 
+  // Called once a frame's inputs are applied, before it steps: whether this frame reports rigid-object collisions
+  // is decided here, once per frame (not per input message: a flood of them must not cost a subscriber count each).
   void publishInputFrame(const world::InputFrame& frame) {
+    if (frame.kind == world::InputFrame::Kind::kFrame) prepareReports();
     auto message = boost::make_shared<vrm_msgs::InputFrame>();
     fillInputFrame(frame, world_frame_, eye_frame_, *message);
+    message->run = run_;
     vrm_msgs::publishShared(input_frame_publisher_, message);
   }
 
@@ -575,6 +585,8 @@ class ScenarioManager : public nodelet::Nodelet {
   ros::Subscriber eye_subscriber_, instrument_subscriber_, pedal_subscriber_, command_subscriber_, frame_subscriber_;
   std::string input_mode_;
   std::uint64_t last_recorded_sequence_ = 0, sequence_gaps_ = 0;
+  // This node's start (wall clock, ns): tells the frames of a restarted node from the crashed one's in a bag.
+  std::uint64_t run_ = static_cast<std::uint64_t>(ros::WallTime::now().toNSec());
   ros::Publisher input_frame_publisher_;
   ros::Time last_provisional_;
   ros::Publisher diagnostics_publisher_;
