@@ -267,21 +267,31 @@ world::PedalState toWorld(const vrm_msgs::PedalState& pedals) {
   return state;
 }
 
+namespace {
+
+// The one table between ScenarioCommand's constants and the core's command types (both directions use it).
+struct CommandConstant {
+  world::ScenarioCommand::Type type;
+  std::uint8_t constant;
+};
+constexpr CommandConstant kCommandConstants[] = {
+    {world::ScenarioCommand::Type::kLoad, vrm_msgs::ScenarioCommand::LOAD},
+    {world::ScenarioCommand::Type::kStart, vrm_msgs::ScenarioCommand::START},
+    {world::ScenarioCommand::Type::kPause, vrm_msgs::ScenarioCommand::PAUSE},
+    {world::ScenarioCommand::Type::kResume, vrm_msgs::ScenarioCommand::RESUME},
+    {world::ScenarioCommand::Type::kStop, vrm_msgs::ScenarioCommand::STOP},
+    {world::ScenarioCommand::Type::kReset, vrm_msgs::ScenarioCommand::RESET},
+    {world::ScenarioCommand::Type::kSelectInstrument, vrm_msgs::ScenarioCommand::SELECT_INSTRUMENT}};
+
+}  // namespace
+
 std::optional<world::ScenarioCommand> toWorld(const vrm_msgs::ScenarioCommand& command) {
-  using Type = world::ScenarioCommand::Type;
-  static const std::map<std::uint8_t, Type> kTypes = {
-      {vrm_msgs::ScenarioCommand::LOAD, Type::kLoad},
-      {vrm_msgs::ScenarioCommand::START, Type::kStart},
-      {vrm_msgs::ScenarioCommand::PAUSE, Type::kPause},
-      {vrm_msgs::ScenarioCommand::RESUME, Type::kResume},
-      {vrm_msgs::ScenarioCommand::STOP, Type::kStop},
-      {vrm_msgs::ScenarioCommand::RESET, Type::kReset},
-      {vrm_msgs::ScenarioCommand::SELECT_INSTRUMENT, Type::kSelectInstrument}};
-  const auto type = kTypes.find(command.command);
-  if (type == kTypes.end()) return std::nullopt;
+  const auto type = std::find_if(std::begin(kCommandConstants), std::end(kCommandConstants),
+                                 [&](const CommandConstant& entry) { return entry.constant == command.command; });
+  if (type == std::end(kCommandConstants)) return std::nullopt;
   world::ScenarioCommand result;
   result.stamp = toStamp(command.header.stamp);
-  result.command = type->second;
+  result.command = type->type;
   result.scenario = command.scenario;
   result.argument = command.argument;
   result.seed = command.seed;
@@ -318,15 +328,11 @@ vrm_msgs::PedalState toMsg(const world::PedalState& pedals) {
 }
 
 vrm_msgs::ScenarioCommand toMsg(const world::ScenarioCommand& command) {
-  using Type = world::ScenarioCommand::Type;
-  static const std::map<Type, std::uint8_t> kValues = {
-      {Type::kLoad, vrm_msgs::ScenarioCommand::LOAD},       {Type::kStart, vrm_msgs::ScenarioCommand::START},
-      {Type::kPause, vrm_msgs::ScenarioCommand::PAUSE},     {Type::kResume, vrm_msgs::ScenarioCommand::RESUME},
-      {Type::kStop, vrm_msgs::ScenarioCommand::STOP},       {Type::kReset, vrm_msgs::ScenarioCommand::RESET},
-      {Type::kSelectInstrument, vrm_msgs::ScenarioCommand::SELECT_INSTRUMENT}};
+  const auto value = std::find_if(std::begin(kCommandConstants), std::end(kCommandConstants),
+                                  [&](const CommandConstant& entry) { return entry.type == command.command; });
   vrm_msgs::ScenarioCommand message;
   message.header.stamp = toRosTime(command.stamp);
-  message.command = kValues.at(command.command);
+  message.command = value->constant;  // every Type has its constant (kCommandConstants)
   message.scenario = command.scenario;
   message.argument = command.argument;
   message.seed = command.seed;
@@ -384,7 +390,7 @@ world::InputFrame toWorld(const vrm_msgs::InputFrame& message) {
   frame.sequence = message.sequence;
   frame.kind = message.kind == vrm_msgs::InputFrame::KIND_STATE  ? Kind::kState
                : message.kind == vrm_msgs::InputFrame::KIND_LOAD ? Kind::kLoad
-                                                                  : Kind::kFrame;
+                                                                 : Kind::kFrame;
   for (const vrm_msgs::EyeState& eye : message.eye_inputs) frame.eye_inputs.push_back(toWorld(eye));
   for (const vrm_msgs::InstrumentState& state : message.instrument_inputs) {
     frame.instrument_inputs.push_back(toWorld(state));
