@@ -5,16 +5,21 @@
 // world::InputMonitor; wall clock, since device liveness is a wall-clock matter and nothing here feeds the
 // simulation).
 //
-// Subscribes: each ~inputs[i].topic with its message type (in the same manager: no copy, no serialisation).
+// Subscribes: each ~inputs[i].topic with its message type (in the same manager: no copy, no serialisation). The
+//   messages wait in the monitor's own callback queue and are counted every ~drain_period s (wall), not one by one:
+//   a worker thread woken per message would cost the view two context switches for each input of a 1.5 kHz flood,
+//   and liveness needs no finer arrival time than silence_timeout and rate_window resolve.
 // Publishes: /diagnostics (diagnostic_msgs/DiagnosticArray), one status "input_monitor: <topic>" per input every
 //   ~period s (wall; the first 1 s after start).
 // Parameters (private): inputs (list of {topic, type, rate, hint}; config/input_monitor.yaml), period (1.0),
 //   silence_timeout (1.0), rate_window (2.0), min_rate_fraction (0.5), startup_grace (2.0), warn_period (10.0: the
-//   console repeats a warning at most this often).
+//   console repeats a warning at most this often), drain_period (0.1), queue_size (200 per input: the most one
+//   drain period holds; more is dropped and still reads as a high rate).
 #include "vrm_sim/world/input_monitor.h"
 
 #include <diagnostic_msgs/DiagnosticArray.h>
 #include <nodelet/nodelet.h>
+#include <ros/callback_queue.h>
 #include <ros/ros.h>
 #include <xmlrpcpp/XmlRpcException.h>
 
@@ -69,6 +74,12 @@ class InputMonitorNodelet : public nodelet::Nodelet {
     pnh.param("startup_grace", options.startup_grace_s, options.startup_grace_s);
     pnh.param("warn_period", warn_period_, warn_period_);
     const double period = pnh.param("period", 1.0);
+    const double drain_period = pnh.param("drain_period", 0.1);
+    queue_size_ = pnh.param("queue_size", queue_size_);
+    if (!(drain_period > 0.0 && drain_period <= options.silence_timeout_s) || queue_size_ < 1) {
+      NODELET_ERROR("input_monitor: ~drain_period must be in (0, silence_timeout] and ~queue_size >= 1");
+      return;
+    }
     try {
       monitor_.emplace(inputs, options, ros::WallTime::now().toSec());
     } catch (const std::invalid_argument& error) {
@@ -102,6 +113,7 @@ class InputMonitorNodelet : public nodelet::Nodelet {
     // The first report after 1 s: a user who started the graph without devices is told within seconds.
     first_timer_ = nh.createWallTimer(ros::WallDuration(1.0), &InputMonitorNodelet::onTick, this, /*oneshot=*/true);
     timer_ = nh.createWallTimer(ros::WallDuration(period), &InputMonitorNodelet::onTick, this);
+    drain_timer_ = nh.createWallTimer(ros::WallDuration(drain_period), [this](const ros::WallTimerEvent&) { drain(); });
     NODELET_INFO("input_monitor: watching %zu inputs", inputs.size());
   }
 
@@ -113,13 +125,24 @@ class InputMonitorNodelet : public nodelet::Nodelet {
 
   template <typename Message>
   ros::Subscriber subscribe(ros::NodeHandle& nh, const std::string& topic, std::size_t index) {
-    return nh.subscribe<Message>(topic, 20, [this, index](const typename Message::ConstPtr&) {
-      std::lock_guard<std::mutex> lock(mutex_);
-      monitor_->onMessage(index, ros::WallTime::now().toSec());
-    });
+    ros::SubscribeOptions options;
+    options.template init<Message>(topic, static_cast<std::uint32_t>(queue_size_),
+                                   [this, index](const typename Message::ConstPtr&) {
+                                     monitor_->onMessage(index, drained_at_);  // under mutex_, from drain()
+                                   });
+    options.callback_queue = &arrivals_;
+    return nh.subscribe(options);
+  }
+
+  // Counts what arrived since the last drain, as arrived now.
+  void drain() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    drained_at_ = ros::WallTime::now().toSec();
+    arrivals_.callAvailable();
   }
 
   void onTick(const ros::WallTimerEvent&) {
+    drain();
     std::lock_guard<std::mutex> lock(mutex_);
     const double now = ros::WallTime::now().toSec();
     std::vector<int> publishers;
@@ -164,13 +187,16 @@ class InputMonitorNodelet : public nodelet::Nodelet {
   }
 
   std::mutex mutex_;
+  ros::CallbackQueue arrivals_;  // filled by roscpp's receiving threads, emptied by drain()
+  double drained_at_ = 0.0;
+  int queue_size_ = 200;
   std::optional<world::InputMonitor> monitor_;
   std::vector<ros::Subscriber> subscribers_;
   std::vector<double> last_warned_;
   std::vector<world::InputHealth> last_health_;
   double warn_period_ = 10.0;
   ros::Publisher diagnostics_publisher_;
-  ros::WallTimer first_timer_, timer_;
+  ros::WallTimer first_timer_, timer_, drain_timer_;
 };
 
 }  // namespace vrm_sim
