@@ -57,6 +57,7 @@
 #include <sstream>
 
 #include "vrm_msgs/CollisionReport.h"
+#include "vrm_msgs/RunningScene.h"
 #include "vrm_msgs/ScenarioStatus.h"
 #include "vrm_msgs/Score.h"
 #include "vrm_msgs/SessionResult.h"
@@ -81,7 +82,7 @@ class ScenarioManager : public nodelet::Nodelet {
     ros::NodeHandle& nh = getNodeHandle();
     ros::NodeHandle& private_nh = getPrivateNodeHandle();
     usePackageData();  // shipped scenes by name (also for a LOAD): found through ROS_PACKAGE_PATH
-    const std::string scene_parameter = private_nh.param<std::string>("scene", "membrane_peeling");
+    const std::string scene_parameter = private_nh.param<std::string>("scene", scene::kDefaultSceneName);
     const std::string difficulty = private_nh.param<std::string>("difficulty", "");
     world::WorldOptions options;
     options.detector_override = private_nh.param<std::string>("collision_detector", "");
@@ -133,6 +134,7 @@ class ScenarioManager : public nodelet::Nodelet {
     status_publisher_ = nh.advertise<vrm_msgs::ScenarioStatus>("scenario_status", 5, true);
     score_publisher_ = nh.advertise<vrm_msgs::Score>("score", 2, true);
     result_publisher_ = nh.advertise<vrm_msgs::SessionResult>("session_result", 1, true);
+    running_scene_publisher_ = nh.advertise<vrm_msgs::RunningScene>("running_scene", 1, /*latch=*/true);
     session_->setFrameObserver([this](const world::FrameResult& frame) { publish(frame); });
     session_->setInputObserver([this](const world::InputFrame& frame) { publishInputFrame(frame); });
     session_->setLoadObserver([this](world::World& world) { onLoaded(world); });
@@ -219,6 +221,7 @@ class ScenarioManager : public nodelet::Nodelet {
   // is decided here, once per frame (not per input message: a flood of them must not cost a subscriber count each).
   void publishInputFrame(const world::InputFrame& frame) {
     if (frame.kind == world::InputFrame::Kind::kFrame) prepareReports();
+    if (frame.kind == world::InputFrame::Kind::kLoad) last_load_stamp_ = frame.stamp;  // announced by onLoaded
     auto message = boost::make_shared<vrm_msgs::InputFrame>();
     fillInputFrame(frame, world_frame_, eye_frame_, *message);
     message->run = run_;
@@ -248,6 +251,21 @@ class ScenarioManager : public nodelet::Nodelet {
                : "",
         world.tissueNames().size(), world.injuries().size(), world.simulatesAnything() ? "" : "; nothing to simulate");
     publishStatus(ros::Time(0), true);
+    announceScene(world);
+  }
+
+  // The one announcement of the running scene (latched): every node that depends on the scene follows it.
+  void announceScene(const world::World& world) {
+    auto message = boost::make_shared<vrm_msgs::RunningScene>();
+    const bool startup = session_ == nullptr || session_->loads() == 0;
+    message->header.stamp = startup ? ros::Time(0) : toRosTime(last_load_stamp_);
+    message->load = startup ? 0 : static_cast<std::uint32_t>(session_->loads());
+    message->name = world.scene().name;
+    message->file = world.scene().source_file;
+    message->difficulty = world.scene().scenario ? world.scene().scenario->difficulty : "";
+    message->seed = startup ? seed_ : session_->seed();
+    message->content_hash = scene::sceneContentHash(message->file, message->difficulty);
+    vrm_msgs::publishShared(running_scene_publisher_, message);
   }
 
   void prepareReports() {
@@ -588,6 +606,8 @@ class ScenarioManager : public nodelet::Nodelet {
   // This node's start (wall clock, ns): tells the frames of a restarted node from the crashed one's in a bag.
   std::uint64_t run_ = static_cast<std::uint64_t>(ros::WallTime::now().toNSec());
   ros::Publisher input_frame_publisher_;
+  ros::Publisher running_scene_publisher_;
+  world::Stamp last_load_stamp_ = 0;
   ros::Time last_provisional_;
   ros::Publisher diagnostics_publisher_;
   ros::WallTimer diagnostics_timer_;

@@ -2,6 +2,7 @@
 // Loading scene files (config/scenes/*.yaml; the schema is documented in scene_description.h) and turning their
 // object descriptions into meshes.
 
+#include <cstdint>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -24,6 +25,14 @@ class SceneError : public std::runtime_error {
   SourceLocation location_;
   std::string problem_;
 };
+
+// The scene a node, tool or launch file runs when it is not told one: defined here once.
+extern const char* const kDefaultSceneName;
+
+// What identifies a scene's content: FNV-1a 64 of the scene file's bytes and the difficulty level (a scene edited on
+// disk under the same name is another scene). 0 when the file cannot be read. The one scene owner announces it
+// (vrm_msgs/RunningScene); a follower compares it with what it runs.
+std::uint64_t sceneContentHash(const std::string& file, const std::string& difficulty);
 
 // Loads a scene by name or path (resolveScenePath: an existing file, else the shipped scene of that name), the one
 // entry point every package uses. Parses and validates the scene file: unknown keys, wrong types, out-of-range values,

@@ -1002,6 +1002,25 @@ SceneError::SceneError(const SourceLocation& location, const std::string& proble
       location_(location),
       problem_(problem) {}
 
+const char* const kDefaultSceneName = "membrane_peeling";
+
+std::uint64_t sceneContentHash(const std::string& file, const std::string& difficulty) {
+  std::ifstream in(file, std::ios::binary);
+  if (!in) return 0;
+  std::uint64_t hash = 14695981039346656037ull;
+  const auto mix = [&hash](unsigned char byte) {
+    hash ^= byte;
+    hash *= 1099511628211ull;
+  };
+  char buffer[4096];
+  while (in.read(buffer, sizeof(buffer)) || in.gcount() > 0) {
+    for (std::streamsize i = 0; i < in.gcount(); ++i) mix(static_cast<unsigned char>(buffer[i]));
+  }
+  mix(0);  // between the file and the level: "a" + "bc" is not "ab" + "c"
+  for (char c : difficulty) mix(static_cast<unsigned char>(c));
+  return hash;
+}
+
 SceneDescription loadScene(const std::string& name_or_path, const std::string& difficulty) {
   const std::string path = resolveScenePath(name_or_path);
   SourceLocation location;
