@@ -173,7 +173,7 @@ class StereoRendererNodelet : public nodelet::Nodelet {
     ros::NodeHandle& nh = getNodeHandle();
     ros::NodeHandle& pnh = getPrivateNodeHandle();
     const RenderOptions options = readParameters(pnh);
-    const std::string scene_parameter = pnh.param<std::string>("scene", "membrane_peeling");
+    const std::string scene_parameter = pnh.param<std::string>("scene", vrm_sim::scene::kDefaultSceneName);
     const std::string trigger_name = pnh.param<std::string>("trigger", "simulation");
 
     try {

@@ -63,7 +63,7 @@ class SceneManager : public nodelet::Nodelet {
     // false when another node owns world -> eye -> trocar_* -> instrument_* (the optical tracker, tracking mode):
     // one publisher per transform.
     publish_pose_tf_ = private_nh.param("publish_pose_tf", true);
-    const std::string scene_parameter = private_nh.param<std::string>("scene", "membrane_peeling");
+    const std::string scene_parameter = private_nh.param<std::string>("scene", scene::kDefaultSceneName);
 
     usePackageData();  // shipped scenes by name: the devel space's source package or the installed share directory
     try {

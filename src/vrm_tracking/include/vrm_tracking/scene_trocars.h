@@ -1,7 +1,7 @@
 #pragma once
 // The scene file as the single source of truth for the trocars (the fixed insertion holes of the mechanical eye) and
 // for where tissue is. The shipped marker layout and trajectory files name no trocars (trocar_from_scene): the
-// nodelets apply their ~scene, or without one the default scene (kDefaultScene), so the twin surgeon, the tracker and
+// nodelets apply their ~scene, or without one the default scene (vrm_sim::scene::kDefaultSceneName), so the twin surgeon, the tracker and
 // the VR part pivot the instruments at the same points. (A layout or script may still write its own trocars, e.g.
 // the built-in ones for the ROS-free tools; a scene given to a nodelet replaces them.) Keyframes written `on` a scene
 // object (SurfaceTarget) are put on that object's surface here, so a script grasps the membrane where the scene has it,
@@ -18,10 +18,8 @@
 
 namespace vrm_tracking {
 
-// The scene the nodelets use when no ~scene is given: the simulator's default scene (launch/simulator.launch
-// scene:=membrane_peeling, the default session of scripts/run.sh), whose trocars the shipped files leave out.
-extern const char* const kDefaultScene;
-// `spec`, or kDefaultScene when it is empty.
+// `spec`, or the simulator's default scene (vrm_sim::scene::kDefaultSceneName, whose trocars the shipped files leave
+// out) when it is empty.
 std::string sceneOrDefault(const std::string& spec);
 // Whether some instrument track leaves its trocar to the scene (InstrumentTrack::trocar_from_scene).
 bool leavesTrocarsToScene(const ScriptDefinition& script);

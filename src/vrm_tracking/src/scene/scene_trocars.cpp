@@ -55,9 +55,8 @@ Eigen::Vector3d closestPointOnTriangle(const Eigen::Vector3d& p, const Eigen::Ve
 
 }  // namespace
 
-const char* const kDefaultScene = "membrane_peeling";
 
-std::string sceneOrDefault(const std::string& spec) { return spec.empty() ? kDefaultScene : spec; }
+std::string sceneOrDefault(const std::string& spec) { return spec.empty() ? vrm_sim::scene::kDefaultSceneName : spec; }
 
 bool leavesTrocarsToScene(const ScriptDefinition& script) {
   return std::any_of(script.instruments.begin(), script.instruments.end(),

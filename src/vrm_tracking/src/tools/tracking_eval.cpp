@@ -42,7 +42,7 @@ bool parseNumber(const char* text, double* value) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::string trajectory, rig_file, layout_file, filter = "none", scene_spec = kDefaultScene;
+  std::string trajectory, rig_file, layout_file, filter = "none", scene_spec = vrm_sim::scene::kDefaultSceneName;
   double noise_px = 0.0, occlude = -1, seed = 1, frames = 0, tremor_um = 0.0, distractors = 0;
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
