@@ -77,8 +77,15 @@ rules "" | in_A nft -f -
 check "A: the standalone ruleset loads" $?
 ! reach B "$VRM_A_IP" "$port"
 check "standalone rules: B no longer reaches A's rosout XML-RPC" $?
-A env ROS_HOSTNAME=localhost ROS_MASTER_URI="$LOCAL_URI" rostopic list 2>/dev/null | grep -q "^/rosout$"
-check "standalone rules: A's graph still works over loopback (rostopic list)" $?
+# Up to 10 s: rostopic is a Python start-up on a machine that may be busy (it once listed nothing in CI), and rules
+# that broke loopback would fail every try.
+listed=1
+for _ in 1 2 3 4 5; do
+  A env ROS_HOSTNAME=localhost ROS_MASTER_URI="$LOCAL_URI" timeout 5 rostopic list 2>/tmp/vrm_firewall_rostopic.err |
+    grep -q "^/rosout$" && { listed=0; break; }
+  sleep 1
+done
+check "standalone rules: A's graph still works over loopback (rostopic list)" $listed "$(tail -n 2 /tmp/vrm_firewall_rostopic.err)"
 reach A 127.0.0.1 "$port"
 check "standalone rules: A's own processes reach the node API over loopback" $?
 in_A nft delete table inet vrm_station
