@@ -6,6 +6,12 @@
 // node broadcasts exactly those, stamped with the frame's stamp — a source the mediator left out, an input the World
 // rejected or a refused type switch look the same on tf as in the simulation, and a replay produces the same tf.
 // Only KIND_FRAME frames carry poses (KIND_STATE / KIND_LOAD frames apply pedals and commands only).
+// The scene follows its one owner (issue 32): scenario_manager announces the running scene on the latched
+// running_scene (vrm_msgs/RunningScene) at start-up and after every LOAD it accepted; this node loads the announced
+// file and level unless it already runs that content, and then rebuilds its objects, re-broadcasts the trocar frames,
+// re-publishes the surfaces and scene markers (DELETEALL first, so RViz drops the old scene) and, in a live session,
+// a new latched session_info for the new scene (a bag begun after the LOAD replays it). ~scene is the start-up scene
+// only; a scene that cannot be loaded here keeps the old one and says why.
 #include <geometry_msgs/TransformStamped.h>
 #include <nodelet/nodelet.h>
 #include <ros/ros.h>
@@ -14,14 +20,18 @@
 #include <visualization_msgs/MarkerArray.h>
 
 #include <boost/make_shared.hpp>
+#include <chrono>
 #include <cmath>
 #include <map>
 #include <memory>
+#include <mutex>
 #include <pluginlib/class_list_macros.hpp>
+#include <set>
 
 #include "vrm_msgs/InputFrame.h"
 #include "vrm_msgs/MicroscopeSettings.h"
 #include "vrm_msgs/PedalState.h"
+#include "vrm_msgs/RunningScene.h"
 #include "vrm_msgs/ScenarioCommand.h"
 #include "vrm_msgs/SessionInfo.h"
 #include "vrm_msgs/TissueMesh.h"
@@ -66,8 +76,10 @@ class SceneManager : public nodelet::Nodelet {
     const std::string scene_parameter = private_nh.param<std::string>("scene", scene::kDefaultSceneName);
 
     usePackageData();  // shipped scenes by name: the devel space's source package or the installed share directory
+    const std::string difficulty = private_nh.param<std::string>("difficulty", "");
     try {
-      scene_ = scene::loadScene(scene_parameter);
+      scene_ = scene::loadScene(scene_parameter, difficulty);
+      content_hash_ = scene::sceneContentHash(scene_.source_file, loadedDifficulty(scene_));
       buildObjects();
     } catch (const std::exception& error) {
       // A broken scene ends the session with the reason, instead of a simulator running on half a scene.
@@ -79,7 +91,7 @@ class SceneManager : public nodelet::Nodelet {
                  scene_.source_file.c_str(), scene_.objects.size(), membranes_.size(), scene_.instruments.size());
 
     if (publish_pose_tf_) publishStaticFrames();
-    publishSurfaces(nh);
+    publishSurfaces();
 
     if (publish_pose_tf_) frame_subscriber_ = nh.subscribe("input_frame", 10, &SceneManager::onInputFrame, this);
     pedal_subscriber_ = nh.subscribe("pedals", 10, &SceneManager::onPedals, this);
@@ -87,33 +99,79 @@ class SceneManager : public nodelet::Nodelet {
     command_subscriber_ = nh.subscribe("scenario_command", 10, &SceneManager::onScenarioCommand, this);
 
     session_publisher_ = nh.advertise<vrm_msgs::SessionInfo>("session_info", 1, /*latch=*/true);
-    if (private_nh.param("publish_session_info", true)) {
-      auto info = boost::make_shared<vrm_msgs::SessionInfo>();
-      info->header.stamp = ros::Time::now();  // the session's start: a source stamp, recorded with the inputs
-      info->scene = scene_.name;
-      info->scene_file = scene_.source_file;
-      info->difficulty = private_nh.param<std::string>("difficulty", "");
-      info->collision_detector = private_nh.param<std::string>("collision_detector", "");
-      info->auto_start = private_nh.param("auto_start", true);
-      info->duration = private_nh.param("duration", 0.0);
-      info->simulated_hardware = private_nh.param("simulated_hardware", true);
-      info->seed = static_cast<std::uint32_t>(private_nh.param("seed", 1));
-      info->software_version = VRM_SIM_VERSION;
-      vrm_msgs::publishShared(session_publisher_, info);
+    publish_session_info_ = private_nh.param("publish_session_info", true);
+    if (publish_session_info_) {
+      session_template_.difficulty = difficulty;
+      session_template_.collision_detector = private_nh.param<std::string>("collision_detector", "");
+      session_template_.auto_start = private_nh.param("auto_start", true);
+      session_template_.duration = private_nh.param("duration", 0.0);
+      session_template_.simulated_hardware = private_nh.param("simulated_hardware", true);
+      session_template_.seed = static_cast<std::uint32_t>(private_nh.param("seed", 1));
+      session_template_.software_version = VRM_SIM_VERSION;
+      publishSessionInfo();
     } else {
       // Replay: the recorded session_info arrives from the bag.
       session_subscriber_ = nh.subscribe("session_info", 1, &SceneManager::onSessionInfo, this);
     }
+    scene_subscriber_ = nh.subscribe("running_scene", 1, &SceneManager::onRunningScene, this);
   }
 
  private:
+  static std::string loadedDifficulty(const scene::SceneDescription& scene) {
+    return scene.scenario ? scene.scenario->difficulty : "";
+  }
+
+  void publishSessionInfo() {
+    auto info = boost::make_shared<vrm_msgs::SessionInfo>(session_template_);
+    info->header.stamp = ros::Time::now();  // the session's start: a source stamp, recorded with the inputs
+    info->scene = scene_.name;
+    info->scene_file = scene_.source_file;
+    vrm_msgs::publishShared(session_publisher_, info);
+  }
+
+  // The announced scene, unless this node already runs that content (the start-up announcement, normally).
+  void onRunningScene(const vrm_msgs::RunningScene::ConstPtr& announced) {
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      if (announced->file == scene_.source_file && announced->content_hash == content_hash_) return;
+    }
+    const auto start = std::chrono::steady_clock::now();
+    scene::SceneDescription next;
+    try {
+      next = scene::loadScene(announced->file, announced->difficulty);
+    } catch (const std::exception& error) {
+      NODELET_ERROR("scene_manager: cannot follow the running scene '%s' (%s): %s; still on '%s'",
+                    announced->name.c_str(), announced->file.c_str(), error.what(), scene_.name.c_str());
+      return;
+    }
+    std::lock_guard<std::mutex> lock(mutex_);
+    const std::string previous = scene_.name;
+    scene_ = std::move(next);
+    content_hash_ = announced->content_hash;
+    membranes_.clear();  // they live in graph_
+    meshes_.clear();
+    graph_ = std::make_unique<mge::Graph>();
+    buildObjects();
+    if (publish_pose_tf_) publishStaticFrames();
+    publishSurfaces();
+    if (publish_session_info_) {
+      session_template_.difficulty = announced->difficulty;
+      session_template_.seed = announced->seed;
+      publishSessionInfo();
+    }
+    NODELET_INFO("scene_manager: scene '%s' -> '%s' (LOAD %u, %s): %zu objects, %zu deformable, in %.0f ms",
+                 previous.c_str(), scene_.name.c_str(), announced->load, scene_.source_file.c_str(),
+                 scene_.objects.size(), membranes_.size(),
+                 std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
+  }
+
   void buildObjects() {
     for (const auto& object : scene_.objects) {
       TriangleMesh mesh = scene::buildMesh(object, scene::MeshFrame::kParent);
       // Model only what the scene needs: mass-spring state exists for deformable objects only.
       if (object.isDeformable() && scene_.simulates(scene::Simulation::kTissue)) {
         membranes_[object.name] =
-            mge::buildMembrane(graph_, mesh, scene::membraneOptionsFor(object.tissue, mesh.vertexCount()));
+            mge::buildMembrane(*graph_, mesh, scene::membraneOptionsFor(object.tissue, mesh.vertexCount()));
       }
       meshes_.emplace(object.name, std::move(mesh));
     }
@@ -139,9 +197,14 @@ class SceneManager : public nodelet::Nodelet {
 
   // One latched TissueMesh topic per object (meshes/<name>), plus one latched marker array for RViz. Deformable
   // objects are published from their MGE arrays, which is where the tissue simulation will update them.
-  void publishSurfaces(ros::NodeHandle& nh) {
+  void publishSurfaces() {
+    ros::NodeHandle& nh = getNodeHandle();
     auto markers = boost::make_shared<visualization_msgs::MarkerArray>();
+    visualization_msgs::Marker clear;  // RViz drops the previous scene's markers
+    clear.action = visualization_msgs::Marker::DELETEALL;
+    markers->markers.push_back(clear);
     int marker_id = 0;
+    std::map<std::string, ros::Publisher> kept;
     for (const auto& object : scene_.objects) {
       auto mesh = boost::make_shared<vrm_msgs::TissueMesh>();
       mesh->header.frame_id = parentFrame(object);
@@ -161,10 +224,18 @@ class SceneManager : public nodelet::Nodelet {
       marker.id = marker_id++;
       markers->markers.push_back(marker);
 
-      ros::Publisher publisher = nh.advertise<vrm_msgs::TissueMesh>("meshes/" + object.name, 1, /*latch=*/true);
+      auto existing = mesh_publishers_.find(object.name);
+      ros::Publisher publisher = existing != mesh_publishers_.end()
+                                     ? existing->second
+                                     : nh.advertise<vrm_msgs::TissueMesh>("meshes/" + object.name, 1, /*latch=*/true);
       vrm_msgs::publishShared(publisher, mesh);
-      mesh_publishers_.push_back(publisher);
+      kept[object.name] = publisher;
     }
+    // An object of the previous scene is gone: its latched mesh topic goes with it.
+    for (auto& [name, publisher] : mesh_publishers_) {
+      if (kept.count(name) == 0) publisher.shutdown();
+    }
+    mesh_publishers_ = std::move(kept);
     for (const auto& instrument : scene_.instruments) {
       const std::string slot = scene::toString(instrument.slot);
       vrm_msgs::TissueMesh mesh;
@@ -177,7 +248,9 @@ class SceneManager : public nodelet::Nodelet {
       marker.id = marker_id++;
       markers->markers.push_back(marker);
     }
-    marker_publisher_ = nh.advertise<visualization_msgs::MarkerArray>("scene_markers", 1, /*latch=*/true);
+    if (!marker_publisher_) {
+      marker_publisher_ = nh.advertise<visualization_msgs::MarkerArray>("scene_markers", 1, /*latch=*/true);
+    }
     vrm_msgs::publishShared(marker_publisher_, markers);
   }
 
@@ -186,6 +259,7 @@ class SceneManager : public nodelet::Nodelet {
   // which are frame-locked to instrument_<slot> (drawn where it was last applied, not hidden).
   void onInputFrame(const vrm_msgs::InputFrame::ConstPtr& frame) {
     if (frame->kind != vrm_msgs::InputFrame::KIND_FRAME) return;
+    std::lock_guard<std::mutex> lock(mutex_);  // the trocars are the running scene's
     std::vector<geometry_msgs::TransformStamped> transforms;
     if (frame->eye_valid) {
       if (isFinite(frame->eye_pose)) {
@@ -239,6 +313,7 @@ class SceneManager : public nodelet::Nodelet {
                  command->argument.c_str(), command->seed);
   }
   void onSessionInfo(const vrm_msgs::SessionInfo::ConstPtr& info) {
+    std::lock_guard<std::mutex> lock(mutex_);
     if (info->scene != scene_.name) {
       NODELET_WARN("replaying a session of scene '%s' with scene '%s' loaded", info->scene.c_str(),
                    scene_.name.c_str());
@@ -248,18 +323,22 @@ class SceneManager : public nodelet::Nodelet {
   std::string world_frame_;
   std::string eye_frame_;
   bool publish_pose_tf_ = true;
+  std::mutex mutex_;  // the running scene and what is built from it; callbacks come on several threads
   scene::SceneDescription scene_;
-  mge::Graph graph_;
+  std::uint64_t content_hash_ = 0;
+  std::unique_ptr<mge::Graph> graph_ = std::make_unique<mge::Graph>();
   std::map<std::string, TriangleMesh> meshes_;
   std::map<std::string, std::unique_ptr<mge::Membrane>> membranes_;
 
   tf2_ros::TransformBroadcaster broadcaster_;
   tf2_ros::StaticTransformBroadcaster static_broadcaster_;
-  std::vector<ros::Publisher> mesh_publishers_;
+  std::map<std::string, ros::Publisher> mesh_publishers_;  // by object name
   ros::Publisher marker_publisher_;
   ros::Publisher session_publisher_;
+  bool publish_session_info_ = true;
+  vrm_msgs::SessionInfo session_template_;  // what a new scene's session_info repeats
   ros::Subscriber frame_subscriber_, pedal_subscriber_, microscope_subscriber_, command_subscriber_,
-      session_subscriber_;
+      session_subscriber_, scene_subscriber_;
   vrm_msgs::PedalState::ConstPtr last_pedals_;
   vrm_msgs::MicroscopeSettings::ConstPtr last_microscope_;
 };
