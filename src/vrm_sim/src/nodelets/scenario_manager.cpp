@@ -46,6 +46,7 @@
 #include <visualization_msgs/MarkerArray.h>
 
 #include <boost/make_shared.hpp>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -467,6 +468,13 @@ class ScenarioManager : public nodelet::Nodelet {
     std::ostringstream out;
     out << std::setprecision(15);
     const auto quoted = world::jsonString;
+    // A metric without samples (a hold never started, a session stopped at once) is NaN or infinite: JSON has no
+    // such numbers, and one "nan" made the whole result unreadable for the console and the records store.
+    const auto number = [](double value) {
+      std::ostringstream text;
+      text << std::setprecision(15) << value;
+      return std::isfinite(value) ? text.str() : std::string("null");
+    };
     const world::World& current = session_->world();
     const scenario::Status* status = current.scenarioStatus();
     out << "{\"scene\": " << quoted(current.scene().name) << ", \"scene_file\": " << quoted(current.scene().source_file)
@@ -479,13 +487,14 @@ class ScenarioManager : public nodelet::Nodelet {
       out << ", \"timed_out\": " << (status->timed_out ? "true" : "false")
           << ", \"message\": " << quoted(status->message)
           << ", \"start_stamp\": " << (status->start_time ? *status->start_time : 0.0)
-          << ", \"end_stamp\": " << (status->end_time ? *status->end_time : 0.0) << ", \"elapsed\": " << status->elapsed
-          << ", \"total\": " << status->score.total << ", \"items\": [";
+          << ", \"end_stamp\": " << (status->end_time ? *status->end_time : 0.0)
+          << ", \"elapsed\": " << number(status->elapsed) << ", \"total\": " << number(status->score.total)
+          << ", \"items\": [";
       for (std::size_t i = 0; i < status->score.items.size(); ++i) {
         const scenario::ScoreItem& item = status->score.items[i];
-        out << (i ? ", " : "") << "{\"name\": " << quoted(item.name) << ", \"value\": " << item.value
-            << ", \"unit\": " << quoted(item.unit) << ", \"weight\": " << item.weight << ", \"points\": " << item.points
-            << "}";
+        out << (i ? ", " : "") << "{\"name\": " << quoted(item.name) << ", \"value\": " << number(item.value)
+            << ", \"unit\": " << quoted(item.unit) << ", \"weight\": " << number(item.weight)
+            << ", \"points\": " << number(item.points) << "}";
       }
       out << "]";
     } else {

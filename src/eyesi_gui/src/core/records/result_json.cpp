@@ -35,6 +35,8 @@ class FieldReader {
   double number(const std::string& key) const {
     const json* value = find(key);
     if (value == nullptr) return 0.0;
+    // The simulator writes a metric that had no samples (NaN, infinite) as null: no number, not an error.
+    if (value->is_null()) return std::numeric_limits<double>::quiet_NaN();
     if (!value->is_number()) fail(key, "is not a number");
     return value->get<double>();
   }
