@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <filesystem>
+#include <fstream>
 #include <string>
 #include <vector>
 
@@ -147,6 +148,32 @@ TEST(SceneLoader, PoseIsAppliedInParentFrame) {
   const TriangleMesh placed = buildMesh(sphere, MeshFrame::kParent);
   EXPECT_TRUE(boundingBox(local).center().isZero(1e-12));
   EXPECT_TRUE(boundingBox(placed).center().isApprox(Eigen::Vector3d(0.003, 0.002, -0.008), 1e-9));
+}
+
+// What the one scene owner announces (running_scene.content_hash) and a follower compares: the file's bytes and the
+// level, nothing else.
+TEST(SceneContentHash, FileBytesAndLevel) {
+  const std::string shipped = shippedScenePath("navigation");
+  const std::uint64_t hash = sceneContentHash(shipped, "");
+  EXPECT_NE(hash, 0u);
+  EXPECT_EQ(sceneContentHash(shipped, ""), hash);
+  EXPECT_NE(sceneContentHash(shipped, "hard"), hash);
+  EXPECT_EQ(sceneContentHash("/nonexistent/scene.yaml", ""), 0u);
+  EXPECT_EQ(std::string(kDefaultSceneName), "membrane_peeling");
+  EXPECT_NO_THROW(loadScene(kDefaultSceneName));
+
+  // A copy is the same content; one byte more is another scene under the same name.
+  const std::filesystem::path copy = std::filesystem::temp_directory_path() / "vrm_content_hash_navigation.yaml";
+  std::filesystem::copy_file(shipped, copy, std::filesystem::copy_options::overwrite_existing);
+  EXPECT_EQ(sceneContentHash(copy.string(), ""), hash);
+  {
+    std::ofstream append(copy, std::ios::app);
+    append << "\n";
+  }
+  EXPECT_NE(sceneContentHash(copy.string(), ""), hash);
+  // The level is separated from the bytes: moving a character between them changes the hash.
+  EXPECT_NE(sceneContentHash(copy.string(), "a"), sceneContentHash(shipped, "\na"));
+  std::filesystem::remove(copy);
 }
 
 TEST(SceneLoader, MeshFileRelativeToSceneFile) {
