@@ -3,11 +3,14 @@
 // by object role (thesis §7.4.2: who casts shadows, what is bump mapped, what streams) and the thesis' typical
 // scene for benchmarks (§7: 15,000 triangles, 5,000 of them deformable).
 
+#include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
 #include "vrm_render/fundus.h"
 #include "vrm_render/render_types.h"
+#include "vrm_render/stereo_renderer.h"
 #include "vrm_sim/scene/scene_description.h"
 #include "vrm_sim/triangle_mesh.h"
 
@@ -39,6 +42,35 @@ struct SceneObject {
   ObjectStyle style;
   Eigen::Isometry3f pose = Eigen::Isometry3f::Identity();
 };
+
+// What the renderer shows of a scene before any input arrives (issue 32: the renderer follows the running scene):
+// each object's rest mesh in the frame the object names, styled by role, and the scene's fundus. Built from the scene
+// description alone (CPU only, no GL), so a node can prepare the next scene while the current one keeps rendering.
+struct SceneContent {
+  struct Object {
+    SceneObject drawn;         // rest mesh (scene::buildMesh in the parent frame), style by role; pose identity
+    bool in_eye_frame = true;  // the mesh moves with the eye (else it is fixed in the world frame)
+    // The simulation streams this object's deformed (tissue) or injured (bleeding retina) copy on tissue/<name>.
+    bool streamed = false;
+  };
+  std::string name;
+  std::vector<Object> objects;  // in the order of the scene's objects
+  std::shared_ptr<const FundusMap> fundus;
+};
+
+// Rest meshes get this version: below every published TissueMesh version (they start at 1), so the simulation's
+// first streamed copy always replaces them.
+constexpr std::uint64_t kRestMeshVersion = 0;
+
+// The content of `scene`; `fundus_seed` as for fundusParams. Throws vrm_sim::scene::SceneError when a mesh cannot be
+// built (an imported mesh file that vanished since the scene was loaded).
+SceneContent sceneContent(const vrm_sim::scene::SceneDescription& scene, long long fundus_seed = -1);
+
+// Replaces everything `renderer` draws by `content`: every other object (the previous scene's objects, instruments
+// and ghosts included) is removed, the content's objects are styled and uploaded, and its fundus is set. Afterwards
+// the renderer holds what a new renderer given only this content holds; the caller adds the scene's instruments.
+// Throws RenderError when a mesh is rejected (the renderer then holds part of the content).
+void showScene(StereoRenderer* renderer, const SceneContent& content);
 
 // Pose of an instrument inserted through a trocar at `trocar_in_eye`, its tip `depth` metres beyond the trocar,
 // aimed at `target_in_eye`.

@@ -60,6 +60,12 @@ class StereoRenderer {
   void setVisible(const std::string& id, bool visible);
   bool hasObject(const std::string& id) const;
   std::uint64_t version(const std::string& id) const;  // 0 when unknown
+  // Forgets object `id` (mesh, GPU buffers, style, pose); unknown ids are ignored. A scene switch (issue 32) removes
+  // the previous scene's objects, so none of them is drawn, culled or cached into the static layer afterwards.
+  void removeObject(const std::string& id);
+  // Every object the renderer knows (styled, posed or with a mesh), sorted.
+  std::vector<std::string> objectIds() const;
+  std::size_t triangleCount(const std::string& id) const;  // of its mesh (0 when it has none)
 
   void setLightPipe(const LightPipe& light) { light_ = light; }
   // The fundus that objects styled `fundus` show (issue 16). Without one, the first frame that needs it bakes the

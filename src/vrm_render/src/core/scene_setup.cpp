@@ -102,6 +102,36 @@ LightPipe lightPipeAt(const Eigen::Isometry3f& world_from_instrument, const Ligh
   return light;
 }
 
+SceneContent sceneContent(const scene::SceneDescription& scene, long long fundus_seed) {
+  SceneContent content;
+  content.name = scene.name;
+  const bool streams_tissue = scene.simulates(scene::Simulation::kTissue);
+  const bool retina_bleeds =
+      scene.simulates(scene::Simulation::kBleeding) && scene.simulates(scene::Simulation::kCollision);
+  for (const auto& object : scene.objects) {
+    SceneContent::Object entry;
+    entry.drawn.id = object.name;
+    entry.drawn.mesh = toMeshData(scene::buildMesh(object, scene::MeshFrame::kParent));
+    entry.drawn.style = objectStyle(object);
+    entry.in_eye_frame = object.frame == scene::ObjectFrame::kEye;
+    entry.streamed =
+        (object.isDeformable() && streams_tissue) || (object.role == scene::ObjectRole::kRetina && retina_bleeds);
+    content.objects.push_back(std::move(entry));
+  }
+  content.fundus = std::make_shared<const FundusMap>(fundusParams(scene, fundus_seed));
+  return content;
+}
+
+void showScene(StereoRenderer* renderer, const SceneContent& content) {
+  for (const std::string& id : renderer->objectIds()) renderer->removeObject(id);
+  for (const SceneContent::Object& object : content.objects) {
+    renderer->setStyle(object.drawn.id, object.drawn.style);
+    renderer->setPose(object.drawn.id, object.drawn.pose);
+    renderer->updateMesh(object.drawn.id, object.drawn.mesh.view(), kRestMeshVersion);
+  }
+  if (content.fundus) renderer->setFundus(content.fundus);
+}
+
 Eigen::Isometry3f instrumentPoseThroughTrocar(const Eigen::Vector3f& trocar_in_eye,
                                               const Eigen::Vector3f& target_in_eye, float depth) {
   const Eigen::Vector3f z = (target_in_eye - trocar_in_eye).normalized();

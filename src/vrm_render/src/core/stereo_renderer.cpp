@@ -489,6 +489,14 @@ struct StereoRenderer::Impl {
     glBindFramebuffer(GL_FRAMEBUFFER, 0);
   }
 
+  void invalidateStaticLayers() {
+    for (EyeTargets& eye : eyes) {
+      eye.static_valid = false;
+      eye.static_key = StaticLayerKey();
+      eye.previous_key = StaticLayerKey();
+    }
+  }
+
   void drawFullscreen() {
     glBindVertexArray(fullscreen_vao);
     glDrawArrays(GL_TRIANGLES, 0, 3);
@@ -621,6 +629,12 @@ void StereoRenderer::setStyle(const std::string& id, const ObjectStyle& style) {
 
 void StereoRenderer::setFundus(std::shared_ptr<const FundusMap> fundus) {
   if (!fundus) throw RenderError("setFundus: null fundus map");
+  if (fundus != impl_->fundus) {
+    // The texture and the static layer key know the uploaded map by address only: a map allocated where a freed one
+    // lived would otherwise pass for it.
+    impl_->uploaded_fundus = nullptr;
+    impl_->invalidateStaticLayers();
+  }
   impl_->fundus = std::move(fundus);
 }
 
@@ -650,6 +664,33 @@ bool StereoRenderer::hasObject(const std::string& id) const {
 std::uint64_t StereoRenderer::version(const std::string& id) const {
   auto it = impl_->objects.find(id);
   return it == impl_->objects.end() ? 0 : it->second.version;
+}
+
+void StereoRenderer::removeObject(const std::string& id) {
+  auto it = impl_->objects.find(id);
+  if (it == impl_->objects.end()) return;
+  Object& object = it->second;
+  if (object.vao) {
+    impl_->context->makeCurrent();
+    glDeleteVertexArrays(1, &object.vao);
+    glDeleteBuffers(5, object.buffers);
+  }
+  impl_->objects.erase(it);
+  // The static layer key knows its objects by address and version: a new object at the freed address with the same
+  // version and pose would pass for the removed one.
+  impl_->invalidateStaticLayers();
+}
+
+std::vector<std::string> StereoRenderer::objectIds() const {
+  std::vector<std::string> ids;
+  ids.reserve(impl_->objects.size());
+  for (const auto& entry : impl_->objects) ids.push_back(entry.first);  // std::map: sorted
+  return ids;
+}
+
+std::size_t StereoRenderer::triangleCount(const std::string& id) const {
+  auto it = impl_->objects.find(id);
+  return it == impl_->objects.end() || !it->second.has_mesh ? 0 : it->second.triangle_count;
 }
 
 std::size_t StereoRenderer::triangleCount() const {

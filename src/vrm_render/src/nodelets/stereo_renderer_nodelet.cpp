@@ -37,16 +37,25 @@
 // a viewer, the console, a recorder, a graph test), or snapshots still due (~snapshot_dir with ~snapshot_count or
 // ~snapshot_times). render_timing, /diagnostics and tf are by-products of frames, not reasons to render: a latency
 // monitor alone does not make the renderer work, and ~save_snapshot returns the last frame rendered for a watcher.
-// The publishers' connect / disconnect callbacks (and the last snapshot saved) switch the subscriptions; the latched
-// scene meshes arrive again on every subscription.
+// The publishers' connect / disconnect callbacks (and the last snapshot saved) switch the subscriptions.
 //
-// Subscribes (node handle namespace): meshes/<object> (vrm_msgs/TissueMesh, latched, one per scene object; for
-//   deformable objects, and the retina of a scene that simulates bleeding, also tissue/<object> from the simulation),
-//   input_frame (vrm_msgs/InputFrame), simulation_state (frame done), microscope (not part of a frame: the newest
-//   settings up to the frame's stamp), and with ~ghost_instruments the instructor's recorded input frames replayed
-//   on ~ghost_topic (default ghost/input_frame): their valid instruments[] drawn translucent, their stamps never
-//   stamp a frame. A bag recorded before input frames has only instrument_state: the station plays it onto
-//   ~legacy_ghost_topic (default ghost/instrument_state), drawn the same way (a warning says the bag is old).
+// The scene (issue 32: one scene owner): the renderer starts on ~scene and follows scenario_manager's latched
+// running_scene (vrm_msgs/RunningScene; subscribed whether watched or not). An announcement whose (file, difficulty,
+// content_hash) differs from the scene shown is loaded and built (rest meshes by vrm_sim's scene::buildMesh, the
+// one the scene manager and the World use, styles, fundus) on the thread that received it, then shown by the render
+// thread between two frames: the previous scene's objects, instruments, ghosts and tissue subscriptions are removed,
+// and input frames and tissue meshes stamped before the announcement are dropped (the previous World's). One INFO
+// line per switch gives its time; a scene that cannot be loaded is an ERROR and the old scene stays. The static
+// objects come from the scene itself, not from the scene manager's meshes/<object>: those carry the same meshes, and
+// a latched copy of the previous scene's could arrive after the switch.
+//
+// Subscribes (node handle namespace): running_scene; tissue/<object> (vrm_msgs/TissueMesh) of the scene's deformable
+//   objects, and of the retina of a scene that simulates bleeding, from the simulation; input_frame
+//   (vrm_msgs/InputFrame), simulation_state (frame done), microscope (not part of a frame: the newest settings up to
+//   the frame's stamp), and with ~ghost_instruments the instructor's recorded input frames replayed on ~ghost_topic
+//   (default ghost/input_frame): their valid instruments[] drawn translucent, their stamps never stamp a frame. A bag
+//   recorded before input frames has only instrument_state: the station plays it onto ~legacy_ghost_topic (default
+//   ghost/instrument_state), drawn the same way (a warning says the bag is old).
 // Publishes: stereo/left/image_raw + camera_info, stereo/right/image_raw + camera_info (image_transport; frame ids
 //   <camera_frame>_left_optical / _right_optical); render_timing (vrm_msgs/StageTiming: render_<pass>, render,
 //   image_published, and simulation_input = the input stamp of the simulation frame shown, as start = end);
@@ -74,6 +83,7 @@
 #include <vrm_msgs/InputFrame.h>
 #include <vrm_msgs/InstrumentState.h>
 #include <vrm_msgs/MicroscopeSettings.h>
+#include <vrm_msgs/RunningScene.h>
 #include <vrm_msgs/SimulationState.h>
 #include <vrm_msgs/StageTiming.h>
 #include <vrm_msgs/TissueMesh.h>
@@ -166,7 +176,9 @@ class StereoRendererNodelet : public nodelet::Nodelet {
       stop_ = true;
     }
     wake_.notify_all();
+    loader_wake_.notify_all();
     if (thread_.joinable()) thread_.join();
+    if (loader_.joinable()) loader_.join();
   }
 
   void onInit() override {
@@ -176,31 +188,28 @@ class StereoRendererNodelet : public nodelet::Nodelet {
     const std::string scene_parameter = pnh.param<std::string>("scene", vrm_sim::scene::kDefaultSceneName);
     const std::string trigger_name = pnh.param<std::string>("trigger", "simulation");
 
+    fundus_seed_ = pnh.param("fundus_seed", -1);
+    std::unique_ptr<PreparedScene> startup;
     try {
       trigger_ = parseTrigger(trigger_name);
       vrm_sim::usePackageData();  // a scene name means vrm_sim's shipped scene (devel or install space)
-      scene_ = vrm_sim::scene::loadScene(scene_parameter);
+      // The start-up scene, until scenario_manager announces the one it runs (usually this one: then nothing changes).
+      startup = prepareScene(vrm_sim::scene::loadScene(scene_parameter));
       const std::set<pid_t> threads_before = processThreads();
       renderer_ = std::make_unique<StereoRenderer>(options);
-      // The retina's fundus (disc, vessels, macula), baked once; the seed from the scene (or ~fundus_seed).
-      renderer_->setFundus(std::make_shared<const FundusMap>(fundusParams(scene_, pnh.param("fundus_seed", -1))));
       // The rasteriser threads llvmpipe started for this context run at the render thread's priority.
       for (pid_t thread : processThreads()) {
         if (threads_before.count(thread) == 0 && threadName(thread).rfind("llvmpipe", 0) == 0) {
           render_threads_.push_back(thread);
         }
       }
+      // The same path as a switch at run time, so the start-up scene and a followed one are drawn alike.
+      showPreparedScene(*startup);
     } catch (const std::exception& error) {
       NODELET_FATAL("stereo_renderer cannot start: %s", error.what());
       throw;
     }
-    for (const auto& object : scene_.objects) renderer_->setStyle(object.name, objectStyle(object));
-    for (const auto& instrument : scene_.instruments) {
-      const std::string slot_name = vrm_sim::scene::toString(instrument.slot);
-      slots_[slot_name] = makeSlot(instrument, instrumentObjectId(instrument), false);
-      // The instructor's instrument in the same slot, replayed (e.g. from a recorded session), translucent.
-      if (ghost_instruments_) ghost_slots_[slot_name] = makeSlot(instrument, "ghost_" + slot_name, true);
-    }
+    shown_ = std::move(startup);
 
     snapshots_pending_ = snapshot_count_ > 0 && !snapshot_dir_.empty();
     {
@@ -224,17 +233,42 @@ class StereoRendererNodelet : public nodelet::Nodelet {
     diagnostic_timer_ = nh.createWallTimer(ros::WallDuration(1.0), &StereoRendererNodelet::publishDiagnostics, this);
     last_diagnostics_ = ros::WallTime::now();
     thread_ = std::thread(&StereoRendererNodelet::renderLoop, this);
+    loader_ = std::thread(&StereoRendererNodelet::loadLoop, this);
+    // Not lazy: the scene must be current whenever somebody starts watching. Latched: the scene running now arrives.
+    running_scene_subscriber_ = nh.subscribe("running_scene", 1, &StereoRendererNodelet::onRunningScene, this);
     // Rendering yields to the input side (tracking, simulation): a slower frame still shows the newest input, while
     // a delayed input delays every stage after it (thesis §2.5.3: never more busy threads than cores).
     for (pid_t thread : render_threads_) setpriority(PRIO_PROCESS, static_cast<id_t>(thread), render_nice_);
     NODELET_INFO(
         "stereo_renderer: scene '%s', %dx%d %s, passes shadow=%d dof=%d, frames %s; render thread and %zu "
         "llvmpipe threads at nice %d",
-        scene_.name.c_str(), options.width, options.height, options.stereo ? "stereo" : "mono", options.shadow_pass,
-        options.dof_pass, describeTrigger().c_str(), render_threads_.size(), render_nice_);
+        shown_->scene.name.c_str(), options.width, options.height, options.stereo ? "stereo" : "mono",
+        options.shadow_pass, options.dof_pass, describeTrigger().c_str(), render_threads_.size(), render_nice_);
   }
 
  private:
+  // What identifies the content of a scene (vrm_msgs/RunningScene): the file, its difficulty level and a hash of both.
+  struct SceneKey {
+    std::string file;
+    std::string difficulty;
+    std::uint64_t content_hash = 0;
+    bool operator==(const SceneKey& other) const {
+      return file == other.file && difficulty == other.difficulty && content_hash == other.content_hash;
+    }
+  };
+
+  // A scene ready to be shown: loaded and its meshes and fundus built on the thread that received the announcement,
+  // so the render thread only uploads (and keeps rendering the old scene meanwhile).
+  struct PreparedScene {
+    vrm_sim::scene::SceneDescription scene;
+    SceneContent content;
+    SceneKey key;
+    std::uint32_t load = 0;  // of the announcement (0: the start-up scene)
+    ros::Time since;         // the announcement's stamp: inputs stamped earlier were computed in the previous scene
+    std::chrono::steady_clock::time_point announced;  // when the announcement arrived
+    double prepare_ms = 0.0;                          // loading the file and building the content
+  };
+
   struct Slot {
     vrm_sim::scene::InstrumentDescription description;  // as configured in the scene
     std::string object_id;
@@ -315,6 +349,8 @@ class StereoRendererNodelet : public nodelet::Nodelet {
     } else {
       for (ros::Subscriber& subscriber : input_subscribers_) subscriber.shutdown();
       input_subscribers_.clear();
+      for (auto& entry : tissue_subscribers_) entry.second.shutdown();
+      tissue_subscribers_.clear();
     }
     subscribed_ = wanted;
     NODELET_DEBUG("stereo_renderer: inputs %s", wanted ? "subscribed (output wanted)" : "dropped (nobody watches)");
@@ -322,21 +358,7 @@ class StereoRendererNodelet : public nodelet::Nodelet {
 
   void subscribeInputs() {
     ros::NodeHandle& nh = getNodeHandle();
-    for (const auto& object : scene_.objects) {
-      input_subscribers_.push_back(nh.subscribe<vrm_msgs::TissueMesh>(
-          "meshes/" + object.name, 2,
-          boost::bind(&StereoRendererNodelet::onMesh, this, object.name, boost::placeholders::_1)));
-      // Deformable objects: the scene manager's latched rest shape first, then the simulation's deformed versions;
-      // the retina of a bleeding scene: the simulation's copy carries the injury field (bleeding colour, thesis §6).
-      const bool bleeds = object.role == vrm_sim::scene::ObjectRole::kRetina &&
-                          scene_.simulates(vrm_sim::scene::Simulation::kBleeding) &&
-                          scene_.simulates(vrm_sim::scene::Simulation::kCollision);
-      if ((object.isDeformable() && scene_.simulates(vrm_sim::scene::Simulation::kTissue)) || bleeds) {
-        input_subscribers_.push_back(nh.subscribe<vrm_msgs::TissueMesh>(
-            "tissue/" + object.name, 2,
-            boost::bind(&StereoRendererNodelet::onMesh, this, object.name, boost::placeholders::_1)));
-      }
-    }
+    subscribeTissue();
     // Short queues: the newest input wins (a slow frame must not make them grow).
     input_subscribers_.push_back(nh.subscribe("input_frame", 5, &StereoRendererNodelet::onInputFrame, this));
     input_subscribers_.push_back(nh.subscribe("simulation_state", 5, &StereoRendererNodelet::onSimulationState, this));
@@ -346,6 +368,189 @@ class StereoRendererNodelet : public nodelet::Nodelet {
           nh.subscribe(legacy_ghost_topic_, 10, &StereoRendererNodelet::onLegacyGhostState, this));
     }
     input_subscribers_.push_back(nh.subscribe("microscope", 5, &StereoRendererNodelet::onMicroscope, this));
+  }
+
+  // (connect_mutex_) tissue/<object> of the shown scene's streamed objects (deformable ones: the simulation's deformed
+  // versions; the retina of a bleeding scene: its injury field, the bleeding colour of thesis §6). A subscription the
+  // new scene still needs is kept: subscribing again would deliver the old scene's latched copy once more.
+  void subscribeTissue() {
+    for (auto it = tissue_subscribers_.begin(); it != tissue_subscribers_.end();) {
+      if (streamed_objects_.count(it->first) > 0) {
+        ++it;
+        continue;
+      }
+      it->second.shutdown();
+      it = tissue_subscribers_.erase(it);
+    }
+    ros::NodeHandle& nh = getNodeHandle();
+    for (const std::string& name : streamed_objects_) {
+      if (tissue_subscribers_.count(name) > 0) continue;
+      tissue_subscribers_[name] = nh.subscribe<vrm_msgs::TissueMesh>(
+          "tissue/" + name, 2, boost::bind(&StereoRendererNodelet::onMesh, this, name, boost::placeholders::_1));
+    }
+  }
+
+  // --- the running scene (issue 32: scenario_manager owns it, the renderer follows) ---
+
+  // Loads nothing: builds what the renderer shows of an already loaded scene (CPU only).
+  std::unique_ptr<PreparedScene> prepareScene(vrm_sim::scene::SceneDescription scene) const {
+    auto prepared = std::make_unique<PreparedScene>();
+    prepared->content = sceneContent(scene, fundus_seed_);
+    // As scenario_manager derives what it announces, so the start-up scene and its announcement compare equal.
+    prepared->key.file = scene.source_file;
+    prepared->key.difficulty = scene.scenario ? scene.scenario->difficulty : "";
+    prepared->key.content_hash = vrm_sim::scene::sceneContentHash(prepared->key.file, prepared->key.difficulty);
+    prepared->scene = std::move(scene);
+    return prepared;
+  }
+
+  // (manager thread) Loading a scene and baking its fundus take a good part of a second: the loader thread does it,
+  // so the manager's threads keep serving the simulation meanwhile.
+  void onRunningScene(const vrm_msgs::RunningScene::ConstPtr& message) {
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      announced_ = message;  // a newer announcement replaces one not taken yet
+      announced_at_ = std::chrono::steady_clock::now();
+    }
+    loader_wake_.notify_one();
+  }
+
+  void loadLoop() {
+    pthread_setname_np(pthread_self(), "vrm_render_load");
+    if (render_nice_ > 0) setpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid)), render_nice_);
+    std::unique_lock<std::mutex> lock(mutex_);
+    while (true) {
+      loader_wake_.wait(lock, [this] { return stop_ || announced_; });
+      if (stop_) break;
+      const vrm_msgs::RunningScene::ConstPtr message = std::move(announced_);
+      announced_.reset();
+      const auto announced = announced_at_;
+      lock.unlock();
+      prepareAnnounced(*message, announced);
+      lock.lock();
+    }
+  }
+
+  // (loader thread) An announcement of another scene than the one shown (or about to be shown) is loaded and built
+  // here, then handed to the render thread. A scene that cannot be loaded changes nothing.
+  void prepareAnnounced(const vrm_msgs::RunningScene& message, std::chrono::steady_clock::time_point announced) {
+    SceneKey key;
+    key.file = message.file;
+    key.difficulty = message.difficulty;
+    key.content_hash = message.content_hash;
+    std::string shown_name;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      if (key == (next_scene_ ? next_scene_->key : shown_key_)) return;
+      if (key == shown_key_) {  // back to the shown scene before the switch to another one happened
+        next_scene_.reset();
+        return;
+      }
+      shown_name = shown_name_;
+    }
+    std::unique_ptr<PreparedScene> prepared;
+    try {
+      prepared = prepareScene(vrm_sim::scene::loadScene(message.file, message.difficulty));
+    } catch (const std::exception& error) {
+      NODELET_ERROR(
+          "stereo_renderer: cannot follow the running scene '%s' (load %u, file '%s', difficulty '%s'): %s; "
+          "still rendering '%s'",
+          message.name.c_str(), message.load, message.file.c_str(), message.difficulty.c_str(), error.what(),
+          shown_name.c_str());
+      return;
+    }
+    if (prepared->key.content_hash != message.content_hash) {
+      NODELET_WARN("stereo_renderer: scene file '%s' changed since the simulation loaded it: rendering it as it is now",
+                   message.file.c_str());
+    }
+    prepared->key = key;  // what was announced: the same announcement again changes nothing
+    prepared->load = message.load;
+    prepared->since = message.header.stamp;
+    prepared->announced = announced;
+    prepared->prepare_ms =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - announced).count();
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      next_scene_ = std::move(prepared);
+    }
+    wake_.notify_all();
+  }
+
+  // (render thread) Shows the prepared scene; on failure goes back to the scene shown before.
+  void switchScene(std::unique_ptr<PreparedScene> next) {
+    std::lock_guard<std::mutex> render_lock(render_mutex_);
+    const auto start = std::chrono::steady_clock::now();
+    try {
+      showPreparedScene(*next);
+    } catch (const std::exception& error) {
+      NODELET_ERROR("stereo_renderer: scene '%s' cannot be shown (%s); still rendering '%s'", next->scene.name.c_str(),
+                    error.what(), shown_->scene.name.c_str());
+      try {
+        showPreparedScene(*shown_);
+      } catch (const std::exception& again) {
+        NODELET_ERROR("stereo_renderer: scene '%s' cannot be shown again either: %s", shown_->scene.name.c_str(),
+                      again.what());
+      }
+      return;
+    }
+    const auto end = std::chrono::steady_clock::now();
+    const double upload_ms = std::chrono::duration<double, std::milli>(end - start).count();
+    const double total_ms = std::chrono::duration<double, std::milli>(end - next->announced).count();
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      ++scene_switches_;
+      last_switch_ms_ = total_ms;
+    }
+    NODELET_INFO(
+        "stereo_renderer: scene '%s' (load %u) replaces '%s', switched in %.1f ms after its announcement (loading "
+        "and building %.1f ms, showing %.1f ms)",
+        next->scene.name.c_str(), next->load, shown_->scene.name.c_str(), total_ms, next->prepare_ms, upload_ms);
+    shown_ = std::move(next);
+  }
+
+  // Replaces everything drawn and every per-scene input by the scene's: objects and their frames, instruments and
+  // ghosts, the tissue subscriptions; input frames and meshes stamped before the announcement are dropped (they
+  // belong to the previous scene's World). The caller holds render_mutex_ (or the render thread does not run yet).
+  void showPreparedScene(const PreparedScene& prepared) {
+    showScene(renderer_.get(), prepared.content);
+    std::map<std::string, Slot> slots, ghost_slots;
+    for (const auto& instrument : prepared.scene.instruments) {
+      const std::string slot_name = vrm_sim::scene::toString(instrument.slot);
+      slots[slot_name] = makeSlot(instrument, instrumentObjectId(instrument), false);
+      // The instructor's instrument in the same slot, replayed (e.g. from a recorded session), translucent.
+      if (ghost_instruments_) ghost_slots[slot_name] = makeSlot(instrument, "ghost_" + slot_name, true);
+    }
+    mesh_frames_.clear();
+    std::set<std::string> objects, streamed;
+    for (const SceneContent::Object& object : prepared.content.objects) {
+      mesh_frames_[object.drawn.id] = object.in_eye_frame ? eye_frame_ : world_frame_;
+      objects.insert(object.drawn.id);
+      if (object.streamed) streamed.insert(object.drawn.id);
+    }
+    frame_in_use_.reset();
+    ghosts_in_use_.clear();
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      slots_.swap(slots);
+      ghost_slots_.swap(ghost_slots);
+      scene_objects_.swap(objects);
+      pending_meshes_.clear();
+      newest_mesh_version_.clear();
+      scene_since_ = prepared.since;
+      frames_.erase(std::remove_if(frames_.begin(), frames_.end(),
+                                   [&](const vrm_msgs::InputFrame::ConstPtr& frame) {
+                                     return frame->header.stamp < prepared.since;
+                                   }),
+                    frames_.end());
+      ghost_applied_.clear();
+      shown_key_ = prepared.key;
+      shown_name_ = prepared.scene.name;
+      shown_load_ = prepared.load;
+      dirty_ = true;
+    }
+    std::lock_guard<std::mutex> lock(connect_mutex_);
+    streamed_objects_.swap(streamed);
+    if (subscribed_) subscribeTissue();
   }
 
   Slot makeSlot(const vrm_sim::scene::InstrumentDescription& instrument, const std::string& id, bool ghost) {
@@ -401,6 +606,9 @@ class StereoRendererNodelet : public nodelet::Nodelet {
 
   void onMesh(const std::string& name, const vrm_msgs::TissueMesh::ConstPtr& mesh) {
     std::lock_guard<std::mutex> lock(mutex_);
+    // Not the shown scene's: an object it does not have, or a copy the previous scene's World computed (a queued one
+    // of a subscription just dropped, a late one).
+    if (scene_objects_.count(name) == 0 || (!mesh->header.stamp.isZero() && mesh->header.stamp < scene_since_)) return;
     // A late latched rest shape must not replace a newer deformed version of the same object.
     auto newest = newest_mesh_version_.find(name);
     if (newest != newest_mesh_version_.end() && mesh->version < newest->second) return;
@@ -413,6 +621,7 @@ class StereoRendererNodelet : public nodelet::Nodelet {
   void onInputFrame(const vrm_msgs::InputFrame::ConstPtr& frame) {
     std::lock_guard<std::mutex> lock(mutex_);
     const ros::Time& stamp = frame->header.stamp;
+    if (stamp < scene_since_) return;  // the previous scene's World applied it: neither drawn nor a trigger
     if (stamp > newest_frame_stamp_) newest_frame_stamp_ = stamp;
     if (frame->kind == vrm_msgs::InputFrame::KIND_FRAME) {
       remember(&frames_, frame);
@@ -515,9 +724,16 @@ class StereoRendererNodelet : public nodelet::Nodelet {
     std::unique_lock<std::mutex> lock(mutex_);
     while (!stop_) {
       const bool triggered = wake_.wait_for(lock, idle_refresh, [this] {
-        return stop_ || (trigger_ == Trigger::kTimer ? timer_due_ : !pending_stamp_.isZero());
+        return stop_ || next_scene_ || (trigger_ == Trigger::kTimer ? timer_due_ : !pending_stamp_.isZero());
       });
       if (stop_) break;
+      if (next_scene_) {  // before the frame: a frame after an announcement shows the announced scene
+        std::unique_ptr<PreparedScene> next = std::move(next_scene_);
+        lock.unlock();
+        switchScene(std::move(next));
+        lock.lock();
+        continue;
+      }
       if (!triggered && (trigger_ == Trigger::kTimer || !dirty_ || newest_stamp_ <= last_stamp_)) continue;
       if (triggered && max_rate_ > 0.0 && trigger_ != Trigger::kTimer && !last_frame_wall_.isZero()) {
         // Rate-limited: wait out the minimum frame interval, then take whatever trigger is newest by then.
@@ -793,7 +1009,10 @@ class StereoRendererNodelet : public nodelet::Nodelet {
     const ros::WallTime now = ros::WallTime::now();
     const double period = std::max(1e-3, (now - last_diagnostics_).toSec());
     last_diagnostics_ = now;
-    std::uint64_t frames = 0, dropped = 0, offered = 0, dropped_total = 0;
+    std::uint64_t frames = 0, dropped = 0, offered = 0, dropped_total = 0, scene_switches = 0;
+    std::string scene_name;
+    std::uint32_t scene_load = 0;
+    double last_switch_ms = 0.0;
     {
       std::lock_guard<std::mutex> lock(render_mutex_);
       frames = frames_since_diagnostics_;
@@ -806,6 +1025,10 @@ class StereoRendererNodelet : public nodelet::Nodelet {
       dropped_reported_ = dropped_;
       offered_reported_ = offered_;
       dropped_total = dropped_;
+      scene_name = shown_name_;
+      scene_load = shown_load_;
+      scene_switches = scene_switches_;
+      last_switch_ms = last_switch_ms_;
     }
     d::DiagnosticStatus status;
     status.name = getName() + ": frames";
@@ -824,6 +1047,11 @@ class StereoRendererNodelet : public nodelet::Nodelet {
     value("frames offered", std::to_string(offered));
     value("dropped total", std::to_string(dropped_total));
     value("trigger", describeTrigger());
+    value("scene", scene_name);
+    value("scene load", std::to_string(scene_load));
+    value("scene switches", std::to_string(scene_switches));
+    std::snprintf(text, sizeof(text), "%.1f", last_switch_ms);
+    value("last scene switch ms", text);
     const bool watched = watched_;
     value("watched", watched ? "yes" : "no");
     status.level = d::DiagnosticStatus::OK;
@@ -843,8 +1071,8 @@ class StereoRendererNodelet : public nodelet::Nodelet {
     vrm_msgs::publishShared(diagnostics_pub_, array);
   }
 
-  vrm_sim::scene::SceneDescription scene_;
   std::unique_ptr<StereoRenderer> renderer_;
+  long long fundus_seed_ = -1;  // ~fundus_seed (< 0: from the scene's name)
   bool ghost_instruments_ = false;
   Trigger trigger_ = Trigger::kSimulation;
   double rate_ = 30.0;
@@ -872,6 +1100,17 @@ class StereoRendererNodelet : public nodelet::Nodelet {
   std::map<std::string, std::uint64_t> newest_mesh_version_;
   std::map<std::string, Slot> slots_;        // live instruments by slot ("left", "right")
   std::map<std::string, Slot> ghost_slots_;  // replayed ones (with ~ghost_instruments)
+  std::set<std::string> scene_objects_;      // of the shown scene: meshes of other objects are dropped
+  ros::Time scene_since_;  // the shown scene's announcement stamp: older inputs belong to the previous scene
+  vrm_msgs::RunningScene::ConstPtr announced_;          // for the loader thread
+  std::chrono::steady_clock::time_point announced_at_;  // when it arrived
+  std::condition_variable loader_wake_;
+  std::unique_ptr<PreparedScene> next_scene_;  // announced and built, for the render thread to show
+  SceneKey shown_key_;
+  std::string shown_name_;
+  std::uint32_t shown_load_ = 0;
+  std::uint64_t scene_switches_ = 0;
+  double last_switch_ms_ = 0.0;
   std::deque<vrm_msgs::InputFrame::ConstPtr> frames_;  // the newest simulation frames (kind FRAME)
   ros::Time newest_frame_stamp_;                       // of any input frame
   ros::Time awaited_frame_;  // a simulation frame done whose input frame has not arrived yet (zero: none)
@@ -890,7 +1129,8 @@ class StereoRendererNodelet : public nodelet::Nodelet {
   std::uint64_t offered_ = 0, dropped_ = 0, offered_reported_ = 0, dropped_reported_ = 0;
   std::atomic<bool> watched_{false};
 
-  std::mutex render_mutex_;  // renderer and last frame (render thread, snapshot service)
+  std::mutex render_mutex_;               // renderer and last frame (render thread, snapshot service)
+  std::unique_ptr<PreparedScene> shown_;  // the scene drawn (kept to go back to when a switch fails)
   std::map<std::string, std::string> mesh_frames_;
   vrm_msgs::InputFrame::ConstPtr frame_in_use_;
   std::map<std::string, vrm_msgs::AppliedInstrument> ghosts_in_use_;
@@ -903,8 +1143,11 @@ class StereoRendererNodelet : public nodelet::Nodelet {
   std::uint64_t frames_since_diagnostics_ = 0;
   ros::WallTime last_diagnostics_;
 
-  std::mutex connect_mutex_;                        // the subscriptions below and the publishers' callbacks
-  std::vector<ros::Subscriber> input_subscribers_;  // meshes, tissue, frames, simulation, microscope, ghosts
+  std::mutex connect_mutex_;                                   // the subscriptions below and the publishers' callbacks
+  std::vector<ros::Subscriber> input_subscribers_;             // frames, simulation, microscope, ghosts
+  std::map<std::string, ros::Subscriber> tissue_subscribers_;  // by object
+  std::set<std::string> streamed_objects_;                     // of the shown scene: tissue/<object> wanted
+  ros::Subscriber running_scene_subscriber_;
   bool subscribed_ = false;
   std::atomic<bool> snapshots_pending_{false};
   tf2_ros::TransformBroadcaster broadcaster_;
@@ -914,6 +1157,7 @@ class StereoRendererNodelet : public nodelet::Nodelet {
   ros::Timer timer_;
   ros::WallTimer diagnostic_timer_;
   std::thread thread_;
+  std::thread loader_;  // loads and builds announced scenes
 };
 
 }  // namespace vrm_render
