@@ -1,13 +1,14 @@
 #pragma once
 // The scene file as the single source of truth for the trocars (the fixed insertion holes of the mechanical eye) and
 // for where tissue is. The shipped marker layout and trajectory files name no trocars (trocar_from_scene): the
-// nodelets apply their ~scene, or without one the default scene (vrm_sim::scene::kDefaultSceneName), so the twin surgeon, the tracker and
-// the VR part pivot the instruments at the same points. (A layout or script may still write its own trocars, e.g.
-// the built-in ones for the ROS-free tools; a scene given to a nodelet replaces them.) Keyframes written `on` a scene
-// object (SurfaceTarget) are put on that object's surface here, so a script grasps the membrane where the scene has it,
-// not where its author once measured it. ROS-free; links vrm_sim's scene library (vrm_scene).
+// nodelets apply their ~scene, or without one the default scene (vrm_sim::scene::kDefaultSceneName), so the twin
+// surgeon, the tracker and the VR part pivot the instruments at the same points. (A layout or script may still write
+// its own trocars, e.g. the built-in ones for the ROS-free tools; a scene given to a nodelet replaces them.) Keyframes
+// written `on` a scene object (SurfaceTarget) are put on that object's surface here, so a script grasps the membrane
+// where the scene has it, not where its author once measured it. ROS-free; links vrm_sim's scene library (vrm_scene).
 
 #include <Eigen/Core>
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -73,6 +74,26 @@ SurgeonScript applyScene(const vrm_sim::scene::SceneDescription& scene, const Su
 // exception the input is untouched.
 void applySceneTrocars(const vrm_sim::scene::SceneDescription& scene, ScriptDefinition* script);
 void applySceneTrocars(const vrm_sim::scene::SceneDescription& scene, MarkerLayout* layout);
+// Everything the scene decides for a marker layout: the trocars (applySceneTrocars) and the eye's rotation centre
+// (the layout's rotation_center and the scene's eye.centre are the same point: the world position the eye turns
+// about, which the scripted surgeon also takes from the scene). EyeDescription has no "unset" centre: the loader puts
+// a scene that writes none at the world origin, where the simulation and the surgeon put the eye too, so a loaded
+// scene always decides it. Returns the layout's own centre before the change, for the caller's log. On an exception
+// (a slot without a trocar) the layout is untouched.
+Eigen::Vector3d applyScene(const vrm_sim::scene::SceneDescription& scene, MarkerLayout* layout);
+
+// What identifies the scene a node runs, as vrm_msgs/RunningScene announces it: a node follows an announcement only
+// when (file, difficulty, content_hash) differ from what it runs; the name is for the log.
+struct SceneIdentity {
+  std::string name;
+  std::string file;                // absolute path of the YAML (empty for a scene built in code)
+  std::string difficulty;          // the level the scene was loaded with ("" = none)
+  std::uint64_t content_hash = 0;  // vrm_sim::scene::sceneContentHash(file, difficulty)
+};
+// The identity of a loaded scene: its file, the level it was loaded with and the hash of the file as it is now.
+SceneIdentity sceneIdentity(const vrm_sim::scene::SceneDescription& scene);
+bool sameScene(const SceneIdentity& a, const SceneIdentity& b);
+
 // The script rebuilt with the scene's trocars (validated again: the tips must still be reachable; ScriptError
 // otherwise). The playback mode is kept; the tremor is not (set it afterwards).
 SurgeonScript applySceneTrocars(const vrm_sim::scene::SceneDescription& scene, const SurgeonScript& script);
@@ -80,7 +101,8 @@ SurgeonScript applySceneTrocars(const vrm_sim::scene::SceneDescription& scene, c
 // The scene's scripted session `name` (scenario.scripts, e.g. "expert") as a surgeon script, so the device twins
 // play in the graph what scenario_offline plays offline: one track per scripted instrument through the scene's
 // trocar, a keyframe at every waypoint (and every 5 ms along a path with tremor, so the played tip includes it),
-// played once; the eye rests. Throws std::invalid_argument naming the scene's scripts for an unknown name.
+// played once; the eye rests about the scene's eye centre. Throws std::invalid_argument naming the scene's scripts for
+// an unknown name.
 SurgeonScript scenarioScript(const vrm_sim::scene::SceneDescription& scene, const std::string& name);
 
 }  // namespace vrm_tracking

@@ -28,6 +28,13 @@ struct DiagnosticReport {
   std::vector<std::pair<std::string, std::string>> values;  // key, value; in display order
 };
 
+// What the tracker takes from the running scene, as key/values for its status (so a test or an operator sees which
+// geometry the poses rest on after a scene switch): "scene" (its name), "eye_centre" (world, m, "x y z") and per
+// instrument slot "trocar_SLOT" (eye frame, m, "x y z") and "trocar_SLOT_azimuth_deg" (atan2(y, x) about the optical
+// axis in [0, 360), as scene files write trocars). Metres with 6 decimals (1 um), degrees with 2.
+std::vector<std::pair<std::string, std::string>> sceneGeometryValues(const std::string& scene_name,
+                                                                     const MarkerLayout& layout);
+
 class TrackerDiagnostics {
  public:
   // `stale_timeout` (s): how long cameras may take to deliver their first markers after `start_wall`.

@@ -1,6 +1,7 @@
 #include "vrm_tracking/tracker_diagnostics.h"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 
 namespace vrm_tracking {
@@ -13,7 +14,30 @@ std::string formatNumber(double v) {
   return std::string(buf);
 }
 
+std::string formatPoint(const Eigen::Vector3d& p) {
+  char buf[96];
+  std::snprintf(buf, sizeof(buf), "%.6f %.6f %.6f", p.x(), p.y(), p.z());
+  return std::string(buf);
+}
+
 }  // namespace
+
+std::vector<std::pair<std::string, std::string>> sceneGeometryValues(const std::string& scene_name,
+                                                                     const MarkerLayout& layout) {
+  constexpr double kRadToDeg = 180.0 / 3.14159265358979323846;
+  std::vector<std::pair<std::string, std::string>> values;
+  values.emplace_back("scene", scene_name);
+  values.emplace_back("eye_centre", formatPoint(layout.rotation_center));
+  for (const InstrumentMarker& marker : layout.instruments) {
+    values.emplace_back("trocar_" + marker.slot, formatPoint(marker.trocar));
+    double degrees = std::atan2(marker.trocar.y(), marker.trocar.x()) * kRadToDeg;
+    if (degrees < 0.0) degrees += 360.0;
+    char azimuth[32];
+    std::snprintf(azimuth, sizeof(azimuth), "%.2f", degrees);
+    values.emplace_back("trocar_" + marker.slot + "_azimuth_deg", azimuth);
+  }
+  return values;
+}
 
 TrackerDiagnostics::TrackerDiagnostics(std::vector<std::string> camera_names, double stale_timeout, double start_wall)
     : names_(std::move(camera_names)),

@@ -14,6 +14,9 @@
 // Fault injection (tests, issue 14): `stop_camera`/`stop_after` stop one camera for good after a frame count;
 // ~fault (std_msgs/String, camera_fault.h) stops cameras for a wall duration or resumes them while running, e.g.
 // "stop camera_1 2.0", "stop all 2.0", "resume". A stopped camera publishes nothing (images, markers_exact).
+// The scene (issue 32): none is loaded here, so there is nothing to follow on running_scene. The eye's rotation
+// centre comes with each ground-truth eye state and an instrument's trocar with its state (tip - depth * axis): the
+// scripted surgeon builds both from the running scene. The markers (colours, positions on the eye) are the layout's.
 
 #include <image_transport/image_transport.h>
 #include <nodelet/nodelet.h>

@@ -7,11 +7,19 @@
 // then, or without a START, the script runs from the first tick). With the session's clock the same script gives
 // the same inputs relative to the session's start in every run, idle or loaded (session_control stamps START on the
 // tick grid), so the session ends in the same state (issue 31).
+// The scene (issue 32: trocars, keyframes written `on` scene objects, and the script itself for `scenario:NAME`): at
+// start-up ~scene (the default scene without one), then whatever running_scene (vrm_msgs/RunningScene, latched by
+// scenario_manager, the one scene owner) announces: a scene whose (file, difficulty, content_hash) differs from the
+// one in use is loaded and the script rebuilt for it at run time — a file script gets the new scene's trocars and
+// surfaces, `scenario:NAME` becomes the new scene's script of that name. The new script plays on the same clock (a
+// LOAD's session starts with its START, which restarts it). A scene that fails to load, or for which the script
+// cannot be built, is an ERROR naming why, and the old script plays on.
 
 #include <nodelet/nodelet.h>
 #include <ros/ros.h>
 #include <vrm_msgs/EyeState.h>
 #include <vrm_msgs/InstrumentState.h>
+#include <vrm_msgs/RunningScene.h>
 #include <vrm_msgs/ScenarioCommand.h>
 #include <vrm_msgs/publish.h>
 
@@ -40,50 +48,26 @@ class ScriptedSurgeon : public nodelet::Nodelet {
     // placed on; without ~scene the default scene (whose trocars the shipped trajectory files leave out).
     std::string scene_param;
     pnh.param<std::string>("scene", scene_param, "");
-    const std::string scene_spec = sceneOrDefault(scene_param);
     vrm_sim::usePackageData();  // a scene name means vrm_sim's shipped scene
-    std::string script_spec;
-    pnh.param<std::string>("script", script_spec, "");
+    pnh.param<std::string>("script", script_spec_, "");
+    pnh.param("tremor_um", tremor_um_, tremor_um_);
+    pnh.param("seed", seed_, seed_);
     try {
-      // "scenario:NAME": the scene's own scripted session (what scenario_offline plays), once.
-      const vrm_sim::scene::SceneDescription scene = vrm_sim::scene::loadScene(scene_spec);
-      if (script_spec.rfind("scenario:", 0) == 0) {
-        if (scene_param.empty()) throw std::invalid_argument("script '" + script_spec + "' needs the ~scene parameter");
-        script_ = std::make_unique<SurgeonScript>(scenarioScript(scene, script_spec.substr(9)));
-        script_ = std::make_unique<SurgeonScript>(applyScene(scene, *script_));
+      if (isScenarioScript()) {
+        if (scene_param.empty())
+          throw std::invalid_argument("script '" + script_spec_ + "' needs the ~scene parameter");
         // A session plays it once; a benchmark that needs minutes of the same work loops it (~loop).
-        bool loop = false;
-        pnh.param("loop", loop, loop);
-        if (loop) script_->setPlayback(Playback::kLoop);
+        pnh.param("loop", loop_, loop_);
       } else {
-        ScriptDefinition definition = loadScriptFromParams(pnh);
-        SceneTargetReport targets;
-        applyScene(scene, &definition, &targets);
-        script_ = std::make_unique<SurgeonScript>(std::move(definition));
-        if (!targets.missing_objects.empty()) {
-          NODELET_WARN("scene '%s' has no object %s: %zu keyframes of script '%s' keep their written tips",
-                       scene.name.c_str(), joinNames(targets.missing_objects).c_str(), targets.kept_keyframes,
-                       script_->name().c_str());
-        }
-        NODELET_INFO("trocars from scene '%s' (%s%s); %zu keyframes placed on its objects", scene.name.c_str(),
-                     scene.source_file.c_str(), scene_param.empty() ? ", the default: no ~scene given" : "",
-                     targets.resolved_keyframes);
+        file_script_ = loadScriptFromParams(pnh);
       }
+      const vrm_sim::scene::SceneDescription scene = vrm_sim::scene::loadScene(sceneOrDefault(scene_param));
+      script_ = scriptFor(scene, scene_param.empty() ? ", the default: no ~scene given" : "");
+      scene_ = sceneIdentity(scene);
     } catch (const std::exception& e) {
       NODELET_FATAL("cannot load surgeon script or scene: %s", e.what());
       throw;
     }
-    for (const InstrumentTrack& track : script_->definition().instruments) {
-      NODELET_INFO("trocar %s at [%.6f, %.6f, %.6f] m (eye frame)", track.slot.c_str(), track.trocar.x(),
-                   track.trocar.y(), track.trocar.z());
-    }
-
-    double tremor_um = 0.0;
-    int seed = 0;
-    pnh.param("tremor_um", tremor_um, tremor_um);
-    pnh.param("seed", seed, seed);
-    // The seed is a parameter, so a recorded session replays the same tremor (§2.4.2).
-    script_->setTremor(tremor_um * 1e-6, static_cast<std::uint32_t>(seed));
 
     pnh.param<std::string>("eye_frame", eye_frame_, "eye");
     pnh.param<std::string>("world_frame", world_frame_, "world");
@@ -109,6 +93,8 @@ class ScriptedSurgeon : public nodelet::Nodelet {
     if (pnh.param("start_with_session", true)) {
       command_sub_ = nh.subscribe("scenario_command", 10, &ScriptedSurgeon::onCommand, this);
     }
+    // Latched: the scene that runs now arrives however late this nodelet starts.
+    running_scene_sub_ = nh.subscribe("running_scene", 1, &ScriptedSurgeon::onRunningScene, this);
     timer_ = nh.createTimer(ros::Duration(1.0 / rate), &ScriptedSurgeon::onTick, this);
     if (separate_eye_) eye_timer_ = nh.createTimer(ros::Duration(1.0 / eye_rate), &ScriptedSurgeon::onEyeTick, this);
 
@@ -116,7 +102,75 @@ class ScriptedSurgeon : public nodelet::Nodelet {
         "playing script '%s' (%s, %zu instruments, %.1f s, %s) at %.1f Hz (eye %.1f Hz), tremor %.1f um "
         "(seed %d)",
         script_->name().c_str(), script_->definition().source.c_str(), script_->definition().instruments.size(),
-        script_->duration(), script_->playback() == Playback::kLoop ? "loop" : "once", rate, eye_rate, tremor_um, seed);
+        script_->duration(), script_->playback() == Playback::kLoop ? "loop" : "once", rate, eye_rate, tremor_um_,
+        seed_);
+  }
+
+  // "scenario:NAME": the scene's own scripted session (what scenario_offline plays), once.
+  bool isScenarioScript() const { return script_spec_.rfind("scenario:", 0) == 0; }
+
+  // The script to play in `scene`: the scene's session of that name, or the file script with the scene's trocars and
+  // its keyframes placed on the scene's objects (always from the script as written, never from an earlier scene's
+  // result). Throws ScriptError, SceneError, std::invalid_argument; logs only once it has the script.
+  std::unique_ptr<SurgeonScript> scriptFor(const vrm_sim::scene::SceneDescription& scene, const std::string& why) {
+    std::unique_ptr<SurgeonScript> script;
+    if (isScenarioScript()) {
+      script = std::make_unique<SurgeonScript>(applyScene(scene, scenarioScript(scene, script_spec_.substr(9))));
+      if (loop_) script->setPlayback(Playback::kLoop);
+      NODELET_INFO("script '%s' of scene '%s' (%s%s)", script->name().c_str(), scene.name.c_str(),
+                   scene.source_file.c_str(), why.c_str());
+    } else {
+      ScriptDefinition definition = file_script_;
+      SceneTargetReport targets;
+      applyScene(scene, &definition, &targets);
+      script = std::make_unique<SurgeonScript>(std::move(definition));
+      if (!targets.missing_objects.empty()) {
+        NODELET_WARN("scene '%s' has no object %s: %zu keyframes of script '%s' keep their written tips",
+                     scene.name.c_str(), joinNames(targets.missing_objects).c_str(), targets.kept_keyframes,
+                     script->name().c_str());
+      }
+      NODELET_INFO("trocars from scene '%s' (%s%s); %zu keyframes placed on its objects", scene.name.c_str(),
+                   scene.source_file.c_str(), why.c_str(), targets.resolved_keyframes);
+    }
+    // The seed is a parameter, so a recorded session replays the same tremor (§2.4.2).
+    script->setTremor(tremor_um_ * 1e-6, static_cast<std::uint32_t>(seed_));
+    for (const InstrumentTrack& track : script->definition().instruments) {
+      NODELET_INFO("trocar %s at [%.6f, %.6f, %.6f] m (eye frame)", track.slot.c_str(), track.trocar.x(),
+                   track.trocar.y(), track.trocar.z());
+    }
+    return script;
+  }
+
+  // The scene owner announced the running scene: follow it unless it is the one in use. The scene is loaded and the
+  // script built outside the lock (the ticks go on meanwhile); the switch is one locked swap.
+  void onRunningScene(const vrm_msgs::RunningScene::ConstPtr& msg) {
+    const SceneIdentity announced{msg->name, msg->file, msg->difficulty, msg->content_hash};
+    std::string current;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      if (sameScene(announced, scene_)) {
+        NODELET_INFO("running scene '%s' (load %u) is the one in use", msg->name.c_str(), msg->load);
+        return;
+      }
+      current = scene_.name;
+    }
+    std::unique_ptr<SurgeonScript> script;
+    SceneIdentity identity;
+    try {
+      const vrm_sim::scene::SceneDescription scene = vrm_sim::scene::loadScene(msg->file, msg->difficulty);
+      script = scriptFor(scene, ", running_scene load " + std::to_string(msg->load));
+      identity = sceneIdentity(scene);
+    } catch (const std::exception& e) {
+      NODELET_ERROR("cannot follow running scene '%s' (load %u, %s): %s; script '%s' of scene '%s' plays on",
+                    msg->name.c_str(), msg->load, msg->file.c_str(), e.what(), script_spec_.c_str(), current.c_str());
+      return;
+    }
+    std::lock_guard<std::mutex> lock(mutex_);
+    script_ = std::move(script);
+    scene_ = std::move(identity);
+    announced_end_ = false;
+    NODELET_INFO("playing script '%s' (%.1f s, %s) for scene '%s' from now on", script_->name().c_str(),
+                 script_->duration(), script_->playback() == Playback::kLoop ? "loop" : "once", scene_.name.c_str());
   }
 
   static std::string joinNames(const std::vector<std::string>& names) {
@@ -185,7 +239,13 @@ class ScriptedSurgeon : public nodelet::Nodelet {
     NODELET_DEBUG_THROTTLE(5.0, "script time %.2f s", snap.script_time);
   }
 
-  std::unique_ptr<SurgeonScript> script_;
+  std::string script_spec_;
+  ScriptDefinition file_script_;  // as written (not a scenario script): every scene is applied to this
+  bool loop_ = false;             // scenario scripts only (a file script's ~loop is in file_script_)
+  double tremor_um_ = 0.0;
+  int seed_ = 0;
+  std::unique_ptr<SurgeonScript> script_;  // guarded by mutex_ once the timers run
+  SceneIdentity scene_;                    // guarded by mutex_
   std::string eye_frame_;
   std::string world_frame_;
   ros::Publisher eye_pub_;
@@ -195,7 +255,7 @@ class ScriptedSurgeon : public nodelet::Nodelet {
   std::mutex mutex_;
   ros::Time start_;
   bool session_clock_ = false;  // start_ is a START's stamp
-  ros::Subscriber command_sub_;
+  ros::Subscriber command_sub_, running_scene_sub_;
   bool announced_end_ = false;
 };
 

@@ -16,6 +16,14 @@
 // naming it, the others go on; with none delivering, a watchdog timer at `camera_rate` publishes the last valid
 // poses marked invalid (quality 0) — ERROR — until frames return; the frames a returning camera needs until all
 // cameras are used again are logged and reported.
+// The scene (issue 32): the eye's rotation centre and the trocars come from the scene (the layout's markers stay), at
+// start-up from ~scene (name or path; the default scene without one), then from running_scene (vrm_msgs/RunningScene,
+// latched by scenario_manager, the one scene owner): an announcement whose (file, difficulty, content_hash) differs
+// from the scene in use is loaded and applied at run time — the pose tracker starts afresh with the new geometry, the
+// static trocar transforms are sent again. A scene that fails to load is an ERROR naming why, and the old one stays.
+// The status on /diagnostics shows what is in use (sceneGeometryValues, tracker_diagnostics.h): "scene" (name),
+// "scene_file", "scene_load" (the announcement's load count; "start-up": ~scene before any announcement),
+// "eye_centre" (world, m, "x y z"), and per slot "trocar_SLOT" (eye frame, m, "x y z") and "trocar_SLOT_azimuth_deg".
 
 #include <diagnostic_msgs/DiagnosticArray.h>
 #include <nodelet/nodelet.h>
@@ -25,6 +33,7 @@
 #include <vrm_msgs/EyeState.h>
 #include <vrm_msgs/InstrumentState.h>
 #include <vrm_msgs/MarkerObservations.h>
+#include <vrm_msgs/RunningScene.h>
 #include <vrm_msgs/StageTiming.h>
 #include <vrm_msgs/publish.h>
 
@@ -89,6 +98,7 @@ class Tracker : public nodelet::Nodelet {
     pnh.param("filter_beta_ab", config.filter.beta_ab, config.filter.beta_ab);
     try {
       config.filter.type = filterTypeFromString(filter);
+      config_ = config;
       tracker_ = std::make_unique<PoseTracker>(loadRig(pnh), loadLayout(pnh), config);
     } catch (const std::exception& e) {
       NODELET_FATAL("tracker: %s", e.what());
@@ -114,6 +124,8 @@ class Tracker : public nodelet::Nodelet {
           topic, 10, [this, c](const vrm_msgs::MarkerObservations::ConstPtr& msg) { onMarkers(c, msg); }));
     }
     if (publish_tf_) static_broadcaster_.sendTransform(trocarTransforms(tracker_->layout(), eye_frame_));
+    // Latched: the scene that runs now arrives however late this nodelet starts.
+    running_scene_sub_ = nh.subscribe("running_scene", 1, &Tracker::onRunningScene, this);
     NODELET_INFO("tracker: %zu cameras (%s), %zu instruments, tf %s, filter %s, dropout after %.0f ms", rig.size(),
                  markers_topic.c_str(), tracker_->layout().instruments.size(),
                  publish_tf_ ? "on" : "off (scene_manager broadcasts)", toString(config.filter.type).c_str(),
@@ -126,22 +138,73 @@ class Tracker : public nodelet::Nodelet {
     return rig_file.empty() ? makeDefaultRig() : loadRigYaml(rig_file);
   }
 
-  // The layout's markers with the trocars of ~scene (name or path), or of the default scene without one.
+  // The layout's markers with the eye centre and trocars of ~scene (name or path), or of the default scene.
   MarkerLayout loadLayout(const ros::NodeHandle& pnh) {
     std::string layout_file, scene_param;
     pnh.param<std::string>("layout_file", layout_file, "");
     pnh.param<std::string>("scene", scene_param, "");
-    MarkerLayout layout = layout_file.empty() ? makeDefaultLayout() : loadLayoutYaml(layout_file);
+    layout_ = layout_file.empty() ? makeDefaultLayout() : loadLayoutYaml(layout_file);
     vrm_sim::usePackageData();  // a scene name means vrm_sim's shipped scene
     const vrm_sim::scene::SceneDescription scene = vrm_sim::scene::loadScene(sceneOrDefault(scene_param));
-    applySceneTrocars(scene, &layout);
-    NODELET_INFO("tracker: trocars from scene '%s' (%s%s)", scene.name.c_str(), scene.source_file.c_str(),
-                 scene_param.empty() ? ", the default: no ~scene given" : "");
+    MarkerLayout layout = layout_;
+    const Eigen::Vector3d layout_centre = applyScene(scene, &layout);
+    scene_ = sceneIdentity(scene);
+    scene_load_ = "start-up";
+    logSceneGeometry(scene, layout, layout_centre, scene_param.empty() ? ", the default: no ~scene given" : "");
+    return layout;
+  }
+
+  void logSceneGeometry(const vrm_sim::scene::SceneDescription& scene, const MarkerLayout& layout,
+                        const Eigen::Vector3d& layout_centre, const std::string& why) {
+    NODELET_INFO("tracker: eye centre and trocars from scene '%s' (%s%s)", scene.name.c_str(),
+                 scene.source_file.c_str(), why.c_str());
+    const Eigen::Vector3d& c = layout.rotation_center;
+    if ((c - layout_centre).norm() > 0.0) {
+      NODELET_INFO(
+          "tracker: eye rotation centre at [%.6f, %.6f, %.6f] m (world), the scene's, not the layout's "
+          "[%.6f, %.6f, %.6f]",
+          c.x(), c.y(), c.z(), layout_centre.x(), layout_centre.y(), layout_centre.z());
+    } else {
+      NODELET_INFO("tracker: eye rotation centre at [%.6f, %.6f, %.6f] m (world)", c.x(), c.y(), c.z());
+    }
     for (const InstrumentMarker& m : layout.instruments) {
       NODELET_INFO("tracker: trocar %s at [%.6f, %.6f, %.6f] m (eye frame)", m.slot.c_str(), m.trocar.x(), m.trocar.y(),
                    m.trocar.z());
     }
-    return layout;
+  }
+
+  // The scene owner announced the running scene: follow it unless it is the one in use. Loading (meshes included)
+  // happens outside the lock, so frames keep being reconstructed meanwhile; the switch itself is one locked swap.
+  void onRunningScene(const vrm_msgs::RunningScene::ConstPtr& msg) {
+    SceneIdentity announced{msg->name, msg->file, msg->difficulty, msg->content_hash};
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      if (sameScene(announced, scene_)) {
+        scene_load_ = std::to_string(msg->load);
+        NODELET_INFO("tracker: running scene '%s' (load %u) is the one in use", msg->name.c_str(), msg->load);
+        return;
+      }
+    }
+    vrm_sim::scene::SceneDescription scene;
+    MarkerLayout layout = layout_;  // the markers as configured; only the scene's geometry changes
+    Eigen::Vector3d layout_centre;
+    try {
+      scene = vrm_sim::scene::loadScene(msg->file, msg->difficulty);
+      layout_centre = applyScene(scene, &layout);
+    } catch (const std::exception& e) {
+      std::lock_guard<std::mutex> lock(mutex_);
+      NODELET_ERROR("tracker: cannot follow running scene '%s' (load %u, %s): %s; keeping scene '%s'",
+                    msg->name.c_str(), msg->load, msg->file.c_str(), e.what(), scene_.name.c_str());
+      return;
+    }
+    std::lock_guard<std::mutex> lock(mutex_);
+    // The held poses and filter states belong to the old geometry: the new tracker starts from the new scene's rest.
+    tracker_ = std::make_unique<PoseTracker>(tracker_->rig(), layout, config_);
+    scene_ = sceneIdentity(scene);
+    scene_load_ = std::to_string(msg->load);
+    if (publish_tf_) static_broadcaster_.sendTransform(trocarTransforms(tracker_->layout(), eye_frame_));
+    logSceneGeometry(scene, layout, layout_centre, ", running_scene load " + std::to_string(msg->load));
+    publishDiagnosticsLocked(ros::WallTime::now());  // the new geometry now, not at the next period
   }
 
   void onSensors(const vrm_msgs::InstrumentState::ConstPtr& msg) {
@@ -324,7 +387,11 @@ class Tracker : public nodelet::Nodelet {
 
   void publishDiagnosticsLocked(const ros::WallTime& now) {
     diagnostic_msgs::DiagnosticStatus status;
-    toMsg(diagnostics_->report(now.toSec(), *watchdog_), &status);
+    DiagnosticReport report = diagnostics_->report(now.toSec(), *watchdog_);
+    for (auto& value : sceneGeometryValues(scene_.name, tracker_->layout())) report.values.push_back(std::move(value));
+    report.values.emplace_back("scene_file", scene_.file);
+    report.values.emplace_back("scene_load", scene_load_);
+    toMsg(report, &status);
     status.name = getName() + ": pose reconstruction";
     status.hardware_id = "tracking_rig";
     auto array = boost::make_shared<diagnostic_msgs::DiagnosticArray>();
@@ -333,11 +400,15 @@ class Tracker : public nodelet::Nodelet {
     vrm_msgs::publishShared(diagnostics_pub_, array);
   }
 
+  TrackerConfig config_;
+  MarkerLayout layout_;  // as configured (layout_file), before any scene's geometry
   std::unique_ptr<PoseTracker> tracker_;
   std::unique_ptr<CameraWatchdog> watchdog_;
   std::unique_ptr<FrameSynchronizer> sync_;
   std::unique_ptr<TrackerDiagnostics> diagnostics_;
-  std::mutex mutex_;  // guards everything below that the callbacks touch
+  std::mutex mutex_;        // guards tracker_ and everything below that the callbacks touch
+  SceneIdentity scene_;     // the scene whose geometry tracker_ uses
+  std::string scene_load_;  // the running_scene load it came with, for the status
   std::map<std::string, vrm_msgs::InstrumentState::ConstPtr> sensors_;
   std::set<std::string> ever_seen_, announced_unseen_;  // instrument slots tracked at least once / said "not yet"
   bool holding_ = false;
@@ -347,7 +418,7 @@ class Tracker : public nodelet::Nodelet {
   bool publish_tf_ = false;
   std::string world_frame_, eye_frame_;
   std::vector<ros::Subscriber> marker_subs_;
-  ros::Subscriber sensor_sub_;
+  ros::Subscriber sensor_sub_, running_scene_sub_;
   ros::Publisher eye_pub_, instrument_pub_, timing_pub_, diagnostics_pub_;
   ros::WallTimer watchdog_timer_, diagnostic_timer_;
   tf2_ros::TransformBroadcaster broadcaster_;

@@ -55,7 +55,6 @@ Eigen::Vector3d closestPointOnTriangle(const Eigen::Vector3d& p, const Eigen::Ve
 
 }  // namespace
 
-
 std::string sceneOrDefault(const std::string& spec) { return spec.empty() ? vrm_sim::scene::kDefaultSceneName : spec; }
 
 bool leavesTrocarsToScene(const ScriptDefinition& script) {
@@ -200,6 +199,26 @@ void applySceneTrocars(const scene::SceneDescription& scene, MarkerLayout* layou
   }
 }
 
+Eigen::Vector3d applyScene(const scene::SceneDescription& scene, MarkerLayout* layout) {
+  const Eigen::Vector3d layout_centre = layout->rotation_center;
+  applySceneTrocars(scene, layout);  // throws before anything changed
+  layout->rotation_center = scene.eye.centre_in_world;
+  return layout_centre;
+}
+
+SceneIdentity sceneIdentity(const scene::SceneDescription& scene) {
+  SceneIdentity identity;
+  identity.name = scene.name;
+  identity.file = scene.source_file;
+  identity.difficulty = scene.scenario ? scene.scenario->difficulty : "";
+  identity.content_hash = identity.file.empty() ? 0 : scene::sceneContentHash(identity.file, identity.difficulty);
+  return identity;
+}
+
+bool sameScene(const SceneIdentity& a, const SceneIdentity& b) {
+  return a.file == b.file && a.difficulty == b.difficulty && a.content_hash == b.content_hash;
+}
+
 SurgeonScript applySceneTrocars(const scene::SceneDescription& scene, const SurgeonScript& script) {
   ScriptDefinition definition = script.definition();
   applySceneTrocars(scene, &definition);
@@ -213,6 +232,8 @@ SurgeonScript scenarioScript(const scene::SceneDescription& scene, const std::st
   definition.source = scene.source_file + " (scenario.scripts." + name + ")";
   definition.playback = Playback::kOnce;
   definition.eye.radius = scene.eye.radius;
+  // The scene's session plays in the scene's eye: the tracker and the VR part put its centre where the scene does.
+  definition.eye.rotation_center = scene.eye.centre_in_world;
   constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
   for (const scene::InstrumentDescription& instrument : scripted.instruments) {
     if (instrument.path.empty()) continue;

@@ -5,12 +5,15 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <fstream>
 #include <string>
 #include <variant>
 
 #include "vrm_sim/scene/scene_loader.h"
 #include "vrm_sim/world/world.h"
 #include "vrm_tracking/scene_trocars.h"
+#include "vrm_tracking/tracker_diagnostics.h"
 
 namespace vrm_tracking {
 namespace {
@@ -140,6 +143,145 @@ TEST(SceneTrocars, ShippedFilesTakeTheDefaultScenesTrocars) {
       EXPECT_EQ(track.trocar, sceneTrocarForSlot(fallback, track.slot));
     }
   }
+}
+
+// ---- The scene's eye for the tracker's layout, and following the running scene (issue 32) ----
+
+// The shipped scenes' eye with its centre 1 mm off the world origin and the trocars at azimuths 140 / 40 deg (the
+// shipped ones: 150 / 30), as test/rostest/scene_switch.yaml.
+const char* const kMovedEye = R"(scene: {name: moved_eye, kind: abstract}
+eye:
+  radius: 0.012
+  centre: [0.001, 0.0, 0.0]
+  trocars:
+    - {name: left, angle_from_optical_axis_deg: 45.0, azimuth_deg: 140.0}
+    - {name: right, angle_from_optical_axis_deg: 45.0, azimuth_deg: 40.0}
+objects:
+  - {name: ball, role: abstract_target, mesh: {generator: sphere, params: {radius: 0.001}}}
+simulations: [collision]
+)";
+
+Eigen::Vector3d onEyeSphere(double radius, double polar_deg, double azimuth_deg) {
+  const double polar = polar_deg * M_PI / 180.0, azimuth = azimuth_deg * M_PI / 180.0;
+  return radius *
+         Eigen::Vector3d(std::sin(polar) * std::cos(azimuth), std::sin(polar) * std::sin(azimuth), std::cos(polar));
+}
+
+TEST(SceneEye, TheScenesEyeCentreAndTrocarsReplaceTheLayouts) {
+  const scene::SceneDescription moved = scene::loadSceneFromString(kMovedEye, "moved_eye.yaml");
+  MarkerLayout layout = loadLayoutYaml(kSourceDir + "/config/markers_default.yaml");
+  layout.rotation_center = Eigen::Vector3d(0.0, 0.0, 0.002);  // the layout's own, to see it replaced
+  const MarkerLayout before = layout;
+  const Eigen::Vector3d layout_centre = applyScene(moved, &layout);
+  EXPECT_EQ(layout_centre, Eigen::Vector3d(0.0, 0.0, 0.002));
+  EXPECT_EQ(layout.rotation_center, Eigen::Vector3d(0.001, 0.0, 0.0));
+  expectNear(layout.findSlot("left")->trocar, onEyeSphere(0.012, 45.0, 140.0), 1e-15);
+  expectNear(layout.findSlot("right")->trocar, onEyeSphere(0.012, 45.0, 40.0), 1e-15);
+  // The markers are the layout's: the scene has none.
+  ASSERT_EQ(layout.eye_markers.size(), before.eye_markers.size());
+  for (std::size_t i = 0; i < layout.eye_markers.size(); ++i) {
+    EXPECT_EQ(layout.eye_markers[i].position, before.eye_markers[i].position);
+  }
+  EXPECT_EQ(layout.classes.size(), before.classes.size());
+  // A pose tracker accepts it (no trocar left to the scene) and holds the eye at the scene's centre.
+  PoseTracker tracker(makeDefaultRig(), layout);
+  EXPECT_EQ(tracker.update({}).eye.rotation_center, Eigen::Vector3d(0.001, 0.0, 0.0));
+}
+
+TEST(SceneEye, AScenesOmittedCentreIsTheWorldOrigin) {
+  // navigation writes no eye centre: the loader (and so the simulation) puts the eye at the origin.
+  const scene::SceneDescription navigation = vrm_sim::scene::loadScene("navigation");
+  MarkerLayout layout = makeDefaultLayout();
+  layout.rotation_center = Eigen::Vector3d(0.0, 0.003, 0.0);
+  applyScene(navigation, &layout);
+  EXPECT_EQ(layout.rotation_center, Eigen::Vector3d::Zero());
+}
+
+TEST(SceneEye, TheScenesScriptedSessionPlaysInTheScenesEye) {
+  // scene_switch.test's scene: membrane_peeling with the eye 1 mm off and the trocars at 140 / 40 deg.
+  const scene::SceneDescription moved = vrm_sim::scene::loadScene(kSourceDir + "/test/rostest/scene_switch.yaml");
+  const SurgeonScript expert = applyScene(moved, scenarioScript(moved, "expert"));
+  EXPECT_EQ(expert.definition().eye.rotation_center, Eigen::Vector3d(0.001, 0.0, 0.0));
+  EXPECT_EQ(expert.sample(1.0).rotation_center, Eigen::Vector3d(0.001, 0.0, 0.0));
+  ASSERT_EQ(expert.definition().instruments.size(), 1u);
+  expectNear(expert.definition().instruments[0].trocar, onEyeSphere(0.012, 45.0, 40.0), 1e-15);
+}
+
+TEST(SceneEye, AFailingSceneLeavesTheLayoutUntouched) {
+  const scene::SceneDescription one = scene::loadSceneFromString(R"(scene: {name: one_trocar, kind: abstract}
+eye:
+  centre: [0.001, 0.0, 0.0]
+  trocars:
+    - {name: left, angle_from_optical_axis_deg: 40.0, azimuth_deg: 170.0}
+objects:
+  - {name: ball, role: abstract_target, mesh: {generator: sphere, params: {radius: 0.001}}}
+simulations: [collision]
+)",
+                                                                 "one_trocar.yaml");
+  MarkerLayout layout = makeDefaultLayout();
+  const MarkerLayout before = layout;
+  EXPECT_THROW(applyScene(one, &layout), std::runtime_error);
+  EXPECT_EQ(layout.rotation_center, before.rotation_center);
+  for (std::size_t i = 0; i < layout.instruments.size(); ++i) {
+    EXPECT_EQ(layout.instruments[i].trocar, before.instruments[i].trocar);
+  }
+}
+
+TEST(SceneEye, DiagnosticValuesShowTheSceneGeometry) {
+  const scene::SceneDescription moved = scene::loadSceneFromString(kMovedEye, "moved_eye.yaml");
+  MarkerLayout layout = makeDefaultLayout();
+  applyScene(moved, &layout);
+  const auto values = sceneGeometryValues(moved.name, layout);
+  const auto value = [&values](const std::string& key) {
+    for (const auto& [k, v] : values) {
+      if (k == key) return v;
+    }
+    return std::string("<missing>");
+  };
+  EXPECT_EQ(value("scene"), "moved_eye");
+  EXPECT_EQ(value("eye_centre"), "0.001000 0.000000 0.000000");
+  EXPECT_EQ(value("trocar_left_azimuth_deg"), "140.00");
+  EXPECT_EQ(value("trocar_right_azimuth_deg"), "40.00");
+  // 12 mm * sin 45 deg * (cos 40, sin 40), 12 mm * cos 45 deg
+  EXPECT_EQ(value("trocar_right"), "0.006500 0.005454 0.008485");
+  EXPECT_EQ(value("trocar_left"), "-0.006500 0.005454 0.008485");
+  // Below the x axis: azimuths as scene files write them, in [0, 360).
+  layout.instruments[0].trocar = Eigen::Vector3d(0.0, -0.0085, 0.0085);
+  EXPECT_EQ(sceneGeometryValues("s", layout).at(2).second, "0.000000 -0.008500 0.008500");
+  EXPECT_EQ(sceneGeometryValues("s", layout).at(3).second, "270.00");
+}
+
+// What a follower compares with an announcement: the file, the level and the file's content, not the name.
+TEST(SceneIdentity, FileLevelAndContentDecideNotTheName) {
+  const std::string path = ::testing::TempDir() + "scene_identity_test.yaml";
+  {
+    std::ofstream out(path);
+    out << kMovedEye;
+  }
+  const scene::SceneDescription loaded = vrm_sim::scene::loadScene(path);
+  const SceneIdentity identity = sceneIdentity(loaded);
+  EXPECT_EQ(identity.name, "moved_eye");
+  EXPECT_EQ(identity.file, loaded.source_file);
+  EXPECT_EQ(identity.difficulty, "");
+  EXPECT_EQ(identity.content_hash, vrm_sim::scene::sceneContentHash(loaded.source_file, ""));
+  EXPECT_NE(identity.content_hash, 0u);
+
+  SceneIdentity announced = identity;
+  announced.name = "renamed";  // the name alone is no other scene
+  EXPECT_TRUE(sameScene(identity, announced));
+  announced = identity;
+  announced.difficulty = "hard";
+  EXPECT_FALSE(sameScene(identity, announced));
+  announced = identity;
+  announced.file = "/elsewhere/moved_eye.yaml";
+  EXPECT_FALSE(sameScene(identity, announced));
+  // Edited on disk under the same name and path: another scene.
+  {
+    std::ofstream out(path, std::ios::app);
+    out << "# edited\n";
+  }
+  EXPECT_FALSE(sameScene(identity, sceneIdentity(vrm_sim::scene::loadScene(path))));
+  std::remove(path.c_str());
 }
 
 TEST(SceneTrocars, SceneSpecIsANameOrAPath) {
