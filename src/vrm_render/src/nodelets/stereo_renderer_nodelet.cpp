@@ -44,7 +44,8 @@
 // content_hash) differs from the scene shown is loaded and built (rest meshes by vrm_sim's scene::buildMesh, the
 // one the scene manager and the World use, styles, fundus) on the thread that received it, then shown by the render
 // thread between two frames: the previous scene's objects, instruments, ghosts and tissue subscriptions are removed,
-// and input frames and tissue meshes stamped before the announcement are dropped (the previous World's). One INFO
+// and input frames and tissue meshes stamped before the announcement are dropped (the previous World's); frames
+// stamped after it wait until the scene is shown (an image shows the scene that ran at its stamp). One INFO
 // line per switch gives its time; a scene that cannot be loaded is an ERROR and the old scene stays. The static
 // objects come from the scene itself, not from the scene manager's meshes/<object>: those carry the same meshes, and
 // a latched copy of the previous scene's could arrive after the switch.
@@ -444,9 +445,12 @@ class StereoRendererNodelet : public nodelet::Nodelet {
       if (key == (next_scene_ ? next_scene_->key : shown_key_)) return;
       if (key == shown_key_) {  // back to the shown scene before the switch to another one happened
         next_scene_.reset();
+        scene_loading_ = false;
         return;
       }
       shown_name = shown_name_;
+      scene_loading_ = true;
+      loading_since_ = message.header.stamp;
     }
     std::unique_ptr<PreparedScene> prepared;
     try {
@@ -457,6 +461,8 @@ class StereoRendererNodelet : public nodelet::Nodelet {
           "still rendering '%s'",
           message.name.c_str(), message.load, message.file.c_str(), message.difficulty.c_str(), error.what(),
           shown_name.c_str());
+      std::lock_guard<std::mutex> lock(mutex_);
+      scene_loading_ = next_scene_ != nullptr;  // an earlier announcement still to be shown
       return;
     }
     if (prepared->key.content_hash != message.content_hash) {
@@ -491,6 +497,8 @@ class StereoRendererNodelet : public nodelet::Nodelet {
         NODELET_ERROR("stereo_renderer: scene '%s' cannot be shown again either: %s", shown_->scene.name.c_str(),
                       again.what());
       }
+      std::lock_guard<std::mutex> lock(mutex_);
+      scene_loading_ = false;
       return;
     }
     const auto end = std::chrono::steady_clock::now();
@@ -546,6 +554,7 @@ class StereoRendererNodelet : public nodelet::Nodelet {
       shown_key_ = prepared.key;
       shown_name_ = prepared.scene.name;
       shown_load_ = prepared.load;
+      scene_loading_ = false;
       dirty_ = true;
     }
     std::lock_guard<std::mutex> lock(connect_mutex_);
@@ -773,6 +782,9 @@ class StereoRendererNodelet : public nodelet::Nodelet {
     const bool newest = limit == ros::TIME_MAX;
     *stamp = newest ? newest_stamp_ : limit;
     if (*stamp <= last_stamp_ || (newest && !dirty_)) return false;
+    // Inputs of an announced scene wait until it is shown: an image stamped after a LOAD shows the scene that ran then
+    // (the old scene's objects with the new World's instruments would be neither).
+    if (scene_loading_ && *stamp >= loading_since_) return false;
     last_stamp_ = *stamp;
     if (*stamp >= newest_stamp_) dirty_ = false;
     for (auto it = pending_meshes_.begin(); it != pending_meshes_.end();) {
@@ -1106,6 +1118,8 @@ class StereoRendererNodelet : public nodelet::Nodelet {
   std::chrono::steady_clock::time_point announced_at_;  // when it arrived
   std::condition_variable loader_wake_;
   std::unique_ptr<PreparedScene> next_scene_;  // announced and built, for the render thread to show
+  bool scene_loading_ = false;                 // another scene was announced and is not shown yet
+  ros::Time loading_since_;                    // its announcement's stamp
   SceneKey shown_key_;
   std::string shown_name_;
   std::uint32_t shown_load_ = 0;

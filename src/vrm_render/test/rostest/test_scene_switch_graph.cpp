@@ -1,7 +1,8 @@
 // Graph test (issue 32): the renderer follows the running scene that scenario_manager announces (latched
 // vrm_msgs/RunningScene) without a restart. The test stands in for scenario_manager: it announces the renderer's own
 // start-up scene (navigation: nothing changes), then membrane_peeling (the renderer reports it on /diagnostics and in
-// its log with the switch time, subscribes the new scene's tissue topics, and its images change), then a scene file
+// its log with the switch time, subscribes the new scene's tissue topics, and its images change, from the first one
+// stamped after the LOAD), then a scene file
 // that does not exist (an ERROR; the renderer keeps membrane_peeling and keeps rendering), then navigation again (the
 // images are those of the start again: nothing of membrane_peeling is left).
 
@@ -196,7 +197,8 @@ TEST_F(SceneSwitchGraph, TheRendererFollowsTheAnnouncedSceneAndKeepsItsSceneWhen
   EXPECT_EQ(tissue_membrane.getNumSubscribers(), 0u) << "navigation has no membrane";
 
   // 2. A LOAD the simulation accepted: the renderer switches, says so, and draws the new scene.
-  running_scene.publish(announcement("membrane_peeling", 1));
+  const vrm_msgs::RunningScene::Ptr peeling_announced = announcement("membrane_peeling", 1);
+  running_scene.publish(peeling_announced);
   EXPECT_TRUE(watch.waitFor([&] { return watch.reports("scene", "membrane_peeling"); }, kTimeout))
       << "the renderer's diagnostics do not report the announced scene";
   {
@@ -222,6 +224,18 @@ TEST_F(SceneSwitchGraph, TheRendererFollowsTheAnnouncedSceneAndKeepsItsSceneWhen
   const int changed = differingPixels(*navigation, *peeling);
   std::printf("navigation -> membrane_peeling: %d of %d pixels differ\n", changed, pixels);
   EXPECT_GT(changed, pixels / 50) << "the image did not change with the scene";
+  {
+    // An image stamped after the LOAD shows the scene that ran then: none shows navigation's objects.
+    std::lock_guard<std::mutex> lock(watch.mutex_);
+    int after_load = 0;
+    for (const auto& image : watch.images) {
+      if (image->header.stamp < peeling_announced->header.stamp) continue;
+      ++after_load;
+      EXPECT_GT(differingPixels(*navigation, *image), pixels / 50)
+          << "an image stamped after the LOAD still shows navigation (stamp " << image->header.stamp << ")";
+    }
+    EXPECT_GT(after_load, 0);
+  }
 
   // 3. An announcement of a scene that cannot be loaded: an ERROR, and the renderer keeps its scene and renders.
   auto bad = announcement("membrane_peeling", 2);
