@@ -175,6 +175,9 @@ script_test console_real_window console_runs_a_session_in_a_real_window \
   "$ROOT/src/eyesi_gui/test/console_real_window.sh"
 script_test console_remote_station console_on_a_second_host \
   "$ROOT/src/eyesi_gui/test/remote/console_remote_station.sh"
+# One session graph for every live session (issue 32): two scenes switched by LOAD in the same manager process, a
+# bag per session, a refused LOAD leaves the previous scene running (~1.5 min).
+script_test station_one_graph two_sessions_one_graph /usr/bin/python3 "$ROOT/src/eyesi_gui/test/station_one_graph.py" test
 # The security defaults SECURITY.md claims, and its firewall rules in a network-namespace pair (issue 14).
 script_test security_defaults security_defaults_hold "$ROOT/src/eyesi_gui/test/security_defaults.sh"
 script_test security_firewall firewall_rules_in_netns "$ROOT/src/eyesi_gui/test/security_firewall.sh"

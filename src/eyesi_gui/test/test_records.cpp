@@ -505,6 +505,30 @@ TEST(RecordsImport, SameResultFileTwiceGivesOneRow) {
   EXPECT_EQ(raw.value("SELECT count(*) FROM score_items"), "2");
 }
 
+// The station's graph serves many sessions, so the live text names neither the session's trainee nor its bag: the
+// console passes both, and the same session imported later from the station's result file stays one row.
+TEST(RecordsImport, LiveResultTakesTheSessionsUserAndBag) {
+  TempDir dir;
+  Store store(dir.file("r.sqlite"));
+  const std::string live_text =
+      R"({"scene": "navigation", "scenario": "navigation", "difficulty": "easy", "seed": 7, "state": "finished",
+  "start_stamp": 1700000000.5, "end_stamp": 1700000010.25, "total": 50, "final_state_hash": "ab12", "frames": 500,
+  "bag": null, "user": null, "station": "sim1"})";
+  const ImportResult live = store.importResultJson(live_text, "session_result", "anna", "/records/s2.bag");
+  ASSERT_TRUE(live.inserted);
+  const std::string file = dir.file("s2.result.json");
+  writeBytes(file, R"({"scene": "navigation", "scenario": "navigation", "difficulty": "easy", "seed": 7,
+  "state": "finished", "start_stamp": 1700000000.5, "end_stamp": 1700000010.25, "total": 50,
+  "final_state_hash": "ab12", "frames": 500, "bag": "/records/s2.bag", "user": "anna", "station": "sim1"})");
+  const ImportResult from_file = store.importResultFile(file);
+  EXPECT_FALSE(from_file.inserted);
+  EXPECT_EQ(from_file.session_id, live.session_id);
+  const auto sessions = store.sessions();
+  ASSERT_EQ(sessions.size(), 1u);
+  EXPECT_EQ(sessions[0].user, "anna");
+  EXPECT_EQ(sessions[0].bag_path, "/records/s2.bag");
+}
+
 TEST(RecordsImport, ShippedReferenceResults) {
   TempDir dir;
   Store store(dir.file("r.sqlite"));

@@ -627,8 +627,12 @@ void MainWindow::onSessionResult(const QString& json) {
   }
   if (!user_ || result.value("scene").toString() != current_request_.scene) return;
   try {
+    // The station's graph outlives the session: the bag this session was recorded to is the station's to say.
+    const std::string bag = station_.mode == "session" && station_.scene == current_request_.scene
+                                ? station_.bag.toStdString()
+                                : std::string();
     const records::ImportResult stored = store_->importResultJson(
-        json.toStdString(), "live from station " + link_->stationName().toStdString(), user_->name);
+        json.toStdString(), "live from station " + link_->stationName().toStdString(), user_->name, bag);
     last_stored_session_ = stored.session_id;
     showResult(stored.session_id);
   } catch (const std::exception& error) {

@@ -102,7 +102,7 @@ void RosLink::loadSession(const SessionRequest& request) {
     service.request.bag = request.bag.toStdString();
     {
       std::lock_guard<std::mutex> lock(mutex_);
-      newest_input_ = ros::Time();  // a new graph, a new input clock
+      newest_input_ = ros::Time();  // a new session: its commands are stamped from its scene's frames
     }
     if (!call("load_session", service)) {
       emit sessionLoadAnswered(false, "the station did not answer", 0);

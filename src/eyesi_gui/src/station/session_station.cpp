@@ -1,23 +1,36 @@
 // session_station: the simulator host's side of the console (thesis §2.4, §7.3). A console asks it — only through
-// services and topics, so from any host of the ROS graph — for the scene library and to start a session: the
-// station then runs one session graph (launch/simulator.launch, headless, the console's scene / difficulty / seed /
-// user, START from the console; or launch/replay.launch for a recorded bag) as a child roslaunch under the same
-// master, reports its loading progress and state on `station_status`, and stops it once the session is over (which
-// also closes its bag). One graph per session: every session starts from a freshly loaded scene, its bag begins with
-// that scene's session_info, and a scene switch reloads everything that depends on the scene (simulation, rendering,
-// the simulated devices) the same way.
+// services and topics, so from any host of the ROS graph — for the scene library and to start a session. The station
+// runs one session graph (launch/simulator.launch, headless, under the same master as a child roslaunch) and keeps it
+// up across sessions (issue 32): the first live session launches it with its scene; every later one switches the
+// scene with a ScenarioCommand LOAD (scene, difficulty, seed) and follows scenario_manager, the one scene owner, until
+// it announces the scene on `running_scene` (a higher load count) or refuses it (the old scene then keeps running and
+// the console is told why). The new scene's first frame comes 0.05-0.5 s after the request instead of ~6 s.
+// Only the recorder is per session: each recorded session gets its own recorder graph (launch/recorder.launch) and
+// bag, started once the new scene's session_info is out, so the bag begins with it; the station reports READY (and the
+// console sends START) only once that recorder listens. The result file next to the bag is the station's: the graph's
+// scenario_manager was started for the first session only, so the station writes each session's result (from
+// session_result) with that session's bag and user.
+// A replay (mode "replay") runs launch/replay.launch instead, a graph of its own (bag time, the bag's scene); the
+// live graph is stopped for it, and the next live session launches a new one. A live graph that died is launched
+// again by the next session, as is one whose surgeon script differs from the requested one (a launch argument).
 //
 // Services (private): list_scenes (vrm_msgs/ListScenes), load_session (vrm_msgs/LoadSession), end_session
-//   (std_srvs/Trigger), play_ghost (vrm_msgs/PlayGhost: a recorded session's instruments as ghosts).
-// Publishes: station_status (vrm_msgs/StationStatus, latched, on every change and at 2 Hz while loading).
-// Subscribes (the running graph's): session_info, scenario_status, simulation_state, session_result.
-// Parameters (private): simulator_launch, replay_launch (launch file paths), records_dir (bags, results and graph
-//   logs; default ~/.ros/eyesi/sessions), launch_args (extra roslaunch arguments for every session graph, e.g.
+//   (std_srvs/Trigger: ends the session and its recording; the live graph stays up), play_ghost (vrm_msgs/PlayGhost:
+//   a recorded session's instruments as ghosts).
+// Publishes: station_status (vrm_msgs/StationStatus, latched, on every change and at 2 Hz while loading);
+//   scenario_command (the LOADs).
+// Subscribes (the running graph's): running_scene, session_info, scenario_status, simulation_state, session_result.
+// Parameters (private): simulator_launch, replay_launch, recorder_launch (launch file paths; recorder_launch defaults
+//   to recorder.launch next to simulator_launch), records_dir (bags, results and graph logs; default
+//   ~/.ros/eyesi/sessions), launch_args (extra roslaunch arguments for every session graph, e.g.
 //   "sim:=true tracking:=false"), script (scripted surgeon of a simulated session, default scenario:expert),
-//   load_timeout (s, default 90), end_tail (s of wall time recorded after the session's end, default 1.0).
+//   load_timeout (s, default 90), end_tail (s of wall time recorded after the session's end, default 1.0),
+//   scene_owner (the node whose start-up scene parameters follow each accepted LOAD, default /scenario_manager).
 #include <fcntl.h>
 #include <ros/master.h>
+#include <ros/network.h>
 #include <ros/ros.h>
+#include <ros/xmlrpc_manager.h>
 #include <rosbag/bag.h>
 #include <rosbag/view.h>
 #include <signal.h>
@@ -26,13 +39,16 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <boost/make_shared.hpp>
 #include <cerrno>
+#include <chrono>
 #include <cstring>
 #include <ctime>
 #include <fstream>
 #include <mutex>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <random>
 #include <sstream>
@@ -43,6 +59,8 @@
 #include "vrm_msgs/ListScenes.h"
 #include "vrm_msgs/LoadSession.h"
 #include "vrm_msgs/PlayGhost.h"
+#include "vrm_msgs/RunningScene.h"
+#include "vrm_msgs/ScenarioCommand.h"
 #include "vrm_msgs/ScenarioStatus.h"
 #include "vrm_msgs/SessionInfo.h"
 #include "vrm_msgs/SessionResult.h"
@@ -122,6 +140,23 @@ class ChildProcess {
   }
   ~ChildProcess() { stop(10.0); }
 
+  pid_t pid() const { return pid_; }
+
+  // SIGINT to the group now; finishStopping() escalates later, so the caller is not blocked while it shuts down.
+  void interrupt() {
+    if (poll()) return;
+    ::kill(-pid_, SIGINT);
+    interrupted_at_ = std::chrono::steady_clock::now();
+  }
+
+  // Whether it ended; `grace_seconds` after interrupt() SIGTERM, 3 s later SIGKILL.
+  bool finishStopping(double grace_seconds) {
+    if (poll()) return true;
+    const double waited = std::chrono::duration<double>(std::chrono::steady_clock::now() - interrupted_at_).count();
+    if (waited > grace_seconds) ::kill(-pid_, waited > grace_seconds + 3.0 ? SIGKILL : SIGTERM);
+    return false;
+  }
+
   // Exit status once it ended (waitpid), else nullopt.
   std::optional<int> poll() {
     if (status_) return status_;
@@ -147,6 +182,7 @@ class ChildProcess {
  private:
   pid_t pid_ = -1;
   std::optional<int> status_;
+  std::chrono::steady_clock::time_point interrupted_at_;
 };
 
 std::string lastLines(const std::string& path, std::size_t count) {
@@ -159,6 +195,50 @@ std::string lastLines(const std::string& path, std::size_t count) {
   return out;
 }
 
+// Whether `pid` is `ancestor` or one of its descendants (/proc): roslaunch starts its nodes in sessions of their own,
+// so the process group does not tell which launch a node belongs to.
+bool descendsFrom(pid_t pid, pid_t ancestor) {
+  for (int depth = 0; pid > 1 && depth < 16; ++depth) {
+    if (pid == ancestor) return true;
+    std::ifstream stat("/proc/" + std::to_string(pid) + "/stat");
+    std::string line;
+    if (!std::getline(stat, line)) return false;
+    // pid (comm) state ppid ...: comm may hold spaces and parentheses, so read after the last ')'.
+    const std::size_t close = line.rfind(')');
+    if (close == std::string::npos) return false;
+    std::istringstream rest(line.substr(close + 1));
+    std::string state;
+    rest >> state >> pid;
+  }
+  return false;
+}
+
+// The process id of a registered node (master lookupNode, then the node's getPid), or -1.
+pid_t nodePid(const std::string& node) {
+  XmlRpc::XmlRpcValue request, response, payload;
+  request[0] = ros::this_node::getName();
+  request[1] = node;
+  if (!ros::master::execute("lookupNode", request, response, payload, false) ||
+      payload.getType() != XmlRpc::XmlRpcValue::TypeString)
+    return -1;
+  std::string host;
+  std::uint32_t port = 0;
+  if (!ros::network::splitURI(static_cast<std::string>(payload), host, port)) return -1;
+  XmlRpc::XmlRpcClient client(host.c_str(), static_cast<int>(port), "/");
+  XmlRpc::XmlRpcValue pid_request, pid_response;
+  pid_request[0] = ros::this_node::getName();
+  const bool ok = client.execute("getPid", pid_request, pid_response) && !client.isFault() &&
+                  pid_response.getType() == XmlRpc::XmlRpcValue::TypeArray && pid_response.size() == 3 &&
+                  pid_response[2].getType() == XmlRpc::XmlRpcValue::TypeInt;
+  client.close();
+  return ok ? static_cast<int>(pid_response[2]) : -1;
+}
+
+std::string dirName(const std::string& path) {
+  const std::size_t slash = path.rfind('/');
+  return slash == std::string::npos ? "." : path.substr(0, slash);
+}
+
 }  // namespace
 
 class SessionStation {
@@ -167,27 +247,33 @@ class SessionStation {
     vrm_sim::usePackageData();  // the scene library (~list_scenes): vrm_sim's shipped scenes
     simulator_launch_ = private_nh_.param<std::string>("simulator_launch", "");
     replay_launch_ = private_nh_.param<std::string>("replay_launch", "");
+    recorder_launch_ =
+        private_nh_.param<std::string>("recorder_launch", dirName(simulator_launch_) + "/recorder.launch");
     records_dir_ = expandHome(private_nh_.param<std::string>("records_dir", "~/.ros/eyesi/sessions"));
     launch_args_ = private_nh_.param<std::string>("launch_args", "");
     script_ = private_nh_.param<std::string>("script", "scenario:expert");
     load_timeout_ = private_nh_.param("load_timeout", 90.0);
     end_tail_ = private_nh_.param("end_tail", 1.0);
+    scene_owner_ = private_nh_.param<std::string>("scene_owner", "/scenario_manager");
     makeDirectories(records_dir_);
     status_.station = hostName();
     status_.state = vrm_msgs::StationStatus::IDLE;
 
     status_publisher_ = private_nh_.advertise<vrm_msgs::StationStatus>("station_status", 5, true);
+    command_publisher_ = nh_.advertise<vrm_msgs::ScenarioCommand>("scenario_command", 5);
     services_.push_back(private_nh_.advertiseService("list_scenes", &SessionStation::listScenes, this));
     services_.push_back(private_nh_.advertiseService("load_session", &SessionStation::loadSession, this));
     services_.push_back(private_nh_.advertiseService("end_session", &SessionStation::endSession, this));
     services_.push_back(private_nh_.advertiseService("play_ghost", &SessionStation::playGhost, this));
-    info_subscriber_ = nh_.subscribe("session_info", 1, &SessionStation::onSessionInfo, this);
-    status_subscriber_ = nh_.subscribe("scenario_status", 5, &SessionStation::onScenarioStatus, this);
-    state_subscriber_ = nh_.subscribe("simulation_state", 1, &SessionStation::onSimulationState, this);
-    result_subscriber_ = nh_.subscribe("session_result", 1, &SessionStation::onSessionResult, this);
-    timer_ = nh_.createWallTimer(ros::WallDuration(0.5), &SessionStation::onTimer, this);
+    scene_subscriber_ = nh_.subscribe("running_scene", 5, &SessionStation::onRunningScene, this);
+    info_subscriber_ = nh_.subscribe("session_info", 5, &SessionStation::onSessionInfo, this);
+    status_subscriber_ = nh_.subscribe("scenario_status", 20, &SessionStation::onScenarioStatus, this);
+    state_subscriber_ = nh_.subscribe("simulation_state", 5, &SessionStation::onSimulationState, this);
+    result_subscriber_ = nh_.subscribe("session_result", 2, &SessionStation::onSessionResult, this);
+    // 10 Hz: a session is READY within 0.1 s of its last condition (the switch time the console sees).
+    timer_ = nh_.createWallTimer(ros::WallDuration(0.1), &SessionStation::onTimer, this);
     publishStatus("station ready: records in " + records_dir_);
-    ROS_INFO("session_station on %s: records in %s, session graphs from %s", status_.station.c_str(),
+    ROS_INFO("session_station on %s: records in %s, session graph from %s", status_.station.c_str(),
              records_dir_.c_str(), simulator_launch_.c_str());
     if (private_nh_.hasParam("initial_scene")) {
       vrm_msgs::LoadSession::Request request;
@@ -201,10 +287,31 @@ class SessionStation {
   ~SessionStation() {
     std::lock_guard<std::mutex> lock(mutex_);
     ghost_.reset();
+    recorder_.reset();  // first: the bag closes while the graph still runs
+    closing_recorders_.clear();
     graph_.reset();
   }
 
  private:
+  // The live session's progress towards READY: the scene owner's announcement of its scene, that scene's
+  // session_info, a frame of it and (recorded) its own recorder listening.
+  struct Loading {
+    bool launched = false;  // a new graph; else a LOAD into the running one
+    bool load_sent = false;
+    ros::Time load_stamp;            // the LOAD's input stamp
+    std::uint32_t loads_before = 0;  // running_scene's load count when the LOAD went out
+    bool announced = false, seen_info = false, seen_frame = false;
+    ros::WallTime requested_at, announced_at, first_frame_at;
+  };
+
+  // What a refused LOAD returns to: the session that ran before the request.
+  struct Session {
+    vrm_msgs::StationStatus status;
+    ros::Time stamp;
+    std::string stem;
+    bool seen_result = false;
+  };
+
   bool listScenes(vrm_msgs::ListScenes::Request&, vrm_msgs::ListScenes::Response& response) {
     for (const std::string& name : vrm_sim::scene::shippedScenes()) {
       try {
@@ -257,7 +364,14 @@ class SessionStation {
       response.message = "bag " + request.bag + " is not readable on station " + status_.station;
       return true;
     }
-    stopGraph();
+    const ros::WallTime requested_at = ros::WallTime::now();
+    // The previous session's bag closes as it is: it must not hold the LOAD, or its replay would end in the next
+    // scene instead of the state its result reports (the LOAD waits until that recorder no longer listens).
+    const bool was_recording = recorder_ != nullptr;
+    closeRecorder();
+    ghost_.reset();
+    previous_ = {status_, session_stamp_, session_stem_, seen_result_};
+    if (was_recording) previous_.status.recording = false;
     std::uint32_t seed = request.seed;
     if (!replay && seed == 0) seed = std::random_device{}() % 1000000 + 1;
     char stamp[32];
@@ -266,59 +380,72 @@ class SessionStation {
     const std::string user = request.user.empty() ? "guest" : request.user;
     const std::string stem =
         records_dir_ + "/" + stamp + "_" + fileSafe(user) + "_" + fileSafe(replay ? "replay" : request.scene);
-    std::vector<std::string> argv = {"roslaunch", "--skip-log-check"};
+    const std::string script = request.script.empty() ? script_ : request.script;
     vrm_msgs::StationStatus next;
     next.station = status_.station;
     next.user = user;
     next.seed = seed;
+    next.mode = replay ? "replay" : "session";
     if (replay) {
-      argv.push_back(replay_launch_);
-      argv.push_back("bag:=" + request.bag);
-      next.mode = "replay";
       next.bag = request.bag;
     } else {
-      argv.push_back(simulator_launch_);
-      for (const std::string& arg :
-           std::vector<std::string>{"headless:=true", "auto_start:=false", "ghosts:=true", "scene:=" + request.scene,
-                                    "difficulty:=" + request.difficulty, "seed:=" + std::to_string(seed),
-                                    "user:=" + user, "script:=" + (request.script.empty() ? script_ : request.script),
-                                    std::string("record:=") + (request.record ? "true" : "false")})
-        argv.push_back(arg);
-      next.mode = "session";
       next.scene = request.scene;
       next.difficulty = request.difficulty;
       next.recording = request.record;
-      if (request.record) {
-        next.bag = stem + ".bag";
-        next.result_file = stem + ".result.json";  // scenario_manager writes it next to the bag
-        argv.push_back("bag:=" + next.bag);
+      if (request.record) next.bag = stem + ".bag";
+      next.result_file = stem + ".result.json";  // written by the station from session_result
+    }
+    // The surgeon's script is a launch argument of the graph: another one needs another graph.
+    const bool reuse = !replay && graph_ && !graph_->poll() && graph_mode_ == "session" && graph_script_ == script;
+    loading_ = Loading();
+    loading_.requested_at = requested_at;
+    seen_result_ = false;
+    session_stem_ = stem;
+    if (reuse) {
+      status_ = next;
+      status_.state = vrm_msgs::StationStatus::LOADING;
+      status_.progress = 0.05f;
+      sendLoad();
+      publishStatus("switching to " + request.scene);
+    } else {
+      std::vector<std::string> argv = {"roslaunch", "--skip-log-check"};
+      if (replay) {
+        argv.push_back(replay_launch_);
+        argv.push_back("bag:=" + request.bag);
       } else {
-        next.result_file = stem + ".result.json";
-        argv.push_back("result_file:=" + next.result_file);
+        argv.push_back(simulator_launch_);
+        // No bag, result file or user: the graph outlives this session; the station writes each session's result.
+        for (const std::string& arg :
+             std::vector<std::string>{"headless:=true", "auto_start:=false", "ghosts:=true", "scene:=" + request.scene,
+                                      "difficulty:=" + request.difficulty, "seed:=" + std::to_string(seed),
+                                      "script:=" + script, "record:=false"})
+          argv.push_back(arg);
       }
+      std::istringstream extra(launch_args_);
+      for (std::string arg; extra >> arg;) argv.push_back(arg);
+      stopGraph();
+      // A replay leaves use_sim_time set on the master; a live graph must run on the wall clock.
+      if (!replay) ros::param::del("/use_sim_time");
+      graph_log_ = stem + ".log";
+      try {
+        graph_ = std::make_unique<ChildProcess>(argv, graph_log_);
+      } catch (const std::exception& error) {
+        response.message = error.what();
+        return true;
+      }
+      graph_mode_ = next.mode;
+      graph_script_ = script;
+      launched_stamp_ = ros::Time::now();
+      session_stamp_ = launched_stamp_;
+      loading_.launched = true;
+      status_ = next;
+      status_.state = vrm_msgs::StationStatus::LOADING;
+      status_.progress = 0.05f;
+      std::string command;
+      for (const std::string& arg : argv) command += " " + arg;
+      ROS_INFO("session_station: starting%s (log %s)", command.c_str(), graph_log_.c_str());
+      publishStatus(replay ? "replaying " + request.bag : "loading " + request.scene);
     }
-    std::istringstream extra(launch_args_);
-    for (std::string arg; extra >> arg;) argv.push_back(arg);
-    // A replay leaves use_sim_time set on the master; a live graph must run on the wall clock.
-    if (!replay) ros::param::del("/use_sim_time");
-    log_path_ = stem + ".log";
-    try {
-      graph_ = std::make_unique<ChildProcess>(argv, log_path_);
-    } catch (const std::exception& error) {
-      response.message = error.what();
-      return true;
-    }
-    launched_at_ = ros::WallTime::now();
-    launched_stamp_ = ros::Time::now();
-    seen_info_ = seen_idle_ = seen_frame_ = seen_result_ = false;
-    ended_at_ = ros::WallTime();
-    next.state = vrm_msgs::StationStatus::LOADING;
-    next.progress = 0.05f;
-    status_ = next;
-    std::string command;
-    for (const std::string& arg : argv) command += " " + arg;
-    ROS_INFO("session_station: starting%s (log %s)", command.c_str(), log_path_.c_str());
-    publishStatus(replay ? "replaying " + request.bag : "loading " + request.scene);
     response.accepted = true;
     response.seed = seed;
     response.bag = next.bag;
@@ -330,9 +457,20 @@ class SessionStation {
   bool endSession(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& response) {
     std::lock_guard<std::mutex> lock(mutex_);
     const bool running = graph_ != nullptr;
-    stopGraph();
+    const bool replay = graph_mode_ == "replay";
+    // A live graph stays up for the next session (which switches its scene); only the session's recording ends.
+    if (replay) {
+      stopGraph();
+    } else {
+      closeRecorder();
+      ghost_.reset();
+    }
+    loading_ = Loading();
     if (status_.state != vrm_msgs::StationStatus::ENDED) status_.state = vrm_msgs::StationStatus::IDLE;
-    publishStatus(running ? "session graph stopped" : "no session graph was running");
+    status_.recording = false;
+    publishStatus(!running ? "no session graph was running"
+                  : replay ? "replay graph stopped"
+                           : "session ended; the session graph stays up for the next one");
     response.success = true;
     response.message = status_.message;
     return true;
@@ -366,23 +504,61 @@ class SessionStation {
     return true;
   }
 
+  bool liveLoading() const { return status_.state == vrm_msgs::StationStatus::LOADING && status_.mode == "session"; }
+
+  // The scene owner's decision (scenario_manager): the requested scene runs once it is announced here.
+  void onRunningScene(const vrm_msgs::RunningScene::ConstPtr& scene) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    loads_announced_ = scene->load;
+    if (!liveLoading() || loading_.announced || scene->name != status_.scene) return;
+    if (!status_.difficulty.empty() && scene->difficulty != status_.difficulty) return;
+    // A new graph announces its start-up scene; a LOAD shows as a higher load count.
+    if (!loading_.launched && !(loading_.load_sent && scene->load > loading_.loads_before)) return;
+    loading_.announced = true;
+    loading_.announced_at = ros::WallTime::now();
+    if (!loading_.launched) {
+      session_stamp_ = scene->header.stamp;
+      // A manager that crashes is restarted with its start-up parameters: those now name the running scene, so a
+      // restarted scene owner comes back with it (session_control then restarts the scenario on it).
+      ros::param::set(scene_owner_ + "/scene", scene->file);
+      ros::param::set(scene_owner_ + "/difficulty", scene->difficulty);
+      ros::param::set(scene_owner_ + "/seed", static_cast<int>(scene->seed));
+    }
+    ROS_INFO("session_station: scene '%s' (%s) runs (load %u), %.2f s after the request", scene->name.c_str(),
+             scene->difficulty.empty() ? "no difficulty" : scene->difficulty.c_str(), scene->load,
+             (loading_.announced_at - loading_.requested_at).toSec());
+  }
+
   void onSessionInfo(const vrm_msgs::SessionInfo::ConstPtr& info) {
     std::lock_guard<std::mutex> lock(mutex_);
     if (status_.state != vrm_msgs::StationStatus::LOADING) return;
-    // A replay's session_info comes from the bag (old stamp); a live one is stamped when its graph started.
-    if (status_.mode == "session" && info->header.stamp < launched_stamp_) return;
-    seen_info_ = true;
     if (status_.mode == "replay") {
+      // A replay's session_info comes from the bag: it names the recorded scene.
+      loading_.seen_info = true;
       status_.scene = info->scene;
       status_.difficulty = info->difficulty;
       status_.seed = info->seed;
+      return;
     }
+    // The new scene's (stamped when its graph started, or republished after the LOAD): the bag must begin with it.
+    if (loading_.launched ? info->header.stamp < launched_stamp_ : !loading_.load_sent) return;
+    if (info->scene != status_.scene || info->seed != status_.seed) return;
+    if (!status_.difficulty.empty() && info->difficulty != status_.difficulty) return;
+    loading_.seen_info = true;
   }
 
   void onScenarioStatus(const vrm_msgs::ScenarioStatus::ConstPtr& scenario) {
     std::lock_guard<std::mutex> lock(mutex_);
-    if (!graph_ || scenario->scenario != status_.scene) return;
-    if (scenario->state == vrm_msgs::ScenarioStatus::IDLE) seen_idle_ = true;
+    if (!graph_) return;
+    if (liveLoading() && loading_.load_sent && !loading_.announced &&
+        scenario->message.find("LOAD '" + status_.scene + "'") != std::string::npos &&
+        scenario->message.find("refused") != std::string::npos) {
+      refuseLoad(scenario->message);
+      return;
+    }
+    if (scenario->scenario != status_.scene) return;
+    // Live: the new scene's status, not the previous session's (the same scene loaded again).
+    if (status_.mode == "session" && (!loading_.announced || scenario->header.stamp < session_stamp_)) return;
     if (scenario->state == vrm_msgs::ScenarioStatus::RUNNING &&
         (status_.state == vrm_msgs::StationStatus::READY || status_.state == vrm_msgs::StationStatus::LOADING)) {
       status_.state = vrm_msgs::StationStatus::RUNNING;
@@ -390,68 +566,212 @@ class SessionStation {
     }
   }
 
+  // The scene owner refused the LOAD: the old scene runs on, so the station reports the old session again (its
+  // recording, if any, ended with the request).
+  void refuseLoad(const std::string& reason) {
+    status_ = previous_.status;
+    session_stamp_ = previous_.stamp;
+    session_stem_ = previous_.stem;
+    seen_result_ = previous_.seen_result;
+    loading_ = Loading();
+    loading_.announced = true;  // the old scene is the one that runs: its status and frames count again
+    if (status_.state == vrm_msgs::StationStatus::LOADING) status_.state = vrm_msgs::StationStatus::IDLE;
+    ROS_WARN("session_station: %s", reason.c_str());
+    publishStatus(reason);
+  }
+
   void onSimulationState(const vrm_msgs::SimulationState::ConstPtr& state) {
     std::lock_guard<std::mutex> lock(mutex_);
-    if (status_.mode == "replay" || state->header.stamp >= launched_stamp_) seen_frame_ = true;
+    newest_frame_ = std::max(newest_frame_, state->header.stamp);
+    if (status_.state != vrm_msgs::StationStatus::LOADING || loading_.seen_frame) return;
+    if (status_.mode == "session" && (!loading_.announced || state->header.stamp < session_stamp_)) return;
+    loading_.seen_frame = true;
+    loading_.first_frame_at = ros::WallTime::now();
   }
 
   void onSessionResult(const vrm_msgs::SessionResult::ConstPtr& result) {
     std::lock_guard<std::mutex> lock(mutex_);
     if (!graph_ || seen_result_) return;
-    if (status_.mode == "session" && result->header.stamp < launched_stamp_) return;  // the previous graph's
+    if (status_.mode == "replay") {
+      seen_result_ = true;
+      ended_at_ = ros::WallTime::now();
+      return;
+    }
+    // The current session's: it ran (the previous session's result is latched too), in its scene, after its start.
+    if (status_.state != vrm_msgs::StationStatus::READY && status_.state != vrm_msgs::StationStatus::RUNNING) return;
+    if (result->header.stamp < session_stamp_) return;
+    nlohmann::ordered_json json;
+    try {
+      json = nlohmann::ordered_json::parse(result->json);
+    } catch (const nlohmann::json::exception& error) {
+      ROS_ERROR("session_station: session_result is not JSON (%s); no result file", error.what());
+      return;
+    }
+    if (json.value("scene", "") != status_.scene) return;
     seen_result_ = true;
     ended_at_ = ros::WallTime::now();
-    ROS_INFO("session_station: session over (final state %s); stopping its graph in %.1f s",
+    ROS_INFO("session_station: session over (final state %s); its recording ends in %.1f s",
              result->final_state_hash.c_str(), end_tail_);
+    writeResultFile(json);
+  }
+
+  // The result as scenario_manager reported it, with this session's bag and trainee (the graph was started without
+  // them: it serves every session).
+  void writeResultFile(nlohmann::ordered_json json) {
+    json["bag"] = status_.bag.empty() ? nlohmann::ordered_json() : nlohmann::ordered_json(status_.bag);
+    json["user"] = status_.user;
+    const std::string temporary = status_.result_file + ".tmp";
+    {
+      std::ofstream file(temporary);
+      file << json.dump() << "\n";
+      if (!file.flush()) {
+        ROS_ERROR("session_station: cannot write %s", temporary.c_str());
+        return;
+      }
+    }
+    // Renamed into place: a reader (the console's import) never sees half a file.
+    if (std::rename(temporary.c_str(), status_.result_file.c_str()) != 0) {
+      ROS_ERROR("session_station: cannot write %s: %s", status_.result_file.c_str(), std::strerror(errno));
+    } else {
+      ROS_INFO("session_station: result written to %s", status_.result_file.c_str());
+    }
   }
 
   void onTimer(const ros::WallTimerEvent&) {
     std::lock_guard<std::mutex> lock(mutex_);
     if (ghost_ && ghost_->poll()) ghost_.reset();
+    closing_recorders_.erase(std::remove_if(closing_recorders_.begin(), closing_recorders_.end(),
+                                            [](const auto& recorder) { return recorder->finishStopping(15.0); }),
+                             closing_recorders_.end());
+    if (recorder_) {
+      if (const auto exit_status = recorder_->poll()) {
+        recorder_.reset();
+        if (!seen_result_ && status_.mode == "session" && status_.state != vrm_msgs::StationStatus::IDLE &&
+            status_.state != vrm_msgs::StationStatus::ENDED) {
+          status_.state = vrm_msgs::StationStatus::FAILED;
+          status_.recording = false;
+          publishStatus("the session's recorder ended (exit " + std::to_string(*exit_status) +
+                        "): " + lastLines(session_stem_ + ".recorder.log", 3));
+        }
+      }
+    }
     if (!graph_) return;
     if (const auto exit_status = graph_->poll()) {
       graph_.reset();
+      closeRecorder();
       if (seen_result_ || (status_.mode == "replay" && *exit_status == 0)) {
         status_.state = vrm_msgs::StationStatus::ENDED;
         publishStatus(status_.mode == "replay" ? "replay finished" : "session over");
       } else {
         status_.state = vrm_msgs::StationStatus::FAILED;
         publishStatus("the session graph ended (exit " + std::to_string(*exit_status) +
-                      "): " + lastLines(log_path_, 3));
+                      "): " + lastLines(graph_log_, 3));
       }
       return;
     }
     if (seen_result_) {
-      if ((ros::WallTime::now() - ended_at_).toSec() >= end_tail_) {
-        stopGraph();
+      if (status_.state != vrm_msgs::StationStatus::ENDED && (ros::WallTime::now() - ended_at_).toSec() >= end_tail_) {
+        if (status_.mode == "replay") {
+          stopGraph();
+        } else {
+          closeRecorder();
+        }
         status_.state = vrm_msgs::StationStatus::ENDED;
         publishStatus("session over");
       }
       return;
     }
     if (status_.state != vrm_msgs::StationStatus::LOADING) return;
-    const bool recorder_ready = !status_.recording || recorderListens();
-    const float progress = 0.05f + 0.25f * seen_info_ + 0.3f * seen_idle_ + 0.3f * seen_frame_ + 0.1f * recorder_ready;
-    const bool ready =
-        status_.mode == "replay" ? seen_frame_ : seen_info_ && seen_idle_ && seen_frame_ && recorder_ready;
+    const bool replay = status_.mode == "replay";
+    if (!replay && !loading_.launched && !loading_.load_sent) sendLoad();
+    const bool scene_up = loading_.announced && loading_.seen_info && loading_.seen_frame;
+    // The recorder starts once the new scene's session_info is out: the bag begins with it (latched).
+    if (!replay && scene_up && status_.recording && !recorder_) startRecorder();
+    const bool recorder_ready = !status_.recording || (recorder_ && recorderListens());
+    const float progress = 0.05f + 0.3f * loading_.announced + 0.2f * loading_.seen_info + 0.2f * loading_.seen_frame +
+                           0.2f * (scene_up && recorder_ready);
+    const bool ready = replay ? loading_.seen_frame : scene_up && recorder_ready;
+    const double waited = (ros::WallTime::now() - loading_.requested_at).toSec();
     if (ready) {
-      status_.state = status_.mode == "replay" ? vrm_msgs::StationStatus::RUNNING : vrm_msgs::StationStatus::READY;
+      status_.state = replay ? vrm_msgs::StationStatus::RUNNING : vrm_msgs::StationStatus::READY;
       status_.progress = 1.0f;
-      publishStatus(status_.mode == "replay" ? "replay playing" : "ready: " + status_.scene);
-    } else if ((ros::WallTime::now() - launched_at_).toSec() > load_timeout_) {
+      if (!replay) {
+        ROS_INFO(
+            "session_station: '%s' ready %.2f s after the request (%s: scene announced after %.2f s, its first frame "
+            "after %.2f s)",
+            status_.scene.c_str(), waited, loading_.launched ? "graph launched" : "LOAD into the running graph",
+            (loading_.announced_at - loading_.requested_at).toSec(),
+            (loading_.first_frame_at - loading_.requested_at).toSec());
+      }
+      publishStatus(replay ? "replay playing" : "ready: " + status_.scene);
+    } else if (waited > load_timeout_) {
+      // A graph that neither runs the scene nor refuses it in time is not trusted with the next session either.
+      const std::string log = lastLines(graph_log_, 3);
       stopGraph();
       status_.state = vrm_msgs::StationStatus::FAILED;
-      publishStatus("the session graph did not get ready within " + std::to_string(int(load_timeout_)) +
-                    " s: " + lastLines(log_path_, 3));
-    } else {
+      publishStatus(std::string(loading_.launched ? "the session graph" : "the LOAD of " + status_.scene) +
+                    " did not get ready within " + std::to_string(int(load_timeout_)) + " s: " + log);
+    } else if ((ros::WallTime::now() - last_progress_).toSec() >= 0.5) {
+      last_progress_ = ros::WallTime::now();
       status_.progress = progress;
-      publishStatus(std::string("loading ") + status_.scene + (seen_frame_ ? ": waiting for the recorder" : ""));
+      publishStatus(std::string(loading_.launched || replay ? "loading " : "switching to ") + status_.scene +
+                    (scene_up && !recorder_ready ? ": waiting for the recorder" : ""));
     }
   }
 
-  // The recorder of this graph subscribes to every recorded input (else START could go unrecorded).
+  // The LOAD of the requested scene, once every subscriber of scenario_command the master knows of (the scene owner
+  // among them) is connected to the station, so it cannot be lost; stamped ahead of the newest simulated frame like
+  // the console's commands, so it applies to the next frame.
+  void sendLoad() {
+    XmlRpc::XmlRpcValue request, response, payload;
+    request[0] = ros::this_node::getName();
+    if (!ros::master::execute("getSystemState", request, response, payload, false)) return;
+    int known = 0;
+    const XmlRpc::XmlRpcValue& subscriptions = payload[1];
+    for (int i = 0; i < subscriptions.size(); ++i)
+      if (static_cast<std::string>(subscriptions[i][0]) == command_publisher_.getTopic())
+        known = subscriptions[i][1].size();
+    if (known == 0 || static_cast<int>(command_publisher_.getNumSubscribers()) < known) return;
+    // The previous session's recorder must be gone from the inputs first (its bag then closes without the LOAD).
+    if (!closing_recorders_.empty()) {
+      for (int i = 0; i < subscriptions.size(); ++i) {
+        const std::string topic = static_cast<std::string>(subscriptions[i][0]);
+        if (topic != "/scenario_command" && topic != "/input_frame") continue;
+        for (int j = 0; j < subscriptions[i][1].size(); ++j)
+          if (static_cast<std::string>(subscriptions[i][1][j]) == "/session_recorder") return;
+      }
+    }
+    auto command = boost::make_shared<vrm_msgs::ScenarioCommand>();
+    command->header.stamp = (newest_frame_.isZero() ? ros::Time::now() : newest_frame_) + ros::Duration(0.2);
+    command->command = vrm_msgs::ScenarioCommand::LOAD;
+    command->scenario = status_.scene;
+    command->argument = status_.difficulty;
+    command->seed = status_.seed;
+    loading_.load_sent = true;
+    loading_.load_stamp = command->header.stamp;
+    loading_.loads_before = loads_announced_;
+    command_publisher_.publish(command);
+    ROS_INFO("session_station: LOAD '%s'%s seed %u at input time %.3f", status_.scene.c_str(),
+             status_.difficulty.empty() ? "" : (" (" + status_.difficulty + ")").c_str(), status_.seed,
+             command->header.stamp.toSec());
+  }
+
+  void startRecorder() {
+    const std::string log = session_stem_ + ".recorder.log";
+    std::vector<std::string> argv = {"roslaunch", "--skip-log-check", recorder_launch_, "bag:=" + status_.bag,
+                                     "start:=false"};
+    try {
+      recorder_ = std::make_unique<ChildProcess>(argv, log);
+      ROS_INFO("session_station: recording %s (log %s)", status_.bag.c_str(), log.c_str());
+    } catch (const std::exception& error) {
+      status_.state = vrm_msgs::StationStatus::FAILED;
+      publishStatus(std::string("cannot start the recorder: ") + error.what());
+    }
+  }
+
+  // This session's recorder (a process of its launch, not a stale registration of the previous one) subscribes to
+  // every recorded input (else START could go unrecorded).
   bool recorderListens() const {
-    ros::master::V_TopicInfo unused;
     XmlRpc::XmlRpcValue request, response, payload;
     request[0] = ros::this_node::getName();
     if (!ros::master::execute("getSystemState", request, response, payload, false)) return false;
@@ -466,11 +786,22 @@ class SessionStation {
       for (int j = 0; j < subscriptions[i][1].size(); ++j)
         if (static_cast<std::string>(subscriptions[i][1][j]) == "/session_recorder") ++topics;
     }
-    return topics == 4;
+    if (topics != 4) return false;
+    const pid_t recorder = nodePid("/session_recorder");
+    return recorder > 0 && descendsFrom(recorder, recorder_->pid());
+  }
+
+  // SIGINT: rosbag closes the bag and session_control writes its parts report while the station goes on (the timer
+  // reaps it).
+  void closeRecorder() {
+    if (!recorder_) return;
+    recorder_->interrupt();
+    closing_recorders_.push_back(std::move(recorder_));
   }
 
   void stopGraph() {
     ghost_.reset();
+    closeRecorder();
     if (!graph_) return;
     graph_->stop(15.0);
     graph_.reset();
@@ -485,16 +816,21 @@ class SessionStation {
 
   ros::NodeHandle nh_, private_nh_;
   std::mutex mutex_;
-  std::string simulator_launch_, replay_launch_, records_dir_, launch_args_, script_, log_path_;
+  std::string simulator_launch_, replay_launch_, recorder_launch_, records_dir_, launch_args_, script_, scene_owner_;
   double load_timeout_ = 90.0, end_tail_ = 1.0;
   vrm_msgs::StationStatus status_;
-  std::unique_ptr<ChildProcess> graph_, ghost_;
-  ros::WallTime launched_at_, ended_at_;
-  ros::Time launched_stamp_;
-  bool seen_info_ = false, seen_idle_ = false, seen_frame_ = false, seen_result_ = false;
-  ros::Publisher status_publisher_;
+  std::unique_ptr<ChildProcess> graph_, recorder_, ghost_;
+  std::vector<std::unique_ptr<ChildProcess>> closing_recorders_;  // interrupted, closing their bags
+  std::string graph_mode_, graph_script_, graph_log_, session_stem_;
+  Loading loading_;
+  Session previous_;
+  ros::WallTime ended_at_, last_progress_;
+  ros::Time launched_stamp_, session_stamp_, newest_frame_;
+  std::uint32_t loads_announced_ = 0;
+  bool seen_result_ = false;
+  ros::Publisher status_publisher_, command_publisher_;
   std::vector<ros::ServiceServer> services_;
-  ros::Subscriber info_subscriber_, status_subscriber_, state_subscriber_, result_subscriber_;
+  ros::Subscriber scene_subscriber_, info_subscriber_, status_subscriber_, state_subscriber_, result_subscriber_;
   ros::WallTimer timer_;
 };
 

@@ -116,9 +116,11 @@ class Store {
 
   // Sessions. recordSession is idempotent (see above); returns the row's id.
   ImportResult recordSession(const SessionRecord& session);
-  // A scenario_manager result JSON (the file next to a bag, or the session_result topic's text). `user` overrides
-  // the file's "user" field when not empty. Throws StoreError on malformed JSON (naming the file).
-  ImportResult importResultJson(const std::string& json_text, const std::string& origin, const std::string& user = "");
+  // A scenario_manager result JSON (the file next to a bag, or the session_result topic's text). `user` and `bag`
+  // override the JSON's "user" and "bag" fields when not empty (the station's graph serves many sessions, so the
+  // live text does not name the session's trainee or bag). Throws StoreError on malformed JSON (naming the file).
+  ImportResult importResultJson(const std::string& json_text, const std::string& origin, const std::string& user = "",
+                                const std::string& bag = "");
   ImportResult importResultFile(const std::string& path, const std::string& user = "");
   // Every *.result.json under `folder` (recursively); malformed ones are reported in `errors`, not thrown.
   std::vector<ImportResult> importFolder(const std::string& folder, std::vector<std::string>* errors = nullptr);

@@ -584,9 +584,11 @@ ImportResult Store::recordSession(const SessionRecord& session) {
   return {id, true};
 }
 
-ImportResult Store::importResultJson(const std::string& json_text, const std::string& origin, const std::string& user) {
+ImportResult Store::importResultJson(const std::string& json_text, const std::string& origin, const std::string& user,
+                                     const std::string& bag) {
   SessionRecord session = parseResultJson(json_text, origin);
   if (!user.empty()) session.user = user;
+  if (!bag.empty()) session.bag_path = bag;
   return recordSession(session);
 }
 
