@@ -4,7 +4,7 @@
 // up across sessions (issue 32): the first live session launches it with its scene; every later one switches the
 // scene with a ScenarioCommand LOAD (scene, difficulty, seed) and follows scenario_manager, the one scene owner, until
 // it announces the scene on `running_scene` (a higher load count) or refuses it (the old scene then keeps running and
-// the console is told why). The new scene's first frame comes 0.05-0.5 s after the request instead of ~6 s.
+// the console is told why). The new scene's first frame comes 0.05-0.5 s after the request instead of 4-6 s.
 // Only the recorder is per session: each recorded session gets its own recorder graph (launch/recorder.launch) and
 // bag, started once the new scene's session_info is out, so the bag begins with it; the station reports READY (and the
 // console sends START) only once that recorder listens. The result file next to the bag is the station's: the graph's
