@@ -171,6 +171,9 @@ script_test() {  # script_test SUITE CASE COMMAND...
 # silences the instrument on its way to the simulation node only, and the eye at 100 Hz: live = offline replay =
 # replay.launch, bit for bit; the perturbation bit; the frames have no gap (~1.5 min).
 script_test determinism live_equals_replay_under_load /usr/bin/python3 "$ROOT/src/vrm_sim/test/graph/determinism.py" test
+# One scene owner (issue 32): one running graph switches navigation -> membrane_peeling -> a scene with its own eye
+# geometry -> vitrectomy by LOAD, every node follows, a refused LOAD changes nothing, the manager never restarts (~1.5 min).
+script_test scene_switch one_graph_follows_every_load /usr/bin/python3 "$ROOT/src/vrm_sim/test/graph/scene_switch.py"
 script_test console_real_window console_runs_a_session_in_a_real_window \
   "$ROOT/src/eyesi_gui/test/console_real_window.sh"
 script_test console_remote_station console_on_a_second_host \
