@@ -14,6 +14,7 @@
 #include <sstream>
 
 #include "vrm_sim/collision/collision_detector.h"
+#include "vrm_sim/hash.h"
 #include "vrm_sim/registry.h"
 #include "vrm_sim/scene/mesh_io.h"
 #include "vrm_sim/scene/mesh_utils.h"
@@ -1007,18 +1008,14 @@ const char* const kDefaultSceneName = "membrane_peeling";
 std::uint64_t sceneContentHash(const std::string& file, const std::string& difficulty) {
   std::ifstream in(file, std::ios::binary);
   if (!in) return 0;
-  std::uint64_t hash = 14695981039346656037ull;
-  const auto mix = [&hash](unsigned char byte) {
-    hash ^= byte;
-    hash *= 1099511628211ull;
-  };
+  std::uint64_t hash = kHashSeed;
   char buffer[4096];
   while (in.read(buffer, sizeof(buffer)) || in.gcount() > 0) {
-    for (std::streamsize i = 0; i < in.gcount(); ++i) mix(static_cast<unsigned char>(buffer[i]));
+    hash = hashBytes(hash, buffer, static_cast<std::size_t>(in.gcount()));
   }
-  mix(0);  // between the file and the level: "a" + "bc" is not "ab" + "c"
-  for (char c : difficulty) mix(static_cast<unsigned char>(c));
-  return hash;
+  const char separator = 0;  // between the file and the level: "a" + "bc" is not "ab" + "c"
+  hash = hashBytes(hash, &separator, 1);
+  return hashBytes(hash, difficulty.data(), difficulty.size());
 }
 
 SceneDescription loadScene(const std::string& name_or_path, const std::string& difficulty) {
