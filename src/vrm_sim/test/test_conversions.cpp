@@ -1,6 +1,13 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cctype>
+#include <set>
+#include <string>
+
+#include "vrm_msgs/msg_constants.h"
 #include "vrm_sim/conversions.h"
+#include "vrm_sim/scene/scene_description.h"
 
 namespace vrm_sim {
 namespace {
@@ -117,3 +124,27 @@ TEST(Conversions, InstrumentTypeConstantsRoundTripAndUnknownIsNone) {
 
 }  // namespace
 }  // namespace vrm_sim
+
+// vrm_msgs/InstrumentState's type constants against the instrument type registry, read from the .msg file itself:
+// every constant maps to the type of the same name (LIGHT_PIPE <-> "light_pipe") and back, and every registered type
+// has a constant, so a type added on one side only fails here instead of arriving as "unknown" in a graph.
+TEST(Conversions, InstrumentTypeConstantsMatchTheMessageAndTheRegistry) {
+  const std::string path = std::string(VRM_MSGS_MSG_DIR) + "/InstrumentState.msg";
+  const std::vector<vrm_msgs::MsgConstant> constants = vrm_msgs::readMsgConstants(path);
+  ASSERT_FALSE(constants.empty()) << path;
+  std::set<std::string> constant_names;
+  for (const vrm_msgs::MsgConstant& constant : constants) {
+    std::string name = constant.name;
+    std::transform(name.begin(), name.end(), name.begin(), [](unsigned char c) { return std::tolower(c); });
+    constant_names.insert(name);
+    const auto type = vrm_sim::instrumentTypeFromMsg(static_cast<std::uint8_t>(constant.value));
+    ASSERT_TRUE(type.has_value()) << "InstrumentState." << constant.name << " = " << constant.value
+                                  << " has no instrument type in vrm_sim's conversions";
+    EXPECT_EQ(vrm_sim::scene::toString(*type), name) << "InstrumentState." << constant.name;
+    EXPECT_EQ(vrm_sim::toMsgType(type), constant.value) << name;
+  }
+  for (const auto& entry : vrm_sim::scene::instrumentTypeRegistry().entries()) {
+    EXPECT_EQ(constant_names.count(entry.name), 1u)
+        << "instrument type '" << entry.name << "' has no constant in vrm_msgs/InstrumentState.msg";
+  }
+}

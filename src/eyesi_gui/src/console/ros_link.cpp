@@ -5,14 +5,39 @@
 #include <QtConcurrent/QtConcurrent>
 #include <boost/make_shared.hpp>
 
+#include "eyesi_gui/console/message_constants.h"
 #include "vrm_msgs/ListScenes.h"
 #include "vrm_msgs/LoadSession.h"
 #include "vrm_msgs/MicroscopeSettings.h"
 #include "vrm_msgs/PlayGhost.h"
 #include "vrm_msgs/ScenarioCommand.h"
+#include "vrm_msgs/ScenarioStatus.h"
+#include "vrm_msgs/StationStatus.h"
 
 namespace eyesi_gui {
 namespace {
+
+// The console's mirror of the message constants (message_constants.h) against the generated headers: a renumbered
+// constant stops the build here; test_message_constants catches one added or removed in a .msg file.
+constexpr bool sameConstant(const MessageConstant& constant, int value) { return constant.value == value; }
+static_assert(sameConstant(kScenarioCommandConstants[0], vrm_msgs::ScenarioCommand::LOAD));
+static_assert(sameConstant(kScenarioCommandConstants[1], vrm_msgs::ScenarioCommand::START));
+static_assert(sameConstant(kScenarioCommandConstants[2], vrm_msgs::ScenarioCommand::PAUSE));
+static_assert(sameConstant(kScenarioCommandConstants[3], vrm_msgs::ScenarioCommand::RESUME));
+static_assert(sameConstant(kScenarioCommandConstants[4], vrm_msgs::ScenarioCommand::STOP));
+static_assert(sameConstant(kScenarioCommandConstants[5], vrm_msgs::ScenarioCommand::RESET));
+static_assert(sameConstant(kScenarioCommandConstants[6], vrm_msgs::ScenarioCommand::SELECT_INSTRUMENT));
+static_assert(sameConstant(kStationStatusConstants[0], vrm_msgs::StationStatus::IDLE));
+static_assert(sameConstant(kStationStatusConstants[1], vrm_msgs::StationStatus::LOADING));
+static_assert(sameConstant(kStationStatusConstants[2], vrm_msgs::StationStatus::READY));
+static_assert(sameConstant(kStationStatusConstants[3], vrm_msgs::StationStatus::RUNNING));
+static_assert(sameConstant(kStationStatusConstants[4], vrm_msgs::StationStatus::ENDED));
+static_assert(sameConstant(kStationStatusConstants[5], vrm_msgs::StationStatus::FAILED));
+static_assert(sameConstant(kScenarioStatusConstants[0], vrm_msgs::ScenarioStatus::IDLE));
+static_assert(sameConstant(kScenarioStatusConstants[1], vrm_msgs::ScenarioStatus::RUNNING));
+static_assert(sameConstant(kScenarioStatusConstants[2], vrm_msgs::ScenarioStatus::PAUSED));
+static_assert(sameConstant(kScenarioStatusConstants[3], vrm_msgs::ScenarioStatus::FINISHED));
+static_assert(sameConstant(kScenarioStatusConstants[4], vrm_msgs::ScenarioStatus::FAILED));
 
 QString q(const std::string& text) { return QString::fromStdString(text); }
 
