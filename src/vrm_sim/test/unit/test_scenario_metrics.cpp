@@ -2,7 +2,9 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <memory>
 
+#include "vrm_sim/scenario/light_cone.h"
 #include "vrm_sim/scenario/metrics.h"
 #include "vrm_sim/scenario/runner.h"
 #include "vrm_sim/scene/scene_loader.h"
@@ -206,6 +208,116 @@ scenario: {type: steady_hold, params: {centre: [0, 0, -0.01], holdtime: 3}}
     EXPECT_NE(message.find("scenario.params.holdtime"), std::string::npos) << message;
     EXPECT_NE(message.find("hold_time"), std::string::npos) << message;  // what it has instead
   }
+}
+
+// The one lit rule (issue 33): inside the cone up to its half-angle, not outside it, never behind the tip, never
+// without a direction (point at the tip, zero axis) and never with an unknown (NaN) pose.
+TEST(LightCone, InsideOutsideBehindDegenerateAndNaN) {
+  const double cone_cos = lightConeCos(kLightConeHalfAngleDeg);
+  EXPECT_NEAR(cone_cos, std::cos(25.0 * M_PI / 180.0), 1e-15);
+  const Eigen::Vector3d tip(0.0, 0.0, -0.005), down(0.0, 0.0, -1.0);
+  const auto at = [&](double angle_deg) {  // 5 mm from the tip, angle_deg off the axis
+    const double a = angle_deg * M_PI / 180.0;
+    return Eigen::Vector3d(tip + 0.005 * Eigen::Vector3d(std::sin(a), 0.0, -std::cos(a)));
+  };
+  EXPECT_TRUE(litByLightPipe(tip, down, at(0.0), cone_cos));
+  EXPECT_TRUE(litByLightPipe(tip, down, at(24.9), cone_cos));
+  EXPECT_FALSE(litByLightPipe(tip, down, at(25.1), cone_cos));
+  EXPECT_FALSE(litByLightPipe(tip, down, at(60.0), cone_cos));
+  EXPECT_FALSE(litByLightPipe(tip, down, at(180.0), cone_cos));            // behind the tip
+  EXPECT_FALSE(litByLightPipe(tip, down, at(110.0), lightConeCos(90.0)));  // behind, even with a 90 deg cone
+  // A non-unit axis means its direction.
+  EXPECT_TRUE(litByLightPipe(tip, 3.0 * down, at(20.0), cone_cos));
+  EXPECT_FALSE(litByLightPipe(tip, 3.0 * down, at(30.0), cone_cos));
+  // Degenerate: the point at the tip, a zero axis; unknown: NaN axis, tip or point.
+  const double nan = std::nan("");
+  EXPECT_FALSE(litByLightPipe(tip, down, tip, cone_cos));
+  EXPECT_FALSE(litByLightPipe(tip, Eigen::Vector3d::Zero(), at(0.0), cone_cos));
+  EXPECT_FALSE(litByLightPipe(tip, Eigen::Vector3d(nan, 0.0, -1.0), at(0.0), cone_cos));
+  EXPECT_FALSE(litByLightPipe(Eigen::Vector3d(nan, 0.0, 0.0), down, at(0.0), cone_cos));
+  EXPECT_FALSE(litByLightPipe(tip, down, Eigen::Vector3d(0.0, nan, -0.01), cone_cos));
+}
+
+// unlit_work of a surgical scenario (membrane peeling, the shipped scene: light pipe left, forceps right, 12 mm eye),
+// driven with hand-made frames of 20 ms: it counts the frames the forceps works (tip in the posterior half, within
+// 1.5 mm of the retina) outside the light pipe's 25 deg cone, and nothing else.
+struct UnlitCase {
+  bool tool_valid = true;
+  Eigen::Vector3d tool_tip{0.0, 0.0, -0.0115};  // 0.5 mm off the retina at the posterior pole
+  bool light_valid = true;
+  double aim_off_deg = 0.0;  // the light's axis this far off the direction to the forceps' tip
+  bool nan_axis = false;
+};
+
+double unlitWork(const UnlitCase& c, int frames = 10) {
+  const std::unique_ptr<Scenario> scenario =
+      makeScenario(scene::loadScene(scene::shippedScenePath("membrane_peeling")));
+  const Eigen::Vector3d light_tip(-0.002, 0.001, -0.006);
+  const Eigen::Vector3d to_tool = (c.tool_tip - light_tip).normalized();
+  const Eigen::Vector3d aside = to_tool.cross(Eigen::Vector3d::UnitY()).normalized();
+  const double a = c.aim_off_deg * M_PI / 180.0;
+  for (int i = 0; i < frames; ++i) {
+    FrameView frame;
+    frame.time = 0.02 * (i + 1);
+    frame.dt = 0.02;
+    InstrumentView light, forceps;
+    light.slot = "left";
+    light.type = scene::InstrumentType::kLightPipe;
+    light.valid = c.light_valid;
+    light.tip = light_tip;
+    light.axis = c.nan_axis ? Eigen::Vector3d(std::nan(""), 0.0, -1.0)
+                            : Eigen::Vector3d(std::cos(a) * to_tool + std::sin(a) * aside);
+    forceps.slot = "right";
+    forceps.type = scene::InstrumentType::kForceps;
+    forceps.valid = c.tool_valid;
+    forceps.tip = c.tool_tip;
+    frame.instruments = {light, forceps};
+    scenario->update(frame, frame.time);
+  }
+  for (const Measurement& m : scenario->measurements(0.2)) {
+    if (m.name == "unlit_work") {
+      EXPECT_EQ(m.unit, "s");
+      return m.value;
+    }
+  }
+  ADD_FAILURE() << "membrane_peeling reports no unlit_work";
+  return std::nan("");
+}
+
+TEST(UnlitWork, CountsWorkOutsideTheConeOnly) {
+  UnlitCase lit;
+  EXPECT_EQ(unlitWork(lit), 0.0);
+  UnlitCase edge;
+  edge.aim_off_deg = 20.0;  // inside the 25 deg cone
+  EXPECT_EQ(unlitWork(edge), 0.0);
+  UnlitCase away;
+  away.aim_off_deg = 40.0;
+  EXPECT_NEAR(unlitWork(away), 0.2, 1e-12);  // ten frames of 20 ms
+  EXPECT_NEAR(unlitWork(away, 25), 0.5, 1e-12);
+  UnlitCase dark;
+  dark.light_valid = false;  // a light pipe that is not tracked lights nothing
+  EXPECT_NEAR(unlitWork(dark), 0.2, 1e-12);
+  UnlitCase unknown;
+  unknown.nan_axis = true;
+  EXPECT_NEAR(unlitWork(unknown), 0.2, 1e-12);
+  // Not working: the forceps lifted 2 mm off the retina, at the front of the eye near its trocar, or not tracked.
+  UnlitCase lifted = away;
+  lifted.tool_tip = Eigen::Vector3d(0.0, 0.0, -0.010);
+  EXPECT_EQ(unlitWork(lifted), 0.0);
+  UnlitCase front = away;
+  front.tool_tip = Eigen::Vector3d(0.0074, 0.0042, 0.0080);  // 0.6 mm inside the right trocar (z > 0)
+  EXPECT_EQ(unlitWork(front), 0.0);
+  UnlitCase untracked = away;
+  untracked.tool_valid = false;
+  EXPECT_EQ(unlitWork(untracked), 0.0);
+}
+
+// The light pipe and the working instrument must be different slots.
+TEST(UnlitWork, TheLightMustNotBeTheTool) {
+  scene::SceneDescription scene = scene::loadScene(scene::shippedScenePath("vitrectomy"));
+  EXPECT_NO_THROW(makeScenario(scene));
+  scene.scenario->params["light"].names = {"right"};
+  EXPECT_THROW(makeScenario(scene), scene::SceneError);
 }
 
 }  // namespace

@@ -123,6 +123,16 @@ TEST(Scenarios, NovicesTriggerThePenaltiesTheyWereWrittenFor) {
   const Runs& vitrectomy = runs("vitrectomy");
   EXPECT_GE(item(vitrectomy.novice, "warnings"), 1.0);
   EXPECT_GT(item(vitrectomy.novice, "retina_damage"), item(vitrectomy.expert, "retina_damage"));
+
+  // Bimanual (issue 33): the experts' light pipe lights the work throughout; each novice works outside its cone.
+  for (const std::string name : {"membrane_peeling", "ilm_peeling", "vitrectomy"}) {
+    EXPECT_EQ(item(runs(name).expert, "unlit_work"), 0.0) << name;
+    EXPECT_GE(item(runs(name).novice, "unlit_work"), 0.5) << name;
+    const scenario::ScoreItem* novice = runs(name).novice.score.item("unlit_work");
+    ASSERT_NE(novice, nullptr) << name;
+    EXPECT_GT(novice->weight, 0.0) << name << ": unlit_work is not scored";
+    EXPECT_LT(novice->points, 100.0) << name;
+  }
 }
 
 // Model only what a scene needs: the abstract scenarios never run a mass-spring step or a tissue collision.

@@ -5,6 +5,7 @@
 
 #include "common.h"
 #include "scenarios.h"
+#include "vrm_sim/scenario/light_cone.h"
 
 namespace vrm_sim {
 namespace scenario {
@@ -26,7 +27,7 @@ class Navigation : public Scenario {
     light_ = params.name("light", "left");
     if (light_ != "none") light_ = params.slot("light", "left");
     tolerance_ = params.number("touch_tolerance", 1e-4, 0.0, 2e-3);
-    cone_cos_ = std::cos(params.number("light_cone_deg", 25.0, 1.0, 90.0) * kPi / 180.0);
+    cone_cos_ = lightConeCos(params.number("light_cone_deg", kLightConeHalfAngleDeg, 1.0, 90.0));
     params.finish();
     touching_.resize(targets_.size());
   }
@@ -83,9 +84,7 @@ class Navigation : public Scenario {
   bool lit(const InstrumentView* light, const Sphere& target) const {
     if (light_ == "none") return true;
     if (light == nullptr || !light->valid) return false;
-    const Eigen::Vector3d to_target = target.centre - light->tip;
-    const double distance = to_target.norm();
-    return distance > 0.0 && light->axis.dot(to_target) / distance >= cone_cos_;
+    return litByLightPipe(light->tip, light->axis, target.centre, cone_cos_);
   }
 
   std::vector<Sphere> targets_;

@@ -121,6 +121,29 @@ std::size_t RetinaContacts::count() const {
 
 void RetinaContacts::hash(std::uint64_t& state) const { hashValue(state, count()); }
 
+UnlitWork::UnlitWork(const scene::SceneDescription& scene, Params& params, const std::string& tool)
+    : eye_radius_(scene.eye.radius), tool_(tool) {
+  light_ = params.slot("light", "left");
+  if (light_ == tool_)
+    params.fail("light", "the light pipe and the working instrument are the same slot '" + tool_ + "'");
+  cone_cos_ = lightConeCos(params.number("light_cone_deg", kLightConeHalfAngleDeg, 1.0, 90.0));
+  work_distance_ = params.number("work_distance", 1.5e-3, 0.0, scene.eye.radius);
+}
+
+void UnlitWork::update(const FrameView& frame) {
+  working_ = false;
+  lit_ = true;
+  const InstrumentView* tool = frame.instrument(tool_);
+  if (tool == nullptr || !tool->valid || !tool->tip.allFinite()) return;
+  working_ = tool->tip.z() < 0.0 && eye_radius_ - tool->tip.norm() <= work_distance_;
+  if (!working_) return;
+  const InstrumentView* light = frame.instrument(light_);
+  lit_ = light != nullptr && light->valid && litByLightPipe(light->tip, light->axis, tool->tip, cone_cos_);
+  if (!lit_ && frame.dt > 0.0) seconds_ += frame.dt;
+}
+
+void UnlitWork::hash(std::uint64_t& state) const { hashValue(state, seconds_); }
+
 std::string format(const char* format, ...) {
   char text[512];
   va_list arguments;

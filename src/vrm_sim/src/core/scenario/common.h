@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "vrm_sim/scenario/light_cone.h"
 #include "vrm_sim/scenario/metrics.h"
 #include "vrm_sim/scenario/scenario.h"
 #include "vrm_sim/scene/scene_loader.h"
@@ -59,6 +60,30 @@ class RetinaContacts {
   std::optional<std::size_t> first_events_;
   std::size_t events_ = 0;
   std::vector<std::pair<std::string, ContactCounter>> tips_;
+};
+
+// Work outside the light pipe's cone (issue 33; vitreoretinal surgery is bimanual: the light pipe lights what the other
+// hand works on). The working instrument is "working" while it is tracked, its tip in the posterior half of the eye
+// (eye frame z < 0: the fundus, not the trocars' pars plana) and within `work_distance` (parameter, default 1.5 mm)
+// of the retina (the eye sphere) — where it grasps, peels or cuts. unlit() counts the seconds (the frames' dt) it
+// works while its tip is not lit by the light pipe (litByLightPipe with `light_cone_deg`, default
+// kLightConeHalfAngleDeg); a light pipe that is not tracked lights nothing. Parameters read: light (slot, default
+// left; the scene must have an instrument there), light_cone_deg, work_distance.
+class UnlitWork {
+ public:
+  UnlitWork(const scene::SceneDescription& scene, Params& params, const std::string& tool);
+  void update(const FrameView& frame);
+  double seconds() const { return seconds_; }
+  bool working() const { return working_; }
+  bool lit() const { return lit_; }
+  void hash(std::uint64_t& state) const;
+
+ private:
+  double eye_radius_;
+  std::string tool_, light_;
+  double cone_cos_ = 0.9, work_distance_ = 1.5e-3;
+  double seconds_ = 0.0;
+  bool working_ = false, lit_ = true;
 };
 
 std::string format(const char* format, ...);

@@ -19,16 +19,18 @@ const scene::ObjectDescription& deformableObject(Params& params, const std::stri
   return object;
 }
 
-// What a peel is scored on (membrane and ILM alike).
+// What a peel is scored on (membrane and ILM alike). `tool` (default right) is the working instrument whose work
+// outside the light pipe's cone is measured (unlit_work, see UnlitWork).
 class Peel : public Scenario {
  public:
   Peel(const scene::SceneDescription& scene, Params& params, const std::string& fallback)
-      : contacts_(scene.eye.radius) {
+      : contacts_(scene.eye.radius), unlit_(scene, params, params.slot("tool", "right")) {
     object_ = deformableObject(params, "tissue", fallback).name;
   }
 
   void update(const FrameView& frame, double) override {
     contacts_.update(frame);
+    unlit_.update(frame);
     bleeding_area_ = frame.retina.injured_area;
     const TissueView* tissue = frame.tissue(object_);
     if (tissue == nullptr) return;
@@ -58,7 +60,8 @@ class Peel : public Scenario {
             {"max_adhesion_force", max_force_, "N"},
             {"lifted_fraction", lifted_fraction_, "1"},
             {"retina_contacts", static_cast<double>(contacts_.count()), "1"},
-            {"bleeding_area", bleeding_area_, "m^2"}};
+            {"bleeding_area", bleeding_area_, "m^2"},
+            {"unlit_work", unlit_.seconds(), "s"}};
   }
 
   std::string progress() const override {
@@ -73,6 +76,7 @@ class Peel : public Scenario {
     hashValue(state, max_force_);
     hashValue(state, bleeding_area_);
     contacts_.hash(state);
+    unlit_.hash(state);
   }
 
  protected:
@@ -84,6 +88,7 @@ class Peel : public Scenario {
   std::uint64_t released_ = 0, torn_ = 0;
   double max_force_ = 0.0, lifted_fraction_ = 0.0, bleeding_area_ = 0.0;
   RetinaContacts contacts_;
+  UnlitWork unlit_;
 };
 
 // Membrane peeling: success once the membrane let go of every adhesion point, peeled with the forceps or cut free with
@@ -185,7 +190,9 @@ class IlmPeeling : public Peel {
 class Vitrectomy : public Scenario {
  public:
   Vitrectomy(const scene::SceneDescription& scene, Params&& params)
-      : eye_radius_(scene.eye.radius), contacts_(scene.eye.radius) {
+      : eye_radius_(scene.eye.radius),
+        contacts_(scene.eye.radius),
+        unlit_(scene, params, params.slot("tool", "right")) {
     object_ = deformableObject(params, "tissue", "vitreous").name;
     tool_ = params.slot("tool", "right");
     warning_distance_ = params.number("warning_distance", 5e-4, 0.0, 5e-3);
@@ -198,6 +205,7 @@ class Vitrectomy : public Scenario {
 
   void update(const FrameView& frame, double) override {
     contacts_.update(frame);
+    unlit_.update(frame);
     damage_ = frame.retina.max_injury;
     damaged_area_ = frame.retina.injured_area;
     const TissueView* tissue = frame.tissue(object_);
@@ -221,7 +229,8 @@ class Vitrectomy : public Scenario {
             {"warnings", static_cast<double>(warnings_.count()), "1"},
             {"retina_damage", damage_, "1"},
             {"damaged_area", damaged_area_, "m^2"},
-            {"retina_contacts", static_cast<double>(contacts_.count()), "1"}};
+            {"retina_contacts", static_cast<double>(contacts_.count()), "1"},
+            {"unlit_work", unlit_.seconds(), "s"}};
   }
 
   std::string progress() const override {
@@ -233,6 +242,7 @@ class Vitrectomy : public Scenario {
     hashValue(state, warnings_.count());
     hashValue(state, damage_);
     contacts_.hash(state);
+    unlit_.hash(state);
   }
 
  private:
@@ -241,6 +251,7 @@ class Vitrectomy : public Scenario {
   double removed_ = 0.0, damage_ = 0.0, damaged_area_ = 0.0;
   ContactCounter warnings_;
   RetinaContacts contacts_;
+  UnlitWork unlit_;
 };
 
 }  // namespace
