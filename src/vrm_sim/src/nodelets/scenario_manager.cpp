@@ -49,13 +49,10 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
-#include <fstream>
-#include <iomanip>
 #include <map>
 #include <memory>
 #include <mutex>
 #include <pluginlib/class_list_macros.hpp>
-#include <sstream>
 
 #include "vrm_msgs/CollisionReport.h"
 #include "vrm_msgs/RunningScene.h"
@@ -74,6 +71,7 @@
 #include "vrm_sim/tissue/tissue_simulator.h"
 #include "vrm_sim/world/offline.h"
 #include "vrm_sim/world/session.h"
+#include "vrm_sim/world/session_result.h"
 
 namespace vrm_sim {
 
@@ -364,7 +362,7 @@ class ScenarioManager : public nodelet::Nodelet {
     if (status->state == scenario::State::kRunning && !result_written_ &&
         (last_provisional_.isZero() || (stamp - last_provisional_).toSec() >= 1.0)) {
       last_provisional_ = stamp;
-      writeResultFiles(resultJson(/*in_progress=*/true));
+      writeResultFiles(sessionResult(/*in_progress=*/true));
     }
     const bool changed = !last_state_ || *last_state_ != status->state;
     const bool due = status->state == scenario::State::kRunning && (stamp - last_status_stamp_).toSec() >= 0.1;
@@ -395,68 +393,56 @@ class ScenarioManager : public nodelet::Nodelet {
                  session_->world().sessionEnded() ? "over" : "interrupted",
                  static_cast<unsigned long>(session_->world().statistics().frames),
                  world::hashString(session_->world().stateHash()).c_str());
-    const std::string json = resultJson(/*in_progress=*/false);
-    const world::World& current = session_->world();
-    const auto last_stamp = current.lastFrameStamp();
+    const result::SessionResult final_result = sessionResult(/*in_progress=*/false);
+    const auto last_stamp = session_->world().lastFrameStamp();
     // The console imports this text (training records) whether or not a file is written, so a result reaches a
     // console on another host too.
-    auto result = boost::make_shared<vrm_msgs::SessionResult>();
-    result->header.stamp = last_stamp ? toRosTime(*last_stamp) : ros::Time(0);
-    result->json = json;
-    result->final_state_hash = world::hashString(current.stateHash());
-    result->result_files = result_files_;
-    if (ros::ok()) vrm_msgs::publishShared(result_publisher_, result);  // not from the destructor at shutdown
-    writeResultFiles(json);
+    auto message = boost::make_shared<vrm_msgs::SessionResult>();
+    message->header.stamp = last_stamp ? toRosTime(*last_stamp) : ros::Time(0);
+    message->json = result::toJson(final_result);
+    message->final_state_hash = final_result.final_state_hash;
+    message->result_files = result_files_;
+    if (ros::ok()) vrm_msgs::publishShared(result_publisher_, message);  // not from the destructor at shutdown
+    writeResultFiles(final_result);
   }
 
-  // Temporary file + rename: a crash in the middle of a write leaves the previous version, never half a file.
-  void writeResultFiles(const std::string& json) {
+  void writeResultFiles(const result::SessionResult& session_result) {
     for (const std::string& path : result_files_) {
-      const std::string temporary = path + ".tmp";
-      {
-        std::ofstream file(temporary);
-        file << json;
-        file.flush();
-        if (!file) {
-          NODELET_ERROR("scenario_manager: cannot write the result file %s", temporary.c_str());
-          continue;
-        }
+      try {
+        result::writeResultFile(path, session_result);
+      } catch (const result::ResultError& error) {
+        NODELET_ERROR("scenario_manager: %s", error.what());
+        continue;
       }
-      if (std::rename(temporary.c_str(), path.c_str()) != 0) {
-        NODELET_ERROR("scenario_manager: cannot write the result file %s", path.c_str());
-      } else if (json.find("\"in_progress\": true") == std::string::npos) {
+      if (!session_result.in_progress) {
         NODELET_INFO("scenario_manager: result written to %s (final state %s)", path.c_str(),
-                     world::hashString(session_->world().stateHash()).c_str());
+                     session_result.final_state_hash.c_str());
       }
     }
   }
 
-  // A provisional result left by a session whose process died: kept under its own name, marked interrupted.
+  // A provisional result left by a session whose process died: kept under its own name, marked interrupted (the
+  // struct is read, changed and written again: result::interrupted).
   void keepInterruptedResults() {
-    namespace fs = std::filesystem;
     for (const std::string& path : result_files_) {
-      std::ifstream in(path);
-      if (!in) continue;
-      std::string json((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-      in.close();
-      const std::string marker = "\"in_progress\": true";
-      const std::size_t at = json.find(marker);
-      if (at == std::string::npos) continue;
-      json.replace(at, marker.size(), "\"in_progress\": false, \"interrupted\": true");
-      const std::string running = "\"state\": \"running\"";
-      const std::size_t state = json.find(running);
-      if (state != std::string::npos) json.replace(state, running.size(), "\"state\": \"interrupted\"");
-      const std::string suffix = ".result.json";
-      const std::string stem =
-          path.size() > suffix.size() && path.compare(path.size() - suffix.size(), suffix.size(), suffix) == 0
-              ? path.substr(0, path.size() - suffix.size())
-              : path;
-      std::string kept = stem + ".interrupted.result.json";
+      if (!std::filesystem::exists(path)) continue;
+      result::SessionResult provisional;
+      try {
+        provisional = result::readResultFile(path);
+      } catch (const result::ResultError& error) {
+        NODELET_WARN("scenario_manager: %s; it is overwritten by this session's result", error.what());
+        continue;
+      }
+      if (!provisional.in_progress) continue;
+      const std::string kept = result::interruptedPath(path);
+      try {
+        result::writeResultFile(kept, result::interrupted(provisional));
+      } catch (const result::ResultError& error) {
+        NODELET_ERROR("scenario_manager: cannot keep the interrupted session's result: %s", error.what());
+        continue;
+      }
       std::error_code error;
-      for (int n = 2; fs::exists(kept, error); ++n) kept = stem + ".interrupted-" + std::to_string(n) + ".result.json";
-      std::ofstream(kept + ".tmp") << json;
-      fs::rename(kept + ".tmp", kept, error);
-      fs::remove(path, error);
+      std::filesystem::remove(path, error);
       NODELET_WARN(
           "scenario_manager: the previous session at %s was interrupted (its process died); its last "
           "provisional result is kept as %s",
@@ -464,55 +450,14 @@ class ScenarioManager : public nodelet::Nodelet {
     }
   }
 
-  std::string resultJson(bool in_progress) const {
-    std::ostringstream out;
-    out << std::setprecision(15);
-    const auto quoted = world::jsonString;
-    // A metric without samples (a hold never started, a session stopped at once) is NaN or infinite: JSON has no
-    // such numbers, and one "nan" made the whole result unreadable for the console and the records store.
-    const auto number = [](double value) {
-      std::ostringstream text;
-      text << std::setprecision(15) << value;
-      return std::isfinite(value) ? text.str() : std::string("null");
-    };
-    const world::World& current = session_->world();
-    const scenario::Status* status = current.scenarioStatus();
-    out << "{\"scene\": " << quoted(current.scene().name) << ", \"scene_file\": " << quoted(current.scene().source_file)
-        << ", \"scenario\": " << (status ? quoted(status->type) : "null")
-        << ", \"difficulty\": " << (status ? quoted(status->difficulty) : "null")
-        << ", \"seed\": " << (session_->loads() > 0 ? session_->seed() : seed_)
-        << ", \"state\": " << (status ? quoted(scenario::toString(status->state)) : "null")
-        << ", \"session_ended\": " << (current.sessionEnded() ? "true" : "false");
-    if (status) {
-      out << ", \"timed_out\": " << (status->timed_out ? "true" : "false")
-          << ", \"message\": " << quoted(status->message)
-          << ", \"start_stamp\": " << (status->start_time ? *status->start_time : 0.0)
-          << ", \"end_stamp\": " << (status->end_time ? *status->end_time : 0.0)
-          << ", \"elapsed\": " << number(status->elapsed) << ", \"total\": " << number(status->score.total)
-          << ", \"items\": [";
-      for (std::size_t i = 0; i < status->score.items.size(); ++i) {
-        const scenario::ScoreItem& item = status->score.items[i];
-        out << (i ? ", " : "") << "{\"name\": " << quoted(item.name) << ", \"value\": " << number(item.value)
-            << ", \"unit\": " << quoted(item.unit) << ", \"weight\": " << number(item.weight)
-            << ", \"points\": " << number(item.points) << "}";
-      }
-      out << "]";
-    } else {
-      out << ", \"total\": null";
-    }
-    const auto last_stamp = current.lastFrameStamp();
-    out << ", \"final_state_hash\": \"" << world::hashString(current.stateHash())
-        << "\", \"frames\": " << current.statistics().frames
-        << ", \"simulated_frames\": " << current.statistics().simulated_frames
-        << ", \"late_inputs\": " << current.statistics().late_inputs
-        << ", \"frames_without_source\": " << current.statistics().frames_without_source
-        << ", \"input_frames\": " << current.statistics().input_sequence
-        << ", \"last_frame_stamp\": " << (last_stamp ? world::toSeconds(*last_stamp) : 0.0)
-        << ", \"software_version\": " << quoted(VRM_SIM_VERSION)
-        << ", \"bag\": " << (bag_path_.empty() ? "null" : quoted(bag_path_))
-        << ", \"user\": " << (user_.empty() ? "null" : quoted(user_)) << ", \"station\": " << quoted(station_)
-        << ", \"in_progress\": " << (in_progress ? "true" : "false") << "}\n";
-    return out.str();
+  result::SessionResult sessionResult(bool in_progress) const {
+    world::ResultContext context;
+    context.seed = session_->loads() > 0 ? session_->seed() : seed_;
+    if (!bag_path_.empty()) context.bag = bag_path_;
+    if (!user_.empty()) context.user = user_;
+    context.station = station_;
+    context.in_progress = in_progress;
+    return world::sessionResult(session_->world(), context);
   }
 
   // Rejected and late inputs per second: a flood of hostile or broken messages shows here, not only in the log.
