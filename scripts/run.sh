@@ -72,6 +72,12 @@ fi
 status=0
 /usr/bin/python3 "$ROOT/scripts/bag_summary.py" "$bag" || status=1
 echo "stereo frames: $(find "$out" -name '*.png' | wc -l) PNGs in $out"
+# Issue 33: the saved frames re-rendered from their saved state (<prefix>.frame): the working instrument's shadow,
+# the working area in focus, the fundus lit by the light pipe's cone (rosrun vrm_render frame_check --help).
+if ! rosrun vrm_render frame_check "$out"; then
+  echo "run.sh: frame_check: a saved frame failed its shadow / focus / light check (or could not be checked)" >&2
+  ((${#check[@]} == 0)) || status=1
+fi
 /usr/bin/python3 "$ROOT/scripts/session_summary.py" "${check[@]}" "$out/outputs.bag" || status=1
 if [[ -f $out/result.json ]]; then echo "result: $out/result.json"; else echo "result: none (the scenario did not end within ${duration} s)"; fi
 # The session is its recorded inputs (thesis §2.4.2): the offline replay must end where the live session did.

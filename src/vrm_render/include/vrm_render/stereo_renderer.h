@@ -35,6 +35,7 @@
 
 #include "vrm_render/fundus.h"
 #include "vrm_render/microscope_camera.h"
+#include "vrm_render/render_state.h"
 #include "vrm_render/render_types.h"
 
 namespace vrm_gl {
@@ -84,6 +85,16 @@ class StereoRenderer {
 
   // Renders all passes for both eyes (or one in mono) and reads the images back into `frame` (buffers reused).
   void render(StereoFrame* frame);
+
+  // Issue 33: what the last frame was drawn from (objects at their drawn poses, meshes read back from the GPU
+  // buffers, so nothing is kept on the CPU for it), and the way back: after restoreState(captureState()) a renderer
+  // draws the same frame. restoreState removes every other object; it throws RenderStateError when the state is
+  // invalid or its fundus texture hash differs from the fundus these parameters bake today (the generator changed).
+  RenderState captureState() const;
+  void restoreState(const RenderState& state);
+  // The last frame's depth buffer of one eye (window depth 0..1, top row first, width x height): the check tools
+  // find the visible surface point of each pixel from it (CameraView::viewProjection inverse).
+  void readDepth(Eye eye, std::vector<float>* depth) const;
 
   static constexpr std::size_t kMaxVertices = 4'000'000;
   static constexpr std::size_t kMaxTriangles = 8'000'000;

@@ -745,6 +745,94 @@ void StereoRenderer::render(StereoFrame* frame) {
   if (error != GL_NO_ERROR) throw RenderError("OpenGL error " + std::to_string(error) + " while rendering");
 }
 
+RenderState StereoRenderer::captureState() const {
+  Impl& im = *impl_;
+  im.context->makeCurrent();
+  RenderState state;
+  state.options = options_;
+  state.rig = rig_;
+  state.microscope = microscope_;
+  state.light = light_;
+  state.has_fundus = im.fundus != nullptr;
+  if (im.fundus) {
+    state.fundus = im.fundus->params();
+    state.fundus_texture_hash = fundusTextureHash(*im.fundus);
+  }
+  auto readBuffer = [](GLuint buffer, std::size_t count, std::vector<float>* out) {
+    out->resize(count);
+    glBindBuffer(GL_ARRAY_BUFFER, buffer);
+    glGetBufferSubData(GL_ARRAY_BUFFER, 0, static_cast<GLsizeiptr>(count * sizeof(float)), out->data());
+  };
+  for (const auto& entry : im.objects) {
+    const Object& object = entry.second;
+    RenderState::Object saved;
+    saved.id = entry.first;
+    saved.has_mesh = object.has_mesh;
+    saved.version = object.version;
+    saved.style = object.style;
+    saved.pose = object.pose;
+    saved.visible = object.visible;
+    if (object.has_mesh) {
+      saved.mesh.positions = object.positions;
+      saved.mesh.triangles = object.triangles;
+      readBuffer(object.buffers[1], object.vertex_count * 3, &saved.mesh.normals);
+      if (object.has_colors) readBuffer(object.buffers[2], object.vertex_count * 4, &saved.mesh.colors);
+      if (object.has_injury) readBuffer(object.buffers[3], object.vertex_count, &saved.mesh.injury);
+    }
+    state.objects.push_back(std::move(saved));
+  }
+  glBindBuffer(GL_ARRAY_BUFFER, 0);
+  if (glGetError() != GL_NO_ERROR) throw RenderError("captureState: OpenGL error reading the mesh buffers");
+  return state;
+}
+
+void StereoRenderer::restoreState(const RenderState& state) {
+  validateRenderState(state);
+  std::shared_ptr<const FundusMap> fundus;
+  if (state.has_fundus) {
+    fundus = std::make_shared<const FundusMap>(state.fundus);
+    const std::uint64_t hash = fundusTextureHash(*fundus);
+    if (hash != state.fundus_texture_hash) {
+      throw RenderStateError(
+          "restoreState: the fundus these parameters bake today differs from the saved frame's "
+          "(texture hash " +
+          std::to_string(hash) + " != " + std::to_string(state.fundus_texture_hash) + "): fundus generator changed");
+    }
+  }
+  setOptions(state.options);
+  rig_ = state.rig;
+  setMicroscope(state.microscope);
+  setLightPipe(state.light);
+  for (const std::string& id : objectIds()) removeObject(id);
+  if (fundus) setFundus(fundus);
+  impl_->invalidateStaticLayers();
+  for (const RenderState::Object& object : state.objects) {
+    setStyle(object.id, object.style);
+    if (object.has_mesh) updateMesh(object.id, object.mesh.view(), object.version);
+    setPose(object.id, object.pose);
+    setVisible(object.id, object.visible);
+  }
+}
+
+void StereoRenderer::readDepth(Eye eye, std::vector<float>* depth) const {
+  const int e = eye == Eye::kRight && options_.stereo ? 1 : 0;
+  const Impl::EyeTargets& target = impl_->eyes[e];
+  if (!target.scene.fbo) throw RenderError("readDepth: no frame rendered");
+  impl_->context->makeCurrent();
+  const int w = options_.width, h = options_.height;
+  std::vector<float> rows(static_cast<std::size_t>(w) * h);
+  glBindFramebuffer(GL_READ_FRAMEBUFFER, target.scene.fbo);
+  glPixelStorei(GL_PACK_ALIGNMENT, 4);
+  glReadPixels(0, 0, w, h, GL_DEPTH_COMPONENT, GL_FLOAT, rows.data());
+  glBindFramebuffer(GL_READ_FRAMEBUFFER, 0);
+  if (glGetError() != GL_NO_ERROR) throw RenderError("readDepth: OpenGL error");
+  depth->resize(rows.size());
+  for (int y = 0; y < h; ++y) {  // GL's first row is the bottom one
+    std::copy_n(rows.data() + static_cast<std::size_t>(h - 1 - y) * w, w,
+                depth->data() + static_cast<std::size_t>(y) * w);
+  }
+}
+
 // Tracked poses jitter by a fraction of a pixel from frame to frame (the tracker's noise), which would redraw the
 // static layer every frame. A static object therefore keeps being drawn at its anchor pose while its requested pose
 // stays within static_pose_tolerance_px of it (a sub-pixel, invisible lag that also steadies the jitter); beyond,

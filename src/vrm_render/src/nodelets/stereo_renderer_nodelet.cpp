@@ -65,7 +65,8 @@
 //   <camera_frame>_{left,right}_optical (REP-103 optical: z forward, x right, y down). Default camera_frame:
 //   microscope.
 // Service: ~save_snapshot (std_srvs/Trigger): writes the last rendered frame (left, right) as PNGs into
-//   ~snapshot_dir (/tmp when empty) and returns the path prefix.
+//   ~snapshot_dir (/tmp when empty), with its render state (<prefix>.frame, vrm_render/render_state.h: frame_check
+//   re-renders it), and returns the path prefix.
 
 #include <cv_bridge/cv_bridge.h>
 #include <diagnostic_msgs/DiagnosticArray.h>
@@ -719,6 +720,9 @@ class StereoRendererNodelet : public nodelet::Nodelet {
                   stamp.sec, stamp.nsec);
     savePng(frame.images[0], dir + name + "_left.png");
     if (!frame.images[1].data.empty()) savePng(frame.images[1], dir + name + "_right.png");
+    // Issue 33: what the frame was drawn from, so frame_check can re-render it with a pass switched off. The renderer
+    // still holds the frame's state (render_mutex_ is held and inputs apply only before the next render).
+    writeRenderState(renderer_->captureState(), dir + name + ".frame");
     return dir + name;
   }
 
