@@ -83,7 +83,8 @@ if [[ -f $out/result.json ]]; then echo "result: $out/result.json"; else echo "r
 # The session is its recorded inputs (thesis §2.4.2): the offline replay must end where the live session did.
 live_result=${bag%.bag}.result.json
 if [[ -f $live_result ]]; then
-  live_hash=$(/usr/bin/python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["final_state_hash"])' "$live_result")
+  # The result's one Python reader (scripts/session_result.py, schema doc/session_result.md): a malformed result fails.
+  live_hash=$(/usr/bin/python3 "$ROOT/scripts/session_result.py" "$live_result" final_state_hash) || status=1
   if replay=$(rosrun vrm_sim session_replay --bag "$bag"); then
     replay_hash=$(/usr/bin/python3 -c 'import json,sys; d=json.loads(sys.argv[1]); print(d["final_state_hash"], "in %.2f s (%.0fx real time)" % (d["wall_seconds"], d["speedup"]))' "$replay")
     if [[ ${replay_hash%% *} == "$live_hash" ]]; then

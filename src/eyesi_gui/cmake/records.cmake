@@ -6,7 +6,8 @@ add_library(eyesi_records STATIC ${EYESI_RECORDS_SOURCES})
 # PIC: the console's nodelet/shared objects link this static library.
 set_target_properties(eyesi_records PROPERTIES POSITION_INDEPENDENT_CODE ON)
 target_include_directories(eyesi_records PUBLIC ${CMAKE_CURRENT_SOURCE_DIR}/include)
-target_link_libraries(eyesi_records PUBLIC SQLite::SQLite3 OpenSSL::Crypto nlohmann_json::nlohmann_json)
+# The result JSON is read by the simulator's one reader (vrm_sim/result/session_result.h).
+target_link_libraries(eyesi_records PUBLIC vrm_session_result SQLite::SQLite3 OpenSSL::Crypto)
 target_compile_options(eyesi_records PRIVATE -Wall -Wextra)
 
 add_executable(records tools/records.cpp)
@@ -17,7 +18,7 @@ install(TARGETS eyesi_records ARCHIVE DESTINATION ${CATKIN_PACKAGE_LIB_DESTINATI
 if(CATKIN_ENABLE_TESTING)
   catkin_add_gtest(test_records test/test_records.cpp)
   if(TARGET test_records)
-    target_link_libraries(test_records eyesi_records gtest_main)
+    target_link_libraries(test_records eyesi_records nlohmann_json::nlohmann_json gtest_main)
     # The simulator's reference results (real scenario_manager output) and the tool, run as a subprocess.
     target_compile_definitions(test_records PRIVATE EYESI_TEST_BAGS="${CMAKE_CURRENT_SOURCE_DIR}/../vrm_sim/test/bags"
                                                     EYESI_RECORDS_TOOL="$<TARGET_FILE:records>")

@@ -594,23 +594,32 @@ TEST(RecordsImport, MalformedResultsNameTheOriginAndTheField) {
   expectStoreError([&] { store.importResultJson("[1, 2]", "station2"); }, {"station2", "not an object"});
   expectStoreError([&] { store.importResultJson(R"({"total": 3})", "station2"); }, {"station2", "scene"});
   expectStoreError([&] { store.importResultJson(R"({"scene": 4})", "o"); }, {"scene", "not a string"});
-  expectStoreError([&] { store.importResultJson(R"({"scene": "n", "total": "high"})", "o"); }, {"total"});
-  expectStoreError([&] { store.importResultJson(R"({"scene": "n", "seed": -1})", "o"); }, {"seed"});
-  expectStoreError([&] { store.importResultJson(R"({"scene": "n", "items": {}})", "o"); }, {"items"});
-  expectStoreError([&] { store.importResultJson(R"({"scene": "n", "items": [{"name": "t", "value": "x"}]})", "o"); },
+  // The simulator's required keys besides the scene (every writer version wrote them).
+  expectStoreError([&] { store.importResultJson(R"({"scene": "n", "frames": 1})", "o"); },
+                   {"final_state_hash", "missing"});
+  expectStoreError([&] { store.importResultJson(R"({"scene": "n", "final_state_hash": "0x1"})", "o"); },
+                   {"frames", "missing"});
+  const auto with = [](const std::string& fields) {
+    return R"({"scene": "n", "final_state_hash": "0x1", "frames": 1, )" + fields + "}";
+  };
+  expectStoreError([&] { store.importResultJson(with(R"("total": "high")"), "o"); }, {"total"});
+  expectStoreError([&] { store.importResultJson(with(R"("seed": -1)"), "o"); }, {"seed"});
+  expectStoreError([&] { store.importResultJson(with(R"("items": {})"), "o"); }, {"items"});
+  expectStoreError([&] { store.importResultJson(with(R"("items": [{"name": "t", "value": "x"}])"), "o"); },
                    {"items[0].", "value"});
   EXPECT_TRUE(store.sessions().empty());
 
   // Nulls are "unknown", not errors; no scenario → no items; no user → guest.
   const ImportResult ok = store.importResultJson(
-      R"({"scene": "free", "scenario": null, "seed": null, "state": "stopped", "total": null, "bag": null,
-          "items": null, "user": ""})",
+      R"({"scene": "free", "final_state_hash": "0x1", "frames": 1, "scenario": null, "seed": null, "state": "stopped",
+          "total": null, "bag": null, "items": null, "user": ""})",
       "o");
   const auto s = store.session(ok.session_id);
   ASSERT_TRUE(s.has_value());
   EXPECT_EQ(s->user, "guest");
   EXPECT_EQ(s->scenario, "");
   EXPECT_EQ(s->bag_path, "");
+  EXPECT_EQ(s->total, 0.0);  // null: unknown, stored as 0 (the column is NOT NULL)
   EXPECT_FALSE(s->passed);
   EXPECT_TRUE(s->items.empty());
   EXPECT_EQ(s->result_path, "");
