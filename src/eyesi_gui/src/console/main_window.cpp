@@ -11,8 +11,6 @@
 #include <QGroupBox>
 #include <QHBoxLayout>
 #include <QHeaderView>
-#include <QJsonDocument>
-#include <QJsonObject>
 #include <QLabel>
 #include <QLineEdit>
 #include <QListWidget>
@@ -38,6 +36,7 @@
 #include <sstream>
 
 #include "stereo_view.h"
+#include "vrm_sim/result/session_result.h"
 
 namespace eyesi_gui {
 namespace {
@@ -616,16 +615,23 @@ void MainWindow::onScenarioStatus(const ScenarioState& state) {
 void MainWindow::onSessionResult(const QString& json) {
   if (result_jsons_seen_.contains(json)) return;  // latched: a reconnect delivers it again
   result_jsons_seen_ << json;
-  const QJsonObject result = QJsonDocument::fromJson(json.toUtf8()).object();
+  // The simulator's one reader (vrm_sim/result/session_result.h), as the records store reads it.
+  vrm_sim::result::SessionResult result;
+  try {
+    result = vrm_sim::result::resultFromJson(json.toStdString(), "session_result");
+  } catch (const vrm_sim::result::ResultError& error) {
+    note(QString("the session result could not be read: %1").arg(error.what()));
+    return;
+  }
   if (current_request_.mode == "replay") {
-    const QString hash = result.value("final_state_hash").toString();
+    const QString hash = QString::fromStdString(result.final_state_hash);
     const bool same = hash == replay_expected_hash_;
     session_message_->setText(QString("replay over: final state %1 %2 the recorded %3")
                                   .arg(hash, same ? "equals" : "DIFFERS FROM", replay_expected_hash_));
     note(session_message_->text());
     return;
   }
-  if (!user_ || result.value("scene").toString() != current_request_.scene) return;
+  if (!user_ || QString::fromStdString(result.scene) != current_request_.scene) return;
   try {
     // The station's graph outlives the session: the bag this session was recorded to is the station's to say.
     const std::string bag = station_.mode == "session" && station_.scene == current_request_.scene

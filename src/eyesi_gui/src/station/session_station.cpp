@@ -48,7 +48,6 @@
 #include <ctime>
 #include <fstream>
 #include <mutex>
-#include <nlohmann/json.hpp>
 #include <optional>
 #include <random>
 #include <sstream>
@@ -67,6 +66,7 @@
 #include "vrm_msgs/SimulationState.h"
 #include "vrm_msgs/StationStatus.h"
 #include "vrm_sim/package_data.h"
+#include "vrm_sim/result/session_result.h"
 #include "vrm_sim/scene/scene_loader.h"
 
 namespace {
@@ -600,40 +600,32 @@ class SessionStation {
     // The current session's: it ran (the previous session's result is latched too), in its scene, after its start.
     if (status_.state != vrm_msgs::StationStatus::READY && status_.state != vrm_msgs::StationStatus::RUNNING) return;
     if (result->header.stamp < session_stamp_) return;
-    nlohmann::ordered_json json;
+    vrm_sim::result::SessionResult session_result;
     try {
-      json = nlohmann::ordered_json::parse(result->json);
-    } catch (const nlohmann::json::exception& error) {
-      ROS_ERROR("session_station: session_result is not JSON (%s); no result file", error.what());
+      session_result = vrm_sim::result::resultFromJson(result->json, "session_result");
+    } catch (const vrm_sim::result::ResultError& error) {
+      ROS_ERROR("session_station: %s; no result file", error.what());
       return;
     }
-    if (json.value("scene", "") != status_.scene) return;
+    if (session_result.scene != status_.scene) return;
     seen_result_ = true;
     ended_at_ = ros::WallTime::now();
     ROS_INFO("session_station: session over (final state %s); its recording ends in %.1f s",
              result->final_state_hash.c_str(), end_tail_);
-    writeResultFile(json);
+    writeResultFile(std::move(session_result));
   }
 
   // The result as scenario_manager reported it, with this session's bag and trainee (the graph was started without
-  // them: it serves every session).
-  void writeResultFile(nlohmann::ordered_json json) {
-    json["bag"] = status_.bag.empty() ? nlohmann::ordered_json() : nlohmann::ordered_json(status_.bag);
-    json["user"] = status_.user;
-    const std::string temporary = status_.result_file + ".tmp";
-    {
-      std::ofstream file(temporary);
-      file << json.dump() << "\n";
-      if (!file.flush()) {
-        ROS_ERROR("session_station: cannot write %s", temporary.c_str());
-        return;
-      }
-    }
-    // Renamed into place: a reader (the console's import) never sees half a file.
-    if (std::rename(temporary.c_str(), status_.result_file.c_str()) != 0) {
-      ROS_ERROR("session_station: cannot write %s: %s", status_.result_file.c_str(), std::strerror(errno));
-    } else {
+  // them: it serves every session). Written by the simulator's one writer (temporary file + rename: a reader, the
+  // console's import, never sees half a file).
+  void writeResultFile(vrm_sim::result::SessionResult session_result) {
+    session_result.bag = status_.bag.empty() ? std::nullopt : std::optional<std::string>(status_.bag);
+    session_result.user = status_.user.empty() ? std::nullopt : std::optional<std::string>(status_.user);
+    try {
+      vrm_sim::result::writeResultFile(status_.result_file, session_result);
       ROS_INFO("session_station: result written to %s", status_.result_file.c_str());
+    } catch (const vrm_sim::result::ResultError& error) {
+      ROS_ERROR("session_station: %s", error.what());
     }
   }
 
