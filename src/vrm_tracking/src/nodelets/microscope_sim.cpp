@@ -3,13 +3,20 @@
 // their limits. A console (eyesi_gui) sets the knobs on `microscope_setpoint`: its values replace the scripted track
 // from then on (the pedal buttons move on from there), the way a touchscreen sets the real microscope's motors, so the
 // recorded input stays this node's `microscope`.
+// With script:=scenario:NAME the track is derived from the scene's scripted session (device_script.h,
+// scenario_devices.h: the working plane kept in focus at a fixed zoom) instead of the demo's sweeps (issue 33). With
+// ~start_with_session (default true) a ScenarioCommand START restarts the track at the START's stamp, and the track is
+// read on this twin's period grid from there, as pedals_sim does (issue 31): the same session gets the same knob
+// values at the same stamps in every run, idle or loaded.
 
 #include <nodelet/nodelet.h>
 #include <ros/ros.h>
 #include <vrm_msgs/MicroscopeSettings.h>
 #include <vrm_msgs/PedalState.h>
+#include <vrm_msgs/ScenarioCommand.h>
 #include <vrm_msgs/publish.h>
 
+#include <algorithm>
 #include <boost/make_shared.hpp>
 #include <cmath>
 #include <memory>
@@ -61,7 +68,11 @@ class MicroscopeSim : public nodelet::Nodelet {
     pub_ = nh.advertise<vrm_msgs::MicroscopeSettings>("microscope", 10);
     pedal_sub_ = nh.subscribe("pedals", 10, &MicroscopeSim::onPedals, this);
     setpoint_sub_ = nh.subscribe("microscope_setpoint", 5, &MicroscopeSim::onSetpoint, this);
-    timer_ = nh.createTimer(ros::Duration(1.0 / rate), &MicroscopeSim::onTick, this);
+    period_ = 1.0 / rate;
+    if (pnh.param("start_with_session", true)) {
+      session_sub_ = nh.subscribe("scenario_command", 10, &MicroscopeSim::onSessionCommand, this);
+    }
+    timer_ = nh.createTimer(ros::Duration(period_), &MicroscopeSim::onTick, this);
     NODELET_INFO("microscope track of '%s' at %.1f Hz; zoom [%.2f, %.2f], focus [%.3f, %.3f] m",
                  script_->name().c_str(), rate, limits.zoom_min, limits.zoom_max, limits.focus_min, limits.focus_max);
   }
@@ -88,11 +99,17 @@ class MicroscopeSim : public nodelet::Nodelet {
     knobs_->reset();  // the console set absolute values: earlier pedal offsets no longer apply
   }
 
+  void onSessionCommand(const vrm_msgs::ScenarioCommand::ConstPtr& command) {
+    if (command->command != vrm_msgs::ScenarioCommand::START || command->header.stamp.isZero()) return;
+    std::lock_guard<std::mutex> lock(mutex_);
+    start_ = command->header.stamp;
+    session_clock_ = true;
+  }
+
   void onTick(const ros::TimerEvent& event) {
     ros::Time stamp = event.current_expected;
     if (stamp.isZero()) stamp = ros::Time::now();
     if (stamp.isZero()) return;
-    if (start_.isZero()) start_ = stamp;
     const double dt = last_tick_.isZero() ? 0.0 : (stamp - last_tick_).toSec();
     last_tick_ = stamp;
 
@@ -103,7 +120,10 @@ class MicroscopeSim : public nodelet::Nodelet {
       if (!buttons_received_.isZero() && (ros::Time::now() - buttons_received_).toSec() <= pedal_timeout_) {
         buttons = buttons_;
       }
-      baseline = setpoint_ ? *setpoint_ : script_->sample((stamp - start_).toSec()).microscope;
+      if (start_.isZero()) start_ = stamp;
+      double script_time = (stamp - start_).toSec();
+      if (session_clock_) script_time = std::max(0.0, std::floor(script_time / period_) * period_);
+      baseline = setpoint_ ? *setpoint_ : script_->sample(script_time).microscope;
     }
     const MicroscopeSample settings = knobs_->update(baseline, buttons, dt);
 
@@ -118,9 +138,11 @@ class MicroscopeSim : public nodelet::Nodelet {
   std::unique_ptr<MicroscopeKnobs> knobs_;
   double pedal_timeout_ = 0.5;
   ros::Publisher pub_;
-  ros::Subscriber pedal_sub_, setpoint_sub_;
+  ros::Subscriber pedal_sub_, setpoint_sub_, session_sub_;
   ros::Timer timer_;
-  ros::Time start_;
+  double period_ = 0.05;
+  ros::Time start_;             // guarded by mutex_ (the START callback may run on another manager thread)
+  bool session_clock_ = false;  // start_ is a START's stamp
   ros::Time last_tick_;
 
   std::mutex mutex_;

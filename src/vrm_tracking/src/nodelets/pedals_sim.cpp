@@ -1,5 +1,7 @@
 // Foot pedal twin (thesis §7): plays the script's pedal track; a PedalState on pedals_sim/command (keyboard teleop,
-// GUI) takes over, the way the mediator swaps a real device for another input (§2.4.1).
+// GUI) takes over, the way the mediator swaps a real device for another input (§2.4.1). With script:=scenario:NAME the
+// track is derived from the scene's scripted session (device_script.h, scenario_devices.h; issue 33): the travel
+// follows the working instrument's suction and no zoom/focus button is pressed, so the knob twin keeps its focus.
 // With ~start_with_session (default true) a ScenarioCommand START restarts the track at the START's stamp, like the
 // scripted surgeon, and the track is read on its own period's grid from there (the last whole period before the
 // tick): the pedal timer's phase against the surgeon's ticks differs from run to run, and the frame the mediator

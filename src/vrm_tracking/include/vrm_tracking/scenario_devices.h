@@ -1,0 +1,46 @@
+#pragma once
+// The device twins' tracks for a scene's scripted session (issue 33, part 4). With script:=scenario:NAME the pedal and
+// knob twins used to play the built-in demo's zoom/focus sweeps and buttons, so a saved frame was often out of focus
+// and zoomed at random. Here they play tracks derived from the same scripted session the scripted surgeon plays: the
+// microscope keeps the working plane in focus at a fixed zoom, the pedal follows the working instrument's suction and
+// presses no buttons. ROS-free; every track is a pure function of the script time, so a session stays deterministic
+// from its input stamps whatever the twins' tick phases.
+
+#include <string>
+
+#include "vrm_tracking/surgeon_script.h"
+
+namespace vrm_tracking {
+
+struct ScenarioFocusOptions {
+  // World z of the microscope objective, looking down -z: vrm_render's MicroscopeRig (0.188 m puts the default
+  // 0.2 m focus on the posterior pole of a 12 mm eye centred at the origin).
+  double objective_z = 0.188;
+  // The focal plane follows the working tip but stays within [retina, retina + max_height] below it: the tissue the
+  // tip works on (membranes, ILM, a vitreous sheet) lies within ~1 mm of the retina; a tip entering or lifted high
+  // leaves the focus on that working plane instead of pulling the fundus out of focus.
+  double max_height = 1.0e-3;
+  double window = 0.5;     // s: the target is averaged over the last `window` of script time (a focus motor's lag)
+  double step = 0.01;      // s: grid the average samples the script on
+  double key_step = 0.05;  // s between the keyframes of the tracks
+  double zoom = 1.5;       // fixed: the demo's working magnification (20 mm field at the focal plane)
+  double ambient_light = 0.3;
+};
+
+// The focus distance (objective to focal plane, m) that puts the plane the working instrument `tool_slot` works in
+// in focus at this snapshot (unsmoothed): its tip's world z clamped into [retina, retina + max_height] on the
+// vertical through the tip (the eye sphere of `eye_radius` about the snapshot's rotation centre; the eye frame's
+// origin is that centre). No such instrument in the snapshot, or a tip outside the sphere's footprint: the posterior
+// pole.
+double scenarioFocusDistance(const SurgeonSnapshot& snapshot, const std::string& tool_slot, double eye_radius,
+                             const ScenarioFocusOptions& options = {});
+
+// A scripted session (scenarioScript(), scene_trocars.h) with its microscope and pedal tracks replaced: a keyframe
+// every options.key_step s from 0 to the session's end; focus = scenarioFocusDistance() averaged over the last
+// options.window s of script time (sampled every options.step s; from 0 at the start), zoom and ambient light fixed;
+// pedal travel = the working instrument's suction (a vitrectomy pedal's; 0 for a forceps), no buttons. The result plays
+// once, like the session. Throws std::invalid_argument for non-positive steps, a negative window or max_height.
+SurgeonScript withScenarioDeviceTracks(const SurgeonScript& session, const std::string& tool_slot,
+                                       const ScenarioFocusOptions& options = {});
+
+}  // namespace vrm_tracking

@@ -1,0 +1,69 @@
+#include "vrm_tracking/scenario_devices.h"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <vector>
+
+namespace vrm_tracking {
+
+double scenarioFocusDistance(const SurgeonSnapshot& snapshot, const std::string& tool_slot, double eye_radius,
+                             const ScenarioFocusOptions& options) {
+  const Eigen::Vector3d& centre = snapshot.rotation_center;
+  const double pole_z = centre.z() - eye_radius;
+  const auto tool = std::find_if(snapshot.instruments.begin(), snapshot.instruments.end(),
+                                 [&](const InstrumentSample& sample) { return sample.slot == tool_slot; });
+  if (tool == snapshot.instruments.end() || !tool->tip.allFinite()) return options.objective_z - pole_z;
+  const Eigen::Vector3d tip = centre + snapshot.eye_rotation * tool->tip;
+  const double lateral_sq = (tip.head<2>() - centre.head<2>()).squaredNorm();
+  if (!(lateral_sq < eye_radius * eye_radius)) return options.objective_z - pole_z;
+  const double retina_z = centre.z() - std::sqrt(eye_radius * eye_radius - lateral_sq);
+  return options.objective_z - std::clamp(tip.z(), retina_z, retina_z + options.max_height);
+}
+
+SurgeonScript withScenarioDeviceTracks(const SurgeonScript& session, const std::string& tool_slot,
+                                       const ScenarioFocusOptions& options) {
+  if (!(options.step > 0.0) || !(options.key_step > 0.0) || !(options.window >= 0.0) || !(options.max_height >= 0.0))
+    throw std::invalid_argument("scenario device tracks: need step, key_step > 0 and window, max_height >= 0");
+  const double eye_radius = session.definition().eye.radius;
+  const double duration = session.duration();
+  // The target on a grid of options.step from 0, then its running mean over the window (a pure function of the grid).
+  const int samples = static_cast<int>(std::ceil(duration / options.step)) + 1;
+  std::vector<double> target(samples), prefix(samples + 1, 0.0);
+  for (int i = 0; i < samples; ++i) {
+    target[i] = scenarioFocusDistance(session.sample(i * options.step), tool_slot, eye_radius, options);
+    prefix[i + 1] = prefix[i] + target[i];
+  }
+  const int window = static_cast<int>(std::lround(options.window / options.step));
+  const auto smoothed = [&](double t) {
+    const int last = std::clamp(static_cast<int>(std::floor(t / options.step + 1e-9)), 0, samples - 1);
+    const int first = std::max(0, last - window);
+    return (prefix[last + 1] - prefix[first]) / (last + 1 - first);
+  };
+
+  ScriptDefinition definition = session.definition();
+  definition.name += " (scenario devices)";
+  definition.playback = Playback::kOnce;
+  definition.microscope_track.clear();
+  definition.pedal_track.clear();
+  const int keys = static_cast<int>(std::ceil(duration / options.key_step)) + 1;
+  for (int k = 0; k < keys; ++k) {
+    const double t = k * options.key_step;
+    MicroscopeKeyframe microscope;
+    microscope.t = t;
+    microscope.value.focus_distance = smoothed(t);
+    microscope.value.zoom = options.zoom;
+    microscope.value.ambient_light = options.ambient_light;
+    definition.microscope_track.push_back(microscope);
+
+    PedalKeyframe pedal;
+    pedal.t = t;
+    for (const InstrumentSample& sample : session.sample(t).instruments) {
+      if (sample.slot == tool_slot) pedal.value.travel = std::clamp(sample.suction, 0.0, 1.0);
+    }
+    definition.pedal_track.push_back(pedal);
+  }
+  return SurgeonScript(std::move(definition));
+}
+
+}  // namespace vrm_tracking

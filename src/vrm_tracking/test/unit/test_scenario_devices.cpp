@@ -1,0 +1,107 @@
+// The device twins' tracks for a scene's scripted session (issue 33): the focus follows the working plane (the
+// working tip clamped between the retina and 1 mm above it, averaged over 0.5 s), the zoom stays fixed, the pedal
+// follows the working instrument's suction and presses no buttons. Scripts with round numbers, values by hand.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "vrm_tracking/scenario_devices.h"
+
+namespace vrm_tracking {
+namespace {
+
+// A 12 mm eye centred 1 mm above the world origin; a light pipe (left) that stays put and a vitrector (right) that
+// comes down from 6 mm below the centre to 0.5 mm off the retina at x = 1 mm (t = 1 s), cuts there with suction 0.6
+// until t = 3 s, and lifts to 3 mm below the centre (t = 4 s). Objective at z 0.188.
+const char* kSession = R"(name: session
+playback: once
+eye:
+  radius: 0.012
+  rotation_center: [0.0, 0.0, 0.001]
+instruments:
+  left:
+    trocar: [-0.0073485, 0.0042426, 0.0084853]
+    keyframes:
+      - {t: 0.0, type: light_pipe, tip: [-0.002, 0.001, -0.006]}
+      - {t: 4.0, tip: [-0.002, 0.001, -0.006]}
+  right:
+    trocar: [0.0073485, 0.0042426, 0.0084853]
+    keyframes:
+      - {t: 0.0, type: vitrector, tip: [0.001, 0.0, -0.006], suction: 0.0}
+      - {t: 1.0, tip: [0.001, 0.0, -0.0114583], suction: 0.6}
+      - {t: 3.0, tip: [0.001, 0.0, -0.0114583], suction: 0.6}
+      - {t: 4.0, tip: [0.001, 0.0, -0.003], suction: 0.0}
+)";
+
+SurgeonScript session() { return SurgeonScript::fromYamlString(kSession, "session.yaml"); }
+
+// Retina z below x = 1 mm (world): centre z - sqrt(R^2 - x^2).
+const double kRetinaZ = 0.001 - std::sqrt(0.012 * 0.012 - 0.001 * 0.001);
+
+TEST(ScenarioFocus, FocusesOnTheWorkingTipClampedToTheWorkingPlane) {
+  const SurgeonScript s = session();
+  // Working: the tip 0.5 mm off the retina is the focal plane.
+  EXPECT_NEAR(scenarioFocusDistance(s.sample(2.0), "right", 0.012), 0.188 - (0.001 - 0.0114583), 1e-12);
+  // Entering high (6 mm below the centre): the plane 1 mm above the retina below the tip, not the tip.
+  EXPECT_NEAR(scenarioFocusDistance(s.sample(0.0), "right", 0.012), 0.188 - (kRetinaZ + 0.001), 1e-12);
+  // Below the retina (pressed into it): the retina.
+  SurgeonSnapshot pressed = s.sample(2.0);
+  pressed.instruments[1].tip.z() = -0.0125;
+  EXPECT_NEAR(scenarioFocusDistance(pressed, "right", 0.012), 0.188 - kRetinaZ, 1e-12);
+  // No such instrument, a tip outside the sphere's footprint, a NaN tip: the posterior pole (0.2 m below the
+  // objective for an eye at the origin; here 1 mm higher).
+  EXPECT_NEAR(scenarioFocusDistance(s.sample(2.0), "none", 0.012), 0.188 - (0.001 - 0.012), 1e-12);
+  SurgeonSnapshot outside = s.sample(2.0);
+  outside.instruments[1].tip.x() = 0.013;
+  EXPECT_NEAR(scenarioFocusDistance(outside, "right", 0.012), 0.199, 1e-12);
+  outside.instruments[1].tip.x() = std::nan("");
+  EXPECT_NEAR(scenarioFocusDistance(outside, "right", 0.012), 0.199, 1e-12);
+  // Another objective height shifts the distance by as much.
+  ScenarioFocusOptions higher;
+  higher.objective_z = 0.2;
+  EXPECT_NEAR(scenarioFocusDistance(s.sample(2.0), "right", 0.012, higher),
+              scenarioFocusDistance(s.sample(2.0), "right", 0.012) + 0.012, 1e-12);
+}
+
+TEST(ScenarioFocus, DeviceTracksAreSmoothedFixedZoomAndButtonless) {
+  const SurgeonScript s = withScenarioDeviceTracks(session(), "right");
+  EXPECT_EQ(s.playback(), Playback::kOnce);
+  ASSERT_EQ(s.definition().instruments.size(), 2u);  // the instruments play as before
+  const double working = 0.188 - (0.001 - 0.0114583);
+  const double entering = 0.188 - (kRetinaZ + 0.001);
+  // Settled after half a second of work; the average lags the tip's descent.
+  EXPECT_NEAR(s.sample(2.0).microscope.focus_distance, working, 1e-9);
+  EXPECT_NEAR(s.sample(3.0).microscope.focus_distance, working, 1e-9);
+  EXPECT_NEAR(s.sample(0.0).microscope.focus_distance, entering, 1e-9);
+  const double lagging = s.sample(1.0).microscope.focus_distance;
+  EXPECT_GT(lagging, entering + 1e-6);
+  EXPECT_LT(lagging, working - 1e-6);
+  // The focus never jumps: at most the working range (1 mm) per 0.5 s, i.e. < 0.15 mm per 50 ms tick.
+  for (double t = 0.0; t < 4.5; t += 0.05) {
+    const SurgeonSnapshot a = s.sample(t), b = s.sample(t + 0.05);
+    EXPECT_LT(std::abs(b.microscope.focus_distance - a.microscope.focus_distance), 1.5e-4) << t;
+    EXPECT_DOUBLE_EQ(a.microscope.zoom, 1.5) << t;
+    EXPECT_FALSE(a.pedals.zoom_in || a.pedals.zoom_out || a.pedals.focus_near || a.pedals.focus_far) << t;
+    EXPECT_FALSE(a.pedals.reflux || a.pedals.instrument_switch) << t;
+  }
+  // The pedal is the vitrector's suction.
+  EXPECT_NEAR(s.sample(2.0).pedals.travel, 0.6, 1e-12);
+  EXPECT_NEAR(s.sample(0.0).pedals.travel, 0.0, 1e-12);
+  // A pure function of the script time: built twice, sampled anywhere, the same.
+  const SurgeonScript again = withScenarioDeviceTracks(session(), "right");
+  for (double t : {0.0, 0.37, 1.234, 2.9, 10.0}) {
+    EXPECT_EQ(again.sample(t).microscope.focus_distance, s.sample(t).microscope.focus_distance) << t;
+  }
+}
+
+TEST(ScenarioFocus, BadOptionsAreErrors) {
+  ScenarioFocusOptions bad;
+  bad.step = 0.0;
+  EXPECT_THROW(withScenarioDeviceTracks(session(), "right", bad), std::invalid_argument);
+  bad = ScenarioFocusOptions{};
+  bad.window = -1.0;
+  EXPECT_THROW(withScenarioDeviceTracks(session(), "right", bad), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace vrm_tracking
