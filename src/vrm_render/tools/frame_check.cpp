@@ -47,6 +47,7 @@ struct FrameResult {
   bool focus_pass = false;
   ConeResult cone;
   bool light_on = false;
+  double light_distance_mm = -1.0;  // light pipe tip to the retina along its axis (-1: the axis misses it / off)
   bool pass() const { return reproduced && tip_in_view && shadow.pass && focus_pass && cone.pass; }
 };
 
@@ -85,11 +86,11 @@ const RenderState::Object* workingInstrument(const RenderState& state) {
 }
 
 FrameResult check(StereoRenderer* renderer, const std::string& prefix, const RenderState& state,
-                  const std::string& dump) {
+                  const std::string& dump, bool same_fundus) {
   FrameResult r;
   r.prefix = prefix;
   const RgbImage saved = loadPng(prefix + "_left.png");
-  renderer->restoreState(state);
+  renderer->restoreState(state, same_fundus);
   StereoFrame frame;
   renderer->render(&frame);
   if (frame.images[0].width != saved.width || frame.images[0].height != saved.height) {
@@ -115,6 +116,11 @@ FrameResult check(StereoRenderer* renderer, const std::string& prefix, const Ren
   }
   const float radius = state.has_fundus ? state.fundus.eye_radius : FundusParams().eye_radius;
   r.light_on = state.light.enabled && state.options.lighting;
+  if (r.light_on) {  // the axis ray from inside the sphere: the far root of |tip + t d - c| = R
+    const Eigen::Vector3f d = state.light.direction.normalized(), o = state.light.tip - eye_centre;
+    const float b = o.dot(d), c = o.squaredNorm() - radius * radius, disc = b * b - c;
+    if (disc >= 0.0f && -b + std::sqrt(disc) > 0.0f) r.light_distance_mm = 1000.0 * (-b + std::sqrt(disc));
+  }
   const auto classes = classifyFundus(depth, camera, eye_centre, radius, r.light_on, state.light.tip,
                                       state.light.direction, vrm_sim::scenario::kLightConeHalfAngleDeg);
   r.cone = coneLighting(saved, classes);
@@ -160,16 +166,22 @@ std::string yes(bool ok) { return ok ? "ok" : "FAIL"; }
 int main(int argc, char** argv) {
   std::vector<std::string> args;
   std::string dump;
+  bool same_fundus = true;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "-h" || a == "--help") {
       std::cout
-          << "usage: frame_check [--dump DIR] DIR_OR_PREFIX...\n"
+          << "usage: frame_check [--dump DIR] [--any-fundus] DIR_OR_PREFIX...\n"
              "  checks saved snapshots (<prefix>.frame + <prefix>_left.png): the saved state re-renders the\n"
              "  image; shadow of the working tip; focus of the working area; the light pipe's cone lights the\n"
              "  fundus. --dump writes the re-renderings and the cone mask (blue: in the cone, green: not fundus).\n"
-             "  Exit 0 all pass, 1 a check failed, 2 bad input.\n";
+             "  --any-fundus: restore frames saved before the fundus generator changed with today's fundus (the\n"
+             "  reproduction then differs). Exit 0 all pass, 1 a check failed, 2 bad input.\n";
       return 0;
+    }
+    if (a == "--any-fundus") {  // development: frames saved before a change of the fundus generator
+      same_fundus = false;
+      continue;
     }
     if (a == "--dump" && i + 1 < argc) {
       dump = argv[++i];
@@ -190,14 +202,16 @@ int main(int argc, char** argv) {
     for (const std::string& prefix : prefixes) {
       const RenderState state = readRenderState(prefix + ".frame");
       if (!renderer) renderer = std::make_unique<StereoRenderer>(state.options, state.rig);
-      const FrameResult r = check(renderer.get(), prefix, state, dump);
-      char line[640];
+      const FrameResult r = check(renderer.get(), prefix, state, dump, same_fundus);
+      char line[900];
       std::snprintf(line, sizeof(line),
-                    "frame_check %s: reproduced %.1f dB %s | tip (%.0f, %.0f)%s | shadow %d px, %.0f %% darker, "
+                    "frame_check %s (focus %.3f m, zoom %.2f, ambient %.2f, light pipe %.1f mm from the fundus): "
+                    "reproduced %.1f dB %s | tip (%.0f, %.0f)%s | shadow %d px, %.0f %% darker, "
                     "%.1f px from tip %s | focus lap %.1f / %.1f no-DOF = %.2f %s | cone%s grey %.1f (%d px) vs "
                     "outside %.1f (%d px) = %.2fx, %d px saturated %s",
-                    fs::path(prefix).filename().c_str(), r.psnr, yes(r.reproduced).c_str(), r.tip.x(), r.tip.y(),
-                    r.tip_in_view ? "" : " NOT IN VIEW", r.shadow.region_px, 100.0 * r.shadow.darkening,
+                    fs::path(prefix).filename().c_str(), state.microscope.focus_distance, state.microscope.zoom,
+                    state.microscope.ambient_light, r.light_distance_mm, r.psnr, yes(r.reproduced).c_str(), r.tip.x(),
+                    r.tip.y(), r.tip_in_view ? "" : " NOT IN VIEW", r.shadow.region_px, 100.0 * r.shadow.darkening,
                     r.shadow.distance_px, yes(r.shadow.pass).c_str(), r.lap_saved, r.lap_no_dof, r.focus_ratio,
                     yes(r.focus_pass).c_str(), r.light_on ? "" : " (light pipe off)", r.cone.inside_grey,
                     r.cone.inside_px, r.cone.outside_grey, r.cone.outside_px, r.cone.ratio, r.cone.saturated_px,

@@ -40,7 +40,7 @@ struct Window {
   int x0 = 0, y0 = 0, x1 = 0, y1 = 0;  // [x0, x1) x [y0, y1)
   int pixels() const { return std::max(0, x1 - x0) * std::max(0, y1 - y0); }
 };
-constexpr int kWorkingAreaSide = 96;  // px at 800 x 600: 3.6 mm of the 30 mm field at zoom 1
+constexpr int kWorkingAreaSide = 64;  // px at 800 x 600: 2.4 mm of the 30 mm field at zoom 1
 Window workingArea(const Eigen::Vector2f& tip_px, int width, int height, int side = kWorkingAreaSide);
 double laplacianVariance(const RgbImage& image, const Window& window);
 

@@ -90,8 +90,9 @@ class StereoRenderer {
   // buffers, so nothing is kept on the CPU for it), and the way back: after restoreState(captureState()) a renderer
   // draws the same frame. restoreState removes every other object; it throws RenderStateError when the state is
   // invalid or its fundus texture hash differs from the fundus these parameters bake today (the generator changed).
+  // `same_fundus` false accepts a changed fundus generator (then the frame shows today's fundus).
   RenderState captureState() const;
-  void restoreState(const RenderState& state);
+  void restoreState(const RenderState& state, bool same_fundus = true);
   // The last frame's depth buffer of one eye (window depth 0..1, top row first, width x height): the check tools
   // find the visible surface point of each pixel from it (CameraView::viewProjection inverse).
   void readDepth(Eye eye, std::vector<float>* depth) const;

@@ -212,6 +212,11 @@ void main() {
   // The light pipe's polished fibre end glows with the light it emits.
   colour += vec3(1.0, 0.97, 0.88) * 1.3 * smoothstep(-u_glow_length, 0.0, v_object_z) * step(0.0, u_glow_length - 1e-9);
 #endif
+  // Highlight shoulder (issue 33): the light pipe is the main light, so close to the fundus it lights the pale disc
+  // (albedo ~0.9) beyond 1. Colours up to 0.75 pass unchanged (the ambient-only fill, 0.3 x albedo, and the lit
+  // fundus stay linear, so the ambient-only variant still matches the lit one outside the cone); above, they approach
+  // 1 exponentially with unit slope at the knee, so the disc keeps its cup and vessels instead of clipping to white.
+  colour = min(colour, vec3(0.75)) + 0.25 * (1.0 - exp(-max(colour - 0.75, vec3(0.0)) * 4.0));
   // The reflex is light reflected at the film's surface: on a translucent film it adds to what shows through
   // instead of being diluted by the film's opacity (premultiplied: colour a + reflex over dst (1 - a - reflex)).
   float lifted_alpha = min(1.0, alpha + reflex);

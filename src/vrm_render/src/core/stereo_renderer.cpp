@@ -786,13 +786,13 @@ RenderState StereoRenderer::captureState() const {
   return state;
 }
 
-void StereoRenderer::restoreState(const RenderState& state) {
+void StereoRenderer::restoreState(const RenderState& state, bool same_fundus) {
   validateRenderState(state);
   std::shared_ptr<const FundusMap> fundus;
   if (state.has_fundus) {
     fundus = std::make_shared<const FundusMap>(state.fundus);
     const std::uint64_t hash = fundusTextureHash(*fundus);
-    if (hash != state.fundus_texture_hash) {
+    if (same_fundus && hash != state.fundus_texture_hash) {
       throw RenderStateError(
           "restoreState: the fundus these parameters bake today differs from the saved frame's "
           "(texture hash " +

@@ -3,6 +3,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -241,6 +242,30 @@ TEST(ConeCheck, TheRenderedFundusUnderTheLightPipeIsInsideTheCone) {
   const ConeResult dark = coneLighting(unlit.images[0], classes);
   EXPECT_GT(lit.inside_grey, 1.5 * dark.inside_grey);
   EXPECT_FALSE(dark.pass);
+}
+
+}  // namespace
+}  // namespace vrm_render
+
+namespace vrm_render {
+namespace {
+
+// The renderer's cone (endoilluminator: smoothstep from the outer edge to the inner one) and the scoring's lit rule
+// (kLightConeHalfAngleDeg) agree: at the rule's half-angle the light has faded to about half its centre, inside it
+// more, and at the renderer's outer edge it is gone.
+TEST(ConeCheck, TheRendererConeIsAtHalfItsCentreAtTheScoringsHalfAngle) {
+  const LightPipe light = endoilluminator();
+  const double outer = std::cos(light.cone_half_angle_rad);
+  const double inner = std::cos(light.cone_half_angle_rad * (1.0 - light.cone_softness));
+  auto cone = [&](double deg) {  // GLSL smoothstep(cos_outer, cos_inner, cos(angle))
+    const double t = std::clamp((std::cos(deg * M_PI / 180.0) - outer) / (inner - outer), 0.0, 1.0);
+    return t * t * (3.0 - 2.0 * t);
+  };
+  const double at_rule = cone(vrm_sim::scenario::kLightConeHalfAngleDeg);
+  EXPECT_GT(at_rule, 0.4);
+  EXPECT_LT(at_rule, 0.7);
+  EXPECT_GT(cone(vrm_sim::scenario::kLightConeHalfAngleDeg - 10.0), 0.9);
+  EXPECT_EQ(cone(light.cone_half_angle_rad * 180.0 / M_PI), 0.0);
 }
 
 }  // namespace
