@@ -18,6 +18,7 @@
 #include "vrm_sim/scene/scene_loader.h"
 #include "vrm_sim/world/offline.h"
 #include "vrm_sim/world/session.h"
+#include "vrm_sim/world/session_result.h"
 
 namespace vrm_sim {
 namespace bag {
@@ -199,6 +200,10 @@ ReplayResult replaySession(const PreparedBag& prepared, const SessionSetup& setu
   result.input_seconds = first ? world::toSeconds(*last - *first) : 0.0;
   result.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
   result.speedup = result.wall_seconds > 0.0 ? result.input_seconds / result.wall_seconds : 0.0;
+  world::ResultContext context;
+  context.seed = session.loads() > 0 ? session.seed() : setup.seed;
+  context.bag = prepared.original;
+  result.session_result = world::sessionResult(world, context);
   return result;
 }
 
@@ -222,7 +227,13 @@ std::string ReplayResult::json(const PreparedBag& bag) const {
       << ", \"speedup\": " << speedup << ", \"recovered_messages\": " << (bag.recovery ? bag.recovery->messages : 0)
       << ", \"recovered_seconds\": " << (bag.recovery ? bag.recovery->seconds : 0.0) << ", \"warnings\": [";
   for (std::size_t i = 0; i < setup.warnings.size(); ++i) out << (i ? ", " : "") << quoted(setup.warnings[i]);
-  out << "]}";
+  out << "]";
+  if (session_result) {
+    std::string text = result::toJson(*session_result);
+    while (!text.empty() && text.back() == '\n') text.pop_back();
+    out << ", \"result\": " << text;
+  }
+  out << "}";
   return out.str();
 }
 

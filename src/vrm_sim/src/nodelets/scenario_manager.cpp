@@ -30,8 +30,8 @@
 // session's result JSON; "" = none; also published latched on session_result), user / station (the trainee and the
 // simulator's host, written into the result; station defaults to the host name), bag (the session bag's path: the
 // result also goes next to it as <bag without .bag>.result.json), seed, eye_frame / world_frame names. The result
-// (final_state_hash, scene, seed, frames, score, ...) is written when the session ends (scenario finished / failed /
-// stopped, STOP of a scene without a scenario) and, if it never ended, when the nodelet shuts down.
+// (final_state_hash, scene, seed, frames, score, ...; doc/session_result.md) is written when the session ends (scenario
+// finished / failed / stopped, STOP of a scene without a scenario) and, if it never ended, when the nodelet shuts down.
 // Crash safety (issue 14): while the scenario runs, the result files hold a provisional result ("in_progress":
 // true, the score so far), rewritten every second of input time; every write goes to a temporary file that is then
 // renamed, so a crash never leaves half a file. A scenario_manager that starts and finds a provisional result (its

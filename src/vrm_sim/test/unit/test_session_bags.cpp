@@ -13,6 +13,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <nlohmann/json.hpp>
 #include <regex>
 #include <string>
 
@@ -83,6 +84,15 @@ TEST_P(ReferenceBag, ReplaysToTheExpectedFinalStateAndScore) {
   EXPECT_EQ(result.scenario_state, jsonField(expected, "state")) << why;
   EXPECT_EQ(std::to_string(result.simulated_frames), jsonField(expected, "simulated_frames")) << why;
   EXPECT_EQ(result.late_inputs, 0u);
+  // The replay's session result (issue 34) carries the same state, and reads back through the one reader.
+  ASSERT_TRUE(result.session_result.has_value());
+  EXPECT_EQ(result.session_result->final_state_hash, jsonField(expected, "final_state_hash"));
+  EXPECT_EQ(result.session_result->state.value_or(""), jsonField(expected, "state"));
+  EXPECT_EQ(result.session_result->bag, bag.string());
+  const nlohmann::json line = nlohmann::json::parse(result.json(prepared));
+  const result::SessionResult read = result::resultFromJson(line.at("result").dump(), "the replay line's result");
+  EXPECT_EQ(result::toJson(read), result::toJson(*result.session_result));
+  EXPECT_EQ(line.at("final_state_hash"), read.final_state_hash);
   // And the live session that recorded the bag ended in that state, too (its result file beside the bag).
   const std::string live = readText(kBags / (GetParam() + ".result.json"));
   if (!live.empty() && jsonField(live, "software_version") == softwareVersion()) {

@@ -196,6 +196,25 @@ TEST(SessionResult, MalformedResultsNameTheSourceAndTheKey) {
   EXPECT_EQ(resultFromJson(newer.dump(), "newer").frames, 390u);
 }
 
+// The malformed corpus the Python reader (scripts/session_result.py) is tested against too: both name the same key.
+TEST(SessionResult, MalformedCorpusGivesTheExpectedErrors) {
+  const fs::path folder = fs::path(VRM_SIM_SOURCE_DIR) / "test" / "results" / "malformed";
+  const nlohmann::json expected = nlohmann::json::parse(test::readText(folder / "expected_errors.json"));
+  std::size_t cases = 0;
+  for (const auto& entry : fs::directory_iterator(folder)) {
+    const std::string name = entry.path().filename().string();
+    if (name == "expected_errors.json") continue;
+    SCOPED_TRACE(name);
+    ASSERT_TRUE(expected.contains(name)) << "a malformed case without its expected error";
+    const std::string error = errorOf([&] { readResultFile(entry.path().string()); });
+    EXPECT_NE(error.find(entry.path().string() + ": "), std::string::npos) << error;
+    EXPECT_NE(error.find(expected[name].get<std::string>()), std::string::npos) << error;
+    ++cases;
+  }
+  EXPECT_EQ(cases, expected.size());
+  EXPECT_GE(cases, 10u);
+}
+
 // Crash recovery (issue 14) rewrites the struct: the kept copy is a complete result, marked interrupted.
 TEST(SessionResult, CrashRecoveryRewritesTheStruct) {
   TempDir dir;

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "vrm_sim/bag/session_bag.h"
+#include "vrm_sim/result/session_result.h"
 
 namespace vrm_sim {
 namespace bag {
@@ -45,10 +46,13 @@ struct ReplayResult {
   double input_seconds = 0.0;         // input stamps, first to last
   double wall_seconds = 0.0;
   double speedup = 0.0;  // input_seconds / wall_seconds
+  // The replay's session result, as the live session's scenario_manager writes it (world::sessionResult; bag = the
+  // original bag, no user or station): a replay can be compared with, or imported like, the live result.
+  std::optional<result::SessionResult> session_result;
 
   // One JSON object: frames, simulated_frames, final_state_hash ("0x…"), score_total (null without a scenario),
   // state, scene, difficulty, seed, inputs, late_inputs, wall_seconds, speedup, recovered_messages,
-  // recovered_seconds, warnings.
+  // recovered_seconds, warnings, and the session result under "result" (doc/session_result.md).
   std::string json(const PreparedBag& bag) const;
 };
 

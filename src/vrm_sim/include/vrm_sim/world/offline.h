@@ -6,9 +6,11 @@
 // input sequence (test/graph/core_equivalence). The wall clock only measures the cost.
 
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
+#include "vrm_sim/result/session_result.h"
 #include "vrm_sim/scene/scene_description.h"
 #include "vrm_sim/world/world.h"
 
@@ -99,8 +101,11 @@ struct ScenarioRunResult {
   double ms_per_frame = 0.0, ms_scenario = 0.0, ms_tissue = 0.0, ms_collision = 0.0, ms_bleeding = 0.0;
   double ms_per_frame_max = 0.0;         // the worst frame
   std::vector<std::string> simulations;  // "tissue", "collision", "bleeding", "scenario" (stages that ran)
+  // The run's session result, as a live session's scenario_manager writes it (world::sessionResult).
+  std::optional<result::SessionResult> session_result;
 
-  // One JSON object (scenario_offline's output line; the hash as a "0x…" string).
+  // One JSON object (scenario_offline's output line; the hash as a "0x…" string), with the session result under
+  // "result" (doc/session_result.md).
   std::string json() const;
 };
 

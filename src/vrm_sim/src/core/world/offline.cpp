@@ -13,6 +13,7 @@
 #include "vrm_sim/scene/scene_loader.h"
 #include "vrm_sim/tissue/integrator.h"
 #include "vrm_sim/tissue/tissue_simulator.h"
+#include "vrm_sim/world/session_result.h"
 
 namespace vrm_sim {
 namespace world {
@@ -236,7 +237,13 @@ std::string ScenarioRunResult::json() const {
       << ", \"ms_collision\": " << number(ms_collision) << ", \"ms_bleeding\": " << number(ms_bleeding)
       << ", \"simulations\": [";
   for (std::size_t i = 0; i < simulations.size(); ++i) out << (i ? ", " : "") << quoted(simulations[i]);
-  out << "]}";
+  out << "]";
+  if (session_result) {
+    std::string text = result::toJson(*session_result);
+    while (!text.empty() && text.back() == '\n') text.pop_back();
+    out << ", \"result\": " << text;
+  }
+  out << "}";
   return out.str();
 }
 
@@ -308,6 +315,9 @@ ScenarioRunResult runScenario(const scene::SceneDescription& scene, const Scenar
   for (const char* kind : {"tissue", "collision", "bleeding", "scenario"}) {
     if (stage_ms.count(kind) > 0) result.simulations.push_back(kind);
   }
+  ResultContext context;
+  context.seed = options.seed;
+  result.session_result = sessionResult(world, context);
   return result;
 }
 
