@@ -15,7 +15,15 @@
 //           disc margin; cup-to-disc ratio ~0.3-0.4 in normal eyes;
 //   [Kanski] Kanski: Clinical Ophthalmology, normal fundus — four arcades (superotemporal, inferotemporal,
 //           superonasal, inferonasal) leaving the disc; the temporal arcades arch around the macula ~3 mm from
-//           the fovea; arteries paler and with a brighter central reflex than veins; arteries cross over veins.
+//           the fovea; arteries paler and with a brighter central reflex than veins; arteries cross over veins;
+//   [Knudtson] Knudtson et al. (2003) revised formulas: CRAE / CRVE from the six largest arterioles / venules
+//           crossing the zone 0.5-1 disc diameter from the disc margin; arteriole-to-venule ratio (AVR) of normal eyes
+//           ~0.6-0.75 with them (issue 33's range);
+//   [Hart]  Hart et al. (1999), Grisan et al. (2008): tortuosity measures of retinal vessels, the simplest the arc /
+//           chord ratio; normal vessels are close to straight (a few % longer than their chords), tortuous ones in
+//           hypertensive or diabetic retinas clearly more. The target used here: arc / chord of 2 mm chords along each
+//           arcade trunk outside the disc, mean 1.005-1.08 per trunk (the arcade's own arch contributes ~1-2 %; a
+//           ruler-straight trunk is 1.000), no chord above 1.30 (no loops: the bend off the disc reaches ~1.1-1.25).
 
 #include <Eigen/Core>
 #include <cstdint>
@@ -30,6 +38,9 @@ struct FundusParams {
   float nasal_sign = 1.0f;  // +1: the disc lies towards +x (right eye as the microscope shows it), -1: left eye
   float disc_diameter = 0.00165f;
   float cup_to_disc = 0.35f;
+  // The disc centre in fundus coordinates: disc_fovea_distance nasal (x, times nasal_sign) and disc_above_fovea
+  // superior (y) of the fovea. Defaults [Hogan]; a scene's `optic_disc` object overrides them (scene_setup.h:
+  // fundusParams), and the arcades are laid out relative to wherever the disc is.
   float disc_fovea_distance = 0.0045f;  // along the retina
   float disc_above_fovea = 0.0005f;
   float macula_radius = 0.0015f;  // the darker, xanthophyll-pigmented centre
@@ -56,6 +67,10 @@ struct VesselQuery {
   int segment = -1;  // index into vessels(), -1 when there is none
 };
 
+// Eye frame (a point on or near the retina sphere of `eye_radius`) -> fundus coordinates: the azimuthal equidistant
+// map about the posterior pole (0, 0, -R), (x, y) in metres along the retina.
+Eigen::Vector2f fundusCoordinates(const Eigen::Vector3f& point_in_eye, float eye_radius);
+
 class FundusMap {
  public:
   explicit FundusMap(const FundusParams& params = {});
@@ -67,6 +82,7 @@ class FundusMap {
 
   Eigen::Vector2f fovea() const { return Eigen::Vector2f::Zero(); }
   Eigen::Vector2f discCentre() const { return disc_; }
+  Eigen::Vector2f cupCentre() const;  // of radius cup_to_disc * disc_diameter / 2; the vessels emerge at its margin
   const std::vector<VesselSegment>& vessels() const { return vessels_; }
   // The nearest vessel to a point on the retina (eye frame): where an injury bleeds (thesis §7: retina injuries
   // bleed); O(segments), meant for contact events, not for every vertex of every frame.

@@ -19,7 +19,15 @@ namespace vrm_render {
 MeshData toMeshData(const vrm_sim::TriangleMesh& mesh);
 // The fundus of a scene (issue 16): its eye radius, seeded by `seed` when >= 0, else by a hash of the scene's name
 // (scene descriptions carry no seed of their own), so a scene always shows the same fundus.
+// Issue 33: a scene's optic disc is the object named kOpticDiscName ("optic_disc": membrane_peeling and vitrectomy
+// have one, a `disc` decoration on the retina): the fundus puts its disc at that object's position (its fundus
+// coordinates; the nasal side from their sign) with the mesh's diameter, and sceneContent() does not draw the mesh
+// (the fundus is the disc). Without one the anatomical default (FundusParams) stays. An `optic_disc` that is not a
+// `disc` generator in the eye frame on the retina is a vrm_sim::scene::SceneError.
 FundusParams fundusParams(const vrm_sim::scene::SceneDescription& scene, long long seed = -1);
+constexpr const char* kOpticDiscName = "optic_disc";
+// The scene's optic disc object as described above, nullptr when it has none.
+const vrm_sim::scene::ObjectDescription* opticDisc(const vrm_sim::scene::SceneDescription& scene);
 Material toMaterial(const vrm_sim::scene::Material& material);
 ObjectStyle objectStyle(const vrm_sim::scene::ObjectDescription& object);
 // The light pipe does not cast a shadow (the light leaves its tip); the interacting instruments do.
@@ -62,8 +70,9 @@ struct SceneContent {
 // first streamed copy always replaces them.
 constexpr std::uint64_t kRestMeshVersion = 0;
 
-// The content of `scene`; `fundus_seed` as for fundusParams. Throws vrm_sim::scene::SceneError when a mesh cannot be
-// built (an imported mesh file that vanished since the scene was loaded).
+// The content of `scene`; `fundus_seed` as for fundusParams; the optic disc object is left out (see fundusParams).
+// Throws vrm_sim::scene::SceneError when a mesh cannot be built (an imported mesh file that vanished since the scene
+// was loaded).
 SceneContent sceneContent(const vrm_sim::scene::SceneDescription& scene, long long fundus_seed = -1);
 
 // Replaces everything `renderer` draws by `content`: every other object (the previous scene's objects, instruments

@@ -113,14 +113,19 @@ struct Grower {
     *parent = std::cbrt(std::max(0.0f, r * r * r - *daughter * *daughter * *daughter));
   }
 
-  // Free growth: a persistent random walk that bifurcates every 0.8-2 mm (longer for thicker vessels).
+  // Free growth: a persistent random walk that bifurcates every 0.8-2 mm (longer for thicker vessels). Issue 33: the
+  // heading used to turn by a strongly correlated walk (stationary ~0.1 rad per 0.1 mm step, i.e. ~1 rad/mm of
+  // curvature), which curled branches into loops ("tangled vessels"). Now the turning is weakly correlated and
+  // smaller, and the heading is pulled back towards the course the branch set out on, so branches wander a little
+  // but keep going where they were sent, as healthy retinal vessels do ([Hart]).
   void grow(Eigen::Vector2f p, Eigen::Vector2f dir, float r, bool artery, int arcade, int gen, float length) {
     float next_branch = random.uniform(0.6f, 1.6f) * kMm * std::clamp(r / (0.03f * kMm), 0.6f, 1.6f);
     float travelled = 0.0f;
     float turn = 0.0f;
+    Eigen::Vector2f course = dir;
     while (r > kMinRadius && travelled < length && !stop(p)) {
-      turn = 0.8f * turn + random.normal() * 0.06f;  // tortuosity: correlated heading changes
-      dir = rotate(dir, turn).normalized();
+      turn = 0.5f * turn + random.normal() * 0.045f;  // tortuosity: mildly correlated heading changes
+      dir = (rotate(dir, turn) + 0.08f * course).normalized();
       const Eigen::Vector2f q = p + kStep * dir;
       if (stop(q)) break;
       const float rq = r * (1.0f - kTaperPerMetre * kStep);
@@ -135,19 +140,44 @@ struct Grower {
         const float angle = random.uniform(0.5f, 1.2f);  // 30-70 deg, the usual retinal branching angles
         grow(p, rotate(dir, side * angle), daughter, artery, arcade, gen + 1, length * random.uniform(0.4f, 0.7f));
         dir = rotate(dir, -side * angle * 0.3f);  // the parent deflects away from its daughter
+        course = dir;
         r = parent;
         next_branch = travelled + random.uniform(0.8f, 2.0f) * kMm;
       }
     }
   }
 
+  // The fine waviness of a healthy trunk ([Hart]: a few % longer than its chords): a perpendicular undulation of
+  // 70-100 µm over 1.5-2.5 mm wavelengths (+1-2 % of arc over a chord), with its own random phase, fading in over the
+  // first mm from the disc centre (the trunks leave the cup straight).
+  void undulate(std::vector<Eigen::Vector2f>* line) {
+    const std::size_t n = line->size();
+    if (n < 3) return;
+    const float amplitude = random.uniform(0.07f, 0.10f) * kMm;
+    const float wavelength = random.uniform(1.5f, 2.5f) * kMm;
+    const float phase = random.uniform(0.0f, 2.0f * static_cast<float>(M_PI));
+    std::vector<Eigen::Vector2f> out = *line;
+    float s = 0.0f;
+    for (std::size_t i = 1; i + 1 < n; ++i) {
+      s += ((*line)[i] - (*line)[i - 1]).norm();
+      const Eigen::Vector2f t = ((*line)[i + 1] - (*line)[i - 1]).normalized();
+      const Eigen::Vector2f normal(-t.y(), t.x());
+      const float fade = std::min(1.0f, s / kMm);
+      out[i] += fade * amplitude * std::sin(2.0f * static_cast<float>(M_PI) * s / wavelength + phase) * normal;
+    }
+    *line = std::move(out);
+  }
+
   // A trunk along a jittered arcade path from the disc, branching off the side given by `outward` (a function of
   // where the fovea is: temporal arcades send most branches away from the macula and some small ones into it).
   void trunk(const std::vector<Eigen::Vector2f>& path, float r, bool artery, int arcade, bool temporal) {
-    const std::vector<Eigen::Vector2f> line = spline(path, kStep);
+    std::vector<Eigen::Vector2f> line = spline(path, kStep);
+    undulate(&line);
     float travelled = 0.0f;
-    // The first bifurcations lie beyond the disc margin, a disc diameter or more out ([Kanski]).
-    float next_branch = random.uniform(1.6f, 2.4f) * kMm;
+    // The first bifurcations lie beyond the disc margin, a disc diameter or more out ([Kanski]), beyond the zone
+    // 0.5-1 disc diameter from the margin where [Knudtson] measures the trunks' calibres.
+    const float disc_r = 0.5f * params.disc_diameter;
+    float next_branch = disc_r + 2.0f * disc_r * 1.05f + random.uniform(0.1f, 0.6f) * kMm;
     for (std::size_t i = 0; i + 1 < line.size() && r > kMinRadius; ++i) {
       const float length = (line[i + 1] - line[i]).norm();
       const float rq = r * (1.0f - kTaperPerMetre * length);
@@ -190,14 +220,21 @@ FundusMap::FundusMap(const FundusParams& params) : params_(params) {
   bake();
 }
 
-Eigen::Vector2f FundusMap::toFundus(const Eigen::Vector3f& p) const {
+Eigen::Vector2f FundusMap::cupCentre() const {
+  // Slightly temporal of the disc centre ([Jonas]).
+  return disc_ - Eigen::Vector2f(params_.nasal_sign * 0.12f * 0.5f * params_.disc_diameter, 0.0f);
+}
+
+Eigen::Vector2f FundusMap::toFundus(const Eigen::Vector3f& p) const { return fundusCoordinates(p, params_.eye_radius); }
+
+Eigen::Vector2f fundusCoordinates(const Eigen::Vector3f& p, float eye_radius) {
   const float norm = p.norm();
   if (!(norm > 0.0f)) return Eigen::Vector2f::Zero();
   const float theta = std::acos(std::clamp(-p.z() / norm, -1.0f, 1.0f));
   const Eigen::Vector2f azimuth(p.x(), p.y());
   const float a = azimuth.norm();
   if (a < 1e-12f) return Eigen::Vector2f::Zero();
-  return params_.eye_radius * theta * azimuth / a;
+  return eye_radius * theta * azimuth / a;
 }
 
 Eigen::Vector3f FundusMap::toEye(const Eigen::Vector2f& f) const {
@@ -238,30 +275,52 @@ void FundusMap::growVessels() {
     return path;
   };
   const Eigen::Vector2f d = disc_;
-  // [Kanski] arcade courses relative to the fovea (mm, nasal +): the temporal arcades leave the disc vertically and
-  // arch over and under the macula ~3 mm from the fovea; the nasal ones run up- and down-nasally, straighter.
+  const float disc_r = 0.5f * params_.disc_diameter;
+  const Eigen::Vector2f cup = cupCentre();
+  const float cup_r = params_.cup_to_disc * disc_r;
+  // [Kanski] arcade courses (mm, nasal +, superior +), laid out relative to the disc and the fovea wherever the scene
+  // puts the disc (issue 33: the scene's optic_disc may lie 3.1 mm from the fovea, the anatomical default 4.5 mm):
+  // the temporal arcades leave the disc vertically, bend temporally and arch over and under the macula ~3 mm from
+  // the fovea (at a fraction of the disc's distance on the way), then run on temporally, converging slowly towards the
+  // horizontal raphe; the nasal ones run up- and down-nasally, straighter.
+  const float dx = std::abs(d.x()) / kMm, dy = d.y() / kMm;
   const std::vector<std::vector<Eigen::Vector2f>> arcades = {
-      {d, mm(4.3f, 1.4f), mm(3.3f, 2.6f), mm(1.5f, 3.2f), mm(-1.0f, 3.3f), mm(-3.5f, 3.0f), mm(-6.5f, 2.4f),
-       mm(-9.5f, 1.9f)},
-      {d, mm(4.3f, -0.5f), mm(3.3f, -1.9f), mm(1.5f, -2.8f), mm(-1.0f, -3.0f), mm(-3.5f, -2.7f), mm(-6.5f, -2.1f),
-       mm(-9.5f, -1.6f)},
-      {d, mm(5.0f, 1.7f), mm(5.8f, 3.1f), mm(7.0f, 4.6f), mm(8.5f, 6.2f), mm(10.0f, 7.6f)},
-      {d, mm(5.0f, -0.7f), mm(5.8f, -2.1f), mm(7.0f, -3.7f), mm(8.5f, -5.4f), mm(10.0f, -6.9f)},
+      {d, mm(dx - 0.1f, dy + 1.1f), mm(0.72f * dx, 2.55f), mm(0.3f * dx, 3.05f), mm(-1.0f, 3.2f), mm(-3.5f, 3.0f),
+       mm(-6.5f, 2.5f), mm(-9.5f, 2.0f)},
+      {d, mm(dx - 0.1f, dy - 1.1f), mm(0.72f * dx, -2.4f), mm(0.3f * dx, -2.85f), mm(-1.0f, -3.0f), mm(-3.5f, -2.8f),
+       mm(-6.5f, -2.3f), mm(-9.5f, -1.8f)},
+      {d, mm(dx + 0.5f, dy + 1.2f), mm(dx + 1.3f, dy + 2.6f), mm(dx + 2.5f, dy + 4.1f), mm(dx + 4.0f, dy + 5.7f),
+       mm(dx + 5.5f, dy + 7.1f)},
+      {d, mm(dx + 0.5f, dy - 1.2f), mm(dx + 1.3f, dy - 2.6f), mm(dx + 2.5f, dy - 4.2f), mm(dx + 4.0f, dy - 5.9f),
+       mm(dx + 5.5f, dy - 7.4f)},
   };
-  // [Jonas] calibres at the disc: veins ~130-150 µm (temporal), arteries ~2/3 of that; nasal vessels thinner.
+  // [Jonas] calibres at the disc: veins ~130-150 µm (temporal), nasal vessels thinner; arteries 0.72 of their vein
+  // (a [Knudtson] AVR of ~0.62: its formulas combine arteries with 0.88, veins with 0.95; measured in
+  // test_fundus_anatomy).
+  constexpr float kArteryToVein = 0.74f;
   for (int artery = 0; artery < 2; ++artery) {  // veins first: arteries are drawn over them where they cross
     for (int a = 0; a < 4; ++a) {
-      std::vector<Eigen::Vector2f> path = jittered(arcades[a], 0.22f);
-      // The artery of an arcade runs beside its vein, a few tenths of a mm apart, crossing it now and then.
+      // Control points 1.5-3 mm apart jittered by ~0.1 mm: the trunk's course varies between eyes without kinks.
+      std::vector<Eigen::Vector2f> path = jittered(arcades[a], 0.1f);
+      // The artery of an arcade runs beside its vein, a few tenths of a mm apart on one side (it crosses the vein
+      // at the disc, where both emerge from the cup).
+      float side = 0.0f;
       if (artery) {
-        const float offset = random.uniform(0.15f, 0.4f) * (random.uniform() < 0.5f ? -1.0f : 1.0f);
-        for (std::size_t i = 1; i < path.size(); ++i)
-          path[i] += offset * kMm * Eigen::Vector2f(random.normal(), 1.0f).normalized();
-        path[0] += 0.08f * kMm * Eigen::Vector2f(random.normal(), random.normal());
+        side = random.uniform() < 0.5f ? -1.0f : 1.0f;
+        for (std::size_t i = 1; i < path.size(); ++i) {
+          const Eigen::Vector2f t = (path[std::min(i + 1, path.size() - 1)] - path[i - 1]).normalized();
+          // Half the offset at the first control point: the artery bends away from its vein gently at the rim.
+          const float offset = random.uniform(0.15f, 0.35f) * (i == 1 ? 0.3f : 1.0f);
+          path[i] += side * offset * kMm * Eigen::Vector2f(-t.y(), t.x());
+        }
       }
+      // Each vessel emerges at the margin of the cup, on the side it heads for (the artery a little beside its
+      // vein), not at one central point: the pale cup stays visible between them, as in a healthy disc.
+      const Eigen::Vector2f out = (path[1] - cup).normalized();
+      path[0] = cup + 0.6f * cup_r * rotate(out, 0.3f * side);
       const bool temporal = a < 2;
       const float vein_radius = (temporal ? 0.07f : 0.055f) * kMm;
-      grower.trunk(path, artery ? 0.68f * vein_radius : vein_radius, artery != 0, a, temporal);
+      grower.trunk(path, artery ? kArteryToVein * vein_radius : vein_radius, artery != 0, a, temporal);
     }
   }
   // A few small vessels leave the disc margin towards the macula (papillomacular bundle region) and nasally.
@@ -282,8 +341,7 @@ void FundusMap::bake() {
   std::vector<float> rgb(static_cast<std::size_t>(n) * n * 3);
   const std::uint32_t seed = params_.seed * 2654435761u;
   const float disc_r = 0.5f * params_.disc_diameter;
-  // Cup slightly temporal of the disc centre, where the vessels emerge ([Jonas]).
-  const Eigen::Vector2f cup = disc_ - Eigen::Vector2f(params_.nasal_sign * 0.12f * disc_r, 0.0f);
+  const Eigen::Vector2f cup = cupCentre();
 
   for (int j = 0; j < n; ++j) {
     for (int i = 0; i < n; ++i) {
@@ -320,16 +378,17 @@ void FundusMap::bake() {
       r *= 1.0f - 0.25f * ring;
       g *= 1.0f - 0.30f * ring;
       b *= 1.0f - 0.30f * ring;
+      // Issue 33: yellow-white (the rim was salmon-pink, 0.98/0.70/0.52, and read as a dim disc).
       const float rim = 1.0f - smoothstep(0.9f, 1.02f, de);
       r += (0.98f - r) * rim;
-      g += (0.70f - g) * rim;
-      b += (0.52f - b) * rim;
+      g += (0.80f - g) * rim;
+      b += (0.58f - b) * rim;
       const Eigen::Vector2f dc = f - cup;
       const float cup_e = dc.norm() / (params_.cup_to_disc * disc_r);
       const float pale = 1.0f - smoothstep(0.6f, 1.15f, cup_e);
       r += (1.0f - r) * pale;
-      g += (0.93f - g) * pale;
-      b += (0.80f - b) * pale;
+      g += (0.96f - g) * pale;
+      b += (0.86f - b) * pale;
       float* out = rgb.data() + (static_cast<std::size_t>(j) * n + i) * 3;
       out[0] = r;
       out[1] = g;
@@ -387,7 +446,9 @@ void FundusMap::bake() {
     if (opacity[k] > 0.0f) {
       const bool artery = is_artery[k] != 0;
       const float vr = artery ? 0.62f : 0.38f, vg = artery ? 0.12f : 0.06f, vb = artery ? 0.08f : 0.06f;
-      const float reflex = (artery ? 0.16f : 0.06f) * std::exp(-profile[k] * profile[k] / 0.04f);
+      // Issue 33: the arteries' reflex at 0.16 lifted their centre above half the vessel's depth in the red-free
+      // (green) view, so that an artery read as two thin lines; a narrow reflex that leaves it one dark vessel.
+      const float reflex = (artery ? 0.08f : 0.04f) * std::exp(-profile[k] * profile[k] / 0.04f);
       const float o = std::min(1.0f, opacity[k]);
       c[0] += (vr + reflex - c[0]) * o;
       c[1] += (vg + reflex * 0.8f - c[1]) * o;

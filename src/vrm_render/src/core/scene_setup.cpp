@@ -46,7 +46,40 @@ FundusParams fundusParams(const scene::SceneDescription& scene, long long seed) 
     for (const char c : scene.name) hash = (hash ^ static_cast<unsigned char>(c)) * 16777619u;
     params.seed = hash;
   }
+  // Issue 33: one optic disc. The scene's disc (the object named kOpticDiscName) places the fundus's disc, so that the
+  // disc the scene describes (and the simulation and scoring know) is the one the fundus draws, with its cup and its
+  // vessels; without one the anatomical default stays.
+  if (const scene::ObjectDescription* disc = opticDisc(scene)) {
+    const Eigen::Vector3f centre = disc->pose.xyz.cast<float>();
+    const Eigen::Vector2f f = fundusCoordinates(centre, params.eye_radius);
+    params.nasal_sign = f.x() < 0.0f ? -1.0f : 1.0f;
+    params.disc_fovea_distance = std::abs(f.x());
+    params.disc_above_fovea = f.y();
+    params.disc_diameter = static_cast<float>(2.0 * std::get<scene::DiscParams>(*disc->mesh.generator).radius);
+  }
   return params;
+}
+
+const scene::ObjectDescription* opticDisc(const scene::SceneDescription& scene) {
+  for (const scene::ObjectDescription& object : scene.objects) {
+    if (object.name != kOpticDiscName) continue;
+    // Bad input gets a clear error: the fundus can only take a disc's centre and radius from a disc on the retina.
+    if (object.frame != scene::ObjectFrame::kEye || !object.mesh.generator ||
+        !std::holds_alternative<scene::DiscParams>(*object.mesh.generator)) {
+      throw scene::SceneError(object.location, std::string("object '") + kOpticDiscName +
+                                                   "' must be a `disc` generator in the eye frame: the fundus draws "
+                                                   "its optic disc there, with the disc's radius");
+    }
+    const double radius = std::get<scene::DiscParams>(*object.mesh.generator).radius;
+    const double from_centre = object.pose.xyz.norm();
+    if (!(radius > 0.0) || std::abs(from_centre - scene.eye.radius) > 0.1 * scene.eye.radius) {
+      throw scene::SceneError(object.location, std::string("object '") + kOpticDiscName +
+                                                   "' must lie on the retina (its centre within 10 % of the eye "
+                                                   "radius from the eye centre) with a positive radius");
+    }
+    return &object;
+  }
+  return nullptr;
 }
 
 Material toMaterial(const scene::Material& material) {
@@ -117,7 +150,11 @@ SceneContent sceneContent(const scene::SceneDescription& scene, long long fundus
   const bool streams_tissue = scene.simulates(scene::Simulation::kTissue);
   const bool retina_bleeds =
       scene.simulates(scene::Simulation::kBleeding) && scene.simulates(scene::Simulation::kCollision);
+  const scene::ObjectDescription* disc = opticDisc(scene);
   for (const auto& object : scene.objects) {
+    // The fundus is the disc (fundusParams): the decoration's flat, opaque disc mesh drawn as well would cover the
+    // fundus's cup, rim and the vessels emerging from them, so it is not drawn.
+    if (&object == disc) continue;
     SceneContent::Object entry;
     entry.drawn.id = object.name;
     entry.drawn.mesh = toMeshData(scene::buildMesh(object, scene::MeshFrame::kParent));
