@@ -64,6 +64,16 @@ for p in sorted((TRK / "config" / "trajectories").glob("*.yaml")):
     seed("surgeon_script", p.name, p.read_bytes())
 seed("rig_yaml", "rig_default.yaml", (TRK / "config" / "rig_default.yaml").read_bytes())
 seed("marker_layout_yaml", "markers_default.yaml", (TRK / "config" / "markers_default.yaml").read_bytes())
+# The strict reader's error paths (vrm_sim/yaml/strict_reader.h): a misspelt key, an unknown class name, a duplicate
+# slot, a matrix of the wrong shape; the fuzzer mutates from each.
+seed("marker_layout_yaml", "typo_key.yaml", b"eye_marker_radius: 0.0005\ntip_marker_radus: 0.0004\n")
+seed("marker_layout_yaml", "unknown_class.yaml", b"instruments:\n  - {slot: left, class: tip_lft}\n")
+seed("marker_layout_yaml", "duplicate_slot.yaml",
+     b"instruments:\n  - {slot: left, class: tip_left}\n  - {slot: left, class: tip_right}\n")
+seed("rig_yaml", "typo_key.yaml", b"cameras:\n  - image_width: 640\n    image_height: 480\n"
+     b"    camera_matrix: [800, 0, 320, 0, 800, 240, 0, 0, 1]\n    camera_nmae: cam0\n")
+seed("rig_yaml", "matrix_shape.yaml", b"cameras:\n  - image_width: 640\n    image_height: 480\n"
+     b"    camera_matrix: {rows: 3, cols: 4, data: [800, 0, 320, 0, 800, 240, 0, 0, 1]}\n")
 rig = yaml.safe_load((TRK / "config" / "rig_default.yaml").read_text())
 for i, cam in enumerate(rig["cameras"]):
     seed("camera_yaml", "camera_%d.yaml" % i, yaml.safe_dump(cam, sort_keys=False).encode())

@@ -4,8 +4,11 @@
 
 #include <cmath>
 #include <fstream>
+#include <optional>
 #include <sstream>
 #include <stdexcept>
+
+#include "vrm_sim/yaml/strict_reader.h"
 
 namespace vrm_tracking {
 
@@ -13,28 +16,80 @@ namespace {
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kMinDepth = 1e-3;  // m: a marker closer than this to a camera centre is not imaged
 
-std::runtime_error yamlError(const std::string& source, const std::string& field, const std::string& message) {
-  return std::runtime_error(source + ": " + field + ": " + message);
-}
+using vrm_sim::yaml::Field;
+using vrm_sim::yaml::MapFields;
 
-std::vector<double> readMatrix(const YAML::Node& node, const std::string& source, const std::string& field, int rows,
-                               int cols) {
-  if (!node) throw yamlError(source, field, "missing");
-  const YAML::Node data = node.IsMap() ? node["data"] : node;
-  if (!data || !data.IsSequence()) throw yamlError(source, field, "expected {rows, cols, data: [...]}");
-  if (node.IsMap() && node["rows"] && node["cols"] &&
-      (node["rows"].as<int>() != rows || node["cols"].as<int>() != cols) && rows > 0) {
-    throw yamlError(source, field, "expected " + std::to_string(rows) + "x" + std::to_string(cols));
+// A calibration matrix as camera_calibration_parsers writes it ({rows, cols, data: [...]}) or a plain list of its
+// values; rows, cols < 0: any number of values (and any rows/cols given).
+std::vector<double> readMatrix(const Field& field, int rows, int cols) {
+  std::optional<Field> data;
+  std::optional<MapFields> map;
+  if (field.node().IsMap()) {
+    map.emplace(field);
+    data = map->required("data");
+    // rows and cols are optional; when given they must be the expected shape.
+    const std::optional<Field> rows_field = map->optional("rows"), cols_field = map->optional("cols");
+    const int given_rows = rows_field ? rows_field->integer(1, 64) : rows;
+    const int given_cols = cols_field ? cols_field->integer(1, 64) : cols;
+    if (rows > 0 && (given_rows != rows || given_cols != cols)) {
+      field.fail("expected a " + std::to_string(rows) + "x" + std::to_string(cols) + " matrix, got " +
+                 std::to_string(given_rows) + "x" + std::to_string(given_cols));
+    }
+    map->finish();
+  } else {
+    data = field;
+  }
+  const std::vector<Field> items = data->items();
+  if (rows > 0 && static_cast<int>(items.size()) != rows * cols) {
+    data->fail("expected " + std::to_string(rows * cols) + " values, got " + std::to_string(items.size()));
   }
   std::vector<double> values;
-  for (const auto& v : data) values.push_back(v.as<double>());
-  if (rows > 0 && static_cast<int>(values.size()) != rows * cols) {
-    throw yamlError(source, field, "expected " + std::to_string(rows * cols) + " values");
-  }
-  for (double v : values) {
-    if (!std::isfinite(v)) throw yamlError(source, field, "not finite");
-  }
+  for (const Field& item : items) values.push_back(item.finite());
   return values;
+}
+
+CameraModel readCamera(const Field& field) {
+  MapFields fields(field);
+  CameraModel cam;
+  cam.width = fields.required("image_width").integer(1, 100000);
+  cam.height = fields.required("image_height").integer(1, 100000);
+  if (auto name = fields.optional("camera_name")) cam.name = name->text();
+  const Field k_field = fields.required("camera_matrix");
+  const std::vector<double> k = readMatrix(k_field, 3, 3);
+  cam.K = Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(k.data());
+  if (!(cam.K(0, 0) > 0.0 && cam.K(1, 1) > 0.0)) k_field.fail("the focal lengths must be positive");
+  std::string model = "plumb_bob";
+  if (auto model_field = fields.optional("distortion_model")) {
+    // rational_polynomial files are accepted when their extra coefficients are zero (checked below).
+    model = model_field->name({"plumb_bob", "rational_polynomial"});
+  }
+  if (auto d_field = fields.optional("distortion_coefficients")) {
+    cam.distortion = readMatrix(*d_field, -1, -1);
+    for (std::size_t i = 5; i < cam.distortion.size(); ++i) {
+      if (cam.distortion[i] != 0.0) d_field->fail("only the 5 plumb_bob coefficients are supported");
+    }
+    cam.distortion.resize(5, 0.0);
+  }
+  // Written by the standard format; the rig's cameras are unrectified, so they are checked, not used.
+  if (auto rectification = fields.optional("rectification_matrix")) readMatrix(*rectification, 3, 3);
+  if (auto projection = fields.optional("projection_matrix")) readMatrix(*projection, 3, 4);
+  if (auto extrinsics = fields.optional("world_to_camera")) {
+    MapFields ext(*extrinsics);
+    const Field rotation_field = ext.required("rotation");
+    const std::vector<double> r = readMatrix(rotation_field, 3, 3);
+    const Field translation_field = ext.required("translation");
+    const std::vector<double> t = readMatrix(translation_field, -1, -1);
+    if (t.size() != 3) translation_field.fail("expected 3 values");
+    ext.finish();
+    const Eigen::Matrix3d rotation = Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(r.data());
+    if ((rotation * rotation.transpose() - Eigen::Matrix3d::Identity()).norm() > 1e-6 || rotation.determinant() < 0.0) {
+      rotation_field.fail("not a rotation matrix");
+    }
+    cam.world_to_camera.linear() = rotation;
+    cam.world_to_camera.translation() = Eigen::Vector3d(t[0], t[1], t[2]);
+  }
+  fields.finish();
+  return cam;
 }
 
 void emitMatrix(YAML::Emitter* out, const char* key, int rows, int cols, const std::vector<double>& data) {
@@ -128,46 +183,7 @@ CameraRig makeDefaultRig(const DefaultRigGeometry& g) {
 }
 
 CameraModel cameraFromYaml(const YAML::Node& node, const std::string& source) {
-  if (!node || !node.IsMap()) throw yamlError(source, "camera", "expected a map");
-  CameraModel cam;
-  try {
-    if (!node["image_width"] || !node["image_height"]) throw yamlError(source, "image_width/height", "missing");
-    cam.width = node["image_width"].as<int>();
-    cam.height = node["image_height"].as<int>();
-    if (cam.width <= 0 || cam.height <= 0) throw yamlError(source, "image_width/height", "must be > 0");
-    if (node["camera_name"]) cam.name = node["camera_name"].as<std::string>();
-    const std::vector<double> k = readMatrix(node["camera_matrix"], source, "camera_matrix", 3, 3);
-    cam.K = Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(k.data());
-    if (!(cam.K(0, 0) > 0.0 && cam.K(1, 1) > 0.0)) throw yamlError(source, "camera_matrix", "focal lengths <= 0");
-    if (node["distortion_coefficients"]) {
-      const std::string model = node["distortion_model"] ? node["distortion_model"].as<std::string>() : "plumb_bob";
-      if (model != "plumb_bob" && model != "rational_polynomial") {
-        throw yamlError(source, "distortion_model", "unsupported '" + model + "' (plumb_bob only)");
-      }
-      cam.distortion = readMatrix(node["distortion_coefficients"], source, "distortion_coefficients", -1, -1);
-      if (cam.distortion.size() > 5) {
-        for (std::size_t i = 5; i < cam.distortion.size(); ++i) {
-          if (cam.distortion[i] != 0.0) throw yamlError(source, "distortion_coefficients", "only 5 supported");
-        }
-        cam.distortion.resize(5);
-      }
-    }
-    if (const YAML::Node ext = node["world_to_camera"]) {
-      const std::vector<double> r = readMatrix(ext["rotation"], source, "world_to_camera.rotation", 3, 3);
-      const std::vector<double> t = readMatrix(ext["translation"], source, "world_to_camera.translation", -1, -1);
-      if (t.size() != 3) throw yamlError(source, "world_to_camera.translation", "expected 3 values");
-      const Eigen::Matrix3d rotation = Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(r.data());
-      if ((rotation * rotation.transpose() - Eigen::Matrix3d::Identity()).norm() > 1e-6 ||
-          rotation.determinant() < 0.0) {
-        throw yamlError(source, "world_to_camera.rotation", "not a rotation matrix");
-      }
-      cam.world_to_camera.linear() = rotation;
-      cam.world_to_camera.translation() = Eigen::Vector3d(t[0], t[1], t[2]);
-    }
-  } catch (const YAML::Exception& e) {
-    throw yamlError(source, "camera", e.what());
-  }
-  return cam;
+  return readCamera(Field(node, "", source));
 }
 
 void cameraToYaml(const CameraModel& cam, YAML::Emitter* out) {
@@ -204,13 +220,7 @@ void cameraToYaml(const CameraModel& cam, YAML::Emitter* out) {
 }
 
 CameraModel loadCameraYaml(const std::string& path) {
-  YAML::Node node;
-  try {
-    node = YAML::LoadFile(path);
-  } catch (const YAML::Exception& e) {
-    throw yamlError(path, "file", e.what());
-  }
-  return cameraFromYaml(node, path);
+  return readCamera(vrm_sim::yaml::parseText(vrm_sim::yaml::readFile(path, "camera calibration"), path));
 }
 
 void saveCameraYaml(const CameraModel& camera, const std::string& path) {
@@ -223,28 +233,17 @@ void saveCameraYaml(const CameraModel& camera, const std::string& path) {
 }
 
 CameraRig rigFromYamlString(const std::string& text, const std::string& source) {
-  YAML::Node root;
-  try {
-    root = YAML::Load(text);
-  } catch (const YAML::Exception& e) {
-    throw yamlError(source, "file", e.what());
-  }
-  if (!root || !root["cameras"] || !root["cameras"].IsSequence() || root["cameras"].size() == 0) {
-    throw yamlError(source, "cameras", "expected a non-empty list of camera calibrations");
-  }
+  MapFields fields(vrm_sim::yaml::parseText(text, source));
+  const Field cameras = fields.required("cameras");
   CameraRig rig;
-  for (std::size_t i = 0; i < root["cameras"].size(); ++i) {
-    rig.cameras.push_back(cameraFromYaml(root["cameras"][i], source + ": cameras[" + std::to_string(i) + "]"));
-  }
+  for (const Field& camera : cameras.items()) rig.cameras.push_back(readCamera(camera));
+  if (rig.cameras.empty()) cameras.fail("expected a non-empty list of camera calibrations");
+  fields.finish();
   return rig;
 }
 
 CameraRig loadRigYaml(const std::string& path) {
-  std::ifstream file(path);
-  if (!file) throw std::runtime_error(path + ": cannot open rig calibration");
-  std::stringstream buffer;
-  buffer << file.rdbuf();
-  return rigFromYamlString(buffer.str(), path);
+  return rigFromYamlString(vrm_sim::yaml::readFile(path, "rig calibration"), path);
 }
 
 std::string rigToYamlString(const CameraRig& rig) {

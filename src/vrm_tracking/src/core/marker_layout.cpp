@@ -1,12 +1,10 @@
 #include "vrm_tracking/marker_layout.h"
 
-#include <yaml-cpp/yaml.h>
-
 #include <cmath>
-#include <fstream>
-#include <map>
-#include <sstream>
-#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "vrm_sim/yaml/strict_reader.h"
 
 namespace vrm_tracking {
 
@@ -28,12 +26,37 @@ ColourClass makeClass(int id, const std::string& name, std::array<std::uint8_t, 
   return c;
 }
 
-Eigen::Vector3d readVector(const YAML::Node& node, const std::string& source, const std::string& field) {
-  if (!node || !node.IsSequence() || node.size() != 3)
-    throw std::runtime_error(source + ": " + field + ": expected [x, y, z]");
-  Eigen::Vector3d v(node[0].as<double>(), node[1].as<double>(), node[2].as<double>());
-  if (!v.allFinite()) throw std::runtime_error(source + ": " + field + ": not finite");
-  return v;
+using vrm_sim::yaml::Field;
+using vrm_sim::yaml::MapFields;
+
+void readNumber(MapFields& fields, const std::string& key, double& value, const std::string& expectation,
+                double minimum, double maximum) {
+  if (auto field = fields.optional(key)) value = field->number(expectation, minimum, maximum);
+}
+
+ColourClass readClass(const Field& field, int id) {
+  ColourClass c;
+  c.id = id;
+  MapFields fields(field);
+  c.name = fields.required("name").text();
+  if (auto bgr = fields.optional("bgr")) {
+    const std::vector<double> values = bgr->numbers(3, "an integer in [0, 255]", 0.0, 255.0);
+    for (int k = 0; k < 3; ++k) {
+      if (values[k] != std::floor(values[k])) bgr->fail("expected three integers in [0, 255]");
+      c.bgr[k] = static_cast<std::uint8_t>(values[k]);
+    }
+  }
+  readNumber(fields, "h_min", c.h_min, "a hue in [0, 360] degrees", 0.0, 360.0);
+  readNumber(fields, "h_max", c.h_max, "a hue in [0, 360] degrees", 0.0, 360.0);
+  readNumber(fields, "chroma_min", c.chroma_min, "a chroma in [0, 255]", 0.0, 255.0);
+  readNumber(fields, "s_min", c.s_min, "a saturation in [0, 1]", 0.0, 1.0);
+  readNumber(fields, "v_min", c.v_min, "a value in [0, 255]", 0.0, 255.0);
+  readNumber(fields, "area_min", c.area_min, "a non-negative area in px^2", 0.0, HUGE_VAL);
+  readNumber(fields, "area_max", c.area_max, "a positive area in px^2", 0.0, HUGE_VAL);
+  readNumber(fields, "roundness_min", c.roundness_min, "a roundness in [0, 1]", 0.0, 1.0);
+  fields.finish();
+  if (!(c.area_max > c.area_min)) field.fail("area_max must be larger than area_min");
+  return c;
 }
 }  // namespace
 
@@ -70,88 +93,79 @@ MarkerLayout makeDefaultLayout() {
 
 MarkerLayout layoutFromYamlString(const std::string& text, const std::string& source) {
   MarkerLayout layout = makeDefaultLayout();
-  YAML::Node root;
-  try {
-    root = YAML::Load(text);
-    if (!root || !root.IsMap()) throw std::runtime_error(source + ": expected a map");
-    std::map<std::string, int> ids;
-    if (const YAML::Node classes = root["classes"]) {
-      layout.classes.clear();
-      for (std::size_t i = 0; i < classes.size(); ++i) {
-        const YAML::Node n = classes[i];
-        const std::string field = "classes[" + std::to_string(i) + "]";
-        ColourClass c;
-        c.id = static_cast<int>(i);
-        if (!n["name"]) throw std::runtime_error(source + ": " + field + ".name: missing");
-        c.name = n["name"].as<std::string>();
-        if (n["bgr"]) {
-          for (int k = 0; k < 3; ++k) c.bgr[k] = static_cast<std::uint8_t>(n["bgr"][k].as<int>());
-        }
-        c.h_min = n["h_min"].as<double>(c.h_min);
-        c.h_max = n["h_max"].as<double>(c.h_max);
-        c.chroma_min = n["chroma_min"].as<double>(c.chroma_min);
-        c.s_min = n["s_min"].as<double>(c.s_min);
-        c.v_min = n["v_min"].as<double>(c.v_min);
-        c.area_min = n["area_min"].as<double>(c.area_min);
-        c.area_max = n["area_max"].as<double>(c.area_max);
-        c.roundness_min = n["roundness_min"].as<double>(c.roundness_min);
-        if (!(c.area_min >= 0 && c.area_max > c.area_min)) {
-          throw std::runtime_error(source + ": " + field + ": area_min/area_max inconsistent");
-        }
-        ids[c.name] = c.id;
-        layout.classes.push_back(c);
+  const Field root = vrm_sim::yaml::parseText(text, source);
+  MapFields fields(root);
+  if (auto classes = fields.optional("classes")) {
+    layout.classes.clear();
+    for (const Field& entry : classes->items()) {
+      ColourClass c = readClass(entry, static_cast<int>(layout.classes.size()));
+      for (const ColourClass& other : layout.classes) {
+        if (other.name == c.name) entry.fail("a second colour class named '" + c.name + "'");
       }
-    } else {
-      for (const ColourClass& c : layout.classes) ids[c.name] = c.id;
+      layout.classes.push_back(c);
     }
-    auto classId = [&](const YAML::Node& n, const std::string& field) {
-      if (!n) throw std::runtime_error(source + ": " + field + ": missing");
-      const auto it = ids.find(n.as<std::string>());
-      if (it == ids.end())
-        throw std::runtime_error(source + ": " + field + ": unknown class '" + n.as<std::string>() + "'");
-      return it->second;
-    };
-    if (const YAML::Node eye = root["eye_markers"]) {
-      layout.eye_markers.clear();
-      for (std::size_t i = 0; i < eye.size(); ++i) {
-        const std::string field = "eye_markers[" + std::to_string(i) + "]";
-        layout.eye_markers.push_back(
-            {classId(eye[i]["class"], field + ".class"), readVector(eye[i]["position"], source, field + ".position")});
-      }
-    }
-    if (const YAML::Node inst = root["instruments"]) {
-      layout.instruments.clear();
-      for (std::size_t i = 0; i < inst.size(); ++i) {
-        const std::string field = "instruments[" + std::to_string(i) + "]";
-        if (!inst[i]["slot"]) throw std::runtime_error(source + ": " + field + ".slot: missing");
-        InstrumentMarker marker;
-        marker.slot = inst[i]["slot"].as<std::string>();
-        marker.class_id = classId(inst[i]["class"], field + ".class");
-        if (inst[i]["trocar"]) {
-          marker.trocar = readVector(inst[i]["trocar"], source, field + ".trocar");
-        } else {
-          marker.trocar_from_scene = true;  // the scene's (applySceneTrocars)
-        }
-        layout.instruments.push_back(marker);
-      }
-    }
-    if (root["rotation_center"])
-      layout.rotation_center = readVector(root["rotation_center"], source, "rotation_center");
-    layout.eye_marker_radius = root["eye_marker_radius"].as<double>(layout.eye_marker_radius);
-    layout.tip_marker_radius = root["tip_marker_radius"].as<double>(layout.tip_marker_radius);
-  } catch (const YAML::Exception& e) {
-    throw std::runtime_error(source + ": " + e.what());
+    if (layout.classes.empty()) classes->fail("expected at least one colour class");
   }
-  if (layout.eye_markers.size() != 2) throw std::runtime_error(source + ": eye_markers: exactly two are needed");
+  std::vector<std::string> class_names;
+  for (const ColourClass& c : layout.classes) class_names.push_back(c.name);
+  // A class by name, with a typo hint and file:line:col when the file has no such class.
+  auto classId = [&](MapFields& marker) {
+    const std::string name = marker.required("class").name(class_names);
+    for (const ColourClass& c : layout.classes) {
+      if (c.name == name) return c.id;
+    }
+    return -1;  // not reached: name() accepts only class_names
+  };
+  if (auto eye = fields.optional("eye_markers")) {
+    layout.eye_markers.clear();
+    for (const Field& entry : eye->items()) {
+      MapFields marker(entry);
+      EyeMarker m;
+      m.class_id = classId(marker);
+      m.position = marker.required("position").vector3();
+      marker.finish();
+      layout.eye_markers.push_back(m);
+    }
+    if (layout.eye_markers.size() != 2) eye->fail("exactly two eye markers are needed for the eye's pose");
+  }
+  if (auto instruments = fields.optional("instruments")) {
+    layout.instruments.clear();
+    for (const Field& entry : instruments->items()) {
+      MapFields marker(entry);
+      InstrumentMarker m;
+      m.slot = marker.required("slot").text();
+      for (const InstrumentMarker& other : layout.instruments) {
+        if (other.slot == m.slot) entry.fail("a second marker for slot '" + m.slot + "'");
+      }
+      m.class_id = classId(marker);
+      if (auto trocar = marker.optional("trocar")) {
+        m.trocar = trocar->vector3();
+      } else {
+        m.trocar_from_scene = true;  // the scene's (applySceneTrocars)
+      }
+      marker.finish();
+      layout.instruments.push_back(m);
+    }
+  }
+  if (auto centre = fields.optional("rotation_center")) layout.rotation_center = centre->vector3();
+  if (auto radius = fields.optional("eye_marker_radius")) layout.eye_marker_radius = radius->positive();
+  if (auto radius = fields.optional("tip_marker_radius")) layout.tip_marker_radius = radius->positive();
+  if (auto radius = fields.optional("shaft_radius")) layout.shaft_radius = radius->positive();
+  if (auto length = fields.optional("shaft_length")) layout.shaft_length = length->positive();
+  fields.finish();
+  // Classes replaced without eye markers: the default markers' class ids may name no class any more.
+  for (const EyeMarker& m : layout.eye_markers) {
+    if (!layout.findClass(m.class_id)) root.fail("the default eye markers' classes are gone: give eye_markers too");
+  }
+  for (const InstrumentMarker& m : layout.instruments) {
+    if (!layout.findClass(m.class_id))
+      root.fail("the default instrument markers' classes are gone: give instruments too");
+  }
   return layout;
 }
 
 MarkerLayout loadLayoutYaml(const std::string& path) {
-  std::ifstream file(path);
-  if (!file) throw std::runtime_error(path + ": cannot open marker layout");
-  std::stringstream buffer;
-  buffer << file.rdbuf();
-  return layoutFromYamlString(buffer.str(), path);
+  return layoutFromYamlString(vrm_sim::yaml::readFile(path, "marker layout"), path);
 }
 
 WorldScene worldSceneFromSnapshot(const SurgeonSnapshot& snap, const MarkerLayout& layout) {

@@ -7,6 +7,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "vrm_sim/yaml/yaml_error.h"
 #include "vrm_tracking/camera_rig.h"
 
 namespace vrm_tracking {
@@ -110,6 +111,33 @@ TEST(CameraRig, MalformedFilesNameTheField) {
     EXPECT_NE(std::string(e.what()).find("world_to_camera.rotation"), std::string::npos) << e.what();
   }
   EXPECT_THROW(loadRigYaml("/nonexistent/rig.yaml"), std::runtime_error);
+}
+
+// The strict reader's contract (as for scenes and marker layouts): file:line:col, the field path, typo hints.
+TEST(CameraRig, StrictReaderNamesFileLineColumnAndTypos) {
+  auto error = [](const std::string& text) -> std::string {
+    try {
+      rigFromYamlString(text, "rig.yaml");
+    } catch (const vrm_sim::YamlError& e) {
+      return e.what();
+    }
+    return "no error";
+  };
+  const std::string camera =
+      "  - image_width: 640\n    image_height: 480\n    camera_matrix: [800, 0, 320, 0, 800, 240, 0, 0, 1]\n";
+  EXPECT_EQ(error("cameras:\n" + camera), "no error");
+  EXPECT_EQ(error("cameras:\n" + camera + "    camera_nmae: cam0\n"),
+            "rig.yaml:5:5: cameras[0].camera_nmae: unknown key (did you mean 'camera_name'?); allowed keys: "
+            "image_width, image_height, camera_name, camera_matrix, distortion_model, distortion_coefficients, "
+            "rectification_matrix, projection_matrix, world_to_camera");
+  EXPECT_EQ(error("cameras:\n" + camera + "    distortion_model: equidistant\n"),
+            "rig.yaml:5:23: cameras[0].distortion_model: expected one of plumb_bob, rational_polynomial, got "
+            "'equidistant'");
+  EXPECT_EQ(error("cameras:\n" + camera + "    world_to_camera: {rotation: [1, 0, 0, 0, 1, 0, 0, 0, 1]}\n"),
+            "rig.yaml:5:22: cameras[0].world_to_camera: missing required key 'translation'");
+  EXPECT_EQ(error("camera:\n" + camera), "rig.yaml:1:1: missing required key 'cameras'");
+  EXPECT_EQ(error("cameras:\n  - image_width: 0\n"),
+            "rig.yaml:2:18: cameras[0].image_width: expected an integer in [1, 100000], got '0'");
 }
 
 TEST(CameraRig, ShippedConfigIsTheDefaultRig) {

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <opencv2/imgproc.hpp>
 
+#include "vrm_sim/yaml/yaml_error.h"
 #include "vrm_tracking/marker_detector.h"
 #include "vrm_tracking/pose_tracker.h"
 #include "vrm_tracking/rig_renderer.h"
@@ -236,6 +237,44 @@ instruments:
   EXPECT_EQ(l.instruments[0].class_id, 3);
   EXPECT_THROW(layoutFromYamlString("instruments:\n  - {slot: x, class: nope, trocar: [0, 0, 0]}"), std::runtime_error);
   EXPECT_THROW(layoutFromYamlString("eye_markers:\n  - {class: eye_a, position: [0, 0, 0]}"), std::runtime_error);
+}
+
+// The strict reader's contract (vrm_sim/yaml/strict_reader.h), as for scenes: file:line:col, the field, a typo hint;
+// a key the format does not have is an error (a layout that relied on one being ignored now names it).
+std::string layoutError(const std::string& text) {
+  try {
+    layoutFromYamlString(text, "layout.yaml");
+  } catch (const vrm_sim::YamlError& error) {
+    return error.what();
+  }
+  return "no error";
+}
+
+TEST(MarkerLayout, StrictReaderNamesFileLineColumnAndTypos) {
+  EXPECT_EQ(layoutError("eye_marker_radius: 0.0005\ntip_marker_radus: 0.0004\n"),
+            "layout.yaml:2:1: tip_marker_radus: unknown key (did you mean 'tip_marker_radius'?); allowed keys: "
+            "classes, eye_markers, instruments, rotation_center, eye_marker_radius, tip_marker_radius, shaft_radius, "
+            "shaft_length");
+  EXPECT_EQ(layoutError("instruments:\n  - {slot: left, class: tip_lft}\n"),
+            "layout.yaml:2:25: instruments[0].class: expected one of eye_a, eye_b, tip_left, tip_right, got "
+            "'tip_lft' (did you mean 'tip_left'?)");
+  EXPECT_EQ(layoutError("instruments:\n  - {slot: left, class: tip_left, colour: green}\n"),
+            "layout.yaml:2:35: instruments[0].colour: unknown key; allowed keys: slot, class, trocar");
+  EXPECT_EQ(layoutError("instruments:\n  - {slot: left, class: tip_left}\n  - {slot: left, class: tip_right}\n"),
+            "layout.yaml:3:5: instruments[1]: a second marker for slot 'left'");
+  EXPECT_EQ(layoutError("eye_marker_radius: -1\n"),
+            "layout.yaml:1:20: eye_marker_radius: expected a positive number, got '-1'");
+  EXPECT_EQ(layoutError("rotation_center: [0, 0, .nan]\n"),
+            "layout.yaml:1:25: rotation_center[2]: expected a finite number, got '.nan'");
+  EXPECT_EQ(layoutError("classes: [{name: a, area_min: 10, area_max: 5}]\n"),
+            "layout.yaml:1:11: classes[0]: area_max must be larger than area_min");
+  EXPECT_EQ(layoutError("classes: [{name: a}]\n"),
+            "layout.yaml:1:1: the default eye markers' classes are gone: give eye_markers too");
+  EXPECT_NE(
+      layoutError("eye_markers: [{class: eye_a, position: [0, 0, 1]\n").find("layout.yaml:2:1: YAML syntax error"),
+      std::string::npos)
+      << layoutError("eye_markers: [{class: eye_a, position: [0, 0, 1]\n");
+  EXPECT_THROW(loadLayoutYaml("/nonexistent/layout.yaml"), vrm_sim::YamlError);
 }
 
 TEST(MarkerLayout, ShippedConfigIsTheDefaultLayout) {

@@ -82,17 +82,13 @@
 
 #include "vrm_sim/registry.h"
 #include "vrm_sim/scene/mesh_generators.h"
+#include "vrm_sim/yaml/yaml_error.h"
 
 namespace vrm_sim {
 namespace scene {
 
 // Where a description came from, for error messages after loading (e.g. a mesh file that fails to import).
-struct SourceLocation {
-  std::string file;
-  int line = 0;  // 1-based; 0 = unknown
-  int column = 0;
-  std::string field;  // e.g. "objects[1].mesh"
-};
+using SourceLocation = vrm_sim::SourceLocation;
 
 enum class SceneKind { kAbstract, kSurgical };
 enum class ObjectRole { kRetina, kMembrane, kIlm, kRigid, kAbstractTarget, kDecoration };

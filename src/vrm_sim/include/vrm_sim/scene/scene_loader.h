@@ -12,19 +12,11 @@
 namespace vrm_sim {
 namespace scene {
 
-// Any problem with a scene file. what() reads "<file>:<line>:<column>: <field>: <problem>", e.g.
+// Any problem with a scene file: the strict reader's error (yaml/yaml_error.h). what() reads
+// "<file>:<line>:<column>: <field>: <problem>", e.g.
 // "membrane_peeling.yaml:14:5: objects[1].tissue.stiffness: expected a positive number, got 'abc'"
 // (line and column are omitted when unknown, e.g. for a missing file).
-class SceneError : public std::runtime_error {
- public:
-  explicit SceneError(const SourceLocation& location, const std::string& problem);
-  const SourceLocation& location() const { return location_; }
-  const std::string& problem() const { return problem_; }
-
- private:
-  SourceLocation location_;
-  std::string problem_;
-};
+using SceneError = vrm_sim::YamlError;
 
 // The scene a node, tool or launch file runs when it is not told one: defined here once.
 extern const char* const kDefaultSceneName;

@@ -20,6 +20,7 @@
 #include "vrm_sim/scene/mesh_utils.h"
 #include "vrm_sim/tissue/integrator.h"
 #include "vrm_sim/tissue/tissue_model.h"
+#include "vrm_sim/yaml/strict_reader.h"
 
 namespace vrm_sim {
 namespace scene {
@@ -29,193 +30,9 @@ namespace fs = std::filesystem;
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kDegToRad = kPi / 180.0;
 
-std::string joinNames(const std::vector<std::string>& names) {
-  std::string joined;
-  for (const auto& name : names) joined += (joined.empty() ? "" : ", ") + name;
-  return joined;
-}
-
-// One YAML node together with its field path and file, so every check can report where it failed.
-class Field {
- public:
-  Field(YAML::Node node, std::string path, std::string file)
-      : node_(std::move(node)), path_(std::move(path)), file_(std::move(file)) {}
-
-  const YAML::Node& node() const { return node_; }
-  const std::string& path() const { return path_; }
-  const std::string& file() const { return file_; }
-
-  SourceLocation location() const {
-    SourceLocation location;
-    location.file = file_;
-    location.field = path_;
-    const YAML::Mark mark = node_.Mark();
-    if (!mark.is_null()) {
-      location.line = mark.line + 1;
-      location.column = mark.column + 1;
-    }
-    return location;
-  }
-
-  [[noreturn]] void fail(const std::string& problem) const { throw SceneError(location(), problem); }
-
-  Field child(const YAML::Node& node, const std::string& key) const {
-    return Field(node, path_.empty() ? key : path_ + "." + key, file_);
-  }
-  Field item(const YAML::Node& node, std::size_t index) const {
-    return Field(node, path_ + "[" + std::to_string(index) + "]", file_);
-  }
-
-  // What the user wrote, for "got ..." in messages.
-  std::string shown() const {
-    if (!node_.IsDefined() || node_.IsNull()) return "nothing";
-    if (node_.IsScalar()) return "'" + node_.Scalar() + "'";
-    if (node_.IsSequence()) return "a list";
-    return "a map";
-  }
-
-  std::string text() const {
-    if (!node_.IsScalar() || node_.Scalar().empty()) fail("expected a non-empty string, got " + shown());
-    return node_.Scalar();
-  }
-
-  // `expectation` names the accepted range in messages, e.g. "a positive number".
-  double number(const std::string& expectation, double minimum, double maximum, bool minimum_inclusive = true,
-                bool maximum_inclusive = true) const {
-    double value = 0.0;
-    if (!parseNumber(&value)) fail("expected " + expectation + ", got " + shown());
-    const bool above = minimum_inclusive ? value >= minimum : value > minimum;
-    const bool below = maximum_inclusive ? value <= maximum : value < maximum;
-    if (!above || !below) fail("expected " + expectation + ", got " + shown());
-    return value;
-  }
-  double finite() const { return number("a finite number", -HUGE_VAL, HUGE_VAL, false, false); }
-  double positive() const { return number("a positive number", 0.0, HUGE_VAL, false, false); }
-  double nonNegative() const { return number("a non-negative number", 0.0, HUGE_VAL, true, false); }
-
-  int integer(int minimum, int maximum) const {
-    const std::string expectation = "an integer in [" + std::to_string(minimum) + ", " + std::to_string(maximum) + "]";
-    if (!node_.IsScalar()) fail("expected " + expectation + ", got " + shown());
-    const std::string& scalar = node_.Scalar();
-    char* end = nullptr;
-    errno = 0;
-    const long value = std::strtol(scalar.c_str(), &end, 10);
-    if (scalar.empty() || end != scalar.c_str() + scalar.size() || errno == ERANGE || value < minimum ||
-        value > maximum) {
-      fail("expected " + expectation + ", got " + shown());
-    }
-    return static_cast<int>(value);
-  }
-
-  bool boolean() const {
-    if (node_.IsScalar() && (node_.Scalar() == "true" || node_.Scalar() == "false")) return node_.Scalar() == "true";
-    fail("expected true or false, got " + shown());
-  }
-
-  template <typename Enum>
-  Enum choice(const std::vector<std::pair<std::string, Enum>>& options) const {
-    std::vector<std::string> names;
-    for (const auto& option : options) names.push_back(option.first);
-    if (node_.IsScalar()) {
-      for (const auto& option : options) {
-        if (option.first == node_.Scalar()) return option.second;
-      }
-    }
-    fail("expected one of " + joinNames(names) + ", got " + shown() +
-         (node_.IsScalar() ? typoSuggestion(node_.Scalar(), names) : ""));
-  }
-
-  std::string name(const std::vector<std::string>& allowed) const {
-    std::vector<std::pair<std::string, std::string>> options;
-    for (const auto& name : allowed) options.emplace_back(name, name);
-    return choice(options);
-  }
-
-  std::vector<Field> items() const {
-    if (!node_.IsSequence()) fail("expected a list, got " + shown());
-    std::vector<Field> result;
-    for (std::size_t i = 0; i < node_.size(); ++i) result.push_back(item(node_[i], i));
-    return result;
-  }
-
-  std::vector<double> numbers(std::size_t count, const std::string& element_expectation, double minimum,
-                              double maximum) const {
-    if (!node_.IsSequence() || node_.size() != count) {
-      fail("expected a list of " + std::to_string(count) + " numbers, got " + shown() +
-           (node_.IsSequence() ? " of " + std::to_string(node_.size()) : ""));
-    }
-    std::vector<double> values;
-    for (const Field& element : items()) values.push_back(element.number(element_expectation, minimum, maximum));
-    return values;
-  }
-  Eigen::Vector3d vector3() const {
-    const auto values = numbers(3, "a finite number", -1e300, 1e300);
-    return {values[0], values[1], values[2]};
-  }
-
- private:
-  bool parseNumber(double* value) const {
-    if (!node_.IsScalar() || node_.Scalar().empty()) return false;
-    const std::string& scalar = node_.Scalar();
-    char* end = nullptr;
-    *value = std::strtod(scalar.c_str(), &end);
-    return end == scalar.c_str() + scalar.size() && std::isfinite(*value);
-  }
-
-  YAML::Node node_;
-  std::string path_;
-  std::string file_;
-};
-
-// The keys of one YAML map. Every key the parser asks for is allowed; finish() rejects the rest, so a misspelt
-// key fails instead of silently leaving a default in place.
-class MapFields {
- public:
-  explicit MapFields(const Field& field) : field_(field) {
-    if (!field.node().IsMap()) field.fail("expected a map, got " + field.shown());
-    for (const auto& entry : field.node()) {
-      const Field key_field(entry.first, field.path(), field.file());
-      if (!entry.first.IsScalar()) key_field.fail("map keys must be plain names");
-      const std::string key = entry.first.Scalar();
-      if (entries_.count(key) > 0) key_field.child(entry.first, key).fail("duplicate key");
-      entries_.emplace(key, Entry{entry.first, entry.second});
-      order_.push_back(key);
-    }
-  }
-
-  std::optional<Field> optional(const std::string& key) {
-    known_.push_back(key);
-    const auto found = entries_.find(key);
-    if (found == entries_.end()) return std::nullopt;
-    return field_.child(found->second.value, key);
-  }
-  Field required(const std::string& key) {
-    std::optional<Field> value = optional(key);
-    if (!value) field_.fail("missing required key '" + key + "'");
-    return *value;
-  }
-  bool has(const std::string& key) const { return entries_.count(key) > 0; }
-
-  void finish() const {
-    for (const auto& key : order_) {
-      if (std::find(known_.begin(), known_.end(), key) != known_.end()) continue;
-      field_.child(entries_.at(key).key, key)
-          .fail("unknown key" + typoSuggestion(key, known_) + "; allowed keys: " + joinNames(known_));
-    }
-  }
-
-  const Field& field() const { return field_; }
-
- private:
-  struct Entry {
-    YAML::Node key;
-    YAML::Node value;
-  };
-  Field field_;
-  std::map<std::string, Entry> entries_;
-  std::vector<std::string> order_;
-  std::vector<std::string> known_;
-};
+using yaml::Field;
+using yaml::joinNames;
+using yaml::MapFields;
 
 // ---- typed readers: each fills a struct whose members already hold the defaults -------------------------------
 
@@ -967,20 +784,8 @@ SceneDescription readScene(const YAML::Node& root, const std::string& file, cons
   return scene;
 }
 
-SceneDescription parseScene(const std::function<YAML::Node()>& parse, const std::string& file,
-                            const std::string& difficulty) {
-  YAML::Node root;
-  try {
-    root = parse();
-  } catch (const YAML::Exception& error) {
-    SourceLocation location;
-    location.file = file;
-    if (!error.mark.is_null()) {
-      location.line = error.mark.line + 1;
-      location.column = error.mark.column + 1;
-    }
-    throw SceneError(location, "YAML syntax error: " + error.msg);
-  }
+SceneDescription parseScene(const std::string& text, const std::string& file, const std::string& difficulty) {
+  const YAML::Node root = yaml::parseText(text, file).node();
   try {
     const std::string level = applyDifficulty(root, file, difficulty);
     return readScene(root, file, level);
@@ -992,16 +797,6 @@ SceneDescription parseScene(const std::function<YAML::Node()>& parse, const std:
 }
 
 }  // namespace
-
-SceneError::SceneError(const SourceLocation& location, const std::string& problem)
-    : std::runtime_error([&] {
-        std::string prefix = location.file;
-        if (location.line > 0) prefix += ":" + std::to_string(location.line) + ":" + std::to_string(location.column);
-        if (!location.field.empty()) prefix += ": " + location.field;
-        return prefix + ": " + problem;
-      }()),
-      location_(location),
-      problem_(problem) {}
 
 const char* const kDefaultSceneName = "membrane_peeling";
 
@@ -1030,17 +825,12 @@ SceneDescription loadScene(const std::string& name_or_path, const std::string& d
     location.file = name_or_path;
     throw SceneError(location, "neither a scene file nor a shipped scene (shipped: " + shipped + ")");
   }
-  std::ifstream stream(path);
-  if (!stream || fs::is_directory(path, error)) throw SceneError(location, "cannot read the scene file");
-  std::ostringstream text;
-  text << stream.rdbuf();
-  const std::string content = text.str();
-  return parseScene([&content] { return YAML::Load(content); }, path, difficulty);
+  return parseScene(yaml::readFile(path, "scene file"), path, difficulty);
 }
 
 SceneDescription loadSceneFromString(const std::string& yaml_text, const std::string& virtual_path,
                                      const std::string& difficulty) {
-  return parseScene([&yaml_text] { return YAML::Load(yaml_text); }, virtual_path, difficulty);
+  return parseScene(yaml_text, virtual_path, difficulty);
 }
 
 std::vector<ScriptedInstrument> loadScript(const std::string& path) {
@@ -1048,17 +838,7 @@ std::vector<ScriptedInstrument> loadScript(const std::string& path) {
   location.file = path;
   std::error_code error;
   if (!fs::is_regular_file(path, error)) throw SceneError(location, "script file not found");
-  YAML::Node root;
-  try {
-    root = YAML::LoadFile(path);
-  } catch (const YAML::Exception& yaml_error) {
-    if (!yaml_error.mark.is_null()) {
-      location.line = yaml_error.mark.line + 1;
-      location.column = yaml_error.mark.column + 1;
-    }
-    throw SceneError(location, "YAML syntax error: " + yaml_error.msg);
-  }
-  const Field root_field(root, "", path);
+  const Field root_field = yaml::parseText(yaml::readFile(path, "script file"), path);
   MapFields fields(root_field);
   std::vector<ScriptedInstrument> script = readScript(fields.required("script"));
   fields.finish();
