@@ -35,6 +35,7 @@
 #include <fstream>
 #include <sstream>
 
+#include "eyesi_gui/console/message_constants.h"
 #include "stereo_view.h"
 #include "vrm_sim/result/session_result.h"
 
@@ -52,15 +53,10 @@ QPushButton* bigButton(const QString& text, const QString& name, QWidget* parent
   return button;
 }
 
-QString stateName(int state) {
-  static const char* kNames[] = {"idle", "running", "paused", "finished", "failed"};
-  return state >= 0 && state < 5 ? kNames[state] : "unknown";
-}
+// The labels come with the constants (message_constants.h), so a state added to a message cannot show as another.
+QString stateName(int state) { return constantLabel(kScenarioStatusConstants, state); }
 
-QString stationStateName(int state) {
-  static const char* kNames[] = {"idle", "loading", "ready", "running", "ended", "failed"};
-  return state >= 0 && state < 6 ? kNames[state] : "unknown";
-}
+QString stationStateName(int state) { return constantLabel(kStationStatusConstants, state); }
 
 QString clock(double seconds) {
   const int s = static_cast<int>(seconds);
