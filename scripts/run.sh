@@ -78,8 +78,11 @@ if ! rosrun vrm_render frame_check "$out"; then
   echo "run.sh: frame_check: a saved frame failed its shadow / focus / light check (or could not be checked)" >&2
   ((${#check[@]} == 0)) || status=1
 fi
-/usr/bin/python3 "$ROOT/scripts/session_summary.py" "${check[@]}" "$out/outputs.bag" || status=1
-if [[ -f $out/result.json ]]; then echo "result: $out/result.json"; else echo "result: none (the scenario did not end within ${duration} s)"; fi
+result_args=()
+[[ -f $out/result.json ]] && result_args=(--result "$out/result.json")
+/usr/bin/python3 "$ROOT/scripts/session_summary.py" "${check[@]}" "${result_args[@]}" "$out/outputs.bag" || status=1
+# (A result file is summarised by session_summary.py above.)
+[[ -f $out/result.json ]] || echo "result: none (the scenario did not end within ${duration} s)"
 # The session is its recorded inputs (thesis §2.4.2): the offline replay must end where the live session did.
 live_result=${bag%.bag}.result.json
 if [[ -f $live_result ]]; then

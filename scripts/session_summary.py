@@ -6,11 +6,18 @@ this machine is too slow for real time; then the training scenario's end state a
 (vrm_msgs/ScenarioStatus). With --check, exit 1 unless frames were produced, where the scene has tissue the tissue was
 published deformed and grasped, and the scenario finished (the scripted expert completes its task); a slow machine
 only warns (CI machines are noisy).
-Usage: session_summary.py [--check] OUTPUTS.bag"""
+With --result RESULT.json, the session's result file (read through scripts/session_result.py, the schema of
+doc/session_result.md) is summarised too, and --check also fails when it is malformed or disagrees with the last
+recorded status (state, total).
+Usage: session_summary.py [--check] [--result RESULT.json] OUTPUTS.bag"""
 import math
+import os
 import sys
 
 import rosbag
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import session_result  # noqa: E402  (scripts/session_result.py: the result's one Python reader)
 
 OUTCOMES = {0: "untouched", 1: "grasped", 2: "lifted (clean peel so far)", 3: "torn"}
 STATES = {0: "idle", 1: "running", 2: "paused", 3: "finished", 4: "failed"}
@@ -99,9 +106,40 @@ def view_summary(render, display):
               "time (thesis §7.4.2, §1.3).")
 
 
+def summarise_result(path, status):
+    """The result file's line; False if it is malformed or disagrees with the last recorded status."""
+    try:
+        result = session_result.read(path)
+    except session_result.ResultError as error:
+        print(f"result: {error}", file=sys.stderr)
+        return False
+    total = "-" if session_result.is_unknown(result["total"]) else f"{result['total']:.1f} / 100"
+    print(f"result: {path}: {result['state']}, total {total}, final state {result['final_state_hash']} after "
+          f"{result['frames']} frames")
+    if status is None:
+        return True
+    # The file carries 15 significant digits; a total without samples is null (NaN) in the file.
+    same_total = (session_result.is_unknown(result["total"]) and math.isnan(status.score.total)) or math.isclose(
+        result["total"], status.score.total, rel_tol=1e-13, abs_tol=1e-13)
+    agree = result["state"] == STATES.get(status.state) and same_total
+    if not agree:
+        print(f"result: {path} says {result['state']} / {result['total']}, the last status "
+              f"{STATES.get(status.state, status.state)} / {status.score.total}", file=sys.stderr)
+    return agree
+
+
 def main(arguments):
     check = "--check" in arguments
-    paths = [a for a in arguments if a != "--check"]
+    arguments = [a for a in arguments if a != "--check"]
+    result_path = None
+    if "--result" in arguments:
+        at = arguments.index("--result")
+        if at + 1 >= len(arguments):
+            print(__doc__, file=sys.stderr)
+            return 2
+        result_path = arguments[at + 1]
+        del arguments[at:at + 2]
+    paths = arguments
     if len(paths) != 1:
         print(__doc__, file=sys.stderr)
         return 2
@@ -159,6 +197,10 @@ def main(arguments):
         print("scenario: no scenario_status recorded")
         return 1 if check else 0
     print_score(status)
+    if result_path is not None and not summarise_result(result_path, status) and check:
+        print("session_summary: --check failed: the result file is malformed or disagrees with the session",
+              file=sys.stderr)
+        return 1
     if check and STATES.get(status.state) != "finished":
         print(f"session_summary: --check failed: the scenario ended {STATES.get(status.state, status.state)}, "
               "not finished", file=sys.stderr)
