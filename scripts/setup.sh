@@ -11,7 +11,7 @@ PACKAGES=(
   libtf2-ros-dev libtf2-eigen-dev libtf2-geometry-msgs-dev ros-sensor-msgs libvisualization-msgs-dev
   libcv-bridge-dev libimage-transport-dev libopencv-dev libeigen3-dev
   libgtest-dev libbenchmark-dev libosmesa6-dev
-  libassimp-dev libyaml-cpp-dev libfcl-dev libsqlite3-dev libbullet-dev
+  libassimp-dev libyaml-cpp-dev libfcl-dev libsqlite3-dev libbullet-dev libboost-program-options-dev
   python3-matplotlib python3-diagnostic-msgs python3-sensor-msgs
   qtbase5-dev libqt5charts5-dev nlohmann-json3-dev libssl-dev xvfb xauth python3-pil
   nftables strace

@@ -13,31 +13,16 @@
 // Exit status: 0 the run completed (whatever the score), 1 bad input (file:line:col: field: reason on stderr),
 // 2 usage.
 #include <cstdio>
-#include <cstdlib>
 #include <exception>
 #include <filesystem>
 #include <string>
 
+#include "vrm_sim/cli/cli.h"
 #include "vrm_sim/package_data.h"
 #include "vrm_sim/scene/scene_loader.h"
 #include "vrm_sim/world/offline.h"
 
 namespace {
-
-int usage(const std::string& problem) {
-  std::fprintf(stderr,
-               "scenario_offline: %s\nusage: scenario_offline --scene NAME_OR_PATH [--difficulty LEVEL] "
-               "[--script expert|novice|FILE] [--seed N] [--rate HZ] [--grace S] [--detector NAME]\n"
-               "       scenario_offline --list\n",
-               problem.c_str());
-  return 2;
-}
-
-bool parseDouble(const char* text, double& value) {
-  char* end = nullptr;
-  value = std::strtod(text, &end);
-  return end != text && *end == '\0';
-}
 
 int list() {
   for (const std::string& name : vrm_sim::scene::shippedScenes()) {
@@ -55,41 +40,35 @@ int list() {
 
 int main(int argc, char** argv) {
   vrm_sim::usePackageData();  // --scene NAME and --list: the shipped scenes, found through ROS_PACKAGE_PATH
+  namespace po = vrm_sim::cli::po;
   std::string scene_argument, difficulty, script = "expert";
   vrm_sim::world::ScenarioRunOptions options;
-  for (int i = 1; i < argc; ++i) {
-    const std::string flag = argv[i];
-    if (flag == "--list") {
-      if (argc != 2) return usage("--list takes no other arguments");
-      return list();
-    }
-    if (flag == "-h" || flag == "--help") return usage("help");
-    if (i + 1 >= argc) return usage("missing value after " + flag);
-    const char* value = argv[++i];
-    if (flag == "--scene") {
-      scene_argument = value;
-    } else if (flag == "--difficulty") {
-      difficulty = value;
-    } else if (flag == "--script") {
-      script = value;
-    } else if (flag == "--seed") {
-      char* end = nullptr;
-      const unsigned long seed = std::strtoul(value, &end, 10);
-      if (end == value || *end != '\0' || seed > 0xffffffffUL) return usage("--seed expects an integer in [0, 2^32)");
-      options.seed = static_cast<std::uint32_t>(seed);
-    } else if (flag == "--rate") {
-      if (!parseDouble(value, options.rate) || !(options.rate > 0.0)) return usage("--rate expects a positive number");
-    } else if (flag == "--grace") {
-      if (!parseDouble(value, options.grace) || !(options.grace >= 0.0)) {
-        return usage("--grace expects a non-negative number");
-      }
-    } else if (flag == "--detector") {
-      options.detector = value;
-    } else {
-      return usage("unknown option " + flag);
-    }
+  bool list_scenarios = false;
+  vrm_sim::cli::CommandLine cli(
+      "scenario_offline",
+      "--scene NAME_OR_PATH [--difficulty LEVEL] [--script expert|novice|FILE] [--seed N] [--rate HZ] [--grace S] "
+      "[--detector NAME]\n--list",
+      "Plays a training scenario headless through the simulation core and prints one JSON object (--list: the "
+      "shipped scenes with a scenario).",
+      "Exit status: 0 the run completed (whatever the score), 1 bad input, 2 usage.");
+  cli.add()("scene", po::value(&scene_argument)->value_name("NAME_OR_PATH"), "the scene: a shipped name or a file")(
+      "difficulty", po::value(&difficulty)->value_name("LEVEL"), "the scenario's difficulty level")(
+      "script", po::value(&script)->value_name("expert|novice|FILE"),
+      "one of the scene's scripted sessions, or a script file (default expert)")(
+      "seed", vrm_sim::cli::uint32(&options.seed)->value_name("N"), "recorded with the result (default 0)")(
+      "rate", vrm_sim::cli::real(&options.rate)->value_name("HZ"), "input ticks (Hz, default 50)")(
+      "grace", vrm_sim::cli::real(&options.grace)->value_name("S"),
+      "simulated seconds after the script's last waypoint before a timeout (default 5)")(
+      "detector", po::value(&options.detector)->value_name("NAME"), "collision detector (default: the scene's)")(
+      "list", po::bool_switch(&list_scenarios), "print the shipped scenes that have a scenario");
+  if (const auto status = cli.parse(argc, argv)) return *status;
+  if (list_scenarios) {
+    if (argc != 2) return cli.fail("--list takes no other arguments");
+    return list();
   }
-  if (scene_argument.empty()) return usage("--scene is required");
+  if (!(options.rate > 0.0)) return cli.fail("--rate expects a positive number");
+  if (!(options.grace >= 0.0)) return cli.fail("--grace expects a non-negative number");
+  if (scene_argument.empty()) return cli.fail("--scene is required");
   try {
     const vrm_sim::scene::SceneDescription scene = vrm_sim::scene::loadScene(scene_argument, difficulty);
     if (!scene.scenario) {

@@ -21,18 +21,11 @@
 #include <string>
 
 #include "vrm_sim/bag/session_bag.h"
+#include "vrm_sim/cli/cli.h"
 #include "vrm_sim/package_data.h"
 #include "vrm_sim/scene/scene_loader.h"
 
 namespace {
-
-int usage(const std::string& problem) {
-  std::fprintf(stderr,
-               "session_replay: %s\nusage: session_replay --bag FILE [--scene NAME_OR_PATH] "
-               "[--input devices] [--prepare | --print scene|difficulty|collision_detector|auto_start|seed|input]\n",
-               problem.c_str());
-  return 2;
-}
 
 void reportRecovery(const vrm_sim::bag::PreparedBag& bag) {
   if (!bag.recovery) return;
@@ -54,37 +47,30 @@ void reportRecovery(const vrm_sim::bag::PreparedBag& bag) {
 
 int main(int argc, char** argv) {
   vrm_sim::usePackageData();  // the recorded scene by name when its file is not on this machine
-  std::string bag_path, scene, print;
-  vrm_sim::bag::ReplayInput input = vrm_sim::bag::ReplayInput::kAsRecorded;
+  namespace po = vrm_sim::cli::po;
+  std::string bag_path, scene, print, input_name;
   bool prepare_only = false;
-  for (int i = 1; i < argc; ++i) {
-    const std::string flag = argv[i];
-    if (flag == "-h" || flag == "--help") return usage("help");
-    if (flag == "--prepare") {
-      prepare_only = true;
-      continue;
-    }
-    if (i + 1 >= argc) return usage("missing value after " + flag);
-    const std::string value = argv[++i];
-    if (flag == "--bag") {
-      bag_path = value;
-    } else if (flag == "--scene") {
-      scene = value;
-    } else if (flag == "--input") {
-      if (value != "devices") return usage("--input takes devices");
-      input = vrm_sim::bag::ReplayInput::kDevices;
-    } else if (flag == "--print") {
-      if (value != "scene" && value != "difficulty" && value != "collision_detector" && value != "auto_start" &&
-          value != "seed" && value != "input") {
-        return usage("--print takes scene, difficulty, collision_detector, auto_start, seed or input");
-      }
-      print = value;
-    } else {
-      return usage("unknown option " + flag);
-    }
-  }
-  if (bag_path.empty()) return usage("--bag is required");
-  if (prepare_only && !print.empty()) return usage("--prepare and --print exclude each other");
+  vrm_sim::cli::CommandLine cli(
+      "session_replay",
+      "--bag FILE [--scene NAME_OR_PATH] [--input devices] [--prepare | --print "
+      "scene|difficulty|collision_detector|auto_start|seed|input]",
+      "Replays a recorded session headless, as fast as the CPU allows, and prints one JSON line.",
+      "Exit status: 0 success (also after a recovery), 1 a bag or scene it cannot use, 2 usage.");
+  cli.add()("bag", po::value(&bag_path)->required()->value_name("FILE"),
+            "the session bag (recovered first if cut off)")("scene", po::value(&scene)->value_name("NAME_OR_PATH"),
+                                                            "overrides the bag's scene")(
+      "input", vrm_sim::cli::choice(&input_name, {"devices"})->value_name("devices"),
+      "the bag's device topics through the mediator even when it recorded input frames")(
+      "prepare", po::bool_switch(&prepare_only), "check (and if needed recover) the bag; print the path to play")(
+      "print",
+      vrm_sim::cli::choice(&print, {"scene", "difficulty", "collision_detector", "auto_start", "seed", "input"})
+          ->value_name("WHAT"),
+      "print one value of the session's set-up (scene, difficulty, collision_detector, auto_start, seed or input)");
+  if (const auto status = cli.parse(argc, argv)) return *status;
+  const vrm_sim::bag::ReplayInput input =
+      input_name == "devices" ? vrm_sim::bag::ReplayInput::kDevices : vrm_sim::bag::ReplayInput::kAsRecorded;
+  if (bag_path.empty()) return cli.fail("--bag is required");
+  if (prepare_only && !print.empty()) return cli.fail("--prepare and --print exclude each other");
   try {
     vrm_sim::bag::PrepareOptions options;
     options.verify_messages = print.empty();  // --print follows a --prepare that verified already

@@ -13,63 +13,37 @@
 // (NAME: a shipped scene, e.g. membrane_peeling). Exit status: 0 ran (see "stable"), 1 bad scene or options,
 // 2 usage.
 #include <cstdio>
-#include <cstdlib>
 #include <exception>
 #include <string>
 
+#include "vrm_sim/cli/cli.h"
 #include "vrm_sim/package_data.h"
 #include "vrm_sim/scene/scene_loader.h"
 #include "vrm_sim/world/offline.h"
 
-namespace {
-
-int usage(const char* problem) {
-  std::fprintf(stderr,
-               "tissue_offline: %s\nusage: tissue_offline --scene FILE.yaml|NAME --seconds T [--rate HZ] "
-               "[--integrator NAME] [--dt DT] [--detector NAME] [--seed N]\n",
-               problem);
-  return 2;
-}
-
-bool parseDouble(const char* text, double& value) {
-  char* end = nullptr;
-  value = std::strtod(text, &end);
-  return end != text && *end == '\0';
-}
-
-}  // namespace
-
 int main(int argc, char** argv) {
+  namespace po = vrm_sim::cli::po;
   vrm_sim::usePackageData();  // --scene NAME: the shipped scene, found through ROS_PACKAGE_PATH (no master)
   std::string scene_argument;
-  bool have_seconds = false;
   vrm_sim::world::OfflineOptions options;
-  for (int i = 1; i < argc; ++i) {
-    const std::string flag = argv[i];
-    if (i + 1 >= argc) return usage(("missing value after " + flag).c_str());
-    const char* value = argv[++i];
-    if (flag == "--scene") {
-      scene_argument = value;
-    } else if (flag == "--seconds") {
-      if (!parseDouble(value, options.seconds)) return usage("--seconds expects a number");
-      have_seconds = true;
-    } else if (flag == "--rate") {
-      if (!parseDouble(value, options.rate) || !(options.rate > 0.0)) return usage("--rate expects a positive number");
-    } else if (flag == "--detector") {
-      options.detector = value;
-    } else if (flag == "--integrator") {
-      options.integrator = value;
-    } else if (flag == "--dt") {
-      if (!parseDouble(value, options.dt) || !(options.dt > 0.0)) return usage("--dt expects a positive number");
-    } else if (flag == "--seed") {
-      char* end = nullptr;
-      options.seed = std::strtoull(value, &end, 10);
-      if (end == value || *end != '\0') return usage("--seed expects a non-negative integer");
-    } else {
-      return usage(("unknown option " + flag).c_str());
-    }
-  }
-  if (scene_argument.empty() || !have_seconds) return usage("--scene and --seconds are required");
+  vrm_sim::cli::CommandLine cli("tissue_offline",
+                                "--scene FILE.yaml|NAME --seconds T [--rate HZ] [--integrator NAME] [--dt DT] "
+                                "[--detector NAME] [--seed N]",
+                                "Runs a scene headless through the simulation core and prints one JSON object.",
+                                "Exit status: 0 ran (see \"stable\"), 1 bad scene or options, 2 usage.");
+  cli.add()("scene", po::value(&scene_argument)->required()->value_name("FILE.yaml|NAME"),
+            "the scene: a file, or the name of a shipped scene (e.g. membrane_peeling)")(
+      "seconds", vrm_sim::cli::real(&options.seconds)->required()->value_name("T"), "simulated time (s)")(
+      "rate", vrm_sim::cli::real(&options.rate)->value_name("HZ"),
+      "input ticks of the scripted paths (Hz, default 50)")(
+      "integrator", po::value(&options.integrator)->value_name("NAME"), "auto or an integrator (default: the scene's)")(
+      "dt", vrm_sim::cli::real(&options.dt)->value_name("DT"), "time step (s, default: the scene's)")(
+      "detector", po::value(&options.detector)->value_name("NAME"), "collision detector (default: the scene's)")(
+      "seed", vrm_sim::cli::uint64(&options.seed)->value_name("N"),
+      "perturbs the initial state by at most 1 um per axis (default 0: none)");
+  if (const auto status = cli.parse(argc, argv)) return *status;
+  if (!(options.rate > 0.0)) return cli.fail("--rate expects a positive number");
+  if (cli.given("dt") && !(options.dt > 0.0)) return cli.fail("--dt expects a positive number");
   try {
     const vrm_sim::scene::SceneDescription scene = vrm_sim::scene::loadScene(scene_argument);
     const vrm_sim::world::OfflineResult result = vrm_sim::world::runOffline(scene, options);
