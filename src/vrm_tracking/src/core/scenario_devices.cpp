@@ -18,13 +18,13 @@ double scenarioFocusDistance(const SurgeonSnapshot& snapshot, const std::string&
   const double lateral_sq = (tip.head<2>() - centre.head<2>()).squaredNorm();
   if (!(lateral_sq < eye_radius * eye_radius)) return options.objective_z - pole_z;
   const double retina_z = centre.z() - std::sqrt(eye_radius * eye_radius - lateral_sq);
-  return options.objective_z - std::clamp(tip.z(), retina_z, retina_z + options.max_height);
+  return options.objective_z - std::clamp(tip.z(), retina_z, retina_z + options.plane_height);
 }
 
 SurgeonScript withScenarioDeviceTracks(const SurgeonScript& session, const std::string& tool_slot,
                                        const ScenarioFocusOptions& options) {
-  if (!(options.step > 0.0) || !(options.key_step > 0.0) || !(options.window >= 0.0) || !(options.max_height >= 0.0))
-    throw std::invalid_argument("scenario device tracks: need step, key_step > 0 and window, max_height >= 0");
+  if (!(options.step > 0.0) || !(options.key_step > 0.0) || !(options.window >= 0.0) || !(options.plane_height >= 0.0))
+    throw std::invalid_argument("scenario device tracks: need step, key_step > 0 and window, plane_height >= 0");
   const double eye_radius = session.definition().eye.radius;
   const double duration = session.duration();
   // The target on a grid of options.step from 0, then its running mean over the window (a pure function of the grid).

@@ -3,6 +3,8 @@
 
 #include <ros/node_handle.h>
 
+#include <cstdint>
+#include <memory>
 #include <stdexcept>
 #include <string>
 
@@ -51,5 +53,36 @@ inline SurgeonScript loadDeviceScript(const ros::NodeHandle& private_nh) {
   }
   return SurgeonScript(std::move(definition));
 }
+
+// A twin playing `scenario:NAME` follows the scene the scene owner announces on running_scene (issue 32), as the
+// scripted surgeon does: the device tracks are rebuilt from the new scene's session of that name.
+class ScenarioSceneFollower {
+ public:
+  // spec: the ~script parameter; scene_spec: ~scene. Inactive (follows nothing) unless spec is `scenario:NAME`.
+  ScenarioSceneFollower(const std::string& spec, const std::string& scene_spec) {
+    if (spec.rfind("scenario:", 0) != 0 || scene_spec.empty()) return;
+    name_ = spec.substr(9);
+    vrm_sim::usePackageData();
+    current_ = sceneIdentity(vrm_sim::scene::loadScene(scene_spec));
+    active_ = true;
+  }
+  bool active() const { return active_; }
+  // The script for the announced scene, or nullptr when it is the scene in use. Throws like loadScene /
+  // scenarioDeviceScript; the caller keeps its script then.
+  std::unique_ptr<SurgeonScript> follow(const std::string& name, const std::string& file, const std::string& difficulty,
+                                        std::uint64_t content_hash) {
+    if (!active_ || sameScene(SceneIdentity{name, file, difficulty, content_hash}, current_)) return nullptr;
+    const vrm_sim::scene::SceneDescription scene = vrm_sim::scene::loadScene(file, difficulty);
+    auto script = std::make_unique<SurgeonScript>(scenarioDeviceScript(scene, name_));
+    current_ = sceneIdentity(scene);
+    return script;
+  }
+  const std::string& sceneName() const { return current_.name; }
+
+ private:
+  bool active_ = false;
+  std::string name_;
+  SceneIdentity current_;
+};
 
 }  // namespace vrm_tracking

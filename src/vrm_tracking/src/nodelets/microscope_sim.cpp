@@ -13,6 +13,7 @@
 #include <ros/ros.h>
 #include <vrm_msgs/MicroscopeSettings.h>
 #include <vrm_msgs/PedalState.h>
+#include <vrm_msgs/RunningScene.h>
 #include <vrm_msgs/ScenarioCommand.h>
 #include <vrm_msgs/publish.h>
 
@@ -41,6 +42,8 @@ class MicroscopeSim : public nodelet::Nodelet {
 
     try {
       script_ = std::make_unique<SurgeonScript>(loadDeviceScript(pnh));
+      follower_ = std::make_unique<ScenarioSceneFollower>(pnh.param<std::string>("script", ""),
+                                                          pnh.param<std::string>("scene", ""));
     } catch (const std::exception& e) {
       NODELET_FATAL("cannot load surgeon script: %s", e.what());
       throw;
@@ -75,6 +78,10 @@ class MicroscopeSim : public nodelet::Nodelet {
     timer_ = nh.createTimer(ros::Duration(period_), &MicroscopeSim::onTick, this);
     NODELET_INFO("microscope track of '%s' at %.1f Hz; zoom [%.2f, %.2f], focus [%.3f, %.3f] m",
                  script_->name().c_str(), rate, limits.zoom_min, limits.zoom_max, limits.focus_min, limits.focus_max);
+    // Latched: the scene that runs now arrives however late this nodelet starts (subscribed last: the callback swaps
+    // script_).
+    if (follower_->active())
+      running_scene_sub_ = nh.subscribe("running_scene", 1, &MicroscopeSim::onRunningScene, this);
   }
 
   void onPedals(const vrm_msgs::PedalState::ConstPtr& msg) {
@@ -106,6 +113,22 @@ class MicroscopeSim : public nodelet::Nodelet {
     session_clock_ = true;
   }
 
+  // scenario:NAME follows the running scene (a LOAD in a station's one graph): the new scene's session, same clock.
+  void onRunningScene(const vrm_msgs::RunningScene::ConstPtr& msg) {
+    std::unique_ptr<SurgeonScript> script;
+    try {
+      script = follower_->follow(msg->name, msg->file, msg->difficulty, msg->content_hash);
+    } catch (const std::exception& e) {
+      NODELET_ERROR("cannot follow running scene '%s' (%s): %s; the old track plays on", msg->name.c_str(),
+                    msg->file.c_str(), e.what());
+      return;
+    }
+    if (!script) return;
+    NODELET_INFO("track of '%s' for scene '%s' from now on", script->name().c_str(), follower_->sceneName().c_str());
+    std::lock_guard<std::mutex> lock(mutex_);
+    script_ = std::move(script);
+  }
+
   void onTick(const ros::TimerEvent& event) {
     ros::Time stamp = event.current_expected;
     if (stamp.isZero()) stamp = ros::Time::now();
@@ -134,7 +157,9 @@ class MicroscopeSim : public nodelet::Nodelet {
     NODELET_DEBUG_THROTTLE(5.0, "zoom %.2f focus %.4f m", settings.zoom, settings.focus_distance);
   }
 
-  std::unique_ptr<SurgeonScript> script_;
+  std::unique_ptr<SurgeonScript> script_;  // swapped under mutex_ when the running scene changes
+  std::unique_ptr<ScenarioSceneFollower> follower_;
+  ros::Subscriber running_scene_sub_;
   std::unique_ptr<MicroscopeKnobs> knobs_;
   double pedal_timeout_ = 0.5;
   ros::Publisher pub_;

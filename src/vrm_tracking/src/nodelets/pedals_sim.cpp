@@ -11,6 +11,7 @@
 #include <nodelet/nodelet.h>
 #include <ros/ros.h>
 #include <vrm_msgs/PedalState.h>
+#include <vrm_msgs/RunningScene.h>
 #include <vrm_msgs/ScenarioCommand.h>
 #include <vrm_msgs/publish.h>
 
@@ -36,6 +37,8 @@ class PedalsSim : public nodelet::Nodelet {
 
     try {
       script_ = std::make_unique<SurgeonScript>(loadDeviceScript(pnh));
+      follower_ = std::make_unique<ScenarioSceneFollower>(pnh.param<std::string>("script", ""),
+                                                          pnh.param<std::string>("scene", ""));
     } catch (const std::exception& e) {
       NODELET_FATAL("cannot load surgeon script: %s", e.what());
       throw;
@@ -60,6 +63,9 @@ class PedalsSim : public nodelet::Nodelet {
     timer_ = nh.createTimer(ros::Duration(period_), &PedalsSim::onTick, this);
     NODELET_INFO("pedal track of '%s' at %.1f Hz; overrides on %s", script_->name().c_str(), rate,
                  command_sub_.getTopic().c_str());
+    // Latched: the scene that runs now arrives however late this nodelet starts (subscribed last: the callback swaps
+    // script_).
+    if (follower_->active()) running_scene_sub_ = nh.subscribe("running_scene", 1, &PedalsSim::onRunningScene, this);
   }
 
   void onCommand(const vrm_msgs::PedalState::ConstPtr& msg) {
@@ -76,6 +82,22 @@ class PedalsSim : public nodelet::Nodelet {
     std::lock_guard<std::mutex> lock(mutex_);
     start_ = command->header.stamp;
     session_clock_ = true;
+  }
+
+  // scenario:NAME follows the running scene (a LOAD in a station's one graph): the new scene's session, same clock.
+  void onRunningScene(const vrm_msgs::RunningScene::ConstPtr& msg) {
+    std::unique_ptr<SurgeonScript> script;
+    try {
+      script = follower_->follow(msg->name, msg->file, msg->difficulty, msg->content_hash);
+    } catch (const std::exception& e) {
+      NODELET_ERROR("cannot follow running scene '%s' (%s): %s; the old track plays on", msg->name.c_str(),
+                    msg->file.c_str(), e.what());
+      return;
+    }
+    if (!script) return;
+    NODELET_INFO("track of '%s' for scene '%s' from now on", script->name().c_str(), follower_->sceneName().c_str());
+    std::lock_guard<std::mutex> lock(mutex_);
+    script_ = std::move(script);
   }
 
   void onTick(const ros::TimerEvent& event) {
@@ -102,7 +124,9 @@ class PedalsSim : public nodelet::Nodelet {
     vrm_msgs::publishShared(pub_, msg);
   }
 
-  std::unique_ptr<SurgeonScript> script_;
+  std::unique_ptr<SurgeonScript> script_;  // swapped under mutex_ when the running scene changes
+  std::unique_ptr<ScenarioSceneFollower> follower_;
+  ros::Subscriber running_scene_sub_;
   double override_timeout_ = 0.0;
   ros::Publisher pub_;
   ros::Subscriber command_sub_;

@@ -1,6 +1,6 @@
 // The device twins' tracks for a scene's scripted session (issue 33): the focus follows the working plane (the
-// working tip clamped between the retina and 1 mm above it, averaged over 0.5 s), the zoom stays fixed, the pedal
-// follows the working instrument's suction and presses no buttons. Scripts with round numbers, values by hand.
+// fundus under the working tip, raised with the tip by at most 0.2 mm, averaged over 0.5 s), the zoom stays fixed, the
+// pedal follows the working instrument's suction and presses no buttons. Scripts with round numbers, values by hand.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -12,7 +12,8 @@ namespace {
 
 // A 12 mm eye centred 1 mm above the world origin; a light pipe (left) that stays put and a vitrector (right) that
 // comes down from 6 mm below the centre to 0.5 mm off the retina at x = 1 mm (t = 1 s), cuts there with suction 0.6
-// until t = 3 s, and lifts to 3 mm below the centre (t = 4 s). Objective at z 0.188.
+// until t = 3 s, moves to x = 5 mm 0.11 mm off the retina (t = 3.2 s; the fundus there is 1.05 mm higher) and lifts
+// to 3 mm below the centre (t = 4 s). Objective at z 0.188.
 const char* kSession = R"(name: session
 playback: once
 eye:
@@ -30,7 +31,8 @@ instruments:
       - {t: 0.0, type: vitrector, tip: [0.001, 0.0, -0.006], suction: 0.0}
       - {t: 1.0, tip: [0.001, 0.0, -0.0114583], suction: 0.6}
       - {t: 3.0, tip: [0.001, 0.0, -0.0114583], suction: 0.6}
-      - {t: 4.0, tip: [0.001, 0.0, -0.003], suction: 0.0}
+      - {t: 3.2, tip: [0.005, 0.0, -0.0108], suction: 0.6}
+      - {t: 4.0, tip: [0.005, 0.0, -0.003], suction: 0.0}
 )";
 
 SurgeonScript session() { return SurgeonScript::fromYamlString(kSession, "session.yaml"); }
@@ -40,10 +42,14 @@ const double kRetinaZ = 0.001 - std::sqrt(0.012 * 0.012 - 0.001 * 0.001);
 
 TEST(ScenarioFocus, FocusesOnTheWorkingTipClampedToTheWorkingPlane) {
   const SurgeonScript s = session();
-  // Working: the tip 0.5 mm off the retina is the focal plane.
-  EXPECT_NEAR(scenarioFocusDistance(s.sample(2.0), "right", 0.012), 0.188 - (0.001 - 0.0114583), 1e-12);
-  // Entering high (6 mm below the centre): the plane 1 mm above the retina below the tip, not the tip.
-  EXPECT_NEAR(scenarioFocusDistance(s.sample(0.0), "right", 0.012), 0.188 - (kRetinaZ + 0.001), 1e-12);
+  // Working 0.5 mm off the retina, or entering high (6 mm below the centre): the plane 0.2 mm above the fundus
+  // under the tip.
+  EXPECT_NEAR(scenarioFocusDistance(s.sample(2.0), "right", 0.012), 0.188 - (kRetinaZ + 0.0002), 1e-12);
+  EXPECT_NEAR(scenarioFocusDistance(s.sample(0.0), "right", 0.012), 0.188 - (kRetinaZ + 0.0002), 1e-12);
+  // Closer than that (0.1 mm): the tip's depth.
+  SurgeonSnapshot close = s.sample(2.0);
+  close.instruments[1].tip.z() = kRetinaZ - 0.001 + 0.0001;  // world z = eye z + 1 mm
+  EXPECT_NEAR(scenarioFocusDistance(close, "right", 0.012), 0.188 - (kRetinaZ + 0.0001), 1e-12);
   // Below the retina (pressed into it): the retina.
   SurgeonSnapshot pressed = s.sample(2.0);
   pressed.instruments[1].tip.z() = -0.0125;
@@ -67,19 +73,24 @@ TEST(ScenarioFocus, DeviceTracksAreSmoothedFixedZoomAndButtonless) {
   const SurgeonScript s = withScenarioDeviceTracks(session(), "right");
   EXPECT_EQ(s.playback(), Playback::kOnce);
   ASSERT_EQ(s.definition().instruments.size(), 2u);  // the instruments play as before
-  const double working = 0.188 - (0.001 - 0.0114583);
-  const double entering = 0.188 - (kRetinaZ + 0.001);
+  const double working = 0.188 - (kRetinaZ + 0.0002);
+  // Entering, the tip is at x = 1 mm from t = 0: the fundus under it does not move, nor does the focus. A focus that
+  // followed the tip would lag it: here the plane the averaging holds still.
+  const double entering = working;
   // Settled after half a second of work; the average lags the tip's descent.
   EXPECT_NEAR(s.sample(2.0).microscope.focus_distance, working, 1e-9);
-  EXPECT_NEAR(s.sample(3.0).microscope.focus_distance, working, 1e-9);
+  EXPECT_NEAR(s.sample(2.99).microscope.focus_distance, working, 1e-9);
   EXPECT_NEAR(s.sample(0.0).microscope.focus_distance, entering, 1e-9);
-  const double lagging = s.sample(1.0).microscope.focus_distance;
-  EXPECT_GT(lagging, entering + 1e-6);
-  EXPECT_LT(lagging, working - 1e-6);
-  // The focus never jumps: at most the working range (1 mm) per 0.5 s, i.e. < 0.15 mm per 50 ms tick.
+  // Moved over to x = 5 mm: the focus follows the fundus there, lagging by the 0.5 s average.
+  const double moved = 0.188 - (0.001 - std::sqrt(0.012 * 0.012 - 0.005 * 0.005) + 0.0002);
+  const double lagging = s.sample(3.2).microscope.focus_distance;
+  EXPECT_LT(lagging, working - 1e-5);
+  EXPECT_GT(lagging, moved + 1e-5);
+  EXPECT_NEAR(s.sample(3.8).microscope.focus_distance, moved, 1e-9);
+  // The focus never jumps: the 1.05 mm step of the fundus spreads over the 0.5 s average, < 0.11 mm per 50 ms tick.
   for (double t = 0.0; t < 4.5; t += 0.05) {
     const SurgeonSnapshot a = s.sample(t), b = s.sample(t + 0.05);
-    EXPECT_LT(std::abs(b.microscope.focus_distance - a.microscope.focus_distance), 1.5e-4) << t;
+    EXPECT_LT(std::abs(b.microscope.focus_distance - a.microscope.focus_distance), 1.1e-4) << t;
     EXPECT_DOUBLE_EQ(a.microscope.zoom, 1.5) << t;
     EXPECT_FALSE(a.pedals.zoom_in || a.pedals.zoom_out || a.pedals.focus_near || a.pedals.focus_far) << t;
     EXPECT_FALSE(a.pedals.reflux || a.pedals.instrument_switch) << t;
