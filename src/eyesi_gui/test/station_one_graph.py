@@ -27,6 +27,9 @@ import threading
 import time
 import xmlrpc.client
 
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "..", "scripts"))
+import session_result  # noqa: E402  (scripts/session_result.py)
+
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", "..", ".."))
 FAILURES = []
 SCENE_A, SCENE_B, MISSING = "membrane_peeling", "navigation", "no_such_scene"
@@ -249,8 +252,7 @@ def run_test(station, out):
           station.status().message if station.status() else "")
     result = {}
     if wait_for(lambda: os.path.isfile(result_b), 10):
-        with open(result_b) as handle:
-            result = json.load(handle)
+        result = session_result.read(result_b)  # the schema's Python reader: a malformed result fails here
     check("session 2's result file names its scene, bag and trainee (%s)" % os.path.basename(result_b),
           result.get("scene") == SCENE_B and result.get("bag") == bag_b and result.get("user") == "anna", result)
     check("session 2's bag is closed (%s)" % os.path.basename(bag_b),

@@ -31,6 +31,9 @@ import threading
 import time
 import xmlrpc.client
 
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "..", "..", "scripts"))
+import session_result  # noqa: E402  (scripts/session_result.py)
+
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", "..", "..", ".."))
 FAILURES = []
 
@@ -205,6 +208,18 @@ def read_json(path):
         return None
 
 
+def read_result(path):
+    """A session result through its one Python reader (scripts/session_result.py): None if absent or malformed (the
+    reason printed), so a result that breaks the schema fails its check."""
+    if not os.path.isfile(path):
+        return None
+    try:
+        return session_result.read(path)
+    except session_result.ResultError as error:
+        print(f"graph_faults: {error}", file=sys.stderr)
+        return None
+
+
 def bag_messages(path, topics):
     import rosbag
     with rosbag.Bag(path) as bag:
@@ -253,13 +268,13 @@ def manager_crash(args):
     finally:
         graph.stop()
     stem = bag[:-4]
-    interrupted = read_json(stem + ".interrupted.result.json")
+    interrupted = read_result(stem + ".interrupted.result.json")
     check("the interrupted session's result is kept, marked interrupted",
           interrupted is not None and interrupted.get("state") == "interrupted" and interrupted.get("interrupted"),
           interrupted)
     if interrupted:
         check("... with the frames it ran", interrupted.get("frames", 0) > 100, interrupted.get("frames"))
-    final = read_json(stem + ".result.json")
+    final = read_result(stem + ".result.json")
     check("the restarted session's final result", final is not None and final.get("in_progress") is False, final)
     # The training records take both, the interrupted one as such (what the console imports from the sessions folder).
     database = os.path.join(args.out, "records.sqlite")
@@ -337,7 +352,7 @@ def recorder_crash(args):
         check("the gap is reported (%s)" % gaps, len(gaps) == 1 and 0.0 < gaps[0]["seconds"] < 10.0)
     check("part 1 exists as an indexed bag", os.path.isfile(bag))
     check("part 2 was written", os.path.isfile(stem + ".part2.bag"))
-    final = read_json(stem + ".result.json")
+    final = read_result(stem + ".result.json")
     check("the session's result is written", final is not None and final.get("in_progress") is False, final)
     if os.path.isfile(bag) and os.path.isfile(stem + ".part2.bag"):
         first_part = bag_messages(bag, ["/instrument_state"])
