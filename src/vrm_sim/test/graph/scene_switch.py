@@ -18,7 +18,6 @@ of the new scene; exits 1 on any failure.
 Usage: scene_switch.py [--out DIR]   (workspace sourced: scripts/common.sh)
 """
 import argparse
-import json
 import math
 import os
 import socket
@@ -32,6 +31,8 @@ import xmlrpc.client
 ROOT = os.path.abspath(os.path.join(os.path.dirname(os.path.realpath(__file__)), "..", "..", "..", ".."))
 TEST_SCENE = os.path.join(ROOT, "src", "vrm_sim", "test", "graph", "scenes", "offset_eye.yaml")
 SCENES = os.path.join(ROOT, "src", "vrm_sim", "config", "scenes")
+sys.path.insert(0, os.path.join(ROOT, "scripts"))
+import session_result  # noqa: E402  (scripts/session_result.py: the session result's Python reader)
 
 failures = []
 
@@ -314,9 +315,9 @@ def switch(graph, watch, command_pub, name, path, load, manager_pid, previous_ob
     command_pub.publish(command)
     result = wait_for(lambda: watch.results[-1] if len(watch.results) > results_before else None, 20)
     try:
-        scene_in_result = json.loads(result.json).get("scene") if result else None
-    except ValueError as error:
-        scene_in_result = "unreadable JSON (%s): %s" % (error, result.json[:600])
+        scene_in_result = session_result.from_json(result.json, "session_result")["scene"] if result else None
+    except session_result.ResultError as error:  # the schema's Python reader (scripts/session_result.py)
+        scene_in_result = "%s: %s" % (error, result.json[:600])
     check("%s: the session result names it" % scene_name, scene_in_result == scene_name, scene_in_result)
     check("%s: the nodelet manager is the same process" % scene_name, graph.pid("/vrm_manager") == manager_pid,
           graph.pid("/vrm_manager"))
