@@ -9,7 +9,12 @@ only warns (CI machines are noisy).
 With --result RESULT.json, the session's result file (read through scripts/session_result.py, the schema of
 doc/session_result.md) is summarised too, and --check also fails when it is malformed or disagrees with the last
 recorded status (state, total).
-Usage: session_summary.py [--check] [--result RESULT.json] OUTPUTS.bag"""
+From the session's input bag (--inputs SESSION.bag, default session.bag next to OUTPUTS.bag) the tracked fraction per
+instrument slot: the share of its instrument_state messages from the session's START on that were valid (with
+tracking:=true what the optical tracking saw; issue 33: the light pipe's markers are at times occluded by the other
+shaft). --check also fails when a slot the tracking saw at all was valid < 90 % of the session (a slot never valid is
+reported, not failed: the bag does not say whether the script used it).
+Usage: session_summary.py [--check] [--result RESULT.json] [--inputs SESSION.bag] OUTPUTS.bag"""
 import math
 import os
 import sys
@@ -128,6 +133,50 @@ def summarise_result(path, status):
     return agree
 
 
+MIN_TRACKED_FRACTION = 0.9
+
+
+def tracked_fractions(path):
+    """{slot: [valid, total]} over the instrument_state messages stamped at or after the session's first START (all
+    of them without a recorded START); None if the bag cannot be read."""
+    try:
+        bag = rosbag.Bag(path)
+    except Exception as error:  # rosbag raises several types for missing/corrupt files
+        print(f"tracking: cannot open {path}: {error}")
+        return None
+    counts, start = {}, None
+    with bag:
+        for _, command, _ in bag.read_messages(topics=["/scenario_command"]):
+            if command.command == command.START:
+                start = command.header.stamp.to_sec()
+                break
+        for _, state, _ in bag.read_messages(topics=["/instrument_state"]):
+            if start is not None and state.header.stamp.to_sec() < start:
+                continue
+            entry = counts.setdefault(state.instrument_id, [0, 0])
+            entry[0] += 1 if state.valid else 0
+            entry[1] += 1
+    return counts
+
+
+def tracking_summary(path):
+    """Prints the tracked fraction per slot; returns the slots seen at all but tracked < MIN_TRACKED_FRACTION."""
+    counts = tracked_fractions(path)
+    if counts is None:
+        return []
+    if not counts:
+        print(f"tracking: no instrument_state after the START in {path}")
+        return []
+    low, parts = [], []
+    for slot, (valid, total) in sorted(counts.items()):
+        fraction = valid / total
+        parts.append(f"{slot} {100 * fraction:.1f} % ({valid} of {total})" if valid else f"{slot} never tracked")
+        if valid and fraction < MIN_TRACKED_FRACTION:
+            low.append(f"{slot} {100 * fraction:.1f} %")
+    print("tracking: valid instrument states since the START: " + ", ".join(parts))
+    return low
+
+
 def main(arguments):
     check = "--check" in arguments
     arguments = [a for a in arguments if a != "--check"]
@@ -139,10 +188,21 @@ def main(arguments):
             return 2
         result_path = arguments[at + 1]
         del arguments[at:at + 2]
+    inputs = None
+    if "--inputs" in arguments:
+        at = arguments.index("--inputs")
+        if at + 1 >= len(arguments):
+            print(__doc__, file=sys.stderr)
+            return 2
+        inputs = arguments[at + 1]
+        del arguments[at:at + 2]
     paths = arguments
     if len(paths) != 1:
         print(__doc__, file=sys.stderr)
         return 2
+    if inputs is None:
+        beside = os.path.join(os.path.dirname(os.path.abspath(paths[0])), "session.bag")
+        inputs = beside if os.path.exists(beside) else None
     try:
         bag = rosbag.Bag(paths[0])
     except Exception as error:  # rosbag raises several types for missing/corrupt files
@@ -190,8 +250,15 @@ def main(arguments):
         ok = ok and entry["meshes"] > 0 and entry["grasped"] > 0
     print(f"  retina: {last.retina_contacts} contacts, max injury {last.max_injury:.2f}")
     view_summary(render, display)
+    low_tracking = tracking_summary(inputs) if inputs else []
+    if inputs is None:
+        print("tracking: no session bag (--inputs, or session.bag next to the outputs bag)")
     if check and not ok:
         print("session_summary: --check failed: the tissue was not published deformed and grasped", file=sys.stderr)
+        return 1
+    if check and low_tracking:
+        print(f"session_summary: --check failed: tracked < {100 * MIN_TRACKED_FRACTION:.0f} % of the session: "
+              + ", ".join(low_tracking), file=sys.stderr)
         return 1
     if status is None:
         print("scenario: no scenario_status recorded")
