@@ -3,6 +3,12 @@
 // and passes switched off; triangle throughput for static and streamed geometry; readback cost. Target: all passes
 // in stereo <= 33 ms (>= 30 Hz); EyeSi 2003: ~17 ms on a GeForce 4.
 //   bench_render [--quick] [--out FILE] [--png DIR] [--case NAME] [--frames N]
+//   bench_render --frame PREFIX_OR_DIR [--current-light] [--frames N] [--out FILE]
+// --frame (issue 33): a saved snapshot's render state (<prefix>.frame, run.sh's session: that scene, its instruments
+// and light pipe, the knobs and options of the running graph) rendered with the light pipe lit, lit without the
+// shadow pass, and off, frame by frame in turns (the deformable meshes re-uploaded every frame as the session streams
+// them): what the light pipe costs per stereo frame. --current-light: today's endoilluminator() (cone, intensity) at the
+// saved light pipe's pose, to compare a change of the light on the same frames.
 
 #include <sys/resource.h>
 
@@ -12,11 +18,15 @@
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
+#include <memory>
 #include <sstream>
 #include <string>
 #include <vector>
 
+#include <filesystem>
+
 #include "vrm_render/image_io.h"
+#include "vrm_render/render_state.h"
 #include "vrm_render/scene_setup.h"
 #include "vrm_render/stereo_renderer.h"
 
@@ -235,6 +245,107 @@ Row run(const Case& c, int frames, const std::string& png_dir) {
   return row;
 }
 
+// --frame: the light pipe's cost on saved session frames (see the header).
+int benchSavedFrames(const std::vector<std::string>& args, int frames, const std::string& out,
+                     const std::string& command, bool current_light) {
+  std::vector<std::string> prefixes;
+  for (const std::string& arg : args) {
+    if (std::filesystem::is_directory(arg)) {
+      for (const auto& entry : std::filesystem::directory_iterator(arg)) {
+        if (entry.path().extension() == ".frame") prefixes.push_back((entry.path().parent_path() / entry.path().stem()).string());
+      }
+    } else {
+      prefixes.push_back(arg.size() > 6 && arg.compare(arg.size() - 6, 6, ".frame") == 0 ? arg.substr(0, arg.size() - 6)
+                                                                                         : arg);
+    }
+  }
+  std::sort(prefixes.begin(), prefixes.end());
+  if (prefixes.empty()) {
+    std::fprintf(stderr, "bench_render: no saved frames (<prefix>.frame)\n");
+    return 2;
+  }
+  const char* names[4] = {"lit", "lit_noshadow", "light_off", "lit_nobump"};
+  constexpr int kVariants = 4;
+  std::ostringstream json;
+  json << "{\"suite\":\"render_saved_frames\",\"command\":\"" << command << "\",\"frames\":" << frames << ",\"rows\":[";
+  std::printf("%-44s %-13s %6s %7s %7s %7s %7s %8s\n", "frame", "variant", "tris", "shadow", "scene", "dof", "total",
+              "cpu_ms");
+  for (std::size_t f = 0; f < prefixes.size(); ++f) {
+    vrm_render::RenderState state;
+    try {
+      state = vrm_render::readRenderState(prefixes[f] + ".frame");
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "bench_render: %s\n", e.what());
+      return 2;
+    }
+    if (!state.light.enabled) std::printf("(%s: the light pipe is off in this frame)\n", prefixes[f].c_str());
+    if (current_light) {  // today's endoilluminator() at the saved light pipe's pose
+      vrm_render::LightPipe light = vrm_render::endoilluminator();
+      light.enabled = state.light.enabled;
+      light.tip = state.light.tip;
+      light.direction = state.light.direction;
+      state.light = light;
+    }
+    std::vector<std::unique_ptr<StereoRenderer>> renderers;
+    for (int v = 0; v < kVariants; ++v) {
+      vrm_render::RenderState variant = state;
+      if (v == 1) variant.options.shadow_pass = false;
+      if (v == 2) variant.light.enabled = false;
+      if (v == 3) variant.options.bump_mapping = false;
+      renderers.push_back(std::make_unique<StereoRenderer>(variant.options, variant.rig));
+      renderers.back()->restoreState(variant, false);
+      StereoFrame warm;
+      renderers.back()->render(&warm);
+      renderers.back()->render(&warm);
+    }
+    std::vector<double> total[kVariants], shadow[kVariants], scene[kVariants], dof[kVariants], cpu[kVariants];
+    std::vector<double> drawn[kVariants], layers[kVariants];
+    StereoFrame frame;
+    for (int i = 0; i < frames; ++i) {
+      for (int v = 0; v < kVariants; ++v) {
+        for (const auto& object : state.objects) {  // the session streams its deformable meshes every frame
+          if (object.has_mesh && object.style.deformable)
+            renderers[v]->updateMesh(object.id, object.mesh.view(), object.version + 1 + i);
+        }
+        const double cpu_start = processCpuMs();
+        renderers[v]->render(&frame);
+        cpu[v].push_back(processCpuMs() - cpu_start);
+        total[v].push_back(frame.timings.ms_total);
+        shadow[v].push_back(frame.timings.ms_shadow);
+        scene[v].push_back(frame.timings.ms_scene);
+        dof[v].push_back(frame.timings.ms_dof);
+        drawn[v].push_back(static_cast<double>(frame.timings.triangles_drawn));
+        layers[v].push_back(frame.timings.static_layers_drawn);
+      }
+    }
+    const std::string name = std::filesystem::path(prefixes[f]).filename().string();
+    for (int v = 0; v < kVariants; ++v) {
+      std::printf("%-44s %-13s %6zu %7.2f %7.2f %7.2f %7.2f %8.2f  drawn %.0f layers %.1f\n", name.c_str(), names[v],
+                  renderers[v]->triangleCount(), median(shadow[v]), median(scene[v]), median(dof[v]), median(total[v]),
+                  median(cpu[v]), median(drawn[v]), median(layers[v]));
+      json << (f || v ? ",\n" : "\n") << "{\"frame\":\"" << name << "\",\"variant\":\"" << names[v]
+           << "\",\"light_in_frame\":" << (state.light.enabled ? "true" : "false")
+           << ",\"ms_shadow\":" << median(shadow[v]) << ",\"ms_scene\":" << median(scene[v])
+           << ",\"ms_dof\":" << median(dof[v]) << ",\"ms_total\":" << median(total[v])
+           << ",\"cpu_ms_per_frame\":" << median(cpu[v]) << "}";
+    }
+    std::vector<double> lit_minus_off;
+    for (int i = 0; i < frames; ++i) lit_minus_off.push_back(total[0][i] - total[2][i]);
+    std::printf("%-44s paired lit - off: %.2f ms per stereo frame (median of %d)\n", name.c_str(),
+                median(lit_minus_off), frames);
+  }
+  json << "]}\n";
+  if (!out.empty()) {
+    std::ofstream file(out);
+    if (!file) {
+      std::fprintf(stderr, "bench_render: cannot write %s\n", out.c_str());
+      return 1;
+    }
+    file << json.str();
+  }
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -243,6 +354,8 @@ int main(int argc, char** argv) {
   std::string png_dir;
   std::string only_case;
   int frames_override = 0;
+  std::vector<std::string> saved_frames;
+  bool current_light = false;
   std::string command = "bench_render";
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
@@ -258,15 +371,23 @@ int main(int argc, char** argv) {
     } else if (arg == "--case" && i + 1 < argc) {
       only_case = argv[++i];
       command += " " + only_case;
+    } else if (arg == "--current-light") {  // --frame: today's endoilluminator() cone instead of the saved one
+      current_light = true;
+    } else if (arg == "--frame" && i + 1 < argc) {
+      saved_frames.push_back(argv[++i]);
+      command += " " + saved_frames.back();
     } else if (arg == "--frames" && i + 1 < argc) {
       frames_override = std::atoi(argv[++i]);
       command += " " + std::to_string(frames_override);
     } else {
-      std::fprintf(stderr, "usage: bench_render [--quick] [--out FILE] [--png DIR] [--case NAME] [--frames N]\n");
+      std::fprintf(stderr,
+                   "usage: bench_render [--quick] [--out FILE] [--png DIR] [--case NAME] [--frames N]\n"
+                   "       bench_render --frame PREFIX_OR_DIR [--current-light] [--frames N] [--out FILE]\n");
       return 2;
     }
   }
   vrm_render::retainFreedHeapMemory();
+  if (!saved_frames.empty()) return benchSavedFrames(saved_frames, frames_override > 0 ? frames_override : 30, out, command, current_light);
   const char* threads = std::getenv("LP_NUM_THREADS");
   const std::string lp_threads = threads ? threads : "default";
   // name, w, h, stereo, shadow, lighting, dof, stream, time_passes

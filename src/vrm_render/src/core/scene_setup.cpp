@@ -122,10 +122,14 @@ std::string instrumentObjectId(const scene::InstrumentDescription& instrument) {
 
 LightPipe endoilluminator() {
   LightPipe light;
-  // Cone 0.6 rad (34.4 deg) with the outer 60 % fading (smoothstep from 34.4 to 13.8 deg): at the scoring's lit rule
-  // (vrm_sim/scenario/light_cone.h, kLightConeHalfAngleDeg = 25 deg) the light has fallen to 0.58 of its centre, so
-  // what the scoring calls lit is visibly lit and the rim beyond fades out (test ConeCheck.TheRendererConeIsAtHalf...).
-  light.cone_softness = 0.6f;
+  // Cone 0.5 rad (28.6 deg) with the outer 27 % fading (smoothstep from 28.6 to 20.9 deg): at the scoring's lit rule
+  // (vrm_sim/scenario/light_cone.h, kLightConeHalfAngleDeg = 25 deg) the light has fallen to 0.5 of its centre, so
+  // what the scoring calls lit is lit, and what it calls unlit fades out within 3.6 deg (test
+  // ConeCheck.TheRendererConeIsAtHalf...). Issue 33's cost: every pixel the cone may reach is shaded by the lit program
+  // (~55 ns/px more than the ambient-only one on llvmpipe), and this cone reaches 0.63x the area of the former
+  // 0.6 rad / softness 0.6 one (tan^2 28.6 / tan^2 34.4) with the same half-light point.
+  light.cone_half_angle_rad = 0.5f;
+  light.cone_softness = 0.27f;
   // Issue 33: the light pipe, not the microscope's coaxial fill (ambient_light 0.3 x albedo, grey ~31), lights the
   // fundus: inside the 25 deg cone the mean grey is >= 90 and >= 2x the fill at the working distances of the
   // scripted sessions (9-19 mm from the fundus; frame_check). Half-distance 20 mm (the fibre's spot spreads, so the

@@ -215,8 +215,10 @@ void main() {
   // Highlight shoulder (issue 33): the light pipe is the main light, so close to the fundus it lights the pale disc
   // (albedo ~0.9) beyond 1. Colours up to 0.75 pass unchanged (the ambient-only fill, 0.3 x albedo, and the lit
   // fundus stay linear, so the ambient-only variant still matches the lit one outside the cone); above, they approach
-  // 1 exponentially with unit slope at the knee, so the disc keeps its cup and vessels instead of clipping to white.
-  colour = min(colour, vec3(0.75)) + 0.25 * (1.0 - exp(-max(colour - 0.75, vec3(0.0)) * 4.0));
+  // 1 (rationally: x / (1 + 4x) above the knee, unit slope there; cheaper than exp on llvmpipe), so the disc keeps its
+  // cup and vessels instead of clipping to white.
+  vec3 over = max(colour - 0.75, vec3(0.0));
+  colour = min(colour, vec3(0.75)) + over / (1.0 + 4.0 * over);
   // The reflex is light reflected at the film's surface: on a translucent film it adds to what shows through
   // instead of being diluted by the film's opacity (premultiplied: colour a + reflex over dst (1 - a - reflex)).
   float lifted_alpha = min(1.0, alpha + reflex);

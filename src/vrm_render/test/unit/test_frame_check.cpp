@@ -265,7 +265,7 @@ TEST(ConeCheck, TheRendererConeIsAtHalfItsCentreAtTheScoringsHalfAngle) {
   EXPECT_GT(at_rule, 0.4);
   EXPECT_LT(at_rule, 0.7);
   EXPECT_GT(cone(vrm_sim::scenario::kLightConeHalfAngleDeg - 10.0), 0.9);
-  EXPECT_EQ(cone(light.cone_half_angle_rad * 180.0 / M_PI), 0.0);
+  EXPECT_NEAR(cone(light.cone_half_angle_rad * 180.0 / M_PI), 0.0, 1e-9);
 }
 
 }  // namespace
