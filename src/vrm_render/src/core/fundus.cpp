@@ -310,7 +310,7 @@ void FundusMap::growVessels() {
         for (std::size_t i = 1; i < path.size(); ++i) {
           const Eigen::Vector2f t = (path[std::min(i + 1, path.size() - 1)] - path[i - 1]).normalized();
           // Half the offset at the first control point: the artery bends away from its vein gently at the rim.
-          const float offset = random.uniform(0.15f, 0.35f) * (i == 1 ? 0.3f : 1.0f);
+          const float offset = random.uniform(0.15f, 0.35f) * (i == 1 ? 0.6f : 1.0f);
           path[i] += side * offset * kMm * Eigen::Vector2f(-t.y(), t.x());
         }
       }
