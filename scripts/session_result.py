@@ -65,6 +65,20 @@ def _refuse_constant(name):
     raise ValueError(f"{name} is not JSON")
 
 
+def _finite_float(text):
+    # Python reads 1e400 as infinity; the C++ reader (nlohmann) refuses a number beyond a double.
+    value = float(text)
+    if math.isinf(value):
+        raise ValueError(f"number overflow parsing '{text}'")
+    return value
+
+
+def _integer(text):
+    # Integers beyond 64 bits are doubles in the C++ reader, and one beyond a double is refused there too.
+    value = int(text)
+    return value if -(2**63) <= value < 2**64 else _finite_float(text)
+
+
 def _field(obj, key, kind, default, source, where=""):
     def fail(what):
         raise ResultError(f'{source}: result field {where}"{key}" {what}')
@@ -114,7 +128,7 @@ def _field(obj, key, kind, default, source, where=""):
 def from_json(text, source):
     """The result in `text` as a dict with every schema key (absent ones at their defaults)."""
     try:
-        root = json.loads(text, parse_constant=_refuse_constant)
+        root = json.loads(text, parse_constant=_refuse_constant, parse_float=_finite_float, parse_int=_integer)
     except ValueError as error:
         raise ResultError(f"{source}: malformed result JSON: {error}") from None
     if not isinstance(root, dict):

@@ -41,7 +41,7 @@ class ReferenceResults(unittest.TestCase):
     def test_null_numbers_read_as_nan_and_unknown_keys_are_kept(self):
         text = (
             '{"scene": "free", "final_state_hash": "0x1", "frames": 7.0, "total": null, "elapsed": null, '
-            '"items": [{"name": "hold", "value": null, "unit": "s", "weight": 1, "points": null}], '
+            '"late_inputs": -0, "items": [{"name": "hold", "value": null, "unit": "s", "weight": 1, "points": null}], '
             '"from_a_newer_writer": {"x": 1}}'
         )
         result = session_result.from_json(text, "t")
@@ -49,6 +49,7 @@ class ReferenceResults(unittest.TestCase):
         self.assertTrue(session_result.is_unknown(result["elapsed"]))
         self.assertTrue(math.isnan(result["items"][0]["value"]))
         self.assertEqual(result["frames"], 7)
+        self.assertEqual(result["late_inputs"], 0)
         self.assertIsInstance(result["frames"], int)
         self.assertEqual(result["from_a_newer_writer"], {"x": 1})
         self.assertIsNone(result["scenario"])

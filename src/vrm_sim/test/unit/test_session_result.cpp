@@ -190,6 +190,7 @@ TEST(SessionResult, MalformedResultsNameTheSourceAndTheKey) {
             std::string::npos);
   // A float-formatted count is still a count; an unknown key (a newer writer's) is ignored.
   EXPECT_EQ(withField("frames", 390.0), "");
+  EXPECT_EQ(withField("late_inputs", nlohmann::json::parse("-0")), "");  // a signed zero is a count (as in Python)
   nlohmann::json newer = nlohmann::json::parse(whole);
   newer["a_key_from_the_future"] = {{"nested", true}};
   newer["frames"] = 390.0;

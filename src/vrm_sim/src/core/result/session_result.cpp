@@ -110,7 +110,8 @@ class Fields {
   std::uint64_t count(const std::string& key, std::uint64_t max) const {
     const nlohmann::json* value = find(key);
     if (value == nullptr) return 0;
-    if (value->is_number_unsigned()) {
+    // nlohmann reads "-0" as a signed integer: still a count (as in Python).
+    if (value->is_number_unsigned() || (value->is_number_integer() && value->get<std::int64_t>() >= 0)) {
       const auto n = value->get<std::uint64_t>();
       if (n <= max) return n;
       fail(key, "is out of range");
@@ -203,7 +204,8 @@ SessionResult resultFromJson(const std::string& json_text, const std::string& so
   nlohmann::json root;
   try {
     root = nlohmann::json::parse(json_text);
-  } catch (const nlohmann::json::parse_error& error) {
+  } catch (const nlohmann::json::exception& error) {
+    // parse_error, and out_of_range for a number beyond a double (1e400): both are text that is no result.
     throw ResultError(source + ": malformed result JSON: " + error.what());
   }
   if (!root.is_object()) throw ResultError(source + ": the result JSON is not an object");
