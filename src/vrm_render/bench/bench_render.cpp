@@ -7,8 +7,8 @@
 // --frame (issue 33): a saved snapshot's render state (<prefix>.frame, run.sh's session: that scene, its instruments
 // and light pipe, the knobs and options of the running graph) rendered with the light pipe lit, lit without the
 // shadow pass, and off, frame by frame in turns (the deformable meshes re-uploaded every frame as the session streams
-// them): what the light pipe costs per stereo frame. --current-light: today's endoilluminator() (cone, intensity) at the
-// saved light pipe's pose, to compare a change of the light on the same frames.
+// them): what the light pipe costs per stereo frame. --current-light: today's endoilluminator() (cone, intensity) at
+// the saved light pipe's pose, to compare a change of the light on the same frames.
 
 #include <sys/resource.h>
 
@@ -17,13 +17,12 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <fstream>
 #include <memory>
 #include <sstream>
 #include <string>
 #include <vector>
-
-#include <filesystem>
 
 #include "vrm_render/image_io.h"
 #include "vrm_render/render_state.h"
@@ -252,7 +251,8 @@ int benchSavedFrames(const std::vector<std::string>& args, int frames, const std
   for (const std::string& arg : args) {
     if (std::filesystem::is_directory(arg)) {
       for (const auto& entry : std::filesystem::directory_iterator(arg)) {
-        if (entry.path().extension() == ".frame") prefixes.push_back((entry.path().parent_path() / entry.path().stem()).string());
+        if (entry.path().extension() == ".frame")
+          prefixes.push_back((entry.path().parent_path() / entry.path().stem()).string());
       }
     } else {
       prefixes.push_back(arg.size() > 6 && arg.compare(arg.size() - 6, 6, ".frame") == 0 ? arg.substr(0, arg.size() - 6)
@@ -387,7 +387,8 @@ int main(int argc, char** argv) {
     }
   }
   vrm_render::retainFreedHeapMemory();
-  if (!saved_frames.empty()) return benchSavedFrames(saved_frames, frames_override > 0 ? frames_override : 30, out, command, current_light);
+  if (!saved_frames.empty())
+    return benchSavedFrames(saved_frames, frames_override > 0 ? frames_override : 30, out, command, current_light);
   const char* threads = std::getenv("LP_NUM_THREADS");
   const std::string lp_threads = threads ? threads : "default";
   // name, w, h, stereo, shadow, lighting, dof, stream, time_passes

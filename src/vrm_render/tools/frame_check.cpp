@@ -3,8 +3,9 @@
 // complete), then with shadows off and with depth of field off, and measures
 //   3. shadow: a region >= 200 px darker by >= 25 % than without shadows, ending within 15 px of the projected tip
 //      of the working instrument (slot right: the one that casts the shadow);
-//   4. focus: the Laplacian variance of the working area (96 x 96 px around the projected working tip) >= 0.8 x that
-//      of the same state rendered without depth of field;
+//   4. focus: the Laplacian variance of the working area (the fundus pixels of the 64 x 64 px around the projected
+//      working tip: the working plane; the instruments rising out of it are left out) >= 0.8 x that of the same
+//      state rendered without depth of field;
 //   5. light: the mean grey of the fundus inside the light pipe's cone (the scoring's rule, litByLightPipe with
 //      kLightConeHalfAngleDeg) >= 90 and >= 2 x the mean over the fundus in the field outside it.
 // One line per frame, then a JSON summary. Exit 0: all pass; 1: a check failed; 2: bad input (no frames, a bad file).
@@ -139,8 +140,8 @@ FrameResult check(StereoRenderer* renderer, const std::string& prefix, const Ren
   renderer->render(&no_dof);
   if (r.tip_in_view) {
     const Window area = workingArea(r.tip, saved.width, saved.height);
-    r.lap_saved = laplacianVariance(saved, area);
-    r.lap_no_dof = laplacianVariance(no_dof.images[0], area);
+    r.lap_saved = laplacianVariance(saved, area, &classes);
+    r.lap_no_dof = laplacianVariance(no_dof.images[0], area, &classes);
     r.focus_ratio = r.lap_saved / std::max(1e-9, r.lap_no_dof);
     r.focus_pass = r.focus_ratio >= kMinFocusRatio;
   }

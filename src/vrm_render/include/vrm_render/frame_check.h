@@ -35,14 +35,18 @@ ShadowResult findShadow(const RgbImage& with_shadows, const RgbImage& without_sh
                         const ShadowCriteria& criteria = {});
 
 // Item 4: variance of the grey Laplacian (3x3 kernel) over a window; the working area is a square of `side` pixels
-// centred on the projected working tip, clipped to the image.
+// centred on the projected working tip, clipped to the image. With `classes` (classifyFundus), only pixels whose 3x3
+// neighbourhood is all fundus count: the working plane (the retina and the tissue on it) must be in focus; the
+// instruments' shafts rise out of it and are rightly blurred by the depth of field, and their edges would otherwise
+// dominate the variance.
 struct Window {
   int x0 = 0, y0 = 0, x1 = 0, y1 = 0;  // [x0, x1) x [y0, y1)
   int pixels() const { return std::max(0, x1 - x0) * std::max(0, y1 - y0); }
 };
 constexpr int kWorkingAreaSide = 64;  // px at 800 x 600: 2.4 mm of the 30 mm field at zoom 1
 Window workingArea(const Eigen::Vector2f& tip_px, int width, int height, int side = kWorkingAreaSide);
-double laplacianVariance(const RgbImage& image, const Window& window);
+enum class PixelClass : std::uint8_t;
+double laplacianVariance(const RgbImage& image, const Window& window, const std::vector<PixelClass>* classes = nullptr);
 
 // Item 5: which pixels show the fundus, and which of those lie inside the light pipe's cone by the scoring's rule
 // (vrm_sim::scenario::litByLightPipe with its kLightConeHalfAngleDeg). A pixel shows the fundus when its depth

@@ -78,14 +78,29 @@ Window workingArea(const Eigen::Vector2f& tip_px, int width, int height, int sid
   return w;
 }
 
-double laplacianVariance(const RgbImage& image, const Window& window) {
+double laplacianVariance(const RgbImage& image, const Window& window, const std::vector<PixelClass>* classes) {
   if (window.pixels() < 9) throw RenderError("laplacianVariance: window outside the image or too small");
+  if (classes && classes->size() != static_cast<std::size_t>(image.width) * image.height) {
+    throw RenderError("laplacianVariance: pixel classes of the wrong size");
+  }
   const cv::Mat g = greyMat(image);
+  const cv::Rect rect(window.x0, window.y0, window.x1 - window.x0, window.y1 - window.y0);
   cv::Mat lap;
-  cv::Laplacian(g(cv::Rect(window.x0, window.y0, window.x1 - window.x0, window.y1 - window.y0)), lap, CV_64F, 1, 1.0,
-                0.0, cv::BORDER_REPLICATE);
+  cv::Laplacian(g(rect), lap, CV_64F, 1, 1.0, 0.0, cv::BORDER_REPLICATE);
+  cv::Mat mask = cv::Mat::ones(lap.size(), CV_8U);
+  if (classes) {
+    cv::Mat fundus(image.height, image.width, CV_8U);
+    for (int y = 0; y < image.height; ++y) {
+      for (int x = 0; x < image.width; ++x) {
+        fundus.at<std::uint8_t>(y, x) = (*classes)[static_cast<std::size_t>(y) * image.width + x] != PixelClass::kOther;
+      }
+    }
+    cv::erode(fundus, fundus, cv::Mat::ones(3, 3, CV_8U));  // the whole 3x3 stencil on the fundus
+    mask = fundus(rect).clone();
+    if (cv::countNonZero(mask) < 9) throw RenderError("laplacianVariance: no fundus in the working area");
+  }
   cv::Scalar mean, stddev;
-  cv::meanStdDev(lap, mean, stddev);
+  cv::meanStdDev(lap, mean, stddev, mask);
   return stddev[0] * stddev[0];
 }
 

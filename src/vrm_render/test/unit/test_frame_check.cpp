@@ -178,6 +178,21 @@ TEST(FocusCheck, ABlurredWorkingAreaFailsAndASharpOnePasses) {
   const double reference = laplacianVariance(sharp, area);
   EXPECT_NEAR(laplacianVariance(sharp, area) / reference, 1.0, 1e-9);
   EXPECT_LT(laplacianVariance(blurred, area) / reference, 0.8);
+  // An out-of-focus instrument in the window (blurred, not fundus) lowers the unmasked variance; the working plane
+  // (the fundus pixels) is still sharp.
+  RgbImage with_instrument = sharp;
+  std::vector<PixelClass> classes(200 * 150, PixelClass::kFundusOutside);
+  for (int y = 60; y < 90; ++y) {
+    for (int x = 0; x < 200; ++x) {
+      const std::size_t i = static_cast<std::size_t>(y) * 200 + x;
+      for (int c = 0; c < 3; ++c) with_instrument.data[3 * i + c] = blurred.data[3 * i + c];
+      classes[i] = PixelClass::kOther;
+    }
+  }
+  EXPECT_LT(laplacianVariance(with_instrument, area) / reference, 0.8);
+  EXPECT_NEAR(laplacianVariance(with_instrument, area, &classes) / laplacianVariance(sharp, area, &classes), 1.0, 1e-9);
+  // ... but a blurred working plane fails with the mask too.
+  EXPECT_LT(laplacianVariance(blurred, area, &classes) / laplacianVariance(sharp, area, &classes), 0.8);
   // A window at the image corner is clipped, not out of bounds.
   const Window corner = workingArea(Eigen::Vector2f(2.0f, 2.0f), 200, 150);
   EXPECT_EQ(corner.x0, 0);
