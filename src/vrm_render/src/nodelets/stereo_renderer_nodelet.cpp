@@ -928,6 +928,21 @@ class StereoRendererNodelet : public nodelet::Nodelet {
 
   // Snapshots after the images: a PNG takes longer than the frame and must not delay what is watched.
   void saveSnapshotIfDue(bool snapshot_due, const ros::Time& stamp) {
+    if (snapshot_due && !snapshot_times_.empty() && frame_in_use_ && snapshots_saved_ < snapshot_count_) {
+      // Issue 33: the image shows the World's newest applied frame up to its stamp, which lags the inputs on a loaded
+      // machine (a frame at 2.5 s of input time showed the instrument of ~1.5 s, still approaching). A snapshot at t
+      // shows the applied state of t: it waits (the snapshot stays due, so the next input renders again) until the
+      // applied frame reaches t, at most kSnapshotWaitSec of input time (the session may have ended before t).
+      ros::Time first;
+      {
+        std::lock_guard<std::mutex> lock(mutex_);
+        first = first_stamp_;
+      }
+      const double due = snapshot_times_[static_cast<std::size_t>(snapshots_saved_)];
+      if ((frame_in_use_->header.stamp - first).toSec() < due && (stamp - first).toSec() < due + kSnapshotWaitSec) {
+        return;
+      }
+    }
     const bool every_nth = snapshot_times_.empty() && frame_count_ % std::max(1, snapshot_every_) == 0;
     if (snapshot_count_ > 0 && !snapshot_dir_.empty() && snapshots_saved_ < snapshot_count_ &&
         (snapshot_due && !snapshot_times_.empty() ? true : every_nth)) {
@@ -1101,6 +1116,7 @@ class StereoRendererNodelet : public nodelet::Nodelet {
   int snapshot_count_ = 0;
   int snapshot_every_ = 10;
   std::vector<double> snapshot_times_;  // s after first_stamp_
+  static constexpr double kSnapshotWaitSec = 1.0;
   int snapshots_saved_ = 0;
   std::string world_frame_;
   std::string eye_frame_;
