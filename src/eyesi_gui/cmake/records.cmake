@@ -10,8 +10,10 @@ target_include_directories(eyesi_records PUBLIC ${CMAKE_CURRENT_SOURCE_DIR}/incl
 target_link_libraries(eyesi_records PUBLIC vrm_session_result SQLite::SQLite3 OpenSSL::Crypto)
 target_compile_options(eyesi_records PRIVATE -Wall -Wextra)
 
+# Its command line: vrm_sim's vrm_cli (boost::program_options).
+find_package(Boost REQUIRED COMPONENTS program_options)
 add_executable(records tools/records.cpp)
-target_link_libraries(records eyesi_records)
+target_link_libraries(records eyesi_records vrm_cli)
 install(TARGETS records RUNTIME DESTINATION ${CATKIN_PACKAGE_BIN_DESTINATION})
 install(TARGETS eyesi_records ARCHIVE DESTINATION ${CATKIN_PACKAGE_LIB_DESTINATION})
 

@@ -12,13 +12,14 @@
 #include <vector>
 
 #include "eyesi_gui/records/store.h"
+#include "vrm_sim/cli/cli.h"
 
 namespace {
 
 namespace records = eyesi_gui::records;
 
-constexpr const char* kUsage =
-    "usage: records [--db PATH] COMMAND [ARGS]\n"
+constexpr const char* kCommandHelp =
+    "Commands:\n"
     "  import FILE_OR_FOLDER... [--user NAME]   import scenario result JSON files (folders: every *.result.json)\n"
     "  export-csv [--user U] [--scene S] [--out FILE]   score items as CSV (RFC 4180; stdout by default)\n"
     "  check                                    integrity report of the database (exit 0 ok, 1 damaged)\n"
@@ -43,32 +44,6 @@ struct Arguments {
   }
   bool has(const std::string& name) const { return options.count(name) != 0; }
 };
-
-Arguments parse(int argc, char** argv) {
-  static const std::vector<std::string> kValued{"--db", "--user", "--scene", "--out", "--role", "--pin"};
-  Arguments args;
-  for (int i = 1; i < argc; ++i) {
-    const std::string arg = argv[i];
-    if (arg.size() > 2 && arg.compare(0, 2, "--") == 0) {
-      const auto eq = arg.find('=');
-      const std::string name = arg.substr(0, eq);
-      if (std::find(kValued.begin(), kValued.end(), name) == kValued.end()) throw UsageError{"unknown option " + name};
-      if (eq != std::string::npos) {
-        args.options[name] = arg.substr(eq + 1);
-      } else if (i + 1 < argc) {
-        args.options[name] = argv[++i];
-      } else {
-        throw UsageError{name + " needs a value"};
-      }
-    } else if (args.command.empty()) {
-      args.command = arg;
-    } else {
-      args.positional.push_back(arg);
-    }
-  }
-  if (args.command.empty()) throw UsageError{"no command"};
-  return args;
-}
 
 void allowOnly(const Arguments& args, const std::vector<std::string>& allowed) {
   for (const auto& [name, value] : args.options) {
@@ -192,15 +167,34 @@ int runUsers(const records::Store& store, const Arguments& args) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  namespace po = vrm_sim::cli::po;
+  vrm_sim::cli::CommandLine cli("records", "[--db PATH] COMMAND [ARGS]",
+                                "The training-records database: import, export, check, users.", kCommandHelp);
+  static const std::vector<std::string> kValued{"db", "user", "scene", "out", "role", "pin"};
+  cli.add()("db", po::value<std::string>()->value_name("PATH"), "the database")(
+      "user", po::value<std::string>()->value_name("NAME"), "import: the trainee; export-csv, list: only this user")(
+      "scene", po::value<std::string>()->value_name("S"), "export-csv: only this scene")(
+      "out", po::value<std::string>()->value_name("FILE"), "export-csv: the CSV file (- or none: stdout)")(
+      "role", po::value<std::string>()->value_name("ROLE"), "add-user: trainee or instructor")(
+      "pin", po::value<std::string>()->value_name("PIN"), "add-user, set-pin: the PIN (- reads it from stdin)");
+  cli.hidden()("command", po::value<std::string>())("args", po::value<std::vector<std::string>>());
+  cli.positional("command", 1).positional("args", -1);
   for (int i = 1; i < argc; ++i) {
-    const std::string arg = argv[i];
-    if (arg == "-h" || arg == "--help" || arg == "help") {
-      std::cout << kUsage;
+    if (std::string(argv[i]) == "help") {  // `records help`, as --help
+      std::cout << cli.help();
       return 0;
     }
   }
+  if (const auto status = cli.parse(argc, argv)) return *status;
+  Arguments args;
+  const po::variables_map& values = cli.values();
+  if (values.count("command") == 0) return cli.fail("no command");
+  args.command = values["command"].as<std::string>();
+  if (values.count("args")) args.positional = values["args"].as<std::vector<std::string>>();
+  for (const std::string& name : kValued) {
+    if (values.count(name)) args.options["--" + name] = values[name].as<std::string>();
+  }
   try {
-    const Arguments args = parse(argc, argv);
     const std::string db = args.has("--db") ? args.option("--db") : defaultDatabase();
     const std::string& command = args.command;
     if (command == "check") {
@@ -226,8 +220,7 @@ int main(int argc, char** argv) {
     if (command == "list") return runList(store, args);
     return runUsers(store, args);
   } catch (const UsageError& e) {
-    std::cerr << "records: " << e.message << " (records --help for usage)\n";
-    return 2;
+    return cli.fail(e.message);
   } catch (const std::exception& e) {
     std::cerr << "records: " << e.what() << '\n';
     return 1;

@@ -18,13 +18,13 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <cstring>
 #include <fstream>
 #include <map>
 #include <sstream>
 #include <string>
 #include <vector>
 
+#include "bench_cli.h"
 #include "vrm_sim/collision/collision_detector.h"
 #include "vrm_sim/collision/primitives.h"
 #include "vrm_sim/scene/mesh_utils.h"
@@ -312,21 +312,16 @@ std::string jsonNumber(double v) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  bool quick = false;
-  std::string out_path = "bench/results/collision.json";
-  std::string command = "bench_collision";
-  for (int i = 1; i < argc; ++i) {
-    command += std::string(" ") + argv[i];
-    if (!std::strcmp(argv[i], "--quick")) {
-      quick = true;
-    } else if (!std::strcmp(argv[i], "--out") && i + 1 < argc) {
-      out_path = argv[++i];
-      command += std::string(" ") + argv[i];
-    } else {
-      std::fprintf(stderr, "usage: bench_collision [--quick] [--out FILE]\n");
-      return 2;
-    }
+  vrm_sim::bench::BenchArgs args;
+  if (const auto status = vrm_sim::bench::parseBenchArgs(
+          argc, argv, "bench_collision", "Collision detection: a teapot-like instrument against a membrane.",
+          "bench/results/collision.json", &args)) {
+    return *status;
   }
+  const bool quick = args.quick;
+  const std::string out_path = args.out_path;
+  std::string command = "bench_collision";
+  for (int i = 1; i < argc; ++i) command += std::string(" ") + argv[i];
   const int iterations = quick ? 5 : 100;
   const int build_iterations = quick ? 2 : 10;
 
@@ -647,10 +642,11 @@ int main(int argc, char** argv) {
       "[%.4f, %.4f], light/heavy %.3f [%.3f, %.3f] (target >= 0.9)\n",
       kSeverityRepetitions, heavy_spread[0], heavy_spread[1], heavy_spread[2], light_spread[0], light_spread[1],
       light_spread[2], ratio_spread[0], ratio_spread[1], ratio_spread[2]);
-  std::printf("fcl_refit_collide (aabb) in the same block: heavy %.4f ms [%.4f, %.4f], light %.4f ms [%.4f, %.4f]; "
-              "FCL / ZCOLL/F heavy %.1fx [%.1f, %.1f] (target >= 10x)\n",
-              fcl_heavy_spread[0], fcl_heavy_spread[1], fcl_heavy_spread[2], fcl_light_spread[0], fcl_light_spread[1],
-              fcl_light_spread[2], fcl_ratio_spread[0], fcl_ratio_spread[1], fcl_ratio_spread[2]);
+  std::printf(
+      "fcl_refit_collide (aabb) in the same block: heavy %.4f ms [%.4f, %.4f], light %.4f ms [%.4f, %.4f]; "
+      "FCL / ZCOLL/F heavy %.1fx [%.1f, %.1f] (target >= 10x)\n",
+      fcl_heavy_spread[0], fcl_heavy_spread[1], fcl_heavy_spread[2], fcl_light_spread[0], fcl_light_spread[1],
+      fcl_light_spread[2], fcl_ratio_spread[0], fcl_ratio_spread[1], fcl_ratio_spread[2]);
 
   std::ofstream out(out_path);
   if (!out) {

@@ -434,8 +434,7 @@ struct Row {
         << ", \"residual_max\": " << number(residual_max) << ", \"ms_per_step\": " << number(ms_per_step)
         << ", \"ms_per_step_median\": " << number(ms_per_step_median) << ", \"ms_min\": " << number(ms_min)
         << ", \"ms_max\": " << number(ms_max) << ", \"repetitions\": " << repetitions
-        << ", \"error_rms\": " << number(error_rms)
-        << ", \"error_max\": " << number(error_max)
+        << ", \"error_rms\": " << number(error_rms) << ", \"error_max\": " << number(error_max)
         << ", \"error_unit\": \"m\", \"stable\": " << (stable ? "true" : "false") << ", \"steps\": " << steps
         << ", \"peer\": \"ours\"}";
     return out.str();
@@ -518,8 +517,13 @@ IntegratorFactory factoryOf(const Variant& variant) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  const auto args = vrm_sim::bench::parseBenchArgs(argc, argv, "");
-  if (!args) return 2;
+  vrm_sim::bench::BenchArgs bench_args;
+  if (const auto status = vrm_sim::bench::parseBenchArgs(
+          argc, argv, "bench_implicit", "The matrix-free implicit Euler step, its CG preconditioners and warm start.",
+          "", &bench_args)) {
+    return *status;
+  }
+  const vrm_sim::bench::BenchArgs* args = &bench_args;
   const bool quick = args->quick;
   const std::vector<int> sizes = quick ? std::vector<int>{22} : std::vector<int>{22, 100};
   const std::vector<double> dts{1e-3, 2.5e-4};

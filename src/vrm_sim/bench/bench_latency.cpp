@@ -52,6 +52,7 @@
 #include <thread>
 #include <vector>
 
+#include "bench_cli.h"
 #include "vrm_sim/scene/scene_loader.h"
 #include "vrm_sim/world/latency.h"
 
@@ -723,8 +724,9 @@ std::string summarize(const std::vector<Result>& results, const std::vector<Conf
 }  // namespace
 
 int main(int argc, char** argv) {
-  bool quick = false;
-  std::string out_path = "bench/results/latency.json";
+  namespace po = vrm_sim::cli::po;
+  vrm_sim::bench::BenchArgs args;
+  args.out_path = "bench/results/latency.json";
   double seconds = 60.0;
   std::string only;
   int runs = 5;
@@ -732,37 +734,28 @@ int main(int argc, char** argv) {
   double idle_load = 0.3, idle_wait_s = 300.0;
   std::vector<std::string> params;       // experiments: /node/param=value set on the master before every launch
   std::vector<std::string> launch_args;  // experiments: NAME:=VALUE after the bench's own launch arguments
-  for (int i = 1; i < argc; ++i) {
-    const std::string arg = argv[i];
-    if (arg == "--quick") {
-      quick = true;
-    } else if (arg == "--out" && i + 1 < argc) {
-      out_path = argv[++i];
-    } else if (arg == "--seconds" && i + 1 < argc) {
-      seconds = std::stod(argv[++i]);
-    } else if (arg == "--only" && i + 1 < argc) {
-      only = argv[++i];
-    } else if (arg == "--param" && i + 1 < argc) {
-      params.push_back(argv[++i]);
-    } else if (arg == "--external-viewer") {
-      external_viewer = true;
-    } else if (arg == "--launch-arg" && i + 1 < argc) {
-      launch_args.push_back(argv[++i]);
-    } else if (arg == "--runs" && i + 1 < argc) {
-      runs = std::max(1, std::atoi(argv[++i]));
-    } else if (arg == "--idle-load" && i + 1 < argc) {
-      idle_load = std::stod(argv[++i]);
-    } else if (arg == "--idle-wait" && i + 1 < argc) {
-      idle_wait_s = std::stod(argv[++i]);
-    } else {
-      std::fprintf(
-          stderr,
-          "usage: %s [--quick] [--out FILE] [--seconds S] [--runs N] [--idle-load L] [--idle-wait S] "
-          "[--only CONFIG_SUBSTRING] [--param /NODE/NAME=VALUE] [--launch-arg NAME:=VALUE] [--external-viewer]\n",
-          argv[0]);
-      return 2;
-    }
-  }
+  vrm_sim::cli::CommandLine cli("bench_latency",
+                                "[--quick] [--out FILE] [--seconds S] [--runs N] [--idle-load L] [--idle-wait S] "
+                                "[--only CONFIG_SUBSTRING] [--param /NODE/NAME=VALUE] [--launch-arg NAME:=VALUE] "
+                                "[--external-viewer]",
+                                "End-to-end latency of the running graph per synchronisation pattern.");
+  vrm_sim::bench::addBenchOptions(cli, &args);
+  cli.add()("seconds", vrm_sim::cli::real(&seconds)->value_name("S"), "measured seconds per run (default 60)")(
+      "runs", vrm_sim::cli::integer(&runs)->value_name("N"), "runs per configuration (default 5; at least 1)")(
+      "idle-load", vrm_sim::cli::real(&idle_load)->value_name("L"),
+      "the machine counts as idle below this load per core (default 0.3)")(
+      "idle-wait", vrm_sim::cli::real(&idle_wait_s)->value_name("S"),
+      "longest wait for an idle machine (s, default 300)")("only", po::value(&only)->value_name("CONFIG_SUBSTRING"),
+                                                           "only the configurations whose name contains it")(
+      "param", po::value(&params)->composing()->value_name("/NODE/NAME=VALUE"),
+      "set on the master before every launch (repeatable)")(
+      "launch-arg", po::value(&launch_args)->composing()->value_name("NAME:=VALUE"),
+      "after the bench's own launch arguments (repeatable)")("external-viewer", po::bool_switch(&external_viewer),
+                                                             "also watch the images from this process");
+  if (const auto status = cli.parse(argc, argv)) return *status;
+  runs = std::max(1, runs);
+  const bool quick = args.quick;
+  const std::string out_path = args.out_path;
   std::vector<Config> configs;
   for (bool tracking : {false, true}) {
     configs.push_back({"sequential", "simulation", tracking});

@@ -391,10 +391,14 @@ void jsonSpread(std::ostream& out, const char* name, const Spread& spread) {
 int main(int argc, char** argv) {
   std::string command;
   for (int i = 0; i < argc; ++i) command += (i ? " " : "") + std::string(argv[i]);
-  const auto args = vrm_sim::bench::parseBenchArgs(argc, argv, "");
-  if (!args) return 2;
-  const bool quick = args->quick;
-  const std::string out_path = args->out_path;
+  vrm_sim::bench::BenchArgs args;
+  if (const auto status = vrm_sim::bench::parseBenchArgs(
+          argc, argv, "bench_mge", "The cost of the MGE data model against plain layouts on a triangulated grid.", "",
+          &args)) {
+    return *status;
+  }
+  const bool quick = args.quick;
+  const std::string out_path = args.out_path;
 
   const std::vector<std::size_t> sizes =
       quick ? std::vector<std::size_t>{1000, 10000} : std::vector<std::size_t>{1000, 10000, 100000, 1000000};

@@ -19,10 +19,14 @@
 using namespace vrm_sim;
 
 int main(int argc, char** argv) {
-  const auto args = bench::parseBenchArgs(argc, argv, "bench/results/scenario.json");
-  if (!args) return 2;
-  const bool quick = args->quick;
-  const std::string out_path = args->out_path;
+  bench::BenchArgs args;
+  if (const auto status = bench::parseBenchArgs(
+          argc, argv, "bench_scenario", "Every shipped scenario played headless with its expert and novice scripts.",
+          "bench/results/scenario.json", &args)) {
+    return *status;
+  }
+  const bool quick = args.quick;
+  const std::string out_path = args.out_path;
   const int repeats = quick ? 1 : 3;  // the fastest of `repeats` identical runs: these machines are noisy
   std::printf("bench_scenario (%s): scripted sessions through world::World + scenario, 50 Hz inputs, best of %d\n",
               quick ? "quick" : "full", repeats);

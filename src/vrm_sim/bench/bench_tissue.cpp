@@ -20,7 +20,6 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <cstring>
 #include <fstream>
 #include <functional>
 #include <memory>
@@ -28,6 +27,7 @@
 #include <string>
 #include <vector>
 
+#include "bench_cli.h"
 #include "tissue_bench_scene.h"
 #include "tissue_reference.h"
 #include "vrm_sim/tissue/reference_scenes.h"
@@ -36,14 +36,14 @@
 #ifdef VRM_HAVE_BULLET
 #include <BulletCollision/BroadphaseCollision/btDbvtBroadphase.h>
 #include <BulletCollision/CollisionDispatch/btCollisionDispatcher.h>
-#include <BulletDynamics/ConstraintSolver/btSequentialImpulseConstraintSolver.h>
 #include <BulletCollision/CollisionShapes/btSphereShape.h>
+#include <BulletDynamics/ConstraintSolver/btSequentialImpulseConstraintSolver.h>
 #include <BulletDynamics/Dynamics/btRigidBody.h>
 #include <BulletSoftBody/btSoftBody.h>
-#include <LinearMath/btDefaultMotionState.h>
 #include <BulletSoftBody/btSoftBodyHelpers.h>
 #include <BulletSoftBody/btSoftBodyRigidBodyCollisionConfiguration.h>
 #include <BulletSoftBody/btSoftRigidDynamicsWorld.h>
+#include <LinearMath/btDefaultMotionState.h>
 #endif
 
 namespace {
@@ -301,22 +301,23 @@ struct Row {
   int steps = 0;
   bool strain_limit = true;
   std::string peer = "ours";
-  std::string impl = "ours";      // "naive_soa": the plain baseline; "ours": TissueSimulator
-  std::string chosen;             // integrator: auto — what it chose ("symplectic_euler x3")
-  double ratio_to_naive = NAN;    // ms per step (median) / naive_soa's in the same run, same mesh and dt
-  double ms_per_step_max = NAN;   // worst frame's ms per step
-  std::string auto_fastest;       // hard cases, auto row: the fastest fixed integrator that stayed stable
-  double auto_cost_ratio = NAN;   // ... auto's ms per step / its
-  double auto_error_ratio = NAN;  // ... auto's error rms / its
-  double ratio_to_bullet = NAN;   // bullet full-step rows: our auto's ms per step / Bullet's (same mesh, dt)
-  std::string reference;          // what error_rms/error_max are measured against
-  double contacts = NAN;          // instrument contacts per step (mean)
-  double nodes_inside_probe = NAN;  // bullet full step: free nodes inside the probe sphere after a step (mean)
+  std::string impl = "ours";          // "naive_soa": the plain baseline; "ours": TissueSimulator
+  std::string chosen;                 // integrator: auto — what it chose ("symplectic_euler x3")
+  double ratio_to_naive = NAN;        // ms per step (median) / naive_soa's in the same run, same mesh and dt
+  double ms_per_step_max = NAN;       // worst frame's ms per step
+  std::string auto_fastest;           // hard cases, auto row: the fastest fixed integrator that stayed stable
+  double auto_cost_ratio = NAN;       // ... auto's ms per step / its
+  double auto_error_ratio = NAN;      // ... auto's error rms / its
+  double ratio_to_bullet = NAN;       // bullet full-step rows: our auto's ms per step / Bullet's (same mesh, dt)
+  std::string reference;              // what error_rms/error_max are measured against
+  double contacts = NAN;              // instrument contacts per step (mean)
+  double nodes_inside_probe = NAN;    // bullet full step: free nodes inside the probe sphere after a step (mean)
   double ms_min = NAN, ms_max = NAN;  // extremes over the repetitions of the per-repetition ms per step
   int repetitions = 0;
-  double bullet_klst = NAN;       // bullet rows: the link stiffness factor used
-  std::string timed;              // what the time covers
-  // Headline rows (matched_*, like_for_like_*): the peer's figures beside ours; ratio = ours / peer ms per simulated ms.
+  double bullet_klst = NAN;  // bullet rows: the link stiffness factor used
+  std::string timed;         // what the time covers
+  // Headline rows (matched_*, like_for_like_*): the peer's figures beside ours; ratio = ours / peer ms per simulated
+  // ms.
   int peer_iterations = 0;
   double peer_dt = NAN, peer_klst = NAN, peer_error_rms = NAN, peer_error_max = NAN;
   double peer_ms = NAN, peer_ms_min = NAN, peer_ms_max = NAN;  // per simulated ms
@@ -349,8 +350,8 @@ struct Row {
     if (std::isfinite(ratio)) {
       out << ", \"peer_iterations\": " << peer_iterations << ", \"peer_dt\": " << number(peer_dt)
           << ", \"peer_klst\": " << number(peer_klst) << ", \"peer_error_rms\": " << number(peer_error_rms)
-          << ", \"peer_error_max\": " << number(peer_error_max)
-          << ", \"peer_ms_per_sim_ms\": " << number(peer_ms) << ", \"peer_ms_per_sim_ms_min\": " << number(peer_ms_min)
+          << ", \"peer_error_max\": " << number(peer_error_max) << ", \"peer_ms_per_sim_ms\": " << number(peer_ms)
+          << ", \"peer_ms_per_sim_ms_min\": " << number(peer_ms_min)
           << ", \"peer_ms_per_sim_ms_max\": " << number(peer_ms_max) << ", \"ours_ms_per_sim_ms\": " << number(ours_ms)
           << ", \"ours_ms_per_sim_ms_min\": " << number(ours_ms_min)
           << ", \"ours_ms_per_sim_ms_max\": " << number(ours_ms_max) << ", \"ratio_ours_to_peer\": " << number(ratio)
@@ -608,21 +609,16 @@ BulletRun runBullet(const std::string& scene_name, int cells, double dt, int fra
 }  // namespace
 
 int main(int argc, char** argv) {
-  bool quick = false;
-  std::string out_path;
-  std::string command = "bench_tissue";
-  for (int i = 1; i < argc; ++i) {
-    command += std::string(" ") + argv[i];
-    if (std::strcmp(argv[i], "--quick") == 0) {
-      quick = true;
-    } else if (std::strcmp(argv[i], "--out") == 0 && i + 1 < argc) {
-      out_path = argv[++i];
-      command += std::string(" ") + out_path;
-    } else {
-      std::fprintf(stderr, "usage: bench_tissue [--quick] [--out FILE]\n");
-      return 2;
-    }
+  vrm_sim::bench::BenchArgs args;
+  if (const auto status = vrm_sim::bench::parseBenchArgs(
+          argc, argv, "bench_tissue", "Tissue: speed against error for every integrator, dt and mesh size.", "",
+          &args)) {
+    return *status;
   }
+  const bool quick = args.quick;
+  const std::string out_path = args.out_path;
+  std::string command = "bench_tissue";
+  for (int i = 1; i < argc; ++i) command += std::string(" ") + argv[i];
   std::vector<std::string> integrators = vrm_sim::tissue::integratorNames();
   integrators.push_back(vrm_sim::tissue::kAutoIntegrator);
   const std::vector<int> sizes = quick ? std::vector<int>{22} : std::vector<int>{22, 100};
@@ -842,11 +838,11 @@ int main(int argc, char** argv) {
           row.ratio_min = row.ours_ms_min / row.peer_ms_max;
           row.ratio_max = row.ours_ms_max / row.peer_ms_min;
         }
-        std::printf("%-34s bullet %2d it dt %.1e kLST %.2f err %.2e %.4f ms/sim-ms | ours %-18s dt %.1e err %.2e "
-                    "%.4f ms/sim-ms | ratio %.3f [%.3f, %.3f]\n",
-                    scene.c_str(), peer.iterations, peer.dt, peer.bullet_klst, peer.error_rms, row.peer_ms,
-                    row.integrator.c_str(), row.dt, row.error_rms, row.ours_ms, row.ratio, row.ratio_min,
-                    row.ratio_max);
+        std::printf(
+            "%-34s bullet %2d it dt %.1e kLST %.2f err %.2e %.4f ms/sim-ms | ours %-18s dt %.1e err %.2e "
+            "%.4f ms/sim-ms | ratio %.3f [%.3f, %.3f]\n",
+            scene.c_str(), peer.iterations, peer.dt, peer.bullet_klst, peer.error_rms, row.peer_ms,
+            row.integrator.c_str(), row.dt, row.error_rms, row.ours_ms, row.ratio, row.ratio_min, row.ratio_max);
         rows.push_back(row);
       }
     }
@@ -984,15 +980,15 @@ int main(int argc, char** argv) {
     bool yank = false;  // grasp, then 0.6 m/s sideways and up
   };
   std::vector<HardCase> hard_cases{{"hard_stiffness_ratio_1e4", 22, 1e-3, 1e4, 1, 0.01, 0},
-                              {"hard_stiffness_ratio_1e5", 22, 1e-3, 1e5, 1, 0.01, 0},
-                              {"hard_stiff_k2000", 22, 1e-3, 1, 1, 0.01, 0, 1000.0},
-                              {"hard_dt_5x_bound", 22, -5, 1, 1, 0.01, 0},
-                              {"hard_mass_ratio_1e3", 22, 1e-3, 1, 1e3, 0.01, 0},
-                              {"hard_light_heavy_damping", 22, 1e-3, 1, 1, 0.01, 0, 1.0, 1e-3, 2e-3},
-                              {"hard_fine_48_dt5ms", 48, 5e-3, 1, 1, 0.01, 0},
-                              {"hard_fast_grasp_pull", 22, 1e-3, 1, 1, 0.1, 0},
-                              {"hard_yank_0.6", 22, 1e-3, 1, 1, 0.01, 0, 1.0, 1.0, 2e-3, true},
-                              {"hard_push_through", 22, 1e-3, 1, 1, 0, 0.1}};
+                                   {"hard_stiffness_ratio_1e5", 22, 1e-3, 1e5, 1, 0.01, 0},
+                                   {"hard_stiff_k2000", 22, 1e-3, 1, 1, 0.01, 0, 1000.0},
+                                   {"hard_dt_5x_bound", 22, -5, 1, 1, 0.01, 0},
+                                   {"hard_mass_ratio_1e3", 22, 1e-3, 1, 1e3, 0.01, 0},
+                                   {"hard_light_heavy_damping", 22, 1e-3, 1, 1, 0.01, 0, 1.0, 1e-3, 2e-3},
+                                   {"hard_fine_48_dt5ms", 48, 5e-3, 1, 1, 0.01, 0},
+                                   {"hard_fast_grasp_pull", 22, 1e-3, 1, 1, 0.1, 0},
+                                   {"hard_yank_0.6", 22, 1e-3, 1, 1, 0.01, 0, 1.0, 1.0, 2e-3, true},
+                                   {"hard_push_through", 22, 1e-3, 1, 1, 0, 0.1}};
   if (!quick) hard_cases.push_back({"hard_membrane_128", 128, -0.5, 1, 1, 0.01, 0});
   struct HardRun {
     Row row;

@@ -250,10 +250,14 @@ std::string benchMediator(const scene::SceneDescription& scene, bool quick) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  const auto args = bench::parseBenchArgs(argc, argv, "bench/results/world.json");
-  if (!args) return 2;
-  const bool quick = args->quick;
-  const std::string out_path = args->out_path;
+  bench::BenchArgs args;
+  if (const auto status = bench::parseBenchArgs(argc, argv, "bench_world",
+                                                "The simulation core's frame cost against its accuracy per detector.",
+                                                "bench/results/world.json", &args)) {
+    return *status;
+  }
+  const bool quick = args.quick;
+  const std::string out_path = args.out_path;
   const scene::SceneDescription base = scene::loadScene(scene::shippedScenePath("membrane_peeling"));
   const double rate = 50.0;
   const std::vector<std::string> detectors =

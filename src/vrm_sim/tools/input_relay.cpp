@@ -27,6 +27,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "vrm_sim/cli/cli.h"
+
 namespace {
 
 class InputRelay {
@@ -140,7 +142,13 @@ class InputRelay {
 }  // namespace
 
 int main(int argc, char** argv) {
-  ros::init(argc, argv, "input_relay");
+  ros::init(argc, argv, "input_relay");  // takes the remappings (name:=value) out of argv
+  vrm_sim::cli::CommandLine cli(
+      "input_relay", "[NAME:=VALUE ...]",
+      "A test relay between the devices and the simulation node that delays or silences one input source.",
+      "Private parameters: ~delay_source, ~delay_ticks (3), ~silence_source, ~silence_start (s), ~silence_seconds "
+      "(1.0),\n~silence_clock (first_input | start). A source: eye, instrument:<slot>, pedals, command; \"\" = none.");
+  if (const auto status = cli.parse(argc, argv)) return *status;
   ros::NodeHandle nh, pnh("~");
   InputRelay relay(nh, pnh);
   ros::spin();

@@ -41,6 +41,7 @@
 #include "vrm_msgs/SessionInfo.h"
 #include "vrm_msgs/SimulationState.h"
 #include "vrm_sim/bag/session_bag.h"
+#include "vrm_sim/cli/cli.h"
 
 namespace {
 
@@ -352,7 +353,13 @@ class SessionControl {
 }  // namespace
 
 int main(int argc, char** argv) {
-  ros::init(argc, argv, "session_control");
+  ros::init(argc, argv, "session_control");  // takes the remappings (name:=value) out of argv
+  vrm_sim::cli::CommandLine cli(
+      "session_control", "[NAME:=VALUE ...]",
+      "Frames a recorded session: START once the recorder listens, STOP after ~duration s of input time.",
+      "Private parameters: recorder (/session_recorder), topics, duration (s; 0 = until Ctrl-C), start (true),\n"
+      "start_delay (0.5 s), tail (1.0 s), bag, recorder_timeout (30 s).");
+  if (const auto status = cli.parse(argc, argv)) return *status;
   SessionControl control;
   ros::spin();
   control.reportParts();

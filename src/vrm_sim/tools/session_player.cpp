@@ -11,8 +11,8 @@
 #include <rosbag/view.h>
 #include <unistd.h>
 
-#include <cerrno>
 #include <algorithm>
+#include <cerrno>
 #include <cstring>
 #include <exception>
 #include <set>
@@ -20,9 +20,18 @@
 #include <vector>
 
 #include "vrm_sim/bag/session_bag.h"
+#include "vrm_sim/cli/cli.h"
 
 int main(int argc, char** argv) {
-  ros::init(argc, argv, "session_player");
+  ros::init(argc, argv, "session_player");  // takes the remappings (name:=value) out of argv
+  {
+    vrm_sim::cli::CommandLine cli("session_player", "[NAME:=VALUE ...]",
+                                  "Plays a session bag into the graph for replay.launch (rosbag play, bag time on "
+                                  "/clock); ends when the bag is done.",
+                                  "Private parameters: ~bag (the path session_replay --prepare printed), ~rate (time "
+                                  "scale, default 1).");
+    if (const auto status = cli.parse(argc, argv)) return *status;
+  }
   std::string bag_path;
   double rate = 1.0;
   {
@@ -49,8 +58,8 @@ int main(int argc, char** argv) {
     // them and publishes its own input_frame for renderer and tf), not the device topics; an older bag plays those.
     frames = present.count(vrm_sim::bag::inputFrameTopic()) > 0;
     for (const std::string& topic : vrm_sim::bag::sessionTopics()) {
-      const bool device = std::find(vrm_sim::bag::deviceTopics().begin(), vrm_sim::bag::deviceTopics().end(),
-                                    topic) != vrm_sim::bag::deviceTopics().end();
+      const bool device = std::find(vrm_sim::bag::deviceTopics().begin(), vrm_sim::bag::deviceTopics().end(), topic) !=
+                          vrm_sim::bag::deviceTopics().end();
       if (frames && device) continue;
       if (present.count(topic)) topics.push_back(topic);
     }

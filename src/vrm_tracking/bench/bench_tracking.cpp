@@ -23,7 +23,6 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <cstring>
 #include <fstream>
 #include <functional>
 #include <opencv2/imgproc.hpp>
@@ -32,6 +31,7 @@
 #include <string>
 #include <vector>
 
+#include "vrm_sim/cli/cli.h"
 #include "vrm_tracking/calibration.h"
 #include "vrm_tracking/evaluation.h"
 #include "vrm_tracking/pose_filter.h"
@@ -393,25 +393,18 @@ std::string toJson(const TwinRow& row) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  namespace po = vrm_sim::cli::po;
   bool quick = false;
   std::string only;  // run only the rows whose label contains this (development; the suite runs everything)
   std::string out = "bench/results/tracking.json";
+  vrm_sim::cli::CommandLine cli("bench_tracking", "[--quick] [--out FILE] [--only LABEL_SUBSTRING]",
+                                "Tracking accuracy and cost per option set; writes JSON and prints a table.");
+  cli.add()("quick", po::bool_switch(&quick), "a short smoke run")(
+      "out", po::value(&out)->value_name("FILE"), "the JSON results (default bench/results/tracking.json)")(
+      "only", po::value(&only)->value_name("LABEL_SUBSTRING"), "only the rows whose label contains it");
+  if (const auto status = cli.parse(argc, argv)) return *status;
   std::string command = "bench_tracking";
-  for (int i = 1; i < argc; ++i) {
-    command += std::string(" ") + argv[i];
-    if (!std::strcmp(argv[i], "--quick")) {
-      quick = true;
-    } else if (!std::strcmp(argv[i], "--out") && i + 1 < argc) {
-      out = argv[++i];
-      command += std::string(" ") + argv[i];
-    } else if (!std::strcmp(argv[i], "--only") && i + 1 < argc) {
-      only = argv[++i];
-      command += std::string(" ") + argv[i];
-    } else {
-      std::fprintf(stderr, "usage: bench_tracking [--quick] [--out FILE] [--only LABEL_SUBSTRING]\n");
-      return 2;
-    }
-  }
+  for (int i = 1; i < argc; ++i) command += std::string(" ") + argv[i];
   const CameraRig rig = makeDefaultRig();
   const MarkerLayout layout = makeDefaultLayout();
   const int frames_noise = quick ? 60 : 2000;

@@ -13,69 +13,50 @@
 
 #include <algorithm>
 #include <cstdio>
-#include <cstdlib>
-#include <cstring>
 #include <filesystem>
 #include <opencv2/imgcodecs.hpp>
 #include <string>
 #include <vector>
 
+#include "vrm_sim/cli/cli.h"
 #include "vrm_tracking/calibration.h"
 #include "vrm_tracking/camera_rig.h"
 
 using namespace vrm_tracking;
 namespace fs = std::filesystem;
 
-namespace {
-
-int usage() {
-  std::fprintf(stderr,
-               "usage: calibrate_rig (--synthetic [--rig FILE] [--views N] [--seed N] [--save-images DIR] | "
-               "--images DIR) --out DIR [--cols N --rows N --square M] [--centre X Y Z]\n");
-  return 2;
-}
-
-}  // namespace
-
 int main(int argc, char** argv) {
+  namespace po = vrm_sim::cli::po;
   bool synthetic = false;
   std::string rig_file, images_dir, out_dir, save_dir;
   int views = 15;
-  unsigned seed = 17;
+  std::uint32_t seed = 17;
   ChessboardTarget target;
-  Eigen::Vector3d centre = Eigen::Vector3d::Zero();
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    auto next = [&]() -> const char* { return i + 1 < argc ? argv[++i] : nullptr; };
-    const char* v = nullptr;
-    if (a == "--synthetic") {
-      synthetic = true;
-    } else if (a == "--rig" && (v = next())) {
-      rig_file = v;
-    } else if (a == "--images" && (v = next())) {
-      images_dir = v;
-    } else if (a == "--out" && (v = next())) {
-      out_dir = v;
-    } else if (a == "--save-images" && (v = next())) {
-      save_dir = v;
-    } else if (a == "--views" && (v = next())) {
-      views = std::atoi(v);
-    } else if (a == "--seed" && (v = next())) {
-      seed = static_cast<unsigned>(std::atoi(v));
-    } else if (a == "--cols" && (v = next())) {
-      target.cols = std::atoi(v);
-    } else if (a == "--rows" && (v = next())) {
-      target.rows = std::atoi(v);
-    } else if (a == "--square" && (v = next())) {
-      target.square = std::atof(v);
-    } else if (a == "--centre" && i + 3 < argc) {
-      centre = Eigen::Vector3d(std::atof(argv[i + 1]), std::atof(argv[i + 2]), std::atof(argv[i + 3]));
-      i += 3;
-    } else {
-      return usage();
-    }
-  }
-  if (out_dir.empty() || synthetic == !images_dir.empty() || views < 3 || target.square <= 0.0) return usage();
+  std::vector<double> centre_xyz{0.0, 0.0, 0.0};
+  vrm_sim::cli::CommandLine cli(
+      "calibrate_rig",
+      "(--synthetic [--rig FILE] [--views N] [--seed N] [--save-images DIR] | --images DIR) --out DIR "
+      "[--cols N --rows N --square M] [--centre X Y Z]",
+      "Calibrates the tracking rig from chessboard images; writes DIR/<camera>.yaml per camera and DIR/rig.yaml.",
+      "Exit status: 0 ok, 1 calibration failed, 2 usage.");
+  cli.add()("synthetic", po::bool_switch(&synthetic), "render the target through the (true) rig and calibrate")(
+      "rig", po::value(&rig_file)->value_name("FILE"), "the true rig of --synthetic (default: the built-in rig)")(
+      "views", vrm_sim::cli::integer(&views)->value_name("N"), "poses per camera of --synthetic (default 15, >= 3)")(
+      "seed", vrm_sim::cli::uint32(&seed)->value_name("N"), "pose seed of --synthetic (default 17)")(
+      "save-images", po::value(&save_dir)->value_name("DIR"), "write the rendered views of --synthetic")(
+      "images", po::value(&images_dir)->value_name("DIR"),
+      "real images: DIR/<camera>/*.png views, DIR/<camera>/reference.png the target on the world fixture")(
+      "out", po::value(&out_dir)->required()->value_name("DIR"), "where the calibration files go")(
+      "cols", vrm_sim::cli::integer(&target.cols)->value_name("N"), "inner corners per row (default 9)")(
+      "rows", vrm_sim::cli::integer(&target.rows)->value_name("N"), "inner corners per column (default 6)")(
+      "square", vrm_sim::cli::real(&target.square)->value_name("M"), "square size (m, default 0.0025)")(
+      "centre", vrm_sim::cli::reals(&centre_xyz, 3)->value_name("X Y Z"),
+      "the fixture's centre in the world (m, default 0 0 0)");
+  if (const auto status = cli.parse(argc, argv)) return *status;
+  if (synthetic == !images_dir.empty()) return cli.fail("give either --synthetic or --images DIR");
+  if (views < 3) return cli.fail("--views expects at least 3");
+  if (!(target.square > 0.0)) return cli.fail("--square expects a positive number");
+  const Eigen::Vector3d centre(centre_xyz[0], centre_xyz[1], centre_xyz[2]);
   const Eigen::Isometry3d fixture = fixturePose(target, centre);
 
   std::vector<std::string> names;

@@ -13,10 +13,10 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
-#include <cstring>
 #include <string>
 #include <vector>
 
+#include "vrm_sim/cli/cli.h"
 #include "vrm_sim/package_data.h"
 #include "vrm_sim/scene/scene_loader.h"
 #include "vrm_tracking/evaluation.h"
@@ -24,60 +24,37 @@
 
 using namespace vrm_tracking;
 
-namespace {
-int usage(const char* message) {
-  std::fprintf(stderr,
-               "tracking_eval: %s\nusage: tracking_eval --trajectory FILE [--noise-px X] [--occlude CAM] [--seed N] "
-               "[--frames N] [--tremor-um A] [--rig FILE] [--layout FILE] [--distractors N] [--filter "
-               "none|one_euro|alpha_beta] [--scene NAME|PATH]\n",
-               message);
-  return 2;
-}
-
-bool parseNumber(const char* text, double* value) {
-  char* end = nullptr;
-  *value = std::strtod(text, &end);
-  return end && *end == '\0' && end != text;
-}
-}  // namespace
-
 int main(int argc, char** argv) {
+  namespace po = vrm_sim::cli::po;
   std::string trajectory, rig_file, layout_file, filter = "none", scene_spec = vrm_sim::scene::kDefaultSceneName;
-  double noise_px = 0.0, occlude = -1, seed = 1, frames = 0, tremor_um = 0.0, distractors = 0;
-  for (int i = 1; i < argc; ++i) {
-    const std::string arg = argv[i];
-    if (i + 1 >= argc) return usage(("missing value for " + arg).c_str());
-    const char* value = argv[++i];
-    bool ok = true;
-    if (arg == "--trajectory") {
-      trajectory = value;
-    } else if (arg == "--rig") {
-      rig_file = value;
-    } else if (arg == "--layout") {
-      layout_file = value;
-    } else if (arg == "--scene") {
-      scene_spec = value;
-    } else if (arg == "--filter") {
-      filter = value;
-      ok = filter == "none" || filter == "one_euro" || filter == "alpha_beta";
-    } else if (arg == "--noise-px") {
-      ok = parseNumber(value, &noise_px) && noise_px >= 0.0;
-    } else if (arg == "--occlude") {
-      ok = parseNumber(value, &occlude);
-    } else if (arg == "--seed") {
-      ok = parseNumber(value, &seed) && seed >= 0;
-    } else if (arg == "--frames") {
-      ok = parseNumber(value, &frames) && frames >= 0;
-    } else if (arg == "--tremor-um") {
-      ok = parseNumber(value, &tremor_um) && tremor_um >= 0;
-    } else if (arg == "--distractors") {
-      ok = parseNumber(value, &distractors) && distractors >= 0;
-    } else {
-      return usage(("unknown option " + arg).c_str());
-    }
-    if (!ok) return usage(("bad value '" + std::string(value) + "' for " + arg).c_str());
-  }
-  if (trajectory.empty()) return usage("--trajectory is required");
+  double noise_px = 0.0, tremor_um = 0.0;
+  int occlude = -1, frames = 0, distractors = 0;
+  std::uint32_t seed = 1;
+  vrm_sim::cli::CommandLine cli(
+      "tracking_eval",
+      "--trajectory FILE [--noise-px X] [--occlude CAM] [--seed N] [--frames N] [--tremor-um A] [--rig FILE] "
+      "[--layout FILE] [--distractors N] [--filter none|one_euro|alpha_beta] [--scene NAME|PATH]",
+      "Renders the rig from a surgeon trajectory, runs detection and reconstruction, prints one JSON object.",
+      "Exit status: 0 ok, 2 usage or malformed input (the message names the file, line and field).");
+  cli.add()("trajectory", po::value(&trajectory)->required()->value_name("FILE"), "the surgeon trajectory file")(
+      "noise-px", vrm_sim::cli::real(&noise_px)->value_name("X"),
+      "> 0: the FPGA path (exact centroids + X px noise) instead of rendered images")(
+      "occlude", vrm_sim::cli::integer(&occlude)->value_name("CAM"), "hide this camera of the rig (default -1: none)")(
+      "seed", vrm_sim::cli::uint32(&seed)->value_name("N"), "noise and tremor seed (default 1)")(
+      "frames", vrm_sim::cli::integer(&frames)->value_name("N"), "samples at 50 Hz (default 0: the whole script)")(
+      "tremor-um", vrm_sim::cli::real(&tremor_um)->value_name("A"), "tremor amplitude (um, default 0)")(
+      "rig", po::value(&rig_file)->value_name("FILE"), "camera rig (default: the built-in rig)")(
+      "layout", po::value(&layout_file)->value_name("FILE"), "marker layout (default: the built-in layout)")(
+      "distractors", vrm_sim::cli::integer(&distractors)->value_name("N"), "distracting blobs per image (default 0)")(
+      "filter", vrm_sim::cli::choice(&filter, {"none", "one_euro", "alpha_beta"})->value_name("NAME"),
+      "tracker filter: none, one_euro or alpha_beta (default none)")(
+      "scene", po::value(&scene_spec)->value_name("NAME|PATH"),
+      "the scene whose trocars fill in those a file leaves to the scene (default membrane_peeling)");
+  if (const auto status = cli.parse(argc, argv)) return *status;
+  if (!(noise_px >= 0.0)) return cli.fail("--noise-px expects a non-negative number");
+  if (frames < 0) return cli.fail("--frames expects a non-negative number");
+  if (!(tremor_um >= 0.0)) return cli.fail("--tremor-um expects a non-negative number");
+  if (distractors < 0) return cli.fail("--distractors expects a non-negative number");
 
   try {
     ScriptDefinition definition = SurgeonScript::definitionFromFile(trajectory);
@@ -92,19 +69,19 @@ int main(int argc, char** argv) {
     }
     SurgeonScript script(std::move(definition));
     script.setPlayback(Playback::kOnce);
-    script.setTremor(tremor_um * 1e-6, static_cast<std::uint32_t>(seed));
+    script.setTremor(tremor_um * 1e-6, seed);
     const CameraRig rig = rig_file.empty() ? makeDefaultRig() : loadRigYaml(rig_file);
-    if (occlude >= static_cast<double>(rig.size())) return usage("--occlude names no camera of the rig");
+    if (occlude >= static_cast<int>(rig.size())) return cli.fail("--occlude names no camera of the rig");
     // 50 Hz over the script (§7: tracking at <= 50 Hz), or --frames samples.
-    const int n = frames > 0 ? static_cast<int>(frames) : std::max(1, static_cast<int>(script.duration() * 50.0) + 1);
+    const int n = frames > 0 ? frames : std::max(1, static_cast<int>(script.duration() * 50.0) + 1);
     std::vector<double> times;
     for (int f = 0; f < n; ++f) times.push_back(f / 50.0);
     EvalOptions opt;
     opt.rendered = noise_px == 0.0;
     opt.noise_px = noise_px;
-    opt.occluded_camera = static_cast<int>(occlude);
-    opt.seed = static_cast<std::uint32_t>(seed);
-    opt.render.distractors = static_cast<int>(distractors);
+    opt.occluded_camera = occlude;
+    opt.seed = seed;
+    opt.render.distractors = distractors;
     opt.tracker.filter.type = filterTypeFromString(filter);
     // Thread CPU time, as the benchmark: ms on one core, whatever else the machine runs.
     opt.clock = [] {

@@ -46,7 +46,9 @@ class CommandLine {
 
   // The tool's options (--help is always there).
   po::options_description_easy_init add() { return options_.add_options(); }
-  // Positional arguments in order: `name` must be an option added with add(); max_count -1 = any number.
+  // Options parsed but not listed by --help (what positional() names, e.g. a command and its arguments).
+  po::options_description_easy_init hidden() { return hidden_.add_options(); }
+  // Positional arguments in order: `name` must be an option added with add() or hidden(); max_count -1 = any number.
   CommandLine& positional(const char* name, int max_count);
 
   // Parses argv. Returns the status the tool exits with at once — 0 after printing --help (-h) on stdout, 2 after a
@@ -65,7 +67,7 @@ class CommandLine {
 
  private:
   std::string program_, usage_, description_, details_;
-  po::options_description options_;
+  po::options_description options_, hidden_;
   po::positional_options_description positional_;
   po::variables_map values_;
 };

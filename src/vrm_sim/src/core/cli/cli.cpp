@@ -195,9 +195,22 @@ std::optional<int> CommandLine::parse(int argc, const char* const argv[]) {
   }
   // No abbreviations (--sce for --scene): a script that relies on one breaks when an option is added.
   const int style = po::command_line_style::unix_style & ~po::command_line_style::allow_guessing;
+  // "--pin=" is an empty value, as "--pin ''" is (program_options would reject the empty text after '=').
+  std::vector<std::string> arguments;
+  for (int i = 1; i < argc; ++i) {
+    const std::string argument = argv[i];
+    if (argument.size() > 3 && argument.compare(0, 2, "--") == 0 && argument.back() == '=' &&
+        argument.find('=') == argument.size() - 1) {
+      arguments.push_back(argument.substr(0, argument.size() - 1));
+      arguments.emplace_back();
+    } else {
+      arguments.push_back(argument);
+    }
+  }
+  po::options_description all;
+  all.add(options_).add(hidden_);
   try {
-    po::store(po::command_line_parser(argc, argv).options(options_).positional(positional_).style(style).run(),
-              values_);
+    po::store(po::command_line_parser(arguments).options(all).positional(positional_).style(style).run(), values_);
     po::notify(values_);
   } catch (const po::error& error) {
     return fail(error.what());
