@@ -212,6 +212,16 @@ std::optional<int> CommandLine::parse(int argc, const char* const argv[]) {
   try {
     po::store(po::command_line_parser(arguments).options(all).positional(positional_).style(style).run(), values_);
     po::notify(values_);
+  } catch (const po::too_many_positional_options_error&) {
+    // program_options does not say which argument is one too many; name it.
+    const po::parsed_options parsed =
+        po::command_line_parser(arguments).options(all).style(style).allow_unregistered().run();
+    unsigned index = 0;
+    for (const po::option& option : parsed.options) {
+      if (option.position_key < 0 || option.value.empty()) continue;
+      if (index++ == positional_.max_total_count()) return fail("unexpected argument '" + option.value[0] + "'");
+    }
+    return fail("too many arguments");
   } catch (const po::error& error) {
     return fail(error.what());
   }
