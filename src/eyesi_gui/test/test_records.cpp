@@ -820,6 +820,12 @@ TEST(RecordsTool, ImportCheckExportAndExitCodes) {
   EXPECT_EQ(run(tool + " --db " + db + " add-user dr --role instructor --pin 1357" + quiet), 1);
   EXPECT_EQ(run(tool + " --db " + db + " add-user x --role boss" + quiet), 2);
   EXPECT_EQ(run(tool + " --db " + db + " frobnicate" + quiet), 2);
+  // The shared command line (vrm_sim/cli/cli.h): --help, unknown and abbreviated options, a command's foreign option.
+  EXPECT_EQ(run(tool + " --help" + quiet), 0);
+  EXPECT_EQ(run(tool + " --db " + db + " list --no-such-flag" + quiet), 2);
+  EXPECT_EQ(run(tool + " --db " + db + " list --us anna" + quiet), 2);
+  EXPECT_EQ(run(tool + " --db " + db + " users --role trainee" + quiet), 2);
+  EXPECT_EQ(run(tool + " --db=" + db + " set-pin dr --pin=1357" + quiet), 0);  // --name=value spelling
   EXPECT_EQ(run(tool + " --db " + db + " list --user anna" + quiet), 0);
   EXPECT_EQ(run(tool + " --db " + db + " check" + quiet), 0);
   const std::string csv = dir.file("out.csv");
