@@ -25,7 +25,12 @@ struct ScenarioFocusOptions {
   double window = 0.5;     // s: the target is averaged over the last `window` of script time (a focus motor's lag)
   double step = 0.01;      // s: grid the average samples the script on
   double key_step = 0.05;  // s between the keyframes of the tracks
-  double zoom = 1.5;       // fixed: the demo's working magnification (20 mm field at the focal plane)
+  // The focus holds until the smoothed working plane has moved more than this from it, then refocuses there, as a
+  // surgeon refocuses when the picture softens (at zoom 1.5, 0.1 mm of defocus blurs ~0.2 px). A focus that crept
+  // with every tick changed the microscope's cameras every frame, so the renderer's static retina layer (issue 30)
+  // was never reused: run.sh's session fell from 36 to 25 fps (issue 33's first latency run).
+  double refocus_tolerance = 0.1e-3;
+  double zoom = 1.5;  // fixed: the demo's working magnification (20 mm field at the focal plane)
   double ambient_light = 0.3;
 };
 
@@ -39,9 +44,11 @@ double scenarioFocusDistance(const SurgeonSnapshot& snapshot, const std::string&
 
 // A scripted session (scenarioScript(), scene_trocars.h) with its microscope and pedal tracks replaced: a keyframe
 // every options.key_step s from 0 to the session's end; focus = scenarioFocusDistance() averaged over the last
-// options.window s of script time (sampled every options.step s; from 0 at the start), zoom and ambient light fixed;
+// options.window s of script time (sampled every options.step s; from 0 at the start), held until that moves more
+// than options.refocus_tolerance from it (then refocused onto it at the next keyframe), zoom and ambient light fixed;
 // pedal travel = the working instrument's suction (a vitrectomy pedal's; 0 for a forceps), no buttons. The result plays
-// once, like the session. Throws std::invalid_argument for non-positive steps, a negative window or plane_height.
+// once, like the session. Throws std::invalid_argument for non-positive steps, a negative window, plane_height or
+// refocus_tolerance.
 SurgeonScript withScenarioDeviceTracks(const SurgeonScript& session, const std::string& tool_slot,
                                        const ScenarioFocusOptions& options = {});
 

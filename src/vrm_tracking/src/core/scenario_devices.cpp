@@ -23,8 +23,10 @@ double scenarioFocusDistance(const SurgeonSnapshot& snapshot, const std::string&
 
 SurgeonScript withScenarioDeviceTracks(const SurgeonScript& session, const std::string& tool_slot,
                                        const ScenarioFocusOptions& options) {
-  if (!(options.step > 0.0) || !(options.key_step > 0.0) || !(options.window >= 0.0) || !(options.plane_height >= 0.0))
-    throw std::invalid_argument("scenario device tracks: need step, key_step > 0 and window, plane_height >= 0");
+  if (!(options.step > 0.0) || !(options.key_step > 0.0) || !(options.window >= 0.0) ||
+      !(options.plane_height >= 0.0) || !(options.refocus_tolerance >= 0.0))
+    throw std::invalid_argument(
+        "scenario device tracks: need step, key_step > 0 and window, plane_height, refocus_tolerance >= 0");
   const double eye_radius = session.definition().eye.radius;
   const double duration = session.duration();
   // The target on a grid of options.step from 0, then its running mean over the window (a pure function of the grid).
@@ -47,11 +49,14 @@ SurgeonScript withScenarioDeviceTracks(const SurgeonScript& session, const std::
   definition.microscope_track.clear();
   definition.pedal_track.clear();
   const int keys = static_cast<int>(std::ceil(duration / options.key_step)) + 1;
+  double focus = smoothed(0.0);
   for (int k = 0; k < keys; ++k) {
     const double t = k * options.key_step;
+    const double plane = smoothed(t);
+    if (std::abs(plane - focus) > options.refocus_tolerance) focus = plane;
     MicroscopeKeyframe microscope;
     microscope.t = t;
-    microscope.value.focus_distance = smoothed(t);
+    microscope.value.focus_distance = focus;
     microscope.value.zoom = options.zoom;
     microscope.value.ambient_light = options.ambient_light;
     definition.microscope_track.push_back(microscope);

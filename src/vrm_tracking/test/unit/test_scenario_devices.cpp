@@ -70,7 +70,9 @@ TEST(ScenarioFocus, FocusesOnTheWorkingTipClampedToTheWorkingPlane) {
 }
 
 TEST(ScenarioFocus, DeviceTracksAreSmoothedFixedZoomAndButtonless) {
-  const SurgeonScript s = withScenarioDeviceTracks(session(), "right");
+  ScenarioFocusOptions following;  // the smoothed plane itself, without holding (refocus_tolerance 0)
+  following.refocus_tolerance = 0.0;
+  const SurgeonScript s = withScenarioDeviceTracks(session(), "right", following);
   EXPECT_EQ(s.playback(), Playback::kOnce);
   ASSERT_EQ(s.definition().instruments.size(), 2u);  // the instruments play as before
   const double working = 0.188 - (kRetinaZ + 0.0002);
@@ -99,10 +101,30 @@ TEST(ScenarioFocus, DeviceTracksAreSmoothedFixedZoomAndButtonless) {
   EXPECT_NEAR(s.sample(2.0).pedals.travel, 0.6, 1e-12);
   EXPECT_NEAR(s.sample(0.0).pedals.travel, 0.0, 1e-12);
   // A pure function of the script time: built twice, sampled anywhere, the same.
-  const SurgeonScript again = withScenarioDeviceTracks(session(), "right");
+  const SurgeonScript again = withScenarioDeviceTracks(session(), "right", following);
   for (double t : {0.0, 0.37, 1.234, 2.9, 10.0}) {
     EXPECT_EQ(again.sample(t).microscope.focus_distance, s.sample(t).microscope.focus_distance) << t;
   }
+}
+
+// The default track holds the focus while the plane stays within refocus_tolerance (0.1 mm) of it and refocuses when
+// it leaves: the microscope's cameras stay still between refocuses, so the renderer keeps its static retina layer.
+TEST(ScenarioFocus, FocusHoldsUntilThePlaneMovesAway) {
+  ScenarioFocusOptions following;
+  following.refocus_tolerance = 0.0;
+  const SurgeonScript held = withScenarioDeviceTracks(session(), "right");
+  const SurgeonScript plane = withScenarioDeviceTracks(session(), "right", following);
+  const double tolerance = ScenarioFocusOptions{}.refocus_tolerance;
+  int moves = 0, ticks = 0;
+  for (double t = 0.0; t < 4.5; t += 0.05, ++ticks) {
+    const double focus = held.sample(t).microscope.focus_distance;
+    EXPECT_LE(std::abs(focus - plane.sample(t).microscope.focus_distance), tolerance + 1e-12) << t;
+    if (held.sample(t + 0.05).microscope.focus_distance != focus) ++moves;
+  }
+  // The plane moves 1.05 mm in all (x = 1 -> 5 mm): at most ~11 refocus ramps of one tick each, not 90 creeping ticks.
+  EXPECT_LE(moves, 12) << ticks;
+  EXPECT_GE(moves, 1);
+  EXPECT_NEAR(held.sample(2.5).microscope.focus_distance, 0.188 - (kRetinaZ + 0.0002), 1e-9);  // steady: exact
 }
 
 TEST(ScenarioFocus, BadOptionsAreErrors) {
