@@ -33,10 +33,13 @@ class ReferenceResults(unittest.TestCase):
                 self.assertEqual(result["state"], expected["state"])
                 self.assertEqual(result["total"], expected["score_total"])
                 self.assertTrue(result["items"])
-                # Keys an older writer did not write are there at their defaults.
                 self.assertIs(result["in_progress"], False)
-                self.assertIsNone(result["user"])
-                self.assertEqual(result["input_frames"], 0)
+                # Keys an older writer did not write are there at their defaults; a newer writer's as written (the
+                # reference bags are re-recorded now and then: issue 33 re-recorded two with the current writer).
+                with open(path, encoding="utf-8") as handle:
+                    raw = json.load(handle)
+                for key, default in (("user", None), ("input_frames", 0)):
+                    self.assertEqual(result[key], raw.get(key, default), key)
 
     def test_null_numbers_read_as_nan_and_unknown_keys_are_kept(self):
         text = (
