@@ -207,9 +207,10 @@ fi
 if ((failures)); then grep -E "ERROR|FATAL|rror" "$TMP/launch.log" | head -n 15 | sed 's/^/    /' || true; fi
 check_trace simulator "simulator.launch (every process of the graph; opens and execs)"
 
-# --- 4. tracking_eval on the installed trajectory, rig and layout ------------------------------------------------------
+# --- 4. tracking_eval on the installed script, rig and layout ---------------------------------------------------------
 share=$PREFIX/share/vrm_tracking/config
-if eval_json=$(traced tracking_eval rosrun vrm_tracking tracking_eval --trajectory "$share/trajectories/membrane_peeling_demo.yaml" \
+script=$PREFIX/share/vrm_sim/config/scripts/membrane_peeling_demo.yaml
+if eval_json=$(traced tracking_eval rosrun vrm_tracking tracking_eval --trajectory "$script" \
     --rig "$share/rig_default.yaml" --layout "$share/markers_default.yaml" --frames 25); then
   pass "tracking_eval: $(/usr/bin/python3 -c 'import json,sys; d=json.loads(sys.argv[1]); print("%d frames, tip rms %.1f um" % (d["frames"], d["tip_rms_um"]))' "$eval_json")"
 else

@@ -60,8 +60,14 @@ ext = {".obj": 0, ".ply": 1, ".stl": 2}
 for p in sorted((SIM / "test" / "data" / "meshes").iterdir()):
     if p.suffix in ext:
         seed("mesh_import", p.name, bytes([ext[p.suffix], 1]) + p.read_bytes())
-for p in sorted((TRK / "config" / "trajectories").glob("*.yaml")):
+# The one scripted-motion format (issue 34): the shipped script files, and a scene's short form.
+for p in sorted((SIM / "config" / "scripts").glob("*.yaml")):
     seed("surgeon_script", p.name, p.read_bytes())
+seed("surgeon_script", "exchange_and_target.yaml",
+     b"playback: loop\nmissing_objects: keep_tip\ninstruments:\n  - slot: right\n    path:\n"
+     b"      - {t: 0, tip: [0.001, 0, -0.006], jaw_angle_deg: 20}\n"
+     b"      - {t: 1, on: membrane, tip: [0.003, 0.001, -0.011], height: -6.0e-5, type: vitrector}\n"
+     b"    tremor: {amplitude: 2.0e-5, frequency_hz: 10}\neye: [{t: 0, rpy_deg: [1, 2, 3]}]\n")
 seed("rig_yaml", "rig_default.yaml", (TRK / "config" / "rig_default.yaml").read_bytes())
 seed("marker_layout_yaml", "markers_default.yaml", (TRK / "config" / "markers_default.yaml").read_bytes())
 # The strict reader's error paths (vrm_sim/yaml/strict_reader.h): a misspelt key, an unknown class name, a duplicate

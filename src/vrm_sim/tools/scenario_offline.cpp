@@ -54,7 +54,7 @@ int main(int argc, char** argv) {
   cli.add()("scene", po::value(&scene_argument)->value_name("NAME_OR_PATH"), "the scene: a shipped name or a file")(
       "difficulty", po::value(&difficulty)->value_name("LEVEL"), "the scenario's difficulty level")(
       "script", po::value(&script)->value_name("expert|novice|FILE"),
-      "one of the scene's scripted sessions, or a script file (default expert)")(
+      "one of the scene's scripted sessions, a script file or a shipped script (config/scripts; default expert)")(
       "seed", vrm_sim::cli::uint32(&options.seed)->value_name("N"), "recorded with the result (default 0)")(
       "rate", vrm_sim::cli::real(&options.rate)->value_name("HZ"), "input ticks (Hz, default 50)")(
       "grace", vrm_sim::cli::real(&options.grace)->value_name("S"),
@@ -77,8 +77,9 @@ int main(int argc, char** argv) {
       return 1;
     }
     std::error_code error;
-    if (scene.scenario->scripts.count(script) == 0 && std::filesystem::is_regular_file(script, error)) {
-      options.script_parts = vrm_sim::scene::loadScript(script);
+    if (scene.scenario->scripts.count(script) == 0 &&
+        std::filesystem::is_regular_file(vrm_sim::scene::resolveScriptPath(script), error)) {
+      options.script_file = vrm_sim::scene::loadScript(script);
     } else {
       options.script = script;
     }

@@ -30,8 +30,15 @@ inline std::size_t editDistance(const std::string& a, const std::string& b) {
 }
 
 // " (did you mean 'x'?)" for the nearest candidate within two edits, else "": only near misses are typos worth
-// pointing at.
+// pointing at. A word that names a candidate without its unit suffix ("roll" for "roll_deg", "cut_rate" for
+// "cut_rate_hz") is pointed at it too: the value is then meant in that unit.
 inline std::string typoSuggestion(const std::string& word, const std::vector<std::string>& candidates) {
+  for (const char* unit : {"deg", "hz", "ms", "mm", "um"}) {
+    const std::string with_unit = word + "_" + unit;
+    for (const auto& candidate : candidates) {
+      if (candidate == with_unit) return " (did you mean '" + candidate + "', in " + unit + "?)";
+    }
+  }
   std::string best;
   std::size_t best_distance = 3;
   for (const auto& candidate : candidates) {

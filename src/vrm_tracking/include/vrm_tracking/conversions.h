@@ -82,10 +82,7 @@ std::vector<geometry_msgs::TransformStamped> trocarTransforms(const MarkerLayout
 // (no copy between the renderer and the subscribers in the manager).
 sensor_msgs::ImagePtr makeBgr8Image(const std_msgs::Header& header, int width, int height);
 
-// The script every device twin plays: ~script (empty = the built-in demo, builtin:NAME, or a file), with ~loop
-// overriding the file's playback mode; not validated yet: the caller applies its scene's trocars first (a file may
-// leave them to the scene), then constructs the SurgeonScript. Throws ScriptError (file, line, field) for a
-// malformed script.
-ScriptDefinition loadScriptFromParams(const ros::NodeHandle& private_nh);
+// ~loop, when set, overrides the script's playback mode (true: loop, false: once); unset, the script's stays.
+void applyLoopParam(const ros::NodeHandle& private_nh, SurgeonScript* script);
 
 }  // namespace vrm_tracking

@@ -42,7 +42,7 @@ struct ScenarioFocusOptions {
 double scenarioFocusDistance(const SurgeonSnapshot& snapshot, const std::string& tool_slot, double eye_radius,
                              const ScenarioFocusOptions& options = {});
 
-// A scripted session (scenarioScript(), scene_trocars.h) with its microscope and pedal tracks replaced: a keyframe
+// A scripted session (playInScene(), scene_trocars.h) with its microscope and pedal tracks replaced: a keyframe
 // every options.key_step s from 0 to the session's end; focus = scenarioFocusDistance() averaged over the last
 // options.window s of script time (sampled every options.step s; from 0 at the start), held until that moves more
 // than options.refocus_tolerance from it (then refocused onto it at the next keyframe), zoom and ambient light fixed;

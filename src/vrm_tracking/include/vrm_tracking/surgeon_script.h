@@ -1,9 +1,12 @@
 #pragma once
 // Scripted surgeon: the ground truth of the simulated EyeSi hardware (thesis §2.4.1, mediators; §7 hardware).
 //
-// A script is a set of keyframe tracks (eye rotation, one track per instrument slot, pedals, microscope knobs).
-// sample(t) turns it into a plain snapshot that the device twins publish, and that later synthetic tracking
-// cameras will render, so everything here is a pure function of (script, t, tremor seed) — no clock, no ROS.
+// It plays a scripted session in the one scripted-motion format, the scene's (vrm_sim::scene::ScriptedSession: a
+// scene's scenario.scripts or a script file, scene_description.h): eye rotation, one path per instrument slot, pedal
+// and microscope tracks, each instrument's tremor. sample(t) turns it into a plain snapshot that the device twins
+// publish and the synthetic tracking cameras render, so everything here is a pure function of (script, t) — no clock,
+// no ROS. playInScene() (scene_trocars.h) builds one for a scene: waypoints on scene objects resolved, trocars and eye
+// from the scene.
 //
 // Frames and conventions (shared with the optical tracking pipeline):
 //   * eye frame: origin at the eye's rotation centre (= sphere centre), +z anterior (pupil, towards the
@@ -14,9 +17,6 @@
 //     insertion_depth = |tip - trocar|.
 
 #include <Eigen/Geometry>
-#include <cstdint>
-#include <memory>
-#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -27,32 +27,16 @@ namespace vrm_tracking {
 // Instrument types are vrm_sim's (scene::InstrumentType, names by scene::toString); vrm_sim::toMsgType /
 // instrumentTypeFromMsg (vrm_sim/conversions.h) are the one bridge to the InstrumentState constants.
 
-enum class Playback { kOnce, kLoop };
+using Playback = vrm_sim::scene::Playback;
 
-// A malformed or inconsistent script. what() reads "<source>:<line>: <field>: <message>" so an author can jump to
-// the place; line is 1-based, 0 when unknown (programmatic scripts, unreadable files).
-class ScriptError : public std::runtime_error {
- public:
-  ScriptError(const std::string& source, int line, const std::string& field, const std::string& message);
-
-  const std::string& source() const { return source_; }
-  int line() const { return line_; }
-  const std::string& field() const { return field_; }
-
- private:
-  std::string source_;
-  int line_;
-  std::string field_;
-};
+// A script that cannot be played: the strict reader's error, at the waypoint ("<file>:<line>:<column>: <field>:
+// <problem>"), for malformed files (loadScript) and for sessions that do not fit the eye they play in.
+using ScriptError = vrm_sim::YamlError;
 
 struct EyeGeometry {
   double radius = 0.012;                                      // m, sphere of the mechanical eye
   double margin = 0.001;                                      // m, tips may be this far outside the sphere
   Eigen::Vector3d rotation_center = Eigen::Vector3d::Zero();  // m, in world
-  int line = 0;
-  // The file has no `eye:` block (the shipped ones don't): applySceneTrocars takes radius and rotation centre from
-  // the scene (until then the defaults above, which are the shipped scenes' values).
-  bool from_scene = false;
 };
 
 struct PedalSample {
@@ -90,10 +74,10 @@ struct InstrumentSample {
 
 struct SurgeonSnapshot {
   double script_time = 0.0;                                          // s, after loop wrap / end clamp
-  bool finished = false;                                             // playback once and t beyond the last keyframe
+  bool finished = false;                                             // playback once and t beyond the last waypoint
   Eigen::Quaterniond eye_rotation = Eigen::Quaterniond::Identity();  // world -> eye
   Eigen::Vector3d rotation_center = Eigen::Vector3d::Zero();         // world, m
-  std::vector<InstrumentSample> instruments;                         // in slot order of the script
+  std::vector<InstrumentSample> instruments;                         // in the session's instrument order
   PedalSample pedals;
   MicroscopeSample microscope;
 };
@@ -104,142 +88,47 @@ struct SurgeonSnapshot {
 // eye axis would, e.g. for a shaft pointing straight down to the posterior pole).
 Eigen::Quaterniond shaftOrientation(const Eigen::Vector3d& trocar, const Eigen::Vector3d& shaft_axis, double roll);
 
-// ---- Script definition: the keyframes, as parsed or generated. Unspecified keyframe fields were carried over
-// from the previous keyframe of the same track by the parser. `line` (1-based, 0 = unknown) feeds ScriptError.
-
-struct EyeKeyframe {
-  double t = 0.0;
-  Eigen::Quaterniond rotation = Eigen::Quaterniond::Identity();
-  int line = 0;
-};
-
-// A keyframe tip written against a scene object (YAML `on:` / `height:`), so that scripts that touch tissue follow
-// the scene file instead of a copy of its geometry. applyScene() (scene_trocars.h) resolves it: the closest point of
-// the object's surface to `written_tip`, moved `height` along the surface normal that points into the eye (towards
-// the eye centre). Until then, and where no scene is given, the keyframe plays `written_tip`.
-struct SurfaceTarget {
-  std::string object;   // scene object name; empty: the keyframe's tip is a plain eye-frame position
-  double height = 0.0;  // m above the surface (towards the eye centre); negative: below it
-  Eigen::Vector3d written_tip = Eigen::Vector3d::Zero();  // eye frame, m: the author's point near the object
-  bool resolved = false;  // the keyframe's tip is the scene-resolved point (set by applyScene)
-
-  bool active() const { return !object.empty(); }
-};
-
-struct InstrumentKeyframe {
-  double t = 0.0;
+// What the scene decides for one scripted instrument (in the session's instrument order).
+struct ScriptTrack {
+  Eigen::Vector3d trocar = Eigen::Vector3d::Zero();  // eye frame, m
+  // The instrument in hand until a waypoint names another: the session's `type`, else the scene's in the slot.
   vrm_sim::scene::InstrumentType type = vrm_sim::scene::InstrumentType::kLightPipe;
-  Eigen::Vector3d tip = Eigen::Vector3d::Zero();  // what is played (the resolved point for a resolved target)
-  SurfaceTarget target;
-  double roll = 0.0;
-  double jaw_angle = 0.0;
-  double suction = 0.0;
-  double cut_rate = 0.0;
-  double injection_flow = 0.0;
-  int line = 0;
-};
-
-struct InstrumentTrack {
-  std::string slot;
-  Eigen::Vector3d trocar = Eigen::Vector3d::Zero();
-  // The script names no trocar for this slot (the shipped files don't: the scene is the one source of the trocars):
-  // applySceneTrocars / applyScene (scene_trocars.h) must fill it in before the script is played (validated).
-  bool trocar_from_scene = false;
-  int line = 0;
-  std::vector<InstrumentKeyframe> keyframes;
-};
-
-struct PedalKeyframe {
-  double t = 0.0;
-  PedalSample value;
-  int line = 0;
-};
-
-struct MicroscopeKeyframe {
-  double t = 0.0;
-  MicroscopeSample value;
-  int line = 0;
-};
-
-struct ScriptDefinition {
-  std::string name;
-  std::string source = "<memory>";  // file path or "<builtin:NAME>", used in error messages
-  Playback playback = Playback::kLoop;
-  EyeGeometry eye;
-  std::vector<EyeKeyframe> eye_track;  // empty: identity
-  std::vector<InstrumentTrack> instruments;
-  std::vector<PedalKeyframe> pedal_track;            // empty: defaults
-  std::vector<MicroscopeKeyframe> microscope_track;  // empty: defaults
-  // Built-in scripts are meant for every scene: there a keyframe `on` an object the scene lacks keeps its written
-  // tip. A file is written for a scene, so there a missing object is an error (see applyScene).
-  bool targets_optional = false;
-};
-
-// Names of the scene objects the script's keyframes are written on (SurfaceTarget), unique, in order of first use.
-std::vector<std::string> surfaceTargetObjects(const ScriptDefinition& definition);
-
-// Physiological tremor (thesis §1.3: 8–10 Hz). A sum of sinusoids with frequencies, phases and weights drawn once
-// from std::mt19937(seed), so the offset is a pure function of (seed, slot, t): the same recording replays
-// identically whatever rate it is sampled at (§2.4.2, record the oracle's seed, not its answers).
-class Tremor {
- public:
-  // amplitude: m, bound of the offset per axis; 0 disables. num_slots: instrument count (each gets its own
-  // independent draws, in slot order).
-  Tremor(double amplitude, std::uint32_t seed, std::size_t num_slots);
-
-  Eigen::Vector3d offset(std::size_t slot, double t) const;
-  double amplitude() const { return amplitude_; }
-
- private:
-  struct Component {
-    double frequency;  // Hz
-    double phase;      // rad
-    double weight;     // weights of one axis sum to 1, so |offset| <= amplitude per axis
-  };
-  static constexpr int kComponentsPerAxis = 3;
-  double amplitude_;
-  std::vector<Component> components_;  // [slot][axis][component], flattened
 };
 
 class SurgeonScript {
  public:
-  // Validates the definition (keyframe times >= 0 and strictly increasing, finite values, tips inside the eye
-  // sphere + margin, trocars usable, unique slots); throws ScriptError.
-  explicit SurgeonScript(ScriptDefinition definition);
+  // Validates the session against the eye (tips inside the sphere + margin, trocars on it, finite values in range,
+  // waypoint times increasing; a session built in code is checked like a file) and takes one ScriptTrack per
+  // scripted instrument; throws ScriptError at the offending waypoint. Waypoints `on` scene objects must have been
+  // resolved (playInScene does it). `source` names the script in logs.
+  SurgeonScript(vrm_sim::scene::ScriptedSession session, const EyeGeometry& eye, std::vector<ScriptTrack> tracks,
+                std::string source);
 
-  // Throws ScriptError naming the file, the 1-based line and the field path.
-  static SurgeonScript fromFile(const std::string& path);
-  static SurgeonScript fromYamlString(const std::string& text, const std::string& source = "<string>");
-  // Procedural scripts so the simulator runs without a file; names: builtinNames(). Throws std::invalid_argument.
-  static SurgeonScript builtin(const std::string& name);
-  static std::vector<std::string> builtinNames();
-  // What the nodelets' `script` parameter means: "" -> builtin("demo"), "builtin:NAME" -> builtin(NAME),
-  // anything else -> fromFile(spec).
-  static SurgeonScript load(const std::string& spec);
-  // The same, not validated yet, for a caller that applies a scene first (a file may leave the trocars to the
-  // scene). Throws ScriptError for a malformed file, std::invalid_argument for an unknown built-in.
-  static ScriptDefinition loadDefinition(const std::string& spec);
-  static ScriptDefinition definitionFromFile(const std::string& path);
-
-  // t: seconds since the start of playback. Loop wraps at duration(); once holds the last keyframe afterwards.
+  // t: seconds since the start of playback. Loop wraps at duration(); once holds the last waypoint afterwards.
   SurgeonSnapshot sample(double t) const;
 
-  void setPlayback(Playback playback) { definition_.playback = playback; }
-  // amplitude in m (0 = off); see Tremor.
-  void setTremor(double amplitude, std::uint32_t seed);
+  void setPlayback(Playback playback) { session_.playback = playback; }
+  // Every instrument's tremor amplitude, m (0 = off; the frequency stays the script's): a hand other than the
+  // script's (the nodelets' ~tremor_um, tracking_eval --tremor-um). std::invalid_argument unless finite and >= 0.
+  void setTremorAmplitude(double amplitude);
 
-  const ScriptDefinition& definition() const { return definition_; }
-  Playback playback() const { return definition_.playback; }
-  const std::string& name() const { return definition_.name; }
-  // Time of the last keyframe over all tracks (0 for a static script).
+  const vrm_sim::scene::ScriptedSession& session() const { return session_; }
+  const EyeGeometry& eye() const { return eye_; }
+  const std::vector<ScriptTrack>& tracks() const { return tracks_; }
+  const std::string& source() const { return source_; }
+  Playback playback() const { return session_.playback; }
+  const std::string& name() const { return session_.name; }
+  // Time of the last waypoint over all tracks (0 for a static script).
   double duration() const { return duration_; }
 
  private:
   void validate() const;
 
-  ScriptDefinition definition_;
+  vrm_sim::scene::ScriptedSession session_;
+  EyeGeometry eye_;
+  std::vector<ScriptTrack> tracks_;
+  std::string source_;
   double duration_ = 0.0;
-  std::shared_ptr<const Tremor> tremor_;
 };
 
 }  // namespace vrm_tracking

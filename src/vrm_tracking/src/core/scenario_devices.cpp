@@ -27,7 +27,7 @@ SurgeonScript withScenarioDeviceTracks(const SurgeonScript& session, const std::
       !(options.plane_height >= 0.0) || !(options.refocus_tolerance >= 0.0))
     throw std::invalid_argument(
         "scenario device tracks: need step, key_step > 0 and window, plane_height, refocus_tolerance >= 0");
-  const double eye_radius = session.definition().eye.radius;
+  const double eye_radius = session.eye().radius;
   const double duration = session.duration();
   // The target on a grid of options.step from 0, then its running mean over the window (a pure function of the grid).
   const int samples = static_cast<int>(std::ceil(duration / options.step)) + 1;
@@ -43,32 +43,32 @@ SurgeonScript withScenarioDeviceTracks(const SurgeonScript& session, const std::
     return (prefix[last + 1] - prefix[first]) / (last + 1 - first);
   };
 
-  ScriptDefinition definition = session.definition();
-  definition.name += " (scenario devices)";
-  definition.playback = Playback::kOnce;
-  definition.microscope_track.clear();
-  definition.pedal_track.clear();
+  vrm_sim::scene::ScriptedSession devices = session.session();
+  devices.name += " (scenario devices)";
+  devices.playback = Playback::kOnce;
+  devices.microscope.clear();
+  devices.pedals.clear();
   const int keys = static_cast<int>(std::ceil(duration / options.key_step)) + 1;
   double focus = smoothed(0.0);
   for (int k = 0; k < keys; ++k) {
     const double t = k * options.key_step;
     const double plane = smoothed(t);
     if (std::abs(plane - focus) > options.refocus_tolerance) focus = plane;
-    MicroscopeKeyframe microscope;
+    vrm_sim::scene::MicroscopeWaypoint microscope;
     microscope.t = t;
-    microscope.value.focus_distance = focus;
-    microscope.value.zoom = options.zoom;
-    microscope.value.ambient_light = options.ambient_light;
-    definition.microscope_track.push_back(microscope);
+    microscope.focus_distance = focus;
+    microscope.zoom = options.zoom;
+    microscope.ambient_light = options.ambient_light;
+    devices.microscope.push_back(microscope);
 
-    PedalKeyframe pedal;
+    vrm_sim::scene::PedalWaypoint pedal;
     pedal.t = t;
     for (const InstrumentSample& sample : session.sample(t).instruments) {
-      if (sample.slot == tool_slot) pedal.value.travel = std::clamp(sample.suction, 0.0, 1.0);
+      if (sample.slot == tool_slot) pedal.travel = std::clamp(sample.suction, 0.0, 1.0);
     }
-    definition.pedal_track.push_back(pedal);
+    devices.pedals.push_back(pedal);
   }
-  return SurgeonScript(std::move(definition));
+  return SurgeonScript(std::move(devices), session.eye(), session.tracks(), session.source());
 }
 
 }  // namespace vrm_tracking

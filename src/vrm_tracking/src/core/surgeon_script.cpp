@@ -3,26 +3,21 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
-#include <random>
-#include <set>
 #include <sstream>
+#include <stdexcept>
+#include <utility>
 
 namespace vrm_tracking {
+
+namespace scene = vrm_sim::scene;
 
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
+constexpr double kDegToRad = kPi / 180.0;
 
-std::string formatError(const std::string& source, int line, const std::string& field, const std::string& message) {
-  std::ostringstream out;
-  out << source << ":" << line << ": ";
-  if (!field.empty()) out << field << ": ";
-  out << message;
-  return out.str();
-}
-
-// Keyframe segment containing t: keys[index].t <= t < keys[index + 1].t, alpha in [0, 1). Before the first
-// keyframe and after the last one the track holds its end value (alpha = 0).
+// Waypoint segment containing t: keys[index].t <= t < keys[index + 1].t, alpha in [0, 1). Before the first
+// waypoint and after the last one the track holds its end value (alpha = 0).
 template <class Key>
 std::size_t findSegment(const std::vector<Key>& keys, double t, double* alpha) {
   *alpha = 0.0;
@@ -36,16 +31,16 @@ std::size_t findSegment(const std::vector<Key>& keys, double t, double* alpha) {
 
 double lerp(double a, double b, double alpha) { return a + alpha * (b - a); }
 
-Eigen::Vector3d lerp(const Eigen::Vector3d& a, const Eigen::Vector3d& b, double alpha) { return a + alpha * (b - a); }
-
-std::string indexed(const std::string& base, std::size_t index) { return base + "[" + std::to_string(index) + "]"; }
+// An error at a waypoint: its location with `field` appended to the path the reader gave it.
+[[noreturn]] void fail(const vrm_sim::SourceLocation& at, const std::string& source, const std::string& field,
+                       const std::string& problem) {
+  vrm_sim::SourceLocation where = at;
+  if (where.file.empty()) where.file = source;
+  where.field += (where.field.empty() || field.empty() ? "" : ".") + field;
+  throw ScriptError(where, problem);
+}
 
 }  // namespace
-
-// ---------------------------------------------------------------------------------------------------------------
-
-ScriptError::ScriptError(const std::string& source, int line, const std::string& field, const std::string& message)
-    : std::runtime_error(formatError(source, line, field, message)), source_(source), line_(line), field_(field) {}
 
 Eigen::Quaterniond shaftOrientation(const Eigen::Vector3d& trocar, const Eigen::Vector3d& shaft_axis, double roll) {
   const Eigen::Vector3d z = shaft_axis.normalized();
@@ -63,183 +58,110 @@ Eigen::Quaterniond shaftOrientation(const Eigen::Vector3d& trocar, const Eigen::
   return (Eigen::Quaterniond(basis) * Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitZ())).normalized();
 }
 
-std::vector<std::string> surfaceTargetObjects(const ScriptDefinition& definition) {
-  std::vector<std::string> objects;
-  for (const InstrumentTrack& track : definition.instruments) {
-    for (const InstrumentKeyframe& key : track.keyframes) {
-      if (key.target.active() && std::find(objects.begin(), objects.end(), key.target.object) == objects.end()) {
-        objects.push_back(key.target.object);
-      }
-    }
-  }
-  return objects;
-}
-
-// ---------------------------------------------------------------------------------------------------------------
-
-Tremor::Tremor(double amplitude, std::uint32_t seed, std::size_t num_slots) : amplitude_(amplitude) {
-  std::mt19937 rng(seed);
-  std::uniform_real_distribution<double> frequency(8.0, 10.0);  // §1.3: physiological tremor 8–10 Hz
-  std::uniform_real_distribution<double> phase(0.0, 2.0 * kPi);
-  std::uniform_real_distribution<double> weight(0.2, 1.0);
-  components_.reserve(num_slots * 3 * kComponentsPerAxis);
-  for (std::size_t i = 0; i < num_slots * 3; ++i) {
-    double sum = 0.0;
-    const std::size_t first = components_.size();
-    for (int k = 0; k < kComponentsPerAxis; ++k) {
-      // Draw order is fixed (frequency, phase, weight) so a seed means the same tremor on every platform.
-      const double f = frequency(rng);
-      const double p = phase(rng);
-      const double w = weight(rng);
-      components_.push_back({f, p, w});
-      sum += w;
-    }
-    for (std::size_t k = first; k < components_.size(); ++k) components_[k].weight /= sum;
-  }
-}
-
-Eigen::Vector3d Tremor::offset(std::size_t slot, double t) const {
-  Eigen::Vector3d result = Eigen::Vector3d::Zero();
-  if (amplitude_ == 0.0) return result;
-  const std::size_t base = slot * 3 * kComponentsPerAxis;
-  if (base + 3 * kComponentsPerAxis > components_.size()) return result;
-  for (int axis = 0; axis < 3; ++axis) {
-    double sum = 0.0;
-    for (int k = 0; k < kComponentsPerAxis; ++k) {
-      const Component& c = components_[base + axis * kComponentsPerAxis + k];
-      sum += c.weight * std::sin(2.0 * kPi * c.frequency * t + c.phase);
-    }
-    result[axis] = amplitude_ * sum;
-  }
-  return result;
-}
-
-// ---------------------------------------------------------------------------------------------------------------
-
-SurgeonScript::SurgeonScript(ScriptDefinition definition) : definition_(std::move(definition)) {
+SurgeonScript::SurgeonScript(scene::ScriptedSession session, const EyeGeometry& eye, std::vector<ScriptTrack> tracks,
+                             std::string source)
+    : session_(std::move(session)), eye_(eye), tracks_(std::move(tracks)), source_(std::move(source)) {
   validate();
-  auto extend = [this](double t) { duration_ = std::max(duration_, t); };
-  if (!definition_.eye_track.empty()) extend(definition_.eye_track.back().t);
-  for (const InstrumentTrack& track : definition_.instruments) {
-    if (!track.keyframes.empty()) extend(track.keyframes.back().t);
-  }
-  if (!definition_.pedal_track.empty()) extend(definition_.pedal_track.back().t);
-  if (!definition_.microscope_track.empty()) extend(definition_.microscope_track.back().t);
+  duration_ = session_.duration();
 }
 
-void SurgeonScript::setTremor(double amplitude, std::uint32_t seed) {
+void SurgeonScript::setTremorAmplitude(double amplitude) {
   if (!std::isfinite(amplitude) || amplitude < 0.0) {
     throw std::invalid_argument("tremor amplitude must be finite and >= 0");
   }
-  tremor_ = std::make_shared<const Tremor>(amplitude, seed, definition_.instruments.size());
+  for (scene::ScriptedInstrument& instrument : session_.instruments) instrument.tremor.amplitude = amplitude;
 }
 
 void SurgeonScript::validate() const {
-  const ScriptDefinition& d = definition_;
-  const std::string& src = d.source;
-
-  auto finite = [&](double value, int line, const std::string& field) {
-    if (!std::isfinite(value)) throw ScriptError(src, line, field, "must be finite (NaN/inf rejected)");
-  };
-  auto finiteVector = [&](const Eigen::Vector3d& v, int line, const std::string& field) {
-    if (!v.allFinite()) throw ScriptError(src, line, field, "must be finite (NaN/inf rejected)");
-  };
-  auto inRange = [&](double value, double lo, double hi, int line, const std::string& field) {
-    finite(value, line, field);
+  const scene::ScriptedSession& d = session_;
+  auto inRange = [&](double value, double lo, double hi, const vrm_sim::SourceLocation& at, const std::string& field) {
+    if (!std::isfinite(value)) fail(at, source_, field, "must be finite (NaN/inf rejected)");
     if (value < lo || value > hi) {
-      std::ostringstream msg;
-      msg << "value " << value << " outside [" << lo << ", " << hi << "]";
-      throw ScriptError(src, line, field, msg.str());
+      std::ostringstream message;
+      message << "value " << value << " outside [" << lo << ", " << hi << "]";
+      fail(at, source_, field, message.str());
     }
   };
   const double kInf = std::numeric_limits<double>::infinity();
   // Times: a track may start later than 0 (it holds its first value until then) but must increase strictly, or
   // interpolation would divide by zero and the author's intent is ambiguous.
-  auto checkTimes = [&](const auto& keys, const std::string& base) {
+  auto checkTimes = [&](const auto& keys) {
     for (std::size_t i = 0; i < keys.size(); ++i) {
-      const std::string field = indexed(base, i) + ".t";
-      inRange(keys[i].t, 0.0, kInf, keys[i].line, field);
+      inRange(keys[i].t, 0.0, kInf, keys[i].location, "t");
       if (i > 0 && !(keys[i].t > keys[i - 1].t)) {
-        std::ostringstream msg;
-        msg << "keyframe times must increase strictly (" << keys[i].t << " after " << keys[i - 1].t << ")";
-        throw ScriptError(src, keys[i].line, field, msg.str());
+        std::ostringstream message;
+        message << "waypoint times must increase strictly (" << keys[i].t << " after " << keys[i - 1].t << ")";
+        fail(keys[i].location, source_, "t", message.str());
       }
     }
   };
+  const vrm_sim::SourceLocation eye_location{source_, 0, 0, "eye"};
+  inRange(eye_.radius, 1e-4, 1.0, eye_location, "radius");
+  inRange(eye_.margin, 0.0, eye_.radius, eye_location, "margin");
+  if (!eye_.rotation_center.allFinite()) fail(eye_location, source_, "rotation_center", "must be finite");
 
-  inRange(d.eye.radius, 1e-4, 1.0, d.eye.line, "eye.radius");
-  inRange(d.eye.margin, 0.0, d.eye.radius, d.eye.line, "eye.margin");
-  finiteVector(d.eye.rotation_center, d.eye.line, "eye.rotation_center");
-
-  checkTimes(d.eye_track, "eye_track");
-  for (std::size_t i = 0; i < d.eye_track.size(); ++i) {
-    const auto& q = d.eye_track[i].rotation;
-    if (!q.coeffs().allFinite() || std::abs(q.norm() - 1.0) > 1e-6) {
-      throw ScriptError(src, d.eye_track[i].line, indexed("eye_track", i), "rotation must be a finite unit quaternion");
-    }
+  checkTimes(d.eye);
+  for (const scene::EyeWaypoint& waypoint : d.eye) {
+    if (!waypoint.rpy_deg.allFinite()) fail(waypoint.location, source_, "rpy_deg", "must be finite");
   }
 
-  std::set<std::string> slots;
-  for (const InstrumentTrack& track : d.instruments) {
-    const std::string base = "instruments." + track.slot;
-    if (track.slot.empty()) throw ScriptError(src, track.line, "instruments", "slot name must not be empty");
-    if (!slots.insert(track.slot).second) throw ScriptError(src, track.line, base, "duplicate slot");
-    if (track.trocar_from_scene) {
-      throw ScriptError(src, track.line, base + ".trocar",
-                        "not given: the slot's trocar comes from the scene; play the script with one "
-                        "(applySceneTrocars; the nodelets use their ~scene or the default scene)");
+  if (tracks_.size() != d.instruments.size()) {
+    throw std::invalid_argument("SurgeonScript: one ScriptTrack per scripted instrument expected (" +
+                                std::to_string(tracks_.size()) + " for " + std::to_string(d.instruments.size()) + ")");
+  }
+  for (std::size_t slot = 0; slot < d.instruments.size(); ++slot) {
+    const scene::ScriptedInstrument& instrument = d.instruments[slot];
+    for (std::size_t earlier = 0; earlier < slot; ++earlier) {
+      if (d.instruments[earlier].slot == instrument.slot) fail(instrument.location, source_, "slot", "scripted twice");
     }
-    finiteVector(track.trocar, track.line, base + ".trocar");
-    const double trocar_radius = track.trocar.norm();
-    if (trocar_radius < 0.5 * d.eye.radius || trocar_radius > d.eye.radius + d.eye.margin) {
-      std::ostringstream msg;
-      msg << "trocar at " << trocar_radius * 1e3 << " mm from the centre; it must lie on the eye sphere (radius "
-          << d.eye.radius * 1e3 << " mm, margin " << d.eye.margin * 1e3 << " mm)";
-      throw ScriptError(src, track.line, base + ".trocar", msg.str());
+    const Eigen::Vector3d& trocar = tracks_[slot].trocar;
+    const double trocar_radius = trocar.norm();
+    if (!trocar.allFinite() || trocar_radius < 0.5 * eye_.radius || trocar_radius > eye_.radius + eye_.margin) {
+      std::ostringstream message;
+      message << "the " << scene::toString(instrument.slot) << " trocar is " << trocar_radius * 1e3
+              << " mm from the centre; it must lie on the eye sphere (radius " << eye_.radius * 1e3 << " mm, margin "
+              << eye_.margin * 1e3 << " mm)";
+      fail(instrument.location, source_, "slot", message.str());
     }
-    if (track.keyframes.empty()) throw ScriptError(src, track.line, base + ".keyframes", "needs at least one keyframe");
-    checkTimes(track.keyframes, base + ".keyframes");
-    for (std::size_t i = 0; i < track.keyframes.size(); ++i) {
-      const InstrumentKeyframe& k = track.keyframes[i];
-      const std::string kb = indexed(base + ".keyframes", i);
-      finiteVector(k.tip, k.line, kb + ".tip");
-      // The ball is convex, so keyframes inside it keep every linearly interpolated tip inside as well.
-      if (k.tip.norm() > d.eye.radius + d.eye.margin) {
-        std::ostringstream msg;
-        msg << "tip is " << k.tip.norm() * 1e3 << " mm from the eye centre, outside the eye sphere (radius "
-            << d.eye.radius * 1e3 << " mm + margin " << d.eye.margin * 1e3 << " mm)";
-        throw ScriptError(src, k.line, kb + ".tip", msg.str());
+    if (instrument.path.empty()) fail(instrument.location, source_, "path", "needs at least one waypoint");
+    inRange(instrument.tremor.amplitude, 0.0, 1e-3, instrument.location, "tremor.amplitude");
+    inRange(instrument.tremor.frequency_hz, 1e-6, 100.0, instrument.location, "tremor.frequency_hz");
+    checkTimes(instrument.path);
+    for (const scene::InstrumentWaypoint& waypoint : instrument.path) {
+      if (!waypoint.on.empty()) {
+        fail(waypoint.location, source_, "on",
+             "'" + waypoint.on + "' is not resolved: play the script in a scene (playInScene)");
       }
-      if (k.target.active()) {
-        finite(k.target.height, k.line, kb + ".height");
-        finiteVector(k.target.written_tip, k.line, kb + ".tip");
+      if (!waypoint.tip_in_eye.allFinite()) fail(waypoint.location, source_, "tip", "must be finite");
+      // The ball is convex, so waypoints inside it keep every linearly interpolated tip inside as well.
+      if (waypoint.tip_in_eye.norm() > eye_.radius + eye_.margin) {
+        std::ostringstream message;
+        message << "tip is " << waypoint.tip_in_eye.norm() * 1e3
+                << " mm from the eye centre, outside the eye sphere (radius " << eye_.radius * 1e3 << " mm + margin "
+                << eye_.margin * 1e3 << " mm)";
+        fail(waypoint.location, source_, "tip", message.str());
       }
-      finite(k.roll, k.line, kb + ".roll");
-      inRange(k.jaw_angle, 0.0, kPi, k.line, kb + ".jaw_angle");
-      inRange(k.suction, 0.0, 1.0, k.line, kb + ".suction");
-      inRange(k.cut_rate, 0.0, kInf, k.line, kb + ".cut_rate");
-      inRange(k.injection_flow, 0.0, kInf, k.line, kb + ".injection_flow");
+      inRange(waypoint.roll_deg, -kInf, kInf, waypoint.location, "roll_deg");
+      inRange(waypoint.jaw_angle_deg, 0.0, 180.0, waypoint.location, "jaw_angle_deg");
+      inRange(waypoint.suction, 0.0, 1.0, waypoint.location, "suction");
+      inRange(waypoint.cut_rate_hz, 0.0, kInf, waypoint.location, "cut_rate_hz");
+      inRange(waypoint.injection_flow, 0.0, kInf, waypoint.location, "injection_flow");
     }
   }
 
-  checkTimes(d.pedal_track, "pedal_track");
-  for (std::size_t i = 0; i < d.pedal_track.size(); ++i) {
-    inRange(d.pedal_track[i].value.travel, 0.0, 1.0, d.pedal_track[i].line, indexed("pedal_track", i) + ".travel");
-  }
-  checkTimes(d.microscope_track, "microscope_track");
-  for (std::size_t i = 0; i < d.microscope_track.size(); ++i) {
-    const MicroscopeSample& m = d.microscope_track[i].value;
-    const int line = d.microscope_track[i].line;
-    const std::string kb = indexed("microscope_track", i);
-    inRange(m.focus_distance, 1e-3, kInf, line, kb + ".focus_distance");
-    inRange(m.zoom, 1e-3, kInf, line, kb + ".zoom");
-    inRange(m.ambient_light, 0.0, 1.0, line, kb + ".ambient_light");
-    inRange(m.disparity_scale, 0.0, 1.0, line, kb + ".disparity_scale");
+  checkTimes(d.pedals);
+  for (const scene::PedalWaypoint& waypoint : d.pedals) inRange(waypoint.travel, 0.0, 1.0, waypoint.location, "travel");
+  checkTimes(d.microscope);
+  for (const scene::MicroscopeWaypoint& waypoint : d.microscope) {
+    inRange(waypoint.focus_distance, 1e-3, kInf, waypoint.location, "focus_distance");
+    inRange(waypoint.zoom, 1e-3, kInf, waypoint.location, "zoom");
+    inRange(waypoint.ambient_light, 0.0, 1.0, waypoint.location, "ambient_light");
+    inRange(waypoint.disparity_scale, 0.0, 1.0, waypoint.location, "disparity_scale");
   }
 }
 
 SurgeonSnapshot SurgeonScript::sample(double t) const {
-  const ScriptDefinition& d = definition_;
+  const scene::ScriptedSession& d = session_;
   SurgeonSnapshot snap;
   if (!std::isfinite(t) || t < 0.0) t = 0.0;
   if (d.playback == Playback::kLoop) {
@@ -249,33 +171,31 @@ SurgeonSnapshot SurgeonScript::sample(double t) const {
     t = duration_;
   }
   snap.script_time = t;
-  snap.rotation_center = d.eye.rotation_center;
+  snap.rotation_center = eye_.rotation_center;
 
   double alpha = 0.0;
-  if (!d.eye_track.empty()) {
-    const std::size_t i = findSegment(d.eye_track, t, &alpha);
-    snap.eye_rotation = alpha > 0.0 ? d.eye_track[i].rotation.slerp(alpha, d.eye_track[i + 1].rotation).normalized()
-                                    : d.eye_track[i].rotation;
+  if (!d.eye.empty()) {
+    const std::size_t i = findSegment(d.eye, t, &alpha);
+    const Eigen::Quaterniond a = d.eye[i].rotation();
+    snap.eye_rotation = alpha > 0.0 ? a.slerp(alpha, d.eye[i + 1].rotation()).normalized() : a;
   }
 
   snap.instruments.reserve(d.instruments.size());
   for (std::size_t slot = 0; slot < d.instruments.size(); ++slot) {
-    const InstrumentTrack& track = d.instruments[slot];
-    const std::size_t i = findSegment(track.keyframes, t, &alpha);
-    const InstrumentKeyframe& a = track.keyframes[i];
-    const InstrumentKeyframe& b = alpha > 0.0 ? track.keyframes[i + 1] : a;
+    const scene::ScriptedInstrument& instrument = d.instruments[slot];
+    // The scene's path sampling (what the offline tools play): linear, the exchange steps at its waypoint.
+    const scene::InstrumentWaypoint w = scene::samplePath(instrument.path, t);
     InstrumentSample s;
-    s.slot = track.slot;
-    s.type = a.type;  // step: the instrument in hand changes at the keyframe, not halfway
-    s.trocar = track.trocar;
-    s.tip = lerp(a.tip, b.tip, alpha);
+    s.slot = scene::toString(instrument.slot);
+    s.type = w.type.value_or(tracks_[slot].type);
+    s.trocar = tracks_[slot].trocar;
     // Tremor at the wrapped time, so a looped script stays periodic, tremor included.
-    if (tremor_) s.tip += tremor_->offset(slot, t);
-    s.roll = lerp(a.roll, b.roll, alpha);
-    s.jaw_angle = lerp(a.jaw_angle, b.jaw_angle, alpha);
-    s.suction = lerp(a.suction, b.suction, alpha);
-    s.cut_rate = lerp(a.cut_rate, b.cut_rate, alpha);
-    s.injection_flow = lerp(a.injection_flow, b.injection_flow, alpha);
+    s.tip = w.tip_in_eye + instrument.tremor.offset(t);
+    s.roll = w.roll_deg * kDegToRad;
+    s.jaw_angle = w.jaw_angle_deg * kDegToRad;
+    s.suction = w.suction;
+    s.cut_rate = w.cut_rate_hz;
+    s.injection_flow = w.injection_flow;
     // Trocar constraint (§7: pose from the tip marker and the fixed insertion hole): the shaft is not scripted,
     // it follows from tip and trocar, so it passes through the trocar by construction.
     const Eigen::Vector3d shaft = s.tip - s.trocar;
@@ -286,16 +206,18 @@ SurgeonSnapshot SurgeonScript::sample(double t) const {
     snap.instruments.push_back(std::move(s));
   }
 
-  if (!d.pedal_track.empty()) {
-    const std::size_t i = findSegment(d.pedal_track, t, &alpha);
-    snap.pedals = d.pedal_track[i].value;  // booleans step
-    if (alpha > 0.0) snap.pedals.travel = lerp(snap.pedals.travel, d.pedal_track[i + 1].value.travel, alpha);
+  if (!d.pedals.empty()) {
+    const std::size_t i = findSegment(d.pedals, t, &alpha);
+    const scene::PedalWaypoint& a = d.pedals[i];  // the buttons step
+    snap.pedals =
+        PedalSample{a.travel, a.reflux, a.instrument_switch, a.zoom_in, a.zoom_out, a.focus_near, a.focus_far};
+    if (alpha > 0.0) snap.pedals.travel = lerp(a.travel, d.pedals[i + 1].travel, alpha);
   }
 
-  if (!d.microscope_track.empty()) {
-    const std::size_t i = findSegment(d.microscope_track, t, &alpha);
-    const MicroscopeSample& a = d.microscope_track[i].value;
-    const MicroscopeSample& b = alpha > 0.0 ? d.microscope_track[i + 1].value : a;
+  if (!d.microscope.empty()) {
+    const std::size_t i = findSegment(d.microscope, t, &alpha);
+    const scene::MicroscopeWaypoint& a = d.microscope[i];
+    const scene::MicroscopeWaypoint& b = alpha > 0.0 ? d.microscope[i + 1] : a;
     snap.microscope.focus_distance = lerp(a.focus_distance, b.focus_distance, alpha);
     snap.microscope.zoom = lerp(a.zoom, b.zoom, alpha);
     snap.microscope.ambient_light = lerp(a.ambient_light, b.ambient_light, alpha);

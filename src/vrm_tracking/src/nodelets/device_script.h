@@ -25,33 +25,27 @@ inline SurgeonScript scenarioDeviceScript(const vrm_sim::scene::SceneDescription
     const vrm_sim::scene::ScenarioParam* param = scene.scenario->param("tool");
     if (param != nullptr && param->names.size() == 1) tool = param->names.front();
   }
-  return withScenarioDeviceTracks(scenarioScript(scene, name), tool);
+  return withScenarioDeviceTracks(playInScene(scene, vrm_sim::scene::findScript(scene, name)), tool);
 }
 
-// ~script (loadScriptFromParams). Only its instrument tracks (not played here) can need a scene: a file that leaves
-// its trocars to the scene gets ~scene's, or the default scene's, so it validates as the scripted surgeon's copy
-// does. `scenario:NAME` (issue 33): the scene's scripted session with the device tracks derived from it
-// (withScenarioDeviceTracks: focus on the working plane, fixed zoom, pedal travel = the working instrument's suction,
-// no buttons) instead of the built-in demo's sweeps; it needs ~scene. Throws ScriptError / SceneError /
-// std::invalid_argument.
+// ~script (loadSession: empty = the shipped demo, a shipped script's name or a file) played in ~scene, or the default
+// scene, as the scripted surgeon plays it; ~loop overrides its playback. `scenario:NAME` (issue 33): the scene's
+// scripted session with the device tracks derived from it (withScenarioDeviceTracks: focus on the working plane,
+// fixed zoom, pedal travel = the working instrument's suction, no buttons) instead of the demo's sweeps; it needs
+// ~scene. Throws ScriptError / SceneError / std::invalid_argument.
 inline SurgeonScript loadDeviceScript(const ros::NodeHandle& private_nh) {
-  std::string spec;
+  std::string spec, scene_spec;
   private_nh.param<std::string>("script", spec, "");
-  if (spec.rfind("scenario:", 0) == 0) {
-    std::string scene_spec;
-    private_nh.param<std::string>("scene", scene_spec, "");
+  private_nh.param<std::string>("scene", scene_spec, "");
+  vrm_sim::usePackageData();  // a scene or script name means vrm_sim's shipped one
+  if (isScenarioSpec(spec)) {
     if (scene_spec.empty()) throw std::invalid_argument("script '" + spec + "' needs the ~scene parameter");
-    vrm_sim::usePackageData();
     return scenarioDeviceScript(vrm_sim::scene::loadScene(scene_spec), spec.substr(9));
   }
-  ScriptDefinition definition = loadScriptFromParams(private_nh);
-  if (leavesTrocarsToScene(definition)) {
-    std::string scene_spec;
-    private_nh.param<std::string>("scene", scene_spec, "");
-    vrm_sim::usePackageData();  // a scene name means vrm_sim's shipped scene
-    applySceneTrocars(vrm_sim::scene::loadScene(sceneOrDefault(scene_spec)), &definition);
-  }
-  return SurgeonScript(std::move(definition));
+  const vrm_sim::scene::SceneDescription scene = vrm_sim::scene::loadScene(sceneOrDefault(scene_spec));
+  SurgeonScript script = playInScene(scene, loadSession(spec, scene));
+  applyLoopParam(private_nh, &script);
+  return script;
 }
 
 // A twin playing `scenario:NAME` follows the scene the scene owner announces on running_scene (issue 32), as the
@@ -60,7 +54,7 @@ class ScenarioSceneFollower {
  public:
   // spec: the ~script parameter; scene_spec: ~scene. Inactive (follows nothing) unless spec is `scenario:NAME`.
   ScenarioSceneFollower(const std::string& spec, const std::string& scene_spec) {
-    if (spec.rfind("scenario:", 0) != 0 || scene_spec.empty()) return;
+    if (!isScenarioSpec(spec) || scene_spec.empty()) return;
     name_ = spec.substr(9);
     vrm_sim::usePackageData();
     current_ = sceneIdentity(vrm_sim::scene::loadScene(scene_spec));

@@ -1,6 +1,8 @@
 // Scripted surgeon: the mediator twin of the tracked eye and instruments (thesis §2.4.1). It plays a SurgeonScript
 // and publishes what the optical tracking would report, at the tracking rate, as ground truth. Parameters (private):
-// script, scene, loop, tremor_um, seed, eye_frame, world_frame, rate (Hz, default 50: instruments, and the eye unless
+// script (loadSession: empty = the shipped demo, a shipped script's name, a file, or scenario:NAME), scene, loop (set:
+// overrides the script's playback), tremor_um (set: every instrument's tremor amplitude instead of the script's,
+// whose frequency stays), eye_frame, world_frame, rate (Hz, default 50: instruments, and the eye unless
 // eye_rate differs), eye_rate (Hz, default rate: the eye state on ticks of its own, stamped with them — devices at
 // different rates, as the mediator must handle, issue 31), start_with_session (default true: a ScenarioCommand START
 // on scenario_command restarts the script at the START's stamp, as a trainee begins when the session does; until
@@ -44,24 +46,25 @@ class ScriptedSurgeon : public nodelet::Nodelet {
     ros::NodeHandle& nh = getNodeHandle();
     ros::NodeHandle& pnh = getPrivateNodeHandle();
 
-    // The scene whose trocars the instruments pivot at and whose objects the keyframes written `on` an object are
-    // placed on; without ~scene the default scene (whose trocars the shipped trajectory files leave out).
+    // The scene whose trocars the instruments pivot at and whose objects the waypoints written `on` an object are
+    // placed on; without ~scene the default scene.
     std::string scene_param;
     pnh.param<std::string>("scene", scene_param, "");
     vrm_sim::usePackageData();  // a scene name means vrm_sim's shipped scene
     pnh.param<std::string>("script", script_spec_, "");
-    pnh.param("tremor_um", tremor_um_, tremor_um_);
-    pnh.param("seed", seed_, seed_);
+    has_tremor_override_ = pnh.getParam("tremor_um", tremor_um_);
+    if (has_tremor_override_ && !(tremor_um_ >= 0.0 && tremor_um_ <= 1000.0)) {
+      NODELET_FATAL("tremor_um must be in [0, 1000] um (got %g)", tremor_um_);
+      throw std::invalid_argument("scripted_surgeon: tremor_um must be in [0, 1000]");
+    }
     try {
-      if (isScenarioScript()) {
-        if (scene_param.empty())
-          throw std::invalid_argument("script '" + script_spec_ + "' needs the ~scene parameter");
-        // A session plays it once; a benchmark that needs minutes of the same work loops it (~loop).
-        pnh.param("loop", loop_, loop_);
-      } else {
-        file_script_ = loadScriptFromParams(pnh);
+      if (isScenarioSpec(script_spec_) && scene_param.empty()) {
+        throw std::invalid_argument("script '" + script_spec_ + "' needs the ~scene parameter");
       }
       const vrm_sim::scene::SceneDescription scene = vrm_sim::scene::loadScene(sceneOrDefault(scene_param));
+      // A file (or the demo) is read once and applied to every scene the owner announces; a scene's session is
+      // looked up in each scene.
+      if (!isScenarioSpec(script_spec_)) written_ = loadSession(script_spec_, scene);
       script_ = scriptFor(scene, scene_param.empty() ? ", the default: no ~scene given" : "");
       scene_ = sceneIdentity(scene);
     } catch (const std::exception& e) {
@@ -89,7 +92,7 @@ class ScriptedSurgeon : public nodelet::Nodelet {
     // One message per instrument per tick; room for a few ticks of every slot.
     instrument_pub_ = nh.advertise<vrm_msgs::InstrumentState>(
         "instrument_state",
-        static_cast<uint32_t>(10 * std::max<std::size_t>(1, script_->definition().instruments.size())));
+        static_cast<uint32_t>(10 * std::max<std::size_t>(1, script_->session().instruments.size())));
     if (pnh.param("start_with_session", true)) {
       command_sub_ = nh.subscribe("scenario_command", 10, &ScriptedSurgeon::onCommand, this);
     }
@@ -98,45 +101,35 @@ class ScriptedSurgeon : public nodelet::Nodelet {
     timer_ = nh.createTimer(ros::Duration(1.0 / rate), &ScriptedSurgeon::onTick, this);
     if (separate_eye_) eye_timer_ = nh.createTimer(ros::Duration(1.0 / eye_rate), &ScriptedSurgeon::onEyeTick, this);
 
-    NODELET_INFO(
-        "playing script '%s' (%s, %zu instruments, %.1f s, %s) at %.1f Hz (eye %.1f Hz), tremor %.1f um "
-        "(seed %d)",
-        script_->name().c_str(), script_->definition().source.c_str(), script_->definition().instruments.size(),
-        script_->duration(), script_->playback() == Playback::kLoop ? "loop" : "once", rate, eye_rate, tremor_um_,
-        seed_);
+    NODELET_INFO("playing script '%s' (%s, %zu instruments, %.1f s, %s) at %.1f Hz (eye %.1f Hz)",
+                 script_->name().c_str(), script_->source().c_str(), script_->session().instruments.size(),
+                 script_->duration(), script_->playback() == Playback::kLoop ? "loop" : "once", rate, eye_rate);
   }
 
-  // "scenario:NAME": the scene's own scripted session (what scenario_offline plays), once.
-  bool isScenarioScript() const { return script_spec_.rfind("scenario:", 0) == 0; }
-
-  // The script to play in `scene`: the scene's session of that name, or the file script with the scene's trocars and
-  // its keyframes placed on the scene's objects (always from the script as written, never from an earlier scene's
-  // result). Throws ScriptError, SceneError, std::invalid_argument; logs only once it has the script.
+  // The script to play in `scene`: the scene's session of that name (scenario:NAME, what scenario_offline plays), or
+  // the file's with the scene's trocars and its waypoints placed on the scene's objects (always from the script as
+  // written, never from an earlier scene's result). Throws ScriptError, SceneError, std::invalid_argument; logs only
+  // once it has the script.
   std::unique_ptr<SurgeonScript> scriptFor(const vrm_sim::scene::SceneDescription& scene, const std::string& why) {
-    std::unique_ptr<SurgeonScript> script;
-    if (isScenarioScript()) {
-      script = std::make_unique<SurgeonScript>(applyScene(scene, scenarioScript(scene, script_spec_.substr(9))));
-      if (loop_) script->setPlayback(Playback::kLoop);
-      NODELET_INFO("script '%s' of scene '%s' (%s%s)", script->name().c_str(), scene.name.c_str(),
-                   scene.source_file.c_str(), why.c_str());
-    } else {
-      ScriptDefinition definition = file_script_;
-      SceneTargetReport targets;
-      applyScene(scene, &definition, &targets);
-      script = std::make_unique<SurgeonScript>(std::move(definition));
-      if (!targets.missing_objects.empty()) {
-        NODELET_WARN("scene '%s' has no object %s: %zu keyframes of script '%s' keep their written tips",
-                     scene.name.c_str(), joinNames(targets.missing_objects).c_str(), targets.kept_keyframes,
-                     script->name().c_str());
-      }
-      NODELET_INFO("trocars from scene '%s' (%s%s); %zu keyframes placed on its objects", scene.name.c_str(),
-                   scene.source_file.c_str(), why.c_str(), targets.resolved_keyframes);
+    const vrm_sim::scene::ScriptedSession session =
+        isScenarioSpec(script_spec_) ? vrm_sim::scene::findScript(scene, script_spec_.substr(9)) : written_;
+    vrm_sim::scene::SurfaceTargetReport targets;
+    auto script = std::make_unique<SurgeonScript>(playInScene(scene, session, &targets));
+    applyLoopParam(getPrivateNodeHandle(), script.get());
+    if (has_tremor_override_) script->setTremorAmplitude(tremor_um_ * 1e-6);
+    if (!targets.missing_objects.empty()) {
+      NODELET_WARN("scene '%s' has no object %s: %zu waypoints of script '%s' keep their written tips",
+                   scene.name.c_str(), joinNames(targets.missing_objects).c_str(), targets.kept_waypoints,
+                   script->name().c_str());
     }
-    // The seed is a parameter, so a recorded session replays the same tremor (§2.4.2).
-    script->setTremor(tremor_um_ * 1e-6, static_cast<std::uint32_t>(seed_));
-    for (const InstrumentTrack& track : script->definition().instruments) {
-      NODELET_INFO("trocar %s at [%.6f, %.6f, %.6f] m (eye frame)", track.slot.c_str(), track.trocar.x(),
-                   track.trocar.y(), track.trocar.z());
+    NODELET_INFO("script '%s' in scene '%s' (%s%s): %zu waypoints placed on its objects", script->name().c_str(),
+                 scene.name.c_str(), scene.source_file.c_str(), why.c_str(), targets.resolved_waypoints);
+    for (std::size_t i = 0; i < script->tracks().size(); ++i) {
+      const vrm_sim::scene::ScriptedInstrument& instrument = script->session().instruments[i];
+      const Eigen::Vector3d& trocar = script->tracks()[i].trocar;
+      NODELET_INFO("trocar %s at [%.6f, %.6f, %.6f] m (eye frame), tremor %.1f um at %.1f Hz",
+                   vrm_sim::scene::toString(instrument.slot), trocar.x(), trocar.y(), trocar.z(),
+                   instrument.tremor.amplitude * 1e6, instrument.tremor.frequency_hz);
     }
     return script;
   }
@@ -240,10 +233,9 @@ class ScriptedSurgeon : public nodelet::Nodelet {
   }
 
   std::string script_spec_;
-  ScriptDefinition file_script_;  // as written (not a scenario script): every scene is applied to this
-  bool loop_ = false;             // scenario scripts only (a file script's ~loop is in file_script_)
+  vrm_sim::scene::ScriptedSession written_;  // a file's (not scenario:NAME): every scene is applied to this
+  bool has_tremor_override_ = false;
   double tremor_um_ = 0.0;
-  int seed_ = 0;
   std::unique_ptr<SurgeonScript> script_;  // guarded by mutex_ once the timers run
   SceneIdentity scene_;                    // guarded by mutex_
   std::string eye_frame_;

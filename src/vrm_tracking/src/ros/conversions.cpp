@@ -249,14 +249,9 @@ sensor_msgs::ImagePtr makeBgr8Image(const std_msgs::Header& header, int width, i
   return image;
 }
 
-ScriptDefinition loadScriptFromParams(const ros::NodeHandle& private_nh) {
-  std::string spec;
-  private_nh.param<std::string>("script", spec, "");
-  ScriptDefinition script = SurgeonScript::loadDefinition(spec);
-  bool loop = script.playback == Playback::kLoop;
-  private_nh.param("loop", loop, loop);
-  script.playback = loop ? Playback::kLoop : Playback::kOnce;
-  return script;
+void applyLoopParam(const ros::NodeHandle& private_nh, SurgeonScript* script) {
+  bool loop = false;
+  if (private_nh.getParam("loop", loop)) script->setPlayback(loop ? Playback::kLoop : Playback::kOnce);
 }
 
 }  // namespace vrm_tracking

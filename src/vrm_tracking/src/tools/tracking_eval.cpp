@@ -3,8 +3,9 @@
 //   tracking_eval --trajectory FILE [--noise-px X] [--occlude CAM] [--seed N] [--frames N] [--tremor-um A]
 //                 [--rig FILE] [--layout FILE] [--distractors N] [--filter none|one_euro|alpha_beta]
 //                 [--scene NAME|PATH]
-// --scene: where a trajectory or layout file leaves its trocars to the scene (the shipped ones do), this scene's are
-// used (default: the nodelets' default scene, membrane_peeling); trocars written in a file are kept.
+// --trajectory: a script in the scene's format (vrm_sim loadScript: a file or a shipped script's name). --scene: the
+// scene it plays in (trocars, eye, objects its waypoints are written on) and whose trocars a layout file that leaves
+// them to the scene gets (default: the nodelets' default scene, membrane_peeling).
 // --noise-px X > 0 evaluates the FPGA path (exact centroids + X px noise) instead of rendered images.
 // Exit codes: 0 ok, 2 usage or malformed input (the message names the file, line and field).
 
@@ -27,7 +28,7 @@ using namespace vrm_tracking;
 int main(int argc, char** argv) {
   namespace po = vrm_sim::cli::po;
   std::string trajectory, rig_file, layout_file, filter = "none", scene_spec = vrm_sim::scene::kDefaultSceneName;
-  double noise_px = 0.0, tremor_um = 0.0;
+  double noise_px = 0.0, tremor_um = -1.0;  // -1: the script's own tremor
   int occlude = -1, frames = 0, distractors = 0;
   std::uint32_t seed = 1;
   vrm_sim::cli::CommandLine cli(
@@ -36,40 +37,39 @@ int main(int argc, char** argv) {
       "[--layout FILE] [--distractors N] [--filter none|one_euro|alpha_beta] [--scene NAME|PATH]",
       "Renders the rig from a surgeon trajectory, runs detection and reconstruction, prints one JSON object.",
       "Exit status: 0 ok, 2 usage or malformed input (the message names the file, line and field).");
-  cli.add()("trajectory", po::value(&trajectory)->required()->value_name("FILE"), "the surgeon trajectory file")(
+  cli.add()("trajectory", po::value(&trajectory)->required()->value_name("FILE|NAME"),
+            "the script: a file, or a shipped script's name (vrm_sim config/scripts)")(
       "noise-px", vrm_sim::cli::real(&noise_px)->value_name("X"),
       "> 0: the FPGA path (exact centroids + X px noise) instead of rendered images")(
       "occlude", vrm_sim::cli::integer(&occlude)->value_name("CAM"), "hide this camera of the rig (default -1: none)")(
-      "seed", vrm_sim::cli::uint32(&seed)->value_name("N"), "noise and tremor seed (default 1)")(
+      "seed", vrm_sim::cli::uint32(&seed)->value_name("N"), "centroid noise seed (default 1)")(
       "frames", vrm_sim::cli::integer(&frames)->value_name("N"), "samples at 50 Hz (default 0: the whole script)")(
-      "tremor-um", vrm_sim::cli::real(&tremor_um)->value_name("A"), "tremor amplitude (um, default 0)")(
+      "tremor-um", vrm_sim::cli::real(&tremor_um)->value_name("A"),
+      "every instrument's tremor amplitude, um (default: the script's own)")(
       "rig", po::value(&rig_file)->value_name("FILE"), "camera rig (default: the built-in rig)")(
       "layout", po::value(&layout_file)->value_name("FILE"), "marker layout (default: the built-in layout)")(
       "distractors", vrm_sim::cli::integer(&distractors)->value_name("N"), "distracting blobs per image (default 0)")(
       "filter", vrm_sim::cli::choice(&filter, {"none", "one_euro", "alpha_beta"})->value_name("NAME"),
       "tracker filter: none, one_euro or alpha_beta (default none)")(
       "scene", po::value(&scene_spec)->value_name("NAME|PATH"),
-      "the scene whose trocars fill in those a file leaves to the scene (default membrane_peeling)");
+      "the scene the script plays in: its trocars, eye and objects (default membrane_peeling)");
   if (const auto status = cli.parse(argc, argv)) return *status;
   if (!(noise_px >= 0.0)) return cli.fail("--noise-px expects a non-negative number");
   if (frames < 0) return cli.fail("--frames expects a non-negative number");
-  if (!(tremor_um >= 0.0)) return cli.fail("--tremor-um expects a non-negative number");
+  if (tremor_um != -1.0 && !(tremor_um >= 0.0)) return cli.fail("--tremor-um expects a non-negative number");
   if (distractors < 0) return cli.fail("--distractors expects a non-negative number");
 
   try {
-    ScriptDefinition definition = SurgeonScript::definitionFromFile(trajectory);
+    vrm_sim::usePackageData();  // a scene or script name means vrm_sim's shipped one (found like rosrun finds packages)
+    const vrm_sim::scene::SceneDescription scene = vrm_sim::scene::loadScene(scene_spec);
+    SurgeonScript script = playInScene(scene, vrm_sim::scene::loadScript(trajectory));
     MarkerLayout layout = layout_file.empty() ? makeDefaultLayout() : loadLayoutYaml(layout_file);
-    const bool layout_needs_scene = std::any_of(layout.instruments.begin(), layout.instruments.end(),
-                                                [](const InstrumentMarker& m) { return m.trocar_from_scene; });
-    if (leavesTrocarsToScene(definition) || layout_needs_scene) {
-      vrm_sim::usePackageData();  // a scene name means vrm_sim's shipped scene (found like rosrun finds packages)
-      const vrm_sim::scene::SceneDescription scene = vrm_sim::scene::loadScene(scene_spec);
-      if (leavesTrocarsToScene(definition)) applySceneTrocars(scene, &definition);
-      if (layout_needs_scene) applySceneTrocars(scene, &layout);
+    if (std::any_of(layout.instruments.begin(), layout.instruments.end(),
+                    [](const InstrumentMarker& m) { return m.trocar_from_scene; })) {
+      applySceneTrocars(scene, &layout);
     }
-    SurgeonScript script(std::move(definition));
     script.setPlayback(Playback::kOnce);
-    script.setTremor(tremor_um * 1e-6, seed);
+    if (tremor_um >= 0.0) script.setTremorAmplitude(tremor_um * 1e-6);
     const CameraRig rig = rig_file.empty() ? makeDefaultRig() : loadRigYaml(rig_file);
     if (occlude >= static_cast<int>(rig.size())) return cli.fail("--occlude names no camera of the rig");
     // 50 Hz over the script (§7: tracking at <= 50 Hz), or --frames samples.
@@ -101,10 +101,7 @@ int main(int argc, char** argv) {
         rig.cameras[0].height, occlude >= 0 ? 1 : 0, static_cast<int>(seed), r.tip_rms_um, r.tip_max_um,
         r.tip_eye_rms_um, r.eye_err_deg, r.eye_err_max_deg, r.detect_rate, r.track_rate, r.ms_detect, r.ms_reconstruct,
         r.full_frame_rate, r.ms_render, filter.c_str());
-  } catch (const ScriptError& e) {
-    std::fprintf(stderr, "tracking_eval: malformed trajectory: %s\n", e.what());
-    return 2;
-  } catch (const std::exception& e) {
+  } catch (const std::exception& e) {  // a script's or scene's YamlError names the file, line and field
     std::fprintf(stderr, "tracking_eval: %s\n", e.what());
     return 2;
   }

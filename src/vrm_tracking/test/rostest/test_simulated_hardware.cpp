@@ -115,22 +115,24 @@ TEST(SimulatedHardware, EyeStateAtTrackingRate) {
 
 TEST(SimulatedHardware, InstrumentStatePerSlotWithTrocarConstraint) {
   // The instruments pivot at the scene's trocars (the scene is the truth; without ~scene the default scene's).
-  ScriptDefinition file_script = SurgeonScript::loadDefinition(g_script_path);
-  applySceneTrocars(vrm_sim::scene::loadScene(sceneOrDefault(g_scene)), &file_script);
-  const SurgeonScript script(file_script);
-  const ScriptDefinition& def = script.definition();
-  ASSERT_EQ(def.instruments.size(), 2u);
+  const vrm_sim::scene::SceneDescription scene = vrm_sim::scene::loadScene(sceneOrDefault(g_scene));
+  const SurgeonScript script = playInScene(scene, loadSession(g_script_path, scene));
+  std::map<std::string, Eigen::Vector3d> trocars;  // slot -> the scene's trocar
+  for (std::size_t i = 0; i < script.tracks().size(); ++i) {
+    trocars[vrm_sim::scene::toString(script.session().instruments[i].slot)] = script.tracks()[i].trocar;
+  }
+  ASSERT_EQ(trocars.size(), 2u);
   if (!g_scene.empty()) {
     const vrm_sim::scene::SceneDescription fallback = vrm_sim::scene::loadScene(sceneOrDefault(""));
-    for (const InstrumentTrack& track : def.instruments) {  // the test scene really moves them
-      EXPECT_GT((track.trocar - sceneTrocarForSlot(fallback, track.slot)).norm(), 1e-4);
+    for (const auto& [slot, trocar] : trocars) {  // the test scene really moves them
+      EXPECT_GT((trocar - sceneTrocarForSlot(fallback, slot)).norm(), 1e-4);
     }
   }
   auto& l = *g_listener;
   ASSERT_TRUE(l.waitFor(
       [&] {
-        for (const auto& track : def.instruments) {
-          const auto it = l.instruments.find(track.slot);
+        for (const auto& [slot, trocar] : trocars) {
+          const auto it = l.instruments.find(slot);
           if (it == l.instruments.end() || it->second.messages.size() < kSkip + 100) return false;
         }
         return true;
@@ -139,10 +141,10 @@ TEST(SimulatedHardware, InstrumentStatePerSlotWithTrocarConstraint) {
       << "instrument_state not received for every slot";
 
   std::lock_guard<std::mutex> lock(l.mutex_);
-  EXPECT_EQ(l.instruments.size(), def.instruments.size()) << "unexpected instrument_id";
-  for (const auto& track : def.instruments) {
-    const auto& stream = l.instruments.at(track.slot);
-    expectRate(("instrument_state/" + track.slot).c_str(), stream, 50.0);
+  EXPECT_EQ(l.instruments.size(), trocars.size()) << "unexpected instrument_id";
+  for (const auto& [slot, trocar] : trocars) {
+    const auto& stream = l.instruments.at(slot);
+    expectRate(("instrument_state/" + slot).c_str(), stream, 50.0);
     for (const auto& msg : stream.messages) {
       EXPECT_EQ(msg->header.frame_id, "eye");
       ASSERT_TRUE(finite(msg->tip_pose.position) && finite(msg->tip_pose.orientation) && finite(msg->shaft_axis));
@@ -151,10 +153,10 @@ TEST(SimulatedHardware, InstrumentStatePerSlotWithTrocarConstraint) {
       const InstrumentSample s = fromMsg(*msg);
       EXPECT_NEAR(s.shaft_axis.norm(), 1.0, 1e-9);
       // Trocar constraint: the shaft line, followed back from the tip by the insertion depth, hits the trocar.
-      EXPECT_LT((s.trocar - track.trocar).norm(), 1e-9) << track.slot << " shaft misses its trocar";
+      EXPECT_LT((s.trocar - trocar).norm(), 1e-9) << slot << " shaft misses its trocar";
       // The tip frame's z axis is the shaft.
       EXPECT_LT((s.orientation.normalized() * Eigen::Vector3d::UnitZ() - s.shaft_axis).norm(), 1e-9);
-      EXPECT_LE(s.tip.norm(), def.eye.radius + def.eye.margin + 1e-4);
+      EXPECT_LE(s.tip.norm(), script.eye().radius + script.eye().margin + 1e-4);
       EXPECT_TRUE(msg->valid);
     }
   }

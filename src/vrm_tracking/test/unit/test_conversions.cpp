@@ -2,7 +2,9 @@
 
 #include <gtest/gtest.h>
 
+#include "vrm_sim/scene/scene_loader.h"
 #include "vrm_tracking/conversions.h"
+#include "vrm_tracking/scene_trocars.h"
 
 namespace vrm_tracking {
 namespace {
@@ -28,8 +30,9 @@ TEST(Conversions, InstrumentTypeThroughTheMessageAndUnknownConstantsThrow) {
 }
 
 TEST(Conversions, InstrumentRoundTripRecoversTrocar) {
-  SurgeonScript script = SurgeonScript::builtin("demo");
-  script.setTremor(30e-6, 5);
+  const vrm_sim::scene::SceneDescription peeling = vrm_sim::scene::loadScene(vrm_sim::scene::kDefaultSceneName);
+  SurgeonScript script = playInScene(peeling, loadSession("", peeling));
+  script.setTremorAmplitude(30e-6);
   const SurgeonSnapshot snap = script.sample(13.3);
   for (const InstrumentSample& in : snap.instruments) {
     vrm_msgs::InstrumentState msg;

@@ -5,7 +5,9 @@
 #include <cmath>
 #include <random>
 
+#include "vrm_sim/scene/scene_loader.h"
 #include "vrm_tracking/motion_metrics.h"
+#include "vrm_tracking/scene_trocars.h"
 #include "vrm_tracking/surgeon_script.h"
 
 namespace vrm_tracking {
@@ -47,12 +49,13 @@ TEST(MotionMetrics, RecoversInjectedTremorAmplitude) {
 }
 
 TEST(MotionMetrics, MeasuresTheScriptedSurgeonsTremor) {
-  // The scripted surgeon's tremor (§1.3: 8-10 Hz, bounded per axis by the amplitude) is all in the band.
-  SurgeonScript script = SurgeonScript::builtin("demo");
+  // The scripted surgeon's tremor (§1.3: 8-12 Hz, bounded per axis by the amplitude) is all in the band.
+  const vrm_sim::scene::SceneDescription peeling = vrm_sim::scene::loadScene(vrm_sim::scene::kDefaultSceneName);
+  SurgeonScript script = playInScene(peeling, loadSession("", peeling));
   std::vector<double> t = times(8.0, 50.0);
   std::vector<Eigen::Vector3d> with, without;
   for (double ti : t) without.push_back(script.sample(ti).instruments[0].tip);
-  script.setTremor(40e-6, 9);
+  script.setTremorAmplitude(40e-6);
   for (double ti : t) with.push_back(script.sample(ti).instruments[0].tip);
   const double base = motionMetrics(t, without).tremor_rms, tremor = motionMetrics(t, with).tremor_rms;
   EXPECT_LT(base, 2e-6);

@@ -5,6 +5,7 @@
 
 #include <cmath>
 
+#include "script_fixtures.h"
 #include "vrm_tracking/scenario_devices.h"
 
 namespace vrm_tracking {
@@ -16,26 +17,24 @@ namespace {
 // to 3 mm below the centre (t = 4 s). Objective at z 0.188.
 const char* kSession = R"(name: session
 playback: once
-eye:
-  radius: 0.012
-  rotation_center: [0.0, 0.0, 0.001]
 instruments:
-  left:
-    trocar: [-0.0073485, 0.0042426, 0.0084853]
-    keyframes:
-      - {t: 0.0, type: light_pipe, tip: [-0.002, 0.001, -0.006]}
+  - slot: left
+    path:
+      - {t: 0.0, tip: [-0.002, 0.001, -0.006]}
       - {t: 4.0, tip: [-0.002, 0.001, -0.006]}
-  right:
-    trocar: [0.0073485, 0.0042426, 0.0084853]
-    keyframes:
-      - {t: 0.0, type: vitrector, tip: [0.001, 0.0, -0.006], suction: 0.0}
+  - slot: right
+    type: vitrector
+    path:
+      - {t: 0.0, tip: [0.001, 0.0, -0.006], suction: 0.0}
       - {t: 1.0, tip: [0.001, 0.0, -0.0114583], suction: 0.6}
       - {t: 3.0, tip: [0.001, 0.0, -0.0114583], suction: 0.6}
       - {t: 3.2, tip: [0.005, 0.0, -0.0108], suction: 0.6}
       - {t: 4.0, tip: [0.005, 0.0, -0.003], suction: 0.0}
 )";
 
-SurgeonScript session() { return SurgeonScript::fromYamlString(kSession, "session.yaml"); }
+SurgeonScript session() {
+  return testing::playYaml(kSession, testing::testScene(Eigen::Vector3d(0.0, 0.0, 0.001)), "session.yaml");
+}
 
 // Retina z below x = 1 mm (world): centre z - sqrt(R^2 - x^2).
 const double kRetinaZ = 0.001 - std::sqrt(0.012 * 0.012 - 0.001 * 0.001);
@@ -74,7 +73,7 @@ TEST(ScenarioFocus, DeviceTracksAreSmoothedFixedZoomAndButtonless) {
   following.refocus_tolerance = 0.0;
   const SurgeonScript s = withScenarioDeviceTracks(session(), "right", following);
   EXPECT_EQ(s.playback(), Playback::kOnce);
-  ASSERT_EQ(s.definition().instruments.size(), 2u);  // the instruments play as before
+  ASSERT_EQ(s.session().instruments.size(), 2u);  // the instruments play as before
   const double working = 0.188 - (kRetinaZ + 0.0002);
   // Entering, the tip is at x = 1 mm from t = 0: the fundus under it does not move, nor does the focus. A focus that
   // followed the tip would lag it: here the plane the averaging holds still.

@@ -1,5 +1,5 @@
 // The scene file as the single source of the trocars and of where tissue is: scripts and marker layouts take the
-// scene's trocars per slot, and keyframes written `on` a scene object are put on that object's surface.
+// scene's trocars per slot, and waypoints written `on` a scene object are put on that object's surface.
 
 #include <gtest/gtest.h>
 
@@ -43,14 +43,14 @@ TEST(SceneTrocars, MovedTrocarsOverrideTheScript) {
   const scene::SceneDescription moved = scene::loadSceneFromString(kMovedTrocars, "moved_trocars.yaml");
   const Eigen::Vector3d left = moved.findTrocar("left")->position_in_eye;
   const Eigen::Vector3d right = moved.findTrocar("right")->position_in_eye;
-  const SurgeonScript original = SurgeonScript::builtin("demo");
-  ASSERT_EQ(original.definition().instruments.size(), 2u);
-  ASSERT_GT((original.definition().instruments[0].trocar - left).norm(), 1e-3);  // really moved
-
-  const SurgeonScript script = applySceneTrocars(moved, original);
-  for (const InstrumentTrack& track : script.definition().instruments) {
-    expectNear(track.trocar, track.slot == "left" ? left : right, 1e-12);
+  const scene::ScriptedSession demo = loadSession("", moved);
+  const SurgeonScript script = playInScene(moved, demo);
+  ASSERT_EQ(script.tracks().size(), 2u);
+  for (std::size_t i = 0; i < script.tracks().size(); ++i) {
+    expectNear(script.tracks()[i].trocar, demo.instruments[i].slot == scene::InstrumentSlot::kLeft ? left : right,
+               1e-12);
   }
+  ASSERT_GT((script.tracks()[0].trocar - scene::defaultTrocars(0.012)[0].position_in_eye).norm(), 1e-3);  // moved
   // The played instruments pivot at the scene's trocars: the shaft runs from the trocar to the tip.
   const SurgeonSnapshot snapshot = script.sample(3.0);
   ASSERT_EQ(snapshot.instruments.size(), 2u);
@@ -58,7 +58,7 @@ TEST(SceneTrocars, MovedTrocarsOverrideTheScript) {
     const Eigen::Vector3d trocar = instrument.slot == "left" ? left : right;
     expectNear(instrument.tip - instrument.insertion_depth * instrument.shaft_axis, trocar, 1e-9);
   }
-  EXPECT_EQ(script.playback(), original.playback());
+  EXPECT_EQ(script.playback(), demo.playback);
 }
 
 TEST(SceneTrocars, MovedTrocarsOverrideTheLayout) {
@@ -112,10 +112,10 @@ simulations: [collision]
   for (std::size_t i = 0; i < layout.instruments.size(); ++i) {
     EXPECT_EQ(layout.instruments[i].trocar, before.instruments[i].trocar);  // left not half-applied
   }
-  EXPECT_THROW(applySceneTrocars(one, SurgeonScript::builtin("demo")), std::runtime_error);
+  EXPECT_THROW(playInScene(one, loadSession("", one)), std::runtime_error);
 }
 
-// The shipped layout and trajectories name no trocars: they take the scene's, by default the default scene's (what
+// The shipped layout and scripts name no trocars: they take the scene's, by default the default scene's (what
 // the nodelets run without ~scene), so there are no copies to keep in sync.
 TEST(SceneTrocars, ShippedFilesTakeTheDefaultScenesTrocars) {
   EXPECT_EQ(sceneOrDefault(""), "membrane_peeling");
@@ -128,19 +128,14 @@ TEST(SceneTrocars, ShippedFilesTakeTheDefaultScenesTrocars) {
     EXPECT_FALSE(marker.trocar_from_scene);
     EXPECT_EQ(marker.trocar, sceneTrocarForSlot(fallback, marker.slot));
   }
-  for (const std::string script : {"membrane_peeling_demo", "navigation_demo"}) {
-    SCOPED_TRACE(script);
-    ScriptDefinition file = SurgeonScript::definitionFromFile(kSourceDir + "/config/trajectories/" + script + ".yaml");
-    EXPECT_TRUE(leavesTrocarsToScene(file));
-    EXPECT_TRUE(file.eye.from_scene);
-    file.eye.radius = 0.0;  // must come from the scene
-    applySceneTrocars(fallback, &file);
-    EXPECT_EQ(file.eye.radius, fallback.eye.radius);
-    EXPECT_EQ(file.eye.rotation_center, fallback.eye.centre_in_world);
-    EXPECT_FALSE(leavesTrocarsToScene(file));
-    const SurgeonScript played(file);  // validates
-    for (const InstrumentTrack& track : played.definition().instruments) {
-      EXPECT_EQ(track.trocar, sceneTrocarForSlot(fallback, track.slot));
+  for (const std::string name : {"demo", "membrane_peeling_demo", "navigation_demo"}) {
+    SCOPED_TRACE(name);
+    const SurgeonScript played = playInScene(fallback, loadSession(name, fallback));
+    EXPECT_EQ(played.eye().radius, fallback.eye.radius);
+    EXPECT_EQ(played.eye().rotation_center, fallback.eye.centre_in_world);
+    for (std::size_t i = 0; i < played.tracks().size(); ++i) {
+      EXPECT_EQ(played.tracks()[i].trocar,
+                sceneTrocarForSlot(fallback, scene::toString(played.session().instruments[i].slot)));
     }
   }
 }
@@ -200,11 +195,11 @@ TEST(SceneEye, AScenesOmittedCentreIsTheWorldOrigin) {
 TEST(SceneEye, TheScenesScriptedSessionPlaysInTheScenesEye) {
   // scene_switch.test's scene: membrane_peeling with the eye 1 mm off and the trocars at 140 / 40 deg.
   const scene::SceneDescription moved = vrm_sim::scene::loadScene(kSourceDir + "/test/rostest/scene_switch.yaml");
-  const SurgeonScript expert = applyScene(moved, scenarioScript(moved, "expert"));
-  EXPECT_EQ(expert.definition().eye.rotation_center, Eigen::Vector3d(0.001, 0.0, 0.0));
+  const SurgeonScript expert = playInScene(moved, loadSession("scenario:expert", moved));
+  EXPECT_EQ(expert.eye().rotation_center, Eigen::Vector3d(0.001, 0.0, 0.0));
   EXPECT_EQ(expert.sample(1.0).rotation_center, Eigen::Vector3d(0.001, 0.0, 0.0));
-  ASSERT_EQ(expert.definition().instruments.size(), 1u);
-  expectNear(expert.definition().instruments[0].trocar, onEyeSphere(0.012, 45.0, 40.0), 1e-15);
+  ASSERT_EQ(expert.tracks().size(), 1u);
+  expectNear(expert.tracks()[0].trocar, onEyeSphere(0.012, 45.0, 40.0), 1e-15);
 }
 
 TEST(SceneEye, AFailingSceneLeavesTheLayoutUntouched) {
@@ -291,7 +286,7 @@ TEST(SceneTrocars, SceneSpecIsANameOrAPath) {
   EXPECT_THROW(vrm_sim::scene::loadScene("no_such_scene"), scene::SceneError);
 }
 
-// ---- Keyframes written on scene objects (SurfaceTarget, applyScene) ----
+// ---- Waypoints written on scene objects (vrm_sim surface_target.h, playInScene) ----
 
 // The membrane of the shipped membrane_peeling scene: 0.3 mm above the 12 mm retina, centred 8 deg from the pole.
 constexpr double kMembraneSphereRadius = 0.012 - 0.0003;
@@ -304,88 +299,85 @@ vrm_sim::TriangleMesh sceneMesh(const scene::SceneDescription& description, cons
 
 // Height of `point` above the surface (along its inward normal; negative below), as the tissue simulation sees it.
 double heightAbove(const vrm_sim::TriangleMesh& surface, const Eigen::Vector3d& point) {
-  const SurfacePoint nearest = closestSurfacePoint(surface, point);
+  const scene::SurfacePoint nearest = scene::closestSurfacePoint(surface, point);
   return (point - nearest.position).dot(nearest.inward_normal);
 }
 
-// Keyframes 1-3 on the membrane at three heights, from written tips that are off the membrane (one outside it,
-// towards the retina; one inside the eye); keyframe 4 carries keyframe 3's target over; keyframe 5 is plain again.
+// Waypoints 1-3 on the membrane at three heights, from written tips that are off the membrane (one outside it,
+// towards the retina; one inside the eye); waypoint 4 stays there and closes the jaws; waypoint 5 is plain again.
 const char* const kOnMembrane = R"(name: on_membrane
 instruments:
-  right:
-    trocar: [0.0073485, 0.0042426, 0.0084853]
+  - slot: right
     type: forceps
-    keyframes:
-      - {t: 0.0, tip: [0.001, 0.0, -0.006], jaw_angle: 0.35}
-      - {t: 6.0, on: membrane, tip: [0.00336, 0.0010, -0.0114], jaw_angle: 0.3, roll: 0.2}
+    path:
+      - {t: 0.0, tip: [0.001, 0.0, -0.006], jaw_angle_deg: 20}
+      - {t: 6.0, on: membrane, tip: [0.00336, 0.0010, -0.0114], jaw_angle_deg: 17, roll_deg: 11}
       - {t: 7.0, on: membrane, tip: [0.00336, 0.0010, -0.0114], height: 0.0005}
       - {t: 8.0, on: membrane, tip: [0.0030, 0.0008, -0.0105], height: -0.00006}
-      - {t: 8.5, jaw_angle: 0.0}
+      - {t: 8.5, on: membrane, tip: [0.0030, 0.0008, -0.0105], height: -0.00006, jaw_angle_deg: 0}
       - {t: 9.0, tip: [0.001, 0.0, -0.006]}
 )";
+
+scene::ScriptedSession onMembrane() { return scene::loadScriptFromString(kOnMembrane, "on_membrane.yaml"); }
 
 TEST(SceneTargets, ResolvedTipLiesOnTheMembraneAndHeightFollowsTheInwardNormal) {
   const scene::SceneDescription peeling = vrm_sim::scene::loadScene("membrane_peeling");
   const vrm_sim::TriangleMesh membrane = sceneMesh(peeling, "membrane");
-  const SurgeonScript written = SurgeonScript::fromYamlString(kOnMembrane, "on_membrane.yaml");
-  SceneTargetReport report;
-  const SurgeonScript script = applyScene(peeling, written, &report);
-  EXPECT_EQ(report.resolved_keyframes, 4u);
-  EXPECT_EQ(report.kept_keyframes, 0u);
+  const scene::ScriptedSession written = onMembrane();
+  EXPECT_EQ(scene::surfaceTargetObjects(written), std::vector<std::string>{"membrane"});
+  scene::SurfaceTargetReport report;
+  const SurgeonScript script = playInScene(peeling, written, &report);
+  EXPECT_EQ(report.resolved_waypoints, 4u);
+  EXPECT_EQ(report.kept_waypoints, 0u);
   EXPECT_TRUE(report.missing_objects.empty());
-  const std::vector<InstrumentKeyframe>& keys = script.definition().instruments.at(0).keyframes;
-  const std::vector<InstrumentKeyframe>& before = written.definition().instruments.at(0).keyframes;
+  const std::vector<scene::InstrumentWaypoint>& keys = script.session().instruments.at(0).path;
+  const std::vector<scene::InstrumentWaypoint>& before = written.instruments.at(0).path;
   ASSERT_EQ(keys.size(), 6u);
+  EXPECT_TRUE(scene::surfaceTargetObjects(script.session()).empty());  // all resolved
 
   // Height 0: on the mesh, and (independently of the closest-point code) on the membrane's sphere; the chords of
   // the ~0.16 mm triangles lie < 0.3 um inside it.
-  const Eigen::Vector3d on_surface = keys[1].tip;
-  EXPECT_LT(closestSurfacePoint(membrane, on_surface).distance, 1e-6);
+  const Eigen::Vector3d on_surface = keys[1].tip_in_eye;
+  EXPECT_LT(scene::closestSurfacePoint(membrane, on_surface).distance, 1e-6);
   EXPECT_NEAR(on_surface.norm(), kMembraneSphereRadius, 1e-6);
-  EXPECT_TRUE(keys[1].target.resolved);
   // No vertex is nearer to the written tip than the resolved point (it is the closest point, not a nearby one).
   double nearest_vertex = 1.0;
   for (const Eigen::Vector3d& vertex : membrane.vertices) {
-    nearest_vertex = std::min(nearest_vertex, (vertex - before[1].tip).norm());
+    nearest_vertex = std::min(nearest_vertex, (vertex - before[1].tip_in_eye).norm());
   }
-  EXPECT_LE((on_surface - before[1].tip).norm(), nearest_vertex + 1e-12);
-  // The keyframe keeps its other fields.
-  EXPECT_DOUBLE_EQ(keys[1].jaw_angle, 0.3);
-  EXPECT_DOUBLE_EQ(keys[1].roll, 0.2);
-  EXPECT_EQ(keys[1].type, scene::InstrumentType::kForceps);
+  EXPECT_LE((on_surface - before[1].tip_in_eye).norm(), nearest_vertex + 1e-12);
+  // The waypoint keeps its other fields.
+  EXPECT_DOUBLE_EQ(keys[1].jaw_angle_deg, 17.0);
+  EXPECT_DOUBLE_EQ(keys[1].roll_deg, 11.0);
   EXPECT_DOUBLE_EQ(keys[1].t, 6.0);
 
   // Height 0.5 mm from the same written tip: straight up the inward normal, which near the posterior pole is
   // roughly +z (towards the eye centre).
-  const Eigen::Vector3d lifted = keys[2].tip - on_surface;
+  const Eigen::Vector3d lifted = keys[2].tip_in_eye - on_surface;
   EXPECT_NEAR(lifted.norm(), 0.0005, 1e-9);
   EXPECT_GT(lifted.normalized().z(), 0.9);
   EXPECT_GT(lifted.normalized().dot(-on_surface.normalized()), 0.9999);
-  EXPECT_NEAR(keys[2].tip.norm(), kMembraneSphereRadius - 0.0005, 2e-6);
-  EXPECT_NEAR(heightAbove(membrane, keys[2].tip), 0.0005, 1e-9);
+  EXPECT_NEAR(keys[2].tip_in_eye.norm(), kMembraneSphereRadius - 0.0005, 2e-6);
+  EXPECT_NEAR(heightAbove(membrane, keys[2].tip_in_eye), 0.0005, 1e-9);
 
-  // Negative height: below the membrane; a carried-over keyframe resolves to the same point.
-  EXPECT_NEAR(heightAbove(membrane, keys[3].tip), -0.00006, 1e-9);
-  EXPECT_NEAR(keys[3].tip.norm(), kMembraneSphereRadius + 0.00006, 2e-6);
-  EXPECT_EQ(keys[4].target.object, "membrane");
-  EXPECT_LT((keys[4].tip - keys[3].tip).norm(), 1e-15);
-  EXPECT_DOUBLE_EQ(keys[4].jaw_angle, 0.0);
+  // Negative height: below the membrane; the same written point resolves to the same point.
+  EXPECT_NEAR(heightAbove(membrane, keys[3].tip_in_eye), -0.00006, 1e-9);
+  EXPECT_NEAR(keys[3].tip_in_eye.norm(), kMembraneSphereRadius + 0.00006, 2e-6);
+  EXPECT_LT((keys[4].tip_in_eye - keys[3].tip_in_eye).norm(), 1e-15);
 
-  // Keyframes without `on` are unchanged.
-  EXPECT_FALSE(keys[0].target.active());
-  EXPECT_FALSE(keys[5].target.active());
-  EXPECT_EQ(keys[0].tip, before[0].tip);
-  EXPECT_EQ(keys[5].tip, before[5].tip);
+  // Waypoints without `on` are unchanged.
+  EXPECT_EQ(keys[0].tip_in_eye, before[0].tip_in_eye);
+  EXPECT_EQ(keys[5].tip_in_eye, before[5].tip_in_eye);
 
-  // The played script follows the resolved keyframes, through the scene's trocar.
+  // The played script follows the resolved waypoints, through the scene's trocar.
   const InstrumentSample at_grasp = script.sample(8.0).instruments.at(0);
-  EXPECT_LT((at_grasp.tip - keys[3].tip).norm(), 1e-12);
+  EXPECT_LT((at_grasp.tip - keys[3].tip_in_eye).norm(), 1e-12);
   EXPECT_LT((at_grasp.trocar - sceneTrocarForSlot(peeling, "right")).norm(), 1e-12);
 
-  // Resolution starts from the written tip: applying the scene again changes nothing.
-  const SurgeonScript twice = applyScene(peeling, script);
+  // The offline tools resolve the same points (withScript of a scene's session, runScenario of a file).
+  const scene::SceneDescription offline = scene::withScript(peeling, scene::resolveSurfaceTargets(peeling, written));
   for (std::size_t i = 0; i < keys.size(); ++i) {
-    EXPECT_LT((twice.definition().instruments[0].keyframes[i].tip - keys[i].tip).norm(), 1e-15) << i;
+    EXPECT_EQ(offline.findInstrument(scene::InstrumentSlot::kRight)->path[i].tip_in_eye, keys[i].tip_in_eye) << i;
   }
 }
 
@@ -395,67 +387,61 @@ TEST(SceneTargets, ClosestPointOnAFlatSquare) {
   square.name = "square";
   square.vertices = {{0.0, 0.0, -0.01}, {0.001, 0.0, -0.01}, {0.001, 0.001, -0.01}, {0.0, 0.001, -0.01}};
   square.triangles = {{0, 1, 2}, {0, 2, 3}};  // wound away from the centre: the normal must still point up
-  const SurfacePoint inside = closestSurfacePoint(square, Eigen::Vector3d(0.0004, 0.0003, -0.012));
+  const scene::SurfacePoint inside = scene::closestSurfacePoint(square, Eigen::Vector3d(0.0004, 0.0003, -0.012));
   expectNear(inside.position, Eigen::Vector3d(0.0004, 0.0003, -0.01), 1e-15);
   expectNear(inside.inward_normal, Eigen::Vector3d::UnitZ(), 1e-12);
   EXPECT_NEAR(inside.distance, 0.002, 1e-15);
   // Beyond an edge and a corner: the nearest boundary point.
-  expectNear(closestSurfacePoint(square, Eigen::Vector3d(0.0005, -0.002, -0.0095)).position,
+  expectNear(scene::closestSurfacePoint(square, Eigen::Vector3d(0.0005, -0.002, -0.0095)).position,
              Eigen::Vector3d(0.0005, 0.0, -0.01), 1e-15);
-  expectNear(closestSurfacePoint(square, Eigen::Vector3d(0.003, 0.004, -0.0095)).position,
+  expectNear(scene::closestSurfacePoint(square, Eigen::Vector3d(0.003, 0.004, -0.0095)).position,
              Eigen::Vector3d(0.001, 0.001, -0.01), 1e-15);
   // On the shared diagonal both triangles are nearest: their (equal) normals, not a cancelled sum.
-  expectNear(resolveSurfaceTip(square, Eigen::Vector3d(0.0005, 0.0005, -0.011), 0.0002),
+  expectNear(scene::resolveSurfaceTip(square, Eigen::Vector3d(0.0005, 0.0005, -0.011), 0.0002),
              Eigen::Vector3d(0.0005, 0.0005, -0.0098), 1e-15);
-  EXPECT_THROW(closestSurfacePoint(vrm_sim::TriangleMesh{}, Eigen::Vector3d::Zero()), std::invalid_argument);
+  EXPECT_THROW(scene::closestSurfacePoint(vrm_sim::TriangleMesh{}, Eigen::Vector3d::Zero()), std::invalid_argument);
 }
 
-TEST(SceneTargets, MissingObjectIsAnErrorNamingItTheKeyframeAndTheScene) {
+TEST(SceneTargets, MissingObjectIsAnErrorNamingItTheWaypointAndTheScene) {
   const scene::SceneDescription navigation = vrm_sim::scene::loadScene("navigation");  // has no membrane
-  const SurgeonScript written = SurgeonScript::fromYamlString(kOnMembrane, "on_membrane.yaml");
   try {
-    applyScene(navigation, written);
+    playInScene(navigation, onMembrane());
     FAIL() << "a script file on an object the scene lacks must be rejected";
   } catch (const ScriptError& error) {
     const std::string message = error.what();
-    EXPECT_EQ(error.source(), "on_membrane.yaml");
-    EXPECT_EQ(error.line(), 8) << message;  // the first keyframe on the membrane
-    EXPECT_EQ(error.field(), "instruments.right.keyframes[1].on") << message;
-    EXPECT_NE(message.find("on_membrane.yaml:8:"), std::string::npos) << message;
+    EXPECT_EQ(error.location().file, "on_membrane.yaml");
+    EXPECT_EQ(error.location().line, 7) << message;  // the first waypoint on the membrane
+    EXPECT_EQ(error.location().field, "instruments[0].path[1].on") << message;
+    EXPECT_NE(message.find("on_membrane.yaml:7:"), std::string::npos) << message;
     EXPECT_NE(message.find("'membrane'"), std::string::npos) << message;
     EXPECT_NE(message.find("t = 6 s"), std::string::npos) << message;
     EXPECT_NE(message.find("scene 'navigation'"), std::string::npos) << message;
     EXPECT_NE(message.find("target_sphere_1"), std::string::npos) << message;  // what the scene has instead
   }
-  // Nothing half applied to a definition either.
-  ScriptDefinition definition = written.definition();
-  EXPECT_THROW(applyScene(navigation, &definition), ScriptError);
-  EXPECT_EQ(definition.instruments[0].trocar, written.definition().instruments[0].trocar);
-  EXPECT_FALSE(definition.instruments[0].keyframes[1].target.resolved);
 }
 
-TEST(SceneTargets, BuiltinScriptOnAMissingObjectKeepsTheWrittenTips) {
-  const SurgeonScript demo = SurgeonScript::builtin("demo");
-  ASSERT_TRUE(demo.definition().targets_optional);
-  ASSERT_EQ(surfaceTargetObjects(demo.definition()), std::vector<std::string>{"membrane"});
+TEST(SceneTargets, TheDemoOnAMissingObjectKeepsTheWrittenTips) {
   const scene::SceneDescription navigation = vrm_sim::scene::loadScene("navigation");
-  SceneTargetReport report;
-  const SurgeonScript applied = applyScene(navigation, demo, &report);
-  EXPECT_EQ(report.resolved_keyframes, 0u);
-  EXPECT_GT(report.kept_keyframes, 0u);
+  const scene::ScriptedSession demo = loadSession("", navigation);
+  ASSERT_TRUE(demo.keep_tip_on_missing_object);
+  ASSERT_EQ(scene::surfaceTargetObjects(demo), std::vector<std::string>{"membrane"});
+  scene::SurfaceTargetReport report;
+  const SurgeonScript applied = playInScene(navigation, demo, &report);
+  EXPECT_EQ(report.resolved_waypoints, 0u);
+  EXPECT_EQ(report.kept_waypoints, 7u);
   EXPECT_EQ(report.missing_objects, std::vector<std::string>{"membrane"});
-  for (std::size_t slot = 0; slot < demo.definition().instruments.size(); ++slot) {
-    const InstrumentTrack& track = applied.definition().instruments[slot];
-    expectNear(track.trocar, sceneTrocarForSlot(navigation, track.slot), 1e-12);  // the trocars still apply
-    for (std::size_t i = 0; i < track.keyframes.size(); ++i) {
-      EXPECT_EQ(track.keyframes[i].tip, demo.definition().instruments[slot].keyframes[i].tip) << i;
-      EXPECT_FALSE(track.keyframes[i].target.resolved);
+  for (std::size_t slot = 0; slot < demo.instruments.size(); ++slot) {
+    const scene::ScriptedInstrument& played = applied.session().instruments[slot];
+    expectNear(applied.tracks()[slot].trocar, sceneTrocarForSlot(navigation, scene::toString(played.slot)),
+               1e-12);  // the trocars still apply
+    for (std::size_t i = 0; i < played.path.size(); ++i) {
+      EXPECT_EQ(played.path[i].tip_in_eye, demo.instruments[slot].path[i].tip_in_eye) << i;
     }
   }
-  // The same definition as a file would be an error.
-  ScriptDefinition strict = demo.definition();
-  strict.targets_optional = false;
-  EXPECT_THROW(applyScene(navigation, &strict), ScriptError);
+  // The same session written for a scene would be an error.
+  scene::ScriptedSession strict = demo;
+  strict.keep_tip_on_missing_object = false;
+  EXPECT_THROW(playInScene(navigation, strict), ScriptError);
 }
 
 TEST(SceneTargets, ObjectsInTheWorldFrameAreRejected) {
@@ -466,7 +452,7 @@ simulations: [collision]
 )",
                                                                    "world_objects.yaml");
   try {
-    applyScene(world, SurgeonScript::fromYamlString(kOnMembrane, "on_membrane.yaml"));
+    playInScene(world, onMembrane());
     FAIL() << "an object in the world frame must be rejected";
   } catch (const ScriptError& error) {
     const std::string message = error.what();
@@ -476,27 +462,27 @@ simulations: [collision]
   }
 }
 
-// The built-in demo, applied to the shipped default scene, really grasps the membrane: when the jaws close, the tip
+// The demo, played in the shipped default scene, really grasps the membrane: when the jaws close, the tip
 // is just below the membrane and vrm_sim's grasp region (TissueSimulator::updateGrasp: within 0.75 mm of the jaw
 // centre 0.75 mm behind the tip, and within 0.3 mm of the shaft axis) holds membrane nodes; it peels and lets go
 // early enough for a 20 s session.
 TEST(SceneTargets, DemoGraspsTheShippedMembrane) {
   const scene::SceneDescription peeling = vrm_sim::scene::loadScene("membrane_peeling");
   const vrm_sim::TriangleMesh membrane = sceneMesh(peeling, "membrane");
-  SceneTargetReport report;
-  SurgeonScript demo = applyScene(peeling, SurgeonScript::builtin("demo"), &report);
-  demo.setTremor(0.0, 0);
+  scene::SurfaceTargetReport report;
+  SurgeonScript demo = playInScene(peeling, loadSession("", peeling), &report);
+  demo.setTremorAmplitude(0.0);
   EXPECT_TRUE(report.missing_objects.empty());
-  EXPECT_GT(report.resolved_keyframes, 0u);
+  EXPECT_EQ(report.resolved_waypoints, 7u);
   const auto forceps = [&](double t) { return demo.sample(t).instruments.at(1); };
   ASSERT_EQ(forceps(0.0).slot, "right");
   ASSERT_EQ(forceps(0.0).type, scene::InstrumentType::kForceps);
 
-  // The keyframe where the jaws have closed, and the moment they pass vrm_sim's grasp threshold on the way.
+  // The waypoint where the jaws have closed, and the moment they pass vrm_sim's grasp threshold on the way.
   constexpr double kGraspJawAngle = 0.15;  // rad, vrm_sim's default TissueConfig::grasp_jaw_angle
-  const std::vector<InstrumentKeyframe>& keys = demo.definition().instruments.at(1).keyframes;
-  const auto closed =
-      std::find_if(keys.begin() + 1, keys.end(), [](const InstrumentKeyframe& key) { return key.jaw_angle == 0.0; });
+  const std::vector<scene::InstrumentWaypoint>& keys = demo.session().instruments.at(1).path;
+  const auto closed = std::find_if(keys.begin() + 1, keys.end(),
+                                   [](const scene::InstrumentWaypoint& key) { return key.jaw_angle_deg == 0.0; });
   ASSERT_NE(closed, keys.end());
   const double close_time = closed->t;
   double grasp_time = close_time;
@@ -527,7 +513,7 @@ TEST(SceneTargets, DemoGraspsTheShippedMembrane) {
   // Grasped point between the adhesion ring (1.5 mm from the membrane centre) and the edge (2.5 mm), on the side
   // facing the right trocar.
   const Eigen::Vector3d membrane_centre = membrane.vertices.at(0);  // the cap's pole vertex is the patch centre
-  const Eigen::Vector3d grasp_point = closestSurfacePoint(membrane, forceps(close_time).tip).position;
+  const Eigen::Vector3d grasp_point = scene::closestSurfacePoint(membrane, forceps(close_time).tip).position;
   const double from_centre = (grasp_point - membrane_centre).norm();
   EXPECT_GT(from_centre, 0.0017);
   EXPECT_LT(from_centre, 0.0023);
@@ -546,7 +532,7 @@ TEST(SceneTargets, DemoGraspsTheShippedMembrane) {
   EXPECT_LT(release_time, 12.0);
   const Eigen::Vector3d peeled = forceps(release_time - 0.35).tip;
   EXPECT_NEAR(heightAbove(membrane, peeled), 0.0012, 5e-5);
-  const Eigen::Vector3d peeled_foot = closestSurfacePoint(membrane, peeled).position;
+  const Eigen::Vector3d peeled_foot = scene::closestSurfacePoint(membrane, peeled).position;
   EXPECT_NEAR((grasp_point - peeled_foot).norm(), 0.001, 1e-4);
   EXPECT_LT((peeled_foot - membrane_centre).norm(), from_centre - 0.0009);
   // Back at the start by 14 s and resting there until the loop ends.
@@ -560,7 +546,7 @@ TEST(SceneTargets, DemoGraspsTheShippedMembrane) {
 
 vrm_sim::world::TissueReport playThroughTheCore(const scene::SceneDescription& scene, SurgeonScript script,
                                                 double seconds, std::size_t* max_grasped) {
-  script.setTremor(0.0, 0);
+  script.setTremorAmplitude(0.0);
   vrm_sim::world::World world(scene);
   *max_grasped = 0;
   for (int tick = 0; tick <= static_cast<int>(seconds * 50.0); ++tick) {
@@ -593,15 +579,13 @@ TEST(SceneTargets, TheDemoScriptsGraspAndPeelTheMembraneInTheSimulationCore) {
   const scene::SceneDescription peeling = vrm_sim::scene::loadScene("membrane_peeling");
   std::size_t grasped = 0;
   const vrm_sim::world::TissueReport demo =
-      playThroughTheCore(peeling, applyScene(peeling, SurgeonScript::builtin("demo")), 12.0, &grasped);
-  EXPECT_GT(grasped, 0u) << "the built-in demo's grasp misses the membrane";
+      playThroughTheCore(peeling, playInScene(peeling, loadSession("", peeling)), 12.0, &grasped);
+  EXPECT_GT(grasped, 0u) << "the demo's grasp misses the membrane";
   EXPECT_GT(demo.max_lift, 5e-4);
   EXPECT_NE(demo.outcome, vrm_sim::world::PeelOutcome::kUntouched);
 
-  ScriptDefinition file = SurgeonScript::loadDefinition(std::string(VRM_TRACKING_SOURCE_DIR) +
-                                                        "/config/trajectories/membrane_peeling_demo.yaml");
-  applyScene(peeling, &file);
-  const vrm_sim::world::TissueReport peel = playThroughTheCore(peeling, SurgeonScript(file), 18.0, &grasped);
+  const vrm_sim::world::TissueReport peel =
+      playThroughTheCore(peeling, playInScene(peeling, loadSession("membrane_peeling_demo", peeling)), 18.0, &grasped);
   EXPECT_GT(grasped, 0u) << "membrane_peeling_demo.yaml's grasp misses the membrane";
   EXPECT_GT(peel.max_lift, 5e-4);
 
@@ -613,7 +597,11 @@ TEST(SceneTargets, TheDemoScriptsGraspAndPeelTheMembraneInTheSimulationCore) {
     auto& params = std::get<vrm_sim::scene::MembraneParams>(*object.mesh.generator);
     params.height_above_retina = 0.0;
   }
-  playThroughTheCore(deeper, applySceneTrocars(deeper, SurgeonScript::builtin("demo")), 12.0, &grasped);
+  scene::ScriptedSession written_tips = loadSession("", peeling);
+  for (scene::ScriptedInstrument& instrument : written_tips.instruments) {
+    for (scene::InstrumentWaypoint& waypoint : instrument.path) waypoint.on.clear();
+  }
+  playThroughTheCore(deeper, playInScene(deeper, written_tips), 12.0, &grasped);
   EXPECT_EQ(grasped, 0u);
 }
 

@@ -69,8 +69,25 @@
 //         easy: {scenario.time_limit: 120, objects.membrane.tissue.adhesion_stiffness: 2.0}   # by name / slot
 //         medium: {}
 //     scripts:                               # scripted sessions (scenario_offline --script NAME, the twin surgeon)
-//       expert:
+//       expert:                              # short form: the list of scripted instruments, played once
 //         - {slot: right, path: [...], tremor: {...}}   # the instrument path format above
+//       demo:                                # full form (also the format of a script file, loadScript):
+//         playback: once                     # once | loop (the duration is the last waypoint of any track)
+//         missing_objects: error             # error | keep_tip: a waypoint `on` an object the scene lacks
+//         instruments:                       # as the short form's list, and per instrument:
+//           - slot: right
+//             type: forceps                  # default: the scene's instrument in the slot
+//             path:                          # waypoint fields besides the above (all linear but `type`):
+//               - {t: 0, tip: [x, y, z], roll_deg: 0, injection_flow: 0}   # m^3/s
+//               - {t: 9, tip: [...], type: vitrector}      # an instrument exchange: steps at the waypoint
+//               - {t: 12, on: membrane, tip: [...], height: -6.0e-5}   # the tip put on a scene object:
+//                                            # the closest point of its surface to `tip`, `height` m above it
+//             tremor: {amplitude: 2.0e-5, frequency_hz: 10}
+//         eye: [{t: 0, rpy_deg: [r, p, y]}]  # world -> eye rotation about the eye centre (slerp); default rest
+//         pedals: [{t: 0, travel: 0, reflux: false, instrument_switch: false, zoom_in: false, zoom_out: false,
+//                   focus_near: false, focus_far: false}]   # travel linear, buttons step; omitted keys carry over
+//         microscope: [{t: 0, focus_distance: 0.2, zoom: 1, ambient_light: 0.5, disparity_scale: 1}]   # linear,
+//                                            # omitted keys carry over
 
 #include <Eigen/Geometry>
 #include <array>
@@ -215,10 +232,21 @@ struct InstrumentWaypoint {
   double jaw_angle_deg = 0.0;                            // forceps opening
   double suction = 0.0;                                  // 0..1 (vitrector aspiration, from the pedal)
   double cut_rate_hz = 0.0;                              // vitrector cutter
+  double roll_deg = 0.0;                                 // about the shaft
+  double injection_flow = 0.0;                           // m^3/s
+  // From this waypoint on the slot holds this instrument (an exchange); unset: the previous waypoint's, at the first
+  // the scripted instrument's.
+  std::optional<InstrumentType> type;
+  // The tip written on a scene object (resolveSurfaceTargets, surface_target.h): `tip_in_eye` is the author's point
+  // near it until resolved; empty: a plain eye-frame tip.
+  std::string on;
+  double height = 0.0;  // m above the object's surface (towards the eye centre); negative: below it
+  SourceLocation location;
 };
 
-// The path at time t: linear between waypoints, the first / last waypoint before / after the path (t set to t).
-// The path must not be empty.
+// The path at time t: linear between waypoints (tip, jaw, suction, cut rate, roll, injection flow; `type`, `on` and
+// `height` are the earlier waypoint's), the first / last waypoint before / after the path (t set to t). The path must
+// not be empty.
 InstrumentWaypoint samplePath(const std::vector<InstrumentWaypoint>& path, double t);
 
 // A scripted hand's physiological tremor (thesis §1.3: 8-12 Hz), added to the interpolated tip: a sinusoid of
@@ -268,9 +296,65 @@ struct FailureRule {
 // One instrument's part of a scripted session.
 struct ScriptedInstrument {
   InstrumentSlot slot = InstrumentSlot::kRight;
+  std::optional<InstrumentType> type;  // unset: the scene's instrument in the slot
   std::vector<InstrumentWaypoint> path;
   PathTremor tremor;
   SourceLocation location;
+};
+
+enum class Playback { kOnce, kLoop };
+const char* toString(Playback playback);
+
+// The eye's rotation in the world (world -> eye, about the eye centre) at a time; slerp between waypoints.
+struct EyeWaypoint {
+  double t = 0.0;
+  Eigen::Vector3d rpy_deg = Eigen::Vector3d::Zero();  // fixed-axis roll, pitch, yaw (R = Rz Ry Rx), as Pose
+  SourceLocation location;
+  Eigen::Quaterniond rotation() const;
+};
+
+// The foot pedal: travel linear between waypoints, the buttons step.
+struct PedalWaypoint {
+  double t = 0.0;
+  double travel = 0.0;  // 0..1
+  bool reflux = false;
+  bool instrument_switch = false;
+  bool zoom_in = false;
+  bool zoom_out = false;
+  bool focus_near = false;
+  bool focus_far = false;
+  SourceLocation location;
+};
+
+// The microscope's knobs, linear between waypoints.
+struct MicroscopeWaypoint {
+  double t = 0.0;
+  double focus_distance = 0.2;   // m, objective to focal plane
+  double zoom = 1.0;             // magnification (1 = widest field)
+  double ambient_light = 0.5;    // 0..1
+  double disparity_scale = 1.0;  // 0..1
+  SourceLocation location;
+};
+
+// One scripted session: the one scripted-motion format (issue 34). A scene's scenario.scripts hold them, a script
+// file holds one (loadScript); the offline tools play its instruments in the World, vrm_tracking's device twins play
+// all of it (vrm_tracking/surgeon_script.h). Tips are in the eye frame, every shaft pivots at its slot's trocar of the
+// scene it plays in.
+struct ScriptedSession {
+  std::string name;
+  Playback playback = Playback::kOnce;
+  // A waypoint `on` an object the scene lacks: an error (false, a script written for a scene) or it keeps its
+  // written tip (true: a script meant for every scene, e.g. the demo).
+  bool keep_tip_on_missing_object = false;
+  std::vector<ScriptedInstrument> instruments;
+  std::vector<EyeWaypoint> eye;                // empty: at rest
+  std::vector<PedalWaypoint> pedals;           // empty: released
+  std::vector<MicroscopeWaypoint> microscope;  // empty: the defaults above
+  SourceLocation location;
+
+  // s: the last waypoint of any track (0 for none).
+  double duration() const;
+  const ScriptedInstrument* findInstrument(InstrumentSlot slot) const;
 };
 
 struct ScenarioDescription {
@@ -283,7 +367,7 @@ struct ScenarioDescription {
   std::vector<ScoringRule> scoring;
   std::vector<std::string> difficulty_levels;  // in file order
   std::string difficulty;                      // the level this description was loaded with ("" = no levels)
-  std::map<std::string, std::vector<ScriptedInstrument>> scripts;
+  std::map<std::string, ScriptedSession> scripts;
   SourceLocation location;
 
   const ScenarioParam* param(const std::string& name) const;
@@ -312,8 +396,12 @@ struct SceneDescription {
 
 // The scene with its instruments following the scripted session `script` (scenario.scripts): each scripted slot's
 // path and tremor replaced, every other slot's path cleared. Throws std::invalid_argument naming the known scripts.
+// A scripted instrument of another type than the scene's takes that type's generator defaults. Waypoints `on` scene
+// objects must be resolved (resolveSurfaceTargets) before; withScript(scene, name) does it.
 SceneDescription withScript(const SceneDescription& scene, const std::string& script);
-SceneDescription withScript(const SceneDescription& scene, const std::vector<ScriptedInstrument>& script);
+SceneDescription withScript(const SceneDescription& scene, const ScriptedSession& script);
+// The scene's scripted session `name`; std::invalid_argument naming the known scripts.
+const ScriptedSession& findScript(const SceneDescription& scene, const std::string& name);
 
 // The instrument generator's defaults for a type.
 GeneratorParams defaultInstrumentParams(InstrumentType type);

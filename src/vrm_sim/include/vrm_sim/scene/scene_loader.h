@@ -37,9 +37,18 @@ SceneDescription loadScene(const std::string& name_or_path, const std::string& d
 SceneDescription loadSceneFromString(const std::string& yaml_text, const std::string& virtual_path,
                                      const std::string& difficulty = "");
 
-// A scripted session in its own file (scenario_offline --script FILE): `script:` with the list format of a
-// scenario's scripts (see scene_description.h). SceneError with file:line:col as for scenes.
-std::vector<ScriptedInstrument> loadScript(const std::string& path);
+// A scripted session in its own file (scenario_offline --script FILE, the device twins' ~script): the full form of a
+// scenario's scripts at the top level (scene_description.h), plus an optional `name` (default: the file's stem) and
+// `format_version: 1`. SceneError with file:line:col as for scenes.
+// `name_or_path` as resolveScriptPath reads it.
+ScriptedSession loadScript(const std::string& name_or_path);
+// An existing file; else, for a bare name, the shipped script <package>/config/scripts/NAME.yaml (e.g. "demo", what
+// the device twins play without a ~script); else the path as written.
+std::string resolveScriptPath(const std::string& name_or_path);
+// Names of the shipped scripts (config/scripts/*.yaml), sorted; none when the package directory was not set.
+std::vector<std::string> shippedScripts();
+// Same, from text; `virtual_path` names the document in messages.
+ScriptedSession loadScriptFromString(const std::string& yaml_text, const std::string& virtual_path);
 
 // Where the shipped data is found: the vrm_sim package directory (config/scenes/, shared mesh assets), found at run
 // time, never compiled in: a source package in a devel space, <prefix>/share/vrm_sim in an install space. The core

@@ -79,9 +79,9 @@ std::string hashString(std::uint64_t hash);
 // ---- scenario sessions (rosrun vrm_sim scenario_offline) ----
 
 struct ScenarioRunOptions {
-  std::string script = "expert";                        // a scripted session of the scene's scenario (scenario.scripts)
-  std::vector<scene::ScriptedInstrument> script_parts;  // non-empty: this script instead (a script file)
-  double rate = 50.0;                                   // Hz: input ticks
+  std::string script = "expert";                      // a scripted session of the scene's scenario (scenario.scripts)
+  std::optional<scene::ScriptedSession> script_file;  // set: this script instead (a script file, loadScript)
+  double rate = 50.0;                                 // Hz: input ticks
   double grace = 5.0;      // s after the script's last waypoint (instruments hold still) before the run ends
   std::uint32_t seed = 0;  // recorded with the result (the scenario layer draws no random numbers)
   std::string detector;    // empty: the scene's collision detectors

@@ -5,6 +5,7 @@
 #include <stdexcept>
 
 #include "vrm_sim/scene/mesh_utils.h"
+#include "vrm_sim/scene/surface_target.h"
 
 namespace vrm_sim {
 namespace scene {
@@ -92,10 +93,18 @@ InstrumentWaypoint samplePath(const std::vector<InstrumentWaypoint>& path, doubl
     const InstrumentWaypoint& b = *next;
     const InstrumentWaypoint& a = *(next - 1);
     const double alpha = (t - a.t) / (b.t - a.t);
+    sample = a;
     sample.tip_in_eye = (1.0 - alpha) * a.tip_in_eye + alpha * b.tip_in_eye;
     sample.jaw_angle_deg = (1.0 - alpha) * a.jaw_angle_deg + alpha * b.jaw_angle_deg;
     sample.suction = (1.0 - alpha) * a.suction + alpha * b.suction;
     sample.cut_rate_hz = (1.0 - alpha) * a.cut_rate_hz + alpha * b.cut_rate_hz;
+    sample.roll_deg = (1.0 - alpha) * a.roll_deg + alpha * b.roll_deg;
+    sample.injection_flow = (1.0 - alpha) * a.injection_flow + alpha * b.injection_flow;
+  }
+  // The instrument in hand: the last exchange at or before t (the first waypoint's before the path).
+  sample.type.reset();
+  for (std::size_t i = 0; i < path.size() && (i == 0 || path[i].t <= t); ++i) {
+    if (path[i].type) sample.type = path[i].type;
   }
   sample.t = t;
   return sample;
@@ -106,27 +115,57 @@ const ScenarioParam* ScenarioDescription::param(const std::string& name) const {
   return found == params.end() ? nullptr : &found->second;
 }
 
-SceneDescription withScript(const SceneDescription& scene, const std::string& script) {
-  std::string known;
-  if (scene.scenario) {
-    for (const auto& [name, instruments] : scene.scenario->scripts) known += (known.empty() ? "" : ", ") + name;
+const char* toString(Playback playback) { return playback == Playback::kLoop ? "loop" : "once"; }
+
+Eigen::Quaterniond EyeWaypoint::rotation() const { return Eigen::Quaterniond(rotationFromRpy(rpy_deg * kDegToRad)); }
+
+double ScriptedSession::duration() const {
+  double end = 0.0;
+  for (const ScriptedInstrument& instrument : instruments) {
+    if (!instrument.path.empty()) end = std::max(end, instrument.path.back().t);
   }
-  if (!scene.scenario || scene.scenario->scripts.count(script) == 0) {
-    throw std::invalid_argument("scene '" + scene.name + "' has no scripted session '" + script + "'" +
-                                (known.empty() ? std::string(" (it has none)") : " (it has: " + known + ")"));
-  }
-  return withScript(scene, scene.scenario->scripts.at(script));
+  if (!eye.empty()) end = std::max(end, eye.back().t);
+  if (!pedals.empty()) end = std::max(end, pedals.back().t);
+  if (!microscope.empty()) end = std::max(end, microscope.back().t);
+  return end;
 }
 
-SceneDescription withScript(const SceneDescription& scene, const std::vector<ScriptedInstrument>& script) {
+const ScriptedInstrument* ScriptedSession::findInstrument(InstrumentSlot slot) const {
+  for (const ScriptedInstrument& instrument : instruments) {
+    if (instrument.slot == slot) return &instrument;
+  }
+  return nullptr;
+}
+
+const ScriptedSession& findScript(const SceneDescription& scene, const std::string& name) {
+  std::string known;
+  if (scene.scenario) {
+    for (const auto& [script_name, session] : scene.scenario->scripts)
+      known += (known.empty() ? "" : ", ") + script_name;
+  }
+  if (!scene.scenario || scene.scenario->scripts.count(name) == 0) {
+    throw std::invalid_argument("scene '" + scene.name + "' has no scripted session '" + name + "'" +
+                                (known.empty() ? std::string(" (it has none)") : " (it has: " + known + ")"));
+  }
+  return scene.scenario->scripts.at(name);
+}
+
+SceneDescription withScript(const SceneDescription& scene, const std::string& script) {
+  return withScript(scene, resolveSurfaceTargets(scene, findScript(scene, script)));
+}
+
+SceneDescription withScript(const SceneDescription& scene, const ScriptedSession& script) {
   SceneDescription scripted = scene;
   for (auto& instrument : scripted.instruments) {
     instrument.path.clear();
     instrument.tremor = PathTremor{};
-    for (const ScriptedInstrument& part : script) {
-      if (part.slot != instrument.slot) continue;
-      instrument.path = part.path;
-      instrument.tremor = part.tremor;
+    const ScriptedInstrument* part = script.findInstrument(instrument.slot);
+    if (part == nullptr) continue;
+    instrument.path = part->path;
+    instrument.tremor = part->tremor;
+    if (part->type && *part->type != instrument.type) {
+      instrument.type = *part->type;
+      instrument.params = defaultInstrumentParams(instrument.type);
     }
   }
   return scripted;

@@ -406,27 +406,102 @@ const std::vector<std::pair<std::string, InstrumentType>>& instrumentTypeNames()
   return names;
 }
 
+// The time of a waypoint of any track: >= 0, strictly after the previous one's.
+double readWaypointTime(MapFields& fields, const double* previous) {
+  const Field t = fields.required("t");
+  const double time = t.nonNegative();
+  if (previous != nullptr && !(time > *previous)) {
+    t.fail("waypoint times must increase, got " + t.shown() + " after " + std::to_string(*previous));
+  }
+  return time;
+}
+
 std::vector<InstrumentWaypoint> readInstrumentPath(const Field& field) {
   std::vector<InstrumentWaypoint> path;
   for (const Field& item : field.items()) {
     MapFields fields(item);
     InstrumentWaypoint waypoint;
-    const Field t = fields.required("t");
-    waypoint.t = t.nonNegative();
+    waypoint.location = item.location();
+    waypoint.t = readWaypointTime(fields, path.empty() ? nullptr : &path.back().t);
     waypoint.tip_in_eye = fields.required("tip").vector3();
     if (auto jaw = fields.optional("jaw_angle_deg")) {
       waypoint.jaw_angle_deg = jaw->number("an angle in [0, 180] degrees", 0.0, 180.0);
     }
     readFraction(fields, "suction", waypoint.suction);
     readNonNegative(fields, "cut_rate_hz", waypoint.cut_rate_hz);
-    fields.finish();
-    if (!path.empty() && !(waypoint.t > path.back().t)) {
-      t.fail("waypoint times must increase, got " + t.shown() + " after " + std::to_string(path.back().t));
+    readFinite(fields, "roll_deg", waypoint.roll_deg);
+    readNonNegative(fields, "injection_flow", waypoint.injection_flow);
+    if (auto type = fields.optional("type")) waypoint.type = type->choice(instrumentTypeNames());
+    if (auto on = fields.optional("on")) waypoint.on = on->text();
+    if (auto height = fields.optional("height")) {
+      if (waypoint.on.empty()) height->fail("a height is measured above a scene object: write `on: OBJECT` with it");
+      waypoint.height = height->number("a height in [-0.005, 0.005] m", -0.005, 0.005);
     }
+    fields.finish();
     path.push_back(waypoint);
   }
   if (path.empty()) field.fail("expected at least one waypoint");
   return path;
+}
+
+std::vector<EyeWaypoint> readEyeTrack(const Field& field) {
+  std::vector<EyeWaypoint> track;
+  for (const Field& item : field.items()) {
+    MapFields fields(item);
+    EyeWaypoint waypoint;
+    waypoint.location = item.location();
+    waypoint.t = readWaypointTime(fields, track.empty() ? nullptr : &track.back().t);
+    const Field rpy = fields.required("rpy_deg");
+    waypoint.rpy_deg = rpy.vector3();
+    // A mechanical eye turns a few degrees in its socket; more is a unit mistake (radians written as degrees).
+    if (waypoint.rpy_deg.cwiseAbs().maxCoeff() > 45.0)
+      rpy.fail("expected angles within +-45 degrees, got " + rpy.shown());
+    fields.finish();
+    track.push_back(waypoint);
+  }
+  if (track.empty()) field.fail("expected at least one waypoint");
+  return track;
+}
+
+// Omitted keys carry over from the previous waypoint (a button pressed at one waypoint stays pressed until released).
+std::vector<PedalWaypoint> readPedalTrack(const Field& field) {
+  std::vector<PedalWaypoint> track;
+  for (const Field& item : field.items()) {
+    MapFields fields(item);
+    PedalWaypoint waypoint = track.empty() ? PedalWaypoint{} : track.back();
+    waypoint.location = item.location();
+    waypoint.t = readWaypointTime(fields, track.empty() ? nullptr : &track.back().t);
+    readFraction(fields, "travel", waypoint.travel);
+    const std::pair<const char*, bool*> buttons[] = {
+        {"reflux", &waypoint.reflux},         {"instrument_switch", &waypoint.instrument_switch},
+        {"zoom_in", &waypoint.zoom_in},       {"zoom_out", &waypoint.zoom_out},
+        {"focus_near", &waypoint.focus_near}, {"focus_far", &waypoint.focus_far}};
+    for (const auto& [key, value] : buttons) {
+      if (auto button = fields.optional(key)) *value = button->boolean();
+    }
+    fields.finish();
+    track.push_back(waypoint);
+  }
+  if (track.empty()) field.fail("expected at least one waypoint");
+  return track;
+}
+
+std::vector<MicroscopeWaypoint> readMicroscopeTrack(const Field& field) {
+  std::vector<MicroscopeWaypoint> track;
+  for (const Field& item : field.items()) {
+    MapFields fields(item);
+    MicroscopeWaypoint waypoint = track.empty() ? MicroscopeWaypoint{} : track.back();
+    waypoint.location = item.location();
+    waypoint.t = readWaypointTime(fields, track.empty() ? nullptr : &track.back().t);
+    readPositive(fields, "focus_distance", waypoint.focus_distance);
+    readPositive(fields, "zoom", waypoint.zoom);
+    readFraction(fields, "ambient_light", waypoint.ambient_light);
+    readFraction(fields, "disparity_scale", waypoint.disparity_scale);
+    fields.finish();
+    track.push_back(waypoint);
+  }
+  if (track.empty()) field.fail("expected at least one waypoint");
+  return track;
 }
 
 PathTremor readTremor(const Field& field) {
@@ -475,7 +550,16 @@ InstrumentDescription readInstrument(const Field& field, const EyeDescription& e
     }
   }
   if (auto material = fields.optional("material")) instrument.material = readMaterial(*material);
-  if (auto path = fields.optional("path")) instrument.path = readInstrumentPath(*path);
+  if (auto path = fields.optional("path")) {
+    instrument.path = readInstrumentPath(*path);
+    // tissue_offline plays this path as written: exchanges and tips on objects are the scripted sessions' (issue 34).
+    const std::vector<Field> items = path->items();
+    for (std::size_t i = 0; i < instrument.path.size(); ++i) {
+      if (instrument.path[i].type || !instrument.path[i].on.empty()) {
+        items[i].fail("an instrument's own path takes neither `type` nor `on`: script them in scenario.scripts");
+      }
+    }
+  }
   if (auto tremor = fields.optional("tremor")) instrument.tremor = readTremor(*tremor);
   fields.finish();
   return instrument;
@@ -510,7 +594,7 @@ ScenarioParam readScenarioParam(const Field& field) {
   return param;
 }
 
-std::vector<ScriptedInstrument> readScript(const Field& field) {
+std::vector<ScriptedInstrument> readScriptedInstruments(const Field& field) {
   std::vector<ScriptedInstrument> script;
   for (const Field& item : field.items()) {
     MapFields fields(item);
@@ -518,6 +602,7 @@ std::vector<ScriptedInstrument> readScript(const Field& field) {
     part.location = item.location();
     const Field slot = fields.required("slot");
     part.slot = slot.choice<InstrumentSlot>({{"left", InstrumentSlot::kLeft}, {"right", InstrumentSlot::kRight}});
+    if (auto type = fields.optional("type")) part.type = type->choice(instrumentTypeNames());
     part.path = readInstrumentPath(fields.required("path"));
     if (auto tremor = fields.optional("tremor")) part.tremor = readTremor(*tremor);
     fields.finish();
@@ -528,6 +613,38 @@ std::vector<ScriptedInstrument> readScript(const Field& field) {
   }
   if (script.empty()) field.fail("expected at least one scripted instrument");
   return script;
+}
+
+// A scripted session: the short form (the list of instruments) or the full form (a map). A script file is the full
+// form at the top level, where `name` may name it.
+ScriptedSession readScript(const Field& field, const std::string& name, bool file) {
+  ScriptedSession session;
+  session.name = name;
+  session.location = field.location();
+  if (field.node().IsSequence()) {
+    session.instruments = readScriptedInstruments(field);
+    return session;
+  }
+  MapFields fields(field);
+  if (file) {
+    if (auto format = fields.optional("format_version")) format->integer(1, 1);
+    if (auto written = fields.optional("name")) session.name = written->text();
+  }
+  if (auto playback = fields.optional("playback")) {
+    session.playback = playback->choice<Playback>({{"once", Playback::kOnce}, {"loop", Playback::kLoop}});
+  }
+  if (auto missing = fields.optional("missing_objects")) {
+    session.keep_tip_on_missing_object = missing->choice<bool>({{"error", false}, {"keep_tip", true}});
+  }
+  if (auto instruments = fields.optional("instruments")) session.instruments = readScriptedInstruments(*instruments);
+  if (auto eye = fields.optional("eye")) session.eye = readEyeTrack(*eye);
+  if (auto pedals = fields.optional("pedals")) session.pedals = readPedalTrack(*pedals);
+  if (auto microscope = fields.optional("microscope")) session.microscope = readMicroscopeTrack(*microscope);
+  fields.finish();
+  if (session.instruments.empty() && session.eye.empty() && session.pedals.empty() && session.microscope.empty()) {
+    field.fail("expected at least one track (instruments, eye, pedals or microscope)");
+  }
+  return session;
 }
 
 // Only checks the shape (levels are maps of dotted paths); applyDifficulty() resolved the paths before parsing.
@@ -600,7 +717,7 @@ ScenarioDescription readScenario(const Field& field, const std::string& difficul
     MapFields script_fields(*scripts);
     for (const auto& entry : scripts->node()) {
       const std::string key = entry.first.Scalar();
-      scenario.scripts[key] = readScript(*script_fields.optional(key));
+      scenario.scripts[key] = readScript(*script_fields.optional(key), key, false);
     }
     script_fields.finish();
   }
@@ -833,16 +950,46 @@ SceneDescription loadSceneFromString(const std::string& yaml_text, const std::st
   return parseScene(yaml_text, virtual_path, difficulty);
 }
 
-std::vector<ScriptedInstrument> loadScript(const std::string& path) {
+ScriptedSession loadScript(const std::string& name_or_path) {
+  const std::string path = resolveScriptPath(name_or_path);
   SourceLocation location;
   location.file = path;
   std::error_code error;
-  if (!fs::is_regular_file(path, error)) throw SceneError(location, "script file not found");
-  const Field root_field = yaml::parseText(yaml::readFile(path, "script file"), path);
-  MapFields fields(root_field);
-  std::vector<ScriptedInstrument> script = readScript(fields.required("script"));
-  fields.finish();
-  return script;
+  if (!fs::is_regular_file(path, error)) {
+    if (path == name_or_path) throw SceneError(location, "script file not found");
+    std::string shipped;
+    for (const std::string& name : shippedScripts()) shipped += (shipped.empty() ? "" : ", ") + name;
+    location.file = name_or_path;
+    throw SceneError(location, "neither a script file nor a shipped script (shipped: " + shipped + ")");
+  }
+  return loadScriptFromString(yaml::readFile(path, "script file"), path);
+}
+
+std::string resolveScriptPath(const std::string& name_or_path) {
+  std::error_code error;
+  if (fs::is_regular_file(name_or_path, error)) return name_or_path;
+  if (name_or_path.find('/') != std::string::npos || name_or_path.find('.') != std::string::npos) return name_or_path;
+  const std::string package = packageDirectory();
+  if (package.empty()) return name_or_path;
+  return (fs::path(package) / "config" / "scripts" / (name_or_path + ".yaml")).string();
+}
+
+std::vector<std::string> shippedScripts() {
+  std::vector<std::string> names;
+  const std::string package = packageDirectory();
+  if (package.empty()) return names;
+  std::error_code error;
+  for (const auto& entry : fs::directory_iterator(fs::path(package) / "config" / "scripts", error)) {
+    if (entry.path().extension() == ".yaml") names.push_back(entry.path().stem().string());
+  }
+  std::sort(names.begin(), names.end());
+  return names;
+}
+
+ScriptedSession loadScriptFromString(const std::string& yaml_text, const std::string& virtual_path) {
+  const Field root = yaml::parseText(yaml_text, virtual_path);
+  if (!root.node().IsMap()) root.fail("expected a scripted session (a map: instruments, eye, pedals, microscope)");
+  return readScript(root, fs::path(virtual_path).stem().string(), true);
 }
 
 std::string resolveScenePath(const std::string& name_or_path) {

@@ -11,6 +11,7 @@
 #include "vrm_sim/mge/membrane.h"
 #include "vrm_sim/scene/instrument_model.h"
 #include "vrm_sim/scene/scene_loader.h"
+#include "vrm_sim/scene/surface_target.h"
 #include "vrm_sim/tissue/integrator.h"
 #include "vrm_sim/tissue/tissue_simulator.h"
 #include "vrm_sim/world/session_result.h"
@@ -101,6 +102,7 @@ std::vector<InstrumentState> scriptedInputsAt(const scene::SceneDescription& sce
     state.frame_id = "eye";
     state.jaw_angle = scripted.jaw_angle;
     const scene::InstrumentWaypoint sample = scene::samplePath(instrument.path, t);
+    if (sample.type) state.type = *sample.type;  // an exchange scripted along the path
     state.suction = sample.suction;
     state.cut_rate = sample.cut_rate_hz;
     inputs.push_back(state);
@@ -257,9 +259,9 @@ ScenarioRunResult runScenario(const scene::SceneDescription& scene, const Scenar
   if (!(options.grace >= 0.0) || !std::isfinite(options.grace)) {
     throw std::invalid_argument("grace must be a non-negative number");
   }
-  const scene::SceneDescription scripted = options.script_parts.empty()
-                                               ? scene::withScript(scene, options.script)
-                                               : scene::withScript(scene, options.script_parts);
+  const scene::SceneDescription scripted =
+      options.script_file ? scene::withScript(scene, scene::resolveSurfaceTargets(scene, *options.script_file))
+                          : scene::withScript(scene, options.script);
   WorldOptions world_options;
   world_options.detector_override = options.detector;
   world_options.auto_start = true;
@@ -269,7 +271,7 @@ ScenarioRunResult runScenario(const scene::SceneDescription& scene, const Scenar
   result.scenario = scene.name;
   result.type = scene.scenario->type;
   result.difficulty = scene.scenario->difficulty;
-  result.script = options.script_parts.empty() ? options.script : "file";
+  result.script = options.script_file ? "file" : options.script;
   result.seed = options.seed;
   std::map<std::string, double> stage_ms;
   world.setFrameObserver([&](const FrameResult& frame) {
