@@ -1,5 +1,6 @@
 #include "vrm_sim/world/session_result.h"
 
+#include "vrm_sim/scenario/result_fields.h"
 #include "vrm_sim/world/offline.h"
 
 namespace vrm_sim {
@@ -11,20 +12,7 @@ result::SessionResult sessionResult(const World& world, const ResultContext& con
   r.scene_file = world.scene().source_file;
   r.seed = context.seed;
   r.session_ended = world.sessionEnded();
-  if (const scenario::Status* status = world.scenarioStatus()) {
-    r.scenario = status->type;
-    r.difficulty = status->difficulty;
-    r.state = scenario::toString(status->state);
-    r.timed_out = status->timed_out;
-    r.message = status->message;
-    r.start_stamp = status->start_time.value_or(0.0);
-    r.end_stamp = status->end_time.value_or(0.0);
-    r.elapsed = status->elapsed;
-    r.total = status->score.total;
-    for (const scenario::ScoreItem& item : status->score.items) {
-      r.items.push_back({item.name, item.value, item.unit, item.weight, item.points});
-    }
-  }
+  if (const scenario::Status* status = world.scenarioStatus()) scenario::writeResultFields(*status, &r);
   const WorldStatistics& statistics = world.statistics();
   r.final_state_hash = hashString(world.stateHash());
   r.frames = statistics.frames;
