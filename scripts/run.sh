@@ -11,8 +11,9 @@
 # with tissue the tissue was published deformed and grasped, the scenario finished, and the replay of the bag ended
 # in the live final state hash (CI runs the short form).
 # Usage: scripts/run.sh [--duration SECONDS] [--scenario NAME] [--difficulty LEVEL] [--script expert|novice]
-#                       [--bag PATH] [--check] [roslaunch args...]
-# (--scene is a synonym of --scenario; scenario_offline --list names the scenarios.)
+#                       [--bag PATH] [--check] [--no-build] [roslaunch args...]
+# (--scene is a synonym of --scenario; scenario_offline --list names the scenarios. --no-build skips the set-up and
+# build, for a second run on a built tree or a build someone else is running.)
 set -euo pipefail
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 duration=20
@@ -21,6 +22,7 @@ difficulty=""
 script=expert
 bag=""
 check=()
+build=true
 extra=()
 while (($#)); do
   case $1 in
@@ -30,13 +32,19 @@ while (($#)); do
     --script) script=$2; shift 2 ;;
     --bag) bag=$2; shift 2 ;;
     --check) check=(--check); shift ;;
-    -h | --help) sed -n '2,13p' "$0"; exit 0 ;;
+    --no-build) build=false; shift ;;
+    -h | --help) sed -n '2,16p' "$0"; exit 0 ;;
     *) extra+=("$1"); shift ;;
   esac
 done
 [[ $duration =~ ^[0-9]+([.][0-9]+)?$ ]] && [[ $duration != 0 ]] || { echo "run.sh: --duration must be a positive number" >&2; exit 2; }
 
-"$ROOT/scripts/setup.sh"
+if $build; then
+  "$ROOT/scripts/setup.sh"
+elif [[ ! -f $ROOT/build/devel/setup.bash ]]; then
+  echo "run.sh: --no-build, but there is no build in $ROOT/build (run without --no-build once)" >&2
+  exit 2
+fi
 source "$ROOT/scripts/common.sh"
 
 out="$ROOT/build/sessions/$(date +%Y%m%d_%H%M%S)"
