@@ -274,7 +274,7 @@ TEST(RecordsSchema, MigratesAnEmptyFileToTheCurrentVersion) {
     EXPECT_EQ(store.path(), path);
   }
   RawDb raw(path);
-  EXPECT_EQ(raw.value("PRAGMA user_version"), "2");
+  EXPECT_EQ(raw.value("PRAGMA user_version"), std::to_string(Store::kSchemaVersion));
   EXPECT_EQ(raw.value("PRAGMA journal_mode"), "wal");
   EXPECT_EQ(raw.value("SELECT count(*) FROM pragma_table_info('sessions') WHERE name IN ('annotation', 'station')"),
             "2");
@@ -287,7 +287,7 @@ TEST(RecordsSchema, CreatesMissingFoldersAndFile) {
   const std::string path = dir.file("a/b/records.sqlite");
   Store store(path);
   EXPECT_TRUE(fs::exists(path));
-  EXPECT_EQ(store.schemaVersion(), 2);
+  EXPECT_EQ(store.schemaVersion(), Store::kSchemaVersion);
 }
 
 // Permission bits of a file or folder (0777 part).
@@ -359,7 +359,7 @@ TEST(RecordsSchema, MigratesVersion1KeepingTheRows) {
     ASSERT_EQ(raw.value("PRAGMA user_version"), "1");
   }
   Store store(path);
-  EXPECT_EQ(store.schemaVersion(), 2);
+  EXPECT_EQ(store.schemaVersion(), Store::kSchemaVersion);
   const auto sessions = store.sessions();
   ASSERT_EQ(sessions.size(), 1u);
   const SessionRecord& s = sessions[0];
@@ -387,7 +387,7 @@ TEST(RecordsSchema, MigratesVersion1KeepingTheRows) {
   expectStoreError([&] { store.annotate(s.id + 100, "x"); }, {"no session"});
 
   RawDb raw(path);
-  EXPECT_EQ(raw.value("PRAGMA user_version"), "2");
+  EXPECT_EQ(raw.value("PRAGMA user_version"), std::to_string(Store::kSchemaVersion));
   EXPECT_EQ(raw.value("SELECT count(*) FROM sqlite_master WHERE name = 'sessions_user_scene'"), "1");
 }
 
@@ -395,7 +395,7 @@ TEST(RecordsSchema, RefusesANewerSchemaAndForeignDatabases) {
   TempDir dir;
   const std::string newer = dir.file("newer.sqlite");
   { Store store(newer); }
-  RawDb(newer).exec("PRAGMA user_version = 3");
+  RawDb(newer).exec("PRAGMA user_version = " + std::to_string(Store::kSchemaVersion + 1));
   expectStoreError([&] { Store store(newer); }, {newer, "newer"});
 
   const std::string foreign = dir.file("foreign.sqlite");

@@ -1,7 +1,9 @@
 // eyesi_gui: the trainee and instructor console as a ROS node (rosrun eyesi_gui eyesi_gui, or
 // roslaunch launch/simulator.launch headless:=false). Private parameters: station (the station node, default
 // /station), database (default ~/.ros/eyesi/records.sqlite), import_dir (result files to import at start),
-// export_dir, view (side_by_side | anaglyph). Options (for demos and tests) override them; see --help.
+// export_dir, view (side_by_side | anaglyph), course_dir (the courses an instructor assigns; default: the package's
+// config/courses). Options (for demos and tests) override them; see --help.
+#include <ros/package.h>
 #include <ros/ros.h>
 
 #include <QApplication>
@@ -39,6 +41,10 @@ int main(int argc, char** argv) {
   options.import_dir = expandHome(QString::fromStdString(private_nh.param<std::string>("import_dir", "")));
   options.export_dir = expandHome(QString::fromStdString(private_nh.param<std::string>("export_dir", "")));
   options.view_mode = QString::fromStdString(private_nh.param<std::string>("view", "side_by_side"));
+  // Found at run time (a devel space's source package, an install space's share/eyesi_gui), never compiled in.
+  const std::string package = ros::package::getPath("eyesi_gui");
+  options.course_dir = expandHome(QString::fromStdString(
+      private_nh.param<std::string>("course_dir", package.empty() ? "" : package + "/config/courses")));
   const std::string station = private_nh.param<std::string>("station", "/station");
 
   QCommandLineParser parser;

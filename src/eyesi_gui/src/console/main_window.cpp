@@ -35,6 +35,7 @@
 #include <fstream>
 #include <sstream>
 
+#include "course_panel.h"
 #include "eyesi_gui/console/message_constants.h"
 #include "stereo_view.h"
 #include "vrm_sim/result/session_result.h"
@@ -278,6 +279,17 @@ QWidget* MainWindow::buildScenarios() {
   right->addLayout(row);
   load_button_ = bigButton("Load scenario", "loadButton");
   right->addWidget(load_button_);
+  course_panel_ = new CoursePanel(store_);
+  right->addWidget(course_panel_, 1);
+  connect(course_panel_, &CoursePanel::startRequested, this, [this](const QString& scene, const QString& level) {
+    if (!user_) return;
+    SessionRequest request;
+    request.user = q(user_->name);
+    request.scene = scene;
+    request.difficulty = level;
+    request.record = record_check_->isChecked();
+    loadSession(request);
+  });
   layout->addLayout(right, 1);
   connect(scenario_list_, &QListWidget::currentRowChanged, this, [this] { showSceneDetails(); });
   connect(load_button_, &QPushButton::clicked, this, [this] { loadSelectedScene(record_check_->isChecked()); });
@@ -314,6 +326,7 @@ void MainWindow::refreshScenarioList() {
   scenario_list_->blockSignals(false);
   if (!scenario_list_->currentItem() && scenario_list_->count() > 0) scenario_list_->setCurrentRow(0);
   showSceneDetails();
+  course_panel_->refresh(user_, scenes_);
 }
 
 const SceneInfo* MainWindow::sceneNamed(const QString& name) const {
@@ -370,6 +383,9 @@ void MainWindow::loadSelectedScene(bool record) {
   request.scene = scene->name;
   request.difficulty = difficulty_box_->currentText();
   request.record = record;
+  // A trainee's course locks its steps until the one before is passed, here as on the course panel.
+  const QString locked = course_panel_->lockedReason(request.scene, request.difficulty);
+  if (!locked.isEmpty()) return note(locked);
   loadSession(request);
 }
 
@@ -922,6 +938,9 @@ QWidget* MainWindow::buildInstructor() {
   layout->addWidget(annotation_edit_);
   auto* save = bigButton("Save note", "saveNoteButton");
   layout->addWidget(save);
+  course_assigner_ = new CourseAssigner(store_, options_.course_dir);
+  layout->addWidget(course_assigner_);
+  connect(course_assigner_, &CourseAssigner::note, this, &MainWindow::note);
   auto selected = [this]() -> std::optional<records::SessionRecord> {
     const auto rows = instructor_table_->selectionModel()->selectedRows();
     if (rows.isEmpty()) return std::nullopt;
@@ -953,6 +972,7 @@ QWidget* MainWindow::buildInstructor() {
 }
 
 void MainWindow::refreshInstructor() {
+  course_assigner_->refresh(user_, scenes_);
   const auto sessions = store_->sessions();
   instructor_table_->setRowCount(static_cast<int>(sessions.size()));
   for (int row = 0; row < static_cast<int>(sessions.size()); ++row) {

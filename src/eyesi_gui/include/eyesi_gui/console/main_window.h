@@ -33,6 +33,8 @@ class QChartView;
 namespace eyesi_gui {
 
 class StereoView;
+class CoursePanel;
+class CourseAssigner;
 
 struct ConsoleOptions {
   QString database;                    // the records store (opened by the caller)
@@ -47,6 +49,7 @@ struct ConsoleOptions {
   QString autopilot_pin;
   QString screenshot_dir;
   double autopilot_timeout = 240.0;  // s
+  QString course_dir;                // the course files an instructor can assign (*.yaml; "" = none)
 };
 
 class MainWindow : public QMainWindow {
@@ -141,6 +144,7 @@ class MainWindow : public QMainWindow {
   QComboBox* difficulty_box_ = nullptr;
   QCheckBox* record_check_ = nullptr;
   QPushButton* load_button_ = nullptr;
+  CoursePanel* course_panel_ = nullptr;  // the trainee's assigned course
   // session
   StereoView* stereo_view_ = nullptr;
   QComboBox* view_mode_box_ = nullptr;
@@ -168,6 +172,7 @@ class MainWindow : public QMainWindow {
   QTableWidget* instructor_table_ = nullptr;
   QComboBox* override_box_ = nullptr;
   QPlainTextEdit* annotation_edit_ = nullptr;
+  CourseAssigner* course_assigner_ = nullptr;
   QFutureWatcher<QString> background_;
 
   // autopilot

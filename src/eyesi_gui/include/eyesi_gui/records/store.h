@@ -77,6 +77,18 @@ struct SceneSummary {
   std::string last_recorded_at;
 };
 
+// Added to the contract (issue 35, schema version 3): the course an instructor assigned to a trainee, as it was
+// assigned (course_text: the course file's YAML, read with records/course.h). Progress is not stored: it follows from
+// the trainee's sessions.
+struct CourseAssignment {
+  std::string user;  // the trainee
+  std::string course_name;
+  std::string course_file;  // where the text came from (messages, and to tell courses apart)
+  std::string course_text;
+  std::string assigned_by;  // the instructor
+  std::string assigned_at;  // ISO-8601 UTC
+};
+
 class StoreError : public std::runtime_error {
  public:
   StoreError(const std::string& what, std::string integrity_report = "")
@@ -94,7 +106,7 @@ struct ImportResult {
 
 class Store {
  public:
-  static constexpr int kSchemaVersion = 2;
+  static constexpr int kSchemaVersion = 3;
 
   // Opens (creating parent folders and the file if missing) and migrates. Throws StoreError.
   explicit Store(const std::string& path);
@@ -131,6 +143,12 @@ class Store {
   std::optional<SessionRecord> session(std::int64_t id) const;
   std::vector<SceneSummary> summaries(const std::string& user) const;
   void annotate(std::int64_t session_id, const std::string& text);
+
+  // Courses (issue 35). assignCourse gives `trainee` the course (replacing an earlier one); StoreError when the
+  // trainee is unknown or not a trainee, the instructor unknown or not an instructor, or the course has no name or
+  // text. courseAssignment: the trainee's course, if any.
+  void assignCourse(const CourseAssignment& assignment);
+  std::optional<CourseAssignment> courseAssignment(const std::string& trainee) const;
 
   // CSV (RFC 4180): one line per score item of every matching session, with a header line.
   void exportCsv(std::ostream& out, const SessionFilter& filter = {}) const;

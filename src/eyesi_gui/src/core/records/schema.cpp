@@ -65,6 +65,20 @@ ALTER TABLE sessions ADD COLUMN station TEXT NOT NULL DEFAULT '';
 CREATE INDEX sessions_user_scene ON sessions (user_id, scene, start_stamp);
 )sql";
 
+// Version 3 (issue 35, courses): which course each trainee is assigned, by whom and when. The course's text is kept
+// as assigned, so a trainee's progress (computed from their sessions) is shown against the same steps and pass marks
+// after a restart, even if the course file is edited or gone. One course per trainee: assigning another replaces it.
+constexpr const char* kVersion3 = R"sql(
+CREATE TABLE course_assignments (
+  user_id INTEGER PRIMARY KEY REFERENCES users (id),
+  course_name TEXT NOT NULL,
+  course_file TEXT NOT NULL DEFAULT '',
+  course_text TEXT NOT NULL,
+  assigned_by INTEGER REFERENCES users (id),
+  assigned_at TEXT NOT NULL
+);
+)sql";
+
 }  // namespace
 
 const char* migrationSql(int to_version) {
@@ -73,6 +87,8 @@ const char* migrationSql(int to_version) {
       return kVersion1;
     case 2:
       return kVersion2;
+    case 3:
+      return kVersion3;
     default:
       return nullptr;
   }

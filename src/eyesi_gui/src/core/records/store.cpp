@@ -707,6 +707,49 @@ void Store::annotate(std::int64_t session_id, const std::string& text) {
   }
 }
 
+void Store::assignCourse(const CourseAssignment& assignment) {
+  if (isBlank(assignment.course_name) || isBlank(assignment.course_text)) {
+    throw StoreError(impl_->path + ": a course assignment needs the course's name and text");
+  }
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  Impl::Transaction tx(*impl_, true);
+  auto idWithRole = [&](const std::string& name, Role role) {
+    Impl::Statement stmt(*impl_, "SELECT id, role FROM users WHERE name = ?1");
+    stmt.text(1, name);
+    if (!stmt.step()) throw StoreError(impl_->path + ": no user \"" + name + "\"");
+    if (roleFromString(stmt.textAt(1)) != role) {
+      throw StoreError(impl_->path + ": \"" + name + "\" is not " + (role == Role::kTrainee ? "a " : "an ") +
+                       toString(role));
+    }
+    return stmt.integerAt(0);
+  };
+  const std::int64_t trainee = idWithRole(assignment.user, Role::kTrainee);
+  const std::int64_t instructor = idWithRole(assignment.assigned_by, Role::kInstructor);
+  Impl::Statement stmt(*impl_,
+                       "INSERT OR REPLACE INTO course_assignments (user_id, course_name, course_file, course_text, "
+                       "assigned_by, assigned_at) VALUES (?1, ?2, ?3, ?4, ?5, ?6)");
+  stmt.integer(1, trainee)
+      .text(2, assignment.course_name)
+      .text(3, assignment.course_file)
+      .text(4, assignment.course_text)
+      .integer(5, instructor)
+      .text(6, assignment.assigned_at.empty() ? nowIso8601() : assignment.assigned_at);
+  stmt.step();
+  tx.commit();
+}
+
+std::optional<CourseAssignment> Store::courseAssignment(const std::string& trainee) const {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  Impl::Statement stmt(*impl_,
+                       "SELECT u.name, c.course_name, c.course_file, c.course_text, coalesce(i.name, ''), "
+                       "c.assigned_at FROM course_assignments c JOIN users u ON u.id = c.user_id "
+                       "LEFT JOIN users i ON i.id = c.assigned_by WHERE u.name = ?1");
+  stmt.text(1, trainee);
+  if (!stmt.step()) return std::nullopt;
+  return CourseAssignment{stmt.textAt(0), stmt.textAt(1), stmt.textAt(2),
+                          stmt.textAt(3), stmt.textAt(4), stmt.textAt(5)};
+}
+
 void Store::exportCsv(std::ostream& out, const SessionFilter& filter) const {
   writeCsvRow(out, {"session_id", "user", "scene", "scenario", "difficulty", "seed", "state", "passed", "total",
                     "elapsed", "recorded_at", "bag", "item", "value", "unit", "weight", "points"});
