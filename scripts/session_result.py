@@ -34,6 +34,9 @@ SCHEMA = {
     "elapsed": ("number", NAN),
     "total": ("number", NAN),
     "items": ("items", []),
+    "groups": ("groups", []),
+    "events": ("events", []),
+    "events_dropped": ("count", 0),
     "final_state_hash": ("string", None),
     "frames": ("count", 0),
     "simulated_frames": ("count", 0),
@@ -56,6 +59,22 @@ ITEM_SCHEMA = {
     "weight": ("number", 0.0),
     "points": ("number", NAN),
 }
+GROUP_SCHEMA = {
+    "name": ("string", None),
+    "points": ("number", NAN),
+    "weight": ("number", 0.0),
+}
+EVENT_SCHEMA = {
+    "time": ("number", NAN),
+    "kind": ("string", None),
+    "item": ("string", ""),
+    "slot": ("string", ""),
+    "instrument": ("string", ""),
+    "position": ("position", [NAN, NAN, NAN]),
+    "points": ("number", NAN),
+}
+# The rows of an array key, and the key of each row that must be a non-empty string.
+ROWS = {"items": (ITEM_SCHEMA, "name"), "groups": (GROUP_SCHEMA, "name"), "events": (EVENT_SCHEMA, "kind")}
 MAX_SEED = 2**32 - 1
 MAX_COUNT = 2**63 - 1
 
@@ -87,7 +106,9 @@ def _field(obj, key, kind, default, source, where=""):
         return default
     value = obj[key]
     if value is None:
-        return NAN if kind == "number" else (default if kind in ("bool", "count", "items") else None)
+        if kind == "position":
+            return list(default)
+        return NAN if kind == "number" else (default if kind in ("bool", "count") or kind in ROWS else None)
     if kind == "string":
         if not isinstance(value, str):
             fail("is not a string")
@@ -110,18 +131,26 @@ def _field(obj, key, kind, default, source, where=""):
             fail("is not a non-negative integer in range")
         if value > limit:
             fail("is out of range")
-    elif kind == "items":
+    elif kind == "position":
+        if not isinstance(value, list) or len(value) != 3:
+            fail("is not an array of 3")
+        for coordinate in value:
+            if coordinate is not None and (isinstance(coordinate, bool) or not isinstance(coordinate, (int, float))):
+                fail("has an element that is not a number or null")
+        value = [NAN if coordinate is None else float(coordinate) for coordinate in value]
+    elif kind in ROWS:
+        schema, name_key = ROWS[kind]
         if not isinstance(value, list):
             fail("is not an array")
-        items = []
+        rows = []
         for i, row in enumerate(value):
             if not isinstance(row, dict):
-                fail(f"has an element that is not an object (items[{i}].)")
-            item = {k: _field(row, k, t, d, source, f"items[{i}].") for k, (t, d) in ITEM_SCHEMA.items()}
-            if not item["name"]:
-                raise ResultError(f'{source}: result field items[{i}]."name" is missing or empty')
-            items.append(item)
-        value = items
+                fail(f"has an element that is not an object ({key}[{i}].)")
+            entry = {k: _field(row, k, t, d, source, f"{key}[{i}].") for k, (t, d) in schema.items()}
+            if not entry[name_key]:
+                raise ResultError(f'{source}: result field {key}[{i}]."{name_key}" is missing or empty')
+            rows.append(entry)
+        value = rows
     return value
 
 

@@ -57,6 +57,26 @@ class ReferenceResults(unittest.TestCase):
         self.assertEqual(result["from_a_newer_writer"], {"x": 1})
         self.assertIsNone(result["scenario"])
 
+    def test_groups_and_events_read_with_their_defaults(self):
+        text = (
+            '{"scene": "s", "final_state_hash": "0x1", "frames": 3, "events_dropped": 4, '
+            '"groups": [{"name": "tissue_treatment", "points": 62.5, "weight": 4}], '
+            '"events": [{"time": 2.5, "kind": "retina_touched", "item": "retina_contacts", "slot": "right", '
+            '"instrument": "forceps", "position": [0.001, null, -0.0119], "points": 3.125}, {"kind": "bleeding"}]}'
+        )
+        result = session_result.from_json(text, "t")
+        self.assertEqual(result["groups"], [{"name": "tissue_treatment", "points": 62.5, "weight": 4.0}])
+        first, second = result["events"]
+        self.assertEqual((first["kind"], first["slot"], first["instrument"], first["points"]),
+                         ("retina_touched", "right", "forceps", 3.125))
+        self.assertEqual(first["position"][0], 0.001)
+        self.assertTrue(math.isnan(first["position"][1]))
+        self.assertTrue(all(math.isnan(v) for v in second["position"]))
+        self.assertTrue(math.isnan(second["time"]))
+        self.assertEqual(result["events_dropped"], 4)
+        older = session_result.from_json('{"scene": "s", "final_state_hash": "0x1", "frames": 3}', "old")
+        self.assertEqual((older["groups"], older["events"], older["events_dropped"]), ([], [], 0))
+
 
 class MalformedResults(unittest.TestCase):
     def test_the_shared_corpus_names_the_same_keys(self):

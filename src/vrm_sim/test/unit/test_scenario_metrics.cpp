@@ -1,6 +1,7 @@
 // The scenario layer's measurements and scoring against hand-computed values, and the runner's timing edge cases.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <memory>
 
@@ -91,7 +92,7 @@ TEST(ScenarioScoring, ItemsAreLinearBetweenBestAndWorstAndClamped) {
 }
 
 // A minimal steady-hold scenario, driven with hand-made frames.
-scene::SceneDescription holdScene(const std::string& extra = "") {
+scene::SceneDescription holdScene(const std::string& extra = "", const std::string& extra_scoring = "") {
   return scene::loadSceneFromString(R"(
 scene: {name: hold_test, kind: abstract}
 objects:
@@ -105,7 +106,8 @@ scenario:
   params: {centre: [0.0, 0.0, -0.010], radius: 0.0001, hold_time: 5})" +
                                         extra + R"(
   scoring:
-    time: {weight: 1, best: 5, worst: 20}
+    time: {weight: 1, best: 5, worst: 20})" +
+                                        extra_scoring + R"(
 )",
                                     "hold_test.yaml");
 }
@@ -182,6 +184,124 @@ TEST(ScenarioRunner, FailIfRuleEndsTheSession) {
   EXPECT_EQ(runner.status().state, State::kFailed);
   EXPECT_FALSE(runner.status().timed_out);
   EXPECT_NE(runner.status().message.find("exits"), std::string::npos) << runner.status().message;
+}
+
+// Issue 35: each exit from the hold zone is a penalty event charged to the tool, costing exactly its item's share of
+// the total's drop; the factor groups' weighted mean is the total.
+TEST(ScenarioRunner, EveryExitIsAPenaltyEventThatExplainsThePointsLost) {
+  ScenarioRunner runner(holdScene("", "\n    exits: {weight: 2, best: 0, worst: 5}"));
+  runner.start(0.0);
+  const Eigen::Vector3d centre(0.0, 0.0, -0.010), away(0.0, 0.0, -0.009);
+  double t = 0.0;
+  for (int exit = 0; exit < 7; ++exit) {
+    runner.frame(frameAt(t += 0.02, centre));
+    runner.frame(frameAt(t += 0.02, away + Eigen::Vector3d(1e-4 * exit, 0, 0)));
+  }
+  const Status& status = runner.status();
+  ASSERT_EQ(status.events.size(), 7u);
+  EXPECT_EQ(status.events_dropped, 0u);
+  double lost = 0.0;
+  for (std::size_t i = 0; i < status.events.size(); ++i) {
+    const PenaltyEvent& event = status.events[i];
+    EXPECT_EQ(event.kind, "left_hold_zone");
+    EXPECT_EQ(event.item, "exits");
+    EXPECT_EQ(event.slot, "right");
+    EXPECT_EQ(event.instrument, "needle");
+    EXPECT_TRUE(event.position.isApprox(away + Eigen::Vector3d(1e-4 * i, 0, 0))) << event.position.transpose();
+    EXPECT_NEAR(event.time, 0.04 * (i + 1), 1e-9);
+    // 20 points of the item per exit, weight 2 of 3: 13.33 of the total, until the item is at its worst (5 exits).
+    EXPECT_NEAR(event.points, i < 5 ? 2.0 * 20.0 / 3.0 : 0.0, 1e-9) << i;
+    lost += event.points;
+  }
+  EXPECT_NEAR(lost, 2.0 * (100.0 - status.score.item("exits")->points) / 3.0, 1e-9);
+  // Groups: efficiency (time, weight 1) and instrument handling (exits, weight 2); the rest are not scored here.
+  ASSERT_EQ(status.score.groups.size(), 2u);
+  EXPECT_EQ(status.score.groups[0].name, "efficiency");
+  EXPECT_EQ(status.score.groups[1].name, "instrument_handling");
+  EXPECT_EQ(status.score.groups[1].weight, 2.0);
+  EXPECT_NEAR((status.score.groups[0].points + 2.0 * status.score.groups[1].points) / 3.0, status.score.total, 1e-12);
+  runner.reset();
+  EXPECT_TRUE(runner.status().events.empty());
+}
+
+ScoreItem scored(const std::string& name, double value, double points, double weight = 1.0) {
+  return ScoreItem{name, value, "1", weight, points};
+}
+
+TEST(PenaltyLog, CountsGiveAnEventPerRiseContinuousItemsOnePerRunAndTheLogIsBounded) {
+  PenaltyLog log;
+  std::vector<PenaltyEvent> events;
+  std::size_t dropped = 0;
+  InstrumentView forceps;
+  forceps.slot = "left";
+  forceps.type = scene::InstrumentType::kForceps;
+  forceps.tip = Eigen::Vector3d(0.001, 0.002, -0.011);
+  const auto instrument = [&](const std::string&) { return &forceps; };
+  // Weights 1 + 1 + 2 = 4: bleeding's share of a drop of its points by 10 is 2.5 of the total.
+  const auto table = [](double bleeding, double bleeding_points, double contacts, double contact_points) {
+    return std::vector<ScoreItem>{scored("bleeding_area", bleeding, bleeding_points),
+                                  scored("retina_contacts", contacts, contact_points), scored("time", 1, 50, 2)};
+  };
+  std::vector<ScoreItem> before = table(0, 100, 0, 100);
+  const std::vector<std::vector<ScoreItem>> frames = {
+      table(1e-6, 90, 0, 100), table(2e-6, 80, 1, 75),  // bleeding starts; a touch
+      table(3e-6, 70, 1, 75),                           // bleeding goes on: the same event
+      table(3e-6, 70, 1, 75),                           // stops
+      table(4e-6, 60, 2, 50),                           // over 1 s later: a second bleeding, a second touch
+  };
+  const double times[] = {0.1, 0.2, 0.3, 0.4, 1.5};
+  for (std::size_t i = 0; i < frames.size(); ++i) {
+    log.record(before, frames[i], times[i], instrument, events, dropped);
+    before = frames[i];
+  }
+  ASSERT_EQ(events.size(), 4u);
+  EXPECT_EQ(events[0].kind, "bleeding");
+  EXPECT_NEAR(events[0].points, 3 * 10.0 / 4.0, 1e-12);  // three rising frames, one event
+  EXPECT_NEAR(events[0].time, 0.1, 1e-12);
+  EXPECT_EQ(events[1].kind, "retina_touched");
+  EXPECT_NEAR(events[1].points, 25.0 / 4.0, 1e-12);
+  EXPECT_EQ(events[1].slot, "left");
+  EXPECT_EQ(events[1].instrument, "forceps");
+  EXPECT_TRUE(events[1].position.isApprox(forceps.tip));
+  EXPECT_EQ(events[2].kind, "bleeding");
+  EXPECT_NEAR(events[2].time, 1.5, 1e-12);
+  EXPECT_EQ(events[3].kind, "retina_touched");
+  // Without an instrument: no slot, no position.
+  log.record(
+      before, table(4e-6, 60, 3, 25), 1.6, [](const std::string&) { return nullptr; }, events, dropped);
+  ASSERT_EQ(events.size(), 5u);
+  EXPECT_EQ(events[4].slot, "");
+  EXPECT_FALSE(events[4].position.allFinite());
+
+  // Bounded: past kMaxEvents the events are counted, not kept.
+  before = table(0, 100, 0, 100);
+  events.clear();
+  log.reset();
+  for (int touch = 1; touch <= 250; ++touch) {
+    const std::vector<ScoreItem> after = table(0, 100, touch, 0);
+    log.record(before, after, touch, instrument, events, dropped);
+    before = after;
+  }
+  EXPECT_EQ(events.size(), PenaltyLog::kMaxEvents);
+  EXPECT_EQ(dropped, 50u);
+}
+
+TEST(FactorGroups, EveryItemOfEveryScenarioTypeHasAGroupAndAGroupWithoutScoredItemsIsOmitted) {
+  for (const ItemRole& role : itemRoles()) {
+    EXPECT_TRUE(std::any_of(std::begin(kFactorGroups), std::end(kFactorGroups),
+                            [&](const char* group) { return std::string(group) == role.group; }))
+        << role.item << ": unknown group " << role.group;
+  }
+  const std::vector<ScoreItem> items = {scored("completed", 1, 100, 3), scored("time", 40, 50, 1),
+                                        scored("retina_contacts", 1, 75, 2), scored("path_length", 0.02, 0, 0)};
+  const std::vector<GroupScore> groups = groupScores(items);
+  ASSERT_EQ(groups.size(), 3u);  // efficiency: time only (path_length is not scored); no microscope handling
+  EXPECT_EQ(groups[0].name, "target_achievement");
+  EXPECT_EQ(groups[1].name, "efficiency");
+  EXPECT_EQ(groups[1].points, 50.0);
+  EXPECT_EQ(groups[2].name, "tissue_treatment");
+  EXPECT_EQ(groups[2].weight, 2.0);
+  EXPECT_EQ(itemRole("no_such_item"), nullptr);
 }
 
 TEST(ScenarioRunner, RulesNamingUnknownItemsOrParamsAreErrorsWithTheirLocation) {

@@ -5,11 +5,14 @@
 #include <gtest/gtest.h>
 
 #include <array>
+#include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <map>
 #include <memory>
 
+#include "vrm_sim/scenario/factor_groups.h"
+#include "vrm_sim/scenario/runner.h"
 #include "vrm_sim/scenario/scenario.h"
 #include "vrm_sim/scene/scene_loader.h"
 #include "vrm_sim/world/offline.h"
@@ -90,7 +93,62 @@ TEST_P(EveryScenario, ReplayingTheSameScriptScoresIdentically) {
   EXPECT_EQ(again.score.total, runs(GetParam()).expert.score.total);
 }
 
+// Issue 35: the factor groups re-express the total (their weighted mean), and the penalty events explain every point
+// the penalty items lost — in the run's score and in its session result alike.
+TEST_P(EveryScenario, GroupsAddUpToTheTotalAndEventsExplainThePenaltyPoints) {
+  for (const world::ScenarioRunResult* run : {&runs(GetParam()).expert, &runs(GetParam()).novice}) {
+    SCOPED_TRACE(run->script);
+    const scenario::Score& score = run->score;
+    double weighted = 0.0, weights = 0.0, item_weights = 0.0, penalty_loss = 0.0;
+    for (const scenario::GroupScore& group : score.groups) {
+      weighted += group.weight * group.points;
+      weights += group.weight;
+      EXPECT_NE(group.name, "microscope_handling") << "no shipped scenario operates the microscope";
+    }
+    ASSERT_GT(weights, 0.0);
+    EXPECT_NEAR(weighted / weights, score.total, 1e-9);
+    for (const scenario::ScoreItem& item : score.items) {
+      const scenario::ItemRole* role = scenario::itemRole(item.name);
+      ASSERT_NE(role, nullptr) << item.name << " has no factor group";
+      item_weights += item.weight;
+      if (role->penalty_kind != nullptr) penalty_loss += item.weight * (100.0 - item.points);
+    }
+    EXPECT_DOUBLE_EQ(weights, item_weights);
+    ASSERT_TRUE(run->session_result.has_value());
+    const result::SessionResult& result = *run->session_result;
+    ASSERT_EQ(result.groups.size(), score.groups.size());
+    EXPECT_EQ(result.events_dropped, 0u);
+    double explained = 0.0;
+    for (const result::PenaltyEvent& event : result.events) {
+      explained += event.points;
+      EXPECT_GE(event.points, -1e-12) << event.kind;
+      EXPECT_FALSE(event.slot.empty()) << event.kind << " at " << event.time << " s has no instrument";
+      EXPECT_TRUE(std::isfinite(event.position[0])) << event.kind;
+      EXPECT_GE(event.time, 0.0);
+      EXPECT_LE(event.time, result.elapsed + 1e-9);
+    }
+    EXPECT_NEAR(explained, penalty_loss / item_weights, 1e-6) << run->json();
+  }
+  // The novices were written to make mistakes: their results say which.
+  EXPECT_FALSE(runs(GetParam()).novice.session_result->events.empty()) << runs(GetParam()).novice.json();
+}
+
 INSTANTIATE_TEST_SUITE_P(Shipped, EveryScenario, ::testing::ValuesIn(scenarioNames()));
+
+// Every shipped scene at every level runs a scenario whose every item is in the factor-group table (the runner refuses
+// one that is not, naming the item: a new item cannot go unscored).
+TEST(Scenarios, EveryShippedItemHasAFactorGroup) {
+  for (const std::string& name : scene::shippedScenes()) {
+    const scene::SceneDescription scene = loadScene(shippedScenePath(name));
+    if (!scene.scenario) continue;
+    for (const std::string& level : scene.scenario->difficulty_levels) {
+      const scenario::ScenarioRunner runner(loadScene(shippedScenePath(name), level));
+      for (const scenario::ScoreItem& item : runner.status().score.items) {
+        EXPECT_NE(scenario::itemRole(item.name), nullptr) << name << " at " << level << ": " << item.name;
+      }
+    }
+  }
+}
 
 TEST(Scenarios, NovicesTriggerThePenaltiesTheyWereWrittenFor) {
   const Runs& navigation = runs("navigation");

@@ -68,6 +68,24 @@ SessionResult scenarioResult() {
   r.elapsed = 7.0;
   r.total = 62.5;
   r.items = {{"targets_touched", 2, "1", 1, 50}, {"hold", std::nan(""), "s", 0.5, INFINITY}};
+  r.groups = {{"target_achievement", 50, 1}};
+  PenaltyEvent touch;
+  touch.time = 2.5;
+  touch.kind = "retina_touched";
+  touch.item = "retina_contacts";
+  touch.slot = "right";
+  touch.instrument = "needle";
+  touch.position[0] = 0.001;
+  touch.position[1] = -0.0005;
+  touch.position[2] = -0.0119;
+  touch.points = 12.5;
+  PenaltyEvent unplaced;  // no instrument tracked: no slot, no position
+  unplaced.time = 3;
+  unplaced.kind = "bleeding";
+  unplaced.item = "bleeding_area";
+  unplaced.points = 0.25;
+  r.events = {touch, unplaced};
+  r.events_dropped = 4;
   r.final_state_hash = "0x86ecb04502376b15";
   r.frames = 390;
   r.simulated_frames = 350;
@@ -88,7 +106,12 @@ TEST(SessionResult, WritesTheFormatOfTheHandWrittenWriter) {
             R"("message": "touch the \"lit\" target\n", "start_stamp": 1795558746.26302, "end_stamp": 0, )"
             R"("elapsed": 7, "total": 62.5, "items": [{"name": "targets_touched", "value": 2, "unit": "1", )"
             R"("weight": 1, "points": 50}, {"name": "hold", "value": null, "unit": "s", "weight": 0.5, )"
-            R"("points": null}], "final_state_hash": "0x86ecb04502376b15", "frames": 390, "simulated_frames": 350, )"
+            R"("points": null}], "groups": [{"name": "target_achievement", "points": 50, "weight": 1}], )"
+            R"("events": [{"time": 2.5, "kind": "retina_touched", "item": "retina_contacts", "slot": "right", )"
+            R"("instrument": "needle", "position": [0.001, -0.0005, -0.0119], "points": 12.5}, {"time": 3, )"
+            R"("kind": "bleeding", "item": "bleeding_area", "slot": "", "instrument": "", )"
+            R"("position": [null, null, null], "points": 0.25}], "events_dropped": 4, )"
+            R"("final_state_hash": "0x86ecb04502376b15", "frames": 390, "simulated_frames": 350, )"
             R"("late_inputs": 0, "frames_without_source": 0, "input_frames": 391, )"
             R"("last_frame_stamp": 1795558753.26302, "software_version": "vrm_sim 0.1.0", "bag": null, )"
             R"("user": null, "station": "sim1", "in_progress": true})"
@@ -118,6 +141,20 @@ TEST(SessionResult, RoundTripKeepsEveryFieldAndNaN) {
   EXPECT_TRUE(std::isnan(read.items[1].points));  // infinity is written null too: read back as NaN
   EXPECT_EQ(read.message, "touch the \"lit\" target\n");
   EXPECT_EQ(toJson(read), toJson(written));
+  // Issue 35's keys: the groups, the events (an unknown position stays NaN) and the dropped count survive.
+  ASSERT_EQ(read.events.size(), 2u);
+  EXPECT_EQ(read.events[0].instrument, "needle");
+  EXPECT_DOUBLE_EQ(read.events[0].position[2], -0.0119);
+  EXPECT_TRUE(std::isnan(read.events[1].position[0]));
+  EXPECT_EQ(read.events_dropped, 4u);
+  ASSERT_EQ(read.groups.size(), 1u);
+  EXPECT_EQ(read.groups[0].name, "target_achievement");
+  // A result written before issue 35 has none of them: empty, not an error.
+  const SessionResult older = resultFromJson(
+      R"({"scene": "s", "final_state_hash": "0x1", "frames": 2, "scenario": "navigation", "items": []})", "older");
+  EXPECT_TRUE(older.groups.empty());
+  EXPECT_TRUE(older.events.empty());
+  EXPECT_EQ(older.events_dropped, 0u);
 }
 
 // Every committed reference result (real scenario_manager output of an older version: no input_frames, user,

@@ -33,6 +33,28 @@ struct ScoreItem {
   bool operator==(const ScoreItem& other) const;
 };
 
+// One factor group (issue 35): the weighted mean of its scored items; the groups' weighted mean is `total`.
+struct GroupScore {
+  std::string name;          // target_achievement | efficiency | tissue_treatment | instrument_handling | ...
+  double points = kUnknown;  // 0..100
+  double weight = 0.0;       // the sum of its items' weights
+
+  bool operator==(const GroupScore& other) const;
+};
+
+// One penalty (issue 35): why points were lost.
+struct PenaltyEvent {
+  double time = kUnknown;                               // s of running time since the session started
+  std::string kind;                                     // retina_touched, bleeding, ... (doc/session_result.md)
+  std::string item;                                     // the score item it raised
+  std::string slot;                                     // the instrument's slot ("" unknown)
+  std::string instrument;                               // its type ("" unknown)
+  double position[3] = {kUnknown, kUnknown, kUnknown};  // m, eye frame: its tip (NaN, written null: unknown)
+  double points = kUnknown;                             // the drop of `total` it caused
+
+  bool operator==(const PenaltyEvent& other) const;
+};
+
 struct SessionResult {
   std::string scene;       // required: the scene's name
   std::string scene_file;  // the scene file it was loaded from
@@ -50,8 +72,11 @@ struct SessionResult {
   double elapsed = kUnknown;  // s of running input time
   double total = kUnknown;    // 0..100; NaN (null) without a scenario or samples
   std::vector<ScoreItem> items;
-  std::string final_state_hash;  // required: "0x" + 16 hex digits (World::stateHash)
-  std::uint64_t frames = 0;      // required: frames assembled
+  std::vector<GroupScore> groups;    // written with the scenario part (absent in older results: empty)
+  std::vector<PenaltyEvent> events;  // at most 200, in time order
+  std::uint64_t events_dropped = 0;  // penalty events beyond those
+  std::string final_state_hash;      // required: "0x" + 16 hex digits (World::stateHash)
+  std::uint64_t frames = 0;          // required: frames assembled
   std::uint64_t simulated_frames = 0;
   std::uint64_t late_inputs = 0;
   std::uint64_t frames_without_source = 0;

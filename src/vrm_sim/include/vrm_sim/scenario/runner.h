@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "vrm_sim/scenario/factor_groups.h"
 #include "vrm_sim/scenario/scenario.h"
 
 namespace vrm_sim {
@@ -32,6 +33,7 @@ struct ScoreItem {
 struct Score {
   double total = 0.0;  // 0..100
   std::vector<ScoreItem> items;
+  std::vector<GroupScore> groups;  // factor groups (factor_groups.h): their weighted mean is `total`
   const ScoreItem* item(const std::string& name) const;
 };
 
@@ -50,6 +52,8 @@ struct Status {
   std::string progress;                        // the scenario's own one-liner
   std::optional<double> start_time, end_time;  // s, input stamps
   Score score;
+  std::vector<PenaltyEvent> events;  // why points were lost (factor_groups.h: PenaltyLog), at most kMaxEvents
+  std::size_t events_dropped = 0;    // penalty events beyond those
 };
 
 class ScenarioRunner {
@@ -90,6 +94,7 @@ class ScenarioRunner {
   void refreshScore();
   void advance(std::int64_t time_ns);
   void finish(State state, const std::string& message, double time);
+  const InstrumentView* penaltyInstrument(const FrameView& frame, const std::string& item) const;
 
   scene::SceneDescription scene_;
   scene::ScenarioDescription description_;
@@ -97,6 +102,7 @@ class ScenarioRunner {
   Status status_;
   std::int64_t last_time_ = 0;   // ns: input time up to which `elapsed` counts
   std::int64_t elapsed_ns_ = 0;  // running time
+  PenaltyLog penalties_;         // not hashed: derived from the score items, it never feeds back into the simulation
 };
 
 }  // namespace scenario

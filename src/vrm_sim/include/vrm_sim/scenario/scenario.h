@@ -95,6 +95,12 @@ class Scenario {
   virtual void update(const FrameView& frame, double elapsed) = 0;
   virtual bool succeeded() const = 0;
   virtual std::vector<Measurement> measurements(double elapsed) const = 0;
+  // The slot of the instrument a penalty event of `item` is charged to, where the scenario knows it (its working
+  // tool's wrong touches, drops, unlit work); "" leaves it to the runner (the instrument nearest the retina).
+  virtual std::string penaltySlot(const std::string& item) const {
+    (void)item;
+    return "";
+  }
   // One line for the trainee, e.g. "target 2 of 4".
   virtual std::string progress() const = 0;
   // Mixes the scenario's state into a state hash (FNV-1a, see hashBytes()).

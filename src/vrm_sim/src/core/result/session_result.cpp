@@ -140,16 +140,26 @@ bool ScoreItem::operator==(const ScoreItem& o) const {
          sameNumber(points, o.points);
 }
 
+bool GroupScore::operator==(const GroupScore& o) const {
+  return name == o.name && sameNumber(points, o.points) && sameNumber(weight, o.weight);
+}
+
+bool PenaltyEvent::operator==(const PenaltyEvent& o) const {
+  return sameNumber(time, o.time) && kind == o.kind && item == o.item && slot == o.slot && instrument == o.instrument &&
+         sameNumber(position[0], o.position[0]) && sameNumber(position[1], o.position[1]) &&
+         sameNumber(position[2], o.position[2]) && sameNumber(points, o.points);
+}
+
 bool SessionResult::operator==(const SessionResult& o) const {
   return scene == o.scene && scene_file == o.scene_file && scenario == o.scenario && difficulty == o.difficulty &&
          seed == o.seed && state == o.state && session_ended == o.session_ended && timed_out == o.timed_out &&
          message == o.message && sameNumber(start_stamp, o.start_stamp) && sameNumber(end_stamp, o.end_stamp) &&
-         sameNumber(elapsed, o.elapsed) && sameNumber(total, o.total) && items == o.items &&
-         final_state_hash == o.final_state_hash && frames == o.frames && simulated_frames == o.simulated_frames &&
-         late_inputs == o.late_inputs && frames_without_source == o.frames_without_source &&
-         input_frames == o.input_frames && sameNumber(last_frame_stamp, o.last_frame_stamp) &&
-         software_version == o.software_version && bag == o.bag && user == o.user && station == o.station &&
-         in_progress == o.in_progress && interrupted == o.interrupted;
+         sameNumber(elapsed, o.elapsed) && sameNumber(total, o.total) && items == o.items && groups == o.groups &&
+         events == o.events && events_dropped == o.events_dropped && final_state_hash == o.final_state_hash &&
+         frames == o.frames && simulated_frames == o.simulated_frames && late_inputs == o.late_inputs &&
+         frames_without_source == o.frames_without_source && input_frames == o.input_frames &&
+         sameNumber(last_frame_stamp, o.last_frame_stamp) && software_version == o.software_version && bag == o.bag &&
+         user == o.user && station == o.station && in_progress == o.in_progress && interrupted == o.interrupted;
 }
 
 std::string toJson(const SessionResult& r) {
@@ -179,6 +189,29 @@ std::string toJson(const SessionResult& r) {
       items.push_back(std::move(row));
     }
     j["items"] = std::move(items);
+    Json groups = Json::array();
+    for (const GroupScore& group : r.groups) {
+      Json row;
+      row["name"] = group.name;
+      row["points"] = number(group.points);
+      row["weight"] = number(group.weight);
+      groups.push_back(std::move(row));
+    }
+    j["groups"] = std::move(groups);
+    Json events = Json::array();
+    for (const PenaltyEvent& event : r.events) {
+      Json row;
+      row["time"] = number(event.time);
+      row["kind"] = event.kind;
+      row["item"] = event.item;
+      row["slot"] = event.slot;
+      row["instrument"] = event.instrument;
+      row["position"] = Json::array({number(event.position[0]), number(event.position[1]), number(event.position[2])});
+      row["points"] = number(event.points);
+      events.push_back(std::move(row));
+    }
+    j["events"] = std::move(events);
+    j["events_dropped"] = r.events_dropped;
   } else {
     j["total"] = nullptr;
   }
@@ -245,6 +278,49 @@ SessionResult resultFromJson(const std::string& json_text, const std::string& so
       r.items.push_back(std::move(item));
     }
   }
+  if (const nlohmann::json* groups = field.find("groups")) {
+    if (!groups->is_array()) field.fail("groups", "is not an array");
+    for (std::size_t i = 0; i < groups->size(); ++i) {
+      const nlohmann::json& row = (*groups)[i];
+      const std::string where = "groups[" + std::to_string(i) + "].";
+      if (!row.is_object()) field.fail("groups", "has an element that is not an object (" + where + ")");
+      const Fields group_field(row, source, where);
+      GroupScore group;
+      group.name = group_field.string("name");
+      if (group.name.empty()) group_field.fail("name", "is missing or empty");
+      group.points = group_field.number("points", kUnknown);
+      group.weight = group_field.number("weight", 0.0);
+      r.groups.push_back(std::move(group));
+    }
+  }
+  if (const nlohmann::json* events = field.find("events")) {
+    if (!events->is_array()) field.fail("events", "is not an array");
+    for (std::size_t i = 0; i < events->size(); ++i) {
+      const nlohmann::json& row = (*events)[i];
+      const std::string where = "events[" + std::to_string(i) + "].";
+      if (!row.is_object()) field.fail("events", "has an element that is not an object (" + where + ")");
+      const Fields event_field(row, source, where);
+      PenaltyEvent event;
+      event.time = event_field.number("time", kUnknown);
+      event.kind = event_field.string("kind");
+      if (event.kind.empty()) event_field.fail("kind", "is missing or empty");
+      event.item = event_field.string("item");
+      event.slot = event_field.string("slot");
+      event.instrument = event_field.string("instrument");
+      if (const nlohmann::json* position = event_field.find("position")) {
+        if (!position->is_array() || position->size() != 3) event_field.fail("position", "is not an array of 3");
+        for (std::size_t axis = 0; axis < 3; ++axis) {
+          const nlohmann::json& coordinate = (*position)[axis];
+          if (coordinate.is_null()) continue;
+          if (!coordinate.is_number()) event_field.fail("position", "has an element that is not a number or null");
+          event.position[axis] = coordinate.get<double>();
+        }
+      }
+      event.points = event_field.number("points", kUnknown);
+      r.events.push_back(std::move(event));
+    }
+  }
+  r.events_dropped = field.count("events_dropped", kMaxCount);
   r.simulated_frames = field.count("simulated_frames", kMaxCount);
   r.late_inputs = field.count("late_inputs", kMaxCount);
   r.frames_without_source = field.count("frames_without_source", kMaxCount);

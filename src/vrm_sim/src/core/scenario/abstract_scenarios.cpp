@@ -59,6 +59,10 @@ class Navigation : public Scenario {
 
   bool succeeded() const override { return next_ == targets_.size(); }
 
+  std::string penaltySlot(const std::string& item) const override {
+    return item == "wrong_touches" || item == "unlit_touches" ? tool_ : "";
+  }
+
   std::vector<Measurement> measurements(double) const override {
     return {{"targets_touched", static_cast<double>(next_), "1"},
             {"path_length", path_length_, "m"},
@@ -226,6 +230,8 @@ class PickAndPlace : public Scenario {
 
   bool succeeded() const override { return placed_; }
 
+  std::string penaltySlot(const std::string& item) const override { return item == "drops" ? tool_ : ""; }
+
   std::vector<Measurement> measurements(double) const override {
     return {{"placed", placed_ ? 1.0 : 0.0, "1"},
             {"drops", static_cast<double>(drops_), "1"},
@@ -329,6 +335,8 @@ class SteadyHold : public Scenario {
   }
 
   bool succeeded() const override { return held_; }
+
+  std::string penaltySlot(const std::string& item) const override { return item == "exits" ? tool_ : ""; }
 
   std::vector<Measurement> measurements(double) const override {
     return {{"hold", longest_hold_, "s"},

@@ -76,6 +76,7 @@ class UnlitWork {
   double seconds() const { return seconds_; }
   bool working() const { return working_; }
   bool lit() const { return lit_; }
+  const std::string& tool() const { return tool_; }
   void hash(std::uint64_t& state) const;
 
  private:

@@ -16,6 +16,20 @@ void writeResultFields(const Status& status, result::SessionResult* result) {
   for (const ScoreItem& item : status.score.items) {
     result->items.push_back({item.name, item.value, item.unit, item.weight, item.points});
   }
+  for (const GroupScore& group : status.score.groups)
+    result->groups.push_back({group.name, group.points, group.weight});
+  for (const PenaltyEvent& event : status.events) {
+    result::PenaltyEvent row;
+    row.time = event.time;
+    row.kind = event.kind;
+    row.item = event.item;
+    row.slot = event.slot;
+    row.instrument = event.instrument;
+    for (int axis = 0; axis < 3; ++axis) row.position[axis] = event.position[axis];
+    row.points = event.points;
+    result->events.push_back(std::move(row));
+  }
+  result->events_dropped = status.events_dropped;
 }
 
 }  // namespace scenario

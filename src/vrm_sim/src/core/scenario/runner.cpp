@@ -63,6 +63,7 @@ Score computeScore(const std::vector<scene::ScoringRule>& rules, const std::vect
     score.items.push_back(item);
   }
   score.total = weightedTotal(score.items);
+  score.groups = groupScores(score.items);
   return score;
 }
 
@@ -103,6 +104,13 @@ ScenarioRunner::ScenarioRunner(const scene::SceneDescription& scene) : scene_(sc
     }
   };
   for (const scene::ScoringRule& rule : description_.scoring) check(rule.item, rule.location);
+  for (const Measurement& item : items) {
+    if (itemRole(item.name) == nullptr) {
+      throw scene::SceneError(description_.type_location,
+                              "scenario type '" + description_.type + "' reports item '" + item.name +
+                                  "', which has no factor group (add it to itemRoles() in scenario/factor_groups.cpp)");
+    }
+  }
   for (const scene::FailureRule& rule : description_.fail_if) check(rule.item, rule.location);
   status_.scenario = scene.name;
   status_.type = description_.type;
@@ -163,6 +171,7 @@ void ScenarioRunner::reset() {
   status_.message = "reset";
   last_time_ = 0;
   elapsed_ns_ = 0;
+  penalties_.reset();
   refreshScore();
 }
 
@@ -184,7 +193,11 @@ void ScenarioRunner::frame(const FrameView& frame) {
   advance(frame.stamp_ns ? *frame.stamp_ns : nanoseconds(frame.time));
   scenario_->update(frame, status_.elapsed);
   status_.progress = scenario_->progress();
+  const std::vector<ScoreItem> before = std::move(status_.score.items);
   refreshScore();
+  penalties_.record(
+      before, status_.score.items, status_.elapsed,
+      [&](const std::string& item) { return penaltyInstrument(frame, item); }, status_.events, status_.events_dropped);
   // Failure first: a frame that completes the task and crosses a failure threshold is a failed session.
   for (const scene::FailureRule& rule : description_.fail_if) {
     const ScoreItem* item = status_.score.item(rule.item);
@@ -216,7 +229,26 @@ void ScenarioRunner::refreshScore() {
       if (item.name == "time") item.points = 0.0;
     }
     status_.score.total = weightedTotal(status_.score.items);
+    status_.score.groups = groupScores(status_.score.items);
   }
+}
+
+// The scenario's own instrument for its instrument items (a wrong touch is the tool's); otherwise — an injury of the
+// retina, which any instrument may cause — the tracked instrument whose tip is nearest the retina (the eye sphere).
+const InstrumentView* ScenarioRunner::penaltyInstrument(const FrameView& frame, const std::string& item) const {
+  const std::string slot = scenario_->penaltySlot(item);
+  if (!slot.empty()) return frame.instrument(slot);
+  const InstrumentView* nearest = nullptr;
+  double clearance = 0.0;
+  for (const InstrumentView& instrument : frame.instruments) {
+    if (!instrument.valid || !instrument.tip.allFinite()) continue;
+    const double gap = scene_.eye.radius - instrument.tip.norm();
+    if (nearest == nullptr || gap < clearance) {
+      nearest = &instrument;
+      clearance = gap;
+    }
+  }
+  return nearest;
 }
 
 void ScenarioRunner::hash(std::uint64_t& state) const {

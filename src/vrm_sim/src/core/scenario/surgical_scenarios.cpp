@@ -52,6 +52,8 @@ class Peel : public Scenario {
 
   std::vector<Measurement> items() const override { return measurements(0.0); }
 
+  std::string penaltySlot(const std::string& item) const override { return item == "unlit_work" ? unlit_.tool() : ""; }
+
   std::vector<Measurement> measurements(double) const override {
     const double initial = initial_adhesions_ ? static_cast<double>(*initial_adhesions_) : 0.0;
     const double detached = torn_ > 0 ? static_cast<double>(released_) : initial - static_cast<double>(remaining_);
@@ -223,6 +225,10 @@ class Vitrectomy : public Scenario {
   }
 
   bool succeeded() const override { return removed_ >= required_removed_; }
+
+  std::string penaltySlot(const std::string& item) const override {
+    return item == "warnings" || item == "unlit_work" ? tool_ : "";
+  }
 
   std::vector<Measurement> measurements(double) const override {
     return {{"removed_fraction", removed_, "1"},
