@@ -27,3 +27,20 @@ if(CATKIN_ENABLE_TESTING)
     endif()
   endif()
 endif()
+
+# The validity benchmark (issue 35): seeded expert, intermediate and novice cohorts carry out the course's steps
+# through the simulation core; `./scripts/bench.sh validity` finds it in devel/lib like every bench_*. A smoke test
+# (test_validity_bench) runs its --quick form.
+add_executable(bench_validity bench/bench_validity.cpp ${CMAKE_CURRENT_SOURCE_DIR}/../vrm_sim/test/support/source_package.cpp)
+target_link_libraries(bench_validity eyesi_records vrm_world vrm_cli nlohmann_json::nlohmann_json)
+target_compile_definitions(bench_validity PRIVATE EYESI_GUI_SOURCE_DIR="${CMAKE_CURRENT_SOURCE_DIR}"
+                                                  VRM_SIM_PACKAGE_DIR="${CMAKE_CURRENT_SOURCE_DIR}/../vrm_sim")
+set_target_properties(bench_validity PROPERTIES RUNTIME_OUTPUT_DIRECTORY ${CATKIN_DEVEL_PREFIX}/lib/${PROJECT_NAME})
+if(CATKIN_ENABLE_TESTING)
+  catkin_add_gtest(test_validity_bench test/test_validity_bench.cpp)
+  if(TARGET test_validity_bench)
+    add_dependencies(test_validity_bench bench_validity)
+    target_link_libraries(test_validity_bench nlohmann_json::nlohmann_json gtest_main)
+    target_compile_definitions(test_validity_bench PRIVATE BENCH_VALIDITY="$<TARGET_FILE:bench_validity>")
+  endif()
+endif()
