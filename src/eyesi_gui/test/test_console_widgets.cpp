@@ -265,6 +265,61 @@ TEST_F(ConsoleTest, ExportWritesTheUsersCsvWithoutBlockingTheUi) {
   EXPECT_TRUE(lines[1].contains("membrane_peeling"));
 }
 
+// Issue 35: the result screen shows the factor groups and every penalty (when, what, which instrument, where, the
+// points it cost); the export writes them beside the items.
+const char* kResultWithPenalties = R"({"scene": "membrane_peeling", "scenario": "membrane_peeling",
+  "difficulty": "medium", "seed": 8, "state": "failed", "session_ended": true, "message": "failed: retina_contacts",
+  "start_stamp": 200.5, "end_stamp": 230.25, "elapsed": 29.75, "total": 40.5,
+  "items": [{"name": "retina_contacts", "value": 2, "unit": "1", "weight": 2, "points": 50}],
+  "groups": [{"name": "tissue_treatment", "points": 50, "weight": 2}, {"name": "efficiency", "points": 20, "weight": 1}],
+  "events": [{"time": 65.25, "kind": "retina_touched", "item": "retina_contacts", "slot": "right",
+              "instrument": "forceps", "position": [0.0012, -0.0003, -0.0118], "points": 6.3},
+             {"time": 70, "kind": "bleeding", "item": "bleeding_area", "slot": "", "instrument": "",
+              "position": [null, null, null], "points": 1.5}],
+  "events_dropped": 1, "final_state_hash": "0x00000000feedbeef", "frames": 1500, "user": "anna"})";
+
+TEST_F(ConsoleTest, ResultScreenListsTheGroupsAndWhyPointsWereLost) {
+  auto window = makeWindow();
+  loginAnna(*window);
+  auto* scenarios = child<QListWidget>(*window, "scenarioList");
+  scenarios->setCurrentRow(0);
+  child<QPushButton>(*window, "loadButton")->click();
+  link_.station(StationState::kReady, 1.0);
+  link_.scenario(ScenarioState::kFailed, 29.75, "failed: retina_contacts");
+  emit link_.sessionResult(kResultWithPenalties);
+  ASSERT_EQ(window->screen(), MainWindow::kResult);
+
+  auto* groups = child<QTableWidget>(*window, "resultGroups");
+  ASSERT_EQ(groups->rowCount(), 2);
+  EXPECT_EQ(groups->item(0, 0)->text(), "tissue treatment");
+  EXPECT_EQ(groups->item(0, 1)->text(), "50 / 100");
+  EXPECT_EQ(groups->item(1, 0)->text(), "efficiency");
+  auto* events = child<QTableWidget>(*window, "resultEvents");
+  ASSERT_EQ(events->rowCount(), 2);
+  EXPECT_EQ(events->item(0, 0)->text(), "1:05.2");
+  EXPECT_EQ(events->item(0, 1)->text(), "retina touched");
+  EXPECT_EQ(events->item(0, 2)->text(), "forceps (right)");
+  EXPECT_EQ(events->item(0, 3)->text(), "1.2, -0.3, -11.8");
+  EXPECT_EQ(events->item(0, 4)->text(), "-6.3");
+  EXPECT_EQ(events->item(1, 2)->text(), "-");
+  EXPECT_EQ(events->item(1, 3)->text(), "-");
+  const QString note = child<QLabel>(*window, "resultEventsNote")->text();
+  EXPECT_TRUE(note.contains("3 penalties cost 7.8 points")) << note.toStdString();
+  EXPECT_TRUE(note.contains("1 not listed")) << note.toStdString();
+
+  window->showScreen(MainWindow::kHistory);
+  child<QPushButton>(*window, "exportButton")->click();
+  const QString path = QDir(dir_.path()).filePath("eyesi_anna_events.csv");
+  ASSERT_TRUE(QTest::qWaitFor([&] { return QFile::exists(path) && QFile(path).size() > 0; }, 5000));
+  QTest::qWait(100);
+  QFile file(path);
+  ASSERT_TRUE(file.open(QIODevice::ReadOnly));
+  const QStringList lines = QString::fromUtf8(file.readAll()).split('\n', Qt::SkipEmptyParts);
+  ASSERT_EQ(lines.size(), 3);  // header + two events
+  EXPECT_TRUE(lines[1].contains("retina_touched"));
+  EXPECT_TRUE(QFile::exists(QDir(dir_.path()).filePath("eyesi_anna_groups.csv")));
+}
+
 TEST(StereoView, AnaglyphTakesRedFromTheLeftEyeAndCyanFromTheRight) {
   QImage left(4, 2, QImage::Format_RGB888), right(4, 2, QImage::Format_RGB888);
   left.fill(QColor(200, 10, 20));

@@ -6,6 +6,7 @@
 #include <sys/wait.h>
 
 #include <atomic>
+#include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -843,6 +844,188 @@ TEST(RecordsTool, ImportCheckExportAndExitCodes) {
   EXPECT_EQ(run(tool + " --db " + junk + " check" + quiet), 1);
   EXPECT_EQ(run(tool + " --db " + junk + " list" + quiet), 1);
   EXPECT_TRUE(sameBytes(readBytes(junk), std::string(5000, 'x')));
+}
+
+// ---- issue 35: factor groups and penalty events ----
+
+SessionRecord sessionWithPenalties(const std::string& user, double start) {
+  SessionRecord s = makeSession(user, "membrane_peeling", start, 61.25);
+  s.groups = {{"target_achievement", 100, 3}, {"tissue_treatment", 40.5, 4}};
+  PenaltyEventRecord touch;
+  touch.time = 4.25;
+  touch.kind = "retina_touched";
+  touch.item = "retina_contacts";
+  touch.slot = "right";
+  touch.instrument = "forceps";
+  touch.position[0] = 0.0012;
+  touch.position[1] = -0.0003;
+  touch.position[2] = -0.0118;
+  touch.points = 6.25;
+  PenaltyEventRecord unlocated;  // no tracked instrument: no slot, no position
+  unlocated.time = 9.5;
+  unlocated.kind = "bleeding";
+  unlocated.item = "bleeding_area";
+  unlocated.position[0] = unlocated.position[1] = unlocated.position[2] = std::nan("");
+  unlocated.points = 1.5;
+  s.events = {touch, unlocated};
+  s.events_dropped = 3;
+  return s;
+}
+
+TEST(RecordsSessions, GroupsAndEventsRoundTripInOrderWithAnUnknownPosition) {
+  TempDir dir;
+  Store store(dir.file("r.sqlite"));
+  const SessionRecord s = sessionWithPenalties("carla", 1700000000.5);
+  const auto stored = store.session(store.recordSession(s).session_id);
+  ASSERT_TRUE(stored.has_value());
+  ASSERT_EQ(stored->groups.size(), 2u);
+  EXPECT_EQ(stored->groups[1].name, "tissue_treatment");
+  EXPECT_DOUBLE_EQ(stored->groups[1].points, 40.5);
+  EXPECT_DOUBLE_EQ(stored->groups[1].weight, 4);
+  ASSERT_EQ(stored->events.size(), 2u);
+  const PenaltyEventRecord& touch = stored->events[0];
+  EXPECT_EQ(touch.kind, "retina_touched");
+  EXPECT_EQ(touch.item, "retina_contacts");
+  EXPECT_EQ(touch.slot, "right");
+  EXPECT_EQ(touch.instrument, "forceps");
+  EXPECT_DOUBLE_EQ(touch.time, 4.25);
+  EXPECT_DOUBLE_EQ(touch.position[0], 0.0012);
+  EXPECT_DOUBLE_EQ(touch.position[2], -0.0118);
+  EXPECT_DOUBLE_EQ(touch.points, 6.25);
+  EXPECT_EQ(stored->events[1].slot, "");
+  EXPECT_TRUE(std::isnan(stored->events[1].position[0])) << "an unknown position must not read back as 0";
+  EXPECT_EQ(stored->events_dropped, 3u);
+  // A session without any: none read back (and the list query sees the same).
+  const auto bare_id = store.recordSession(makeSession("carla", "navigation", 5, 70)).session_id;
+  EXPECT_TRUE(store.session(bare_id)->groups.empty());
+  EXPECT_TRUE(store.session(bare_id)->events.empty());
+  EXPECT_EQ(store.sessions({"carla", "membrane_peeling"}).at(0).events.size(), 2u);
+}
+
+TEST(RecordsImport, ResultGroupsAndEventsAreStoredWithTheSession) {
+  TempDir dir;
+  Store store(dir.file("r.sqlite"));
+  const std::string json =
+      R"({"scene": "navigation", "scenario": "navigation", "state": "failed", "total": 60, "items": [], )"
+      R"("groups": [{"name": "tissue_treatment", "points": 50, "weight": 2}], "events": [{"time": 1.5, )"
+      R"("kind": "wrong_target", "item": "wrong_touches", "slot": "right", "instrument": "needle", )"
+      R"("position": [0.001, null, -0.01], "points": 12.5}], "events_dropped": 0, "final_state_hash": "0x2", )"
+      R"("frames": 10})";
+  const auto id = store.importResultJson(json, "t.result.json", "anna").session_id;
+  const auto stored = store.session(id);
+  ASSERT_TRUE(stored.has_value());
+  ASSERT_EQ(stored->groups.size(), 1u);
+  EXPECT_EQ(stored->groups[0].name, "tissue_treatment");
+  ASSERT_EQ(stored->events.size(), 1u);
+  EXPECT_EQ(stored->events[0].kind, "wrong_target");
+  EXPECT_DOUBLE_EQ(stored->events[0].position[0], 0.001);
+  EXPECT_TRUE(std::isnan(stored->events[0].position[1]));
+  EXPECT_DOUBLE_EQ(stored->events[0].points, 12.5);
+}
+
+TEST(RecordsSchema, MigratesVersion3AddingGroupsAndEventsAndKeepingTheRows) {
+  TempDir dir;
+  const std::string path = dir.file("v3.sqlite");
+  const SessionRecord old = makeSession("bob", "vitrectomy", 500.25, 66.5);
+  {
+    RawDb raw(path);
+    std::string sql = "BEGIN;";
+    for (int version = 1; version <= 3; ++version) sql += migrationSql(version);
+    raw.exec(sql + "PRAGMA user_version = 3; COMMIT;");
+    raw.exec(
+        "INSERT INTO users (name, role, iterations, created_at) VALUES ('bob', 'trainee', 0, '2025-01-01T00:00:00Z')");
+    raw.exec(
+        "INSERT INTO sessions (session_key, user_id, scene, state, total, recorded_at, final_state_hash, frames) "
+        "SELECT '" +
+        sessionKey(old) + "', id, 'vitrectomy', 'finished', 66.5, '2025-01-02T03:04:05Z', '" + old.final_state_hash +
+        "', 700 FROM users WHERE name = 'bob'");
+    raw.exec("INSERT INTO score_items SELECT id, 0, 'completed', 1, '', 3, 100 FROM sessions");
+  }
+  Store store(path);
+  EXPECT_EQ(store.schemaVersion(), Store::kSchemaVersion);
+  const auto sessions = store.sessions();
+  ASSERT_EQ(sessions.size(), 1u);
+  EXPECT_DOUBLE_EQ(sessions[0].total, 66.5);
+  EXPECT_EQ(sessions[0].items.size(), 1u);
+  EXPECT_TRUE(sessions[0].groups.empty());  // recorded before groups existed
+  EXPECT_TRUE(sessions[0].events.empty());
+  EXPECT_EQ(sessions[0].events_dropped, 0u);
+  const auto id = store.recordSession(sessionWithPenalties("bob", 900)).session_id;
+  EXPECT_EQ(store.session(id)->events.size(), 2u);
+  RawDb raw(path);
+  EXPECT_EQ(raw.value("SELECT count(*) FROM sqlite_master WHERE name IN ('score_groups', 'penalty_events')"), "2");
+  EXPECT_EQ(raw.value("SELECT count(*) FROM penalty_events WHERE x IS NULL"), "1");
+}
+
+TEST(RecordsExport, GroupsAndEventsCsvListEverySession) {
+  TempDir dir;
+  Store store(dir.file("r.sqlite"));
+  const auto id = store.recordSession(sessionWithPenalties("anna", 100)).session_id;
+  const auto bare_id = store.recordSession(makeSession("anna", "navigation", 200, 70)).session_id;
+
+  std::ostringstream groups_out;
+  store.exportGroupsCsv(groups_out);
+  const auto groups = parseCsv(groups_out.str());
+  ASSERT_EQ(groups.size(), 4u) << groups_out.str();  // header, two groups, the session without any
+  EXPECT_EQ(groups[0], (std::vector<std::string>{"session_id", "user", "scene", "scenario", "difficulty", "seed",
+                                                 "state", "passed", "total", "elapsed", "recorded_at", "bag", "group",
+                                                 "points", "weight"}));
+  EXPECT_EQ(groups[1][0], std::to_string(id));
+  EXPECT_EQ(groups[2][12], "tissue_treatment");
+  EXPECT_EQ(groups[2][13], "40.5");
+  EXPECT_EQ(groups[2][14], "4");
+  EXPECT_EQ(groups[3][0], std::to_string(bare_id));
+  EXPECT_EQ(groups[3][12], "");
+
+  std::ostringstream events_out;
+  store.exportEventsCsv(events_out, {"anna", "membrane_peeling"});
+  const auto events = parseCsv(events_out.str());
+  ASSERT_EQ(events.size(), 3u) << events_out.str();
+  EXPECT_EQ(events[0].size(), 21u);
+  EXPECT_EQ(events[0][12], "event_time");
+  EXPECT_EQ(events[0][20], "event_points");
+  EXPECT_EQ(events[1], (std::vector<std::string>{std::to_string(id),
+                                                 "anna",
+                                                 "membrane_peeling",
+                                                 "membrane_peeling",
+                                                 "medium",
+                                                 "7",
+                                                 "finished",
+                                                 "1",
+                                                 "61.25",
+                                                 "12.5",
+                                                 events[1][10],
+                                                 "",
+                                                 "4.25",
+                                                 "retina_touched",
+                                                 "retina_contacts",
+                                                 "right",
+                                                 "forceps",
+                                                 "0.0012",
+                                                 "-3e-04",
+                                                 "-0.0118",
+                                                 "6.25"}));
+  EXPECT_EQ(events[2][13], "bleeding");
+  EXPECT_EQ(events[2][17], "");  // unknown position: empty, not 0
+  EXPECT_EQ(events[2][20], "1.5");
+}
+
+TEST(RecordsTool, ExportsTheGroupsAndEventsTables) {
+  TempDir dir;
+  const std::string tool = EYESI_RECORDS_TOOL;
+  const std::string db = dir.file("tool.sqlite");
+  const std::string quiet = " >/dev/null 2>&1";
+  ASSERT_EQ(run(tool + " --db " + db + " import " + EYESI_TEST_BAGS + " --user anna" + quiet), 0);
+  const std::size_t sessions = referenceResults().size();
+  for (const std::string table : {"groups", "events"}) {
+    const std::string csv = dir.file(table + ".csv");
+    EXPECT_EQ(run(tool + " --db " + db + " export-csv --table " + table + " --out " + csv + quiet), 0) << table;
+    // The reference results predate issue 35: one line per session with the group / event fields empty.
+    const auto rows = parseCsv(readBytes(csv));
+    ASSERT_EQ(rows.size(), 1u + sessions) << table;
+    EXPECT_EQ(rows[0][12], table == "groups" ? "group" : "event_time");
+  }
+  EXPECT_EQ(run(tool + " --db " + db + " export-csv --table scores" + quiet), 2);
 }
 
 }  // namespace

@@ -21,7 +21,9 @@ namespace records = eyesi_gui::records;
 constexpr const char* kCommandHelp =
     "Commands:\n"
     "  import FILE_OR_FOLDER... [--user NAME]   import scenario result JSON files (folders: every *.result.json)\n"
-    "  export-csv [--user U] [--scene S] [--out FILE]   score items as CSV (RFC 4180; stdout by default)\n"
+    "  export-csv [--user U] [--scene S] [--table items|groups|events] [--out FILE]\n"
+    "                                           score items (default), factor groups or penalty events as CSV\n"
+    "                                           (RFC 4180; stdout by default)\n"
     "  check                                    integrity report of the database (exit 0 ok, 1 damaged)\n"
     "  add-user NAME --role trainee|instructor [--pin PIN]   (--pin - reads the PIN from stdin)\n"
     "  set-pin NAME --pin PIN                   set (or with an empty PIN clear) a user's PIN\n"
@@ -97,14 +99,27 @@ int runImport(records::Store& store, const Arguments& args) {
 int runExport(const records::Store& store, const Arguments& args) {
   if (!args.positional.empty()) throw UsageError{"export-csv takes no positional arguments"};
   const records::SessionFilter filter{args.option("--user"), args.option("--scene")};
+  const std::string table = args.has("--table") ? args.option("--table") : "items";
+  if (table != "items" && table != "groups" && table != "events") {
+    throw UsageError{"--table must be items, groups or events, not '" + table + "'"};
+  }
+  const auto writeTable = [&](std::ostream& out) {
+    if (table == "groups") {
+      store.exportGroupsCsv(out, filter);
+    } else if (table == "events") {
+      store.exportEventsCsv(out, filter);
+    } else {
+      store.exportCsv(out, filter);
+    }
+  };
   if (!args.has("--out") || args.option("--out") == "-") {
-    store.exportCsv(std::cout, filter);
+    writeTable(std::cout);
     return 0;
   }
   const std::string out_path = args.option("--out");
   std::ofstream out(out_path, std::ios::binary);
   if (!out) throw records::StoreError(out_path + ": cannot write the CSV file");
-  store.exportCsv(out, filter);
+  writeTable(out);
   out.close();
   if (!out) throw records::StoreError(out_path + ": writing the CSV file failed");
   return 0;
@@ -170,11 +185,12 @@ int main(int argc, char** argv) {
   namespace po = vrm_sim::cli::po;
   vrm_sim::cli::CommandLine cli("records", "[--db PATH] COMMAND [ARGS]",
                                 "The training-records database: import, export, check, users.", kCommandHelp);
-  static const std::vector<std::string> kValued{"db", "user", "scene", "out", "role", "pin"};
+  static const std::vector<std::string> kValued{"db", "user", "scene", "out", "role", "pin", "table"};
   cli.add()("db", po::value<std::string>()->value_name("PATH"), "the database")(
       "user", po::value<std::string>()->value_name("NAME"), "import: the trainee; export-csv, list: only this user")(
       "scene", po::value<std::string>()->value_name("S"), "export-csv: only this scene")(
       "out", po::value<std::string>()->value_name("FILE"), "export-csv: the CSV file (- or none: stdout)")(
+      "table", po::value<std::string>()->value_name("T"), "export-csv: items (default), groups or events")(
       "role", po::value<std::string>()->value_name("ROLE"), "add-user: trainee or instructor")(
       "pin", po::value<std::string>()->value_name("PIN"), "add-user, set-pin: the PIN (- reads it from stdin)");
   cli.hidden()("command", po::value<std::string>())("args", po::value<std::vector<std::string>>());
@@ -206,7 +222,7 @@ int main(int argc, char** argv) {
       throw UsageError{"unknown command " + command};
     }
     if (command == "import") allowOnly(args, {"--user"});
-    if (command == "export-csv") allowOnly(args, {"--user", "--scene", "--out"});
+    if (command == "export-csv") allowOnly(args, {"--user", "--scene", "--out", "--table"});
     if (command == "add-user") allowOnly(args, {"--role", "--pin"});
     if (command == "set-pin") allowOnly(args, {"--pin"});
     if (command == "list") allowOnly(args, {"--user"});

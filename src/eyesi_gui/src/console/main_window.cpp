@@ -32,6 +32,7 @@
 #include <QtCharts/QScatterSeries>
 #include <QtCharts/QValueAxis>
 #include <QtConcurrent/QtConcurrent>
+#include <cmath>
 #include <fstream>
 #include <sstream>
 
@@ -696,6 +697,21 @@ QWidget* MainWindow::buildResult() {
   result_table_->setHorizontalHeaderLabels({"item", "value", "unit", "weight", "points earned"});
   result_table_->horizontalHeader()->setSectionResizeMode(QHeaderView::Stretch);
   layout->addWidget(result_table_, 1);
+  // Issue 35: the score by factor group, and every penalty with when, where and what it cost.
+  result_groups_ = new QTableWidget(0, 3);
+  result_groups_->setObjectName("resultGroups");
+  result_groups_->setHorizontalHeaderLabels({"factor group", "points", "weight"});
+  result_groups_->horizontalHeader()->setSectionResizeMode(QHeaderView::Stretch);
+  layout->addWidget(result_groups_);
+  result_events_note_ = new QLabel;
+  result_events_note_->setObjectName("resultEventsNote");
+  result_events_note_->setWordWrap(true);
+  layout->addWidget(result_events_note_);
+  result_events_ = new QTableWidget(0, 5);
+  result_events_->setObjectName("resultEvents");
+  result_events_->setHorizontalHeaderLabels({"time", "what happened", "instrument", "where (mm, eye)", "points lost"});
+  result_events_->horizontalHeader()->setSectionResizeMode(QHeaderView::Stretch);
+  layout->addWidget(result_events_, 1);
   result_comparison_ = new QLabel;
   result_comparison_->setObjectName("resultComparison");
   result_comparison_->setWordWrap(true);
@@ -731,6 +747,50 @@ void MainWindow::showResult(std::int64_t session_id) {
     result_table_->setItem(row, 2, cell(q(item.unit)));
     result_table_->setItem(row, 3, cell(QString::number(item.weight, 'g', 3)));
     result_table_->setItem(row, 4, cell(QString("%1 / 100").arg(item.points, 0, 'f', 0)));
+  }
+  const auto words = [](const std::string& name) { return q(name).replace('_', ' '); };
+  result_groups_->setRowCount(static_cast<int>(session->groups.size()));
+  for (int row = 0; row < static_cast<int>(session->groups.size()); ++row) {
+    const records::GroupRecord& group = session->groups[row];
+    result_groups_->setItem(row, 0, cell(words(group.name)));
+    result_groups_->setItem(row, 1, cell(QString("%1 / 100").arg(group.points, 0, 'f', 0)));
+    result_groups_->setItem(row, 2, cell(QString::number(group.weight, 'g', 3)));
+  }
+  result_events_->setRowCount(static_cast<int>(session->events.size()));
+  double lost = 0.0;
+  for (int row = 0; row < static_cast<int>(session->events.size()); ++row) {
+    const records::PenaltyEventRecord& event = session->events[row];
+    lost += event.points;
+    const int seconds = static_cast<int>(event.time);
+    result_events_->setItem(row, 0,
+                            cell(QString("%1:%2.%3")
+                                     .arg(seconds / 60)
+                                     .arg(seconds % 60, 2, 10, QChar('0'))
+                                     .arg(static_cast<int>((event.time - seconds) * 10.0))));
+    result_events_->setItem(row, 1, cell(words(event.kind)));
+    result_events_->setItem(
+        row, 2, cell(event.slot.empty() ? QString("-") : QString("%1 (%2)").arg(q(event.instrument), q(event.slot))));
+    const bool located =
+        std::isfinite(event.position[0]) && std::isfinite(event.position[1]) && std::isfinite(event.position[2]);
+    result_events_->setItem(row, 3,
+                            cell(located ? QString("%1, %2, %3")
+                                               .arg(1e3 * event.position[0], 0, 'f', 1)
+                                               .arg(1e3 * event.position[1], 0, 'f', 1)
+                                               .arg(1e3 * event.position[2], 0, 'f', 1)
+                                         : QString("-")));
+    result_events_->setItem(row, 4, cell(QString("%1").arg(-event.points, 0, 'f', 1)));
+  }
+  if (session->groups.empty() && session->events.empty()) {
+    result_events_note_->setText("Recorded before factor groups and penalty events were kept.");
+  } else if (session->events.empty()) {
+    result_events_note_->setText("No penalties: no points were lost to mistakes.");
+  } else {
+    result_events_note_->setText(
+        QString("%1 penalt%2 cost %3 points%4.")
+            .arg(session->events.size() + session->events_dropped)
+            .arg(session->events.size() + session->events_dropped == 1 ? "y" : "ies")
+            .arg(lost, 0, 'f', 1)
+            .arg(session->events_dropped > 0 ? QString(" (%1 not listed)").arg(session->events_dropped) : QString()));
   }
   // Against the trainee's earlier sessions of this scene.
   records::SessionFilter filter{session->user, session->scene};
@@ -878,7 +938,16 @@ void MainWindow::exportCsv() {
       store.exportCsv(out, {user, scene_name});
       out.close();
       if (!out) return "could not write " + path;
-      return "exported to " + path;
+      // The factor groups and penalty events beside it (issue 35): <name>_groups.csv, <name>_events.csv.
+      const QString stem = path.endsWith(".csv", Qt::CaseInsensitive) ? path.left(path.size() - 4) : path;
+      std::ofstream groups((stem + "_groups.csv").toStdString());
+      store.exportGroupsCsv(groups, {user, scene_name});
+      groups.close();
+      std::ofstream events((stem + "_events.csv").toStdString());
+      store.exportEventsCsv(events, {user, scene_name});
+      events.close();
+      if (!groups || !events) return "could not write " + stem + "_groups.csv / _events.csv";
+      return "exported to " + path + " (with _groups.csv and _events.csv)";
     } catch (const std::exception& error) {
       return QString("export failed: %1").arg(error.what());
     }

@@ -162,6 +162,9 @@ class MainWindow : public QMainWindow {
   QLabel* result_title_ = nullptr;
   QLabel* result_total_ = nullptr;
   QTableWidget* result_table_ = nullptr;
+  QTableWidget* result_groups_ = nullptr;  // the five factor groups (issue 35)
+  QTableWidget* result_events_ = nullptr;  // the penalty events: why points were lost
+  QLabel* result_events_note_ = nullptr;
   QLabel* result_comparison_ = nullptr;
   // history
   QComboBox* history_scene_box_ = nullptr;

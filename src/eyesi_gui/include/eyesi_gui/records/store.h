@@ -9,6 +9,7 @@
 //   trainee without PIN always exists.
 // - Sessions: one row per session, written with its score items in one transaction; a session is identified by its
 //   result (scene, seed, start/end stamp, final state hash, frames), so importing the same result twice gives one row.
+//   Added (issue 35, schema version 4): the factor groups and penalty events are written in the same transaction.
 // - A database that is not SQLite, cut off or has a bad page: StoreError with what() naming the file and the
 //   integrity_check report; the file is never modified in that case.
 #pragma once
@@ -40,6 +41,24 @@ struct ScoreItemRecord {
   double points = 0.0;  // 0..100: how much of the item was earned (the scenario runner's score; total = weighted mean)
 };
 
+// Added to the contract (issue 35, schema version 4): a factor group's score (doc/session_result.md: groups).
+struct GroupRecord {
+  std::string name;     // target_achievement, efficiency, tissue_treatment, instrument_handling, microscope_handling
+  double points = 0.0;  // 0..100
+  double weight = 0.0;  // the sum of its items' weights
+};
+
+// Added to the contract (issue 35, schema version 4): a penalty event, why points were lost (result key events).
+struct PenaltyEventRecord {
+  double time = 0.0;  // s of running time since the session started
+  std::string kind;   // retina_touched, bleeding, ...
+  std::string item;   // the score item it raised
+  std::string slot;   // the instrument's slot ("" unknown)
+  std::string instrument;
+  double position[3] = {0.0, 0.0, 0.0};  // m, eye frame (NaN: unknown; stored as NULL)
+  double points = 0.0;                   // the drop of the total it caused
+};
+
 struct SessionRecord {
   std::int64_t id = 0;  // 0 until stored
   std::string user;     // user name ("guest" for a result without one)
@@ -61,6 +80,9 @@ struct SessionRecord {
   std::string station;     // host name of the simulator that ran it
   std::string annotation;  // instructor's note
   std::vector<ScoreItemRecord> items;
+  std::vector<GroupRecord> groups;         // empty for sessions recorded before schema version 4
+  std::vector<PenaltyEventRecord> events;  // at most 200 (the result's limit)
+  std::uint64_t events_dropped = 0;        // penalty events the result did not keep
 };
 
 struct SessionFilter {
@@ -106,7 +128,7 @@ struct ImportResult {
 
 class Store {
  public:
-  static constexpr int kSchemaVersion = 3;
+  static constexpr int kSchemaVersion = 4;
 
   // Opens (creating parent folders and the file if missing) and migrates. Throws StoreError.
   explicit Store(const std::string& path);
@@ -152,6 +174,11 @@ class Store {
 
   // CSV (RFC 4180): one line per score item of every matching session, with a header line.
   void exportCsv(std::ostream& out, const SessionFilter& filter = {}) const;
+  // The same session columns, then one line per factor group (group, points, weight) or per penalty event (time,
+  // kind, item, slot, instrument, x, y, z, points; an unknown position is empty) of every matching session; a session
+  // without any still has one line with those fields empty, so every session appears in every export.
+  void exportGroupsCsv(std::ostream& out, const SessionFilter& filter = {}) const;
+  void exportEventsCsv(std::ostream& out, const SessionFilter& filter = {}) const;
 
   // PRAGMA integrity_check of a database file, opened read-only ("ok" when sound). Throws StoreError if the file
   // cannot be opened at all.

@@ -35,6 +35,21 @@ SessionRecord toSessionRecord(const vrm_sim::result::SessionResult& result) {
   for (const vrm_sim::result::ScoreItem& item : result.items) {
     s.items.push_back({item.name, known(item.value), item.unit, known(item.weight), known(item.points)});
   }
+  for (const vrm_sim::result::GroupScore& group : result.groups) {
+    s.groups.push_back({group.name, known(group.points), known(group.weight)});
+  }
+  for (const vrm_sim::result::PenaltyEvent& event : result.events) {
+    PenaltyEventRecord e;
+    e.time = known(event.time);
+    e.kind = event.kind;
+    e.item = event.item;
+    e.slot = event.slot;
+    e.instrument = event.instrument;
+    for (int axis = 0; axis < 3; ++axis) e.position[axis] = event.position[axis];  // NaN kept: stored as NULL
+    e.points = known(event.points);
+    s.events.push_back(std::move(e));
+  }
+  s.events_dropped = result.events_dropped;
   return s;
 }
 

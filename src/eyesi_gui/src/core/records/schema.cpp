@@ -79,6 +79,35 @@ CREATE TABLE course_assignments (
 );
 )sql";
 
+// Version 4 (issue 35, scoring): the factor groups and penalty events of each session, written with its score items.
+// Additive only: sessions recorded before have none (their results predate the groups). A penalty event's position
+// is NULL when the result did not know it.
+constexpr const char* kVersion4 = R"sql(
+ALTER TABLE sessions ADD COLUMN events_dropped INTEGER NOT NULL DEFAULT 0;
+CREATE TABLE score_groups (
+  session_id INTEGER NOT NULL REFERENCES sessions (id) ON DELETE CASCADE,
+  position INTEGER NOT NULL,
+  name TEXT NOT NULL,
+  points REAL NOT NULL DEFAULT 0,
+  weight REAL NOT NULL DEFAULT 0,
+  PRIMARY KEY (session_id, position)
+);
+CREATE TABLE penalty_events (
+  session_id INTEGER NOT NULL REFERENCES sessions (id) ON DELETE CASCADE,
+  position INTEGER NOT NULL,
+  time REAL NOT NULL DEFAULT 0,
+  kind TEXT NOT NULL,
+  item TEXT NOT NULL DEFAULT '',
+  slot TEXT NOT NULL DEFAULT '',
+  instrument TEXT NOT NULL DEFAULT '',
+  x REAL,
+  y REAL,
+  z REAL,
+  points REAL NOT NULL DEFAULT 0,
+  PRIMARY KEY (session_id, position)
+);
+)sql";
+
 }  // namespace
 
 const char* migrationSql(int to_version) {
@@ -89,6 +118,8 @@ const char* migrationSql(int to_version) {
       return kVersion2;
     case 3:
       return kVersion3;
+    case 4:
+      return kVersion4;
     default:
       return nullptr;
   }

@@ -9,10 +9,13 @@
 #include <cctype>
 #include <cerrno>
 #include <chrono>
+#include <cmath>
 #include <cstring>
 #include <ctime>
 #include <filesystem>
 #include <fstream>
+#include <functional>
+#include <limits>
 #include <memory>
 #include <mutex>
 #include <ostream>
@@ -27,6 +30,8 @@ namespace eyesi_gui::records {
 namespace fs = std::filesystem;
 
 namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 constexpr int kBusyTimeoutMs = 5000;
 constexpr const char* kGuest = "guest";
@@ -375,6 +380,37 @@ struct Store::Impl {
         s.items.push_back({stmt.textAt(0), stmt.realAt(1), stmt.textAt(2), stmt.realAt(3), stmt.realAt(4)});
       }
     }
+    loadGroupsAndEvents(sessions);
+  }
+
+  void loadGroupsAndEvents(std::vector<SessionRecord>* sessions) const {
+    Statement dropped(*this, "SELECT events_dropped FROM sessions WHERE id = ?1");
+    Statement groups(*this, "SELECT name, points, weight FROM score_groups WHERE session_id = ?1 ORDER BY position");
+    Statement events(*this,
+                     "SELECT time, kind, item, slot, instrument, x, y, z, points FROM penalty_events "
+                     "WHERE session_id = ?1 ORDER BY position");
+    const auto coordinate = [&events](int column) { return events.isNull(column) ? kNaN : events.realAt(column); };
+    for (auto& s : *sessions) {
+      dropped.reset();
+      dropped.integer(1, s.id);
+      if (dropped.step()) s.events_dropped = static_cast<std::uint64_t>(dropped.integerAt(0));
+      groups.reset();
+      groups.integer(1, s.id);
+      while (groups.step()) s.groups.push_back({groups.textAt(0), groups.realAt(1), groups.realAt(2)});
+      events.reset();
+      events.integer(1, s.id);
+      while (events.step()) {
+        PenaltyEventRecord event;
+        event.time = events.realAt(0);
+        event.kind = events.textAt(1);
+        event.item = events.textAt(2);
+        event.slot = events.textAt(3);
+        event.instrument = events.textAt(4);
+        for (int axis = 0; axis < 3; ++axis) event.position[axis] = coordinate(5 + axis);
+        event.points = events.realAt(8);
+        s.events.push_back(std::move(event));
+      }
+    }
   }
 };
 
@@ -580,6 +616,43 @@ ImportResult Store::recordSession(const SessionRecord& session) {
         .real(7, it.points);
     item.step();
   }
+  Impl::Statement group(
+      *impl_, "INSERT INTO score_groups (session_id, position, name, points, weight) VALUES (?1, ?2, ?3, ?4, ?5)");
+  for (std::size_t i = 0; i < session.groups.size(); ++i) {
+    const GroupRecord& g = session.groups[i];
+    group.reset();
+    group.integer(1, id).integer(2, static_cast<std::int64_t>(i)).text(3, g.name).real(4, g.points).real(5, g.weight);
+    group.step();
+  }
+  Impl::Statement event(*impl_,
+                        "INSERT INTO penalty_events (session_id, position, time, kind, item, slot, instrument, x, y, "
+                        "z, points) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11)");
+  for (std::size_t i = 0; i < session.events.size(); ++i) {
+    const PenaltyEventRecord& e = session.events[i];
+    event.reset();
+    event.integer(1, id)
+        .integer(2, static_cast<std::int64_t>(i))
+        .real(3, e.time)
+        .text(4, e.kind)
+        .text(5, e.item)
+        .text(6, e.slot)
+        .text(7, e.instrument)
+        .real(11, e.points);
+    // An unknown coordinate is NULL (SQLite would store a NaN as NULL anyway; say so).
+    for (int axis = 0; axis < 3; ++axis) {
+      if (std::isfinite(e.position[axis])) {
+        event.real(8 + axis, e.position[axis]);
+      } else {
+        event.null(8 + axis);
+      }
+    }
+    event.step();
+  }
+  if (session.events_dropped > 0) {
+    Impl::Statement dropped(*impl_, "UPDATE sessions SET events_dropped = ?2 WHERE id = ?1");
+    dropped.integer(1, id).integer(2, static_cast<std::int64_t>(session.events_dropped));
+    dropped.step();
+  }
   tx.commit();
   return {id, true};
 }
@@ -779,6 +852,71 @@ void Store::exportCsv(std::ostream& out, const SessionFilter& filter) const {
       writeCsvRow(out, row);
     }
   }
+  if (!out) throw StoreError(impl_->path + ": writing the CSV export failed");
+}
+
+namespace {
+
+const std::vector<std::string> kCsvSessionColumns{"session_id", "user",   "scene", "scenario", "difficulty",  "seed",
+                                                  "state",      "passed", "total", "elapsed",  "recorded_at", "bag"};
+
+std::vector<std::string> csvSessionFields(const SessionRecord& s) {
+  return {std::to_string(s.id),
+          s.user,
+          s.scene,
+          s.scenario,
+          s.difficulty,
+          std::to_string(s.seed),
+          s.state,
+          s.passed ? "1" : "0",
+          formatNumber(s.total),
+          formatNumber(s.elapsed),
+          s.recorded_at,
+          s.bag_path};
+}
+
+// The session columns, then `columns`; one line per row `rows_of` gives, or one line with those fields empty.
+void writeSessionRowsCsv(std::ostream& out, const std::vector<SessionRecord>& sessions,
+                         const std::vector<std::string>& columns,
+                         const std::function<std::vector<std::vector<std::string>>(const SessionRecord&)>& rows_of) {
+  std::vector<std::string> header = kCsvSessionColumns;
+  header.insert(header.end(), columns.begin(), columns.end());
+  writeCsvRow(out, header);
+  for (const SessionRecord& s : sessions) {
+    std::vector<std::vector<std::string>> rows = rows_of(s);
+    if (rows.empty()) rows.emplace_back(columns.size(), "");
+    for (const std::vector<std::string>& fields : rows) {
+      std::vector<std::string> row = csvSessionFields(s);
+      row.insert(row.end(), fields.begin(), fields.end());
+      writeCsvRow(out, row);
+    }
+  }
+}
+
+std::string csvNumberOrEmpty(double value) { return std::isfinite(value) ? formatNumber(value) : ""; }
+
+}  // namespace
+
+void Store::exportGroupsCsv(std::ostream& out, const SessionFilter& filter) const {
+  writeSessionRowsCsv(out, sessions(filter), {"group", "points", "weight"}, [](const SessionRecord& s) {
+    std::vector<std::vector<std::string>> rows;
+    for (const GroupRecord& g : s.groups) rows.push_back({g.name, formatNumber(g.points), formatNumber(g.weight)});
+    return rows;
+  });
+  if (!out) throw StoreError(impl_->path + ": writing the CSV export failed");
+}
+
+void Store::exportEventsCsv(std::ostream& out, const SessionFilter& filter) const {
+  writeSessionRowsCsv(
+      out, sessions(filter), {"event_time", "kind", "item", "slot", "instrument", "x", "y", "z", "event_points"},
+      [](const SessionRecord& s) {
+        std::vector<std::vector<std::string>> rows;
+        for (const PenaltyEventRecord& e : s.events) {
+          rows.push_back({formatNumber(e.time), e.kind, e.item, e.slot, e.instrument, csvNumberOrEmpty(e.position[0]),
+                          csvNumberOrEmpty(e.position[1]), csvNumberOrEmpty(e.position[2]), formatNumber(e.points)});
+        }
+        return rows;
+      });
   if (!out) throw StoreError(impl_->path + ": writing the CSV export failed");
 }
 
