@@ -61,7 +61,19 @@ TEST(SceneManagerFrames, TfFollowsTheAppliedPosesOfEachFrame) {
   ros::Publisher frames = nh.advertise<vrm_msgs::InputFrame>("input_frame", 10);
   ASSERT_TRUE(vrm_sim::testing::waitForSubscribers(frames, 20.0)) << "scene_manager does not subscribe input_frame";
 
-  const ros::Time t1 = ros::Time::now();
+  // tf is not latched: a transform scene_manager sends before this test's /tf subscription is connected to it is
+  // lost. Warm up with eye-only frames (earlier stamps, no instruments) until one of them reaches the buffer.
+  ros::Time warm_up_stamp = ros::Time::now();
+  std::uint64_t sequence = 0;
+  const ros::WallTime warm_up_deadline = ros::WallTime::now() + ros::WallDuration(20.0);
+  while (!buffer._frameExists("eye") && ros::WallTime::now() < warm_up_deadline) {
+    frames.publish(frame(vrm_msgs::InputFrame::KIND_FRAME, warm_up_stamp, ++sequence, pose({0.001, 0.0, 0.0}, 0.0)));
+    warm_up_stamp += ros::Duration(0.001);
+    ros::WallDuration(0.05).sleep();  // polling interval of the condition, not a wait for an event
+  }
+  ASSERT_TRUE(buffer._frameExists("eye")) << "no input frame reached tf within 20 s";
+
+  const ros::Time t1 = warm_up_stamp + ros::Duration(0.1);
   const ros::Time t2 = t1 + ros::Duration(0.010);
   const ros::Time t3 = t1 + ros::Duration(0.020);
   const Eigen::Isometry3d eye1 = pose({0.001, 0.0, 0.0}, 0.0);
@@ -69,7 +81,7 @@ TEST(SceneManagerFrames, TfFollowsTheAppliedPosesOfEachFrame) {
   const Eigen::Isometry3d right1 = pose({0.002, -0.001, 0.004}, 0.3);
 
   // Frame 1: eye and right applied; the left slot has never been valid (no transform at all).
-  auto first = frame(vrm_msgs::InputFrame::KIND_FRAME, t1, 1, eye1);
+  auto first = frame(vrm_msgs::InputFrame::KIND_FRAME, t1, ++sequence, eye1);
   first->instruments = {applied("left", pose({0.0, 0.0, 0.0}, 0.0), false), applied("right", right1, true)};
   frames.publish(first);
   std::string error;
@@ -84,10 +96,10 @@ TEST(SceneManagerFrames, TfFollowsTheAppliedPosesOfEachFrame) {
   EXPECT_FALSE(buffer._frameExists("instrument_left")) << "a slot never applied valid is on tf";
 
   // A state frame (pedals / a command between frames) carries no poses: its eye pose must not reach tf.
-  auto state = frame(vrm_msgs::InputFrame::KIND_STATE, t2, 2, pose({1.0, 1.0, 1.0}, 1.0));
+  auto state = frame(vrm_msgs::InputFrame::KIND_STATE, t2, ++sequence, pose({1.0, 1.0, 1.0}, 1.0));
   frames.publish(state);
   // Frame 3: the right instrument is lost (not valid; its pose here is what it would be if drawn elsewhere).
-  auto third = frame(vrm_msgs::InputFrame::KIND_FRAME, t3, 3, eye3);
+  auto third = frame(vrm_msgs::InputFrame::KIND_FRAME, t3, ++sequence, eye3);
   third->instruments = {applied("left", pose({0.0, 0.0, 0.0}, 0.0), false),
                         applied("right", pose({0.005, 0.005, 0.005}, -1.0), false)};
   frames.publish(third);
