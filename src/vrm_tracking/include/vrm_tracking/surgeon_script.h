@@ -20,6 +20,7 @@
 #include <string>
 #include <vector>
 
+#include "vrm_sim/scene/instrument_model.h"
 #include "vrm_sim/scene/scene_description.h"
 
 namespace vrm_tracking {
@@ -82,11 +83,9 @@ struct SurgeonSnapshot {
   MicroscopeSample microscope;
 };
 
-// Orientation of an instrument whose shaft runs through `trocar` along `shaft_axis`. Roll 0 puts the tip frame's
-// x axis as close as possible to the circumferential tangent of the eye sphere at the trocar: a shaft through a
-// point on the sphere with its tip inside can never be tangent, so this reference never degenerates (a world or
-// eye axis would, e.g. for a shaft pointing straight down to the posterior pole).
-Eigen::Quaterniond shaftOrientation(const Eigen::Vector3d& trocar, const Eigen::Vector3d& shaft_axis, double roll);
+// Orientation of an instrument whose shaft runs through `trocar` along `shaft_axis` (roll 0: x along the eye's
+// circumferential tangent at the trocar): the simulation's own, so a scripted roll means the same offline and here.
+using vrm_sim::scene::shaftOrientation;
 
 // What the scene decides for one scripted instrument (in the session's instrument order).
 struct ScriptTrack {

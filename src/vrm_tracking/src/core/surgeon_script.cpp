@@ -42,22 +42,6 @@ double lerp(double a, double b, double alpha) { return a + alpha * (b - a); }
 
 }  // namespace
 
-Eigen::Quaterniond shaftOrientation(const Eigen::Vector3d& trocar, const Eigen::Vector3d& shaft_axis, double roll) {
-  const Eigen::Vector3d z = shaft_axis.normalized();
-  const Eigen::Vector3d normal = trocar.normalized();
-  Eigen::Vector3d tangent = Eigen::Vector3d::UnitZ().cross(normal);
-  // A trocar on the eye's optical axis has no circumferential direction; any fixed tangent will do there.
-  if (tangent.squaredNorm() < 1e-12) tangent = Eigen::Vector3d::UnitX().cross(normal);
-  Eigen::Vector3d x = tangent - tangent.dot(z) * z;
-  if (x.squaredNorm() < 1e-12) x = z.unitOrthogonal();  // only for shafts tangent to the sphere (tip outside)
-  x.normalize();
-  Eigen::Matrix3d basis;
-  basis.col(0) = x;
-  basis.col(1) = z.cross(x);
-  basis.col(2) = z;
-  return (Eigen::Quaterniond(basis) * Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitZ())).normalized();
-}
-
 SurgeonScript::SurgeonScript(scene::ScriptedSession session, const EyeGeometry& eye, std::vector<ScriptTrack> tracks,
                              std::string source)
     : session_(std::move(session)), eye_(eye), tracks_(std::move(tracks)), source_(std::move(source)) {

@@ -45,8 +45,15 @@ tissue::InstrumentInput tissueShape(const InstrumentDescription& instrument);
 // (geometric) detector, the tissue-side capsules at the same opening.
 collision::InstrumentModel collisionModel(const InstrumentDescription& instrument, int jaw_deg);
 
-// The scripted pose (tip and shaft direction from the trocar, in the eye frame) and jaw angle [rad] at time t; the
-// path is held at its ends. Requires a non-empty path (std::invalid_argument).
+// Orientation of an instrument whose shaft runs through `trocar` along `shaft_axis` (eye frame). Roll 0 puts the tip
+// frame's x axis as close as possible to the circumferential tangent of the eye sphere at the trocar: a shaft through
+// a point on the sphere with its tip inside can never be tangent, so this reference never degenerates (a world or
+// eye axis would, e.g. for a shaft pointing straight down to the posterior pole). The scripted surgeon (vrm_tracking)
+// and scriptedInstrument() use it, so a scripted roll means the same offline and in the graph.
+Eigen::Quaterniond shaftOrientation(const Eigen::Vector3d& trocar, const Eigen::Vector3d& shaft_axis, double roll);
+
+// The scripted pose (tip and shaft direction from the trocar, in the eye frame; roll by shaftOrientation) and jaw
+// angle [rad] at time t; the path is held at its ends. Requires a non-empty path (std::invalid_argument).
 tissue::InstrumentInput scriptedInstrument(const SceneDescription& scene, const InstrumentDescription& instrument,
                                            double t);
 

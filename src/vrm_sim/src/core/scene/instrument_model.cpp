@@ -92,6 +92,22 @@ collision::InstrumentModel collisionModel(const InstrumentDescription& instrumen
   return model;
 }
 
+Eigen::Quaterniond shaftOrientation(const Eigen::Vector3d& trocar, const Eigen::Vector3d& shaft_axis, double roll) {
+  const Eigen::Vector3d z = shaft_axis.normalized();
+  const Eigen::Vector3d normal = trocar.normalized();
+  Eigen::Vector3d tangent = Eigen::Vector3d::UnitZ().cross(normal);
+  // A trocar on the eye's optical axis has no circumferential direction; any fixed tangent will do there.
+  if (tangent.squaredNorm() < 1e-12) tangent = Eigen::Vector3d::UnitX().cross(normal);
+  Eigen::Vector3d x = tangent - tangent.dot(z) * z;
+  if (x.squaredNorm() < 1e-12) x = z.unitOrthogonal();  // only for shafts tangent to the sphere (tip outside)
+  x.normalize();
+  Eigen::Matrix3d basis;
+  basis.col(0) = x;
+  basis.col(1) = z.cross(x);
+  basis.col(2) = z;
+  return (Eigen::Quaterniond(basis) * Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitZ())).normalized();
+}
+
 tissue::InstrumentInput scriptedInstrument(const SceneDescription& scene, const InstrumentDescription& instrument,
                                            double t) {
   const auto& path = instrument.path;
@@ -103,12 +119,17 @@ tissue::InstrumentInput scriptedInstrument(const SceneDescription& scene, const 
   const Trocar* trocar = scene.findTrocar(instrument.trocar);
   Eigen::Vector3d axis = trocar != nullptr ? Eigen::Vector3d(tip - trocar->position_in_eye) : Eigen::Vector3d(0, 0, -1);
   if (axis.norm() < 1e-9) axis = Eigen::Vector3d(0, 0, -1);
-  const Eigen::Vector3d z = axis.normalized();
-  const Eigen::Vector3d x = z.unitOrthogonal();
   input.pose = Eigen::Isometry3d::Identity();
-  input.pose.linear().col(0) = x;
-  input.pose.linear().col(1) = z.cross(x);
-  input.pose.linear().col(2) = z;
+  if (trocar != nullptr) {
+    input.pose.linear() =
+        shaftOrientation(trocar->position_in_eye, axis, sample.roll_deg * kDegToRad).toRotationMatrix();
+  } else {
+    const Eigen::Vector3d z = axis.normalized();
+    const Eigen::Vector3d x = z.unitOrthogonal();
+    input.pose.linear().col(0) = x;
+    input.pose.linear().col(1) = z.cross(x);
+    input.pose.linear().col(2) = z;
+  }
   input.pose.translation() = tip;
   input.jaw_angle = sample.jaw_angle_deg * kDegToRad;
   return input;
