@@ -530,6 +530,10 @@ class StereoRendererNodelet : public nodelet::Nodelet {
       if (ghost_instruments_) ghost_slots[slot_name] = makeSlot(instrument, "ghost_" + slot_name, true);
     }
     mesh_frames_.clear();
+    scene_poses_.clear();
+    for (const vrm_sim::scene::ObjectDescription& object : prepared.scene.objects) {
+      scene_poses_[object.name] = object.pose.toIsometry().cast<float>();
+    }
     std::set<std::string> objects, streamed;
     for (const SceneContent::Object& object : prepared.content.objects) {
       mesh_frames_[object.drawn.id] = object.in_eye_frame ? eye_frame_ : world_frame_;
@@ -551,6 +555,8 @@ class StereoRendererNodelet : public nodelet::Nodelet {
                                      return frame->header.stamp < prepared.since;
                                    }),
                     frames_.end());
+      states_.clear();
+      state_in_use_.reset();
       ghost_applied_.clear();
       shown_key_ = prepared.key;
       shown_name_ = prepared.scene.name;
@@ -655,6 +661,7 @@ class StereoRendererNodelet : public nodelet::Nodelet {
     const ros::Time& stamp = state->header.stamp;
     if (!simulation_stamps_.empty() && stamp <= simulation_stamps_.back()) return;
     simulation_stamps_.push_back(stamp);
+    if (stamp >= scene_since_) remember(&states_, state);  // where the scenario has moved objects in this frame
     while (simulation_stamps_.size() > kHistory) simulation_stamps_.pop_front();
     if (trigger_ == Trigger::kInput) return;
     if (stamp > newest_frame_stamp_) {
@@ -801,6 +808,8 @@ class StereoRendererNodelet : public nodelet::Nodelet {
     }
     frame_in_use_ = newestUpTo(frames_, *stamp);
     microscope_in_use_ = newestUpTo(microscopes_, *stamp);
+    const vrm_msgs::SimulationState::ConstPtr state = newestUpTo(states_, *stamp);
+    if (state && state->header.stamp <= *stamp) state_in_use_ = state;
     ghosts_in_use_ = ghost_applied_;
     *simulation_shown = ros::Time();
     for (auto it = simulation_stamps_.rbegin(); it != simulation_stamps_.rend(); ++it) {
@@ -870,10 +879,25 @@ class StereoRendererNodelet : public nodelet::Nodelet {
     auto frameToWorld = [&](const std::string& frame) {
       return frame == world_frame_ ? Eigen::Isometry3f::Identity() : world_from_eye;
     };
+    // Objects the scenario moves (a grasped box, a falling ring) are drawn where it has them: their meshes are built
+    // at the scene pose, so they are displaced by (pose now) * (scene pose)^-1 in their frame.
+    std::map<std::string, Eigen::Isometry3f> moved;
+    if (state_in_use_) {
+      for (const vrm_msgs::ObjectPose& object : state_in_use_->objects) {
+        const auto scene_pose = scene_poses_.find(object.name);
+        if (scene_pose == scene_poses_.end()) continue;
+        const Eigen::Isometry3f pose = toIsometry(object.pose);
+        if (!pose.matrix().allFinite()) continue;
+        moved[object.name] = pose * scene_pose->second.inverse();
+      }
+    }
     // Each input on its own: a bad one (non-finite pose, unknown type) is skipped, the others still apply.
     for (const auto& entry : mesh_frames_) {
       try {
-        renderer_->setPose(entry.first, frameToWorld(entry.second));
+        const auto displacement = moved.find(entry.first);
+        renderer_->setPose(entry.first, displacement == moved.end()
+                                            ? frameToWorld(entry.second)
+                                            : frameToWorld(entry.second) * displacement->second);
       } catch (const RenderError& error) {
         NODELET_WARN_THROTTLE(1.0, "mesh pose ignored: %s", error.what());
       }
@@ -1150,6 +1174,7 @@ class StereoRendererNodelet : public nodelet::Nodelet {
   ros::Time awaited_frame_;  // a simulation frame done whose input frame has not arrived yet (zero: none)
   std::map<std::string, vrm_msgs::AppliedInstrument> ghost_applied_;  // newest replayed ones by slot
   std::deque<vrm_msgs::MicroscopeSettings::ConstPtr> microscopes_;
+  std::deque<vrm_msgs::SimulationState::ConstPtr> states_;  // the newest simulation frames (object placements)
   std::deque<ros::Time> simulation_stamps_;  // newest simulation frames
   ros::WallTime simulation_wall_;            // when the newest simulation_state arrived
   ros::Time first_stamp_;
@@ -1169,6 +1194,8 @@ class StereoRendererNodelet : public nodelet::Nodelet {
   vrm_msgs::InputFrame::ConstPtr frame_in_use_;
   std::map<std::string, vrm_msgs::AppliedInstrument> ghosts_in_use_;
   vrm_msgs::MicroscopeSettings::ConstPtr microscope_in_use_;
+  vrm_msgs::SimulationState::ConstPtr state_in_use_;
+  std::map<std::string, Eigen::Isometry3f> scene_poses_;  // of the shown scene's objects, by name (render thread)
   StereoFrame last_frame_;
   ros::Time last_stamp_;        // of the newest frame taken (written with both mutexes held)
   ros::Time last_frame_stamp_;  // of last_frame_

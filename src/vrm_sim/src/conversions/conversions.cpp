@@ -446,6 +446,17 @@ void fillSimulationState(const world::FrameResult& frame, const world::WorldStat
     tissue.outcome = static_cast<std::uint8_t>(report.outcome);
     message.tissues.push_back(tissue);
   }
+  message.objects.clear();
+  if (frame.scenario != nullptr) {
+    for (const scenario::ObjectPlacement& placement : frame.scenario->placements) {
+      vrm_msgs::ObjectPose object;
+      object.header.stamp = message.header.stamp;
+      object.header.frame_id = placement.frame_id;
+      object.name = placement.name;
+      object.pose = toPoseMsg(placement.pose);
+      message.objects.push_back(object);
+    }
+  }
   message.retina_contacts = 0;
   message.max_injury = 0.0f;
   for (const world::InjuryReport& injury : frame.injuries) {

@@ -25,8 +25,9 @@ using scene::loadScene;
 using scene::shippedScenePath;
 
 const std::vector<std::string>& scenarioNames() {
-  static const std::vector<std::string> names = {"navigation",       "trajectory",  "pick_and_place", "steady_hold",
-                                                 "membrane_peeling", "ilm_peeling", "vitrectomy"};
+  static const std::vector<std::string> names = {"navigation",  "trajectory",          "pick_and_place",
+                                                 "steady_hold", "object_manipulation", "bimanual",
+                                                 "membrane_peeling", "ilm_peeling",   "vitrectomy"};
   return names;
 }
 
@@ -166,6 +167,23 @@ TEST(Scenarios, NovicesTriggerThePenaltiesTheyWereWrittenFor) {
   EXPECT_GE(item(pick.novice, "retina_contacts"), 1.0);
   EXPECT_EQ(item(pick.expert, "drops"), 0.0);
 
+  // Issue 36: boxes, rings and key-and-lock; the hand-over between two forceps.
+  const Runs& manipulation = runs("object_manipulation");
+  for (const char* penalty : {"object_drops", "object_impacts", "post_collisions", "retina_contacts"}) {
+    EXPECT_GE(item(manipulation.novice, penalty), 1.0) << penalty;
+    EXPECT_EQ(item(manipulation.expert, penalty), 0.0) << penalty;
+  }
+  EXPECT_GT(item(manipulation.novice, "max_key_force"), 0.005);  // the unrolled key pushed 0.26 mm off the slot
+  EXPECT_EQ(item(manipulation.expert, "max_key_force"), 0.0);
+  EXPECT_EQ(item(manipulation.expert, "tasks_done"), 3.0);
+  EXPECT_LT(item(manipulation.expert, "orientation_error"), 1.0);
+  const Runs& bimanual = runs("bimanual");
+  for (const char* penalty : {"object_drops", "object_impacts", "instrument_collisions", "retina_contacts"}) {
+    EXPECT_GE(item(bimanual.novice, penalty), 1.0) << penalty;
+    EXPECT_EQ(item(bimanual.expert, penalty), 0.0) << penalty;
+  }
+  EXPECT_EQ(item(bimanual.expert, "handovers"), 3.0);
+
   const Runs& hold = runs("steady_hold");
   EXPECT_GE(item(hold.novice, "exits"), 1.0);
   EXPECT_GT(item(hold.novice, "tremor_band_power"), 10.0 * item(hold.expert, "tremor_band_power"));
@@ -195,7 +213,8 @@ TEST(Scenarios, NovicesTriggerThePenaltiesTheyWereWrittenFor) {
 
 // Model only what a scene needs: the abstract scenarios never run a mass-spring step or a tissue collision.
 TEST(Scenarios, NavigationRunsNoTissueStage) {
-  for (const std::string name : {"navigation", "trajectory", "pick_and_place", "steady_hold"}) {
+  for (const std::string name :
+       {"navigation", "trajectory", "pick_and_place", "steady_hold", "object_manipulation", "bimanual"}) {
     const Runs& result = runs(name);
     for (const world::ScenarioRunResult* run : {&result.expert, &result.novice}) {
       EXPECT_EQ(std::count(run->simulations.begin(), run->simulations.end(), "tissue"), 0) << run->json();

@@ -54,6 +54,7 @@ struct Status {
   Score score;
   std::vector<PenaltyEvent> events;  // why points were lost (factor_groups.h: PenaltyLog), at most kMaxEvents
   std::size_t events_dropped = 0;    // penalty events beyond those
+  std::vector<ObjectPlacement> placements;  // the objects the scenario moves, after the last frame (Scenario::placements)
 };
 
 class ScenarioRunner {

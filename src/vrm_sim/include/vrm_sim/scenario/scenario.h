@@ -28,6 +28,7 @@ struct InstrumentView {
   bool valid = false;                                // tracked and interacting
   Eigen::Vector3d tip = Eigen::Vector3d::Zero();     // m, eye frame
   Eigen::Vector3d axis = -Eigen::Vector3d::UnitZ();  // unit, eye frame, from the handle towards the tip
+  Eigen::Quaterniond orientation = Eigen::Quaterniond::Identity();  // eye <- instrument (its z: `axis`; roll about it)
   double jaw_angle = 1.0;                            // rad
   double suction = 0.0;                              // 0..1
   double cut_rate = 0.0;                             // Hz
@@ -79,6 +80,15 @@ struct FrameView {
   const TissueView* tissue(const std::string& object) const;
 };
 
+// A scene object the scenario moves (a grasped, carried, falling or placed rigid object): its pose after the frame in
+// the object's own frame (scene `frame`), replacing its scene pose. The World collides instruments with it there and
+// the renderer draws it there (SimulationState.objects).
+struct ObjectPlacement {
+  std::string name;
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  std::string frame_id = "eye";  // the object's frame
+};
+
 struct Measurement {
   std::string name;
   double value = 0.0;
@@ -101,6 +111,8 @@ class Scenario {
     (void)item;
     return "";
   }
+  // Where the objects the scenario moves are now (only those; every other object stays at its scene pose).
+  virtual std::vector<ObjectPlacement> placements() const { return {}; }
   // One line for the trainee, e.g. "target 2 of 4".
   virtual std::string progress() const = 0;
   // Mixes the scenario's state into a state hash (FNV-1a, see hashBytes()).

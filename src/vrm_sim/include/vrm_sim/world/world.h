@@ -244,6 +244,7 @@ class World {
   void buildInstruments();
   void buildTissues();
   void buildRigidObjects();
+  void placeRigidObjects();
   void resetTissues();
   std::optional<Collider> makeCollider(const scene::ObjectDescription& object) const;
   // Repeated warnings (same key) at most every kLogEveryFrames frames; an empty key is never throttled.

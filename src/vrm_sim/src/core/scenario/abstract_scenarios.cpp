@@ -180,7 +180,9 @@ class PickAndPlace : public Scenario {
   explicit PickAndPlace(const scene::SceneDescription& scene)
       : eye_radius_(scene.eye.radius), contacts_(scene.eye.radius) {
     Params params(scene);
-    ball_ = sphereOf(params.object("ball", "ball"), params, "ball");
+    const scene::ObjectDescription& ball = params.object("ball", "ball");
+    ball_ = sphereOf(ball, params, "ball");
+    ball_pose_ = ball.pose.toIsometry();
     const scene::ObjectDescription& ring = params.object("ring", "ring");
     const auto* torus = ring.mesh.generator ? std::get_if<scene::TorusParams>(&*ring.mesh.generator) : nullptr;
     if (torus == nullptr || ring.frame != scene::ObjectFrame::kEye) {
@@ -239,6 +241,12 @@ class PickAndPlace : public Scenario {
             {"retina_contacts", static_cast<double>(contacts_.count()), "1"}};
   }
 
+  std::vector<ObjectPlacement> placements() const override {
+    Eigen::Isometry3d pose = ball_pose_;
+    pose.translation() = position_;
+    return {{ball_.name, pose}};
+  }
+
   std::string progress() const override {
     if (placed_) return "placed in the ring";
     return held_ ? "carry the sphere into the ring" : "grasp the sphere";
@@ -278,6 +286,7 @@ class PickAndPlace : public Scenario {
   }
 
   Sphere ball_;
+  Eigen::Isometry3d ball_pose_ = Eigen::Isometry3d::Identity();
   Eigen::Vector3d ring_centre_, ring_normal_;
   double ring_radius_ = 0.0, eye_radius_;
   std::string tool_;

@@ -24,6 +24,9 @@ const std::vector<ItemRole>& itemRoles() {
       {"continuity", "target_achievement", nullptr, false},
       {"removed_fraction", "target_achievement", nullptr, false},
       {"wrong_touches", "target_achievement", "wrong_target", false},
+      {"tasks_done", "target_achievement", nullptr, false},
+      {"handovers", "target_achievement", nullptr, false},
+      {"orientation_error", "target_achievement", nullptr, false},
       // Efficiency: time and motion spent on it.
       {"time", "efficiency", nullptr, false},
       {"path_length", "efficiency", nullptr, false},
@@ -35,10 +38,15 @@ const std::vector<ItemRole>& itemRoles() {
       {"max_adhesion_force", "tissue_treatment", "retinal_traction", true},
       {"torn_springs", "tissue_treatment", "membrane_torn", true},  // a tear runs on over frames
       {"ball_impacts", "tissue_treatment", "sphere_fell_on_retina", false},
+      {"object_impacts", "tissue_treatment", "object_fell_on_retina", false},
       // Instrument handling: control of the instruments and of the light.
       {"unlit_touches", "instrument_handling", "unlit_touch", false},
       {"unlit_work", "instrument_handling", "unlit_work", true},
       {"drops", "instrument_handling", "sphere_dropped", false},
+      {"object_drops", "instrument_handling", "object_dropped", false},
+      {"post_collisions", "instrument_handling", "ring_hit_post", false},
+      {"max_key_force", "instrument_handling", "key_forced", true},  // a new peak force on the lock
+      {"instrument_collisions", "instrument_handling", "instruments_collided", false},
       {"exits", "instrument_handling", "left_hold_zone", false},
       {"warnings", "instrument_handling", "port_near_retina", false},
       {"mean_deviation", "instrument_handling", nullptr, false},

@@ -25,6 +25,9 @@ const Registry<ScenarioFactory>& scenarioRegistry() {
                         {"trajectory", makeTrajectory, "follow a path with the tip"},
                         {"pick_and_place", makePickAndPlace, "carry objects to their targets with the forceps"},
                         {"steady_hold", makeSteadyHold, "hold the tip still at a target"},
+                        {"object_manipulation", makeObjectManipulation,
+                         "place a box turned like its pad, thread a ring over a post, insert a key into a lock"},
+                        {"bimanual", makeBimanual, "hand a cube from one forceps to the other"},
                         {"membrane_peeling", makeMembranePeeling, "grasp and peel an epiretinal membrane"},
                         {"ilm_peeling", makeIlmPeeling, "peel the inner limiting membrane"},
                         {"vitrectomy", makeVitrectomy, "remove the vitreous with the vitrector"}});

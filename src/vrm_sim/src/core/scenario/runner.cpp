@@ -115,6 +115,7 @@ ScenarioRunner::ScenarioRunner(const scene::SceneDescription& scene) : scene_(sc
   status_.scenario = scene.name;
   status_.type = description_.type;
   status_.difficulty = description_.difficulty;
+  status_.placements = scenario_->placements();
   refreshScore();
 }
 
@@ -172,6 +173,7 @@ void ScenarioRunner::reset() {
   last_time_ = 0;
   elapsed_ns_ = 0;
   penalties_.reset();
+  status_.placements = scenario_->placements();
   refreshScore();
 }
 
@@ -193,6 +195,7 @@ void ScenarioRunner::frame(const FrameView& frame) {
   advance(frame.stamp_ns ? *frame.stamp_ns : nanoseconds(frame.time));
   scenario_->update(frame, status_.elapsed);
   status_.progress = scenario_->progress();
+  status_.placements = scenario_->placements();
   const std::vector<ScoreItem> before = std::move(status_.score.items);
   refreshScore();
   penalties_.record(

@@ -1,5 +1,6 @@
 #pragma once
-// The scenario types (one class each, in abstract_scenarios.cpp and surgical_scenarios.cpp); makeScenario() picks one
+// The scenario types (one class each, in abstract_scenarios.cpp, manipulation_scenarios.cpp and
+// surgical_scenarios.cpp); makeScenario() picks one
 // by the scene's scenario.type.
 
 #include <memory>
@@ -16,6 +17,8 @@ std::unique_ptr<Scenario> makeSteadyHold(const scene::SceneDescription& scene);
 std::unique_ptr<Scenario> makeMembranePeeling(const scene::SceneDescription& scene);
 std::unique_ptr<Scenario> makeIlmPeeling(const scene::SceneDescription& scene);
 std::unique_ptr<Scenario> makeVitrectomy(const scene::SceneDescription& scene);
+std::unique_ptr<Scenario> makeObjectManipulation(const scene::SceneDescription& scene);
+std::unique_ptr<Scenario> makeBimanual(const scene::SceneDescription& scene);
 
 }  // namespace scenario
 }  // namespace vrm_sim

@@ -109,6 +109,9 @@ struct World::RigidObject {
   std::unique_ptr<BleedingField> bleeding;  // the retina when the scene simulates bleeding
   std::vector<double> vertex_areas;         // m^2 per vertex (a third of each adjacent triangle), for injured_area
   InjuryReport report;
+  // Where the scenario has moved the object (scenario::ObjectPlacement), as a displacement of its scene pose in its
+  // frame: the collider keeps the mesh where the scene put it and sees the instruments displaced inversely.
+  Eigen::Isometry3d moved = Eigen::Isometry3d::Identity();
 };
 
 World::World(scene::SceneDescription scene, WorldOptions options)
@@ -524,6 +527,7 @@ void World::closeFrame(InputFrame& frame) {
     }
     stepTissue(*tissue, frame_time, result);
   }
+  placeRigidObjects();
   for (auto& rigid : rigid_) {
     if (rigid->bleeding) {
       if (!result.paused) bleed(*rigid, result);
@@ -532,11 +536,17 @@ void World::closeFrame(InputFrame& frame) {
     if (!rigid_reports_) continue;
     const double collision_start = now();
     const collision::SurfaceView surface = collision::SurfaceView::of(rigid->mesh);
+    const Eigen::Isometry3d unmoved = rigid->moved.inverse();
     for (auto& [slot, instrument] : instruments_) {
       if (!instrument->active) continue;
-      const Eigen::Isometry3d pose = *transform(rigid->collider.frame_id, instrument->frame_id) * instrument->pose;
-      result.collisions.push_back({slot, rigid->object->name, rigid->collider.frame_id, rigid->collider.detector_name,
-                                   collide(rigid->collider, slot, *instrument, pose, surface), surface});
+      const Eigen::Isometry3d pose =
+          unmoved * *transform(rigid->collider.frame_id, instrument->frame_id) * instrument->pose;
+      collision::CollisionResult hit = collide(rigid->collider, slot, *instrument, pose, surface);
+      for (Eigen::Vector3d& point : hit.contact_points) point = rigid->moved * point;
+      for (Eigen::Vector3d& normal : hit.contact_normals) normal = rigid->moved.linear() * normal;
+      for (Eigen::Vector3d& deformation : hit.deformations) deformation = rigid->moved.linear() * deformation;
+      result.collisions.push_back(
+          {slot, rigid->object->name, rigid->collider.frame_id, rigid->collider.detector_name, std::move(hit), surface});
     }
     result.stages.push_back({"collision_" + rigid->object->name, collision_start, now()});
   }
@@ -691,6 +701,18 @@ void World::stepTissue(Tissue& tissue, double frame_time, FrameResult& result) {
   result.tissues.push_back(report);
 }
 
+// The scenario moves objects after a frame's collisions (scenario.h placements()): this frame collides them where the
+// previous frame's scenario step (or a RESET) left them.
+void World::placeRigidObjects() {
+  if (!runner_) return;
+  for (auto& rigid : rigid_) rigid->moved.setIdentity();
+  for (const scenario::ObjectPlacement& placement : runner_->status().placements) {
+    for (auto& rigid : rigid_) {
+      if (rigid->object->name == placement.name) rigid->moved = placement.pose * rigid->object->pose.toIsometry().inverse();
+    }
+  }
+}
+
 void World::bleed(RigidObject& object, FrameResult& result) {
   const double start = now();
   const double time = toSeconds(result.stamp - *simulation_origin_);
@@ -829,6 +851,7 @@ void World::advanceScenario(const FrameResult& result) {
     const Eigen::Isometry3d pose = *transform("eye", instrument->frame_id) * instrument->pose;
     entry.tip = pose.translation();
     entry.axis = pose.linear().col(2);
+    entry.orientation = Eigen::Quaterniond(pose.linear());
     entry.jaw_angle = instrument->jaw_angle;
     entry.suction = instrument->suction;
     entry.cut_rate = instrument->cut_rate;
