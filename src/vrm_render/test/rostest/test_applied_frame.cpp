@@ -10,10 +10,12 @@
 #include <sensor_msgs/Image.h>
 #include <vrm_msgs/InputFrame.h>
 #include <vrm_msgs/InstrumentState.h>
+#include <vrm_msgs/ObjectPose.h>
 #include <vrm_msgs/SimulationState.h>
 
 #include <Eigen/Geometry>
 #include <boost/make_shared.hpp>
+#include <cmath>
 #include <cstdlib>
 #include <map>
 #include <mutex>
@@ -86,7 +88,7 @@ class AppliedFrameTest : public ::testing::Test {
 
   // One simulation frame: the input frame, then the simulation_state of its stamp (what scenario_manager publishes);
   // returns the image stamped with it (nullptr after the timeout).
-  sensor_msgs::Image::ConstPtr render(const RightSlot& right) {
+  sensor_msgs::Image::ConstPtr render(const RightSlot& right, const std::vector<vrm_msgs::ObjectPose>& objects = {}) {
     ++sequence_;
     const ros::Time stamp = base_ + ros::Duration(0.02 * static_cast<double>(sequence_));
     auto frame = simulationFrame(
@@ -112,6 +114,7 @@ class AppliedFrameTest : public ::testing::Test {
     state->header.stamp = stamp;
     state->frame = sequence_;
     state->input_sequence = sequence_;
+    state->objects = objects;
     states_pub_.publish(state);
     sensor_msgs::Image::ConstPtr image;
     waitFor(
@@ -189,6 +192,55 @@ TEST_F(AppliedFrameTest, DrawsTheAppliedTypeAndValidityNotTheRawInputs) {
   EXPECT_GT(kept_vs_forceps, type_difference / 2) << "vitrector in use: drew the raw forceps";
   EXPECT_LE(rejected_vs_lost, visibility_difference / 20) << "invalid instrument: drawn";
   EXPECT_GT(rejected_vs_forceps, visibility_difference / 2) << "invalid instrument: drew the raw (valid) input";
+}
+
+// Issue 36: an object the scenario moves (SimulationState.objects: a carried box, a falling ring) is drawn where the
+// frame's simulation state has it; a frame without it draws it at its scene pose again; an unknown name or a
+// non-finite pose changes nothing.
+TEST_F(AppliedFrameTest, DrawsTheObjectsWhereTheSimulationStateHasThem) {
+  const RightSlot forceps{"forceps", true, vrm_msgs::InstrumentState::FORCEPS, true};
+  sensor_msgs::Image::ConstPtr previous = render(forceps);
+  ASSERT_TRUE(previous) << "no image for the first simulation frame";
+  bool settled = false;
+  for (int attempt = 0; attempt < 20 && !settled; ++attempt) {
+    const sensor_msgs::Image::ConstPtr next = render(forceps);
+    ASSERT_TRUE(next);
+    settled = differingPixels(*previous, *next) == 0;
+    previous = next;
+  }
+  ASSERT_TRUE(settled) << "frames of the same inputs kept changing";
+  const vrm_sim::scene::ObjectDescription* retina = scene_.findObject("retina");
+  ASSERT_NE(retina, nullptr);
+  auto placed = [&](const std::string& name, const Eigen::Vector3d& offset) {
+    vrm_msgs::ObjectPose object;
+    object.header.frame_id = "eye";
+    object.name = name;
+    const Eigen::Isometry3d pose = retina->pose.toIsometry();
+    const Eigen::Vector3d position = pose.translation() + offset;
+    const Eigen::Quaterniond rotation(pose.linear());
+    object.pose.position.x = position.x();
+    object.pose.position.y = position.y();
+    object.pose.position.z = position.z();
+    object.pose.orientation.w = rotation.w();
+    object.pose.orientation.x = rotation.x();
+    object.pose.orientation.y = rotation.y();
+    object.pose.orientation.z = rotation.z();
+    return object;
+  };
+  const sensor_msgs::Image::ConstPtr moved = render(forceps, {placed("retina", {0.0015, 0.0, 0.0})});
+  const sensor_msgs::Image::ConstPtr unknown = render(forceps, {placed("no_such_object", {0.0015, 0.0, 0.0})});
+  vrm_msgs::ObjectPose broken = placed("retina", {0.0015, 0.0, 0.0});
+  broken.pose.position.x = std::nan("");
+  const sensor_msgs::Image::ConstPtr non_finite = render(forceps, {broken});
+  const sensor_msgs::Image::ConstPtr back = render(forceps);
+  ASSERT_TRUE(moved && unknown && non_finite && back) << "frames not rendered";
+  const int moved_difference = differingPixels(*moved, *previous);
+  RecordProperty("moved_difference", moved_difference);
+  // The fundus shifted 1.5 mm sideways: its vessels move across most of the view.
+  EXPECT_GE(moved_difference, 2000) << "the moved retina is drawn where it was";
+  EXPECT_LE(differingPixels(*unknown, *previous), moved_difference / 50) << "an unknown object moved something";
+  EXPECT_LE(differingPixels(*non_finite, *previous), moved_difference / 50) << "a non-finite pose was drawn";
+  EXPECT_LE(differingPixels(*back, *previous), moved_difference / 50) << "not back at its scene pose";
 }
 
 }  // namespace
