@@ -2,12 +2,16 @@
 // (<prefix>.frame beside <prefix>_left.png): first as it was (it must reproduce the saved image: the state is
 // complete), then with shadows off and with depth of field off, and measures
 //   3. shadow: a region >= 200 px darker by >= 25 % than without shadows, ending within 15 px of the projected tip
-//      of the working instrument (slot right: the one that casts the shadow);
+//      of the working instrument (slot right: the one that casts the shadow), or of where the light pipe's ray
+//      through that tip meets the fundus (a tip held above the retina, or an object it carries, casts its shadow
+//      there); not applicable when that point lies outside the light pipe's cone (nothing there is lit);
 //   4. focus: the Laplacian variance of the working area (the fundus pixels of the 64 x 64 px around the projected
 //      working tip: the working plane; the instruments rising out of it are left out) >= 0.8 x that of the same
 //      state rendered without depth of field;
 //   5. light: the mean grey of the fundus inside the light pipe's cone (the scoring's rule, litByLightPipe with
 //      kLightConeHalfAngleDeg) >= 90 and >= 2 x the mean over the fundus in the field outside it.
+// 3 and 5 apply where the scene has a light pipe (lit or not); a scene without one (bimanual) is lit by the
+// microscope only and has no shadow cue.
 // One line per frame, then a JSON summary. Exit 0: all pass; 1: a check failed; 2: bad input (no frames, a bad file).
 // ROS-free (no roscore needed).
 
@@ -48,8 +52,15 @@ struct FrameResult {
   bool focus_pass = false;
   ConeResult cone;
   bool light_on = false;
+  // The scene has an endoilluminator (a lit light pipe, or a light pipe object: one that is there but dark fails).
+  // Without one (bimanual: both hands hold forceps; the coaxial light only) checks 3 and 5 do not apply.
+  bool endoillumination = true;
+  bool shadow_in_cone = true;       // where the tip's shadow falls is lit (else no shadow can show: check 3 n/a)
   double light_distance_mm = -1.0;  // light pipe tip to the retina along its axis (-1: the axis misses it / off)
-  bool pass() const { return reproduced && tip_in_view && shadow.pass && focus_pass && cone.pass; }
+  bool pass() const {
+    return reproduced && tip_in_view && focus_pass &&
+           (!endoillumination || ((shadow.pass || !shadow_in_cone) && cone.pass));
+  }
 };
 
 std::vector<std::string> framePrefixes(const std::vector<std::string>& args) {
@@ -117,6 +128,11 @@ FrameResult check(StereoRenderer* renderer, const std::string& prefix, const Ren
   }
   const float radius = state.has_fundus ? state.fundus.eye_radius : FundusParams().eye_radius;
   r.light_on = state.light.enabled && state.options.lighting;
+  // A light pipe is the instrument that casts no shadow (scene_setup: every other instrument type does).
+  r.endoillumination =
+      r.light_on || std::any_of(state.objects.begin(), state.objects.end(), [](const auto& object) {
+        return object.id.rfind("instrument_", 0) == 0 && !object.style.ghost && !object.style.casts_shadow;
+      });
   if (r.light_on) {  // the axis ray from inside the sphere: the far root of |tip + t d - c| = R
     const Eigen::Vector3f d = state.light.direction.normalized(), o = state.light.tip - eye_centre;
     const float b = o.dot(d), c = o.squaredNorm() - radius * radius, disc = b * b - c;
@@ -131,7 +147,27 @@ FrameResult check(StereoRenderer* renderer, const std::string& prefix, const Ren
   renderer->setOptions(options);
   StereoFrame no_shadow;
   renderer->render(&no_shadow);
-  if (r.tip_in_view) r.shadow = findShadow(saved, no_shadow.images[0], r.tip);
+  if (r.tip_in_view) {
+    r.shadow = findShadow(saved, no_shadow.images[0], r.tip);
+    if (!r.shadow.pass && r.light_on && tool != nullptr) {
+      // Where the tip's shadow falls: the ray from the light pipe through the tip, on to the eye sphere. Outside the
+      // cone nothing is lit, so there is no shadow to see (a tip on its way in, high in the vitreous).
+      const Eigen::Vector3f tip = tool->pose.translation();
+      const Eigen::Vector3f d = (tip - state.light.tip).normalized(), o = tip - eye_centre;
+      const float b = o.dot(d), c = o.squaredNorm() - radius * radius, disc = b * b - c;
+      Eigen::Vector2f cast_px;
+      if (disc >= 0.0f) {
+        const Eigen::Vector3f cast = tip + (-b + std::sqrt(disc)) * d;
+        r.shadow_in_cone = vrm_sim::scenario::litByLightPipe(
+            state.light.tip.cast<double>(), state.light.direction.cast<double>(), cast.cast<double>(),
+            vrm_sim::scenario::lightConeCos(vrm_sim::scenario::kLightConeHalfAngleDeg));
+        if (projectToPixel(camera, cast, &cast_px)) {
+          const ShadowResult at_cast = findShadow(saved, no_shadow.images[0], cast_px);
+          if (at_cast.pass) r.shadow = at_cast;
+        }
+      }
+    }
+  }
 
   options = state.options;
   options.dof_pass = false;
@@ -208,15 +244,19 @@ int main(int argc, char** argv) {
       std::snprintf(line, sizeof(line),
                     "frame_check %s (focus %.3f m, zoom %.2f, ambient %.2f, light pipe %.1f mm from the fundus): "
                     "reproduced %.1f dB %s | tip (%.0f, %.0f)%s | shadow %d px, %.0f %% darker, "
-                    "%.1f px from tip %s | focus lap %.1f / %.1f no-DOF = %.2f %s | cone%s grey %.1f (%d px) vs "
+                    "%.1f px from tip %s%s | focus lap %.1f / %.1f no-DOF = %.2f %s | cone%s grey %.1f (%d px) vs "
                     "outside %.1f (%d px) = %.2fx, %d px saturated %s",
                     fs::path(prefix).filename().c_str(), state.microscope.focus_distance, state.microscope.zoom,
                     state.microscope.ambient_light, r.light_distance_mm, r.psnr, yes(r.reproduced).c_str(), r.tip.x(),
                     r.tip.y(), r.tip_in_view ? "" : " NOT IN VIEW", r.shadow.region_px, 100.0 * r.shadow.darkening,
-                    r.shadow.distance_px, yes(r.shadow.pass).c_str(), r.lap_saved, r.lap_no_dof, r.focus_ratio,
-                    yes(r.focus_pass).c_str(), r.light_on ? "" : " (light pipe off)", r.cone.inside_grey,
-                    r.cone.inside_px, r.cone.outside_grey, r.cone.outside_px, r.cone.ratio, r.cone.saturated_px,
-                    yes(r.cone.pass).c_str());
+                    r.shadow.distance_px, yes(r.shadow.pass).c_str(),
+                    r.shadow_in_cone ? "" : " (the tip's shadow falls outside the cone: n/a)", r.lap_saved,
+                    r.lap_no_dof, r.focus_ratio, yes(r.focus_pass).c_str(),
+                    !r.endoillumination ? " (no light pipe in the scene: n/a)"
+                    : r.light_on        ? ""
+                                        : " (light pipe off)",
+                    r.cone.inside_grey, r.cone.inside_px, r.cone.outside_grey, r.cone.outside_px, r.cone.ratio,
+                    r.cone.saturated_px, yes(r.cone.pass).c_str());
       std::cout << line << std::endl;
       results.push_back(r);
     }
@@ -234,14 +274,17 @@ int main(int argc, char** argv) {
     std::snprintf(entry, sizeof(entry),
                   "%s{\"prefix\": \"%s\", \"pass\": %s, \"reproduction_psnr_db\": %.2f, \"tip_px\": [%.1f, %.1f], "
                   "\"tip_in_view\": %s, \"shadow\": {\"region_px\": %d, \"darkening\": %.3f, \"distance_px\": %.1f, "
-                  "\"pass\": %s}, \"focus\": {\"laplacian_var\": %.2f, \"laplacian_var_no_dof\": %.2f, \"ratio\": "
-                  "%.3f, \"pass\": %s}, \"cone\": {\"light_on\": %s, \"inside_grey\": %.2f, \"inside_px\": %d, "
+                  "\"in_cone\": %s, \"pass\": %s}, \"focus\": {\"laplacian_var\": %.2f, \"laplacian_var_no_dof\": "
+                  "%.2f, \"ratio\": "
+                  "%.3f, \"pass\": %s}, \"cone\": {\"endoillumination\": %s, \"light_on\": %s, \"inside_grey\": %.2f, "
+                  "\"inside_px\": %d, "
                   "\"outside_grey\": %.2f, \"outside_px\": %d, \"ratio\": %.3f, \"saturated_px\": %d, \"pass\": %s}}",
                   i ? ", " : "", r.prefix.c_str(), r.pass() ? "true" : "false", std::isfinite(r.psnr) ? r.psnr : 999.0,
                   r.tip.x(), r.tip.y(), r.tip_in_view ? "true" : "false", r.shadow.region_px, r.shadow.darkening,
-                  r.shadow.distance_px, r.shadow.pass ? "true" : "false", r.lap_saved, r.lap_no_dof, r.focus_ratio,
-                  r.focus_pass ? "true" : "false", r.light_on ? "true" : "false", r.cone.inside_grey, r.cone.inside_px,
-                  r.cone.outside_grey, r.cone.outside_px, r.cone.ratio, r.cone.saturated_px,
+                  r.shadow.distance_px, r.shadow_in_cone ? "true" : "false", r.shadow.pass ? "true" : "false",
+                  r.lap_saved, r.lap_no_dof, r.focus_ratio, r.focus_pass ? "true" : "false",
+                  r.endoillumination ? "true" : "false", r.light_on ? "true" : "false", r.cone.inside_grey,
+                  r.cone.inside_px, r.cone.outside_grey, r.cone.outside_px, r.cone.ratio, r.cone.saturated_px,
                   r.cone.pass ? "true" : "false");
     json << entry;
   }

@@ -953,6 +953,11 @@ void StereoRenderer::renderShadowMap(const FrameState& state, PassTimings* timin
   // retina 1 mm below (their shadow vanished; test ShadowCue). Instruments, the casters that matter, do not look
   // their own shadow up (SceneDraw::draw), so they cannot self-shadow.
   glPolygonOffset(0.0f, 4.0f);
+  // The light sees the casters' back faces: a caster that is also lit (a box, a ring, a key: the abstract objects
+  // receive the instrument's shadow) then never finds its own lit face in the map, which striped grazing faces with
+  // self-shadow ("acne"). The silhouette, and so the shadow on the retina, is the same. The meshes are closed.
+  glEnable(GL_CULL_FACE);
+  glCullFace(GL_FRONT);
   im.shadow.use();
   glUniformMatrix4fv(im.shadow["u_light_view_proj"], 1, GL_FALSE, state.light_view_proj.data());
   const auto planes = frustumPlanes(state.light_view_proj);
@@ -965,6 +970,8 @@ void StereoRenderer::renderShadowMap(const FrameState& state, PassTimings* timin
     glDrawElements(GL_TRIANGLES, static_cast<GLsizei>(object.triangle_count * 3), GL_UNSIGNED_INT, nullptr);
   }
   glDisable(GL_POLYGON_OFFSET_FILL);
+  glCullFace(GL_BACK);
+  glDisable(GL_CULL_FACE);
   waitForPass();
   timings->ms_shadow = msSince(start);
 }

@@ -31,7 +31,7 @@ struct ScenarioFocusOptions {
   // was never reused: run.sh's session fell from 36 to 25 fps (issue 33's first latency run).
   double refocus_tolerance = 0.1e-3;
   double zoom = 1.5;  // fixed: the demo's working magnification (20 mm field at the focal plane)
-  double ambient_light = 0.3;
+  double ambient_light = 0.3;  // unless the scene's session has a microscope track (e.g. no light pipe: turned up)
 };
 
 // The focus distance (objective to focal plane, m) that puts the plane the working instrument `tool_slot` works in

@@ -44,6 +44,9 @@ SurgeonScript withScenarioDeviceTracks(const SurgeonScript& session, const std::
   };
 
   vrm_sim::scene::ScriptedSession devices = session.session();
+  // The scene's own microscope track (a session that sets the light, e.g. bimanual without a light pipe) keeps its
+  // ambient light; focus and zoom stay the twin's.
+  const bool scripted_light = !devices.microscope.empty();
   devices.name += " (scenario devices)";
   devices.playback = Playback::kOnce;
   devices.microscope.clear();
@@ -58,7 +61,7 @@ SurgeonScript withScenarioDeviceTracks(const SurgeonScript& session, const std::
     microscope.t = t;
     microscope.focus_distance = focus;
     microscope.zoom = options.zoom;
-    microscope.ambient_light = options.ambient_light;
+    microscope.ambient_light = scripted_light ? session.sample(t).microscope.ambient_light : options.ambient_light;
     devices.microscope.push_back(microscope);
 
     vrm_sim::scene::PedalWaypoint pedal;
