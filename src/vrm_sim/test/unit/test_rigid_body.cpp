@@ -5,8 +5,10 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <fstream>
 #include <limits>
 #include <random>
+#include <sstream>
 
 #include "vrm_sim/scenario/rigid_body.h"
 #include "vrm_sim/scene/scene_loader.h"
@@ -245,6 +247,65 @@ TEST(RigidBody, TheWorldCollidesAMovedObjectWhereTheScenarioHasIt) {
   world.flush();
   EXPECT_GT((carried - scene.findObject("ball")->pose.xyz).norm(), 1e-3) << "the sphere was not carried";
   EXPECT_TRUE(carried_and_touching) << "the held sphere does not collide with the jaws holding it";
+}
+
+}  // namespace
+}  // namespace vrm_sim
+
+namespace vrm_sim {
+namespace {
+
+// The manipulation scenes with one thing broken: each is refused when the World builds its scenario, naming the
+// parameter and why (a misconfigured module must not load and silently never complete).
+std::string shippedText(const std::string& name) {
+  std::ifstream file(scene::shippedScenePath(name));
+  std::stringstream text;
+  text << file.rdbuf();
+  return text.str();
+}
+
+std::string refusal(const std::string& yaml) {
+  try {
+    world::World world(scene::loadSceneFromString(yaml, "broken.yaml"));
+  } catch (const std::exception& error) {
+    return error.what();
+  }
+  return "";
+}
+
+std::string replaced(std::string text, const std::string& from, const std::string& to) {
+  const std::size_t at = text.find(from);
+  EXPECT_NE(at, std::string::npos) << from;
+  if (at != std::string::npos) text.replace(at, from.size(), to);
+  return text;
+}
+
+TEST(ManipulationScenes, BrokenParametersAreRefusedNamingWhy) {
+  const std::string manipulation = shippedText("object_manipulation");
+  EXPECT_EQ(refusal(manipulation), "");
+  // The ring's hole narrower than the post: it could never be threaded.
+  EXPECT_NE(refusal(replaced(manipulation, "major_radius: 0.0007, minor_radius: 0.0001",
+                             "major_radius: 0.0003, minor_radius: 0.0001"))
+                .find("wider than the post"),
+            std::string::npos);
+  // The key given a sphere: the type needs a box.
+  EXPECT_NE(refusal(replaced(manipulation, "mesh: {generator: box, params: {size: [0.0003, 0.00012, 0.0012]}}",
+                             "mesh: {generator: sphere, params: {radius: 0.0003}}"))
+                .find("must be a box"),
+            std::string::npos);
+  EXPECT_NE(refusal(replaced(manipulation, "tasks: [box, ring, key]", "tasks: [box, ring, door]")).find("door"),
+            std::string::npos);
+  EXPECT_NE(refusal(replaced(manipulation, "place_tolerance: 0.0003", "place_tolerance: -1")).find("place_tolerance"),
+            std::string::npos);
+  const std::string bimanual = shippedText("bimanual");
+  EXPECT_EQ(refusal(bimanual), "");
+  // A light pipe in one of the two slots: a hand-over needs two forceps.
+  EXPECT_NE(refusal(replaced(bimanual,
+                             "  - slot: left\n    type: forceps\n    params: {jaw_length: 0.0015, jaw_angle_deg: 0.0}",
+                             "  - slot: left\n    type: light_pipe"))
+                .find("needs forceps in both slots"),
+            std::string::npos);
+  EXPECT_NE(refusal(replaced(bimanual, "second: left", "second: right")).find("different slots"), std::string::npos);
 }
 
 }  // namespace
