@@ -9,7 +9,9 @@
 // are never drawn: a type switch the World refused or an input it rejected shows as the World decided, so the drawn
 // instrument is the colliding one. The renderer keeps no pose history of its own, only the last kHistory frames, so
 // a frame can show the frame of its own stamp although newer ones arrived while the simulation computed it. Frames
-// of kind STATE / LOAD (pedals and commands between simulation frames) carry nothing to draw.
+// of kind STATE / LOAD (pedals and commands between simulation frames) carry nothing to draw. Scene objects the
+// scenario moves (a carried box, a falling sphere; issue 36) are drawn where the simulation_state of the frame's stamp
+// has them (objects[]: each replaces that object's scene pose); the others stay at their scene poses.
 //
 // When a frame starts (~trigger, the synchronisation patterns of thesis §2.5.2, Fig. 2.6; issue 12):
 //   simulation (default; sequential, eq. 2.3) — when the simulation finished the frame of input stamp S
