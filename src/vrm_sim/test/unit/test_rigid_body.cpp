@@ -1,6 +1,6 @@
-// Rigid objects the forceps move (scenario/rigid_body.h, issue 36) against exact references: segment distances against
-// dense sampling, the resting rule against its definition, the fall against the closed-form solution of
-// v' = g - drag v; grasp, hold, hand-over and drop semantics; hard cases (NaN tips, lost instruments, degenerate
+// Rigid objects the forceps move (scenario/rigid_body.h, issue 36) against exact references: the shafts' segment
+// distances against dense sampling, the resting rule against its definition, the fall against the closed-form solution
+// of v' = g - drag v; grasp, hold, hand-over and drop semantics; hard cases (NaN tips, lost instruments, degenerate
 // segments); and the World colliding an object where the scenario has moved it.
 #include <gtest/gtest.h>
 
@@ -10,6 +10,7 @@
 #include <random>
 #include <sstream>
 
+#include "vrm_sim/collision/primitives.h"
 #include "vrm_sim/scenario/rigid_body.h"
 #include "vrm_sim/scene/scene_loader.h"
 #include "vrm_sim/world/offline.h"
@@ -37,22 +38,28 @@ double sampledSegmentDistance(const Eigen::Vector3d& a0, const Eigen::Vector3d& 
   return best;
 }
 
+// The instrument shafts' distance (bimanual's instrument collisions) is the collision library's segment distance.
+double segmentDistance(const Eigen::Vector3d& a0, const Eigen::Vector3d& a1, const Eigen::Vector3d& b0,
+                       const Eigen::Vector3d& b1) {
+  return std::sqrt(collision::segmentSegmentDistanceSquared(a0, a1, b0, b1));
+}
+
 TEST(SegmentDistance, MatchesDenseSamplingIncludingParallelAndDegenerateSegments) {
   // Crossing at right angles 1 mm apart.
-  EXPECT_NEAR(scenario::segmentDistance({-1, 0, 0}, {1, 0, 0}, {0, -1, 1e-3}, {0, 1, 1e-3}), 1e-3, 1e-15);
+  EXPECT_NEAR(segmentDistance({-1, 0, 0}, {1, 0, 0}, {0, -1, 1e-3}, {0, 1, 1e-3}), 1e-3, 1e-15);
   // Parallel, overlapping: the gap between the lines.
-  EXPECT_NEAR(scenario::segmentDistance({0, 0, 0}, {1, 0, 0}, {0.5, 2e-4, 0}, {2, 2e-4, 0}), 2e-4, 1e-15);
+  EXPECT_NEAR(segmentDistance({0, 0, 0}, {1, 0, 0}, {0.5, 2e-4, 0}, {2, 2e-4, 0}), 2e-4, 1e-15);
   // Parallel, not overlapping: end to end.
-  EXPECT_NEAR(scenario::segmentDistance({0, 0, 0}, {1, 0, 0}, {2, 0, 0}, {3, 0, 0}), 1.0, 1e-15);
+  EXPECT_NEAR(segmentDistance({0, 0, 0}, {1, 0, 0}, {2, 0, 0}, {3, 0, 0}), 1.0, 1e-15);
   // A point (degenerate segment) against a segment, and two points.
-  EXPECT_NEAR(scenario::segmentDistance({0.5, 1, 0}, {0.5, 1, 0}, {0, 0, 0}, {1, 0, 0}), 1.0, 1e-15);
-  EXPECT_NEAR(scenario::segmentDistance({0, 0, 0}, {0, 0, 0}, {3, 4, 0}, {3, 4, 0}), 5.0, 1e-15);
+  EXPECT_NEAR(segmentDistance({0.5, 1, 0}, {0.5, 1, 0}, {0, 0, 0}, {1, 0, 0}), 1.0, 1e-15);
+  EXPECT_NEAR(segmentDistance({0, 0, 0}, {0, 0, 0}, {3, 4, 0}, {3, 4, 0}), 5.0, 1e-15);
   std::mt19937 random(36);
   std::uniform_real_distribution<double> coordinate(-1.0, 1.0);
   auto point = [&] { return Eigen::Vector3d(coordinate(random), coordinate(random), coordinate(random)); };
   for (int trial = 0; trial < 40; ++trial) {
     const Eigen::Vector3d a0 = point(), a1 = point(), b0 = point(), b1 = point();
-    const double exact = scenario::segmentDistance(a0, a1, b0, b1);
+    const double exact = segmentDistance(a0, a1, b0, b1);
     const double sampled = sampledSegmentDistance(a0, a1, b0, b1);
     EXPECT_LE(exact, sampled + 1e-12) << trial;  // never more than any sampled pair
     EXPECT_NEAR(exact, sampled, 2e-2) << trial;  // sampling step 1/400 of segments up to 3.5 long

@@ -20,10 +20,6 @@
 namespace vrm_sim {
 namespace scenario {
 
-// Shortest distance between the segments [a0, a1] and [b0, b1] (parallel and degenerate segments included).
-double segmentDistance(const Eigen::Vector3d& a0, const Eigen::Vector3d& a1, const Eigen::Vector3d& b0,
-                       const Eigen::Vector3d& b1);
-
 // The pose of a body lying on the inside of a sphere of `sphere_radius` (centred at the origin) below `pose`: of the
 // body's local axes listed in `resting_axes` (0 = x, 1 = y, 2 = z; each axis with both signs), the face whose normal
 // points most towards the wall is turned onto it with the smallest rotation (the body keeps its yaw about the wall

@@ -6,6 +6,7 @@
 #include "common.h"
 #include "scenarios.h"
 #include "vrm_sim/scenario/light_cone.h"
+#include "vrm_sim/scenario/rigid_body.h"
 
 namespace vrm_sim {
 namespace scenario {
@@ -173,16 +174,16 @@ class Trajectory : public Scenario {
   RetinaContacts contacts_;
 };
 
-// Grasp a sphere with the forceps, carry it into a ring and let go there. A released sphere is a rigid body under
-// gravity with the viscous drag of the eye's fluid filling; it comes to rest on the retina.
+// Grasp a sphere with the forceps, carry it into a ring and let go there. The sphere is a rigid body (rigid_body.h):
+// released outside the ring it falls under gravity with the viscous drag of the eye's fluid filling and comes to rest
+// on the retina; every landing is an impact.
 class PickAndPlace : public Scenario {
  public:
   explicit PickAndPlace(const scene::SceneDescription& scene)
-      : eye_radius_(scene.eye.radius), contacts_(scene.eye.radius) {
+      : contacts_(scene.eye.radius), ball_("", Eigen::Isometry3d::Identity(), RigidBodyOptions{}) {
     Params params(scene);
     const scene::ObjectDescription& ball = params.object("ball", "ball");
-    ball_ = sphereOf(ball, params, "ball");
-    ball_pose_ = ball.pose.toIsometry();
+    const Sphere sphere = sphereOf(ball, params, "ball");
     const scene::ObjectDescription& ring = params.object("ring", "ring");
     const auto* torus = ring.mesh.generator ? std::get_if<scene::TorusParams>(&*ring.mesh.generator) : nullptr;
     if (torus == nullptr || ring.frame != scene::ObjectFrame::kEye) {
@@ -193,41 +194,31 @@ class PickAndPlace : public Scenario {
     ring_normal_ = ring_pose.linear().col(2);
     ring_radius_ = torus->major_radius;
     tool_ = params.slot("gripper", "right");
-    grasp_tolerance_ = params.number("grasp_tolerance", 2e-4, 0.0, 2e-3);
-    grasp_angle_ = params.number("grasp_angle_deg", 8.0, 0.5, 90.0) * kPi / 180.0;
-    gravity_ = params.number("gravity", 9.81, 0.0, 100.0);
-    drag_ = params.number("drag", 30.0, 0.0, 1e4);
+    RigidBodyOptions options;
+    options.half_extents = Eigen::Vector3d::Constant(sphere.radius);
+    options.grasp_reach = sphere.radius + params.number("grasp_tolerance", 2e-4, 0.0, 2e-3);
+    options.grasp_angle = params.number("grasp_angle_deg", 8.0, 0.5, 90.0) * kPi / 180.0;
+    options.gravity = params.number("gravity", 9.81, 0.0, 100.0);
+    options.drag = params.number("drag", 30.0, 0.0, 1e4);
+    options.eye_radius = scene.eye.radius;
     params.finish();
-    position_ = ball_.centre;
+    ball_ = RigidBody(ball.name, ball.pose.toIsometry(), options);
   }
 
   std::vector<Measurement> items() const override { return measurements(0.0); }
 
   void update(const FrameView& frame, double) override {
     contacts_.update(frame);
-    const InstrumentView* tool = frame.instrument(tool_);
-    const bool valid = tool != nullptr && tool->valid;
-    const bool closed = valid && tool->jaw_angle < grasp_angle_;
-    if (held_) {
-      if (!closed) {
-        held_ = false;
-        resting_ = false;
-        if (inRing(position_)) {
-          placed_ = true;
-        } else {
-          ++drops_;
-        }
-      } else {
-        position_ = tool->tip + offset_;
+    if (placed_) return;  // it stays in the ring
+    if (!ball_.update(frame, {tool_}).empty()) {
+      if (inRing(ball_.centre())) {
+        placed_ = true;
+        ball_.place(ball_.pose());
+        return;
       }
-    } else if (!placed_ && valid && closed && jaws_were_open_ &&
-               (tool->tip - position_).norm() < ball_.radius + grasp_tolerance_) {
-      held_ = true;
-      offset_ = position_ - tool->tip;
-      velocity_.setZero();
+      ++drops_;
     }
-    jaws_were_open_ = valid && !closed;
-    if (!held_ && !resting_ && !placed_) fall(frame);
+    if (ball_.fall(frame)) ++impacts_;
   }
 
   bool succeeded() const override { return placed_; }
@@ -241,20 +232,16 @@ class PickAndPlace : public Scenario {
             {"retina_contacts", static_cast<double>(contacts_.count()), "1"}};
   }
 
-  std::vector<ObjectPlacement> placements() const override {
-    Eigen::Isometry3d pose = ball_pose_;
-    pose.translation() = position_;
-    return {{ball_.name, pose}};
-  }
+  std::vector<ObjectPlacement> placements() const override { return {ball_.placement()}; }
 
   std::string progress() const override {
     if (placed_) return "placed in the ring";
-    return held_ ? "carry the sphere into the ring" : "grasp the sphere";
+    return ball_.held() ? "carry the sphere into the ring" : "grasp the sphere";
   }
 
   void hash(std::uint64_t& state) const override {
-    hashBytes(state, position_.data(), sizeof(double) * 3);
-    hashValue(state, held_);
+    ball_.hash(state);
+    hashValue(state, placed_);
     hashValue(state, drops_);
     hashValue(state, impacts_);
     contacts_.hash(state);
@@ -267,34 +254,13 @@ class PickAndPlace : public Scenario {
     return (d - along * ring_normal_).norm() < ring_radius_ && std::abs(along) < ring_radius_;
   }
 
-  // Semi-implicit Euler in the eye frame; gravity is the world's -z seen from the (rotating) eye.
-  void fall(const FrameView& frame) {
-    const Eigen::Vector3d gravity = frame.world_from_eye.linear().transpose() * Eigen::Vector3d(0, 0, -gravity_);
-    const int substeps = std::max(1, static_cast<int>(std::ceil(frame.dt / 1e-3)));
-    const double h = frame.dt / substeps;
-    for (int i = 0; i < substeps; ++i) {
-      velocity_ = (velocity_ + h * gravity) / (1.0 + h * drag_);
-      position_ += h * velocity_;
-      if (position_.norm() + ball_.radius >= eye_radius_) {
-        position_ *= (eye_radius_ - ball_.radius) / position_.norm();
-        velocity_.setZero();
-        resting_ = true;
-        ++impacts_;
-        return;
-      }
-    }
-  }
-
-  Sphere ball_;
-  Eigen::Isometry3d ball_pose_ = Eigen::Isometry3d::Identity();
-  Eigen::Vector3d ring_centre_, ring_normal_;
-  double ring_radius_ = 0.0, eye_radius_;
-  std::string tool_;
-  double grasp_tolerance_ = 2e-4, grasp_angle_ = 0.14, gravity_ = 9.81, drag_ = 30.0;
-  Eigen::Vector3d position_, velocity_ = Eigen::Vector3d::Zero(), offset_ = Eigen::Vector3d::Zero();
-  bool held_ = false, resting_ = true, placed_ = false, jaws_were_open_ = false;
-  std::size_t drops_ = 0, impacts_ = 0;
   RetinaContacts contacts_;
+  RigidBody ball_;
+  Eigen::Vector3d ring_centre_, ring_normal_;
+  double ring_radius_ = 0.0;
+  std::string tool_;
+  bool placed_ = false;
+  std::size_t drops_ = 0, impacts_ = 0;
 };
 
 // Hold the tip inside a small sphere (100 µm) for a while; the tremor (tip RMS, power in the 8-12 Hz band of

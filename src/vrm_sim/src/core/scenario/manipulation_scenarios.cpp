@@ -8,6 +8,7 @@
 
 #include "common.h"
 #include "scenarios.h"
+#include "vrm_sim/collision/primitives.h"
 #include "vrm_sim/scenario/rigid_body.h"
 
 namespace vrm_sim {
@@ -65,8 +66,8 @@ class InstrumentCollisions {
     const InstrumentView* a = frame.instrument(first_);
     const InstrumentView* b = frame.instrument(second_);
     if (a == nullptr || b == nullptr || !a->valid || !b->valid || !a->tip.allFinite() || !b->tip.allFinite()) return;
-    const double distance =
-        segmentDistance(a->tip - kShaftLength * a->axis, a->tip, b->tip - kShaftLength * b->axis, b->tip);
+    const double distance = std::sqrt(collision::segmentSegmentDistanceSquared(
+        a->tip - kShaftLength * a->axis, a->tip, b->tip - kShaftLength * b->axis, b->tip));
     closest_ = std::min(closest_, distance - 2.0 * shaft_radius_);
     counter_.update(distance, 2.0 * shaft_radius_, 2.0 * shaft_radius_ + 5e-5);
   }

@@ -6,36 +6,6 @@
 namespace vrm_sim {
 namespace scenario {
 
-double segmentDistance(const Eigen::Vector3d& a0, const Eigen::Vector3d& a1, const Eigen::Vector3d& b0,
-                       const Eigen::Vector3d& b1) {
-  // Closest points of two segments (Ericson, Real-Time Collision Detection §5.1.9), clamped in both parameters.
-  const Eigen::Vector3d d1 = a1 - a0, d2 = b1 - b0, r = a0 - b0;
-  const double a = d1.squaredNorm(), e = d2.squaredNorm(), f = d2.dot(r);
-  constexpr double kTiny = 1e-30;
-  double s = 0.0, t = 0.0;
-  if (a <= kTiny && e <= kTiny) return r.norm();
-  if (a <= kTiny) {
-    t = std::clamp(f / e, 0.0, 1.0);
-  } else {
-    const double c = d1.dot(r);
-    if (e <= kTiny) {
-      s = std::clamp(-c / a, 0.0, 1.0);
-    } else {
-      const double b = d1.dot(d2), denominator = a * e - b * b;
-      s = denominator > kTiny ? std::clamp((b * f - c * e) / denominator, 0.0, 1.0) : 0.0;
-      t = (b * s + f) / e;
-      if (t < 0.0) {
-        t = 0.0;
-        s = std::clamp(-c / a, 0.0, 1.0);
-      } else if (t > 1.0) {
-        t = 1.0;
-        s = std::clamp((b - c) / a, 0.0, 1.0);
-      }
-    }
-  }
-  return ((a0 + s * d1) - (b0 + t * d2)).norm();
-}
-
 Eigen::Isometry3d restOnSphere(const Eigen::Isometry3d& pose, const Eigen::Vector3d& half_extents,
                                const std::vector<int>& resting_axes, double sphere_radius) {
   Eigen::Vector3d outward = pose.translation();
