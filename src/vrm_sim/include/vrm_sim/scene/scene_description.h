@@ -232,7 +232,7 @@ struct InstrumentWaypoint {
   double jaw_angle_deg = 0.0;                            // forceps opening
   double suction = 0.0;                                  // 0..1 (vitrector aspiration, from the pedal)
   double cut_rate_hz = 0.0;                              // vitrector cutter
-  double roll_deg = 0.0;                                 // about the shaft
+  double roll_deg = 0.0;  // about the shaft; 0: the jaws' x along the eye's tangent at the trocar (shaftOrientation)
   double injection_flow = 0.0;                           // m^3/s
   // From this waypoint on the slot holds this instrument (an exchange); unset: the previous waypoint's, at the first
   // the scripted instrument's.
