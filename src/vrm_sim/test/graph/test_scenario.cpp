@@ -103,9 +103,12 @@ TEST(ScenarioGraph, LoadStartPlayFinishScore) {
     return observed.last_frame;
   };
   ASSERT_TRUE(playTicks(instruments, inputs, last_frame, [&](world::Stamp stamp, std::size_t tick) {
+    // The two refusals ten ticks apart: commands of one frame leave only the last one's message in the status.
     if (tick == 50) {
       EXPECT_EQ(status().state, vrm_msgs::ScenarioStatus::RUNNING) << status().message;
       command(vrm_msgs::ScenarioCommand::START, "", "", world::toSeconds(stamp));
+    }
+    if (tick == 60) {
       command(vrm_msgs::ScenarioCommand::LOAD, std::string(VRM_SIM_SOURCE_DIR) + "/test/data/scenes/syntax_error.yaml",
               "", world::toSeconds(stamp));
     }
