@@ -40,6 +40,10 @@ struct EvalResult {
   int frames = 0;
   double tip_rms_um = 0.0;  // world-frame tip marker error (what triangulation determines)
   double tip_max_um = 0.0;
+  // Issue 43 §4: the part of the world-frame tip error that changes from frame to frame: RMS of the error vector
+  // about its mean per instrument over the run. At rest (a frozen truth) it is the jitter a filter should remove; the
+  // mean is the static bias (calibration, centroid bias) no filter can.
+  double tip_jitter_um = 0.0;
   double tip_eye_rms_um = 0.0;  // eye-frame tip error (adds the eye-rotation error)
   double tip_eye_max_um = 0.0;
   double eye_err_deg = 0.0;  // RMS angular error of the eye rotation
@@ -87,6 +91,25 @@ struct FastSurgeonConfig {
 };
 std::function<SurgeonSnapshot(double)> fastPosteriorSurgeon(const MarkerLayout& layout,
                                                             const FastSurgeonConfig& config = FastSurgeonConfig());
+// Issue 43 §5: seeded random fast trajectories, generated outside the bench's fixed rows, to test that the fixes are
+// not tuned to them.
+//   * eye: about x, y and z (the roll about the optical axis) a slow and a quick sinusoid per axis with random
+//     frequencies and phases, so the rotation reverses (quickly, on the 1.5-3 Hz component) and its direction changes;
+//     scaled so that the peak angular speed over [0, duration] is a random fraction in [0.85, 1] of max_eye_speed;
+//   * tips: straight sweeps between random waypoints near the posterior pole (eye frame: |x| 0.5-3 mm on the
+//     instrument's side, |y| <= 3 mm, z -10.5 to -8 mm: 1.5-4 mm in front of the 12 mm retina), each leg at a random
+//     speed in [0.5, 1] · max_tip_speed, legs of >= 1.5 mm; the velocity changes at once at a waypoint (an abrupt
+//     reversal when the next waypoint lies behind), at instants that fall anywhere between the 50 Hz samples.
+struct RandomFastConfig {
+  double max_eye_speed = 1.0;    // rad/s
+  double max_tip_speed = 0.060;  // m/s
+  double duration = 10.0;        // s: the eye's scaling and the tips' legs cover [0, duration]
+};
+std::function<SurgeonSnapshot(double)> randomFastSurgeon(const MarkerLayout& layout, std::uint32_t seed,
+                                                         const RandomFastConfig& config = RandomFastConfig());
+// Peak tip speed (m/s, eye frame) of a surgeon over the samples `times`, by central differences over ±dt.
+double peakTipSpeed(const std::function<SurgeonSnapshot(double)>& truth, const std::vector<double>& times,
+                    double dt = 1e-4);
 // Angular speed (rad/s) of a surgeon's eye rotation at t, by a central difference over ±dt.
 double eyeAngularSpeed(const std::function<SurgeonSnapshot(double)>& truth, double t, double dt = 1e-4);
 

@@ -2,6 +2,7 @@
 
 #include <Eigen/Dense>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <random>
 
@@ -76,6 +77,95 @@ double eyeAngularSpeed(const std::function<SurgeonSnapshot(double)>& truth, doub
   return a.angularDistance(b) / (2.0 * dt);
 }
 
+std::function<SurgeonSnapshot(double)> randomFastSurgeon(const MarkerLayout& layout, std::uint32_t seed,
+                                                         const RandomFastConfig& config) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u01(0.0, 1.0);
+  auto uniform = [&](double lo, double hi) { return lo + (hi - lo) * u01(rng); };
+  // Eye: angle_k(t) = sum_j A_kj sin(2π f_kj t + φ_kj); the roll about z is kept smaller (it is the eye's torsion).
+  struct Wave {
+    double amplitude, frequency, phase;
+  };
+  std::array<std::array<Wave, 2>, 3> waves;
+  for (int k = 0; k < 3; ++k) {
+    const double scale = k == 2 ? 0.4 : 1.0;
+    waves[k][0] = {scale * uniform(0.5, 1.0), uniform(0.5, 1.0), uniform(0.0, 2 * kPi)};
+    waves[k][1] = {scale * uniform(0.2, 0.5), uniform(1.5, 3.0), uniform(0.0, 2 * kPi)};
+  }
+  auto rotation = [](const std::array<std::array<Wave, 2>, 3>& w, double gain, double t) {
+    double angle[3];
+    for (int k = 0; k < 3; ++k) {
+      angle[k] = 0.0;
+      for (const Wave& x : w[k]) angle[k] += gain * x.amplitude * std::sin(2 * kPi * x.frequency * t + x.phase);
+    }
+    return Eigen::Quaterniond(Eigen::AngleAxisd(angle[0], Eigen::Vector3d::UnitX()) *
+                              Eigen::AngleAxisd(angle[1], Eigen::Vector3d::UnitY()) *
+                              Eigen::AngleAxisd(angle[2], Eigen::Vector3d::UnitZ()));
+  };
+  // Peak angular speed at unit gain on a 1 ms grid, then the gain that puts it at the drawn fraction of the limit.
+  double peak = 0.0;
+  for (double t = 0.0; t <= config.duration; t += 1e-3) {
+    peak = std::max(peak, rotation(waves, 1.0, t).angularDistance(rotation(waves, 1.0, t + 1e-4)) / 1e-4);
+  }
+  const double gain = peak > 0.0 ? uniform(0.85, 1.0) * config.max_eye_speed / peak : 0.0;
+
+  // Tips: legs between waypoints, per instrument, covering [-0.1 s, duration + 0.1 s].
+  struct Leg {
+    double t0, t1;
+    Eigen::Vector3d a, b;
+  };
+  std::vector<std::vector<Leg>> legs(layout.instruments.size());
+  for (std::size_t i = 0; i < layout.instruments.size(); ++i) {
+    const double side = i % 2 == 0 ? -1.0 : 1.0;
+    auto waypoint = [&]() {
+      return Eigen::Vector3d(side * uniform(0.0005, 0.003), uniform(-0.003, 0.003), uniform(-0.0105, -0.008));
+    };
+    Eigen::Vector3d a = waypoint();
+    double t = -0.1;  // the first leg is already under way at t = 0
+    while (t < config.duration + 0.1) {
+      Eigen::Vector3d b = waypoint();
+      for (int tries = 0; tries < 20 && (b - a).norm() < 0.0015; ++tries) b = waypoint();
+      const double speed = uniform(0.5, 1.0) * config.max_tip_speed;
+      const double t1 = t + (b - a).norm() / speed;
+      legs[i].push_back({t, t1, a, b});
+      a = b;
+      t = t1;
+    }
+  }
+  return [layout, waves, gain, legs, rotation](double t) {
+    SurgeonSnapshot s;
+    s.rotation_center = layout.rotation_center;
+    s.eye_rotation = rotation(waves, gain, t);
+    for (std::size_t i = 0; i < layout.instruments.size(); ++i) {
+      const std::vector<Leg>& path = legs[i];
+      std::size_t n = 0;
+      while (n + 1 < path.size() && t >= path[n].t1) ++n;
+      const Leg& leg = path[n];
+      const double f = std::clamp((t - leg.t0) / std::max(1e-9, leg.t1 - leg.t0), 0.0, 1.0);
+      InstrumentSample inst;
+      inst.slot = layout.instruments[i].slot;
+      inst.trocar = layout.instruments[i].trocar;
+      inst.tip = leg.a + f * (leg.b - leg.a);
+      inst.shaft_axis = (inst.tip - inst.trocar).normalized();
+      inst.insertion_depth = (inst.tip - inst.trocar).norm();
+      inst.orientation = shaftOrientation(inst.trocar, inst.shaft_axis, 0.0);
+      s.instruments.push_back(inst);
+    }
+    return s;
+  };
+}
+
+double peakTipSpeed(const std::function<SurgeonSnapshot(double)>& truth, const std::vector<double>& times, double dt) {
+  double peak = 0.0;
+  for (double t : times) {
+    const SurgeonSnapshot a = truth(t - dt), b = truth(t + dt);
+    for (std::size_t i = 0; i < a.instruments.size() && i < b.instruments.size(); ++i) {
+      peak = std::max(peak, (b.instruments[i].tip - a.instruments[i].tip).norm() / (2.0 * dt));
+    }
+  }
+  return peak;
+}
+
 EvalResult evaluate(const CameraRig& rig, const MarkerLayout& layout,
                     const std::function<SurgeonSnapshot(double)>& truth, const std::vector<double>& times,
                     const EvalOptions& options) {
@@ -92,7 +182,8 @@ EvalResult evaluate(const CameraRig& rig, const MarkerLayout& layout,
 
   double tip2 = 0.0, tip_eye2 = 0.0, eye2 = 0.0, t_detect = 0.0, t_rec = 0.0, t_render = 0.0;
   long tips = 0, tips_valid = 0, visible = 0, detected = 0, camera_frames = 0, full_frames = 0;
-  std::vector<double> render_each, detect_each;  // per camera triple (s)
+  std::vector<double> render_each, detect_each;                                     // per camera triple (s)
+  std::vector<std::vector<Eigen::Vector3d>> tip_errors(layout.instruments.size());  // world, per layout slot
   cv::Mat image;
   for (std::size_t f = 0; f < times.size(); ++f) {
     const double t = times[f];
@@ -172,6 +263,9 @@ EvalResult evaluate(const CameraRig& rig, const MarkerLayout& layout,
         const Eigen::Vector3d world_true = snap.rotation_center + q * s.tip;
         const Eigen::Vector3d world_est = r.eye.rotation_center + r.eye.rotation.normalized() * est.tip;
         const double ew = (world_est - world_true).norm() * 1e6;
+        for (std::size_t i = 0; i < layout.instruments.size(); ++i) {
+          if (layout.instruments[i].slot == s.slot) tip_errors[i].push_back(world_est - world_true);
+        }
         const double ee = (est.tip - s.tip).norm() * 1e6;
         tip2 += ew * ew;
         tip_eye2 += ee * ee;
@@ -181,6 +275,16 @@ EvalResult evaluate(const CameraRig& rig, const MarkerLayout& layout,
     }
   }
   result.frames = static_cast<int>(times.size());
+  double jitter2 = 0.0;
+  long jitter_n = 0;
+  for (const std::vector<Eigen::Vector3d>& errors : tip_errors) {
+    if (errors.empty()) continue;
+    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+    for (const Eigen::Vector3d& e : errors) mean += e / static_cast<double>(errors.size());
+    for (const Eigen::Vector3d& e : errors) jitter2 += (e - mean).squaredNorm();
+    jitter_n += static_cast<long>(errors.size());
+  }
+  if (jitter_n > 0) result.tip_jitter_um = std::sqrt(jitter2 / jitter_n) * 1e6;
   if (tips_valid > 0) {
     result.tip_rms_um = std::sqrt(tip2 / tips_valid);
     result.tip_eye_rms_um = std::sqrt(tip_eye2 / tips_valid);
