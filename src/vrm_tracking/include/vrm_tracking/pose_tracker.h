@@ -33,6 +33,28 @@ struct TrackerConfig {
   // Blobs below this fraction of the best quality of their class in the frame are used only if the others do not
   // reconstruct (distractor rejection; 0 = off).
   double clean_quality_ratio = 0.5;
+  // Issue 43 §3: which blobs make a marker. A solution is "consistent" when every camera's reprojection residual is
+  // within consistent_px: 5x the largest residual of a clean three-camera solution on the rendered bench (0.05 px),
+  // well below the ~0.5-1 px bias of a blob merged with a distractor or cut by a shaft. A consistent solution
+  // of three or more cameras is taken first (three rays meeting within half a pixel do not happen by chance); then a
+  // consistent pair; the loose gate_px only as the last resort.
+  double consistent_px = 0.25;
+  // ... or, when the centroids are noisier than the rendered ones (the FPGA path, a worse calibration), this many
+  // times the median of the recent three-camera residuals (each frame's smallest max residual of a three-camera
+  // solution per marker, the last consistent_window of them): the threshold follows the measured noise, and a
+  // blob biased by a distractor is an outlier against that noise. A residual the whole rig shares (noise, calibration)
+  // raises the median; a rare biased blob does not.
+  double consistent_noise_factor = 4.0;
+  int consistent_window = 64;
+  // A pair has a single epipolar check, which a distractor anywhere along the epipolar line passes. So a pair solution
+  // must lie within prediction_margin + (|v| + max_marker_speed) dt of the marker's constant-velocity prediction (v
+  // from its last two positions, dt since the last: the velocity can turn into any other up to max_marker_speed,
+  // e.g. a full reversal; without a velocity yet, |v| = max_marker_speed), and among the clean pairs the one nearest
+  // the prediction wins. The prediction expires after prediction_max_age s without the marker
+  // (then pairs are taken on their residual alone, so a marker is found again).
+  double prediction_margin = 0.0005;  // m
+  double max_marker_speed = 0.075;    // m/s: above the 60 mm/s tip sweeps the simulator is specified for
+  double prediction_max_age = 0.1;    // s
   // Optional filter of every reconstructed marker position (so of the eye rotation and the tips); off by default.
   PoseFilterConfig filter;
 };
@@ -78,7 +100,17 @@ class PoseTracker {
   // exposure time) drives the optional filter; NaN: 20 ms after the previous frame.
   TrackingResult update(const std::vector<CameraObservations>& frame,
                         double stamp = std::numeric_limits<double>::quiet_NaN());
+  // One marker from one frame without a prediction (a first frame, or a tracker that just lost it).
   MarkerEstimate reconstruct(int class_id, const std::vector<CameraObservations>& frame) const;
+  // Where a marker is expected (world, m) and how far from it a pair solution may lie (m); see TrackerConfig.
+  struct Prediction {
+    Eigen::Vector3d position = Eigen::Vector3d::Zero();
+    double gate = 0.0;
+  };
+  MarkerEstimate reconstruct(int class_id, const std::vector<CameraObservations>& frame,
+                             const Prediction* prediction) const;
+  // The consistency threshold (px) the next update() uses: consistent_px or the measured noise (see TrackerConfig).
+  double consistentPx() const;
   void reset();
 
   const CameraRig& rig() const { return rig_; }
@@ -91,6 +123,20 @@ class PoseTracker {
   EyeEstimate last_eye_;
   std::vector<InstrumentEstimate> last_instruments_;  // last valid estimate per layout instrument
   std::vector<PointFilter> filters_;                  // per colour class (index as layout_.classes)
+  // Per colour class: its last two raw positions and their stamps (the prediction of issue 43 §3).
+  struct ClassHistory {
+    int count = 0;  // 0, 1 or 2 positions held
+    Eigen::Vector3d position = Eigen::Vector3d::Zero(), previous = Eigen::Vector3d::Zero();
+    double stamp = 0.0, previous_stamp = 0.0;
+  };
+  std::vector<ClassHistory> history_;
+  bool predictionFor(std::size_t k, double stamp, Prediction* prediction) const;
+  // reconstruct() with a given consistency threshold; *triple_max_px: the smallest max residual of a three-camera
+  // solution (infinity without one).
+  MarkerEstimate reconstructWith(int class_id, const std::vector<CameraObservations>& frame,
+                                 const Prediction* prediction, double consistent_px, double* triple_max_px) const;
+  std::vector<double> triple_residuals_;  // ring of the last consistent_window three-camera residuals (px)
+  std::size_t triple_next_ = 0;
   double last_stamp_ = 0.0;
 };
 

@@ -1,9 +1,12 @@
 #include "vrm_tracking/pose_tracker.h"
 
 #include <Eigen/SVD>
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 #include <string>
+#include <tuple>
+#include <utility>
 
 namespace vrm_tracking {
 
@@ -36,10 +39,32 @@ void PoseTracker::reset() {
   last_eye_.rotation_center = layout_.rotation_center;
   filters_.assign(layout_.classes.size(), PointFilter(config_.filter));
   last_instruments_.assign(layout_.instruments.size(), InstrumentEstimate());
+  history_.assign(layout_.classes.size(), ClassHistory());
+  triple_residuals_.clear();
+  triple_next_ = 0;
   last_stamp_ = 0.0;
 }
 
 MarkerEstimate PoseTracker::reconstruct(int class_id, const std::vector<CameraObservations>& frame) const {
+  return reconstruct(class_id, frame, nullptr);
+}
+
+MarkerEstimate PoseTracker::reconstruct(int class_id, const std::vector<CameraObservations>& frame,
+                                        const Prediction* prediction) const {
+  return reconstructWith(class_id, frame, prediction, config_.consistent_px, nullptr);
+}
+
+double PoseTracker::consistentPx() const {
+  if (triple_residuals_.empty()) return config_.consistent_px;
+  std::vector<double> r = triple_residuals_;
+  std::nth_element(r.begin(), r.begin() + r.size() / 2, r.end());
+  return std::max(config_.consistent_px, config_.consistent_noise_factor * r[r.size() / 2]);
+}
+
+MarkerEstimate PoseTracker::reconstructWith(int class_id, const std::vector<CameraObservations>& frame,
+                                            const Prediction* prediction, double consistent_px,
+                                            double* triple_max_px) const {
+  if (triple_max_px) *triple_max_px = std::numeric_limits<double>::infinity();
   MarkerEstimate est;
   est.class_id = class_id;
   // Candidates per camera (a camera may report distractors of the same class; at most 3 are considered).
@@ -61,72 +86,145 @@ MarkerEstimate PoseTracker::reconstruct(int class_id, const std::vector<CameraOb
   }
   if (all.size() < 2) return est;
 
-  Triangulation best;
-  auto consider = [&](const std::vector<PixelObservation>& obs) {
-    const Triangulation t = triangulate(rig_, obs);
-    if (!t.valid || t.rms_px > config_.gate_px) return;
-    if ((t.point - layout_.rotation_center).norm() > config_.max_radius) return;
-    if (!best.valid || t.rms_px < best.rms_px) best = t;
-  };
-  // Every camera subset of size >= 2, the largest first: a consistent 3-camera solution beats any pair (more
-  // accurate); pairs are the fallback for occlusion or a distractor in one camera.
-  auto search = [&](const std::vector<std::vector<PixelObservation>>& cands) {
-    const std::size_t n = cands.size();
-    for (std::size_t size = n; size >= 2 && !best.valid; --size) {
-      for (unsigned mask = 0; mask < (1u << n); ++mask) {
-        if (static_cast<std::size_t>(__builtin_popcount(mask)) != size) continue;
-        std::vector<std::size_t> cams;
-        for (std::size_t i = 0; i < n; ++i) {
-          if (mask & (1u << i)) cams.push_back(i);
-        }
-        // Every combination of one candidate per chosen camera.
-        std::vector<std::size_t> pick(cams.size(), 0);
-        while (true) {
-          std::vector<PixelObservation> obs;
-          for (std::size_t i = 0; i < cams.size(); ++i) obs.push_back(cands[cams[i]][pick[i]]);
-          consider(obs);
-          std::size_t i = 0;
-          for (; i < cams.size(); ++i) {
-            if (++pick[i] < cands[cams[i]].size()) break;
-            pick[i] = 0;
-          }
-          if (i == cams.size()) break;
-        }
-      }
-      if (size == 2) break;
-    }
-  };
-  // First only the clean blobs (quality within clean_quality_ratio of the class's best this frame: a blob over a
-  // coloured distractor, cut by a shaft or smeared loses quality and biases its centroid), then all of them.
-  std::vector<std::vector<PixelObservation>> clean, any;
-  for (const std::vector<Candidate>& cam : all) {
-    std::vector<PixelObservation> c, a;
-    for (const Candidate& k : cam) {
-      a.push_back(k.obs);
-      if (k.quality >= config_.clean_quality_ratio * best_quality) c.push_back(k.obs);
-    }
-    if (!c.empty()) clean.push_back(std::move(c));
-    any.push_back(std::move(a));
+  // An eye marker sits at a known distance from the rotation centre (the rig geometry): a solution elsewhere is a
+  // wrong blob, so it is skipped here and another candidate can win.
+  double eye_radius = -1.0;
+  for (const EyeMarker& m : layout_.eye_markers) {
+    if (m.class_id == class_id) eye_radius = m.position.norm();
   }
-  if (clean.size() >= 2) search(clean);
-  if (!best.valid) search(any);
-  if (!best.valid) return est;
+  // Every combination of one candidate per camera of every camera subset of size >= 2, each solution tagged with
+  // whether all its blobs are clean (quality within clean_quality_ratio of the class's best this frame: a blob over
+  // a coloured distractor, cut by a shaft or smeared loses quality and biases its centroid).
+  struct Solution {
+    Triangulation t;
+    bool clean = true;
+    double from_prediction = 0.0;  // m
+  };
+  std::vector<Solution> solutions;
+  const std::size_t n = all.size();
+  for (unsigned mask = 0; mask < (1u << n); ++mask) {
+    if (__builtin_popcount(mask) < 2) continue;
+    std::vector<std::size_t> cams;
+    for (std::size_t i = 0; i < n; ++i) {
+      if (mask & (1u << i)) cams.push_back(i);
+    }
+    std::vector<std::size_t> pick(cams.size(), 0);
+    while (true) {
+      std::vector<PixelObservation> obs;
+      bool clean = true;
+      for (std::size_t i = 0; i < cams.size(); ++i) {
+        const Candidate& k = all[cams[i]][pick[i]];
+        obs.push_back(k.obs);
+        clean = clean && k.quality >= config_.clean_quality_ratio * best_quality;
+      }
+      Solution s;
+      s.t = triangulate(rig_, obs);
+      s.clean = clean;
+      const bool inside = s.t.valid && s.t.rms_px <= config_.gate_px &&
+                          (s.t.point - layout_.rotation_center).norm() <= config_.max_radius &&
+                          (eye_radius < 0.0 || std::abs((s.t.point - layout_.rotation_center).norm() - eye_radius) <
+                                                   config_.eye_marker_tolerance);
+      if (inside) {
+        if (prediction) s.from_prediction = (s.t.point - prediction->position).norm();
+        // Pairs away from the prediction are distractors on the epipolar line (see TrackerConfig).
+        if (s.t.cameras.size() >= 3 || !prediction || s.from_prediction <= prediction->gate) solutions.push_back(s);
+      }
+      std::size_t i = 0;
+      for (; i < cams.size(); ++i) {
+        if (++pick[i] < all[cams[i]].size()) break;
+        pick[i] = 0;
+      }
+      if (i == cams.size()) break;
+    }
+  }
+  // Tiers: (1) consistent with three or more cameras, lowest residual; (2) a consistent pair: the one nearest the
+  // prediction, or without one the clean pair with the lowest residual; (3) the earlier rule on the loose gate:
+  // clean blobs first, more cameras first, lowest residual.
+  const Solution* best = nullptr;
+  auto consistent = [consistent_px](const Solution& s) { return s.t.max_px <= consistent_px; };
+  if (triple_max_px) {
+    for (const Solution& s : solutions) {
+      if (s.t.cameras.size() >= 3) *triple_max_px = std::min(*triple_max_px, s.t.max_px);
+    }
+  }
+  for (const Solution& s : solutions) {
+    if (s.t.cameras.size() >= 3 && consistent(s) && (!best || s.t.rms_px < best->t.rms_px)) best = &s;
+  }
+  if (!best) {
+    for (const Solution& s : solutions) {
+      if (!consistent(s)) continue;
+      // Clean pairs first (a blob cut by a shaft or blended with a distractor can be biased along the epipolar line,
+      // where the residual cannot see it), then the nearest to the prediction, or without one the lowest residual.
+      auto key = [prediction](const Solution& x) {
+        return std::make_pair(!x.clean, prediction ? x.from_prediction : x.t.rms_px);
+      };
+      if (!best || key(s) < key(*best)) best = &s;
+    }
+  }
+  if (!best) {
+    for (const Solution& s : solutions) {
+      auto key = [](const Solution& x) {
+        return std::make_tuple(!x.clean, -static_cast<int>(x.t.cameras.size()), x.t.rms_px);
+      };
+      if (!best || key(s) < key(*best)) best = &s;
+    }
+  }
+  if (!best) return est;
   est.valid = true;
-  est.position = best.point;
-  est.raw_position = best.point;
-  est.rms_px = best.rms_px;
-  est.cameras = static_cast<int>(best.cameras.size());
-  est.quality = std::exp(-best.rms_px / config_.gate_px) * (best.cameras.size() >= 3 ? 1.0 : 0.8);
+  est.position = best->t.point;
+  est.raw_position = best->t.point;
+  est.rms_px = best->t.rms_px;
+  est.cameras = static_cast<int>(best->t.cameras.size());
+  est.quality = std::exp(-best->t.rms_px / config_.gate_px) * (best->t.cameras.size() >= 3 ? 1.0 : 0.8);
   return est;
+}
+
+bool PoseTracker::predictionFor(std::size_t k, double stamp, Prediction* prediction) const {
+  const ClassHistory& h = history_[k];
+  const double age = stamp - h.stamp;
+  if (h.count == 0 || !(age > 0.0) || age > config_.prediction_max_age) return false;
+  // The velocity may change to any other of at most max_marker_speed since: |v_new - v| <= |v| + max_marker_speed.
+  double speed = config_.max_marker_speed;
+  prediction->position = h.position;
+  if (h.count == 2 && h.stamp > h.previous_stamp) {
+    const Eigen::Vector3d v = (h.position - h.previous) / (h.stamp - h.previous_stamp);
+    prediction->position += v * age;
+    speed = std::min(v.norm(), config_.max_marker_speed);
+  }
+  prediction->gate = config_.prediction_margin + (speed + config_.max_marker_speed) * age;
+  return true;
 }
 
 TrackingResult PoseTracker::update(const std::vector<CameraObservations>& frame, double stamp) {
   if (!std::isfinite(stamp)) stamp = last_stamp_ + 0.02;
   last_stamp_ = stamp;
   TrackingResult result;
+  const double consistent_px = consistentPx();
   for (std::size_t k = 0; k < layout_.classes.size(); ++k) {
-    MarkerEstimate m = reconstruct(layout_.classes[k].id, frame);
-    if (m.valid) m.position = filters_[k].filter(m.raw_position, stamp);
+    Prediction prediction;
+    const bool predicted = predictionFor(k, stamp, &prediction);
+    double triple_max_px = 0.0;
+    MarkerEstimate m =
+        reconstructWith(layout_.classes[k].id, frame, predicted ? &prediction : nullptr, consistent_px, &triple_max_px);
+    if (std::isfinite(triple_max_px) && config_.consistent_window > 0) {
+      const std::size_t window = static_cast<std::size_t>(config_.consistent_window);
+      if (triple_residuals_.size() < window) {
+        triple_residuals_.push_back(triple_max_px);
+      } else {
+        triple_residuals_[triple_next_ % window] = triple_max_px;
+      }
+      ++triple_next_;
+    }
+    if (m.valid) {
+      m.position = filters_[k].filter(m.raw_position, stamp);
+      ClassHistory& h = history_[k];
+      // The velocity only from consecutive sightings within the prediction's age: older ones say little.
+      h.count = h.count > 0 && stamp - h.stamp <= config_.prediction_max_age ? 2 : 1;
+      h.previous = h.position;
+      h.previous_stamp = h.stamp;
+      h.position = m.raw_position;
+      h.stamp = stamp;
+    }
     result.markers.push_back(m);
   }
   auto marker = [&](int class_id) -> const MarkerEstimate* {

@@ -57,6 +57,7 @@ TEST(DistractorRejection, ReconstructionPrefersTheCleanCameras) {
   TrackerConfig tiered;
   TrackerConfig untiered;
   untiered.clean_quality_ratio = 0.0;
+  untiered.consistent_px = untiered.gate_px;  // and without the consistency tier (issue 43), which drops it as well
   const MarkerEstimate good = PoseTracker(rig, layout, tiered).reconstruct(cls, frame);
   const MarkerEstimate biased = PoseTracker(rig, layout, untiered).reconstruct(cls, frame);
   ASSERT_TRUE(good.valid && biased.valid);
