@@ -36,7 +36,17 @@ std::string toString(FilterType type) {
 Eigen::Vector3d PointFilter::filter(const Eigen::Vector3d& x, double t) {
   if (config_.type == FilterType::kNone || !x.allFinite() || !std::isfinite(t)) return x;
   const double dt = t - t_;
-  if (!initialised_ || dt <= 0.0 || dt > config_.max_gap) {
+  // The motion gate: a measurement the noise cannot explain restarts the filter there, and so does every one for
+  // motion_hold after it (see PoseFilterConfig).
+  const bool gated = config_.noise_sigma > 0.0 && initialised_ && dt > 0.0;
+  const Eigen::Vector3d predicted =
+      config_.type == FilterType::kAlphaBeta && initialised_ && dt > 0.0 ? Eigen::Vector3d(x_ + v_ * dt) : x_;
+  const bool motion = gated && (x - predicted).norm() > config_.gate_sigmas * config_.noise_sigma;
+  if (motion) quiet_since_ = t;
+  const bool holding = gated && t - quiet_since_ < config_.motion_hold;
+  if (!initialised_ || dt <= 0.0 || dt > config_.max_gap || motion || holding) {
+    // A (re)start knows nothing of the motion yet: it holds as after motion.
+    if (!holding) quiet_since_ = t;
     initialised_ = true;
     t_ = t;
     x_ = x;
@@ -51,7 +61,6 @@ Eigen::Vector3d PointFilter::filter(const Eigen::Vector3d& x, double t) {
     const double cutoff = config_.min_cutoff + config_.beta * v_.norm();
     x_ += lowPassAlpha(cutoff, dt) * (x - x_);
   } else {
-    const Eigen::Vector3d predicted = x_ + v_ * dt;
     const Eigen::Vector3d residual = x - predicted;
     x_ = predicted + config_.alpha * residual;
     v_ += (config_.beta_ab / dt) * residual;
