@@ -40,8 +40,8 @@ void PoseTracker::reset() {
   filters_.assign(layout_.classes.size(), PointFilter(config_.filter));
   last_instruments_.assign(layout_.instruments.size(), InstrumentEstimate());
   history_.assign(layout_.classes.size(), ClassHistory());
-  triple_residuals_.clear();
-  triple_next_ = 0;
+  residual_window_.clear();
+  residual_next_ = 0;
   last_stamp_ = 0.0;
 }
 
@@ -55,22 +55,23 @@ MarkerEstimate PoseTracker::reconstruct(int class_id, const std::vector<CameraOb
 }
 
 double PoseTracker::consistentPx() const {
-  if (triple_residuals_.empty()) return config_.consistent_px;
-  std::vector<double> r = triple_residuals_;
+  if (residual_window_.empty()) return config_.consistent_px;
+  std::vector<double> r = residual_window_;
   std::nth_element(r.begin(), r.begin() + r.size() / 2, r.end());
   return std::max(config_.consistent_px, config_.consistent_noise_factor * r[r.size() / 2]);
 }
 
 MarkerEstimate PoseTracker::reconstructWith(int class_id, const std::vector<CameraObservations>& frame,
                                             const Prediction* prediction, double consistent_px,
-                                            double* triple_max_px) const {
-  if (triple_max_px) *triple_max_px = std::numeric_limits<double>::infinity();
+                                            double* noise_sample_px) const {
+  if (noise_sample_px) *noise_sample_px = std::numeric_limits<double>::infinity();
   MarkerEstimate est;
   est.class_id = class_id;
   // Candidates per camera (a camera may report distractors of the same class; at most 3 are considered).
   struct Candidate {
     PixelObservation obs;
     double quality;
+    double contamination;
   };
   std::vector<std::vector<Candidate>> all;
   double best_quality = 0.0;
@@ -79,7 +80,9 @@ MarkerEstimate PoseTracker::reconstructWith(int class_id, const std::vector<Came
     std::vector<Candidate> c;
     for (const Blob& b : cam.blobs) {
       if (b.class_id != class_id || !std::isfinite(b.u) || !std::isfinite(b.v) || c.size() >= 3) continue;
-      c.push_back({{cam.camera, Eigen::Vector2d(b.u, b.v)}, std::isfinite(b.quality) ? b.quality : 0.0});
+      c.push_back({{cam.camera, Eigen::Vector2d(b.u, b.v)},
+                   std::isfinite(b.quality) ? b.quality : 0.0,
+                   std::isfinite(b.contamination) ? b.contamination : 0.0});
       best_quality = std::max(best_quality, c.back().quality);
     }
     if (!c.empty()) all.push_back(std::move(c));
@@ -98,7 +101,8 @@ MarkerEstimate PoseTracker::reconstructWith(int class_id, const std::vector<Came
   struct Solution {
     Triangulation t;
     bool clean = true;
-    double from_prediction = 0.0;  // m
+    bool ring_contaminated = false;  // some blob's surrounding ring is coloured (a shaft or a distractor touches it)
+    double from_prediction = 0.0;    // m
   };
   std::vector<Solution> solutions;
   const std::size_t n = all.size();
@@ -111,15 +115,17 @@ MarkerEstimate PoseTracker::reconstructWith(int class_id, const std::vector<Came
     std::vector<std::size_t> pick(cams.size(), 0);
     while (true) {
       std::vector<PixelObservation> obs;
-      bool clean = true;
+      bool clean = true, ring_contaminated = false;
       for (std::size_t i = 0; i < cams.size(); ++i) {
         const Candidate& k = all[cams[i]][pick[i]];
         obs.push_back(k.obs);
         clean = clean && k.quality >= config_.clean_quality_ratio * best_quality;
+        ring_contaminated = ring_contaminated || k.contamination > config_.pair_contamination_max;
       }
       Solution s;
       s.t = triangulate(rig_, obs);
       s.clean = clean;
+      s.ring_contaminated = ring_contaminated;
       const bool inside = s.t.valid && s.t.rms_px <= config_.gate_px &&
                           (s.t.point - layout_.rotation_center).norm() <= config_.max_radius &&
                           (eye_radius < 0.0 || std::abs((s.t.point - layout_.rotation_center).norm() - eye_radius) <
@@ -137,31 +143,36 @@ MarkerEstimate PoseTracker::reconstructWith(int class_id, const std::vector<Came
       if (i == cams.size()) break;
     }
   }
-  // Tiers: (1) consistent with three or more cameras, lowest residual; (2) a consistent pair: the one nearest the
-  // prediction, or without one the clean pair with the lowest residual; (3) the earlier rule on the loose gate:
-  // clean blobs first, more cameras first, lowest residual.
+  // Among the consistent solutions: clean blobs first (quality tiering: a blob blended with a distractor or cut by a
+  // shaft can be biased by less than the threshold, or along the epipolar line of a pair, where no residual sees it),
+  // then three or more cameras before a pair; among triples the lowest residual, among pairs the one nearest the
+  // prediction (or, without one, the lowest residual). Without a consistent solution, the earlier rule on the loose
+  // gate: clean blobs first, more cameras first, lowest residual.
   const Solution* best = nullptr;
   auto consistent = [consistent_px](const Solution& s) { return s.t.max_px <= consistent_px; };
-  if (triple_max_px) {
+  if (noise_sample_px) {
+    // The noise sample: the best residual of the solutions with the most cameras this frame (pairs when one camera
+    // is occluded, so the threshold also follows the noise of a two-camera rig).
+    std::size_t most = 0;
+    for (const Solution& s : solutions) most = std::max(most, s.t.cameras.size());
     for (const Solution& s : solutions) {
-      if (s.t.cameras.size() >= 3) *triple_max_px = std::min(*triple_max_px, s.t.max_px);
+      if (s.t.cameras.size() == most) *noise_sample_px = std::min(*noise_sample_px, s.t.max_px);
     }
   }
+  auto rank = [prediction](const Solution& x) {
+    const bool pair = x.t.cameras.size() < 3;
+    return std::make_tuple(!x.clean, pair, pair && prediction ? x.from_prediction : x.t.rms_px);
+  };
   for (const Solution& s : solutions) {
-    if (s.t.cameras.size() >= 3 && consistent(s) && (!best || s.t.rms_px < best->t.rms_px)) best = &s;
+    // A pair cannot see a bias along its epipolar line: while the marker is predicted, a pair with a blob whose ring
+    // is coloured (cut by a shaft, blended with a distractor) is not taken.
+    if (prediction && s.t.cameras.size() < 3 && s.ring_contaminated) continue;
+    if (consistent(s) && (!best || rank(s) < rank(*best))) best = &s;
   }
-  if (!best) {
-    for (const Solution& s : solutions) {
-      if (!consistent(s)) continue;
-      // Clean pairs first (a blob cut by a shaft or blended with a distractor can be biased along the epipolar line,
-      // where the residual cannot see it), then the nearest to the prediction, or without one the lowest residual.
-      auto key = [prediction](const Solution& x) {
-        return std::make_pair(!x.clean, prediction ? x.from_prediction : x.t.rms_px);
-      };
-      if (!best || key(s) < key(*best)) best = &s;
-    }
-  }
-  if (!best) {
+  // While the marker is predicted, blobs that do not agree are not taken: one missing frame (the instrument holds its
+  // pose) is better than a biased one. Once the prediction expires (prediction_max_age) the loose gate finds the
+  // marker again.
+  if (!best && !prediction) {
     for (const Solution& s : solutions) {
       auto key = [](const Solution& x) {
         return std::make_tuple(!x.clean, -static_cast<int>(x.t.cameras.size()), x.t.rms_px);
@@ -203,17 +214,17 @@ TrackingResult PoseTracker::update(const std::vector<CameraObservations>& frame,
   for (std::size_t k = 0; k < layout_.classes.size(); ++k) {
     Prediction prediction;
     const bool predicted = predictionFor(k, stamp, &prediction);
-    double triple_max_px = 0.0;
-    MarkerEstimate m =
-        reconstructWith(layout_.classes[k].id, frame, predicted ? &prediction : nullptr, consistent_px, &triple_max_px);
-    if (std::isfinite(triple_max_px) && config_.consistent_window > 0) {
+    double noise_sample_px = 0.0;
+    MarkerEstimate m = reconstructWith(layout_.classes[k].id, frame, predicted ? &prediction : nullptr, consistent_px,
+                                       &noise_sample_px);
+    if (std::isfinite(noise_sample_px) && config_.consistent_window > 0) {
       const std::size_t window = static_cast<std::size_t>(config_.consistent_window);
-      if (triple_residuals_.size() < window) {
-        triple_residuals_.push_back(triple_max_px);
+      if (residual_window_.size() < window) {
+        residual_window_.push_back(noise_sample_px);
       } else {
-        triple_residuals_[triple_next_ % window] = triple_max_px;
+        residual_window_[residual_next_ % window] = noise_sample_px;
       }
-      ++triple_next_;
+      ++residual_next_;
     }
     if (m.valid) {
       m.position = filters_[k].filter(m.raw_position, stamp);

@@ -70,6 +70,9 @@ class Tracker : public nodelet::Nodelet {
     TrackerConfig config;
     pnh.param("gate_px", config.gate_px, config.gate_px);
     pnh.param("max_radius", config.max_radius, config.max_radius);
+    // Issue 43: which blobs make a marker (pose_tracker.h): the consistency threshold and the pair prediction gate.
+    pnh.param("consistent_px", config.consistent_px, config.consistent_px);
+    pnh.param("max_marker_speed", config.max_marker_speed, config.max_marker_speed);
     double sync_window = 0.03;
     pnh.param("sync_window", sync_window, sync_window);
     pnh.param("publish_tf", publish_tf_, false);
@@ -96,6 +99,10 @@ class Tracker : public nodelet::Nodelet {
     pnh.param("filter_d_cutoff", config.filter.d_cutoff, config.filter.d_cutoff);
     pnh.param("filter_alpha", config.filter.alpha, config.filter.alpha);
     pnh.param("filter_beta_ab", config.filter.beta_ab, config.filter.beta_ab);
+    // The filters' motion gate (pose_filter.h): the measured per-axis jitter at rest (m; 0: no gate), in σ, the hold.
+    pnh.param("filter_noise_sigma", config.filter.noise_sigma, config.filter.noise_sigma);
+    pnh.param("filter_gate_sigmas", config.filter.gate_sigmas, config.filter.gate_sigmas);
+    pnh.param("filter_motion_hold", config.filter.motion_hold, config.filter.motion_hold);
     try {
       config.filter.type = filterTypeFromString(filter);
       config_ = config;
