@@ -61,6 +61,7 @@ struct Row {
   bool roi = true;
   PoseFilterConfig filter;  // kNone for the accuracy rows
   double filter_lag_ms = 0.0;
+  double filter_lag_slow_ms = 0.0;  // issue 43: steady-state lag on a 0.2 mm/s ramp (a drift inside the motion gate)
   std::string motion = "circling";  // circlingSurgeon, or "fast_posterior" (fastPosteriorSurgeon)
   int occluded_camera = -1;
   double eye_speed_min = 0.0, eye_speed_max = 0.0;  // rad/s over the sampled frames
@@ -74,6 +75,9 @@ struct Row {
   bool estimated = false;               // calibration: "estimated" (tracker uses a calibrated rig) or "true"
   std::vector<unsigned> calibration_seeds;
   double reproj_rms = 0, reproj_rms_min = 0, reproj_rms_max = 0;  // calibration's reprojection RMS (px)
+  // Issue 43 §5: random fast trajectories (motion "random_fast"): the generator's seed and the peak tip speed.
+  unsigned trajectory_seed = 0;
+  double tip_speed_max = 0.0;  // m/s
 };
 
 // Median, min, max.
@@ -105,9 +109,10 @@ void repeatInto(Row* row, int n, const std::function<EvalResult(int)>& evaluate_
   const Spread rms = field(&EvalResult::tip_rms_um), max = field(&EvalResult::tip_max_um),
                det = field(&EvalResult::ms_detect);
   for (double EvalResult::*f :
-       {&EvalResult::tip_rms_um, &EvalResult::tip_max_um, &EvalResult::tip_eye_rms_um, &EvalResult::tip_eye_max_um,
-        &EvalResult::eye_err_deg, &EvalResult::eye_err_max_deg, &EvalResult::detect_rate, &EvalResult::track_rate,
-        &EvalResult::ms_detect, &EvalResult::ms_reconstruct, &EvalResult::ms_render, &EvalResult::full_frame_rate}) {
+       {&EvalResult::tip_rms_um, &EvalResult::tip_max_um, &EvalResult::tip_jitter_um, &EvalResult::tip_eye_rms_um,
+        &EvalResult::tip_eye_max_um, &EvalResult::eye_err_deg, &EvalResult::eye_err_max_deg, &EvalResult::detect_rate,
+        &EvalResult::track_rate, &EvalResult::ms_detect, &EvalResult::ms_reconstruct, &EvalResult::ms_render,
+        &EvalResult::full_frame_rate}) {
     row->r.*f = field(f).median;
   }
   row->tip_rms_min = rms.min;
@@ -222,7 +227,12 @@ std::string toJson(const Row& row) {
     << ", \"track_rate\": " << num(row.r.track_rate) << ", \"ms_detect\": " << num(row.r.ms_detect)
     << ", \"ms_reconstruct\": " << num(row.r.ms_reconstruct) << ", \"full_frame_rate\": " << num(row.r.full_frame_rate)
     << ", \"frames\": " << row.r.frames << ", \"filter\": \"" << toString(row.filter.type) << "\""
-    << ", \"filter_lag_ms\": " << num(row.filter_lag_ms) << ", \"calibration\": \""
+    << ", \"filter_lag_ms\": " << num(row.filter_lag_ms) << ", \"filter_lag_slow_ms\": " << num(row.filter_lag_slow_ms)
+    << ", \"filter_noise_sigma_um\": "
+    << (row.filter.type == FilterType::kNone ? "null" : num(1e6 * row.filter.noise_sigma))
+    << ", \"filter_gate_sigmas\": " << (row.filter.type == FilterType::kNone ? "null" : num(row.filter.gate_sigmas))
+    << ", \"tip_jitter_um\": " << num(row.r.tip_jitter_um)
+    << ", \"ms_detect_reconstruct\": " << num(row.r.ms_detect + row.r.ms_reconstruct) << ", \"calibration\": \""
     << (row.estimated ? "estimated" : "true") << "\", \"repetitions\": " << row.repetitions
     << ", \"tip_rms_um_min\": " << num(row.tip_rms_min) << ", \"tip_rms_um_max\": " << num(row.tip_rms_max)
     << ", \"tip_max_um_min\": " << num(row.tip_max_min) << ", \"tip_max_um_max\": " << num(row.tip_max_max)
@@ -264,6 +274,10 @@ std::string toJson(const Row& row) {
           << ", \"ratio_to_three_cameras_max\": " << num(row.ratio_max);
       }
       o << ", \"camera_skew_ms\": " << num(row.camera_skew_ms);
+      if (row.motion == "random_fast") {
+        o << ", \"trajectory_seed\": " << row.trajectory_seed
+          << ", \"tip_speed_max_mm_s\": " << num(1e3 * row.tip_speed_max);
+      }
     }
   }
   o << "}";
@@ -487,36 +501,66 @@ int main(int argc, char** argv) {
   }
 
   // (1b) Filters (pose_filter.h) on the centroid path: noise reduction at rest (the truth frozen at t = 0) and the
-  // cost of their lag at 10 mm/s, 0.3 px noise, three cameras. filter_lag_ms: steady-state lag on a 10 mm/s ramp.
+  // cost of their lag at 10 and 50 mm/s, 0.3 px noise, three cameras. filter_lag_ms: steady-state lag on a 10 mm/s
+  // ramp; filter_lag_slow_ms: on a 0.2 mm/s ramp (a drift the motion gate takes for noise).
+  // Issue 43 §4: the filters' motion gate is tuned from the noise measured here, not assumed: noise_sigma is the
+  // unfiltered per-axis jitter at rest of the same path (tip_jitter_um / sqrt 3), measured first in this run.
+  auto measuredSigma = [&](const EvalResult& rest) { return 1e-6 * rest.tip_jitter_um / std::sqrt(3.0); };
   std::vector<PoseFilterConfig> filters(3);
   filters[1].type = FilterType::kOneEuro;
   filters[2].type = FilterType::kAlphaBeta;
   {
-    const auto moving = circlingSurgeon(layout, 0.010);
-    const std::function<SurgeonSnapshot(double)> resting = [moving](double) { return moving(0.0); };
+    const auto resting_of = [](const std::function<SurgeonSnapshot(double)>& moving) {
+      return std::function<SurgeonSnapshot(double)>([moving](double) { return moving(0.0); });
+    };
     std::vector<double> times;
     for (int f = 0; f < frames_noise; ++f) times.push_back(f / 50.0);
-    for (const PoseFilterConfig& filter : filters) {
-      for (bool still : {true, false}) {
+    std::vector<PoseFilterConfig> centroid_filters = filters;
+    {
+      EvalOptions opt;
+      opt.noise_px = 0.3;
+      opt.seed = 13;
+      const double sigma = measuredSigma(evaluate(rig, layout, resting_of(circlingSurgeon(layout, 0.010)), times, opt));
+      for (PoseFilterConfig& f : centroid_filters) f.noise_sigma = sigma;
+    }
+    for (const PoseFilterConfig& filter : centroid_filters) {
+      for (double speed : {0.0, 10.0, 50.0}) {
+        const bool still = speed == 0.0;
         Row row;
         row.source = "centroid_noise";
-        row.label = std::string(still ? "at rest" : "10 mm/s") + ", filter " + toString(filter.type);
+        row.label = std::string(still ? "at rest" : num(speed) + " mm/s") + ", filter " + toString(filter.type);
         if (!wanted(row.label)) continue;
+        const auto moving = circlingSurgeon(layout, (still ? 10.0 : speed) * 1e-3);
         row.noise_px = 0.3;
-        row.speed_mm_s = still ? 0.0 : 10.0;
+        row.speed_mm_s = speed;
         row.filter = filter;
         row.filter_lag_ms = filter.type == FilterType::kNone ? 0.0 : 1e3 * measureRampLag(filter, 0.010, 50.0);
+        row.filter_lag_slow_ms = filter.type == FilterType::kNone ? 0.0 : 1e3 * measureRampLag(filter, 0.0002, 50.0);
         repeatInto(&row, repetitions, [&](int k) {
           EvalOptions opt;
           opt.noise_px = 0.3;
           opt.seed = 13 + k;
           opt.clock = now;
           opt.tracker.filter = filter;
-          return evaluate(rig, layout, still ? resting : moving, times, opt);
+          return evaluate(rig, layout, still ? resting_of(moving) : moving, times, opt);
         });
         rows.push_back(row);
       }
     }
+  }
+
+  // Issue 43 §4: the rendered path's jitter at rest, unfiltered (the frozen 10 mm/s scene, 300 frames, seed 21): the
+  // noise the rendered rows' filters are tuned to.
+  {
+    std::vector<double> times;
+    for (int f = 0; f < frames_rendered; ++f) times.push_back(f / 50.0);
+    const auto moving = circlingSurgeon(layout, 0.010);
+    EvalOptions opt;
+    opt.rendered = true;
+    opt.seed = 21;
+    const double sigma = measuredSigma(evaluate(
+        rig, layout, [moving](double) { return moving(0.0); }, times, opt));
+    for (PoseFilterConfig& f : filters) f.noise_sigma = sigma;
   }
 
   // (2) Rendered images: detection + reconstruction end to end.
@@ -617,6 +661,7 @@ int main(int argc, char** argv) {
       opt.tracker.clean_quality_ratio = c.clean_quality_ratio;
       row.filter = c.filter;
       row.filter_lag_ms = c.filter.type == FilterType::kNone ? 0.0 : 1e3 * measureRampLag(c.filter, 0.010, 50.0);
+      row.filter_lag_slow_ms = c.filter.type == FilterType::kNone ? 0.0 : 1e3 * measureRampLag(c.filter, 0.0002, 50.0);
       repeatInto(&row, headline(c.label) ? repetitions : 1, [&](int k) {
         EvalOptions o = opt;
         o.seed = opt.seed + k;
@@ -643,6 +688,55 @@ int main(int argc, char** argv) {
         }
       }
       rows.push_back(row);
+    }
+  }
+
+  // (2b) Issue 43 §4: the filters on images at every speed: at rest (the frozen 10 mm/s scene: jitter), 10 mm/s (the
+  // cases above), 50 mm/s and the fast case of (3), each with the unfiltered row of the same seeds beside it.
+  {
+    const FastSurgeonConfig fast;
+    for (const std::string& motion : {std::string("at rest"), std::string("50 mm/s"), std::string("fast")}) {
+      for (const PoseFilterConfig& filter : filters) {
+        Row row;
+        row.source = "rendered";
+        row.label = (motion == "fast" ? std::string("fast eye, tips 50 mm/s at pole") : motion) + ", filter " +
+                    toString(filter.type);
+        if (!wanted(row.label)) continue;
+        std::function<SurgeonSnapshot(double)> truth;
+        if (motion == "at rest") {
+          const auto moving = circlingSurgeon(layout, 0.010);
+          truth = [moving](double) { return moving(0.0); };
+        } else if (motion == "50 mm/s") {
+          truth = circlingSurgeon(layout, 0.050);
+        } else {
+          truth = fastPosteriorSurgeon(layout, fast);
+          row.motion = "fast_posterior";
+        }
+        std::vector<double> times;
+        for (int f = 0; f < (motion == "fast" ? frames_fast : frames_rendered); ++f) times.push_back(f / 50.0);
+        row.speed_mm_s = motion == "at rest" ? 0.0 : 50.0;
+        if (motion == "fast") {
+          row.eye_speed_min = row.eye_speed_max = eyeAngularSpeed(truth, times.front());
+          for (double t : times) {
+            row.eye_speed_min = std::min(row.eye_speed_min, eyeAngularSpeed(truth, t));
+            row.eye_speed_max = std::max(row.eye_speed_max, eyeAngularSpeed(truth, t));
+          }
+        }
+        row.filter = filter;
+        row.filter_lag_ms = filter.type == FilterType::kNone ? 0.0 : 1e3 * measureRampLag(filter, 0.010, 50.0);
+        row.filter_lag_slow_ms = filter.type == FilterType::kNone ? 0.0 : 1e3 * measureRampLag(filter, 0.0002, 50.0);
+        EvalOptions opt;
+        opt.rendered = true;
+        opt.seed = motion == "fast" ? 23 : 21;
+        opt.clock = now;
+        opt.tracker.filter = filter;
+        repeatInto(&row, repetitions, [&](int k) {
+          EvalOptions o = opt;
+          o.seed = opt.seed + k;
+          return evaluate(rig, layout, truth, times, o);
+        });
+        rows.push_back(row);
+      }
     }
   }
 
@@ -715,6 +809,61 @@ int main(int argc, char** argv) {
       opt.seed = 23;
       opt.clock = now;
       repeatInto(&row, 1, [&](int) { return evaluate(rig, layout, truth, times, opt); });
+      rows.push_back(row);
+    }
+  }
+
+  // (3b) Issue 43 §5: five seeded random fast trajectories generated outside the rows above (randomFastSurgeon: eye
+  // rotations up to 1 rad/s with quick reversals about three axes, tips sweeping between random waypoints near the
+  // posterior pole at up to 60 mm/s with abrupt turns), 500 frames each: three cameras with the true and with the
+  // estimated rig (calibration k for trajectory k), and each camera occluded in turn (ratio to the three-camera row
+  // of the same trajectory and seed).
+  for (int k = 0; k < 5; ++k) {
+    const unsigned trajectory_seed = 4300 + k;
+    const auto truth = randomFastSurgeon(layout, trajectory_seed);
+    std::vector<double> times;
+    for (int f = 0; f < frames_fast; ++f) times.push_back(f / 50.0);
+    double speed_min = 1e9, speed_max = 0.0;
+    for (double t : times) {
+      speed_min = std::min(speed_min, eyeAngularSpeed(truth, t));
+      speed_max = std::max(speed_max, eyeAngularSpeed(truth, t));
+    }
+    const double tip_speed = peakTipSpeed(truth, times);
+    const std::string name = "random fast " + std::to_string(trajectory_seed);
+    double three_cam_rms = 0.0;
+    for (int occluded : {-1, -2, 0, 1, 2}) {  // -2: three cameras, the estimated rig
+      const bool est = occluded == -2 && k < static_cast<int>(estimated.size());
+      if (occluded == -2 && !est) continue;
+      if (est) occluded = -1;
+      Row row;
+      row.source = "rendered";
+      row.label = occluded < 0 ? name + ", 3 cameras" : name + ", camera_" + std::to_string(occluded) + " occluded";
+      if (!wanted(row.label)) continue;
+      row.motion = "random_fast";
+      row.trajectory_seed = trajectory_seed;
+      row.tip_speed_max = tip_speed;
+      row.occluded_cams = occluded < 0 ? 0 : 1;
+      row.occluded_camera = occluded;
+      row.speed_mm_s = 1e3 * tip_speed;
+      row.eye_speed_min = speed_min;
+      row.eye_speed_max = speed_max;
+      EvalOptions opt;
+      opt.rendered = true;
+      opt.occluded_camera = occluded;
+      opt.seed = 43 + k;
+      opt.clock = now;
+      if (est) opt.tracker_rig = &estimated[k].rig;
+      repeatInto(&row, 1, [&](int) { return evaluate(rig, layout, truth, times, opt); });
+      if (est) {
+        markEstimated(&row);
+        row.calibration_seeds = {estimated[k].seed};
+        row.reproj_rms = row.reproj_rms_min = row.reproj_rms_max = estimated[k].reproj_rms_px;
+      }
+      if (occluded < 0 && !est) three_cam_rms = row.r.tip_rms_um;
+      if (occluded >= 0 && three_cam_rms > 0) {
+        row.ratio_to_three_cameras = row.r.tip_rms_um / three_cam_rms;
+        row.ratio_min = row.ratio_max = row.ratio_to_three_cameras;
+      }
       rows.push_back(row);
     }
   }
