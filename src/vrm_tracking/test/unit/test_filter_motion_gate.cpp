@@ -1,8 +1,8 @@
 // The filters' motion gate (issue 43 §4, PoseFilterConfig::noise_sigma): with the default configuration each filter
 // removes jitter at rest and is at least as accurate as no filter at speed — on a 3 mm circle at 10 and 50 mm/s and
 // on a 50 mm/s sweep with abrupt reversals between the 50 Hz samples. Before the gate One Euro lagged 5.9 ms at 10
-// mm/s (59 µm behind) and alpha-beta drifted off the circle's curve (50 µm). Noise: the rendered pipeline's measured
-// 1.9 µm per axis, seeded.
+// mm/s (59 µm behind) and alpha-beta drifted off the circle's curve (50 µm). Noise: 1.9 µm per axis (the default
+// noise_sigma, the rendered pipeline's frame-to-frame error), seeded.
 
 #include <gtest/gtest.h>
 
@@ -16,7 +16,7 @@ namespace vrm_tracking {
 namespace {
 
 constexpr double kRate = 50.0;
-constexpr double kSigma = 1.9e-6;  // m per axis: PoseFilterConfig's default noise_sigma, the bench's measured jitter
+constexpr double kSigma = 1.9e-6;  // m per axis: PoseFilterConfig's default noise_sigma
 
 struct Errors {
   double raw_rms = 0, raw_max = 0, filtered_rms = 0, filtered_max = 0;
