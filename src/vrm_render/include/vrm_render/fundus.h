@@ -1,7 +1,8 @@
 #pragma once
 // The procedural fundus (issue 16): optic disc with its cup, the retinal vessel tree in its four arcades, macula and
-// fovea, choroidal pattern — generated once from a seed, no photographs. The renderer bakes it into one texture at
-// set-up; the vessel map stays queryable (nearestVessel) so that the simulation can put bleeding where vessels are.
+// fovea, choroidal pattern — generated once from a seed, no photographs. The anatomy (disc, vessels, macula) is
+// vrm_sim's FundusAnatomy (issue 37: the laser scenario scores burns on the vessels drawn here); this map bakes it with
+// the choroid into one texture at set-up.
 //
 // Geometry (eye frame of vrm_sim's eye_meshes.h: origin at the eye centre, +z towards the microscope, the fovea at
 // the posterior pole (0, 0, -R)). Anatomy is laid out in *fundus coordinates*: the azimuthal equidistant map of
@@ -30,77 +31,43 @@
 #include <string>
 #include <vector>
 
+#include "vrm_sim/anatomy/fundus_anatomy.h"
+
 namespace vrm_render {
 
-struct FundusParams {
-  std::uint32_t seed = 1;  // the scene's seed: vessel branching, tortuosity, choroidal pattern
-  float eye_radius = 0.012f;
-  float nasal_sign = 1.0f;  // +1: the disc lies towards +x (right eye as the microscope shows it), -1: left eye
-  float disc_diameter = 0.00165f;
-  float cup_to_disc = 0.35f;
-  // The disc centre in fundus coordinates: disc_fovea_distance nasal (x, times nasal_sign) and disc_above_fovea
-  // superior (y) of the fovea. Defaults [Hogan]; a scene's `optic_disc` object overrides them (scene_setup.h:
-  // fundusParams), and the arcades are laid out relative to wherever the disc is.
-  float disc_fovea_distance = 0.0045f;  // along the retina
-  float disc_above_fovea = 0.0005f;
-  float macula_radius = 0.0015f;  // the darker, xanthophyll-pigmented centre
-  float fovea_radius = 0.00035f;  // foveola
-  int texture_size = 1024;        // texels across [-R, R] of the eye frame's x and y
-};
-
-// One straight piece of a vessel's centre line, in fundus coordinates (metres), radii at both ends.
-struct VesselSegment {
-  Eigen::Vector2f a = Eigen::Vector2f::Zero();
-  Eigen::Vector2f b = Eigen::Vector2f::Zero();
-  float radius_a = 0.0f;
-  float radius_b = 0.0f;
-  bool artery = false;
-  int arcade = -1;     // 0 superotemporal, 1 inferotemporal, 2 superonasal, 3 inferonasal, -1 small disc vessel
-  int generation = 0;  // 0: a trunk leaving the disc, +1 per bifurcation
-};
-
-struct VesselQuery {
-  bool inside = false;    // the point lies within a vessel's lumen
-  float distance = 1e9f;  // from the vessel's centre line (m, along the retina)
-  float radius = 0.0f;    // of that vessel there
-  bool artery = false;
-  int segment = -1;  // index into vessels(), -1 when there is none
-};
-
-// Eye frame (a point on or near the retina sphere of `eye_radius`) -> fundus coordinates: the azimuthal equidistant
-// map about the posterior pole (0, 0, -R), (x, y) in metres along the retina.
-Eigen::Vector2f fundusCoordinates(const Eigen::Vector3f& point_in_eye, float eye_radius);
+// The anatomy is vrm_sim's (one fundus for what is drawn and what is scored); the renderer adds its texture.
+using FundusParams = vrm_sim::anatomy::FundusParams;
+using VesselSegment = vrm_sim::anatomy::VesselSegment;
+using VesselQuery = vrm_sim::anatomy::VesselQuery;
+using vrm_sim::anatomy::fundusCoordinates;
 
 class FundusMap {
  public:
+  // Throws RenderError for parameters the anatomy refuses (see FundusAnatomy).
   explicit FundusMap(const FundusParams& params = {});
 
-  const FundusParams& params() const { return params_; }
+  const FundusParams& params() const { return anatomy_.params(); }
+  const vrm_sim::anatomy::FundusAnatomy& anatomy() const { return anatomy_; }
   // Eye frame (on or near the retina sphere) <-> fundus coordinates.
-  Eigen::Vector2f toFundus(const Eigen::Vector3f& point_in_eye) const;
-  Eigen::Vector3f toEye(const Eigen::Vector2f& fundus) const;
+  Eigen::Vector2f toFundus(const Eigen::Vector3f& point_in_eye) const { return anatomy_.toFundus(point_in_eye); }
+  Eigen::Vector3f toEye(const Eigen::Vector2f& fundus) const { return anatomy_.toEye(fundus); }
 
-  Eigen::Vector2f fovea() const { return Eigen::Vector2f::Zero(); }
-  Eigen::Vector2f discCentre() const { return disc_; }
-  Eigen::Vector2f cupCentre() const;  // of radius cup_to_disc * disc_diameter / 2; the vessels emerge at its margin
-  const std::vector<VesselSegment>& vessels() const { return vessels_; }
-  // The nearest vessel to a point on the retina (eye frame): where an injury bleeds (thesis §7: retina injuries
-  // bleed); O(segments), meant for contact events, not for every vertex of every frame.
-  VesselQuery nearestVessel(const Eigen::Vector3f& point_in_eye) const;
+  Eigen::Vector2f fovea() const { return anatomy_.fovea(); }
+  Eigen::Vector2f discCentre() const { return anatomy_.discCentre(); }
+  Eigen::Vector2f cupCentre() const { return anatomy_.cupCentre(); }
+  const std::vector<VesselSegment>& vessels() const { return anatomy_.vessels(); }
+  VesselQuery nearestVessel(const Eigen::Vector3f& point_in_eye) const { return anatomy_.nearestVessel(point_in_eye); }
 
   // Albedo texture, RGBA8, texture_size^2, row 0 at y = -R (GL's first row), texel (i, j) centred at
   // x = -R + (i + 0.5) * 2R / size: the retina samples it at its eye-frame (x, y) (orthographic from the
   // microscope's side, so no seam over the cap).
   const std::vector<std::uint8_t>& texture() const { return texture_; }
-  int textureSize() const { return params_.texture_size; }
+  int textureSize() const { return params().texture_size; }
 
  private:
-  void growVessels();
   void bake();
 
-  FundusParams params_;
-  Eigen::Vector2f disc_;
-  std::vector<VesselSegment> vessels_;
+  vrm_sim::anatomy::FundusAnatomy anatomy_;
   std::vector<std::uint8_t> texture_;
 };
 

@@ -12,22 +12,16 @@
 #include "vrm_render/render_types.h"
 #include "vrm_render/stereo_renderer.h"
 #include "vrm_sim/scene/scene_description.h"
+#include "vrm_sim/scene/scene_fundus.h"
 #include "vrm_sim/triangle_mesh.h"
 
 namespace vrm_render {
 
 MeshData toMeshData(const vrm_sim::TriangleMesh& mesh);
-// The fundus of a scene (issue 16): its eye radius, seeded by `seed` when >= 0, else by a hash of the scene's name
-// (scene descriptions carry no seed of their own), so a scene always shows the same fundus.
-// Issue 33: a scene's optic disc is the object named kOpticDiscName ("optic_disc": membrane_peeling and vitrectomy
-// have one, a `disc` decoration on the retina): the fundus puts its disc at that object's position (its fundus
-// coordinates; the nasal side from their sign) with the mesh's diameter, and sceneContent() does not draw the mesh
-// (the fundus is the disc). Without one the anatomical default (FundusParams) stays. An `optic_disc` that is not a
-// `disc` generator in the eye frame on the retina is a vrm_sim::scene::SceneError.
-FundusParams fundusParams(const vrm_sim::scene::SceneDescription& scene, long long seed = -1);
-constexpr const char* kOpticDiscName = "optic_disc";
-// The scene's optic disc object as described above, nullptr when it has none.
-const vrm_sim::scene::ObjectDescription* opticDisc(const vrm_sim::scene::SceneDescription& scene);
+// The fundus of a scene and its optic disc: vrm_sim's (scene/scene_fundus.h), one for what is drawn and what is scored.
+using vrm_sim::scene::fundusParams;
+using vrm_sim::scene::kOpticDiscName;
+using vrm_sim::scene::opticDisc;
 Material toMaterial(const vrm_sim::scene::Material& material);
 ObjectStyle objectStyle(const vrm_sim::scene::ObjectDescription& object);
 // The light pipe does not cast a shadow (the light leaves its tip); the interacting instruments do.
