@@ -2,9 +2,11 @@
 
 #include <algorithm>
 #include <cctype>
+#include <map>
 #include <set>
 #include <string>
 
+#include "vrm_msgs/InstrumentTypes.h"
 #include "vrm_msgs/msg_constants.h"
 #include "vrm_sim/conversions.h"
 #include "vrm_sim/scene/scene_description.h"
@@ -108,13 +110,14 @@ TEST(Conversions, InstrumentTypeConstantsRoundTripAndUnknownIsNone) {
       {scene::InstrumentType::kForceps, vrm_msgs::InstrumentState::FORCEPS},
       {scene::InstrumentType::kVitrector, vrm_msgs::InstrumentState::VITRECTOR},
       {scene::InstrumentType::kNeedle, vrm_msgs::InstrumentState::NEEDLE},
-      {scene::InstrumentType::kHook, vrm_msgs::InstrumentState::HOOK}};
+      {scene::InstrumentType::kHook, vrm_msgs::InstrumentState::HOOK},
+      {scene::InstrumentType::kLaserProbe, vrm_msgs::InstrumentTypes::LASER_PROBE}};
   for (const auto& [type, constant] : expected) {
     EXPECT_EQ(toMsgType(type), constant);
     ASSERT_TRUE(instrumentTypeFromMsg(constant).has_value());
     EXPECT_EQ(*instrumentTypeFromMsg(constant), type);
   }
-  EXPECT_FALSE(instrumentTypeFromMsg(vrm_msgs::InstrumentState::HOOK + 1).has_value());
+  EXPECT_FALSE(instrumentTypeFromMsg(vrm_msgs::InstrumentTypes::LASER_PROBE + 1).has_value());
   EXPECT_FALSE(instrumentTypeFromMsg(255).has_value());
   EXPECT_EQ(toMsgType(std::nullopt), 255);
   vrm_msgs::InstrumentState message;
@@ -125,11 +128,11 @@ TEST(Conversions, InstrumentTypeConstantsRoundTripAndUnknownIsNone) {
 }  // namespace
 }  // namespace vrm_sim
 
-// vrm_msgs/InstrumentState's type constants against the instrument type registry, read from the .msg file itself:
-// every constant maps to the type of the same name (LIGHT_PIPE <-> "light_pipe") and back, and every registered type
-// has a constant, so a type added on one side only fails here instead of arriving as "unknown" in a graph.
+// vrm_msgs/InstrumentTypes' constants against the instrument type registry, read from the .msg file itself: every
+// constant maps to the type of the same name (LIGHT_PIPE <-> "light_pipe") and back, and every registered type has a
+// constant, so a type added on one side only fails here instead of arriving as "unknown" in a graph.
 TEST(Conversions, InstrumentTypeConstantsMatchTheMessageAndTheRegistry) {
-  const std::string path = std::string(VRM_MSGS_MSG_DIR) + "/InstrumentState.msg";
+  const std::string path = std::string(VRM_MSGS_MSG_DIR) + "/InstrumentTypes.msg";
   const std::vector<vrm_msgs::MsgConstant> constants = vrm_msgs::readMsgConstants(path);
   ASSERT_FALSE(constants.empty()) << path;
   std::set<std::string> constant_names;
@@ -147,4 +150,22 @@ TEST(Conversions, InstrumentTypeConstantsMatchTheMessageAndTheRegistry) {
     EXPECT_EQ(constant_names.count(entry.name), 1u)
         << "instrument type '" << entry.name << "' has no constant in vrm_msgs/InstrumentState.msg";
   }
+}
+
+// Issue 37: a new type goes into InstrumentTypes.msg only. InstrumentState.msg's constants are those of its first
+// five types, equal to InstrumentTypes' ones, and its md5 is the one every committed session bag was recorded with.
+TEST(Conversions, InstrumentStateKeepsItsConstantsAndItsMd5) {
+  std::map<std::string, long long> all;
+  for (const vrm_msgs::MsgConstant& constant :
+       vrm_msgs::readMsgConstants(std::string(VRM_MSGS_MSG_DIR) + "/InstrumentTypes.msg")) {
+    all[constant.name] = constant.value;
+  }
+  const std::vector<vrm_msgs::MsgConstant> state_constants =
+      vrm_msgs::readMsgConstants(std::string(VRM_MSGS_MSG_DIR) + "/InstrumentState.msg");
+  ASSERT_EQ(state_constants.size(), 5u);
+  for (const vrm_msgs::MsgConstant& constant : state_constants) {
+    ASSERT_EQ(all.count(constant.name), 1u) << constant.name;
+    EXPECT_EQ(all[constant.name], constant.value) << constant.name;
+  }
+  EXPECT_STREQ(ros::message_traits::MD5Sum<vrm_msgs::InstrumentState>::value(), "a47fb64b46b0c64d5e61e8fcd269622b");
 }

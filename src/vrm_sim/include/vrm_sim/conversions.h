@@ -56,7 +56,7 @@ void fillCollisionReport(const collision::CollisionResult& result, vrm_msgs::Col
 // Inputs of the simulation core (world/world.h): stamps become integer nanoseconds, so the core's frame assembly
 // compares them exactly. A message type outside the known instrument constants keeps the slot's current type.
 world::Stamp toStamp(const ros::Time& stamp);
-// The one bridge between scene::InstrumentType and the InstrumentState type constants (every package converts
+// The one bridge between scene::InstrumentType and the InstrumentTypes.msg constants (every package converts
 // here): nullopt for a constant outside the known ones; toMsgType(nullopt) is 255 (no type said).
 std::optional<scene::InstrumentType> instrumentTypeFromMsg(std::uint8_t msg_type);
 std::uint8_t toMsgType(std::optional<scene::InstrumentType> type);

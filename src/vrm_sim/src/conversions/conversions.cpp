@@ -5,6 +5,8 @@
 #include <limits>
 #include <map>
 
+#include "vrm_msgs/InstrumentTypes.h"
+
 namespace vrm_sim {
 
 Eigen::Isometry3d toEigen(const geometry_msgs::Pose& pose) {
@@ -191,11 +193,12 @@ struct InstrumentTypeConstant {
   std::uint8_t constant;
 };
 constexpr InstrumentTypeConstant kInstrumentTypeConstants[] = {
-    {scene::InstrumentType::kLightPipe, vrm_msgs::InstrumentState::LIGHT_PIPE},
-    {scene::InstrumentType::kForceps, vrm_msgs::InstrumentState::FORCEPS},
-    {scene::InstrumentType::kVitrector, vrm_msgs::InstrumentState::VITRECTOR},
-    {scene::InstrumentType::kNeedle, vrm_msgs::InstrumentState::NEEDLE},
-    {scene::InstrumentType::kHook, vrm_msgs::InstrumentState::HOOK}};
+    {scene::InstrumentType::kLightPipe, vrm_msgs::InstrumentTypes::LIGHT_PIPE},
+    {scene::InstrumentType::kForceps, vrm_msgs::InstrumentTypes::FORCEPS},
+    {scene::InstrumentType::kVitrector, vrm_msgs::InstrumentTypes::VITRECTOR},
+    {scene::InstrumentType::kNeedle, vrm_msgs::InstrumentTypes::NEEDLE},
+    {scene::InstrumentType::kHook, vrm_msgs::InstrumentTypes::HOOK},
+    {scene::InstrumentType::kLaserProbe, vrm_msgs::InstrumentTypes::LASER_PROBE}};
 constexpr std::uint8_t kNoInstrumentType = 255;
 
 }  // namespace
@@ -455,6 +458,23 @@ void fillSimulationState(const world::FrameResult& frame, const world::WorldStat
       object.name = placement.name;
       object.pose = toPoseMsg(placement.pose);
       message.objects.push_back(object);
+    }
+  }
+  message.burns.clear();
+  if (frame.scenario != nullptr) {
+    message.burns.reserve(frame.scenario->burns.size());
+    for (const scenario::LaserBurn& burn : frame.scenario->burns) {
+      vrm_msgs::LaserBurn entry;
+      entry.position.x = burn.position.x();
+      entry.position.y = burn.position.y();
+      entry.position.z = burn.position.z();
+      entry.diameter = burn.diameter;
+      entry.grade = burn.grade;
+      entry.whiteness = burn.whiteness;
+      entry.power = burn.power;
+      entry.duration = burn.duration;
+      entry.time = burn.time;
+      message.burns.push_back(entry);
     }
   }
   message.retina_contacts = 0;

@@ -310,7 +310,7 @@ TEST(Instruments, HookTipIsBentSideways) {
 
 TEST(Generators, NamesDefaultsAndDispatch) {
   const std::vector<std::string>& names = generatorNames();
-  EXPECT_EQ(names.size(), 15u);
+  EXPECT_EQ(names.size(), 16u);
   EXPECT_EQ(std::set<std::string>(names.begin(), names.end()).size(), names.size());
   for (const auto& name : names) {
     const std::optional<GeneratorParams> params = defaultGeneratorParams(name);

@@ -75,7 +75,7 @@ TEST(InstrumentModel, TheCollisionModelIsTheMeshAndTheCapsulesAtTheSameOpening) 
 
 TEST(Registries, InstrumentTypesFollowTheMessageOrderAndRoundTripByName) {
   const auto& entries = instrumentTypeRegistry().entries();
-  ASSERT_EQ(entries.size(), 5u);
+  ASSERT_EQ(entries.size(), 6u);
   for (std::size_t i = 0; i < entries.size(); ++i) {
     EXPECT_EQ(static_cast<std::size_t>(entries[i].make), i) << entries[i].name;
     EXPECT_EQ(toString(entries[i].make), entries[i].name);

@@ -25,9 +25,9 @@ using scene::loadScene;
 using scene::shippedScenePath;
 
 const std::vector<std::string>& scenarioNames() {
-  static const std::vector<std::string> names = {"navigation",  "trajectory",          "pick_and_place",
-                                                 "steady_hold", "object_manipulation", "bimanual",
-                                                 "membrane_peeling", "ilm_peeling",   "vitrectomy"};
+  static const std::vector<std::string> names = {
+      "navigation", "trajectory",       "pick_and_place", "steady_hold", "object_manipulation",
+      "bimanual",   "membrane_peeling", "ilm_peeling",    "vitrectomy",  "laser_coagulation"};
   return names;
 }
 
@@ -195,6 +195,27 @@ TEST(Scenarios, NovicesTriggerThePenaltiesTheyWereWrittenFor) {
   const Runs& ilm = runs("ilm_peeling");
   EXPECT_TRUE(item(ilm.novice, "torn_springs") >= 1.0 || item(ilm.novice, "retina_contacts") >= 1.0);
   EXPECT_GT(item(ilm.expert, "continuity"), item(ilm.novice, "continuity"));
+
+  // Issue 37: the novice's weak, strong, doubled, off-row and vessel shots; the expert's row is clean. Each injury
+  // event lies where its burn is, millimetres from the probe's tip.
+  const Runs& laser = runs("laser_coagulation");
+  for (const char* penalty : {"weak_burns", "strong_burns", "burn_overlaps", "off_row_burns", "vessel_burns"}) {
+    EXPECT_GE(item(laser.novice, penalty), 1.0) << penalty;
+    EXPECT_EQ(item(laser.expert, penalty), 0.0) << penalty;
+  }
+  EXPECT_LT(item(laser.expert, "spacing_error"), 0.05);
+  EXPECT_GT(item(laser.novice, "spacing_error"), 0.15);
+  ASSERT_TRUE(laser.novice.session_result.has_value());
+  int vessel_events = 0;
+  for (const result::PenaltyEvent& event : laser.novice.session_result->events) {
+    if (event.item != "vessel_burns") continue;
+    ++vessel_events;
+    EXPECT_EQ(event.kind, "vessel_hit_by_laser");
+    const Eigen::Vector3d position(event.position[0], event.position[1], event.position[2]);
+    ASSERT_TRUE(position.allFinite());
+    EXPECT_NEAR(position.norm(), 0.012, 1e-5) << "a burn lies on the retina, not at the probe's tip";
+  }
+  EXPECT_EQ(vessel_events, 1);
 
   const Runs& vitrectomy = runs("vitrectomy");
   EXPECT_GE(item(vitrectomy.novice, "warnings"), 1.0);

@@ -46,7 +46,8 @@ double scenarioFocusDistance(const SurgeonSnapshot& snapshot, const std::string&
 // every options.key_step s from 0 to the session's end; focus = scenarioFocusDistance() averaged over the last
 // options.window s of script time (sampled every options.step s; from 0 at the start), held until that moves more
 // than options.refocus_tolerance from it (then refocused onto it at the next keyframe), zoom and ambient light fixed;
-// pedal travel = the working instrument's suction (a vitrectomy pedal's; 0 for a forceps), no buttons. The result plays
+// pedal travel = the working instrument's suction (a vitrectomy pedal's; 0 for a forceps), no buttons — unless the
+// session has a pedal track of its own (issue 37: the laser fires on the pedal), which it keeps. The result plays
 // once, like the session. Throws std::invalid_argument for non-positive steps, a negative window, plane_height or
 // refocus_tolerance.
 SurgeonScript withScenarioDeviceTracks(const SurgeonScript& session, const std::string& tool_slot,

@@ -47,10 +47,13 @@ SurgeonScript withScenarioDeviceTracks(const SurgeonScript& session, const std::
   // The scene's own microscope track (a session that sets the light, e.g. bimanual without a light pipe) keeps its
   // ambient light; focus and zoom stay the twin's.
   const bool scripted_light = !devices.microscope.empty();
+  // Likewise its own pedal track (issue 37: the laser session fires on the pedal); without one the pedal follows the
+  // tool's scripted suction.
+  const bool scripted_pedals = !devices.pedals.empty();
   devices.name += " (scenario devices)";
   devices.playback = Playback::kOnce;
   devices.microscope.clear();
-  devices.pedals.clear();
+  if (!scripted_pedals) devices.pedals.clear();
   const int keys = static_cast<int>(std::ceil(duration / options.key_step)) + 1;
   double focus = smoothed(0.0);
   for (int k = 0; k < keys; ++k) {
@@ -64,6 +67,7 @@ SurgeonScript withScenarioDeviceTracks(const SurgeonScript& session, const std::
     microscope.ambient_light = scripted_light ? session.sample(t).microscope.ambient_light : options.ambient_light;
     devices.microscope.push_back(microscope);
 
+    if (scripted_pedals) continue;
     vrm_sim::scene::PedalWaypoint pedal;
     pedal.t = t;
     for (const InstrumentSample& sample : session.sample(t).instruments) {

@@ -15,7 +15,7 @@ TEST(Conversions, InstrumentTypeThroughTheMessageAndUnknownConstantsThrow) {
   InstrumentSample sample;
   sample.slot = "right";
   for (InstrumentType type : {InstrumentType::kLightPipe, InstrumentType::kForceps, InstrumentType::kVitrector,
-                              InstrumentType::kNeedle, InstrumentType::kHook}) {
+                              InstrumentType::kNeedle, InstrumentType::kHook, InstrumentType::kLaserProbe}) {
     sample.type = type;
     vrm_msgs::InstrumentState msg;
     toMsg(sample, &msg);

@@ -55,6 +55,7 @@ struct Status {
   std::vector<PenaltyEvent> events;  // why points were lost (factor_groups.h: PenaltyLog), at most kMaxEvents
   std::size_t events_dropped = 0;    // penalty events beyond those
   std::vector<ObjectPlacement> placements;  // the objects the scenario moves, after the last frame (Scenario::placements)
+  std::vector<LaserBurn> burns;             // the laser burns so far (Scenario::burns)
 };
 
 class ScenarioRunner {

@@ -11,8 +11,8 @@
 #include <Eigen/Geometry>
 #include <cstdint>
 #include <memory>
-#include <string>
 #include <optional>
+#include <string>
 #include <vector>
 
 #include "vrm_sim/hash.h"
@@ -25,13 +25,14 @@ namespace scenario {
 struct InstrumentView {
   std::string slot;  // "left" | "right"
   scene::InstrumentType type = scene::InstrumentType::kLightPipe;
-  bool valid = false;                                // tracked and interacting
-  Eigen::Vector3d tip = Eigen::Vector3d::Zero();     // m, eye frame
-  Eigen::Vector3d axis = -Eigen::Vector3d::UnitZ();  // unit, eye frame, from the handle towards the tip
+  bool valid = false;                                               // tracked and interacting
+  Eigen::Vector3d tip = Eigen::Vector3d::Zero();                    // m, eye frame
+  Eigen::Vector3d axis = -Eigen::Vector3d::UnitZ();                 // unit, eye frame, from the handle towards the tip
   Eigen::Quaterniond orientation = Eigen::Quaterniond::Identity();  // eye <- instrument (its z: `axis`; roll about it)
-  double jaw_angle = 1.0;                            // rad
-  double suction = 0.0;                              // 0..1
-  double cut_rate = 0.0;                             // Hz
+  double jaw_angle = 1.0;                                           // rad
+  double suction = 0.0;                                             // 0..1
+  double cut_rate = 0.0;                                            // Hz
+  std::optional<scene::LaserProbeParams> laser;  // a laser probe's optics and console settings (issue 37)
 };
 
 struct PedalView {
@@ -67,9 +68,9 @@ struct RetinaView {
 };
 
 struct FrameView {
-  double time = 0.0;  // s: the frame's input stamp
+  double time = 0.0;                     // s: the frame's input stamp
   std::optional<std::int64_t> stamp_ns;  // the same, exact (ns), when the caller has it: the running time counts it
-  double dt = 0.0;    // s of simulated time the frame covered
+  double dt = 0.0;                       // s of simulated time the frame covered
   Eigen::Isometry3d world_from_eye = Eigen::Isometry3d::Identity();
   std::vector<InstrumentView> instruments;
   PedalView pedals;
@@ -87,6 +88,20 @@ struct ObjectPlacement {
   std::string name;
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
   std::string frame_id = "eye";  // the object's frame
+};
+
+// A burn the laser left on the retina (issue 37; the model: scenario/laser.h). The renderer paints it into the fundus
+// (SimulationState.burns).
+struct LaserBurn {
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();  // eye frame, on the retina
+  double spot = 0.0;                                   // m: the beam's spot
+  double diameter = 0.0;                               // m: the visible lesion (0: none)
+  double grade = 0.0;                                  // radiant exposure / that of a moderate burn
+  double whiteness = 0.0;                              // 0..1
+  double power = 0.0;                                  // W
+  double duration = 0.0;                               // s
+  double distance = 0.0;                               // m, probe tip to retina along the beam
+  double time = 0.0;                                   // s of running time
 };
 
 struct Measurement {
@@ -111,8 +126,16 @@ class Scenario {
     (void)item;
     return "";
   }
+  // Where a penalty event of `item` happened when it is not at the charged instrument's tip (a laser burn lies where
+  // the beam met the retina, millimetres from the probe); nullopt: at the tip.
+  virtual std::optional<Eigen::Vector3d> penaltyPosition(const std::string& item) const {
+    (void)item;
+    return std::nullopt;
+  }
   // Where the objects the scenario moves are now (only those; every other object stays at its scene pose).
   virtual std::vector<ObjectPlacement> placements() const { return {}; }
+  // The laser burns placed so far (issue 37), oldest first.
+  virtual std::vector<LaserBurn> burns() const { return {}; }
   // One line for the trainee, e.g. "target 2 of 4".
   virtual std::string progress() const = 0;
   // Mixes the scenario's state into a state hash (FNV-1a, see hashBytes()).

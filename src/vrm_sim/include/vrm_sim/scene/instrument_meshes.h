@@ -52,6 +52,18 @@ struct NeedleParams {
   double bevel_angle_deg = 20.0;         // between the bevel plane and the shaft axis; the point faces -x
 };
 
+// The endolaser probe (issue 37): a straight 23-gauge probe whose flat fibre end (z = 0) emits the treatment and the
+// aiming beam along +z. The laser console's settings belong to it (a scene or difficulty level sets them, the console
+// changes them: ScenarioCommand SELECT_INSTRUMENT "right:laser_probe:power_mw=250,duration_ms=150").
+struct LaserProbeParams {
+  ShaftParams shaft{0.00064, 0.030, 16};  // 23 gauge
+  double fibre_diameter = 2e-4;           // m: the fibre core, the spot's size at the fibre end
+  double numerical_aperture = 0.12;       // of the fibre; in the vitreous the beam's half angle is asin(NA / 1.336)
+  double power_mw = 200.0;                // one shot's power
+  double duration_ms = 100.0;             // one shot's exposure
+  double interval_ms = 0.0;               // 0: one shot per pedal press; > 0: repeats while the pedal is held
+};
+
 struct HookParams {
   ShaftParams shaft;
   double hook_diameter = 0.0002;  // the bent wire at the tip
@@ -79,6 +91,7 @@ TriangleMesh makeForceps(const ForcepsParams& params);
 TriangleMesh makeVitrector(const VitrectorParams& params);
 TriangleMesh makeNeedle(const NeedleParams& params);
 Eigen::Vector3d needlePoint(const NeedleParams& params);  // the sharp point of the bevel, (-r, 0, 0)
+TriangleMesh makeLaserProbe(const LaserProbeParams& params);
 TriangleMesh makeHook(const HookParams& params);
 Eigen::Vector3d hookTipPoint(const HookParams& params);  // centre of the hook wire's free end face
 

@@ -34,6 +34,12 @@ InstrumentType typeAfterRequest(const InstrumentDescription& configured, Instrum
 // the detectors' cached depth images every frame): forceps only, clamped to [0, kMaxJawOpening], non-finite =
 // closed; 0 for the other types.
 int jawStepDeg(InstrumentType type, double jaw_angle_rad);
+
+// Issue 37: an instrument's console settings as a ScenarioCommand SELECT_INSTRUMENT carries them after the type,
+// "key=value,key=value" (the laser probe's power_mw, duration_ms, interval_ms). Sets them on `instrument` and returns ""
+// — or, changing nothing, why not (an instrument without settings, an unknown key, a value out of the scene file's
+// range).
+std::string applyInstrumentSettings(InstrumentDescription& instrument, const std::string& settings);
 // The instrument's surface mesh (instrument frame: tip at the origin, +z from the handle to the tip) with the jaws
 // at `jaw_deg` (a jawStepDeg value). SceneError with the instrument's location for bad generator parameters.
 TriangleMesh instrumentMesh(const InstrumentDescription& instrument, int jaw_deg);

@@ -17,10 +17,10 @@ namespace scene {
 
 using GeneratorParams = std::variant<RetinaParams, MembraneParams, SphereParams, BoxParams, CylinderParams,
                                      CapsuleParams, ConeParams, TorusParams, DiscParams, PlaneParams, LightPipeParams,
-                                     ForcepsParams, VitrectorParams, NeedleParams, HookParams>;
+                                     ForcepsParams, VitrectorParams, NeedleParams, HookParams, LaserProbeParams>;
 
 // "retina", "membrane", "sphere", "box", "cylinder", "capsule", "cone", "torus", "disc", "plane", "light_pipe",
-// "forceps", "vitrector", "needle", "hook".
+// "forceps", "vitrector", "needle", "hook", "laser_probe".
 const std::vector<std::string>& generatorNames();
 std::string generatorName(const GeneratorParams& params);
 // Default parameters of the named generator, or nullopt for an unknown name.

@@ -43,7 +43,8 @@
 //       collision: {detector: zcoll_f, resolution: 64, epsilon_shell_scale: 1.05}   # collision::detectorRegistry()
 //   instruments:
 //     - slot: right                          # required: left | right, one instrument per slot
-//       type: forceps                        # required: light_pipe | forceps | vitrector | needle | hook
+//       type: forceps                        # required: light_pipe | forceps | vitrector | needle | hook |
+//                                            #   laser_probe
 //       trocar: right                        # default: the slot name; must name an eye trocar
 //       params: {jaw_angle_deg: 0}           # the instrument generator's fields
 //       alternatives: [vitrector]            # other types the trainee may switch to
@@ -110,7 +111,7 @@ using SourceLocation = vrm_sim::SourceLocation;
 enum class SceneKind { kAbstract, kSurgical };
 enum class ObjectRole { kRetina, kMembrane, kIlm, kRigid, kAbstractTarget, kDecoration };
 enum class ObjectFrame { kWorld, kEye };
-enum class InstrumentType { kLightPipe, kForceps, kVitrector, kNeedle, kHook };
+enum class InstrumentType { kLightPipe, kForceps, kVitrector, kNeedle, kHook, kLaserProbe };
 enum class InstrumentSlot { kLeft, kRight };
 enum class Simulation { kTissue, kCollision, kGrasping, kCutting, kBleeding };
 
@@ -325,6 +326,10 @@ struct PedalWaypoint {
   bool focus_far = false;
   SourceLocation location;
 };
+
+// The pedal at time t: travel linear between waypoints, the buttons the earlier waypoint's; released (all zero) for an
+// empty track; the first / last waypoint before / after it (t set to t).
+PedalWaypoint samplePedals(const std::vector<PedalWaypoint>& pedals, double t);
 
 // The microscope's knobs, linear between waypoints.
 struct MicroscopeWaypoint {

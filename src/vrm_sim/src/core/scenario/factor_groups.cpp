@@ -27,9 +27,13 @@ const std::vector<ItemRole>& itemRoles() {
       {"tasks_done", "target_achievement", nullptr, false},
       {"handovers", "target_achievement", nullptr, false},
       {"orientation_error", "target_achievement", nullptr, false},
+      {"coverage", "target_achievement", nullptr, false},
+      {"spacing_error", "target_achievement", nullptr, false},
+      {"off_row_burns", "target_achievement", "burn_off_row", false},
       // Efficiency: time and motion spent on it.
       {"time", "efficiency", nullptr, false},
       {"path_length", "efficiency", nullptr, false},
+      {"shots", "efficiency", nullptr, false},
       // Tissue treatment: injuries to the retina and the tissue worked on.
       {"retina_contacts", "tissue_treatment", "retina_touched", false},
       {"retina_damage", "tissue_treatment", "retina_pressed", true},  // the injury field's peak: pressure or suction
@@ -39,8 +43,13 @@ const std::vector<ItemRole>& itemRoles() {
       {"torn_springs", "tissue_treatment", "membrane_torn", true},  // a tear runs on over frames
       {"ball_impacts", "tissue_treatment", "sphere_fell_on_retina", false},
       {"object_impacts", "tissue_treatment", "object_fell_on_retina", false},
+      {"strong_burns", "tissue_treatment", "burn_too_strong", false},
+      {"burn_overlaps", "tissue_treatment", "burns_overlap", false},
+      {"vessel_burns", "tissue_treatment", "vessel_hit_by_laser", false},
+      {"macula_burns", "tissue_treatment", "macula_burned", false},
       // Instrument handling: control of the instruments and of the light.
       {"unlit_touches", "instrument_handling", "unlit_touch", false},
+      {"weak_burns", "instrument_handling", "burn_too_weak", false},
       {"unlit_work", "instrument_handling", "unlit_work", true},
       {"drops", "instrument_handling", "sphere_dropped", false},
       {"object_drops", "instrument_handling", "object_dropped", false},

@@ -30,7 +30,9 @@ const Registry<ScenarioFactory>& scenarioRegistry() {
                         {"bimanual", makeBimanual, "hand a cube from one forceps to the other"},
                         {"membrane_peeling", makeMembranePeeling, "grasp and peel an epiretinal membrane"},
                         {"ilm_peeling", makeIlmPeeling, "peel the inner limiting membrane"},
-                        {"vitrectomy", makeVitrectomy, "remove the vitreous with the vitrector"}});
+                        {"vitrectomy", makeVitrectomy, "remove the vitreous with the vitrector"},
+                        {"laser_coagulation", makeLaserCoagulation,
+                         "surround a retinal break with a row of laser burns (endolaser on the pedal)"}});
   return registry;
 }
 

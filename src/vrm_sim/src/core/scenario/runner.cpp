@@ -116,6 +116,7 @@ ScenarioRunner::ScenarioRunner(const scene::SceneDescription& scene) : scene_(sc
   status_.type = description_.type;
   status_.difficulty = description_.difficulty;
   status_.placements = scenario_->placements();
+  status_.burns = scenario_->burns();
   refreshScore();
 }
 
@@ -174,6 +175,7 @@ void ScenarioRunner::reset() {
   elapsed_ns_ = 0;
   penalties_.reset();
   status_.placements = scenario_->placements();
+  status_.burns = scenario_->burns();
   refreshScore();
 }
 
@@ -196,11 +198,16 @@ void ScenarioRunner::frame(const FrameView& frame) {
   scenario_->update(frame, status_.elapsed);
   status_.progress = scenario_->progress();
   status_.placements = scenario_->placements();
+  status_.burns = scenario_->burns();
   const std::vector<ScoreItem> before = std::move(status_.score.items);
   refreshScore();
+  const std::size_t events_before = status_.events.size();
   penalties_.record(
       before, status_.score.items, status_.elapsed,
       [&](const std::string& item) { return penaltyInstrument(frame, item); }, status_.events, status_.events_dropped);
+  for (std::size_t i = events_before; i < status_.events.size(); ++i) {
+    if (auto position = scenario_->penaltyPosition(status_.events[i].item)) status_.events[i].position = *position;
+  }
   // Failure first: a frame that completes the task and crosses a failure threshold is a failed session.
   for (const scene::FailureRule& rule : description_.fail_if) {
     const ScoreItem* item = status_.score.item(rule.item);

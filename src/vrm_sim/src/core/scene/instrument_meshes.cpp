@@ -94,6 +94,22 @@ TriangleMesh makeLightPipe(const LightPipeParams& params) {
   return mesh;
 }
 
+TriangleMesh makeLaserProbe(const LaserProbeParams& params) {
+  checkShaft("laser_probe", params.shaft);
+  if (!(params.fibre_diameter > 0.0) || !(params.fibre_diameter <= params.shaft.diameter)) {
+    throw std::invalid_argument("laser_probe: fibre_diameter must be positive and fit in the shaft");
+  }
+  if (!(params.numerical_aperture > 0.0) || !(params.numerical_aperture < 1.0)) {
+    throw std::invalid_argument("laser_probe: numerical_aperture must lie in (0, 1)");
+  }
+  if (!(params.power_mw > 0.0) || !(params.duration_ms > 0.0) || !(params.interval_ms >= 0.0)) {
+    throw std::invalid_argument("laser_probe: power_mw and duration_ms must be positive, interval_ms >= 0");
+  }
+  TriangleMesh mesh = makeShaft(params.shaft, 0.0);  // the flat, polished fibre end at the tip
+  mesh.name = "laser_probe";
+  return mesh;
+}
+
 TriangleMesh makeForcepsJaw(const ForcepsParams& params, ForcepsJaw jaw) {
   requirePositive("forceps", "jaw_length", params.jaw_length);
   requirePositive("forceps", "jaw_base_width", params.jaw_base_width);

@@ -2,7 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <stdexcept>
+#include <string>
 #include <type_traits>
 #include <variant>
 
@@ -40,6 +42,50 @@ int jawStepDeg(InstrumentType type, double jaw_angle_rad) {
   return static_cast<int>(std::lround(std::clamp(jaw_angle_rad, 0.0, kMaxJawOpening) * kRadToDeg));
 }
 
+std::string applyInstrumentSettings(InstrumentDescription& instrument, const std::string& settings) {
+  auto* laser = std::get_if<LaserProbeParams>(&instrument.params);
+  if (laser == nullptr) return std::string("a ") + toString(instrument.type) + " has no settings";
+  struct Range {
+    const char* key;
+    double LaserProbeParams::*field;
+    double minimum, maximum;
+    bool zero_allowed;
+  };
+  // The ranges of the scene file (scene_loader.cpp: readParams for LaserProbeParams).
+  static constexpr Range kRanges[] = {{"power_mw", &LaserProbeParams::power_mw, 0.0, 3000.0, false},
+                                      {"duration_ms", &LaserProbeParams::duration_ms, 0.0, 5000.0, false},
+                                      {"interval_ms", &LaserProbeParams::interval_ms, 0.0, 5000.0, true}};
+  LaserProbeParams changed = *laser;
+  std::size_t begin = 0;
+  while (begin <= settings.size()) {
+    const std::size_t end = std::min(settings.find(',', begin), settings.size());
+    const std::string entry = settings.substr(begin, end - begin);
+    const std::size_t equals = entry.find('=');
+    const std::string key = entry.substr(0, equals);
+    const Range* range = nullptr;
+    for (const Range& candidate : kRanges) {
+      if (key == candidate.key) range = &candidate;
+    }
+    if (equals == std::string::npos || range == nullptr) {
+      return "'" + entry + "': expected power_mw=, duration_ms= or interval_ms= with a number";
+    }
+    const std::string text = entry.substr(equals + 1);
+    char* parsed_end = nullptr;
+    const double value = std::strtod(text.c_str(), &parsed_end);
+    const bool in_range = std::isfinite(value) && value <= range->maximum &&
+                          (value > range->minimum || (range->zero_allowed && value == range->minimum));
+    if (text.empty() || parsed_end != text.c_str() + text.size() || !in_range) {
+      return "'" + entry + "': " + key + " must be a number in " + (range->zero_allowed ? "[" : "(") +
+             std::to_string(static_cast<int>(range->minimum)) + ", " +
+             std::to_string(static_cast<int>(range->maximum)) + "]";
+    }
+    changed.*(range->field) = value;
+    begin = end + 1;
+  }
+  *laser = changed;
+  return "";
+}
+
 TriangleMesh instrumentMesh(const InstrumentDescription& instrument, int jaw_deg) {
   InstrumentDescription at_opening = instrument;
   if (auto* forceps = std::get_if<ForcepsParams>(&at_opening.params)) forceps->jaw_angle_deg = jaw_deg;
@@ -54,7 +100,7 @@ tissue::InstrumentInput tissueShape(const InstrumentDescription& instrument) {
         using T = std::decay_t<decltype(params)>;
         if constexpr (std::is_same_v<T, LightPipeParams> || std::is_same_v<T, ForcepsParams> ||
                       std::is_same_v<T, VitrectorParams> || std::is_same_v<T, NeedleParams> ||
-                      std::is_same_v<T, HookParams>) {
+                      std::is_same_v<T, HookParams> || std::is_same_v<T, LaserProbeParams>) {
           shaft = &params.shaft;
         }
         if constexpr (std::is_same_v<T, ForcepsParams>) {

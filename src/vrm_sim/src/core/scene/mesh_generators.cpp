@@ -31,6 +31,7 @@ VRM_SCENE_GENERATOR(ForcepsParams, "forceps", makeForceps)
 VRM_SCENE_GENERATOR(VitrectorParams, "vitrector", makeVitrector)
 VRM_SCENE_GENERATOR(NeedleParams, "needle", makeNeedle)
 VRM_SCENE_GENERATOR(HookParams, "hook", makeHook)
+VRM_SCENE_GENERATOR(LaserProbeParams, "laser_probe", makeLaserProbe)
 #undef VRM_SCENE_GENERATOR
 
 template <std::size_t... kIndices>

@@ -37,14 +37,16 @@ const char* toString(ObjectRole role) {
 const char* toString(ObjectFrame frame) { return frame == ObjectFrame::kWorld ? "world" : "eye"; }
 
 const Registry<InstrumentType>& instrumentTypeRegistry() {
-  // Order = the InstrumentState type constants (vrm_sim/conversions.h maps them); each name is also the name of
+  // Order = the InstrumentTypes.msg constants (vrm_sim/conversions.h maps them); each name is also the name of
   // the type's mesh generator (scene/instrument_meshes.h).
   static const Registry<InstrumentType> registry(
-      "instrument type", {{"light_pipe", InstrumentType::kLightPipe, "endoilluminator: the spotlight, no shadow"},
-                          {"forceps", InstrumentType::kForceps, "grasps with its jaws (membrane peeling)"},
-                          {"vitrector", InstrumentType::kVitrector, "aspirates and cuts at its port"},
-                          {"needle", InstrumentType::kNeedle, "a straight pointer (abstract scenarios)"},
-                          {"hook", InstrumentType::kHook, "a bent tip (abstract scenarios)"}});
+      "instrument type",
+      {{"light_pipe", InstrumentType::kLightPipe, "endoilluminator: the spotlight, no shadow"},
+       {"forceps", InstrumentType::kForceps, "grasps with its jaws (membrane peeling)"},
+       {"vitrector", InstrumentType::kVitrector, "aspirates and cuts at its port"},
+       {"needle", InstrumentType::kNeedle, "a straight pointer (abstract scenarios)"},
+       {"hook", InstrumentType::kHook, "a bent tip (abstract scenarios)"},
+       {"laser_probe", InstrumentType::kLaserProbe, "endolaser: aiming beam, shots on the pedal (laser coagulation)"}});
   return registry;
 }
 
@@ -83,6 +85,25 @@ Eigen::Vector3d PathTremor::offset(double t) const {
   const double phase = 2.0 * kPi * frequency_hz * t;
   return amplitude *
          Eigen::Vector3d(std::sin(phase), std::sin(phase + 2.0 * kPi / 3.0), std::sin(phase + 4.0 * kPi / 3.0));
+}
+
+PedalWaypoint samplePedals(const std::vector<PedalWaypoint>& pedals, double t) {
+  PedalWaypoint sample;
+  if (!pedals.empty()) {
+    const auto next = std::upper_bound(pedals.begin(), pedals.end(), t,
+                                       [](double time, const PedalWaypoint& w) { return time < w.t; });
+    if (next == pedals.begin()) {
+      sample = pedals.front();
+    } else {
+      sample = *(next - 1);
+      if (next != pedals.end()) {
+        const double alpha = (t - sample.t) / (next->t - sample.t);
+        sample.travel = (1.0 - alpha) * sample.travel + alpha * next->travel;
+      }
+    }
+  }
+  sample.t = t;
+  return sample;
 }
 
 InstrumentWaypoint samplePath(const std::vector<InstrumentWaypoint>& path, double t) {

@@ -156,6 +156,18 @@ void readParams(MapFields& f, NeedleParams& p) {
   readShaft(f, p.shaft);
   readAngle(f, "bevel_angle_deg", p.bevel_angle_deg, 0.0, 90.0, false, true);
 }
+void readParams(MapFields& f, LaserProbeParams& p) {
+  readShaft(f, p.shaft);
+  readPositive(f, "fibre_diameter", p.fibre_diameter);
+  if (auto field = f.optional("numerical_aperture")) {
+    p.numerical_aperture = field->number("a numerical aperture in (0, 1)", 0.0, 1.0, false, false);
+  }
+  if (auto field = f.optional("power_mw")) p.power_mw = field->number("a power in (0, 3000] mW", 0.0, 3000.0, false);
+  if (auto field = f.optional("duration_ms")) {
+    p.duration_ms = field->number("an exposure in (0, 5000] ms", 0.0, 5000.0, false);
+  }
+  if (auto field = f.optional("interval_ms")) p.interval_ms = field->number("an interval in [0, 5000] ms", 0.0, 5000.0);
+}
 void readParams(MapFields& f, HookParams& p) {
   readShaft(f, p.shaft);
   readPositive(f, "hook_diameter", p.hook_diameter);

@@ -280,13 +280,29 @@ ScenarioRunResult runScenario(const scene::SceneDescription& scene, const Scenar
       stage_ms[kind] += 1e3 * (stage.end - stage.start);
     }
   });
+  // The session's pedal track (issue 37: the laser fires on the pedal); the instruments' paths are in `scripted`.
+  const std::vector<scene::PedalWaypoint>& pedals =
+      options.script_file ? options.script_file->pedals : scene::findScript(scene, options.script).pedals;
   const auto wall_start = std::chrono::steady_clock::now();
-  const double seconds = scripted.scriptedDuration() + options.grace;
+  const double seconds = std::max(scripted.scriptedDuration(), pedals.empty() ? 0.0 : pedals.back().t) + options.grace;
   const long ticks = std::lround(seconds * options.rate);
   for (long tick = 0; tick <= ticks; ++tick) {
     const double t = static_cast<double>(tick) / options.rate;
     // One tick at a time (scriptedInputs of [t, t]), so a long session never holds all its inputs at once.
     for (const InstrumentState& input : scriptedInputsAt(scripted, t, fromSeconds(t))) world.handle(input);
+    if (!pedals.empty()) {
+      const scene::PedalWaypoint sample = scene::samplePedals(pedals, t);
+      PedalState pedal;
+      pedal.stamp = fromSeconds(t);
+      pedal.travel = sample.travel;
+      pedal.reflux = sample.reflux;
+      pedal.instrument_switch = sample.instrument_switch;
+      pedal.zoom_in = sample.zoom_in;
+      pedal.zoom_out = sample.zoom_out;
+      pedal.focus_near = sample.focus_near;
+      pedal.focus_far = sample.focus_far;
+      world.handle(pedal);
+    }
     world.flush();
     if (world.scenarioStatus()->state == scenario::State::kFinished ||
         world.scenarioStatus()->state == scenario::State::kFailed) {

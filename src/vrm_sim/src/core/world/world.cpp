@@ -446,24 +446,32 @@ void World::apply(const ScenarioCommand& command) {
       }
       break;
     case Type::kSelectInstrument: {
+      // "slot:type", or "slot:type:settings" for an instrument with console settings (the laser probe's
+      // "right:laser_probe:power_mw=250,duration_ms=150": scene::applyInstrumentSettings).
       const auto colon = command.argument.find(':');
       const std::string slot = command.argument.substr(0, colon);
       auto instrument = instruments_.find(slot);
       std::optional<scene::InstrumentType> type;
+      std::string settings;
       if (colon != std::string::npos) {
-        const std::string name = command.argument.substr(colon + 1);
-        for (auto candidate :
-             {scene::InstrumentType::kLightPipe, scene::InstrumentType::kForceps, scene::InstrumentType::kVitrector,
-              scene::InstrumentType::kNeedle, scene::InstrumentType::kHook}) {
-          if (name == scene::toString(candidate)) type = candidate;
-        }
+        const auto settings_colon = command.argument.find(':', colon + 1);
+        type = scene::instrumentTypeNamed(command.argument.substr(colon + 1, settings_colon - colon - 1));
+        if (settings_colon != std::string::npos) settings = command.argument.substr(settings_colon + 1);
       }
       if (instrument == instruments_.end() || !type) {
         log(Severity::kWarning, "",
-            "SELECT_INSTRUMENT '" + command.argument + "': expected slot:type (e.g. right:vitrector)");
+            "SELECT_INSTRUMENT '" + command.argument +
+                "': expected slot:type (e.g. right:vitrector) or slot:type:settings (e.g. "
+                "right:laser_probe:power_mw=250,duration_ms=150)");
         break;
       }
-      switchInstrument(*instrument->second, *type);
+      if (!switchInstrument(*instrument->second, *type) || settings.empty()) break;
+      const std::string problem = scene::applyInstrumentSettings(instrument->second->current, settings);
+      if (problem.empty()) {
+        log(Severity::kInfo, "", "instrument '" + slot + "': settings " + settings);
+      } else {
+        log(Severity::kWarning, "", "SELECT_INSTRUMENT '" + command.argument + "': " + problem + " (settings kept)");
+      }
       break;
     }
   }
@@ -545,8 +553,8 @@ void World::closeFrame(InputFrame& frame) {
       for (Eigen::Vector3d& point : hit.contact_points) point = rigid->moved * point;
       for (Eigen::Vector3d& normal : hit.contact_normals) normal = rigid->moved.linear() * normal;
       for (Eigen::Vector3d& deformation : hit.deformations) deformation = rigid->moved.linear() * deformation;
-      result.collisions.push_back(
-          {slot, rigid->object->name, rigid->collider.frame_id, rigid->collider.detector_name, std::move(hit), surface});
+      result.collisions.push_back({slot, rigid->object->name, rigid->collider.frame_id, rigid->collider.detector_name,
+                                   std::move(hit), surface});
     }
     result.stages.push_back({"collision_" + rigid->object->name, collision_start, now()});
   }
@@ -708,7 +716,8 @@ void World::placeRigidObjects() {
   for (auto& rigid : rigid_) rigid->moved.setIdentity();
   for (const scenario::ObjectPlacement& placement : runner_->status().placements) {
     for (auto& rigid : rigid_) {
-      if (rigid->object->name == placement.name) rigid->moved = placement.pose * rigid->object->pose.toIsometry().inverse();
+      if (rigid->object->name == placement.name)
+        rigid->moved = placement.pose * rigid->object->pose.toIsometry().inverse();
     }
   }
 }
@@ -855,6 +864,7 @@ void World::advanceScenario(const FrameResult& result) {
     entry.jaw_angle = instrument->jaw_angle;
     entry.suction = instrument->suction;
     entry.cut_rate = instrument->cut_rate;
+    if (const auto* laser = std::get_if<scene::LaserProbeParams>(&instrument->current.params)) entry.laser = *laser;
     view.instruments.push_back(entry);
   }
   view.pedals = {pedals_.travel, pedals_.reflux, pedals_.instrument_switch};
