@@ -108,4 +108,18 @@ sensor_msgs::CameraInfo toCameraInfo(const CameraView& camera, const CameraView&
   return info;
 }
 
+std::vector<FundusBurn> toFundusBurns(const vrm_msgs::SimulationState& state) {
+  std::vector<FundusBurn> burns;
+  burns.reserve(state.burns.size());
+  for (const vrm_msgs::LaserBurn& message : state.burns) {
+    FundusBurn burn;
+    burn.position = Eigen::Vector3d(message.position.x, message.position.y, message.position.z).cast<float>();
+    burn.diameter = static_cast<float>(message.diameter);
+    burn.whiteness = static_cast<float>(message.whiteness);
+    if (!burn.position.allFinite() || !(burn.diameter > 0.0f) || !std::isfinite(burn.whiteness)) continue;
+    burns.push_back(burn);
+  }
+  return burns;
+}
+
 }  // namespace vrm_render

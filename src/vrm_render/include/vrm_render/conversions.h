@@ -9,6 +9,7 @@
 #include <vrm_msgs/EyeState.h>
 #include <vrm_msgs/InstrumentState.h>
 #include <vrm_msgs/MicroscopeSettings.h>
+#include <vrm_msgs/SimulationState.h>
 #include <vrm_msgs/TissueMesh.h>
 
 #include <Eigen/Geometry>
@@ -31,6 +32,9 @@ vrm_msgs::AppliedInstrument toAppliedInstrument(const vrm_msgs::InstrumentState&
 // their sizes match the vertex count; the renderer validates the rest (MeshView, StereoRenderer::updateMesh).
 MeshView toMeshView(const vrm_msgs::TissueMesh& mesh);
 MicroscopeState toMicroscopeState(const vrm_msgs::MicroscopeSettings& settings);
+// Issue 37: the simulation state's laser burns as the renderer paints them; burns with non-finite values or no lesion
+// are left out.
+std::vector<FundusBurn> toFundusBurns(const vrm_msgs::SimulationState& state);
 
 // REP-103 optical frame of a camera in the world: z forward, x right, y down.
 Eigen::Isometry3f worldFromOptical(const CameraView& camera);

@@ -31,6 +31,7 @@
 #include <string>
 #include <vector>
 
+#include "vrm_render/render_types.h"
 #include "vrm_sim/anatomy/fundus_anatomy.h"
 
 namespace vrm_render {
@@ -70,5 +71,14 @@ class FundusMap {
   vrm_sim::anatomy::FundusAnatomy anatomy_;
   std::vector<std::uint8_t> texture_;
 };
+
+// Issue 37: paints a laser burn into a fundus texture (FundusMap::texture's layout, `size` texels across the eye's
+// [-R, R] in x and y, R = `eye_radius`): texels whose retina point lies within the burn's radius take the burn's
+// grey-white, strongest at its centre, fading over its outer 40 %. Returns the texel rectangle it changed
+// (x0, y0, width, height; width 0 when none: off the texture, no lesion, or non-finite values).
+struct TexelRect {
+  int x = 0, y = 0, width = 0, height = 0;
+};
+TexelRect paintBurn(std::vector<std::uint8_t>* texture, int size, float eye_radius, const FundusBurn& burn);
 
 }  // namespace vrm_render

@@ -41,9 +41,11 @@ struct RenderState {
   FundusParams fundus;
   std::uint64_t fundus_texture_hash = 0;  // FNV-1a of the baked texture: a restore checks it gets the same fundus
   std::vector<Object> objects;            // sorted by id
+  std::vector<FundusBurn> burns;          // issue 37: painted into the fundus (format 2)
 };
 
-constexpr std::uint32_t kRenderStateFormatVersion = 1;
+// 2 (issue 37): materials' emission and the fundus burns. Files of format 1 are read (no emission, no burns).
+constexpr std::uint32_t kRenderStateFormatVersion = 2;
 
 // Throws RenderStateError for non-finite poses, light, knobs or mesh values, indices out of range, bad sizes.
 void validateRenderState(const RenderState& state);

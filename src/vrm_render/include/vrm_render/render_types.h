@@ -65,6 +65,16 @@ struct Material {
   // Light pipe: the fibre end glows — fragments within this distance (m) behind the object's z = 0 tip plane are
   // emissive (instrument frame of vrm_sim's instrument_meshes.h: tip at z = 0, shaft along -z).
   float glow_tip_length = 0.0f;
+  // Issue 37: light the object gives off itself (linear RGB added to its shaded colour): the laser's aiming beam on the
+  // retina. An emissive object is never cached in the static layer (the aim moves every frame).
+  Eigen::Vector3f emission = Eigen::Vector3f::Zero();
+};
+
+// Issue 37: a laser burn painted into the fundus texture (vrm_sim scenario::LaserBurn): a whitened disc on the retina.
+struct FundusBurn {
+  Eigen::Vector3f position = Eigen::Vector3f::Zero();  // eye frame, on the retina
+  float diameter = 0.0f;                               // m, the visible lesion
+  float whiteness = 0.0f;                              // 0..1
 };
 
 struct ObjectStyle {

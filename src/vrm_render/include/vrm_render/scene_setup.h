@@ -5,6 +5,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -79,6 +80,20 @@ void showScene(StereoRenderer* renderer, const SceneContent& content);
 // aimed at `target_in_eye`.
 Eigen::Isometry3f instrumentPoseThroughTrocar(const Eigen::Vector3f& trocar_in_eye,
                                               const Eigen::Vector3f& target_in_eye, float depth);
+
+// Issue 37: the laser probe's aiming beam where it meets the retina (vrm_sim scenario::laserAim): a red, emissive disc
+// as wide as the beam's spot there (it widens with the distance, the surgeon's cue), 30 µm in front of the retina,
+// facing the eye centre. `eye_from_instrument`: the probe's pose in the eye frame (+z along the shaft to the tip).
+// nullopt when the instrument is no laser probe or its beam does not meet the retina (tip outside the eye, bad pose).
+struct LaserAimSpot {
+  Eigen::Isometry3f eye_from_spot = Eigen::Isometry3f::Identity();
+  float diameter = 0.0f;  // m
+};
+std::optional<LaserAimSpot> laserAimSpot(const vrm_sim::scene::InstrumentDescription& probe,
+                                         const Eigen::Isometry3f& eye_from_instrument, double eye_radius);
+constexpr const char* kLaserAimId = "laser_aim";
+ObjectStyle laserAimStyle();
+MeshData laserAimMesh(float diameter);  // a disc in the xy plane
 
 // Retina (~10k triangles, static), membrane (~5k triangles, deformable), light pipe and forceps in a pose like
 // the middle of a membrane peeling: ~15.5k triangles in the eye frame (= world frame, eye at rest).

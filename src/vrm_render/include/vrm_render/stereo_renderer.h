@@ -73,6 +73,11 @@ class StereoRenderer {
   // default FundusMap (seed 1). The map is shared, so the simulation can query the same vessel tree.
   void setFundus(std::shared_ptr<const FundusMap> fundus);
   const FundusMap& fundus();
+  // Issue 37: the laser burns painted into the fundus texture (eye frame, like the fundus). A list that extends the
+  // previous one paints only the new burns and uploads their rectangles; any other list repaints from the baked
+  // texture. Burns persist across setFundus (they are painted into the new map). Non-finite burns are skipped.
+  void setFundusBurns(const std::vector<FundusBurn>& burns);
+  const std::vector<FundusBurn>& fundusBurns() const;
   void setMicroscope(const MicroscopeState& state);  // throws RenderError for non-finite / non-positive knobs
   // Changes size, stereo or passes; throws RenderError (state unchanged) for sizes beyond kMaxImageSide.
   void setOptions(const RenderOptions& options);

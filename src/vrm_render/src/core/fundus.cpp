@@ -178,4 +178,43 @@ void FundusMap::bake() {
   }
 }
 
+TexelRect paintBurn(std::vector<std::uint8_t>* texture, int size, float eye_radius, const FundusBurn& burn) {
+  TexelRect rect;
+  if (!burn.position.allFinite() || !(burn.diameter > 0.0f) || !std::isfinite(burn.whiteness) || !(eye_radius > 0.0f) ||
+      texture->size() != static_cast<std::size_t>(size) * size * 4) {
+    return rect;
+  }
+  const float radius = 0.5f * burn.diameter;
+  const float texel = 2.0f * eye_radius / size;
+  const auto toTexel = [&](float v) { return static_cast<int>(std::floor((v + eye_radius) / texel)); };
+  const int x0 = std::max(0, toTexel(burn.position.x() - radius)),
+            x1 = std::min(size - 1, toTexel(burn.position.x() + radius));
+  const int y0 = std::max(0, toTexel(burn.position.y() - radius)),
+            y1 = std::min(size - 1, toTexel(burn.position.y() + radius));
+  if (x0 > x1 || y0 > y1) return rect;
+  // Denatured retina scatters: a grey-white lesion, whitest at its centre (a strong burn's white core, a grey halo).
+  const Eigen::Vector3f white(0.93f, 0.91f, 0.84f);
+  const float strength = std::clamp(burn.whiteness, 0.0f, 1.0f);
+  for (int j = y0; j <= y1; ++j) {
+    for (int i = x0; i <= x1; ++i) {
+      const float x = -eye_radius + (i + 0.5f) * texel, y = -eye_radius + (j + 0.5f) * texel;
+      const float rr = std::min(x * x + y * y, eye_radius * eye_radius * 0.9999f);
+      const Eigen::Vector3f on_retina(x, y, -std::sqrt(eye_radius * eye_radius - rr));
+      const float r = (on_retina - burn.position).norm() / radius;
+      if (r >= 1.0f) continue;
+      const float cover = strength * smoothstep(1.0f, 0.6f, r) * (0.8f + 0.2f * (1.0f - r));
+      std::uint8_t* rgba = texture->data() + (static_cast<std::size_t>(j) * size + i) * 4;
+      for (int c = 0; c < 3; ++c) {
+        const float value = rgba[c] / 255.0f + cover * (white[c] - rgba[c] / 255.0f);
+        rgba[c] = static_cast<std::uint8_t>(std::lround(std::clamp(value, 0.0f, 1.0f) * 255.0f));
+      }
+    }
+  }
+  rect.x = x0;
+  rect.y = y0;
+  rect.width = x1 - x0 + 1;
+  rect.height = y1 - y0 + 1;
+  return rect;
+}
+
 }  // namespace vrm_render

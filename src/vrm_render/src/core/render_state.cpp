@@ -23,8 +23,9 @@ static_assert(sizeof(MicroscopeRig) == 60, "MicroscopeRig changed: update render
 static_assert(sizeof(MicroscopeState) == 32, "MicroscopeState changed: update render_state.cpp");
 static_assert(sizeof(LightPipe) == 52, "LightPipe changed: update render_state.cpp");
 static_assert(sizeof(FundusParams) == 40, "FundusParams changed: update render_state.cpp");
-static_assert(sizeof(Material) == 48, "Material changed: update render_state.cpp");
-static_assert(sizeof(ObjectStyle) == 64, "ObjectStyle changed: update render_state.cpp");
+static_assert(sizeof(Material) == 64, "Material changed: update render_state.cpp");
+static_assert(sizeof(ObjectStyle) == 80, "ObjectStyle changed: update render_state.cpp");
+static_assert(sizeof(FundusBurn) == 20, "FundusBurn changed: update render_state.cpp");
 
 class Writer {
  public:
@@ -197,9 +198,10 @@ void putStyle(Writer& w, const ObjectStyle& s) {
   const Material& m = s.material;
   w.putMatrix(m.diffuse), w.putMatrix(m.specular), w.put(m.shininess), w.put(m.metallic), w.put(m.sheen);
   w.put(m.glow_tip_length);
+  w.putMatrix(m.emission);
   w.put(s.casts_shadow), w.put(s.bump_mapped), w.put(s.fundus), w.put(s.ghost), w.put(s.deformable);
 }
-ObjectStyle getStyle(Reader& r) {
+ObjectStyle getStyle(Reader& r, std::uint32_t version) {
   ObjectStyle s;
   Material& m = s.material;
   r.getMatrix(m.diffuse, "style.diffuse");
@@ -208,6 +210,7 @@ ObjectStyle getStyle(Reader& r) {
   m.metallic = r.get<float>("style.metallic");
   m.sheen = r.get<float>("style.sheen");
   m.glow_tip_length = r.get<float>("style.glow_tip_length");
+  if (version >= 2) r.getMatrix(m.emission, "style.emission");
   s.casts_shadow = r.getBool("style.casts_shadow");
   s.bump_mapped = r.getBool("style.bump_mapped");
   s.fundus = r.getBool("style.fundus");
@@ -245,6 +248,11 @@ void validateRenderState(const RenderState& state) {
   if (state.has_fundus && (state.fundus.texture_size < 16 || state.fundus.texture_size > 8192 ||
                            !std::isfinite(state.fundus.eye_radius) || state.fundus.eye_radius <= 0.0f)) {
     fail("bad fundus parameters (texture_size " + std::to_string(state.fundus.texture_size) + ")");
+  }
+  for (const FundusBurn& burn : state.burns) {
+    if (!burn.position.allFinite() || !std::isfinite(burn.diameter) || !std::isfinite(burn.whiteness)) {
+      fail("non-finite burn");
+    }
   }
   for (const RenderState::Object& object : state.objects) {
     const std::string prefix = "object '" + object.id + "': ";
@@ -291,6 +299,11 @@ std::string encodeRenderState(const RenderState& state) {
     w.putArray(object.mesh.positions), w.putArray(object.mesh.normals), w.putArray(object.mesh.colors);
     w.putArray(object.mesh.injury), w.putArray(object.mesh.triangles);
   }
+  w.put<std::uint64_t>(state.burns.size());
+  for (const FundusBurn& burn : state.burns) {
+    w.putMatrix(burn.position);
+    w.put(burn.diameter), w.put(burn.whiteness);
+  }
   return bytes + w.take();
 }
 
@@ -301,8 +314,8 @@ RenderState decodeRenderState(const std::string& bytes, const std::string& what)
   const std::string body = bytes.substr(sizeof(kMagic));
   Reader r(body, what);
   const auto version = r.get<std::uint32_t>("format version");
-  if (version != kRenderStateFormatVersion) {
-    r.fail("format version " + std::to_string(version) + ", this reader knows " +
+  if (version != kRenderStateFormatVersion && version != 1) {
+    r.fail("format version " + std::to_string(version) + ", this reader knows 1 to " +
            std::to_string(kRenderStateFormatVersion));
   }
   RenderState state;
@@ -325,7 +338,7 @@ RenderState decodeRenderState(const std::string& bytes, const std::string& what)
     object.has_mesh = r.getBool("object.has_mesh");
     object.version = r.get<std::uint64_t>("object.version");
     object.visible = r.getBool("object.visible");
-    object.style = getStyle(r);
+    object.style = getStyle(r, version);
     Eigen::Matrix<float, 3, 4> pose;
     r.getMatrix(pose, "object.pose");
     object.pose.matrix().topRows<3>() = pose;
@@ -336,7 +349,18 @@ RenderState decodeRenderState(const std::string& bytes, const std::string& what)
     object.mesh.triangles = r.getArray<std::uint32_t>("mesh.triangles", 3 * StereoRenderer::kMaxTriangles);
     state.objects.push_back(std::move(object));
   }
-  if (!r.atEnd()) r.fail("trailing bytes after the last object");
+  if (version >= 2) {
+    const auto burns = r.get<std::uint64_t>("burn count");
+    if (burns > 1000000) r.fail(std::to_string(burns) + " burns");
+    for (std::uint64_t i = 0; i < burns; ++i) {
+      FundusBurn burn;
+      r.getMatrix(burn.position, "burn.position");
+      burn.diameter = r.get<float>("burn.diameter");
+      burn.whiteness = r.get<float>("burn.whiteness");
+      state.burns.push_back(burn);
+    }
+  }
+  if (!r.atEnd()) r.fail("trailing bytes after the last burn");
   try {
     validateRenderState(state);
   } catch (const RenderStateError& e) {

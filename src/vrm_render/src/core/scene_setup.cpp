@@ -4,6 +4,7 @@
 #include <cmath>
 #include <variant>
 
+#include "vrm_sim/scenario/laser.h"
 #include "vrm_sim/scene/eye_meshes.h"
 #include "vrm_sim/scene/instrument_meshes.h"
 #include "vrm_sim/scene/scene_loader.h"
@@ -11,6 +12,7 @@
 namespace vrm_render {
 
 namespace scene = vrm_sim::scene;
+namespace scenario = vrm_sim::scenario;
 
 namespace {
 // Issue 16: stainless steel instruments (metallic shading), the light pipe's glowing fibre end (its polished dome,
@@ -202,6 +204,39 @@ std::vector<SceneObject> typicalScene(LightPipe* light) {
 
   if (light) *light = lightPipeAt(objects[2].pose, endoilluminator());
   return objects;
+}
+
+std::optional<LaserAimSpot> laserAimSpot(const scene::InstrumentDescription& probe,
+                                         const Eigen::Isometry3f& eye_from_instrument, double eye_radius) {
+  const auto* laser = std::get_if<scene::LaserProbeParams>(&probe.params);
+  if (laser == nullptr || probe.type != scene::InstrumentType::kLaserProbe) return std::nullopt;
+  const Eigen::Vector3d tip = eye_from_instrument.translation().cast<double>();
+  const Eigen::Vector3d axis = eye_from_instrument.linear().col(2).cast<double>();
+  const std::optional<scenario::LaserAim> aim = scenario::laserAim(tip, axis, eye_radius);
+  if (!aim) return std::nullopt;
+  constexpr double kInFront = 3e-5;  // m: clear of the retina's depth (no z-fighting), well within the focus depth
+  LaserAimSpot spot;
+  const Eigen::Vector3d normal = -aim->point.normalized();  // towards the eye centre
+  spot.eye_from_spot.translation() = (aim->point + kInFront * normal).cast<float>();
+  spot.eye_from_spot.linear() =
+      Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), normal).toRotationMatrix().cast<float>();
+  spot.diameter = static_cast<float>(scenario::spotDiameter(scenario::laserSetting(*laser), aim->distance));
+  return spot;
+}
+
+ObjectStyle laserAimStyle() {
+  ObjectStyle style;
+  style.material.diffuse = Eigen::Vector4f(0.3f, 0.02f, 0.02f, 1.0f);
+  style.material.specular = Eigen::Vector3f::Zero();
+  style.material.emission = Eigen::Vector3f(0.95f, 0.12f, 0.06f);  // a red diode's aiming beam
+  return style;
+}
+
+MeshData laserAimMesh(float diameter) {
+  scene::DiscParams disc;
+  disc.radius = 0.5 * static_cast<double>(diameter);
+  disc.ring_count = 3;
+  return toMeshData(scene::generateMesh(disc));
 }
 
 }  // namespace vrm_render

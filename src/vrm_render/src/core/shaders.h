@@ -106,6 +106,7 @@ uniform vec3 u_environment;  // the glow of the lit fundus that the metal mirror
 uniform float u_glow_length;
 #endif
 out vec4 frag;
+uniform vec3 u_emission;  // light the object gives off (the laser's aiming beam), added after shading
 uniform float u_colour_scale;
 uniform vec3 u_camera_pos;
 uniform vec3 u_specular;
@@ -156,7 +157,7 @@ void main() {
 #endif
   float alpha = mix(base.a * u_alpha_scale, dofWeight(), u_coc_alpha);
 #if !LIGHTING
-  frag = vec4(base.rgb * u_colour_scale, alpha);
+  frag = vec4(base.rgb * u_colour_scale + u_emission, alpha);
 #else
   vec3 colour = base.rgb * u_ambient;
   vec3 to_light = u_light_pos - v_world;
@@ -218,7 +219,7 @@ void main() {
   // 1 (rationally: x / (1 + 4x) above the knee, unit slope there; cheaper than exp on llvmpipe), so the disc keeps its
   // cup and vessels instead of clipping to white.
   vec3 over = max(colour - 0.75, vec3(0.0));
-  colour = min(colour, vec3(0.75)) + over / (1.0 + 4.0 * over);
+  colour = min(colour, vec3(0.75)) + over / (1.0 + 4.0 * over) + u_emission;
   // The reflex is light reflected at the film's surface: on a translucent film it adds to what shows through
   // instead of being diluted by the film's opacity (premultiplied: colour a + reflex over dst (1 - a - reflex)).
   float lifted_alpha = min(1.0, alpha + reflex);

@@ -255,7 +255,7 @@ struct StaticLayerKey {
 // Objects the static layer holds (RenderOptions::cache_static): opaque, not deformable, not metal, casting no shadow.
 bool isStatic(const ObjectStyle& style) {
   return !style.deformable && !style.casts_shadow && !style.ghost && style.material.diffuse.w() >= 1.0f &&
-         !isMetal(style);
+         !isMetal(style) && style.material.emission.isZero();
 }
 
 // An upper bound of how far (pixels at the focal plane) any point of a bounding sphere (centre, radius; object
@@ -407,8 +407,18 @@ struct StereoRenderer::Impl {
   const FundusMap* uploaded_fundus = nullptr;
   double fundus_bake_ms = 0.0;
   Eigen::Vector3f fundus_mean = Eigen::Vector3f(0.7f, 0.3f, 0.15f);
+  // Issue 37: the laser burns, painted onto a copy of the baked texture; painted_burns of them are in the GL texture.
+  std::vector<FundusBurn> burns;
+  std::vector<std::uint8_t> painted;  // the baked texture with the burns (empty until the first burn)
+  std::size_t painted_burns = 0;
+  std::uint64_t fundus_revision = 0;  // the static layer's key: a burn painted changes the retina's albedo
   void uploadFundus() {
-    if (uploaded_fundus == fundus.get()) return;
+    if (uploaded_fundus == fundus.get()) {
+      paintNewBurns();
+      return;
+    }
+    painted_burns = 0;
+    painted.clear();
     if (!fundus_texture) glGenTextures(1, &fundus_texture);
     glActiveTexture(GL_TEXTURE1);
     glBindTexture(GL_TEXTURE_2D, fundus_texture);
@@ -425,6 +435,31 @@ struct StereoRenderer::Impl {
     for (std::size_t k = 0; k < texels.size(); k += 4) sum += Eigen::Vector3d(texels[k], texels[k + 1], texels[k + 2]);
     fundus_mean = (sum / (255.0 * static_cast<double>(texels.size() / 4))).cast<float>();
     uploaded_fundus = fundus.get();
+    ++fundus_revision;
+    paintNewBurns();
+  }
+  // Paints the burns not yet in the texture and uploads the rectangles they changed.
+  void paintNewBurns() {
+    if (painted_burns >= burns.size()) return;
+    if (painted.empty()) painted = fundus->texture();
+    const int n = fundus->textureSize();
+    glActiveTexture(GL_TEXTURE1);
+    glBindTexture(GL_TEXTURE_2D, fundus_texture);
+    glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
+    glPixelStorei(GL_UNPACK_ROW_LENGTH, n);
+    for (; painted_burns < burns.size(); ++painted_burns) {
+      const TexelRect rect = paintBurn(&painted, n, fundus->params().eye_radius, burns[painted_burns]);
+      if (rect.width == 0) continue;
+      glPixelStorei(GL_UNPACK_SKIP_PIXELS, rect.x);
+      glPixelStorei(GL_UNPACK_SKIP_ROWS, rect.y);
+      glTexSubImage2D(GL_TEXTURE_2D, 0, rect.x, rect.y, rect.width, rect.height, GL_RGBA, GL_UNSIGNED_BYTE,
+                      painted.data());
+    }
+    glPixelStorei(GL_UNPACK_ROW_LENGTH, 0);
+    glPixelStorei(GL_UNPACK_SKIP_PIXELS, 0);
+    glPixelStorei(GL_UNPACK_SKIP_ROWS, 0);
+    glActiveTexture(GL_TEXTURE0);
+    ++fundus_revision;
   }
   Program shadow;
   Program copy;
@@ -638,6 +673,24 @@ void StereoRenderer::setFundus(std::shared_ptr<const FundusMap> fundus) {
   impl_->fundus = std::move(fundus);
 }
 
+void StereoRenderer::setFundusBurns(const std::vector<FundusBurn>& burns) {
+  std::vector<FundusBurn>& current = impl_->burns;
+  const auto same = [](const FundusBurn& a, const FundusBurn& b) {
+    return a.position == b.position && a.diameter == b.diameter && a.whiteness == b.whiteness;
+  };
+  const bool extends =
+      burns.size() >= current.size() && std::equal(current.begin(), current.end(), burns.begin(), same);
+  if (!extends) {
+    // Repaint from the baked texture at the next upload (a reset session, a restored state).
+    impl_->painted.clear();
+    impl_->painted_burns = 0;
+    impl_->uploaded_fundus = nullptr;
+  }
+  current = burns;
+}
+
+const std::vector<FundusBurn>& StereoRenderer::fundusBurns() const { return impl_->burns; }
+
 const FundusMap& StereoRenderer::fundus() {
   if (!impl_->fundus) {
     const auto start = Clock::now();
@@ -753,6 +806,7 @@ RenderState StereoRenderer::captureState() const {
   state.rig = rig_;
   state.microscope = microscope_;
   state.light = light_;
+  state.burns = im.burns;
   state.has_fundus = im.fundus != nullptr;
   if (im.fundus) {
     state.fundus = im.fundus->params();
@@ -804,6 +858,7 @@ void StereoRenderer::restoreState(const RenderState& state, bool same_fundus) {
   setMicroscope(state.microscope);
   setLightPipe(state.light);
   for (const std::string& id : objectIds()) removeObject(id);
+  setFundusBurns(state.burns);
   if (fundus) setFundus(fundus);
   impl_->invalidateStaticLayers();
   for (const RenderState::Object& object : state.objects) {
@@ -1066,6 +1121,7 @@ void StereoRenderer::SceneDraw::drawWith(Program& p, const Object& object, float
   glUniform1f(p["u_sheen"], m.sheen);
   glUniform1f(p["u_metallic"], m.metallic);
   glUniform1f(p["u_glow_length"], m.glow_tip_length);
+  glUniform3fv(p["u_emission"], 1, m.emission.data());
   glUniform1f(p["u_coc_alpha"], opaque ? 1.0f : 0.0f);
   im.drawObject(object, first, count);
 }
@@ -1162,6 +1218,7 @@ void StereoRenderer::renderScene(int e, const FrameState& state, PassTimings* ti
     key.add(options_.background.data(), 3);
     key.add(options_.blood_colour.data(), 3);
     key.objects.push_back(im.uploaded_fundus);
+    key.versions.push_back(im.fundus_revision);
     for (const auto& entry : static_objects) {
       const Object& object = *entry.second;
       key.objects.push_back(&object);

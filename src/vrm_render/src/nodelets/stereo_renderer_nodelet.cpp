@@ -118,6 +118,7 @@
 #include "vrm_sim/conversions.h"
 #include "vrm_sim/package_data.h"
 #include "vrm_sim/scene/instrument_model.h"
+#include "vrm_sim/scene/mesh_generators.h"
 #include "vrm_sim/scene/scene_loader.h"
 
 namespace vrm_render {
@@ -904,7 +905,10 @@ class StereoRendererNodelet : public nodelet::Nodelet {
         NODELET_WARN_THROTTLE(1.0, "mesh pose ignored: %s", error.what());
       }
     }
+    // Issue 37: the laser burns so far, painted into the fundus (the renderer paints only new ones).
+    renderer_->setFundusBurns(state_in_use_ ? toFundusBurns(*state_in_use_) : std::vector<FundusBurn>());
     LightPipe light;
+    std::optional<LaserAimSpot> aim;  // in the world frame
     // The slot as applied: the World's type (a switch it refused keeps the old one), its jaw angle, and hidden
     // while it is not valid (untracked, rejected or silent: it does not interact either). nullptr: not in the frame.
     auto applyInstrument = [&](Slot& slot, const vrm_msgs::AppliedInstrument* applied) {
@@ -924,6 +928,12 @@ class StereoRendererNodelet : public nodelet::Nodelet {
         renderer_->setPose(slot.object_id, pose);
         if (!slot.ghost && slot.shown_type == vrm_sim::scene::InstrumentType::kLightPipe)
           light = lightPipeAt(pose, endoilluminator());
+        if (!slot.ghost && slot.shown_type == vrm_sim::scene::InstrumentType::kLaserProbe) {
+          const vrm_sim::scene::InstrumentDescription probe =
+              vrm_sim::scene::instrumentOfType(slot.description, slot.shown_type);
+          aim = laserAimSpot(probe, world_from_eye.inverse() * pose, shown_->scene.eye.radius);
+          if (aim) aim->eye_from_spot = world_from_eye * aim->eye_from_spot;
+        }
       } catch (const std::exception& error) {
         renderer_->setVisible(slot.object_id, false);
         NODELET_WARN_THROTTLE(1.0, "instrument '%s' ignored: %s", applied->slot.c_str(), error.what());
@@ -943,12 +953,33 @@ class StereoRendererNodelet : public nodelet::Nodelet {
       applyInstrument(entry.second, found == ghosts_in_use_.end() ? nullptr : &found->second);
     }
     renderer_->setLightPipe(light);
+    showLaserAim(aim);
     if (microscope_in_use_) {
       try {
         renderer_->setMicroscope(toMicroscopeState(*microscope_in_use_));
       } catch (const RenderError& error) {
         NODELET_WARN_THROTTLE(1.0, "microscope settings ignored: %s", error.what());
       }
+    }
+  }
+
+  // The aiming beam's spot (issue 37), a small disc re-uploaded only when its size changes by a 10 µm step.
+  void showLaserAim(const std::optional<LaserAimSpot>& aim) {
+    if (!aim) {
+      if (renderer_->hasObject(kLaserAimId)) renderer_->setVisible(kLaserAimId, false);
+      return;
+    }
+    try {
+      const auto step = static_cast<std::uint64_t>(std::lround(aim->diameter / 1e-5f));
+      if (!renderer_->hasObject(kLaserAimId)) renderer_->setStyle(kLaserAimId, laserAimStyle());
+      if (renderer_->version(kLaserAimId) != step + 1) {
+        renderer_->updateMesh(
+            kLaserAimId, laserAimMesh(static_cast<float>(std::max<std::uint64_t>(step, 1)) * 1e-5f).view(), step + 1);
+      }
+      renderer_->setPose(kLaserAimId, aim->eye_from_spot);
+      renderer_->setVisible(kLaserAimId, true);
+    } catch (const RenderError& error) {
+      NODELET_WARN_THROTTLE(1.0, "laser aim not drawn: %s", error.what());
     }
   }
 
@@ -1177,8 +1208,8 @@ class StereoRendererNodelet : public nodelet::Nodelet {
   std::map<std::string, vrm_msgs::AppliedInstrument> ghost_applied_;  // newest replayed ones by slot
   std::deque<vrm_msgs::MicroscopeSettings::ConstPtr> microscopes_;
   std::deque<vrm_msgs::SimulationState::ConstPtr> states_;  // the newest simulation frames (object placements)
-  std::deque<ros::Time> simulation_stamps_;  // newest simulation frames
-  ros::WallTime simulation_wall_;            // when the newest simulation_state arrived
+  std::deque<ros::Time> simulation_stamps_;                 // newest simulation frames
+  ros::WallTime simulation_wall_;                           // when the newest simulation_state arrived
   ros::Time first_stamp_;
   ros::Time newest_stamp_;
   bool dirty_ = false;

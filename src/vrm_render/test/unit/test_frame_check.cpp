@@ -98,6 +98,40 @@ TEST(RenderState, ARestoredStateRendersTheSameFrameInAnotherRenderer) {
   EXPECT_LT(psnr(first.images[0], third.images[0]), 30.0);
 }
 
+// Issue 37 (format 2): the fundus burns and the materials' emission travel through the file, a restored state shows
+// the burns, and a non-finite burn is refused like a non-finite pose.
+TEST(RenderState, BurnsAndEmissionRoundTrip) {
+  auto original = typicalRenderer(120, 90);
+  FundusBurn burn;
+  burn.position = Eigen::Vector3f(0.001f, -0.0005f, -0.01195f);
+  burn.diameter = 0.0006f;
+  burn.whiteness = 0.7f;
+  original->setFundusBurns({burn});
+  ObjectStyle aim = laserAimStyle();
+  original->setStyle(kLaserAimId, aim);
+  original->updateMesh(kLaserAimId, laserAimMesh(0.0005f).view(), 1);
+  StereoFrame first;
+  original->render(&first);
+  const RenderState read = decodeRenderState(encodeRenderState(original->captureState()));
+  ASSERT_EQ(read.burns.size(), 1u);
+  EXPECT_EQ(read.burns[0].position, burn.position);
+  EXPECT_EQ(read.burns[0].diameter, burn.diameter);
+  EXPECT_EQ(read.burns[0].whiteness, burn.whiteness);
+  bool found = false;
+  for (const RenderState::Object& object : read.objects) {
+    if (object.id == kLaserAimId) found = object.style.material.emission == aim.material.emission;
+  }
+  EXPECT_TRUE(found);
+  StereoRenderer copy;
+  copy.restoreState(read);
+  StereoFrame second;
+  copy.render(&second);
+  EXPECT_EQ(first.images[0].data, second.images[0].data);
+  RenderState bad = read;
+  bad.burns[0].diameter = std::numeric_limits<float>::infinity();
+  EXPECT_THROW(writeRenderState(bad, tempPath("bad_burn.frame")), RenderStateError);
+}
+
 TEST(RenderState, BadFilesGiveClearErrors) {
   auto renderer = typicalRenderer(80, 60);
   StereoFrame frame;

@@ -486,6 +486,112 @@ TEST(Renderer, StaticLayerCacheRendersTheSameImagesAndIsRedrawnOnlyWhenItsConten
   }
 }
 
+// Issue 37: laser burns are painted into the fundus texture where they lie (and nowhere else), whiter than the retina
+// around them; the static layer is redrawn when one is added (same images with and without the cache); an emissive
+// object (the aiming beam) is red where it lies and never cached.
+TEST(Renderer, LaserBurnsWhitenTheFundusWhereTheyLieAndTheAimGlowsRed) {
+  RenderOptions options;
+  options.width = kWidth;
+  options.height = kHeight;
+  options.stereo = false;
+  options.cache_static = false;
+  StereoRenderer reference(options);
+  options.cache_static = true;
+  StereoRenderer cached(options);
+  LightPipe light;
+  const std::vector<SceneObject> scene = typicalScene(&light);
+  for (StereoRenderer* renderer : {&reference, &cached}) {
+    for (const SceneObject& object : scene) {
+      if (object.id != "retina") continue;  // the fundus alone: nothing in front of the burns
+      renderer->setStyle(object.id, object.style);
+      renderer->setPose(object.id, object.pose);
+      renderer->updateMesh(object.id, object.mesh.view(), 1);
+    }
+  }
+  const FundusMap& fundus = reference.fundus();
+  const Eigen::Vector3f on_retina = fundus.toEye(Eigen::Vector2f(-0.002f, 0.0015f));
+  FundusBurn burn;
+  burn.position = on_retina;
+  burn.diameter = 0.0009f;
+  burn.whiteness = 0.9f;
+  const Eigen::Vector2f at = pixelOf(reference, on_retina);
+  const Eigen::Vector2f away = pixelOf(reference, fundus.toEye(Eigen::Vector2f(0.002f, -0.0025f)));
+  StereoFrame before = renderFrame(reference);
+  renderFrame(cached);
+  renderFrame(cached);  // the layer is drawn once the content holds still
+  for (StereoRenderer* renderer : {&reference, &cached}) renderer->setFundusBurns({burn});
+  const StereoFrame after = renderFrame(reference);
+  const StereoFrame after_cached = renderFrame(cached);
+  EXPECT_EQ(after.images[0].data, after_cached.images[0].data) << "the static layer shows the burn too";
+  EXPECT_GT(lumAt(after.images[0], at), 1.6 * lumAt(before.images[0], at));  // 29 -> 59 under the ambient light alone
+  EXPECT_NEAR(lumAt(after.images[0], away), lumAt(before.images[0], away), 0.5);
+  EXPECT_EQ(reference.fundusBurns().size(), 1u);
+  // A list that does not extend the painted one repaints from the baked texture: the burn is gone again.
+  for (StereoRenderer* renderer : {&reference, &cached}) renderer->setFundusBurns({});
+  EXPECT_EQ(renderFrame(reference).images[0].data, before.images[0].data);
+  // Non-finite burns are skipped, not painted and not fatal.
+  FundusBurn broken = burn;
+  broken.position.x() = std::numeric_limits<float>::quiet_NaN();
+  reference.setFundusBurns({broken});
+  EXPECT_EQ(renderFrame(reference).images[0].data, before.images[0].data);
+
+  // The aiming beam: an emissive disc is red where it lies, whatever the light.
+  const MeshData disc = laserAimMesh(0.0006f);
+  reference.setStyle(kLaserAimId, laserAimStyle());
+  reference.updateMesh(kLaserAimId, disc.view(), 1);
+  Eigen::Isometry3f pose = Eigen::Isometry3f::Identity();
+  pose.translation() = 0.9975f * fundus.toEye(Eigen::Vector2f(0.002f, -0.0025f));
+  pose.linear() =
+      Eigen::Quaternionf::FromTwoVectors(Eigen::Vector3f::UnitZ(), -pose.translation().normalized()).toRotationMatrix();
+  reference.setPose(kLaserAimId, pose);
+  const RgbImage& aimed = renderFrame(reference).images[0];
+  const std::uint8_t* rgb = &aimed.data[(static_cast<int>(away.y()) * aimed.width + static_cast<int>(away.x())) * 3];
+  EXPECT_GT(rgb[0], 200);
+  EXPECT_GT(rgb[0], 3 * rgb[1]);
+  RenderState state = reference.captureState();
+  EXPECT_EQ(state.burns.size(), 1u);
+  bool emissive_saved = false;
+  for (const RenderState::Object& object : state.objects)
+    emissive_saved |= object.id == kLaserAimId && !object.style.material.emission.isZero();
+  EXPECT_TRUE(emissive_saved);
+}
+
+TEST(FundusBurn, PaintsOnlyTheTexelsWithinItsRadius) {
+  const int size = 256;
+  const float radius = 0.012f;
+  std::vector<std::uint8_t> texture(size * size * 4, 100);
+  FundusBurn burn;
+  burn.position = Eigen::Vector3f(0.0f, 0.0f, -radius);  // the pole: the texture's centre
+  burn.diameter = 0.001f;
+  burn.whiteness = 1.0f;
+  const TexelRect rect = paintBurn(&texture, size, radius, burn);
+  const float texel = 2.0f * radius / size;  // 94 µm
+  EXPECT_NEAR(rect.width, burn.diameter / texel, 2.0);
+  EXPECT_EQ(rect.width, rect.height);
+  int changed = 0;
+  for (int j = 0; j < size; ++j) {
+    for (int i = 0; i < size; ++i) {
+      if (texture[(j * size + i) * 4] == 100) continue;
+      ++changed;
+      EXPECT_TRUE(i >= rect.x && i < rect.x + rect.width && j >= rect.y && j < rect.y + rect.height);
+      EXPECT_GT(texture[(j * size + i) * 4], 100);  // whiter
+      EXPECT_EQ(texture[(j * size + i) * 4 + 3], 100) << "alpha (the bleeding channel) is left alone";
+    }
+  }
+  // The disc's area in texels, within its soft rim.
+  EXPECT_NEAR(changed, M_PI * 0.25 * burn.diameter * burn.diameter / (texel * texel), 0.35 * changed);
+  const std::uint8_t centre = texture[((size / 2) * size + size / 2) * 4];
+  EXPECT_GT(centre, 200);
+  FundusBurn off = burn;
+  off.position.x() = 0.5f;  // far off the texture
+  EXPECT_EQ(paintBurn(&texture, size, radius, off).width, 0);
+  off = burn;
+  off.diameter = std::numeric_limits<float>::quiet_NaN();
+  EXPECT_EQ(paintBurn(&texture, size, radius, off).width, 0);
+  std::vector<std::uint8_t> wrong_size(10);
+  EXPECT_EQ(paintBurn(&wrong_size, size, radius, burn).width, 0);
+}
+
 // Tracked eye poses jitter by a fraction of a pixel every frame. Within RenderOptions::static_pose_tolerance_px the
 // retina stays at its anchor pose (the layer is kept, the image is that of the anchor pose); a larger move is drawn
 // where it is asked for.
