@@ -12,6 +12,7 @@
 #include <QLineEdit>
 #include <QListWidget>
 #include <QPushButton>
+#include <QSpinBox>
 #include <QTableWidget>
 #include <QTemporaryDir>
 #include <QtTest/QTest>
@@ -38,7 +39,7 @@ class FakeLink : public SimulatorLink {
     scene.score_items = QStringList{"completed", "time"};
     scene.score_weights = {3, 1};
     scene.instruments = {InstrumentSlotInfo{"left", "light_pipe", {}},
-                         InstrumentSlotInfo{"right", "forceps", {"vitrector"}}};
+                         InstrumentSlotInfo{"right", "forceps", {"vitrector", "laser_probe"}}};
     SceneInfo plain;
     plain.name = "viewer";  // no scenario: not listed
     emit scenesListed({scene, plain}, {});
@@ -157,6 +158,16 @@ TEST_F(ConsoleTest, WholeSessionFromLoginToTheStoredResult) {
   EXPECT_EQ(link_.commands[1].first, SimulatorLink::kSelectInstrument);
   EXPECT_EQ(link_.commands[1].second, "right:vitrector");
   EXPECT_FALSE(child<QComboBox>(*window, "instrument_left")->isEnabled()) << "no alternatives for the light pipe";
+  // Issue 37: types are labelled by their message constants; a slot that can hold the laser probe has the laser
+  // console's power and exposure, sent as the probe's settings.
+  EXPECT_EQ(right->itemText(2), "laser probe");
+  EXPECT_EQ(child<QComboBox>(*window, "instrument_left")->itemText(0), "light pipe");
+  child<QSpinBox>(*window, "laser_power_right")->setValue(250);
+  ASSERT_EQ(link_.commands.size(), 3u);
+  EXPECT_EQ(link_.commands[2].first, SimulatorLink::kSelectInstrument);
+  EXPECT_EQ(link_.commands[2].second, "right:laser_probe:power_mw=250,duration_ms=100");
+  EXPECT_EQ(window->findChild<QSpinBox*>("laser_power_left"), nullptr) << "the light pipe's slot has no laser";
+  link_.commands.resize(2);
 
   link_.scenario(ScenarioState::kRunning, 12.0, "3 of 7 adhesion points detached");
   EXPECT_EQ(child<QLabel>(*window, "sessionClock")->text(), "0:12");

@@ -36,6 +36,14 @@ TEST(MessageConstants, ScenarioCommandMatchesTheMessage) {
 }
 TEST(MessageConstants, StationStatusMatchesTheMessage) { expectMirrors("StationStatus", kStationStatusConstants); }
 TEST(MessageConstants, ScenarioStatusMatchesTheMessage) { expectMirrors("ScenarioStatus", kScenarioStatusConstants); }
+TEST(MessageConstants, InstrumentTypesMatchTheMessage) {
+  expectMirrors("InstrumentTypes", kInstrumentTypeConstants);
+  EXPECT_STREQ(instrumentTypeLabel("laser_probe"), "laser probe");
+  EXPECT_STREQ(instrumentTypeLabel("light_pipe"), "light pipe");
+  EXPECT_EQ(instrumentTypeLabel("laser"), nullptr);
+  EXPECT_EQ(instrumentTypeLabel("laser_probes"), nullptr);
+  EXPECT_EQ(instrumentTypeLabel("LASER_PROBE"), nullptr) << "scene names are lower case";
+}
 
 TEST(MessageConstants, ParserReadsOnlyIntegerConstants) {
   const std::string path = ::testing::TempDir() + "/constants_probe.msg";

@@ -21,6 +21,7 @@
 #include <QScreen>
 #include <QShortcut>
 #include <QSlider>
+#include <QSpinBox>
 #include <QStackedWidget>
 #include <QStatusBar>
 #include <QTableWidget>
@@ -537,22 +538,56 @@ void MainWindow::rebuildInstrumentChoices(const SceneInfo* scene) {
   }
   instrument_boxes_.clear();
   if (!scene) return;
+  // Each type is shown by the label of its message constant (message_constants.h), sent by its scene name.
+  const auto addType = [](QComboBox* box, const QString& type) {
+    const char* label = instrumentTypeLabel(type.toStdString().c_str());
+    box->addItem(label != nullptr ? QString(label) : type, type);
+  };
   for (const InstrumentSlotInfo& slot : scene->instruments) {
     auto* box = new QComboBox;
     box->setObjectName("instrument_" + slot.slot);
-    box->addItem(slot.type);
-    box->addItems(slot.alternatives);
+    addType(box, slot.type);
+    for (const QString& alternative : slot.alternatives) addType(box, alternative);
     box->setEnabled(!slot.alternatives.isEmpty());
     auto* row = new QWidget;
     auto* row_layout = new QHBoxLayout(row);
     row_layout->setContentsMargins(0, 0, 0, 0);
     row_layout->addWidget(new QLabel(slot.slot));
     row_layout->addWidget(box, 1);
-    layout->addWidget(row);
     instrument_boxes_[slot.slot] = box;
-    connect(box, &QComboBox::currentTextChanged, this, [this, slot_name = slot.slot](const QString& type) {
-      link_->sendCommand(SimulatorLink::kSelectInstrument, slot_name + ":" + type);
+    connect(box, QOverload<int>::of(&QComboBox::currentIndexChanged), this, [this, box, slot_name = slot.slot](int) {
+      link_->sendCommand(SimulatorLink::kSelectInstrument, slot_name + ":" + box->currentData().toString());
     });
+    // Issue 37: the laser console's power and exposure for a slot that can hold the laser probe; a change is a
+    // SELECT_INSTRUMENT with the settings (recorded with the session like every command). Starts at the shipped
+    // scenes' 200 mW / 100 ms.
+    if (slot.type == "laser_probe" || slot.alternatives.contains("laser_probe")) {
+      auto* power = new QSpinBox;
+      power->setObjectName("laser_power_" + slot.slot);
+      power->setRange(50, 1500);
+      power->setSingleStep(10);
+      power->setValue(200);
+      power->setSuffix(" mW");
+      power->setKeyboardTracking(false);
+      auto* duration = new QSpinBox;
+      duration->setObjectName("laser_duration_" + slot.slot);
+      duration->setRange(20, 1000);
+      duration->setSingleStep(10);
+      duration->setValue(100);
+      duration->setSuffix(" ms");
+      duration->setKeyboardTracking(false);
+      row_layout->addWidget(power);
+      row_layout->addWidget(duration);
+      const auto send = [this, power, duration, slot_name = slot.slot] {
+        link_->sendCommand(SimulatorLink::kSelectInstrument, QString("%1:laser_probe:power_mw=%2,duration_ms=%3")
+                                                                 .arg(slot_name)
+                                                                 .arg(power->value())
+                                                                 .arg(duration->value()));
+      };
+      connect(power, QOverload<int>::of(&QSpinBox::valueChanged), this, send);
+      connect(duration, QOverload<int>::of(&QSpinBox::valueChanged), this, send);
+    }
+    layout->addWidget(row);
   }
 }
 

@@ -6,6 +6,7 @@
 #include <boost/make_shared.hpp>
 
 #include "eyesi_gui/console/message_constants.h"
+#include "vrm_msgs/InstrumentTypes.h"
 #include "vrm_msgs/ListScenes.h"
 #include "vrm_msgs/LoadSession.h"
 #include "vrm_msgs/MicroscopeSettings.h"
@@ -38,6 +39,12 @@ static_assert(sameConstant(kScenarioStatusConstants[1], vrm_msgs::ScenarioStatus
 static_assert(sameConstant(kScenarioStatusConstants[2], vrm_msgs::ScenarioStatus::PAUSED));
 static_assert(sameConstant(kScenarioStatusConstants[3], vrm_msgs::ScenarioStatus::FINISHED));
 static_assert(sameConstant(kScenarioStatusConstants[4], vrm_msgs::ScenarioStatus::FAILED));
+static_assert(sameConstant(kInstrumentTypeConstants[0], vrm_msgs::InstrumentTypes::LIGHT_PIPE));
+static_assert(sameConstant(kInstrumentTypeConstants[1], vrm_msgs::InstrumentTypes::FORCEPS));
+static_assert(sameConstant(kInstrumentTypeConstants[2], vrm_msgs::InstrumentTypes::VITRECTOR));
+static_assert(sameConstant(kInstrumentTypeConstants[3], vrm_msgs::InstrumentTypes::NEEDLE));
+static_assert(sameConstant(kInstrumentTypeConstants[4], vrm_msgs::InstrumentTypes::HOOK));
+static_assert(sameConstant(kInstrumentTypeConstants[5], vrm_msgs::InstrumentTypes::LASER_PROBE));
 
 QString q(const std::string& text) { return QString::fromStdString(text); }
 

@@ -39,6 +39,24 @@ constexpr MessageConstant kScenarioStatusConstants[] = {{"IDLE", ScenarioState::
                                                         {"FINISHED", ScenarioState::kFinished, "finished"},
                                                         {"FAILED", ScenarioState::kFailed, "failed"}};
 
+// vrm_msgs/InstrumentTypes (issue 37: every instrument type; a type's name in the scene files is its constant's name in
+// lower case, e.g. LASER_PROBE <-> laser_probe).
+constexpr MessageConstant kInstrumentTypeConstants[] = {
+    {"LIGHT_PIPE", 0, "light pipe"}, {"FORCEPS", 1, "forceps"}, {"VITRECTOR", 2, "vitrector"},
+    {"NEEDLE", 3, "needle"},         {"HOOK", 4, "hook"},       {"LASER_PROBE", 5, "laser probe"}};
+
+// The label of an instrument type by its scene name ("laser_probe" -> "laser probe"); nullptr for a name the list
+// does not have.
+inline const char* instrumentTypeLabel(const char* type_name) {
+  for (const MessageConstant& constant : kInstrumentTypeConstants) {
+    const char* a = constant.name;
+    const char* b = type_name;
+    while (*a != '\0' && *b != '\0' && (*a >= 'A' && *a <= 'Z' ? *a - 'A' + 'a' : *a) == *b) ++a, ++b;
+    if (*a == '\0' && *b == '\0') return constant.label;
+  }
+  return nullptr;
+}
+
 // The label of a value in one of the lists above; "unknown" for a value it does not have.
 template <std::size_t N>
 const char* constantLabel(const MessageConstant (&constants)[N], int value) {
