@@ -40,8 +40,8 @@ void PoseTracker::reset() {
   filters_.assign(layout_.classes.size(), PointFilter(config_.filter));
   last_instruments_.assign(layout_.instruments.size(), InstrumentEstimate());
   history_.assign(layout_.classes.size(), ClassHistory());
-  residual_window_.clear();
-  residual_next_ = 0;
+  multi_residuals_ = ResidualWindow();
+  pair_residuals_ = ResidualWindow();
   last_stamp_ = 0.0;
 }
 
@@ -51,20 +51,38 @@ MarkerEstimate PoseTracker::reconstruct(int class_id, const std::vector<CameraOb
 
 MarkerEstimate PoseTracker::reconstruct(int class_id, const std::vector<CameraObservations>& frame,
                                         const Prediction* prediction) const {
-  return reconstructWith(class_id, frame, prediction, config_.consistent_px, nullptr);
+  return reconstructWith(class_id, frame, prediction, {config_.consistent_px, config_.pair_consistent_px}, nullptr);
+}
+
+void PoseTracker::ResidualWindow::add(double px, int window) {
+  if (!std::isfinite(px) || window <= 0) return;
+  if (samples.size() < static_cast<std::size_t>(window)) {
+    samples.push_back(px);
+  } else {
+    samples[next % samples.size()] = px;
+  }
+  ++next;
+}
+
+double PoseTracker::ResidualWindow::median() const {
+  if (samples.empty()) return 0.0;
+  std::vector<double> r = samples;
+  std::nth_element(r.begin(), r.begin() + r.size() / 2, r.end());
+  return r[r.size() / 2];
 }
 
 double PoseTracker::consistentPx() const {
-  if (residual_window_.empty()) return config_.consistent_px;
-  std::vector<double> r = residual_window_;
-  std::nth_element(r.begin(), r.begin() + r.size() / 2, r.end());
-  return std::max(config_.consistent_px, config_.consistent_noise_factor * r[r.size() / 2]);
+  return std::max(config_.consistent_px, config_.consistent_noise_factor * multi_residuals_.median());
+}
+
+double PoseTracker::pairConsistentPx() const {
+  return std::max(config_.pair_consistent_px, config_.consistent_noise_factor * pair_residuals_.median());
 }
 
 MarkerEstimate PoseTracker::reconstructWith(int class_id, const std::vector<CameraObservations>& frame,
-                                            const Prediction* prediction, double consistent_px,
-                                            double* noise_sample_px) const {
-  if (noise_sample_px) *noise_sample_px = std::numeric_limits<double>::infinity();
+                                            const Prediction* prediction, const Thresholds& thresholds,
+                                            double* multi_sample_px) const {
+  if (multi_sample_px) *multi_sample_px = std::numeric_limits<double>::infinity();
   MarkerEstimate est;
   est.class_id = class_id;
   // Candidates per camera (a camera may report distractors of the same class; at most 3 are considered).
@@ -144,7 +162,7 @@ MarkerEstimate PoseTracker::reconstructWith(int class_id, const std::vector<Came
         // Pairs away from the prediction are distractors on the epipolar line (see TrackerConfig).
         if (s.t.cameras.size() >= 3 || !prediction || s.from_prediction <= prediction->gate) solutions.push_back(s);
         clean_consistent_multi =
-            clean_consistent_multi || (s.t.cameras.size() >= 3 && s.clean && s.t.max_px <= consistent_px);
+            clean_consistent_multi || (s.t.cameras.size() >= 3 && s.clean && s.t.max_px <= thresholds.multi_px);
       }
       std::size_t i = 0;
       for (; i < cams.size(); ++i) {
@@ -160,14 +178,14 @@ MarkerEstimate PoseTracker::reconstructWith(int class_id, const std::vector<Came
   // prediction (or, without one, the lowest residual). Without a consistent solution, the earlier rule on the loose
   // gate: clean blobs first, more cameras first, lowest residual.
   const Solution* best = nullptr;
-  auto consistent = [consistent_px](const Solution& s) { return s.t.max_px <= consistent_px; };
-  if (noise_sample_px) {
-    // The noise sample: the best residual of the solutions with the most cameras this frame (pairs when one camera
-    // is occluded, so the threshold also follows the noise of a two-camera rig).
-    std::size_t most = 0;
-    for (const Solution& s : solutions) most = std::max(most, s.t.cameras.size());
+  // Each kind of solution against the noise of its kind: a pair's residual is no sample of the three-camera noise
+  // and must not be judged by it (TrackerConfig::pair_consistent_px).
+  auto consistent = [&thresholds](const Solution& s) {
+    return s.t.max_px <= (s.t.cameras.size() >= 3 ? thresholds.multi_px : thresholds.pair_px);
+  };
+  if (multi_sample_px) {
     for (const Solution& s : solutions) {
-      if (s.t.cameras.size() == most) *noise_sample_px = std::min(*noise_sample_px, s.t.max_px);
+      if (s.t.cameras.size() >= 3) *multi_sample_px = std::min(*multi_sample_px, s.t.max_px);
     }
   }
   auto rank = [prediction](const Solution& x) {
@@ -196,6 +214,7 @@ MarkerEstimate PoseTracker::reconstructWith(int class_id, const std::vector<Came
   est.position = best->t.point;
   est.raw_position = best->t.point;
   est.rms_px = best->t.rms_px;
+  est.max_px = best->t.max_px;
   est.cameras = static_cast<int>(best->t.cameras.size());
   est.quality = std::exp(-best->t.rms_px / config_.gate_px) * (best->t.cameras.size() >= 3 ? 1.0 : 0.8);
   return est;
@@ -221,22 +240,15 @@ TrackingResult PoseTracker::update(const std::vector<CameraObservations>& frame,
   if (!std::isfinite(stamp)) stamp = last_stamp_ + 0.02;
   last_stamp_ = stamp;
   TrackingResult result;
-  const double consistent_px = consistentPx();
+  const Thresholds thresholds{consistentPx(), pairConsistentPx()};
   for (std::size_t k = 0; k < layout_.classes.size(); ++k) {
     Prediction prediction;
     const bool predicted = predictionFor(k, stamp, &prediction);
-    double noise_sample_px = 0.0;
-    MarkerEstimate m = reconstructWith(layout_.classes[k].id, frame, predicted ? &prediction : nullptr, consistent_px,
-                                       &noise_sample_px);
-    if (std::isfinite(noise_sample_px) && config_.consistent_window > 0) {
-      const std::size_t window = static_cast<std::size_t>(config_.consistent_window);
-      if (residual_window_.size() < window) {
-        residual_window_.push_back(noise_sample_px);
-      } else {
-        residual_window_[residual_next_ % window] = noise_sample_px;
-      }
-      ++residual_next_;
-    }
+    double multi_sample_px = 0.0;
+    MarkerEstimate m =
+        reconstructWith(layout_.classes[k].id, frame, predicted ? &prediction : nullptr, thresholds, &multi_sample_px);
+    multi_residuals_.add(multi_sample_px, config_.consistent_window);
+    if (m.valid && m.cameras == 2) pair_residuals_.add(m.max_px, config_.consistent_window);
     if (m.valid) {
       m.position = filters_[k].filter(m.raw_position, stamp);
       ClassHistory& h = history_[k];

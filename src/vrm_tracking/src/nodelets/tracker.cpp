@@ -70,8 +70,10 @@ class Tracker : public nodelet::Nodelet {
     TrackerConfig config;
     pnh.param("gate_px", config.gate_px, config.gate_px);
     pnh.param("max_radius", config.max_radius, config.max_radius);
-    // Issue 43: which blobs make a marker (pose_tracker.h): the consistency threshold and the pair prediction gate.
+    // Issue 43: which blobs make a marker (pose_tracker.h): the consistency thresholds (three cameras, pairs) and the
+    // pair prediction gate.
     pnh.param("consistent_px", config.consistent_px, config.consistent_px);
+    pnh.param("pair_consistent_px", config.pair_consistent_px, config.pair_consistent_px);
     pnh.param("max_marker_speed", config.max_marker_speed, config.max_marker_speed);
     double sync_window = 0.03;
     pnh.param("sync_window", sync_window, sync_window);
