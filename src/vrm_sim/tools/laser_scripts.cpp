@@ -58,10 +58,12 @@ Session play(const std::vector<Shot>& shots, const Eigen::Vector3d& trocar, doub
     session.probe.emplace_back(t, tip);
     double press = t + 0.15;
     for (int k = 0; k < shot.presses; ++k) {
+      // 5 ms edges: no input tick (every 10 or 20 ms) samples a travel near kPressTravel, where a nanosecond of stamp
+      // rounding would decide the frame a shot fires in.
       session.pedal.emplace_back(press, 0.0);
-      session.pedal.emplace_back(press + 0.02, 1.0);
+      session.pedal.emplace_back(press + 0.005, 1.0);
       session.pedal.emplace_back(press + 0.15, 1.0);
-      session.pedal.emplace_back(press + 0.17, 0.0);
+      session.pedal.emplace_back(press + 0.155, 0.0);
       press += 0.35;
     }
     t = press - 0.35 + 0.17 + dwell;
@@ -80,7 +82,7 @@ void print(const char* name, const Session& session, const Eigen::Vector3d& ligh
     std::printf("            - {t: %.2f, tip: [%.6f, %.6f, %.6f]}\n", t, tip.x(), tip.y(), tip.z());
   }
   std::printf("      pedals:\n");
-  for (const auto& [t, travel] : session.pedal) std::printf("        - {t: %.2f, travel: %.0f}\n", t, travel);
+  for (const auto& [t, travel] : session.pedal) std::printf("        - {t: %.3f, travel: %.0f}\n", t, travel);
 }
 
 }  // namespace

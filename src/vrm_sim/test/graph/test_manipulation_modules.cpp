@@ -1,7 +1,9 @@
-// The object manipulation modules (issue 36) in one running graph: LOAD object_manipulation, expert then novice (each
-// session begun by a LOAD of the module and its START), then LOAD bimanual, the same. Each expert finishes and
-// outscores its novice with the score the same inputs give headless (one simulation core), and simulation_state
-// carries the objects the scenario moves (what the renderer draws) away from their scene poses while they are carried.
+// The object manipulation modules (issue 36) and laser coagulation (issue 37) in one running graph: LOAD
+// object_manipulation, expert then novice (each session begun by a LOAD of the module and its START), then LOAD
+// bimanual, then laser_coagulation (its sessions' pedal tracks played too: the laser fires on the pedal), the same.
+// Each expert finishes and outscores its novice with the score the same inputs give headless (one simulation core),
+// simulation_state carries the objects the scenario moves (what the renderer draws) away from their scene poses while
+// they are carried, and the laser burns.
 #include <gtest/gtest.h>
 #include <ros/ros.h>
 
@@ -11,6 +13,7 @@
 
 #include "graph_test_util.h"
 #include "vrm_msgs/InstrumentState.h"
+#include "vrm_msgs/PedalState.h"
 #include "vrm_msgs/ScenarioCommand.h"
 #include "vrm_msgs/ScenarioStatus.h"
 #include "vrm_msgs/Score.h"
@@ -32,6 +35,7 @@ struct Observed {
   std::uint64_t scores = 0;
   world::Stamp last_frame = -1;
   std::map<std::string, double> farthest_move;  // per moved object: its largest distance from its scene pose (m)
+  std::size_t most_burns = 0;                   // laser burns in one simulation_state
 };
 
 class ManipulationModules : public ::testing::Test {
@@ -52,6 +56,7 @@ class ManipulationModules : public ::testing::Test {
         "simulation_state", 100, [this](const vrm_msgs::SimulationState::ConstPtr& state) {
           std::lock_guard<std::mutex> lock(observed_.mutex);
           observed_.last_frame = toStamp(state->header.stamp);
+          observed_.most_burns = std::max(observed_.most_burns, state->burns.size());
           for (const vrm_msgs::ObjectPose& object : state->objects) {
             const auto start = scene_start_.find(object.name);
             if (start == scene_start_.end()) continue;
@@ -62,6 +67,7 @@ class ManipulationModules : public ::testing::Test {
         });
     commands_ = nh_.advertise<vrm_msgs::ScenarioCommand>("scenario_command", 10);
     instruments_ = nh_.advertise<vrm_msgs::InstrumentState>("instrument_state", 100);
+    pedals_ = nh_.advertise<vrm_msgs::PedalState>("pedals", 100);
     spinner_.start();
     ASSERT_TRUE(waitFor(
         [&] {
@@ -115,12 +121,24 @@ class ManipulationModules : public ::testing::Test {
       const std::uint8_t state = status().state;
       return state == vrm_msgs::ScenarioStatus::FINISHED || state == vrm_msgs::ScenarioStatus::FAILED;
     };
-    world::Stamp played = world::fromSeconds(start);
-    EXPECT_TRUE(playTicks(instruments_, inputs, last_frame,
-                          [&](world::Stamp stamp, std::size_t) {
-                            played = stamp;
-                            return !ended();
-                          }))
+    // The session's pedal track, sampled at each tick's stamp (the pedal twin's part in the product).
+    const std::vector<scene::PedalWaypoint> pedals =
+        scene::findScript(scene::loadScene(scene::shippedScenePath(module)), script).pedals;
+    const world::Stamp origin = world::fromSeconds(start);
+    world::Stamp played = origin;
+    EXPECT_TRUE(playTicks(
+        instruments_, inputs, last_frame,
+        [&](world::Stamp stamp, std::size_t) {
+          played = stamp;
+          return !ended();
+        },
+        [&](world::Stamp stamp) {
+          if (pedals.empty()) return;
+          world::PedalState pedal;
+          pedal.stamp = stamp;
+          pedal.travel = scene::samplePedals(pedals, world::toSeconds(stamp - origin)).travel;
+          pedals_.publish(boost::make_shared<vrm_msgs::PedalState>(toMsg(pedal)));
+        }))
         << module << " " << script;
     start = world::toSeconds(played) + 0.5;
     vrm_msgs::Score score;
@@ -154,12 +172,12 @@ class ManipulationModules : public ::testing::Test {
   Observed observed_;
   std::map<std::string, Eigen::Vector3d> scene_start_;  // guarded by observed_.mutex
   ros::Subscriber status_sub_, score_sub_, state_sub_;
-  ros::Publisher commands_, instruments_;
+  ros::Publisher commands_, instruments_, pedals_;
 };
 
-TEST_F(ManipulationModules, BothModulesLoadedInOneGraphExpertsFinishAndOutscoreTheirNovices) {
+TEST_F(ManipulationModules, EveryModuleLoadedInOneGraphExpertsFinishAndOutscoreTheirNovices) {
   double start = 100.0;
-  for (const std::string module : {"object_manipulation", "bimanual"}) {
+  for (const std::string module : {"object_manipulation", "bimanual", "laser_coagulation"}) {
     std::map<std::string, vrm_msgs::Score> scores;
     for (const std::string script : {"expert", "novice"}) {
       scores[script] = play(module, script, start);
@@ -179,6 +197,9 @@ TEST_F(ManipulationModules, BothModulesLoadedInOneGraphExpertsFinishAndOutscoreT
   EXPECT_GT(farthestMove("box"), 2e-3) << "the box was never drawn away from its scene pose";
   EXPECT_GT(farthestMove("key"), 2e-3);
   EXPECT_GT(farthestMove("bar"), 2e-3);
+  // and the laser burns (the renderer paints them into the fundus): the expert's row of 12.
+  std::lock_guard<std::mutex> lock(observed_.mutex);
+  EXPECT_GE(observed_.most_burns, 12u);
 }
 
 }  // namespace
