@@ -8,7 +8,9 @@
 // and light pipe, the knobs and options of the running graph) rendered with the light pipe lit, lit without the
 // shadow pass, and off, frame by frame in turns (the deformable meshes re-uploaded every frame as the session streams
 // them): what the light pipe costs per stereo frame. --current-light: today's endoilluminator() (cone, intensity) at
-// the saved light pipe's pose, to compare a change of the light on the same frames.
+// the saved light pipe's pose, to compare a change of the light on the same frames. Issue 37: two more variants per
+// frame, "laser_off" (the saved frame without its burns and aiming beam) and "burn_every_frame" (a new burn painted,
+// uploaded and the static layer redrawn in every frame: the worst case of a trainee firing at the frame rate).
 
 #include <sys/resource.h>
 
@@ -264,8 +266,8 @@ int benchSavedFrames(const std::vector<std::string>& args, int frames, const std
     std::fprintf(stderr, "bench_render: no saved frames (<prefix>.frame)\n");
     return 2;
   }
-  const char* names[4] = {"lit", "lit_noshadow", "light_off", "lit_nobump"};
-  constexpr int kVariants = 4;
+  const char* names[6] = {"lit", "lit_noshadow", "light_off", "lit_nobump", "laser_off", "burn_every_frame"};
+  constexpr int kVariants = 6;
   std::ostringstream json;
   json << "{\"suite\":\"render_saved_frames\",\"command\":\"" << command << "\",\"frames\":" << frames << ",\"rows\":[";
   std::printf("%-44s %-13s %6s %7s %7s %7s %7s %8s\n", "frame", "variant", "tris", "shadow", "scene", "dof", "total",
@@ -292,6 +294,12 @@ int benchSavedFrames(const std::vector<std::string>& args, int frames, const std
       if (v == 1) variant.options.shadow_pass = false;
       if (v == 2) variant.light.enabled = false;
       if (v == 3) variant.options.bump_mapping = false;
+      if (v == 4) {
+        variant.burns.clear();
+        variant.objects.erase(std::remove_if(variant.objects.begin(), variant.objects.end(),
+                                             [](const auto& object) { return object.id == vrm_render::kLaserAimId; }),
+                              variant.objects.end());
+      }
       renderers.push_back(std::make_unique<StereoRenderer>(variant.options, variant.rig));
       renderers.back()->restoreState(variant, false);
       StereoFrame warm;
@@ -308,6 +316,19 @@ int benchSavedFrames(const std::vector<std::string>& args, int frames, const std
             renderers[v]->updateMesh(object.id, object.mesh.view(), object.version + 1 + i);
         }
         const double cpu_start = processCpuMs();
+        if (v == 5) {  // one more burn every frame, 0.6 mm apart along a line through the fundus
+          std::vector<vrm_render::FundusBurn> burns = state.burns;
+          for (int k = 0; k <= i; ++k) {
+            vrm_render::FundusBurn burn;
+            const float x = -0.004f + 0.0006f * static_cast<float>(k % 14), y = 0.0006f * static_cast<float>(k / 14);
+            const float r = state.fundus.eye_radius > 0.0f ? state.fundus.eye_radius : 0.012f;
+            burn.position = Eigen::Vector3f(x, y, -std::sqrt(r * r - x * x - y * y));
+            burn.diameter = 0.0005f;
+            burn.whiteness = 0.6f;
+            burns.push_back(burn);
+          }
+          renderers[v]->setFundusBurns(burns);
+        }
         renderers[v]->render(&frame);
         cpu[v].push_back(processCpuMs() - cpu_start);
         total[v].push_back(frame.timings.ms_total);
@@ -333,6 +354,14 @@ int benchSavedFrames(const std::vector<std::string>& args, int frames, const std
     for (int i = 0; i < frames; ++i) lit_minus_off.push_back(total[0][i] - total[2][i]);
     std::printf("%-44s paired lit - off: %.2f ms per stereo frame (median of %d)\n", name.c_str(),
                 median(lit_minus_off), frames);
+    std::vector<double> laser_cost, new_burn_cost;
+    for (int i = 0; i < frames; ++i) {
+      laser_cost.push_back(total[0][i] - total[4][i]);
+      new_burn_cost.push_back(total[5][i] - total[0][i]);
+    }
+    std::printf("%-44s paired: burns + aim %.2f ms, a new burn every frame %+.2f ms (max %.2f) per stereo frame; %zu burns\n",
+                name.c_str(), median(laser_cost), median(new_burn_cost),
+                *std::max_element(new_burn_cost.begin(), new_burn_cost.end()), state.burns.size());
   }
   json << "]}\n";
   if (!out.empty()) {
