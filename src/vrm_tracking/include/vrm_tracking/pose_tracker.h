@@ -55,7 +55,10 @@ struct TrackerConfig {
   // the pairs of real marker blobs (shaft-cut ones included) reach 0.49 px on the built-in demo and 0.55 px on the
   // random fast trajectory 4304, blobs of markers half behind a shaft 0.63 px, while three-camera residuals are
   // ~0.02 px: the three-camera threshold (0.25 px) made 5-24 % of the frames of a stopped camera invalid
-  // (camera_dropout.test). 1 px admits them with a margin and is still a third of gate_px.
+  // (camera_dropout.test). 1 px admits them with a margin and is still a third of gate_px. This applies when only two
+  // cameras report the marker's class; when a third one reports it as well and disagrees with every pair (no
+  // consistent three-camera solution), a blob is biased and a pair is held to the three-camera threshold (with 1 px
+  // there, 12 distractors reached 93 um and the demo's three-camera max 196 um, against 33 and 96 um).
   double pair_consistent_px = 1.0;
   // A pair has a single epipolar check, which a distractor anywhere along the epipolar line passes. So a pair solution
   // must lie within prediction_margin + (|v| + max_marker_speed) dt of the marker's constant-velocity prediction (v

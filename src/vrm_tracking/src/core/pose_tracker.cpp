@@ -179,9 +179,12 @@ MarkerEstimate PoseTracker::reconstructWith(int class_id, const std::vector<Came
   // gate: clean blobs first, more cameras first, lowest residual.
   const Solution* best = nullptr;
   // Each kind of solution against the noise of its kind: a pair's residual is no sample of the three-camera noise
-  // and must not be judged by it (TrackerConfig::pair_consistent_px).
-  auto consistent = [&thresholds](const Solution& s) {
-    return s.t.max_px <= (s.t.cameras.size() >= 3 ? thresholds.multi_px : thresholds.pair_px);
+  // and must not be judged by it (TrackerConfig::pair_consistent_px) when only two cameras report the class (one
+  // stopped, or the marker hidden in one). When a third camera reports it too and no three-camera solution agrees,
+  // some blob is biased (a shaft, a distractor): then a pair must agree as closely as three cameras must.
+  const double pair_px = n >= 3 ? thresholds.multi_px : thresholds.pair_px;
+  auto consistent = [&thresholds, pair_px](const Solution& s) {
+    return s.t.max_px <= (s.t.cameras.size() >= 3 ? thresholds.multi_px : pair_px);
   };
   if (multi_sample_px) {
     for (const Solution& s : solutions) {
