@@ -25,6 +25,7 @@
 #include <cstdio>
 #include <fstream>
 #include <functional>
+#include <limits>
 #include <opencv2/imgproc.hpp>
 #include <random>
 #include <sstream>
@@ -32,9 +33,12 @@
 #include <vector>
 
 #include "vrm_sim/cli/cli.h"
+#include "vrm_sim/package_data.h"
+#include "vrm_sim/scene/scene_loader.h"
 #include "vrm_tracking/calibration.h"
 #include "vrm_tracking/evaluation.h"
 #include "vrm_tracking/pose_filter.h"
+#include "vrm_tracking/scene_trocars.h"
 
 using namespace vrm_tracking;
 
@@ -78,6 +82,9 @@ struct Row {
   // Issue 43 §5: random fast trajectories (motion "random_fast"): the generator's seed and the peak tip speed.
   unsigned trajectory_seed = 0;
   double tip_speed_max = 0.0;  // m/s
+  // camera_dropout.test offline (motion "demo"): the camera stops after this many frames of three-camera tracking
+  // (the rows score only the frames after it; -1: not such a row).
+  int stop_after_frames = -1;
 };
 
 // Median, min, max.
@@ -274,6 +281,10 @@ std::string toJson(const Row& row) {
           << ", \"ratio_to_three_cameras_max\": " << num(row.ratio_max);
       }
       o << ", \"camera_skew_ms\": " << num(row.camera_skew_ms);
+      if (row.stop_after_frames >= 0) {
+        o << ", \"stop_after_frames\": " << row.stop_after_frames << ", \"tips_scored\": " << row.r.tips_scored
+          << ", \"tips_invalid_seen\": " << row.r.tips_invalid_seen;
+      }
       if (row.motion == "random_fast") {
         o << ", \"trajectory_seed\": " << row.trajectory_seed
           << ", \"tip_speed_max_mm_s\": " << num(1e3 * row.tip_speed_max);
@@ -861,6 +872,61 @@ int main(int argc, char** argv) {
       }
       if (occluded < 0 && !est) three_cam_rms = row.r.tip_rms_um;
       if (occluded >= 0 && three_cam_rms > 0) {
+        row.ratio_to_three_cameras = row.r.tip_rms_um / three_cam_rms;
+        row.ratio_min = row.ratio_max = row.ratio_to_three_cameras;
+      }
+      rows.push_back(row);
+    }
+  }
+
+  // (3c) camera_dropout.test offline: the shipped demo (the simulator graph's scripted surgeon: the forceps grasp the
+  // membrane, the tips pass each other and the shafts cross the markers) in the default scene, rendered by the rig
+  // twin's default sensor; after 2 s of three cameras one camera stops for the rest of the 40 s loop. Valid frames
+  // (track_rate), the frames invalid although both remaining cameras reported the tip marker's colour (the graph
+  // test allows 5 %), and the tip error of the pairs, beside the three-camera row of the same frames.
+  {
+    vrm_sim::usePackageData();  // the shipped demo and scene (like rosrun finds packages)
+    const vrm_sim::scene::SceneDescription scene = vrm_sim::scene::loadScene(vrm_sim::scene::kDefaultSceneName);
+    MarkerLayout demo_layout = layout;
+    if (std::any_of(demo_layout.instruments.begin(), demo_layout.instruments.end(),
+                    [](const InstrumentMarker& m) { return m.trocar_from_scene; })) {
+      applySceneTrocars(scene, &demo_layout);
+    }
+    SurgeonScript demo = playInScene(scene, loadSession("", scene));
+    demo.setPlayback(Playback::kOnce);
+    const int frames_demo = quick ? 40 : static_cast<int>(demo.duration() * 50.0);
+    const int stop_after = quick ? 10 : 100;
+    std::vector<double> times;
+    for (int f = 0; f < frames_demo; ++f) times.push_back(f / 50.0);
+    double three_cam_rms = 0.0;
+    // -3: camera_1 stopped with the blobs as the graph's tracker gets them: vrm_msgs/MarkerObservation carries no
+    // ring contamination, so TrackerConfig::pair_contamination_max never applies there.
+    for (int stopped : {-1, 0, 1, 2, -3}) {
+      const bool as_graph = stopped == -3;
+      if (as_graph) stopped = 1;
+      Row row;
+      row.source = "rendered";
+      row.label = stopped < 0 ? std::string("built-in demo, 3 cameras")
+                              : "built-in demo, camera_" + std::to_string(stopped) + " stopped after 2 s" +
+                                    (as_graph ? ", no contamination (as the graph)" : "");
+      if (!wanted(row.label)) continue;
+      row.motion = "demo";
+      row.occluded_cams = stopped < 0 ? 0 : 1;
+      row.occluded_camera = stopped;
+      row.stop_after_frames = stop_after;
+      EvalOptions opt;
+      opt.rendered = true;
+      opt.occluded_camera = stopped;
+      opt.occlusion_start_frame = stop_after;
+      if (as_graph) opt.tracker.pair_contamination_max = std::numeric_limits<double>::infinity();
+      opt.seed = 14;
+      opt.clock = now;
+      repeatInto(&row, 1, [&](int) {
+        return evaluate(
+            rig, demo_layout, [&demo](double t) { return demo.sample(t); }, times, opt);
+      });
+      if (stopped < 0) three_cam_rms = row.r.tip_rms_um;
+      if (stopped >= 0 && three_cam_rms > 0) {
         row.ratio_to_three_cameras = row.r.tip_rms_um / three_cam_rms;
         row.ratio_min = row.ratio_max = row.ratio_to_three_cameras;
       }

@@ -22,8 +22,11 @@ struct EvalOptions {
   bool rendered = false;  // false: exact centroids + noise_px Gaussian noise per coordinate
   double noise_px = 0.0;
   int occluded_camera = -1;  // this camera delivers nothing (-1: none)
-  RenderConfig render;       // rendered mode
-  RoiTrackerConfig roi;      // rendered mode
+  // A camera that stops mid-run (camera_dropout.test): the occluded camera delivers up to this frame index and
+  // nothing from it on; the frames before it are tracked with every camera but not scored. 0: occluded throughout.
+  int occlusion_start_frame = 0;
+  RenderConfig render;   // rendered mode
+  RoiTrackerConfig roi;  // rendered mode
   TrackerConfig tracker;
   std::uint32_t seed = 1;
   bool motion = true;  // pass marker velocities to the renderer (motion blur)
@@ -48,8 +51,12 @@ struct EvalResult {
   double tip_eye_max_um = 0.0;
   double eye_err_deg = 0.0;  // RMS angular error of the eye rotation
   double eye_err_max_deg = 0.0;
-  double detect_rate = 0.0;     // visible (marker, camera) pairs with a centroid within 3 px
-  double track_rate = 0.0;      // instrument-frames with a valid pose
+  double detect_rate = 0.0;  // visible (marker, camera) pairs with a centroid within 3 px
+  double track_rate = 0.0;   // instrument-frames with a valid pose
+  // Scored instrument-frames without a valid pose although at least two delivering cameras reported a blob of the
+  // tip marker's class (camera_dropout.test's count: what two cameras could have reconstructed), and all of them.
+  int tips_invalid_seen = 0;
+  int tips_scored = 0;
   double ms_detect = 0.0;       // per camera triple
   double ms_reconstruct = 0.0;  // per frame (all markers, eye and instruments)
   double ms_render = 0.0;       // rendered mode: the synthetic rig's cost per camera triple (not the pipeline's)

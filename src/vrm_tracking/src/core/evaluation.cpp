@@ -181,7 +181,7 @@ EvalResult evaluate(const CameraRig& rig, const MarkerLayout& layout,
   PoseTracker tracker(options.tracker_rig ? *options.tracker_rig : rig, layout, options.tracker);
 
   double tip2 = 0.0, tip_eye2 = 0.0, eye2 = 0.0, t_detect = 0.0, t_rec = 0.0, t_render = 0.0;
-  long tips = 0, tips_valid = 0, visible = 0, detected = 0, camera_frames = 0, full_frames = 0;
+  long scored_frames = 0, tips = 0, tips_valid = 0, visible = 0, detected = 0, camera_frames = 0, full_frames = 0;
   std::vector<double> render_each, detect_each;                                     // per camera triple (s)
   std::vector<std::vector<Eigen::Vector3d>> tip_errors(layout.instruments.size());  // world, per layout slot
   cv::Mat image;
@@ -195,8 +195,9 @@ EvalResult evaluate(const CameraRig& rig, const MarkerLayout& layout,
     }
     std::vector<CameraObservations> frame;
     const double render_before = t_render, detect_before = t_detect;
+    const bool scored = static_cast<int>(f) >= options.occlusion_start_frame;
     for (std::size_t c = 0; c < rig.size(); ++c) {
-      if (static_cast<int>(c) == options.occluded_camera) continue;
+      if (static_cast<int>(c) == options.occluded_camera && scored) continue;
       CameraObservations obs;
       obs.camera = c;
       if (!options.rendered) {
@@ -250,6 +251,8 @@ EvalResult evaluate(const CameraRig& rig, const MarkerLayout& layout,
     const TrackingResult r = tracker.update(frame, t);
     if (options.clock) t_rec += options.clock() - t0;
 
+    if (!scored) continue;
+    ++scored_frames;
     const double e = angleDeg(r.eye.rotation, snap.eye_rotation);
     eye2 += e * e;
     result.eye_err_max_deg = std::max(result.eye_err_max_deg, e);
@@ -258,7 +261,18 @@ EvalResult evaluate(const CameraRig& rig, const MarkerLayout& layout,
       for (const InstrumentEstimate& est : r.instruments) {
         if (est.slot != s.slot) continue;
         ++tips;
-        if (!est.valid) continue;
+        if (!est.valid) {
+          int reporting = 0;
+          for (const InstrumentMarker& slot : layout.instruments) {
+            if (slot.slot != s.slot) continue;
+            for (const CameraObservations& obs : frame) {
+              reporting += std::any_of(obs.blobs.begin(), obs.blobs.end(),
+                                       [&slot](const Blob& b) { return b.class_id == slot.class_id; });
+            }
+          }
+          result.tips_invalid_seen += reporting >= 2;
+          continue;
+        }
         ++tips_valid;
         const Eigen::Vector3d world_true = snap.rotation_center + q * s.tip;
         const Eigen::Vector3d world_est = r.eye.rotation_center + r.eye.rotation.normalized() * est.tip;
@@ -274,7 +288,8 @@ EvalResult evaluate(const CameraRig& rig, const MarkerLayout& layout,
       }
     }
   }
-  result.frames = static_cast<int>(times.size());
+  result.frames = static_cast<int>(scored_frames);
+  result.tips_scored = static_cast<int>(tips);
   double jitter2 = 0.0;
   long jitter_n = 0;
   for (const std::vector<Eigen::Vector3d>& errors : tip_errors) {
@@ -290,7 +305,7 @@ EvalResult evaluate(const CameraRig& rig, const MarkerLayout& layout,
     result.tip_eye_rms_um = std::sqrt(tip_eye2 / tips_valid);
   }
   if (!times.empty()) {
-    result.eye_err_deg = std::sqrt(eye2 / times.size());
+    result.eye_err_deg = std::sqrt(eye2 / std::max(1L, scored_frames));
     result.ms_detect = 1e3 * t_detect / times.size();
     result.ms_reconstruct = 1e3 * t_rec / times.size();
     result.ms_render = 1e3 * t_render / times.size();
