@@ -1,7 +1,7 @@
 // Issue 40, "stable means bounded": the hard cases at reduced sizes, for every integrator. With tearing off, no spring
 // may end a step stretched beyond strainBound(τ_c) = 1.15 (τ_c = 1.1) — kinematic drivers included (a grasp yanked
-// farther than the pinned membrane can follow slips out of the jaws). With tearing on (bound not enforced yet, see
-// TissueConfig::tearing_strain_limit_passes) a slow pull below the tear strain tears nothing.
+// farther than the pinned membrane can follow slips out of the jaws); with tearing on, springs beyond the tear strain
+// tear and the rest stay within strainBound(tear strain), and a slow pull below the tear strain tears nothing.
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
@@ -143,6 +143,18 @@ TEST_P(TissueBounded, InstrumentPushedThrough) {
     advanceChecked(simulator, sphereAt(Eigen::Vector3d(1e-5, 2e-5, 5e-4 - f * 1e-4), 3e-4), 1e-3);
   }
   expectBounded(simulator, *membrane);
+}
+
+// Tearing on (tear strain 1.1, bound 1.15): the yank tears the membrane instead of letting springs stretch.
+TEST_P(TissueBounded, YankTearsWhereTearingIsOn) {
+  const int cells = 12;
+  auto membrane = makeGridMembrane(cells, kSize, kStiffness, nodeMass(cells));
+  TissueConfig config = configFor(GetParam());
+  config.tear_strain = 1.1;
+  TissueSimulator simulator(*membrane, config);
+  graspLiftYank(simulator, 10, 0.01, true);
+  expectBounded(simulator, *membrane);
+  EXPECT_GT(simulator.statistics().torn_springs, 0u);
 }
 
 // A 3 mm/s pull below the tear strain (1.6) tears nothing.

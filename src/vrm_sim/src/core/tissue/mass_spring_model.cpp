@@ -48,6 +48,9 @@ class MassSpringModel : public TissueModel {
   // beyond the bound, once more with the tissue winning over the instrument; then what the tissue cannot follow slips
   // out of the jaws. Sets bound_exceeded_ if a spring stays beyond (the watchdog then rejects the step).
   void enforceBound(TissueSimulator& simulator, const SystemView& system, double dt, const ProvotStatistics& first);
+  // Tearing membranes: springs beyond the bound (strainBound(tear strain)) shortened to it (iterated, no velocity
+  // correction), the tissue winning over the instrument.
+  void limitToBound(TissueSimulator& simulator, const SystemView& system);
   // Exact: is any spring beyond the bound?
   bool beyondBound(const TissueSimulator& simulator, const SystemView& system) const;
   // Collision response (eq. 5.12): the instruments' capsules and the collision library's deformation vectors.
@@ -125,8 +128,9 @@ void MassSpringModel::countBoundViolation(TissueSimulator& s) {
     slipped_ = false;
     s.rebuildConstraints();
   }
-  // Tearing membranes are not checked yet: see TissueConfig::tearing_strain_limit_passes.
-  if (!bound_exceeded_) return;
+  // Tearing removed what was beyond the bound (tearing scenes: checked after every step); anything left counts
+  // against `stable`.
+  if (!bound_exceeded_ && !(s.config_.tear_strain > 0.0)) return;
   const SystemView system = s.view();
   if (beyondBound(s, system)) {
     ++s.statistics_.bound_violations;
@@ -178,6 +182,10 @@ void MassSpringModel::rawStep(TissueSimulator& s, Integrator& integrator, double
   if (limit) first = limitStrain(s, system, dt, nullptr);
   respondToContacts(s, system);
   if (limit && !(s.config_.tear_strain > 0.0)) enforceBound(s, system, dt, first);
+  // Tearing membranes: springs beyond the tear strain tear after the step (topologyAfterStep()), except where an
+  // instrument presses or holds (a dent relaxes); what the contact response stretched beyond the bound there is
+  // brought back to it, so a slow pull does not tear the membrane at the jaws.
+  if (s.config_.tear_strain > 0.0) limitToBound(s, system);
   if (s.config_.plastic) yield(s, system);
 }
 
@@ -228,6 +236,16 @@ ProvotStatistics MassSpringModel::limitStrain(TissueSimulator& s, const SystemVi
   const double target = tau + 0.8 * (strainBound(tau) - tau);
   const int passes = tearing ? config.tearing_strain_limit_passes : config.strain_limit_passes;
   return projectStrain(system, tau, target, passes * pass_factor, options);
+}
+
+void MassSpringModel::limitToBound(TissueSimulator& s, const SystemView& system) {
+  const double bound = s.statistics_.strain_bound;
+  if (!std::isfinite(bound)) return;
+  ProvotOptions options;
+  options.sorter = s.sorted_valid_ ? &s.sorter_ : nullptr;
+  options.stamps = &projection_stamps_;
+  // Slightly inside the bound, so the iteration's last small corrections cannot leave a spring beyond it.
+  projectStrain(system, bound * (1.0 - 1e-3), bound * (1.0 - 1e-4), s.config_.strain_limit_passes, options);
 }
 
 bool MassSpringModel::beyondBound(const TissueSimulator& s, const SystemView& system) const {

@@ -222,7 +222,7 @@ void TissueSimulator::topologyAfterStep() {
   // The jaws hold what they grasped: tissue tears beside them, not inside them (their kinematic pinch would
   // otherwise break the springs it squeezes past in the step it closes).
   for (std::uint32_t node : grasped_nodes_) pressed_[node] = 1;
-  const TearResult torn = tearOverstretched(*membrane_, config_.tear_strain, pressed_.data());
+  const TearResult torn = tearOverstretched(*membrane_, config_.tear_strain, pressed_.data(), statistics_.strain_bound);
   if (torn.broken_springs == 0) return;
   statistics_.torn_springs += torn.broken_springs;
   statistics_.removed_nodes += torn.removed.nodes;
