@@ -507,8 +507,6 @@ class ScenarioManager : public nodelet::Nodelet {
     for (const std::string& name : session_->world().tissueNames()) {
       if (const auto* simulator = session_->world().tissueSimulator(name)) {
         add("integrator_" + name, simulator->integratorLabel());
-        // Stable = finite and bounded (issue 40): no unrecoverable step, no spring left beyond the strain bound.
-        add("tissue_stable_" + name, simulator->stable() ? "true" : "false");
       }
     }
     array->status.push_back(status);

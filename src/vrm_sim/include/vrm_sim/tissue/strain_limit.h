@@ -45,40 +45,9 @@ class SpringSorter {
   std::vector<std::size_t> level_fill_;
 };
 
-// Issue 40, "stable means bounded": the largest stretch L/L0 a step may leave, 1 + 1.5·(τ − 1) and never above 2,
-// for τ the scene's tear strain (tearing on) or its strain limit τ_c (tearing off); +inf for τ <= 1 (no limit).
-double strainBound(double tau);
-
 struct ProvotStatistics {
   std::size_t corrected = 0;      // springs shortened in the pass
   std::size_t skipped_fixed = 0;  // over-stretched springs between two constrained nodes (left alone)
-  // Largest stretch L/L0 the pass(es) found before correcting, over the springs they could correct (0 if none was
-  // above tau), and over the springs between two constrained nodes (which stay as they are).
-  double max_strain = 0.0;
-  double max_fixed_strain = 0.0;
-  int passes = 0;         // projectStrain(): passes run
-  bool converged = true;  // projectStrain(): the last pass found no correctable spring above its target
-};
-
-struct ProvotOptions {
-  // Visit the springs in BFS order from the interaction (after sorter->sort()), see provotPass().
-  const SpringSorter* sorter = nullptr;
-  bool outer_only = false;
-  // Shortens by this multiple of the excess (successive over-relaxation, in [1, 2)); projectStrain() uses it from
-  // its second pass on: 1.5 took a third fewer passes than 1 on the shipped peel (the limit is one-sided, so a spring
-  // left slightly shorter than tau·l is no error).
-  double over_relaxation = 1.0;
-  // projectStrain()'s bookkeeping (per node: the last pass that moved it) and a buffer for it (optional: without, each
-  // call allocates one).
-  std::vector<std::uint32_t>* stamps = nullptr;
-  std::uint32_t pass = 0;
-  // Optional, one flag per node: nodes held in place for this projection like constrained ones (the instrument's
-  // contacts, so the tissue around a dent follows the instrument instead of pulling the dent back into it).
-  const std::uint8_t* held = nullptr;
-  // Optional velocity correction (dt > 0): every moved node's velocity gains its displacement / dt, so the next
-  // integration starts from the projected motion instead of flying on past the limit (position based dynamics).
-  Eigen::Vector3d* velocities = nullptr;
-  double dt = 0.0;
 };
 
 // One pass of Alg. 5.1: every spring longer than tau·l is shortened to tau·l about its midpoint, towards its
@@ -88,17 +57,8 @@ struct ProvotOptions {
 // with many instrument contacts it drags outer nodes into the instrument and the collision response then throws them
 // through it (measured: strain grows without bound on a 64² membrane), so the simulator uses it only on request.
 // Springs with a zero rest length are skipped (no meaningful strain).
-ProvotStatistics provotPass(const SystemView& system, double tau, const ProvotOptions& options);
 ProvotStatistics provotPass(const SystemView& system, double tau, const SpringSorter* sorter = nullptr,
                             bool outer_only = false);
-
-// Alg. 5.1 iterated (Gauss-Seidel): passes until one finds no correctable spring longer than `target`·l (target >=
-// tau: the slack stops the iteration once the remaining corrections are small) or `max_passes` ran. One pass moves a
-// deformation only a few springs outwards, so a yank or a coarse step (a grasped node moving many rest lengths per
-// step) needs the iteration: with one pass springs reached 9-18x (issue 40). The statistics are those of the last
-// pass, with max_fixed_strain of all passes and passes / converged set.
-ProvotStatistics projectStrain(const SystemView& system, double tau, double target, int max_passes,
-                               const ProvotOptions& options = {});
 
 }  // namespace tissue
 }  // namespace vrm_sim

@@ -66,18 +66,8 @@ struct TissueConfig {
   double time_budget_ms = 2.0;  // wall time per frame
   int max_steps_per_frame = 1000;
   ForceParameters forces;
-  // τ_c of Alg. 5.1; <= 0 disables. Without tearing every step (any integrator) then ends with no spring stretched
-  // beyond strainBound(τ_c) (strain_limit.h, issue 40): an iterated projection with the kinematic nodes fixed and the
-  // velocities corrected, again with the instrument's contacts held, once more letting the tissue win over the
-  // instrument; a grasp pulled farther than the membrane can follow slips out of the jaws.
-  double strain_limit = 1.1;
-  int strain_limit_passes = 64;  // at most, per projection (they stop once no spring exceeds the limit much)
-  // With tearing (tear_strain > 0) the limit stays Alg. 5.1's single pass per step without velocity correction, and
-  // the bound strainBound(tear_strain) is kept by tearing (a spring beyond it tears even at an instrument). Iterating
-  // the limit to convergence there makes the membrane unbreakable short of an impossible kinematic pull: the shipped
-  // novice peel (about 10 mm/s) then tore nothing and passed with 88 points instead of failing with 52 torn springs,
-  // so the rate at which one pass lets strain build up is what the scenes' tear strains were tuned with.
-  int tearing_strain_limit_passes = 1;
+  double strain_limit = 1.1;  // τ_c of Alg. 5.1; <= 0 disables
+  int strain_limit_passes = 1;
   bool strain_limit_outer_only = false;  // see provotPass()
   bool plastic = false;                  // rest length follows the maximum length reached (thesis §5.1)
   // > 0: the membrane's fixed nodes are held by zero-length springs of this stiffness instead of being pinned.
@@ -151,14 +141,9 @@ struct SimulatorStatistics {
   std::uint64_t fallbacks = 0;           // rolled-back steps, all kinds
   std::uint64_t implicit_fallbacks = 0;  // steps redone with implicit Euler after all halvings failed
   std::uint64_t unrecovered = 0;         // steps that failed even the implicit fallback (state rolled back)
-  double max_strain = 0.0;               // largest strain seen at the end of any frame or accepted step
-  // The bound every accepted step must keep (strainBound(), +inf without strain limit and tearing) and the accepted
-  // steps that ended above it anyway: 0 = bounded. Tearing scenes tear such springs instead (counted in torn_springs).
-  double strain_bound = std::numeric_limits<double>::infinity();
-  std::uint64_t bound_violations = 0;
-  std::uint64_t slipped_nodes = 0;  // grasped nodes the jaws let go of because the membrane could not follow them
+  double max_strain = 0.0;               // largest strain seen at the end of any frame
   // Why steps were rejected.
-  std::uint64_t non_finite = 0, too_fast = 0, energy_growth = 0, over_bound = 0;
+  std::uint64_t non_finite = 0, too_fast = 0, energy_growth = 0;
   // J: of accepted explicit steps, the most an integration created beyond its allowance (negative: all stayed below;
   // how close stable steps come).
   double max_energy_excess = -std::numeric_limits<double>::infinity();
@@ -195,11 +180,6 @@ class TissueSimulator {
   void onTopologyChanged();
   void addInteractionPoint(std::uint32_t node);
   void releaseAll();
-  // Finite and bounded (issue 40): no step left a non-finite state or was unrecoverable, and no accepted step ended
-  // with a spring stretched beyond statistics().strain_bound.
-  bool stable() const { return statistics_.unrecovered == 0 && statistics_.bound_violations == 0; }
-  // The stretch bound of this membrane: strainBound() of the tear strain (tearing) or of the strain limit.
-  double strainBoundValue() const;
 
   const std::vector<std::uint32_t>& graspedNodes() const { return grasped_nodes_; }
   // Adhesion springs that still hold (thesis §7: the points where a membrane adheres to the retina).
@@ -255,9 +235,6 @@ class TissueSimulator {
   void topologyBeforeStep();
   void topologyAfterStep();
   void releaseOverloadedAdhesions();
-  // A grasped node the membrane cannot follow (tearing off) slips out of the jaws: free from now on. The constraint
-  // flags change at once; rebuildConstraints() (and "auto"'s choice) follows after the step.
-  void slipGraspedNode(std::uint32_t node);
   void finishRemoval(const std::vector<std::uint64_t>& grasped_ids);
   std::vector<std::uint64_t> graspedNodeIds() const;
 

@@ -6,7 +6,6 @@
 // whole elements; nothing is re-meshed, so the complexity of the tissue never grows through topology changes.
 
 #include <cstddef>
-#include <limits>
 
 #include "vrm_sim/mge/membrane.h"
 #include "vrm_sim/tissue/contact.h"
@@ -32,10 +31,8 @@ struct TearResult {
 // triangles are removed. tear_strain <= 0 or non-finite disables tearing. Springs with a zero rest length or a
 // non-finite length never break (the latter is the stability watchdog's business).
 // `pressed` (optional, one flag per node slot): springs at a node an instrument presses or holds in this step never
-// break — a blunt push dents tissue for one step beyond any strain, and tissue tears beside the jaws, not in them —
-// unless they are stretched beyond `bound` (strainBound(), issue 40: no spring stays beyond it).
-TearResult tearOverstretched(mge::Membrane& membrane, double tear_strain, const std::uint8_t* pressed = nullptr,
-                             double bound = std::numeric_limits<double>::infinity());
+// break — a blunt push dents tissue for one step beyond any strain, and tissue tears beside the jaws, not in them.
+TearResult tearOverstretched(mge::Membrane& membrane, double tear_strain, const std::uint8_t* pressed = nullptr);
 
 struct TopologyCheckOptions {
   bool allow_isolated_nodes = false;  // a fresh chain / mesh may have none anyway

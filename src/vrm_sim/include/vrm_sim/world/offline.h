@@ -38,7 +38,7 @@ struct OfflineTissueResult {
 };
 
 struct OfflineResult {
-  bool stable = true;  // every node finite, no step the watchdog could not recover, none beyond the strain bound
+  bool stable = true;  // every node finite, no step the watchdog could not recover
   std::uint64_t frames = 0;
   std::uint64_t steps = 0;    // integration steps, summed over the objects
   double ms_per_step = 0.0;   // wall time of the tissue stages per step (measurement only)

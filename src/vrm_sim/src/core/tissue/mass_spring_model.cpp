@@ -40,19 +40,8 @@ class MassSpringModel : public TissueModel {
   void rawStep(TissueSimulator& simulator, Integrator& integrator, double dt);
   // One integration; balances its energy when measure_energy_.
   void integrate(TissueSimulator& simulator, const SystemView& system, Integrator& integrator, double dt);
-  // Provot's strain limit (Alg. 5.1) in BFS order from the interaction points, iterated (projectStrain()), with the
-  // velocities corrected; `held` (optional): nodes held in place besides the constrained ones.
-  ProvotStatistics limitStrain(TissueSimulator& simulator, const SystemView& system, double dt,
-                               const std::uint8_t* held, int pass_factor = 1);
-  // Without tearing, after the contact response: the projection again with the contacts held; if a spring is still
-  // beyond the bound, once more with the tissue winning over the instrument; then what the tissue cannot follow slips
-  // out of the jaws. Sets bound_exceeded_ if a spring stays beyond (the watchdog then rejects the step).
-  void enforceBound(TissueSimulator& simulator, const SystemView& system, double dt, const ProvotStatistics& first);
-  // Tearing membranes: springs beyond the bound (strainBound(tear strain)) shortened to it (iterated, no velocity
-  // correction), the tissue winning over the instrument.
-  void limitToBound(TissueSimulator& simulator, const SystemView& system);
-  // Exact: is any spring beyond the bound?
-  bool beyondBound(const TissueSimulator& simulator, const SystemView& system) const;
+  // Provot's strain limit (Alg. 5.1) in BFS order from the interaction points.
+  void limitStrain(TissueSimulator& simulator, const SystemView& system);
   // Collision response (eq. 5.12): the instruments' capsules and the collision library's deformation vectors.
   void respondToContacts(TissueSimulator& simulator, const SystemView& system);
   // Plasticity (TissueConfig::plastic): rest lengths follow the longest length reached.
@@ -66,8 +55,6 @@ class MassSpringModel : public TissueModel {
   double externalWork(const TissueSimulator& simulator, double dt) const;
   // Non-finite, too fast, or an integration step that created energy (energy_excess_ > 0).
   bool unstable(TissueSimulator& simulator);
-  // After an accepted step: a spring still beyond the bound (after tearing) is a bound violation.
-  void countBoundViolation(TissueSimulator& simulator);
   void saveState(TissueSimulator& simulator);
   void restoreState(TissueSimulator& simulator);
 
@@ -77,10 +64,6 @@ class MassSpringModel : public TissueModel {
   std::vector<double> energy_scratch_;  // 3 per spring: the energy sweep's gathered spring vectors
   bool measure_energy_ = false;         // rawStep() balances each integration (watchdog on, explicit attempt)
   double energy_excess_ = 0.0;          // J: the most an integration of this step created beyond the allowance
-  std::vector<std::uint32_t> projection_stamps_;  // projectStrain()'s buffer
-  std::vector<std::uint8_t> held_;                // enforceBound(): the contacts' nodes
-  bool bound_exceeded_ = false;  // a spring stayed beyond the bound in this attempt (see enforceBound())
-  bool slipped_ = false;         // a grasped node slipped in this step: rebuild the constraints after it
   std::vector<NodeDeformation> pending_deformations_;  // external deformations, replayed after a rollback
   int fallback_level_ = 0;
   int hold_remaining_ = 0;
@@ -94,12 +77,9 @@ bool MassSpringModel::step(TissueSimulator& simulator) {
   TissueSimulator& s = simulator;
   const TissueConfig& config = s.config_;
   s.topologyBeforeStep();
-  slipped_ = false;
   if (!config.watchdog.enabled) {
-    bound_exceeded_ = false;
     for (int k = 0; k < s.choice_.substeps; ++k) rawStep(s, *s.integrator_, config.dt / s.choice_.substeps);
     s.topologyAfterStep();
-    countBoundViolation(s);
     return true;
   }
   if (fallback_level_ > 0 && --hold_remaining_ <= 0) {
@@ -116,32 +96,13 @@ bool MassSpringModel::step(TissueSimulator& simulator) {
     for (std::size_t i = 0; i < s.membrane_->nodeCount(); ++i) s.membrane_->velocities()[i].setZero();
     ++s.statistics_.unrecovered;
   }
-  if (ok) {
-    s.topologyAfterStep();
-    countBoundViolation(s);
-  }
+  if (ok) s.topologyAfterStep();
   return ok;
-}
-
-void MassSpringModel::countBoundViolation(TissueSimulator& s) {
-  if (slipped_) {
-    slipped_ = false;
-    s.rebuildConstraints();
-  }
-  // Tearing removed what was beyond the bound (tearing scenes: checked after every step); anything left counts
-  // against `stable`.
-  if (!bound_exceeded_ && !(s.config_.tear_strain > 0.0)) return;
-  const SystemView system = s.view();
-  if (beyondBound(s, system)) {
-    ++s.statistics_.bound_violations;
-    s.statistics_.max_strain = std::max(s.statistics_.max_strain, maxStrain(system));
-  }
 }
 
 bool MassSpringModel::attempt(TissueSimulator& s, int level) {
   const TissueConfig& config = s.config_;
   energy_excess_ = -std::numeric_limits<double>::infinity();
-  bound_exceeded_ = false;
   // Implicit Euler is stable at any dt: its residual energy error (truncated CG) is no instability to roll back.
   measure_energy_ = level <= config.watchdog.max_halvings && std::strcmp(s.integrator_->name(), "implicit_euler") != 0;
   if (level > fallback_level_) {
@@ -151,10 +112,7 @@ bool MassSpringModel::attempt(TissueSimulator& s, int level) {
   }
   if (level <= config.watchdog.max_halvings) {
     const int substeps = s.choice_.substeps << level;
-    for (int k = 0; k < substeps; ++k) {
-      rawStep(s, *s.integrator_, config.dt / substeps);
-      if (energy_excess_ > 0.0) break;  // rejected anyway (unstable()): spare the rest of the attempt
-    }
+    for (int k = 0; k < substeps; ++k) rawStep(s, *s.integrator_, config.dt / substeps);
   } else {
     ++s.statistics_.implicit_fallbacks;
     rawStep(s, *implicit_fallback_, config.dt);
@@ -174,18 +132,10 @@ bool MassSpringModel::attempt(TissueSimulator& s, int level) {
 void MassSpringModel::rawStep(TissueSimulator& s, Integrator& integrator, double dt) {
   const SystemView system = s.view();
   integrate(s, system, integrator, dt);
-  // An integration that created energy dooms the attempt (unstable()): no projection of an exploded state.
-  if (measure_energy_ && energy_excess_ > 0.0) return;
-  // Strain limit first, then collision response, then the limit again around the contacts (enforceBound()).
-  const bool limit = s.config_.strain_limit > 0.0;
-  ProvotStatistics first;
-  if (limit) first = limitStrain(s, system, dt, nullptr);
+  // Strain limit first, then collision response: the instrument has the last word, so no node is left inside it
+  // (the few springs at the contact may then exceed τ_c slightly until the next step).
+  if (s.config_.strain_limit > 0.0) limitStrain(s, system);
   respondToContacts(s, system);
-  if (limit && !(s.config_.tear_strain > 0.0)) enforceBound(s, system, dt, first);
-  // Tearing membranes: springs beyond the tear strain tear after the step (topologyAfterStep()), except where an
-  // instrument presses or holds (a dent relaxes); what the contact response stretched beyond the bound there is
-  // brought back to it, so a slow pull does not tear the membrane at the jaws.
-  if (s.config_.tear_strain > 0.0) limitToBound(s, system);
   if (s.config_.plastic) yield(s, system);
 }
 
@@ -213,94 +163,15 @@ void MassSpringModel::integrate(TissueSimulator& s, const SystemView& system, In
   }
 }
 
-ProvotStatistics MassSpringModel::limitStrain(TissueSimulator& s, const SystemView& system, double dt,
-                                              const std::uint8_t* held, int pass_factor) {
+void MassSpringModel::limitStrain(TissueSimulator& s, const SystemView& system) {
   const TissueConfig& config = s.config_;
   s.sortSprings();
-  ProvotOptions options;
-  options.sorter = s.sorted_valid_ ? &s.sorter_ : nullptr;
-  options.outer_only = config.strain_limit_outer_only;
-  options.held = held;
-  options.stamps = &projection_stamps_;
-  // Quasi-static Euler starts every step from rest: its velocities are only reported, so they are left alone. A
-  // tearing membrane keeps Alg. 5.1 as it was (see TissueConfig::tearing_strain_limit_passes).
-  const bool tearing = config.tear_strain > 0.0;
-  const bool corrects_velocities = !tearing && std::strcmp(s.integrator_->name(), "quasi_static_euler") != 0;
-  options.velocities = corrects_velocities ? system.velocities : nullptr;
-  options.dt = dt;
-  options.over_relaxation = 1.5;
-  // Iterate until no spring exceeds τ_c by more than 80 % of the slack to the bound: the corrections left after that
-  // are small, and the bound holds with margin (a tighter stop costs passes: 5 per step at 80 % on the shipped peel,
-  // twice as many at 20 %).
-  const double tau = config.strain_limit;
-  const double target = tau + 0.8 * (strainBound(tau) - tau);
-  const int passes = tearing ? config.tearing_strain_limit_passes : config.strain_limit_passes;
-  return projectStrain(system, tau, target, passes * pass_factor, options);
-}
-
-void MassSpringModel::limitToBound(TissueSimulator& s, const SystemView& system) {
-  const double bound = s.statistics_.strain_bound;
-  if (!std::isfinite(bound)) return;
-  ProvotOptions options;
-  options.sorter = s.sorted_valid_ ? &s.sorter_ : nullptr;
-  options.stamps = &projection_stamps_;
-  // Slightly inside the bound, so the iteration's last small corrections cannot leave a spring beyond it.
-  projectStrain(system, bound * (1.0 - 1e-3), bound * (1.0 - 1e-4), s.config_.strain_limit_passes, options);
-}
-
-bool MassSpringModel::beyondBound(const TissueSimulator& s, const SystemView& system) const {
-  const double bound = s.statistics_.strain_bound;
-  if (!std::isfinite(bound)) return false;
-  for (std::size_t k = 0; k < system.spring_count; ++k) {
-    const double rest = system.rest_lengths[k];
-    if (!(rest >= kMinSpringLength)) continue;
-    const auto& ends = system.springs[k];
-    const double limit = bound * rest;
-    if (!((system.positions[ends[1]] - system.positions[ends[0]]).squaredNorm() <= limit * limit)) return true;
-  }
-  return false;
-}
-
-void MassSpringModel::enforceBound(TissueSimulator& s, const SystemView& system, double dt,
-                                   const ProvotStatistics& first) {
-  const double bound = s.statistics_.strain_bound;
-  ProvotStatistics stats = first;
-  if (!s.contacts_.empty()) {
-    held_.assign(system.node_count, 0);
-    for (const NodeDeformation& contact : s.contacts_) {
-      if (contact.node < held_.size()) held_[contact.node] = 1;
-    }
-    stats = limitStrain(s, system, dt, held_.data());
-  }
-  if (stats.converged && !(stats.max_fixed_strain > bound)) return;
-  if (!beyondBound(s, system)) return;
-  // Still beyond: the tissue wins over the instrument (a node may be left inside it until the next contact response),
-  // with more passes — this is the last resort before the step is rolled back, and a fine membrane dragged or dented
-  // by several rest lengths in one step needs up to ~100 (hard_fine48_dt5ms).
-  stats = limitStrain(s, system, dt, nullptr, 4);
-  if (!beyondBound(s, system)) return;
-  if (!(s.config_.tear_strain > 0.0) && !s.grasped_nodes_.empty()) {
-    // The grasp pulls farther than the membrane can follow: the nodes it pulls beyond the limit slip out of the jaws.
-    const double tau = s.config_.strain_limit;
-    bool slipped = false;
-    for (std::size_t k = 0; k < system.spring_count; ++k) {
-      const auto& ends = system.springs[k];
-      const double limit = tau * system.rest_lengths[k];
-      if ((system.positions[ends[1]] - system.positions[ends[0]]).squaredNorm() <= limit * limit) continue;
-      for (const std::uint32_t node : ends) {
-        if (s.grasped_[node]) {
-          s.slipGraspedNode(node);
-          slipped = true;
-        }
-      }
-    }
-    if (slipped) {
-      slipped_ = true;
-      limitStrain(s, system, dt, nullptr);
-      if (!beyondBound(s, system)) return;
+  for (int pass = 0; pass < config.strain_limit_passes; ++pass) {
+    if (provotPass(system, config.strain_limit, s.sorted_valid_ ? &s.sorter_ : nullptr, config.strain_limit_outer_only)
+            .corrected == 0) {
+      break;
     }
   }
-  bound_exceeded_ = true;
 }
 
 void MassSpringModel::respondToContacts(TissueSimulator& s, const SystemView& system) {
@@ -431,12 +302,6 @@ bool MassSpringModel::unstable(TissueSimulator& s) {
   }
   if (!(energy_excess_ <= 0.0)) {
     ++s.statistics_.energy_growth;
-    return true;
-  }
-  // Stable means bounded (issue 40): a spring beyond the bound the projection could not bring back is an instability
-  // to roll back and retry at a smaller step; in a tearing scene it is a tear instead (topologyAfterStep()).
-  if (bound_exceeded_ && !(s.config_.tear_strain > 0.0)) {
-    ++s.statistics_.over_bound;
     return true;
   }
   return false;

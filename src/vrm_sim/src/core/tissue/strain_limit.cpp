@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <limits>
 
 namespace vrm_sim {
 namespace tissue {
@@ -77,19 +76,12 @@ void SpringSorter::sort(const SystemView& system, const std::vector<std::uint32_
   }
 }
 
-double strainBound(double tau) {
-  if (!(tau > 1.0) || !std::isfinite(tau)) return std::numeric_limits<double>::infinity();
-  return std::min(2.0, 1.0 + 1.5 * (tau - 1.0));
-}
-
 namespace {
 
 // Shortens spring s (nodes `ends`) to tau·l. `inner` = 0/1 names the end that stays put when known (BFS order),
 // -1 = unknown.
 inline bool limitSpring(const SystemView& system, std::size_t s, const std::array<std::uint32_t, 2>& ends, double tau,
-                        int inner, const ProvotOptions& options, double inverse_dt, ProvotStatistics& stats) {
-  std::uint32_t* stamps = options.stamps != nullptr ? options.stamps->data() : nullptr;
-  if (stamps != nullptr && stamps[ends[0]] + 1 < options.pass && stamps[ends[1]] + 1 < options.pass) return false;
+                        int inner, ProvotStatistics& stats) {
   const double rest = system.rest_lengths[s];
   if (rest < kMinSpringLength) return false;
   Eigen::Vector3d& x0 = system.positions[ends[0]];
@@ -102,15 +94,13 @@ inline bool limitSpring(const SystemView& system, std::size_t s, const std::arra
   if (length2 <= (limit * limit) * (1.0 - 1e-9)) return false;
   const double length = std::sqrt(length2);
   if (length <= limit * (1.0 + 1e-12)) return false;  // rounding after an earlier correction
-  const bool free0 = system.isFree(ends[0]) && (options.held == nullptr || options.held[ends[0]] == 0);
-  const bool free1 = system.isFree(ends[1]) && (options.held == nullptr || options.held[ends[1]] == 0);
+  const bool free0 = system.isFree(ends[0]);
+  const bool free1 = system.isFree(ends[1]);
   if (!free0 && !free1) {
     ++stats.skipped_fixed;
-    stats.max_fixed_strain = std::max(stats.max_fixed_strain, length / rest);
     return false;
   }
-  stats.max_strain = std::max(stats.max_strain, length / rest);
-  const Eigen::Vector3d excess = (options.over_relaxation * (length - limit) / length) * d;
+  const Eigen::Vector3d excess = ((length - limit) / length) * d;
   // Move only the outer end when the inner one is known (Alg. 5.2 order) or the other end is constrained.
   bool move0 = free0;
   bool move1 = free1;
@@ -118,24 +108,13 @@ inline bool limitSpring(const SystemView& system, std::size_t s, const std::arra
     move0 = inner == 1;
     move1 = inner == 0;
   }
-  Eigen::Vector3d* v = options.velocities;
   if (move0 && move1) {
     x0 += 0.5 * excess;
     x1 -= 0.5 * excess;
-    if (v != nullptr) {
-      v[ends[0]] += (0.5 * inverse_dt) * excess;
-      v[ends[1]] -= (0.5 * inverse_dt) * excess;
-    }
   } else if (move0) {
     x0 += excess;
-    if (v != nullptr) v[ends[0]] += inverse_dt * excess;
   } else {
     x1 -= excess;
-    if (v != nullptr) v[ends[1]] -= inverse_dt * excess;
-  }
-  if (stamps != nullptr) {
-    if (move0) stamps[ends[0]] = options.pass;
-    if (move1) stamps[ends[1]] = options.pass;
   }
   ++stats.corrected;
   return true;
@@ -144,18 +123,7 @@ inline bool limitSpring(const SystemView& system, std::size_t s, const std::arra
 }  // namespace
 
 ProvotStatistics provotPass(const SystemView& system, double tau, const SpringSorter* sorter, bool outer_only) {
-  ProvotOptions options;
-  options.sorter = sorter;
-  options.outer_only = outer_only;
-  return provotPass(system, tau, options);
-}
-
-ProvotStatistics provotPass(const SystemView& system, double tau, const ProvotOptions& options) {
   ProvotStatistics stats;
-  const double inverse_dt = (options.velocities != nullptr && options.dt > 0.0) ? 1.0 / options.dt : 0.0;
-  ProvotOptions effective = options;
-  if (inverse_dt == 0.0) effective.velocities = nullptr;
-  const SpringSorter* sorter = options.sorter;
   if (sorter != nullptr && sorter->order().size() == system.spring_count) {
     const auto& order = sorter->order();
     const auto& ends = sorter->orderedEnds();
@@ -163,39 +131,11 @@ ProvotStatistics provotPass(const SystemView& system, double tau, const ProvotOp
     // The last set (not connected to an interaction) has no inner end.
     const std::size_t reachable_end = sorter->levelOffsets()[sorter->levelOffsets().size() - 2];
     for (std::size_t k = 0; k < order.size(); ++k) {
-      limitSpring(system, order[k], ends[k], tau, (options.outer_only && k < reachable_end) ? inner_second[k] : -1,
-                  effective, inverse_dt, stats);
+      limitSpring(system, order[k], ends[k], tau, (outer_only && k < reachable_end) ? inner_second[k] : -1, stats);
     }
   } else {
-    for (std::size_t s = 0; s < system.spring_count; ++s) {
-      limitSpring(system, s, system.springs[s], tau, -1, effective, inverse_dt, stats);
-    }
+    for (std::size_t s = 0; s < system.spring_count; ++s) limitSpring(system, s, system.springs[s], tau, -1, stats);
   }
-  stats.passes = 1;
-  return stats;
-}
-
-ProvotStatistics projectStrain(const SystemView& system, double tau, double target, int max_passes,
-                               const ProvotOptions& options) {
-  ProvotStatistics stats;
-  double max_fixed = 0.0;
-  // Pass p only re-checks springs with an end moved in pass p - 1 or p: the others kept their length since their
-  // last check (at most the limit then), so later passes cost two byte loads per spring away from the deformation.
-  std::vector<std::uint32_t> local_stamps;
-  std::vector<std::uint32_t>& stamps = options.stamps != nullptr ? *options.stamps : local_stamps;
-  stamps.assign(system.node_count, 0);
-  ProvotOptions stamped = options;
-  stamped.stamps = &stamps;
-  for (int pass = 0; pass < std::max(max_passes, 1); ++pass) {
-    stamped.pass = static_cast<std::uint32_t>(pass + 1);
-    stamped.over_relaxation = pass == 0 ? 1.0 : options.over_relaxation;
-    stats = provotPass(system, tau, stamped);
-    max_fixed = std::max(max_fixed, stats.max_fixed_strain);
-    stats.passes = pass + 1;
-    stats.converged = stats.corrected == 0 || stats.max_strain <= target;
-    if (stats.converged) break;
-  }
-  stats.max_fixed_strain = max_fixed;
   return stats;
 }
 

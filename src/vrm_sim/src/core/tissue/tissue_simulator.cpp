@@ -53,7 +53,6 @@ TissueSimulator::TissueSimulator(mge::Membrane& membrane, const TissueConfig& co
   choice_.integrator = integrator_->name();
   choice_.reason = "configured";
   forces_.params = config_.forces;
-  statistics_.strain_bound = strainBoundValue();
   model_ = tissueModelRegistry().at(config_.model).make(membrane, config_);
   onTopologyChanged();
   if (config_.repair_massless_nodes) repairMasslessNodes();
@@ -180,26 +179,6 @@ void TissueSimulator::releaseAll() {
   for (Grasp& grasp : grasps_) grasp = Grasp{};
   std::fill(grasped_.begin(), grasped_.end(), 0);
   rebuildConstraints();
-}
-
-double TissueSimulator::strainBoundValue() const {
-  if (config_.tear_strain > 0.0) return strainBound(config_.tear_strain);
-  return config_.strain_limit > 0.0 ? strainBound(config_.strain_limit) : std::numeric_limits<double>::infinity();
-}
-
-void TissueSimulator::slipGraspedNode(std::uint32_t node) {
-  if (node >= grasped_.size() || !grasped_[node]) return;
-  grasped_[node] = 0;
-  constrained_[node] = membrane_->fixedFlags()[node] && !anchored_[node] ? 1 : 0;
-  for (Grasp& grasp : grasps_) {
-    for (std::size_t k = 0; k < grasp.nodes.size(); ++k) {
-      if (grasp.nodes[k] != node) continue;
-      grasp.nodes.erase(grasp.nodes.begin() + static_cast<std::ptrdiff_t>(k));
-      grasp.local.erase(grasp.local.begin() + static_cast<std::ptrdiff_t>(k));
-      break;
-    }
-  }
-  ++statistics_.slipped_nodes;
 }
 
 void TissueSimulator::updateInstruments(double alpha) {
