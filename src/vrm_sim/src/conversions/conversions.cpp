@@ -232,6 +232,7 @@ world::InstrumentState toWorld(const vrm_msgs::InstrumentState& instrument) {
   state.jaw_angle = instrument.jaw_angle;
   state.suction = instrument.suction;
   state.cut_rate = instrument.cut_rate;
+  state.injection_flow = instrument.injection_flow;
   state.valid = instrument.valid;
   return state;
 }
@@ -252,6 +253,7 @@ vrm_msgs::InstrumentState toMsg(const world::InstrumentState& instrument) {
   message.jaw_angle = instrument.jaw_angle;
   message.suction = instrument.suction;
   message.cut_rate = instrument.cut_rate;
+  message.injection_flow = instrument.injection_flow;
   message.tracking_quality = instrument.valid ? 1.0f : 0.0f;
   message.valid = instrument.valid;
   return message;

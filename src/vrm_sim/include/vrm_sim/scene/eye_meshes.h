@@ -33,11 +33,20 @@ struct MembraneParams {
   // these vertices, so they are returned as fixed_vertices.
   int adhesion_point_count = 5;
   double adhesion_ring_fraction = 0.6;  // radius of the adhesion ring as a fraction of the patch radius
+  // Every vertex adheres instead (the retina itself, lying on the eye wall: retina relocation).
+  bool adhere_everywhere = false;
+  // Besides the points: every vertex within adhesion_disc_radius [m] (0 = none) of the point on the patch's sphere
+  // adhesion_disc_offset_deg from the posterior pole towards azimuth adhesion_disc_azimuth_deg — the optic disc, where
+  // the posterior hyaloid holds fast.
+  double adhesion_disc_radius = 0.0;
+  double adhesion_disc_offset_deg = 15.0;
+  double adhesion_disc_azimuth_deg = 0.0;
 };
 
 // A disc-shaped patch following the retina's curvature, facing the eye centre. Adhesion points: the first at the
 // patch centre, the remaining (adhesion_point_count - 1) evenly spaced on a ring at adhesion_ring_fraction of the
-// patch radius; each snaps to the nearest vertex. They are returned in fixed_vertices (sorted, unique).
+// patch radius; each snaps to the nearest vertex; plus the disc region, or every vertex (adhere_everywhere). They
+// are returned in fixed_vertices (sorted, unique).
 TriangleMesh makeMembrane(const MembraneParams& params);
 
 // Rotation that takes the posterior pole direction (0, 0, -1) to the direction `offset_deg` away from it towards

@@ -178,6 +178,24 @@ struct TissueParameters {
   bool plastic = false;               // rest length follows the maximum length reached (thesis §5.1)
   double early_stop_force = 0.0;      // N; > 0: a frame ends early once no free node feels more (at rest); 0 = off
   double tear_strain = 0.0;           // > 1: springs longer than tear_strain x rest length break (tearing); 0 = off
+  // Adhesion that peels over time (tissue::TissueConfig): an adhesion pulled past adhesion_break_force lets go after
+  // adhesion_release_time [s] (0 = at once); past adhesion_tear_force [N] (0 = never) it tears the tissue beneath.
+  double adhesion_release_time = 0.0;
+  double adhesion_tear_force = 0.0;
+  // Subretinal fluid (retina relocation): > 0 [Pa] the needle's injection (InstrumentState.injection_flow) fills the
+  // space between this sheet and the eye wall it rests on and lifts it into a bleb; 0 = no fluid. A torn sheet lets
+  // the fluid out with the time constant fluid_leak_time [s].
+  double fluid_modulus = 0.0;
+  double fluid_leak_time = 2.0;
+  // > 0 [m]: the needle pierces this sheet (it does not push it); its tip behind the sheet, the fluid it injects enters
+  // there (within this distance of the tip), and moving it sideways more than needle_slack [m] slices the sheet along
+  // its path (the sheet's nodes within this distance of the shaft where it crosses the sheet): a torn retina.
+  double needle_pierce_radius = 0.0;
+  double needle_slack = 1e-4;
+  // > 0 [m]: the vitrector's suction (at least suction_hold_level, cutter off) holds the nodes within this distance of
+  // its port (engaging the posterior hyaloid); they follow it until the suction drops below the level.
+  double suction_hold_radius = 0.0;
+  double suction_hold_level = 0.2;
   ChainMailParameters chainmail;      // only with model chainmail
   RefinementParameters refinement;    // only with model mass_spring, no bending springs, no adhesion
   bool isDeformable() const { return model != kRigidTissueModel; }

@@ -41,6 +41,7 @@ struct Anchor {
   std::uint32_t node = 0;
   Eigen::Vector3d point = Eigen::Vector3d::Zero();
   double stiffness = 0.0;  // N/m
+  double overloaded_for = 0.0;  // s it has carried more than the break force (TissueConfig::adhesion_release_time)
 };
 
 struct ForceParameters {
@@ -62,6 +63,8 @@ class ForceModel {
   // Triangles for the pressure term (only read when params.pressure != 0).
   const std::array<std::uint32_t, 3>* triangles = nullptr;
   std::size_t triangle_count = 0;
+  // Optional, per triangle: 0 = the pressure does not act on it (fluid that has not reached it). Null: all.
+  const std::uint8_t* pressure_mask = nullptr;
 
   // forces[i] = F_i(x, v) for every node (also constrained ones; callers ignore those).
   void compute(const SystemView& system, const Eigen::Vector3d* x, const Eigen::Vector3d* v,

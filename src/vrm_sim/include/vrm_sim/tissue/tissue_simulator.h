@@ -8,11 +8,14 @@
 // measures its budget with, so tests with a fake clock are deterministic.
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <functional>
 #include <limits>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -75,6 +78,24 @@ struct TissueConfig {
   // > 0 [N]: an adhesion spring pulled with more than this lets go of its node for good (the membrane peels off the
   // retina there); 0: adhesion never lets go.
   double adhesion_break_force = 0.0;
+  // Adhesion that gives way over time (the posterior hyaloid's): 0 = an overloaded adhesion spring lets go at once;
+  // > 0 [s]: it lets go once it carried more than adhesion_break_force this long (peeling runs at a finite speed).
+  // adhesion_tear_force > 0 [N]: a spring loaded past it first tears the tissue it is fixed to (counted in
+  // adhesion_tears, its point in adhesionTearPoints()) and lets go — what a yank does where a slow pull peels.
+  double adhesion_release_time = 0.0;
+  double adhesion_tear_force = 0.0;
+  // Fluid under the sheet (a subretinal injection), fluid_modulus > 0 [Pa]: every step the triangles carry the
+  // pressure p = fluid_modulus · (V_fluid − V_enclosed) / max(V_fluid, fluid_volume_floor), clamped to
+  // [0, fluid_max_pressure], where V_fluid is setFluidVolume()'s and V_enclosed the volume between the sheet and the
+  // sphere of fluid_wall_radius about the frame's origin (enclosedVolume(), less its value at rest). The sheet's
+  // triangles face the origin, so the pressure lifts it off that sphere. The fluid spreads from where it enters
+  // (setFluidSource): it wets the nodes there, and from a wet node every neighbour that no adhesion holds; the pressure
+  // acts on the triangles with a wet corner, so the adhesions at the front are the ones it loads and the bleb grows
+  // from the injection outwards. Replaces forces.pressure.
+  double fluid_modulus = 0.0;
+  double fluid_wall_radius = 0.0;    // m
+  double fluid_volume_floor = 1e-11;  // m^3: so the first drop does not meet an infinitely stiff fluid
+  double fluid_max_pressure = 2e4;    // Pa
   // Degenerate input: give free nodes without mass (only in zero-area triangles) the mean node mass instead of
   // rejecting the membrane.
   bool repair_massless_nodes = false;
@@ -123,6 +144,12 @@ struct InstrumentInput {
   double cut_radius = 0.0;
   double cut_offset = 0.0;
   double cut_length = 0.0;
+  // Holding without jaws — the vitrector's suction at its port, the needle at its puncture: while `holds` the
+  // instrument takes the nodes within hold_radius of hold_point (instrument frame) that are not held yet, and they
+  // follow it until `holds` ends. A hold that found nothing tries again next step.
+  bool holds = false;
+  Eigen::Vector3d hold_point = Eigen::Vector3d::Zero();
+  double hold_radius = 0.0;
 };
 
 struct FrameReport {
@@ -152,6 +179,7 @@ struct SimulatorStatistics {
   std::uint64_t topology_changes = 0;
   std::uint64_t cut_nodes = 0, removed_nodes = 0, torn_springs = 0;
   std::uint64_t released_adhesions = 0;  // adhesion springs that let go (adhesion_break_force)
+  std::uint64_t adhesion_tears = 0;      // of those, the ones that tore the tissue beneath (adhesion_tear_force)
   double max_adhesion_force = 0.0;       // N: the largest pull on an adhesion spring after any step
 };
 
@@ -182,6 +210,17 @@ class TissueSimulator {
   void releaseAll();
 
   const std::vector<std::uint32_t>& graspedNodes() const { return grasped_nodes_; }
+  // Where adhesions tore the tissue beneath (adhesion_tear_force), in the membrane's frame, oldest first.
+  const std::vector<Eigen::Vector3d>& adhesionTearPoints() const { return adhesion_tear_points_; }
+  // The fluid under the sheet (TissueConfig::fluid_modulus): its volume [m^3], the volume the sheet encloses now
+  // and the pressure of the last step.
+  void setFluidVolume(double volume) { fluid_volume_ = std::isfinite(volume) ? std::max(volume, 0.0) : 0.0; }
+  // Where the fluid enters (the needle's tip, membrane frame): the nodes within `radius` of it are wet. nullopt: none
+  // enters now (the wet region stays).
+  void setFluidSource(const std::optional<Eigen::Vector3d>& point, double radius);
+  double fluidVolume() const { return fluid_volume_; }
+  double enclosedVolume() const;
+  double fluidPressure() const { return fluid_pressure_; }
   // Adhesion springs that still hold (thesis §7: the points where a membrane adheres to the retina).
   std::size_t adhesionPoints() const;
   // Whether instrument `index` (setInstruments order) holds tissue (jaws that closed on nothing hold nothing).
@@ -262,6 +301,12 @@ class TissueSimulator {
     bool active = false;
   };
   std::vector<Grasp> grasps_;
+  std::vector<Eigen::Vector3d> adhesion_tear_points_;
+  double fluid_volume_ = 0.0, fluid_pressure_ = 0.0;
+  double rest_enclosed_volume_ = 0.0;   // enclosedVolume() of the rest state (the flat triangles' slivers)
+  std::vector<std::uint8_t> wet_;       // per node: the fluid reached it
+  std::vector<std::uint8_t> wet_triangles_;
+  void spreadFluid();
   std::vector<std::uint32_t> grasped_nodes_;
 
   std::vector<NodeDeformation> contacts_, external_deformations_;

@@ -38,6 +38,7 @@ struct InstrumentState {
   double jaw_angle = 1.0;        // rad, forceps opening
   double suction = 0.0;          // 0..1
   double cut_rate = 0.0;         // Hz
+  double injection_flow = 0.0;   // m^3/s, the needle's injection (subretinal fluid)
   bool valid = true;             // false: not tracked; keeps its pose, stops interacting
 
   void setPose(const Eigen::Isometry3d& pose);

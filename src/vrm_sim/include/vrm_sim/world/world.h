@@ -47,6 +47,7 @@ class Membrane;
 namespace tissue {
 class TissueSimulator;
 struct SimulatorStatistics;
+struct InstrumentInput;
 }  // namespace tissue
 
 namespace world {
@@ -76,6 +77,12 @@ struct TissueReport {
   double lifted_fraction = 0.0;          // nodes more than 0.1 mm from their rest position
   std::size_t adhesion_points = 0;       // adhesion springs still holding
   double max_adhesion_force = 0.0;       // N, largest pull on an adhesion point so far
+  std::uint64_t adhesion_tears = 0;      // adhesions that tore the tissue beneath (adhesion_tear_force) so far
+  const std::vector<Eigen::Vector3d>* adhesion_tear_points = nullptr;  // where, in frame_id
+  // Subretinal fluid (scene fluid_modulus > 0; else 0): injected volume under the sheet, the volume the sheet
+  // encloses, the pressure of the last step, and what the needle injected with its tip not behind the sheet.
+  double fluid_volume = 0.0, enclosed_volume = 0.0, fluid_pressure = 0.0, injected_outside = 0.0;  // m^3, Pa
+  bool needle_inside = false;  // a needle's tip is behind the sheet (needle_pierce_radius)
   PeelOutcome outcome = PeelOutcome::kUntouched;
 };
 
@@ -259,6 +266,8 @@ class World {
   bool switchInstrument(Instrument& instrument, scene::InstrumentType type);
   std::optional<Eigen::Isometry3d> transform(const std::string& target, const std::string& source) const;
   void stepTissue(Tissue& tissue, double frame_time, FrameResult& result);
+  void holdWithoutJaws(Tissue& tissue, const std::string& slot, const Instrument& source,
+                       tissue::InstrumentInput& input);
   void bleed(RigidObject& object, FrameResult& result);
   void advanceScenario(const FrameResult& result);
   void refuse(const std::string& message);

@@ -14,6 +14,7 @@ constexpr double kUnitTolerance = 1e-3;    // |‖q‖ − 1| of a rotation quat
 constexpr double kMaxJawAngle = M_PI;      // rad
 constexpr double kMaxCutRate = 1e4;        // Hz (vitrectors cut at up to ~170 Hz)
 constexpr double kMaxPedalTravel = 1.5;
+constexpr double kMaxInjectionFlow = 1e-6;  // m^3/s: 1 ml/s, far beyond any syringe through a 41 G cannula
 constexpr double kGapConfirmation = 0.25;  // s of input time every source must go on after a jump far ahead
 
 const std::string kEyeSource = "eye";
@@ -52,7 +53,8 @@ std::string checkInstrument(const InstrumentState& state) {
                   std::isfinite(norm) && std::abs(norm - 1.0) < kUnitTolerance && std::isfinite(state.jaw_angle) &&
                   std::abs(state.jaw_angle) <= kMaxJawAngle && std::isfinite(state.suction) && state.suction >= 0.0 &&
                   state.suction <= 1.0 && std::isfinite(state.cut_rate) && state.cut_rate >= 0.0 &&
-                  state.cut_rate <= kMaxCutRate;
+                  state.cut_rate <= kMaxCutRate && std::isfinite(state.injection_flow) &&
+                  state.injection_flow >= 0.0 && state.injection_flow <= kMaxInjectionFlow;
   return ok ? "" : "instrument_state '" + state.slot + "' with non-finite or implausible values";
 }
 

@@ -30,6 +30,13 @@ const std::vector<ItemRole>& itemRoles() {
       {"coverage", "target_achievement", nullptr, false},
       {"spacing_error", "target_achievement", nullptr, false},
       {"off_row_burns", "target_achievement", "burn_off_row", false},
+      {"bleb_diameter", "target_achievement", nullptr, false},
+      {"size_error", "target_achievement", nullptr, false},
+      {"site_error", "target_achievement", nullptr, false},
+      {"bleb_offset", "target_achievement", nullptr, false},
+      {"bleb_height", "target_achievement", nullptr, false},
+      {"fluid_volume", "target_achievement", nullptr, false},
+      {"released_adhesions", "target_achievement", nullptr, false},
       // Efficiency: time and motion spent on it.
       {"time", "efficiency", nullptr, false},
       {"path_length", "efficiency", nullptr, false},
@@ -47,6 +54,8 @@ const std::vector<ItemRole>& itemRoles() {
       {"burn_overlaps", "tissue_treatment", "burns_overlap", false},
       {"vessel_burns", "tissue_treatment", "vessel_hit_by_laser", false},
       {"macula_burns", "tissue_treatment", "macula_burned", false},
+      {"retina_injuries", "tissue_treatment", "retina_torn_by_traction", false},
+      {"retina_tears", "tissue_treatment", "retina_torn_by_needle", true},  // a slice runs on over frames
       // Instrument handling: control of the instruments and of the light.
       {"unlit_touches", "instrument_handling", "unlit_touch", false},
       {"weak_burns", "instrument_handling", "burn_too_weak", false},
@@ -58,6 +67,7 @@ const std::vector<ItemRole>& itemRoles() {
       {"instrument_collisions", "instrument_handling", "instruments_collided", false},
       {"exits", "instrument_handling", "left_hold_zone", false},
       {"warnings", "instrument_handling", "port_near_retina", false},
+      {"injected_outside", "instrument_handling", "injected_into_vitreous", true},
       {"mean_deviation", "instrument_handling", nullptr, false},
       {"max_deviation", "instrument_handling", nullptr, false},
       {"speed_variability", "instrument_handling", nullptr, false},

@@ -32,7 +32,11 @@ const Registry<ScenarioFactory>& scenarioRegistry() {
                         {"ilm_peeling", makeIlmPeeling, "peel the inner limiting membrane"},
                         {"vitrectomy", makeVitrectomy, "remove the vitreous with the vitrector"},
                         {"laser_coagulation", makeLaserCoagulation,
-                         "surround a retinal break with a row of laser burns (endolaser on the pedal)"}});
+                         "surround a retinal break with a row of laser burns (endolaser on the pedal)"},
+                        {"retina_relocation", makeRetinaRelocation,
+                         "inject fluid under the retina with the needle: a bleb of the target size, no tear"},
+                        {"posterior_hyaloid", makePosteriorHyaloid,
+                         "engage the posterior hyaloid with the vitrector's suction and lift it off the retina"}});
   return registry;
 }
 

@@ -1,6 +1,6 @@
 #pragma once
 // The scenario types (one class each, in abstract_scenarios.cpp, manipulation_scenarios.cpp,
-// surgical_scenarios.cpp and laser_coagulation.cpp); makeScenario() picks one
+// surgical_scenarios.cpp, laser_coagulation.cpp and retina_scenarios.cpp); makeScenario() picks one
 // by the scene's scenario.type.
 
 #include <memory>
@@ -20,6 +20,8 @@ std::unique_ptr<Scenario> makeVitrectomy(const scene::SceneDescription& scene);
 std::unique_ptr<Scenario> makeObjectManipulation(const scene::SceneDescription& scene);
 std::unique_ptr<Scenario> makeBimanual(const scene::SceneDescription& scene);
 std::unique_ptr<Scenario> makeLaserCoagulation(const scene::SceneDescription& scene);
+std::unique_ptr<Scenario> makeRetinaRelocation(const scene::SceneDescription& scene);
+std::unique_ptr<Scenario> makePosteriorHyaloid(const scene::SceneDescription& scene);
 
 }  // namespace scenario
 }  // namespace vrm_sim

@@ -86,13 +86,23 @@ TriangleMesh makeMembrane(const MembraneParams& params) {
                                           std::sin(ring_polar) * std::sin(azimuth), std::cos(ring_polar));
     adhesion.push_back(nearestVertex(mesh, ideal));
   }
-  std::sort(adhesion.begin(), adhesion.end());
-  adhesion.erase(std::unique(adhesion.begin(), adhesion.end()), adhesion.end());
+  if (!(params.adhesion_disc_radius >= 0.0)) throw std::invalid_argument("membrane: adhesion_disc_radius must be >= 0");
 
   Eigen::Isometry3d to_eye = Eigen::Isometry3d::Identity();
   to_eye.linear() =
       posteriorPoleRotation(params.centre_offset_deg, params.centre_azimuth_deg) * capPoleToPosteriorPole();
   transformMesh(mesh, to_eye);
+  const Eigen::Vector3d disc = membrane_radius * posteriorPoleRotation(params.adhesion_disc_offset_deg,
+                                                                       params.adhesion_disc_azimuth_deg) *
+                               Eigen::Vector3d(0.0, 0.0, -1.0);
+  for (std::uint32_t i = 0; i < mesh.vertices.size(); ++i) {
+    if (params.adhere_everywhere ||
+        (params.adhesion_disc_radius > 0.0 && (mesh.vertices[i] - disc).norm() <= params.adhesion_disc_radius)) {
+      adhesion.push_back(i);
+    }
+  }
+  std::sort(adhesion.begin(), adhesion.end());
+  adhesion.erase(std::unique(adhesion.begin(), adhesion.end()), adhesion.end());
   mesh.name = "membrane";
   mesh.fixed_vertices = adhesion;
   return mesh;

@@ -87,6 +87,10 @@ void readParams(MapFields& f, MembraneParams& p) {
   readFinite(f, "centre_azimuth_deg", p.centre_azimuth_deg);
   readInteger(f, "adhesion_point_count", p.adhesion_point_count, 0, kMaxResolution);
   readFraction(f, "adhesion_ring_fraction", p.adhesion_ring_fraction);
+  if (auto everywhere = f.optional("adhere_everywhere")) p.adhere_everywhere = everywhere->boolean();
+  readNonNegative(f, "adhesion_disc_radius", p.adhesion_disc_radius);
+  readAngle(f, "adhesion_disc_offset_deg", p.adhesion_disc_offset_deg, 0.0, 180.0);
+  readFinite(f, "adhesion_disc_azimuth_deg", p.adhesion_disc_azimuth_deg);
 }
 void readParams(MapFields& f, SphereParams& p) {
   readPositive(f, "radius", p.radius);
@@ -237,6 +241,29 @@ TissueParameters readTissue(const Field& field) {
   readNonNegative(fields, "bending_stiffness", tissue.bending_stiffness);
   readNonNegative(fields, "adhesion_stiffness", tissue.adhesion_stiffness);
   readNonNegative(fields, "adhesion_break_force", tissue.adhesion_break_force);
+  if (auto f = fields.optional("adhesion_release_time")) {
+    tissue.adhesion_release_time = f->number("a time in [0, 10] s", 0.0, 10.0);
+  }
+  if (auto f = fields.optional("adhesion_tear_force")) {
+    tissue.adhesion_tear_force = f->nonNegative();
+    if (tissue.adhesion_tear_force > 0.0 && !(tissue.adhesion_tear_force > tissue.adhesion_break_force)) {
+      f->fail("adhesion_tear_force must exceed adhesion_break_force (else every release tears), got " + f->shown());
+    }
+  }
+  if (auto f = fields.optional("fluid_modulus")) tissue.fluid_modulus = f->number("a pressure in [0, 1e7] Pa", 0.0, 1e7);
+  if (auto f = fields.optional("fluid_leak_time")) {
+    tissue.fluid_leak_time = f->number("a time in (0, 1000] s", 0.0, 1000.0, false);
+  }
+  if (auto f = fields.optional("needle_pierce_radius")) {
+    tissue.needle_pierce_radius = f->number("a distance in [0, 2e-3] m", 0.0, 2e-3);
+  }
+  if (auto f = fields.optional("needle_slack")) tissue.needle_slack = f->number("a distance in [0, 2e-3] m", 0.0, 2e-3);
+  if (auto f = fields.optional("suction_hold_radius")) {
+    tissue.suction_hold_radius = f->number("a distance in [0, 2e-3] m", 0.0, 2e-3);
+  }
+  if (auto f = fields.optional("suction_hold_level")) {
+    tissue.suction_hold_level = f->number("a suction level in (0, 1]", 0.0, 1.0, false);
+  }
   readPositive(fields, "time_budget_ms", tissue.time_budget_ms);
   readPositive(fields, "dt", tissue.dt);
   if (auto plastic = fields.optional("plastic")) tissue.plastic = plastic->boolean();

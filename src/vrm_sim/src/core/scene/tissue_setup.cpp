@@ -17,6 +17,9 @@ tissue::TissueConfig tissueConfigFor(const TissueParameters& parameters, const C
   config.adhesion_stiffness = parameters.adhesion_stiffness;
   config.adhesion_break_force = parameters.adhesion_break_force;
   config.tear_strain = parameters.tear_strain;
+  config.adhesion_release_time = parameters.adhesion_release_time;
+  config.adhesion_tear_force = parameters.adhesion_tear_force;
+  config.fluid_modulus = parameters.fluid_modulus;  // fluid_wall_radius: the World's, from the rest mesh
   config.early_stop_force = parameters.early_stop_force;
   config.chainmail.min_stretch = parameters.chainmail.min_stretch;
   config.chainmail.max_stretch = parameters.chainmail.max_stretch;

@@ -50,6 +50,7 @@ void ForceModel::compute(const SystemView& system, const Eigen::Vector3d* x, con
   }
   if (params.pressure != 0.0 && triangles != nullptr) {
     for (std::size_t t = 0; t < triangle_count; ++t) {
+      if (pressure_mask != nullptr && pressure_mask[t] == 0) continue;
       const auto& c = triangles[t];
       // |cross| = 2·area, so p·cross/6 is a third of the triangle's pressure force.
       const Eigen::Vector3d f = (params.pressure / 6.0) * (x[c[1]] - x[c[0]]).cross(x[c[2]] - x[c[0]]);

@@ -276,6 +276,7 @@ double MassSpringModel::externalWork(const TissueSimulator& s, double dt) const 
   }
   if (forces.params.pressure != 0.0 && forces.triangles != nullptr) {
     for (std::size_t t = 0; t < forces.triangle_count; ++t) {
+      if (forces.pressure_mask != nullptr && forces.pressure_mask[t] == 0) continue;
       const auto& c = forces.triangles[t];
       const Eigen::Vector3d f = (forces.params.pressure / 6.0) * (x[c[1]] - x[c[0]]).cross(x[c[2]] - x[c[0]]);
       for (std::uint32_t corner : c) {

@@ -64,6 +64,12 @@ TissueSimulator::TissueSimulator(mge::Membrane& membrane, const TissueConfig& co
     refinement_ = std::make_unique<LocalRefinement>(membrane, config_.refinement);
   }
   checkNodes();
+  if (config_.fluid_modulus > 0.0) {
+    if (!(config_.fluid_wall_radius > 0.0) || !std::isfinite(config_.fluid_wall_radius)) {
+      throw std::invalid_argument("tissue: fluid_modulus needs a positive fluid_wall_radius");
+    }
+    rest_enclosed_volume_ = enclosedVolume();
+  }
 }
 
 void TissueSimulator::repairMasslessNodes() {
@@ -110,6 +116,12 @@ void TissueSimulator::onTopologyChanged() {
   forces_.triangles = membrane_->triangleNodeSlots();
   forces_.triangle_count = membrane_->triangleCount();
   if (!forces_.external.empty()) forces_.external.resize(n, Eigen::Vector3d::Zero());
+  if (config_.fluid_modulus > 0.0) {
+    // Slots moved: the fluid is where no adhesion holds any more.
+    wet_.assign(n, 0);
+    for (std::size_t i = 0; i < n; ++i) wet_[i] = anchored_[i] ? 0 : 1;
+    forces_.pressure_mask = nullptr;  // spreadFluid() rebuilds it before the next step
+  }
   interaction_points_.clear();
   // Deformation vectors address node slots of the old topology.
   external_deformations_.clear();
@@ -195,10 +207,24 @@ void TissueSimulator::updateInstruments(double alpha) {
 void TissueSimulator::updateGrasp(std::size_t index, const InstrumentInput& instrument, const Eigen::Isometry3d& pose,
                                   const Eigen::Isometry3d& /*previous_pose*/, double dt) {
   Grasp& grasp = grasps_[index];
-  const bool closed = instrument.can_grasp && instrument.jaw_angle < config_.grasp_jaw_angle;
+  const bool jaws_closed = instrument.can_grasp && instrument.jaw_angle < config_.grasp_jaw_angle;
+  const bool closed = jaws_closed || instrument.holds;
   Eigen::Vector3d* x = membrane_->positions();
   Eigen::Vector3d* v = membrane_->velocities();
-  if (closed && !grasp.active) {
+  if (!jaws_closed && instrument.holds && !grasp.active) {
+    // Suction or a puncture holds what is within reach of its point; nothing there yet, it tries again next step.
+    const Eigen::Vector3d centre = pose * instrument.hold_point;
+    const Eigen::Isometry3d inverse = pose.inverse();
+    for (std::size_t i = 0; i < constrained_.size(); ++i) {
+      if (constrained_[i] || (x[i] - centre).norm() > instrument.hold_radius) continue;
+      grasp.nodes.push_back(static_cast<std::uint32_t>(i));
+      grasp.local.push_back(inverse * x[i]);
+      grasped_[i] = 1;
+    }
+    if (grasp.nodes.empty()) return;
+    grasp.active = true;
+    rebuildConstraints();
+  } else if (closed && !grasp.active) {
     // Thesis §5.1: nodes between the closing jaws are grasped and from now on follow the instrument.
     const Eigen::Vector3d centre = pose * Eigen::Vector3d(0.0, 0.0, -0.5 * instrument.jaw_length);
     const double reach = std::max(config_.grasp_radius, 0.5 * instrument.jaw_length);
@@ -220,7 +246,7 @@ void TissueSimulator::updateGrasp(std::size_t index, const InstrumentInput& inst
     rebuildConstraints();
   }
   if (!grasp.active) return;
-  const bool project = instrument.jaw_angle < config_.projection_jaw_angle;
+  const bool project = jaws_closed && instrument.jaw_angle < config_.projection_jaw_angle;
   for (std::size_t k = 0; k < grasp.nodes.size(); ++k) {
     if (project) grasp.local[k].y() = 0.0;  // onto the jaws' mid-plane
     const std::uint32_t node = grasp.nodes[k];
@@ -267,7 +293,65 @@ std::uint32_t TissueSimulator::markTouched(std::vector<std::uint32_t>& touched, 
   return epoch;
 }
 
+double TissueSimulator::enclosedVolume() const {
+  // Per triangle: the sector of the wall sphere under it (solid angle Ω, Van Oosterom & Strackee 1983) minus the
+  // tetrahedron (origin, a, b, c) — the fluid between the triangle and the wall. Triangles facing the origin have
+  // a·(b×c) < 0, hence the sign; a triangle resting on the sphere encloses (almost) nothing.
+  const double wall = config_.fluid_wall_radius;
+  const Eigen::Vector3d* x = membrane_->positions();
+  const auto* triangles = membrane_->triangleNodeSlots();
+  double volume = 0.0;
+  for (std::size_t t = 0; t < membrane_->triangleCount(); ++t) {
+    const Eigen::Vector3d& a = x[triangles[t][0]];
+    const Eigen::Vector3d& b = x[triangles[t][1]];
+    const Eigen::Vector3d& c = x[triangles[t][2]];
+    const double triple = a.dot(b.cross(c));
+    const double la = a.norm(), lb = b.norm(), lc = c.norm();
+    const double denominator = la * lb * lc + a.dot(b) * lc + a.dot(c) * lb + b.dot(c) * la;
+    const double solid_angle = 2.0 * std::atan2(triple, denominator);
+    volume -= wall * wall * wall / 3.0 * solid_angle - triple / 6.0;
+  }
+  return volume - rest_enclosed_volume_;
+}
+
+void TissueSimulator::setFluidSource(const std::optional<Eigen::Vector3d>& point, double radius) {
+  if (!point || !point->allFinite()) return;
+  const Eigen::Vector3d* x = membrane_->positions();
+  wet_.resize(membrane_->nodeCount(), 0);
+  for (std::size_t i = 0; i < wet_.size(); ++i) {
+    if ((x[i] - *point).norm() <= radius) wet_[i] = 1;
+  }
+}
+
+void TissueSimulator::spreadFluid() {
+  const std::size_t n = membrane_->nodeCount();
+  wet_.resize(n, 0);
+  // One ring per step: the front moves 1 edge per ms, faster than the adhesions give way.
+  std::vector<std::uint32_t> reached;
+  const std::size_t springs = membrane_->springCount();
+  const auto* ends = membrane_->springNodeSlots();
+  for (std::size_t s = 0; s < springs; ++s) {
+    const std::uint32_t a = ends[s][0], b = ends[s][1];
+    if (wet_[a] && !wet_[b] && !anchored_[b]) reached.push_back(b);
+    if (wet_[b] && !wet_[a] && !anchored_[a]) reached.push_back(a);
+  }
+  for (std::uint32_t node : reached) wet_[node] = 1;
+  const auto* triangles = membrane_->triangleNodeSlots();
+  wet_triangles_.assign(membrane_->triangleCount(), 0);
+  for (std::size_t t = 0; t < wet_triangles_.size(); ++t) {
+    wet_triangles_[t] = wet_[triangles[t][0]] || wet_[triangles[t][1]] || wet_[triangles[t][2]];
+  }
+  forces_.pressure_mask = wet_triangles_.data();
+}
+
 bool TissueSimulator::step() {
+  if (config_.fluid_modulus > 0.0) {
+    spreadFluid();
+    const double mismatch = fluid_volume_ - enclosedVolume();
+    const double pressure = config_.fluid_modulus * mismatch / std::max(fluid_volume_, config_.fluid_volume_floor);
+    fluid_pressure_ = std::isfinite(pressure) ? std::clamp(pressure, 0.0, config_.fluid_max_pressure) : 0.0;
+    forces_.params.pressure = fluid_pressure_;
+  }
   const bool ok = model_->step(*this);
   ++statistics_.steps;
   return ok;

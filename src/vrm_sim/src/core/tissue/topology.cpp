@@ -194,10 +194,22 @@ void TissueSimulator::releaseOverloadedAdhesions() {
   }
   if (!(config_.adhesion_break_force > 0.0)) return;
   const auto before = forces_.anchors.size();
+  const bool tears = config_.adhesion_tear_force > 0.0;
   forces_.anchors.erase(std::remove_if(forces_.anchors.begin(), forces_.anchors.end(),
-                                       [&](const Anchor& anchor) {
+                                       [&](Anchor& anchor) {
                                          const double force = anchor.stiffness * (x[anchor.node] - anchor.point).norm();
-                                         if (!(force > config_.adhesion_break_force)) return false;
+                                         const bool torn = tears && force > config_.adhesion_tear_force;
+                                         if (torn) {
+                                           ++statistics_.adhesion_tears;
+                                           adhesion_tear_points_.push_back(anchor.point);
+                                         } else if (!(force > config_.adhesion_break_force)) {
+                                           anchor.overloaded_for = 0.0;
+                                           return false;
+                                         } else if (config_.adhesion_release_time > 0.0) {
+                                           // Peeling takes time: it lets go once overloaded long enough.
+                                           anchor.overloaded_for += config_.dt;
+                                           if (anchor.overloaded_for < config_.adhesion_release_time) return false;
+                                         }
                                          // For good: a later topology change rebuilds anchors from the fixed flags.
                                          anchored_[anchor.node] = 0;
                                          membrane_->nodeAtSlot(anchor.node).setFixed(false);

@@ -105,6 +105,7 @@ std::vector<InstrumentState> scriptedInputsAt(const scene::SceneDescription& sce
     if (sample.type) state.type = *sample.type;  // an exchange scripted along the path
     state.suction = sample.suction;
     state.cut_rate = sample.cut_rate_hz;
+    state.injection_flow = sample.injection_flow;
     inputs.push_back(state);
   }
   return inputs;

@@ -4,6 +4,8 @@
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <limits>
+#include <map>
 #include <unordered_map>
 #include <variant>
 
@@ -61,6 +63,7 @@ struct World::Instrument {
   double jaw_angle = 1.0;
   double suction = 0.0;
   double cut_rate = 0.0;
+  double injection_flow = 0.0;  // m^3/s
   bool cutting = false;  // vitrector with suction and cutter running
   collision::InstrumentModel model;
   int model_jaw_deg = -1000;  // whole degrees, so tracking noise does not invalidate cached depth images
@@ -100,6 +103,11 @@ struct World::Tissue {
   bool peels = false;         // membrane / ILM
   bool reset_pending = true;  // rebuilt (start, RESET): the next frame publishes it even if nothing moves
   std::uint64_t logged_integrator_choice = 0;  // TissueSimulator::integratorChoiceChanges() already logged
+  // Subretinal fluid and the needle's puncture (scene tissue fluid_modulus, needle_pierce_radius).
+  double fluid_volume = 0.0;                 // m^3 under the sheet
+  double injected_outside = 0.0;             // m^3 the needle injected with its tip not behind the sheet
+  std::map<std::string, bool> needle_inside;  // per slot: the needle's tip is behind the sheet
+  std::map<std::string, Eigen::Vector3d> puncture;  // per slot inside: where its shaft last settled in the sheet
 };
 
 struct World::RigidObject {
@@ -243,6 +251,12 @@ void World::resetTissues() {
     tissue->simulator.reset();
     tissue->membrane = mge::buildMembrane(mesh, scene::membraneOptionsFor(object.tissue, mesh.vertexCount()));
     tissue::TissueConfig config = scene::tissueConfigFor(object.tissue, object.collision);
+    if (config.fluid_modulus > 0.0) {
+      // The fluid fills the space between the sheet and the wall it rests on: the sphere through its rest nodes.
+      double radius = 0.0;
+      for (const Eigen::Vector3d& vertex : mesh.vertices) radius += vertex.norm();
+      config.fluid_wall_radius = mesh.vertices.empty() ? 0.0 : radius / static_cast<double>(mesh.vertices.size());
+    }
     // A frame covers at most max_frame_time: every step of it must run (deterministic frames).
     config.max_steps_per_frame =
         std::max(config.max_steps_per_frame, static_cast<int>(std::ceil(options_.max_frame_time / config.dt)) + 1);
@@ -268,6 +282,10 @@ void World::resetTissues() {
     tissue->reset_pending = true;
     tissue->ever_grasped = false;
     tissue->peak_lift = 0.0;
+    tissue->fluid_volume = 0.0;
+    tissue->injected_outside = 0.0;
+    tissue->needle_inside.clear();
+    tissue->puncture.clear();
   }
 }
 
@@ -492,6 +510,7 @@ void World::applyInstrument(const InstrumentState& state) {
   instrument.suction = state.valid ? state.suction : 0.0;
   if (state.type) switchInstrument(instrument, *state.type);
   instrument.cut_rate = state.valid ? state.cut_rate : 0.0;
+  instrument.injection_flow = state.valid ? state.injection_flow : 0.0;
   instrument.cutting = state.valid && instrument.current.type == scene::InstrumentType::kVitrector &&
                        state.suction > 0.0 && state.cut_rate > 0.0;
 }
@@ -587,8 +606,28 @@ void World::stepTissue(Tissue& tissue, double frame_time, FrameResult& result) {
     input.collides = source->active && source->shape.collides && tissue.collider && !tissue.detector_response;
     input.can_grasp = source->active && source->shape.can_grasp && scene_.simulates(scene::Simulation::kGrasping);
     input.cuts = source->active && source->cutting && scene_.simulates(scene::Simulation::kCutting);
+    holdWithoutJaws(tissue, slot, *source, input);
     inputs.push_back(input);
     sources.push_back(source.get());
+  }
+  if (tissue.object->tissue.fluid_modulus > 0.0) {
+    for (std::size_t k = 0; k < sources.size(); ++k) {
+      const Instrument& source = *sources[k];
+      if (!source.active || !(source.injection_flow > 0.0)) continue;
+      const auto inside = tissue.needle_inside.find(scene::toString(source.description->slot));
+      if (inside != tissue.needle_inside.end() && inside->second) {
+        tissue.fluid_volume += source.injection_flow * frame_time;
+        tissue.simulator->setFluidSource(inputs[k].pose.translation(),
+                                         2.0 * tissue.object->tissue.needle_pierce_radius);
+      } else {
+        tissue.injected_outside += source.injection_flow * frame_time;
+      }
+    }
+    // A torn (or sliced) sheet lets the fluid out: the sheet around the tear is no longer a closed wall.
+    if (tissue.report.torn_springs > 0 || tissue.report.cut_nodes > 0) {
+      tissue.fluid_volume *= std::exp(-frame_time / tissue.object->tissue.fluid_leak_time);
+    }
+    tissue.simulator->setFluidVolume(tissue.fluid_volume);
   }
   if (tissue.collider) {
     const double collision_start = now();
@@ -691,6 +730,16 @@ void World::stepTissue(Tissue& tissue, double frame_time, FrameResult& result) {
   report.released_adhesions = stats.released_adhesions;
   report.adhesion_points = tissue.simulator->adhesionPoints();
   report.max_adhesion_force = stats.max_adhesion_force;
+  report.adhesion_tears = stats.adhesion_tears;
+  report.adhesion_tear_points = &tissue.simulator->adhesionTearPoints();
+  if (tissue.object->tissue.fluid_modulus > 0.0) {
+    report.fluid_volume = tissue.fluid_volume;
+    report.enclosed_volume = tissue.simulator->enclosedVolume();
+    report.fluid_pressure = tissue.simulator->fluidPressure();
+    report.injected_outside = tissue.injected_outside;
+  }
+  report.needle_inside = std::any_of(tissue.needle_inside.begin(), tissue.needle_inside.end(),
+                                     [](const auto& entry) { return entry.second; });
   if (report.grasped_nodes > 0) {
     tissue.ever_grasped = true;
     tissue.peak_lift = std::max(tissue.peak_lift, report.max_lift);
@@ -707,6 +756,70 @@ void World::stepTissue(Tissue& tissue, double frame_time, FrameResult& result) {
   statistics_.max_strain = std::max(statistics_.max_strain, report.max_strain);
   statistics_.max_grasped_nodes = std::max(statistics_.max_grasped_nodes, report.grasped_nodes);
   result.tissues.push_back(report);
+}
+
+// The needle pierces a sheet with needle_pierce_radius (it does not push it): its tip is inside once it went behind the
+// sheet near a node — farther from the eye centre than that node — and stays inside until it is back in front. Inside,
+// its puncture is where its axis crosses the sheet's sphere there; moved sideways beyond needle_slack from where it
+// settled, the shaft slices the sheet (a cut of needle_pierce_radius about the shaft at the sheet, swept along the
+// move by the tissue steps), and settles again where it is. The vitrector's suction (cutter off) holds the nodes near
+// its port of a sheet with suction_hold_radius.
+void World::holdWithoutJaws(Tissue& tissue, const std::string& slot, const Instrument& source,
+                            tissue::InstrumentInput& input) {
+  const scene::TissueParameters& parameters = tissue.object->tissue;
+  if (parameters.needle_pierce_radius > 0.0 && source.current.type == scene::InstrumentType::kNeedle) {
+    input.collides = false;
+    bool& inside = tissue.needle_inside[slot];
+    const Eigen::Vector3d tip = input.pose.translation();
+    const Eigen::Vector3d* x = tissue.membrane->positions();
+    double nearest = std::numeric_limits<double>::infinity();
+    std::size_t closest = 0;
+    for (std::size_t i = 0; i < tissue.membrane->nodeCount(); ++i) {
+      const double distance = (x[i] - tip).norm();
+      if (distance < nearest) nearest = distance, closest = i;
+    }
+    constexpr double kWithdrawn = 2e-5;  // m in front of the sheet: out again (hysteresis against tracking noise)
+    const double sheet_radius = nearest < std::numeric_limits<double>::infinity() ? x[closest].norm() : 0.0;
+    const double behind = tip.norm() - sheet_radius;
+    // It goes in near the sheet (a slice leaves a gap about the shaft, so not just the pierce radius); inside, the
+    // fluid may lift the sheet far off its tip.
+    if (!source.active) {
+      inside = false;
+    } else if (!inside && behind > 0.0 && nearest <= 4.0 * parameters.needle_pierce_radius) {
+      inside = true;
+    } else if (inside && behind < -kWithdrawn) {
+      inside = false;
+    }
+    if (!inside) {
+      tissue.puncture.erase(slot);
+    } else {
+      const Eigen::Vector3d axis = input.pose.linear().col(2);
+      const double b = tip.dot(axis), c = tip.squaredNorm() - sheet_radius * sheet_radius;
+      const double discriminant = b * b - c;
+      const double back = discriminant >= 0.0 ? std::max(0.0, b - std::sqrt(discriminant)) : 0.0;
+      const Eigen::Vector3d crossing = input.pose * Eigen::Vector3d(0.0, 0.0, -back);
+      const auto settled = tissue.puncture.try_emplace(slot, crossing).first;
+      // In and out along the shaft (or the sheet lifting along it) slices nothing: only the sideways part counts.
+      const Eigen::Vector3d moved = crossing - settled->second;
+      const double sideways = (moved - moved.dot(axis) * axis).norm();
+      if (sideways > parameters.needle_slack && scene_.simulates(scene::Simulation::kCutting)) {
+        input.cuts = true;
+        input.cut_radius = parameters.needle_pierce_radius;
+        input.cut_offset = std::max(0.0, back - parameters.needle_pierce_radius);
+        input.cut_length = 2.0 * parameters.needle_pierce_radius;
+        settled->second = crossing;
+      }
+    }
+  }
+  if (parameters.suction_hold_radius > 0.0 && source.active && !source.cutting &&
+      source.current.type == scene::InstrumentType::kVitrector && source.suction >= parameters.suction_hold_level) {
+    if (const auto* vitrector = std::get_if<scene::VitrectorParams>(&source.current.params)) {
+      input.holds = true;
+      input.hold_point = Eigen::Vector3d(0.5 * vitrector->shaft.diameter, 0.0,
+                                         -(vitrector->port_distance_from_tip + 0.5 * vitrector->port_length));
+      input.hold_radius = parameters.suction_hold_radius;
+    }
+  }
 }
 
 // The scenario moves objects after a frame's collisions (scenario.h placements()): this frame collides them where the
@@ -832,6 +945,12 @@ std::uint64_t World::stateHash() const {
     hash = hashBytes(hash, &topology, sizeof(topology));
     const std::vector<std::uint32_t>& grasped = tissue->simulator->graspedNodes();
     hash = hashBytes(hash, grasped.data(), grasped.size() * sizeof(std::uint32_t));
+    if (tissue->object->tissue.fluid_modulus > 0.0) hash = hashBytes(hash, &tissue->fluid_volume, sizeof(double));
+    for (const auto& [slot, inside] : tissue->needle_inside) {
+      const std::uint8_t flag = inside ? 1 : 0;
+      hash = hashBytes(hash, &flag, 1);
+    }
+    for (const auto& [slot, point] : tissue->puncture) hash = hashBytes(hash, point.data(), 3 * sizeof(double));
   }
   for (const auto& rigid : rigid_) {
     if (!rigid->bleeding) continue;
@@ -882,6 +1001,13 @@ void World::advanceScenario(const FrameResult& result) {
     entry.released_adhesions = report.released_adhesions;
     entry.adhesion_points = report.adhesion_points;
     entry.max_adhesion_force = report.max_adhesion_force;
+    entry.adhesion_tears = report.adhesion_tears;
+    entry.adhesion_tear_points = report.adhesion_tear_points;
+    entry.fluid_volume = report.fluid_volume;
+    entry.enclosed_volume = report.enclosed_volume;
+    entry.fluid_pressure = report.fluid_pressure;
+    entry.injected_outside = report.injected_outside;
+    entry.needle_inside = report.needle_inside;
     entry.initial_node_count = tissue->rest_by_id.size();
     entry.positions = tissue->membrane->positions();
     entry.node_count = tissue->membrane->nodeCount();
