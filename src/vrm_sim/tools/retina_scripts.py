@@ -89,19 +89,6 @@ def retina_relocation():
          "and jerks the needle 0.5 mm sideways while it is inside, then pulls it out.", light, work, ["injection_flow"])
 
 
-def cross(a, b): return [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
-
-
-def port_roll_deg(trocar_position, tip):
-    """Roll about the shaft (scene::shaftOrientation's) that turns the vitrector's port (+x) towards the eye wall."""
-    z = unit(sub(tip, trocar_position))
-    tangent = cross([0.0, 0.0, 1.0], unit(trocar_position))
-    x0 = unit(sub(tangent, mul(dot(tangent, z), z)))
-    y0 = cross(z, x0)
-    outward = unit(tip)
-    return math.degrees(math.atan2(dot(outward, y0), dot(outward, x0)))
-
-
 def posterior_hyaloid():
     height = 2e-4                                   # the hyaloid lies this far above the retina
     def on_hyaloid(offset_deg, azimuth_deg, above):  # a point `above` m over the hyaloid
@@ -110,27 +97,24 @@ def posterior_hyaloid():
     # hyaloid; lift 1.2 mm at 0.4 mm/s, then carry the hyaloid towards the temporal periphery (to 14 deg the other
     # side) at 1 mm/s, 1.2 mm up; let go (suction off) and withdraw.
     engage = on_hyaloid(12.0, 0.0, 1e-4)
-    roll = port_roll_deg(RIGHT, engage)
     lifted = on_hyaloid(12.0, 0.0, 1.3e-3)
     periphery = on_hyaloid(-14.0, 0.0, 1.3e-3)
     start = add(engage, mul(-0.006, unit(sub(engage, RIGHT))))
     work = [(0.0, start, 0.0), (1.5, on_hyaloid(12.0, 0.0, 6e-4), 0.0), (2.2, engage, 0.0), (2.4, engage, 0.5),
             (3.0, engage, 0.5), (6.0, lifted, 0.5), (11.5, periphery, 0.5), (12.0, periphery, 0.0),
             (13.5, start, 0.0)]
-    work = [row + (roll,) for row in work]
     light = [(row[0], light_for(row[1])) for row in work]
-    emit("expert", "Expert: engage the hyaloid at the disc's temporal margin with suction 0.5 (cutter off), the port\n"
-         "turned to the retina; lift 1.2 mm at 0.4 mm/s so each adhesion peels, carry it 5 mm to the temporal\n"
-         "periphery at 1 mm/s, let go, withdraw.", light, work, ["suction", "roll_deg"])
+    emit("expert", "Expert: engage the hyaloid at the disc's temporal margin with suction 0.5 (cutter off);\n"
+         "lift 1.2 mm at 0.4 mm/s so each adhesion peels, carry it 5 mm to the temporal\n"
+         "periphery at 1 mm/s, let go, withdraw.", light, work, ["suction"])
     # Novice: full suction on the way down (the port aspirates the retina next to the disc), then a yank: 1.2 mm up in
     # 0.2 s, and the sweep at 4 mm/s.
     low = on_hyaloid(12.0, 0.0, -1.5e-4)
     work = [(0.0, start, 1.0), (1.2, on_hyaloid(12.0, 0.0, 6e-4), 1.0), (1.6, low, 1.0), (2.0, low, 1.0),
             (2.2, lifted, 1.0), (3.5, periphery, 1.0), (3.7, periphery, 0.0), (4.7, start, 0.0)]
-    work = [row + (roll,) for row in work]
     light = [(row[0], light_for(row[1])) for row in work]
     emit("novice", "Novice: full suction on the way down (the port reaches the retina beside the disc), then a yank\n"
-         "(1.2 mm up in 0.2 s) and a fast sweep (4 mm/s) to the periphery.", light, work, ["suction", "roll_deg"])
+         "(1.2 mm up in 0.2 s) and a fast sweep (4 mm/s) to the periphery.", light, work, ["suction"])
 
 
 if __name__ == "__main__":

@@ -1,6 +1,8 @@
-// The object manipulation modules (issue 36) and laser coagulation (issue 37) in one running graph: LOAD
-// object_manipulation, expert then novice (each session begun by a LOAD of the module and its START), then LOAD
-// bimanual, then laser_coagulation (its sessions' pedal tracks played too: the laser fires on the pedal), the same.
+// The object manipulation modules (issue 36), laser coagulation (issue 37), retina relocation and posterior hyaloid
+// detachment (issue 38) in one running graph: LOAD object_manipulation, expert then novice (each session begun by a
+// LOAD of the module and its START), then LOAD bimanual, laser_coagulation (its sessions' pedal tracks played too: the
+// laser fires on the pedal), retina_relocation (the needle's injection flow rides on its instrument states) and
+// posterior_hyaloid, the same.
 // Each expert finishes and outscores its novice with the score the same inputs give headless (one simulation core),
 // simulation_state carries the objects the scenario moves (what the renderer draws) away from their scene poses while
 // they are carried, and the laser burns.
@@ -187,7 +189,8 @@ class ManipulationModules : public ::testing::Test {
 
 TEST_F(ManipulationModules, EveryModuleLoadedInOneGraphExpertsFinishAndOutscoreTheirNovices) {
   double start = 100.0;
-  for (const std::string module : {"object_manipulation", "bimanual", "laser_coagulation"}) {
+  for (const std::string module :
+       {"object_manipulation", "bimanual", "laser_coagulation", "retina_relocation", "posterior_hyaloid"}) {
     std::map<std::string, vrm_msgs::Score> scores;
     for (const std::string script : {"expert", "novice"}) {
       scores[script] = play(module, script, start);

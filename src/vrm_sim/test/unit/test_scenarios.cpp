@@ -27,7 +27,8 @@ using scene::shippedScenePath;
 const std::vector<std::string>& scenarioNames() {
   static const std::vector<std::string> names = {
       "navigation", "trajectory",       "pick_and_place", "steady_hold", "object_manipulation",
-      "bimanual",   "membrane_peeling", "ilm_peeling",    "vitrectomy",  "laser_coagulation"};
+      "bimanual",   "membrane_peeling", "ilm_peeling",    "vitrectomy",  "laser_coagulation",
+      "retina_relocation", "posterior_hyaloid"};
   return names;
 }
 
@@ -216,6 +217,30 @@ TEST(Scenarios, NovicesTriggerThePenaltiesTheyWereWrittenFor) {
     EXPECT_NEAR(position.norm(), 0.012, 1e-5) << "a burn lies on the retina, not at the probe's tip";
   }
   EXPECT_EQ(vessel_events, 1);
+
+  // Issue 38: the relocation novice injects into the vitreous, pushes the needle into the wall and slices the retina
+  // with a sideways jerk; the expert's still needle raises the bleb on target. The hyaloid novice yanks (adhesions
+  // tear the retina, each an event at its adhesion) and aspirates the retina; the expert peels.
+  const Runs& relocation = runs("retina_relocation");
+  for (const char* penalty : {"retina_tears", "injected_outside", "retina_contacts"}) {
+    EXPECT_GT(item(relocation.novice, penalty), 0.0) << penalty;
+    EXPECT_EQ(item(relocation.expert, penalty), 0.0) << penalty;
+  }
+  EXPECT_LT(item(relocation.expert, "size_error"), 0.05);
+  EXPECT_LT(item(relocation.expert, "site_error"), 5e-5);
+  const Runs& hyaloid = runs("posterior_hyaloid");
+  EXPECT_GE(item(hyaloid.novice, "retina_injuries"), 3.0);
+  EXPECT_EQ(item(hyaloid.expert, "retina_injuries"), 0.0);
+  EXPECT_GT(item(hyaloid.novice, "retina_damage"), 0.5);
+  EXPECT_EQ(item(hyaloid.expert, "retina_damage"), 0.0);
+  int traction_events = 0;
+  for (const result::PenaltyEvent& event : hyaloid.novice.session_result->events) {
+    if (event.item != "retina_injuries") continue;
+    ++traction_events;
+    const Eigen::Vector3d position(event.position[0], event.position[1], event.position[2]);
+    EXPECT_NEAR(position.norm(), 0.012 - 2e-4, 1e-5) << "an injury lies at its adhesion on the hyaloid's rest sheet";
+  }
+  EXPECT_GE(traction_events, 1);
 
   const Runs& vitrectomy = runs("vitrectomy");
   EXPECT_GE(item(vitrectomy.novice, "warnings"), 1.0);

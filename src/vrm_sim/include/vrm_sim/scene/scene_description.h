@@ -193,7 +193,8 @@ struct TissueParameters {
   double needle_pierce_radius = 0.0;
   double needle_slack = 1e-4;
   // > 0 [m]: the vitrector's suction (at least suction_hold_level, cutter off) holds the nodes within this distance of
-  // its port (engaging the posterior hyaloid); they follow it until the suction drops below the level.
+  // its shaft's surface at the port (engaging the posterior hyaloid; the port's facing is not tracked); they follow it
+  // until the suction drops below the level.
   double suction_hold_radius = 0.0;
   double suction_hold_level = 0.2;
   ChainMailParameters chainmail;      // only with model chainmail

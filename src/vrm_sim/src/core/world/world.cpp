@@ -762,8 +762,8 @@ void World::stepTissue(Tissue& tissue, double frame_time, FrameResult& result) {
 // sheet near a node — farther from the eye centre than that node — and stays inside until it is back in front. Inside,
 // its puncture is where its axis crosses the sheet's sphere there; moved sideways beyond needle_slack from where it
 // settled, the shaft slices the sheet (a cut of needle_pierce_radius about the shaft at the sheet, swept along the
-// move by the tissue steps), and settles again where it is. The vitrector's suction (cutter off) holds the nodes near
-// its port of a sheet with suction_hold_radius.
+// move by the tissue steps), and settles again where it is. The vitrector's suction (cutter off) holds the nodes of a
+// sheet with suction_hold_radius within that distance of the shaft's surface at its port.
 void World::holdWithoutJaws(Tissue& tissue, const std::string& slot, const Instrument& source,
                             tissue::InstrumentInput& input) {
   const scene::TissueParameters& parameters = tissue.object->tissue;
@@ -814,10 +814,11 @@ void World::holdWithoutJaws(Tissue& tissue, const std::string& slot, const Instr
   if (parameters.suction_hold_radius > 0.0 && source.active && !source.cutting &&
       source.current.type == scene::InstrumentType::kVitrector && source.suction >= parameters.suction_hold_level) {
     if (const auto* vitrector = std::get_if<scene::VitrectorParams>(&source.current.params)) {
+      // About the shaft at the port's height, whichever way the port faces: the tracker does not see the roll of an
+      // instrument (its markers are rings about the shaft), so the port's facing is not an input.
       input.holds = true;
-      input.hold_point = Eigen::Vector3d(0.5 * vitrector->shaft.diameter, 0.0,
-                                         -(vitrector->port_distance_from_tip + 0.5 * vitrector->port_length));
-      input.hold_radius = parameters.suction_hold_radius;
+      input.hold_point = Eigen::Vector3d(0.0, 0.0, -(vitrector->port_distance_from_tip + 0.5 * vitrector->port_length));
+      input.hold_radius = parameters.suction_hold_radius + 0.5 * vitrector->shaft.diameter;
     }
   }
 }
