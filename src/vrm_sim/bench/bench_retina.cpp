@@ -105,8 +105,8 @@ int main(int argc, char** argv) {
   std::printf("worst frame of any case: %.2f ms\n", worst_ms);
   std::ofstream out(args.out_path);
   out << "{\"suite\":\"retina\",\"command\":\"rosrun vrm_sim bench_retina" << (args.quick ? " --quick" : "")
-      << "\",\"quick\":" << (args.quick ? "true" : "false") << ",\"worst_ms_per_frame\":" << worst_ms
-      << ",\"rows\":[" << rows << "\n]}\n";
+      << "\",\"quick\":" << (args.quick ? "true" : "false") << ",\"worst_ms_per_frame\":" << worst_ms << ",\"rows\":["
+      << rows << "\n]}\n";
   if (!out) {
     std::fprintf(stderr, "bench_retina: cannot write %s\n", args.out_path.c_str());
     return 1;

@@ -264,8 +264,7 @@ class RetinaRelocationWorld : public ::testing::Test {
       }
     });
     // The expert's puncture: the target site, 4 deg temporal of the posterior pole, along the needle from its trocar.
-    const Eigen::Vector3d site =
-        kWall * (scene::posteriorPoleRotation(4.0, 180.0) * Eigen::Vector3d(0.0, 0.0, -1.0));
+    const Eigen::Vector3d site = kWall * (scene::posteriorPoleRotation(4.0, 180.0) * Eigen::Vector3d(0.0, 0.0, -1.0));
     axis_ = (site - world_.scene().findTrocar("right")->position_in_eye).normalized();
     site_ = site;
   }

@@ -25,10 +25,10 @@ using scene::loadScene;
 using scene::shippedScenePath;
 
 const std::vector<std::string>& scenarioNames() {
-  static const std::vector<std::string> names = {
-      "navigation", "trajectory",       "pick_and_place", "steady_hold", "object_manipulation",
-      "bimanual",   "membrane_peeling", "ilm_peeling",    "vitrectomy",  "laser_coagulation",
-      "retina_relocation", "posterior_hyaloid"};
+  static const std::vector<std::string> names = {"navigation",        "trajectory",          "pick_and_place",
+                                                 "steady_hold",       "object_manipulation", "bimanual",
+                                                 "membrane_peeling",  "ilm_peeling",         "vitrectomy",
+                                                 "laser_coagulation", "retina_relocation",   "posterior_hyaloid"};
   return names;
 }
 

@@ -54,7 +54,7 @@ struct TissueView {
   std::size_t adhesion_points = 0;             // holding now
   double max_adhesion_force = 0.0;             // N, largest pull on an adhesion point so far
   std::uint64_t adhesion_tears = 0;            // adhesions that tore the tissue beneath (retina injuries)
-  const std::vector<Eigen::Vector3d>* adhesion_tear_points = nullptr;  // eye frame, oldest first
+  const std::vector<Eigen::Vector3d>* adhesion_tear_points = nullptr;      // eye frame, oldest first
   double fluid_volume = 0.0, enclosed_volume = 0.0, fluid_pressure = 0.0;  // m^3, m^3, Pa (subretinal fluid)
   double injected_outside = 0.0;                                           // m^3 not under the sheet
   bool needle_inside = false;                                              // a needle's tip is behind the sheet

@@ -93,7 +93,7 @@ struct TissueConfig {
   // acts on the triangles with a wet corner, so the adhesions at the front are the ones it loads and the bleb grows
   // from the injection outwards. Replaces forces.pressure.
   double fluid_modulus = 0.0;
-  double fluid_wall_radius = 0.0;    // m
+  double fluid_wall_radius = 0.0;     // m
   double fluid_volume_floor = 1e-11;  // m^3: so the first drop does not meet an infinitely stiff fluid
   double fluid_max_pressure = 2e4;    // Pa
   // Degenerate input: give free nodes without mass (only in zero-area triangles) the mean node mass instead of
@@ -303,8 +303,8 @@ class TissueSimulator {
   std::vector<Grasp> grasps_;
   std::vector<Eigen::Vector3d> adhesion_tear_points_;
   double fluid_volume_ = 0.0, fluid_pressure_ = 0.0;
-  double rest_enclosed_volume_ = 0.0;   // enclosedVolume() of the rest state (the flat triangles' slivers)
-  std::vector<std::uint8_t> wet_;       // per node: the fluid reached it
+  double rest_enclosed_volume_ = 0.0;  // enclosedVolume() of the rest state (the flat triangles' slivers)
+  std::vector<std::uint8_t> wet_;      // per node: the fluid reached it
   std::vector<std::uint8_t> wet_triangles_;
   void spreadFluid();
   std::vector<std::uint32_t> grasped_nodes_;

@@ -53,8 +53,8 @@ std::string checkInstrument(const InstrumentState& state) {
                   std::isfinite(norm) && std::abs(norm - 1.0) < kUnitTolerance && std::isfinite(state.jaw_angle) &&
                   std::abs(state.jaw_angle) <= kMaxJawAngle && std::isfinite(state.suction) && state.suction >= 0.0 &&
                   state.suction <= 1.0 && std::isfinite(state.cut_rate) && state.cut_rate >= 0.0 &&
-                  state.cut_rate <= kMaxCutRate && std::isfinite(state.injection_flow) &&
-                  state.injection_flow >= 0.0 && state.injection_flow <= kMaxInjectionFlow;
+                  state.cut_rate <= kMaxCutRate && std::isfinite(state.injection_flow) && state.injection_flow >= 0.0 &&
+                  state.injection_flow <= kMaxInjectionFlow;
   return ok ? "" : "instrument_state '" + state.slot + "' with non-finite or implausible values";
 }
 

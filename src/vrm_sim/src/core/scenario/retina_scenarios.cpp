@@ -67,8 +67,7 @@ Lifted liftedPart(const TissueView& tissue, double threshold, double sheet_area)
 
 // Rest area of a membrane-generator sheet: the spherical cap of its diameter (measured along the surface).
 double capArea(const scene::ObjectDescription& object, double eye_radius) {
-  const auto* membrane =
-      object.mesh.generator ? std::get_if<scene::MembraneParams>(&*object.mesh.generator) : nullptr;
+  const auto* membrane = object.mesh.generator ? std::get_if<scene::MembraneParams>(&*object.mesh.generator) : nullptr;
   if (membrane == nullptr) return 0.0;
   const double radius = eye_radius - membrane->height_above_retina;
   const double polar = 0.5 * membrane->diameter / radius;
@@ -85,7 +84,8 @@ class RetinaRelocation : public Scenario {
   RetinaRelocation(const scene::SceneDescription& scene, Params&& params) : contacts_(scene.eye.radius) {
     const scene::ObjectDescription& retina = sheet(params, "retina_patch");
     if (!(retina.tissue.fluid_modulus > 0.0) || !(retina.tissue.needle_pierce_radius > 0.0)) {
-      params.fail("tissue", "object '" + retina.name + "' needs fluid_modulus and needle_pierce_radius (a retina to detach)");
+      params.fail("tissue",
+                  "object '" + retina.name + "' needs fluid_modulus and needle_pierce_radius (a retina to detach)");
     }
     object_ = retina.name;
     tool_ = toolOfType(params, scene, scene::InstrumentType::kNeedle);
@@ -132,8 +132,8 @@ class RetinaRelocation : public Scenario {
 
   std::vector<Measurement> measurements(double) const override {
     return {{"bleb_diameter", diameter_, "m"},
-            {"size_error", target_diameter_ > 0.0 ? std::abs(peak_diameter_ - target_diameter_) / target_diameter_ : 0.0,
-             "1"},
+            {"size_error",
+             target_diameter_ > 0.0 ? std::abs(peak_diameter_ - target_diameter_) / target_diameter_ : 0.0, "1"},
             {"site_error", site_error_, "m"},
             {"bleb_offset", bleb_offset_, "m"},
             {"bleb_height", max_lift_, "m"},
@@ -164,7 +164,8 @@ class RetinaRelocation : public Scenario {
   std::string object_, tool_;
   double target_diameter_ = 2.5e-3, size_tolerance_ = 0.15, lift_threshold_ = 5e-5, sheet_area_ = 0.0;
   Eigen::Vector3d target_site_ = Eigen::Vector3d::Zero();
-  double diameter_ = 0.0, peak_diameter_ = 0.0, site_error_ = 0.0, bleb_offset_ = 0.0, max_lift_ = 0.0, fluid_ = 0.0, outside_ = 0.0;
+  double diameter_ = 0.0, peak_diameter_ = 0.0, site_error_ = 0.0, bleb_offset_ = 0.0, max_lift_ = 0.0, fluid_ = 0.0,
+         outside_ = 0.0;
   std::uint64_t torn_ = 0;
   bool needle_inside_ = false, entered_ = false;
   RetinaContacts contacts_;

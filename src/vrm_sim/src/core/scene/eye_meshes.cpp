@@ -92,9 +92,9 @@ TriangleMesh makeMembrane(const MembraneParams& params) {
   to_eye.linear() =
       posteriorPoleRotation(params.centre_offset_deg, params.centre_azimuth_deg) * capPoleToPosteriorPole();
   transformMesh(mesh, to_eye);
-  const Eigen::Vector3d disc = membrane_radius * posteriorPoleRotation(params.adhesion_disc_offset_deg,
-                                                                       params.adhesion_disc_azimuth_deg) *
-                               Eigen::Vector3d(0.0, 0.0, -1.0);
+  const Eigen::Vector3d disc =
+      membrane_radius * posteriorPoleRotation(params.adhesion_disc_offset_deg, params.adhesion_disc_azimuth_deg) *
+      Eigen::Vector3d(0.0, 0.0, -1.0);
   for (std::uint32_t i = 0; i < mesh.vertices.size(); ++i) {
     if (params.adhere_everywhere ||
         (params.adhesion_disc_radius > 0.0 && (mesh.vertices[i] - disc).norm() <= params.adhesion_disc_radius)) {

@@ -250,7 +250,8 @@ TissueParameters readTissue(const Field& field) {
       f->fail("adhesion_tear_force must exceed adhesion_break_force (else every release tears), got " + f->shown());
     }
   }
-  if (auto f = fields.optional("fluid_modulus")) tissue.fluid_modulus = f->number("a pressure in [0, 1e7] Pa", 0.0, 1e7);
+  if (auto f = fields.optional("fluid_modulus"))
+    tissue.fluid_modulus = f->number("a pressure in [0, 1e7] Pa", 0.0, 1e7);
   if (auto f = fields.optional("fluid_leak_time")) {
     tissue.fluid_leak_time = f->number("a time in (0, 1000] s", 0.0, 1000.0, false);
   }

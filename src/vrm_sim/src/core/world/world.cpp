@@ -104,9 +104,9 @@ struct World::Tissue {
   bool reset_pending = true;  // rebuilt (start, RESET): the next frame publishes it even if nothing moves
   std::uint64_t logged_integrator_choice = 0;  // TissueSimulator::integratorChoiceChanges() already logged
   // Subretinal fluid and the needle's puncture (scene tissue fluid_modulus, needle_pierce_radius).
-  double fluid_volume = 0.0;                 // m^3 under the sheet
-  double injected_outside = 0.0;             // m^3 the needle injected with its tip not behind the sheet
-  std::map<std::string, bool> needle_inside;  // per slot: the needle's tip is behind the sheet
+  double fluid_volume = 0.0;                        // m^3 under the sheet
+  double injected_outside = 0.0;                    // m^3 the needle injected with its tip not behind the sheet
+  std::map<std::string, bool> needle_inside;        // per slot: the needle's tip is behind the sheet
   std::map<std::string, Eigen::Vector3d> puncture;  // per slot inside: where its shaft last settled in the sheet
 };
 
