@@ -326,16 +326,16 @@ void TissueSimulator::setFluidSource(const std::optional<Eigen::Vector3d>& point
 void TissueSimulator::spreadFluid() {
   const std::size_t n = membrane_->nodeCount();
   wet_.resize(n, 0);
-  // One ring per step: the front moves 1 edge per ms, faster than the adhesions give way.
-  std::vector<std::uint32_t> reached;
+  // One ring per step: the front moves 1 edge per ms, faster than the adhesions give way. Reached this step = 2, so
+  // the ring does not run on within the pass (and nothing is allocated).
   const std::size_t springs = membrane_->springCount();
   const auto* ends = membrane_->springNodeSlots();
   for (std::size_t s = 0; s < springs; ++s) {
     const std::uint32_t a = ends[s][0], b = ends[s][1];
-    if (wet_[a] && !wet_[b] && !anchored_[b]) reached.push_back(b);
-    if (wet_[b] && !wet_[a] && !anchored_[a]) reached.push_back(a);
+    if (wet_[a] == 1 && wet_[b] == 0 && !anchored_[b]) wet_[b] = 2;
+    if (wet_[b] == 1 && wet_[a] == 0 && !anchored_[a]) wet_[a] = 2;
   }
-  for (std::uint32_t node : reached) wet_[node] = 1;
+  for (std::uint8_t& wet : wet_) wet = wet != 0 ? 1 : 0;
   const auto* triangles = membrane_->triangleNodeSlots();
   wet_triangles_.assign(membrane_->triangleCount(), 0);
   for (std::size_t t = 0; t < wet_triangles_.size(); ++t) {
