@@ -10,6 +10,7 @@
 #include <limits>
 #include <string>
 
+#include "../support/instrument_at.h"
 #include "vrm_sim/mge/membrane.h"
 #include "vrm_sim/scene/eye_meshes.h"
 #include "vrm_sim/scene/scene_loader.h"
@@ -240,19 +241,7 @@ constexpr world::Stamp kTick = 20000000;  // 20 ms
 
 world::InstrumentState instrumentAt(const scene::SceneDescription& scene, const std::string& slot,
                                     const Eigen::Vector3d& tip, world::Stamp stamp) {
-  const scene::Trocar* trocar = scene.findTrocar(slot);
-  const Eigen::Vector3d z = (tip - trocar->position_in_eye).normalized();
-  const Eigen::Vector3d x = z.unitOrthogonal();
-  world::InstrumentState state;
-  state.stamp = stamp;
-  state.slot = slot;
-  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
-  pose.linear().col(0) = x;
-  pose.linear().col(1) = z.cross(x);
-  pose.linear().col(2) = z;
-  pose.translation() = tip;
-  state.setPose(pose);
-  return state;
+  return testing_support::instrumentAt(scene, slot, tip, 1.0, stamp);
 }
 
 class RetinaRelocationWorld : public ::testing::Test {

@@ -6,6 +6,7 @@
 #include <limits>
 #include <string>
 
+#include "../support/instrument_at.h"
 #include "vrm_sim/mge/membrane.h"
 #include "vrm_sim/scene/scene_loader.h"
 #include "vrm_sim/tissue/tissue_simulator.h"
@@ -52,23 +53,7 @@ scene::SceneDescription testScene(const std::string& tissue_extra = "", const st
 }
 
 // Instrument frame: tip at `tip`, +z from the trocar (the pivot) through the tip.
-InstrumentState instrumentAt(const scene::SceneDescription& scene, const std::string& slot, const Eigen::Vector3d& tip,
-                             double jaw_angle, Stamp stamp) {
-  const scene::Trocar* trocar = scene.findTrocar(slot);
-  const Eigen::Vector3d z = (tip - trocar->position_in_eye).normalized();
-  const Eigen::Vector3d x = z.unitOrthogonal();
-  InstrumentState state;
-  state.stamp = stamp;
-  state.slot = slot;
-  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
-  pose.linear().col(0) = x;
-  pose.linear().col(1) = z.cross(x);
-  pose.linear().col(2) = z;
-  pose.translation() = tip;
-  state.setPose(pose);
-  state.jaw_angle = jaw_angle;
-  return state;
-}
+using testing_support::instrumentAt;
 
 Eigen::Vector3d pole(double height_above_retina) { return Eigen::Vector3d(0.0, 0.0, -(0.012 - height_above_retina)); }
 
