@@ -144,7 +144,7 @@ struct InstrumentInput {
   double cut_radius = 0.0;
   double cut_offset = 0.0;
   double cut_length = 0.0;
-  // Holding without jaws — the vitrector's suction at its port, the needle at its puncture: while `holds` the
+  // Holding without jaws — the vitrector's suction at its port (the World sets it): while `holds` the
   // instrument takes the nodes within hold_radius of hold_point (instrument frame) that are not held yet, and they
   // follow it until `holds` ends. A hold that found nothing tries again next step.
   bool holds = false;

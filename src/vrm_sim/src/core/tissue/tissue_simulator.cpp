@@ -212,7 +212,7 @@ void TissueSimulator::updateGrasp(std::size_t index, const InstrumentInput& inst
   Eigen::Vector3d* x = membrane_->positions();
   Eigen::Vector3d* v = membrane_->velocities();
   if (!jaws_closed && instrument.holds && !grasp.active) {
-    // Suction or a puncture holds what is within reach of its point; nothing there yet, it tries again next step.
+    // A hold without jaws (suction) takes what is within reach of its point; finding nothing, it retries next step.
     const Eigen::Vector3d centre = pose * instrument.hold_point;
     const Eigen::Isometry3d inverse = pose.inverse();
     for (std::size_t i = 0; i < constrained_.size(); ++i) {
