@@ -5,6 +5,8 @@
 // again into every new manager process (a new URI), with the same name, type, remappings and arguments, and unloads it
 // when the launch stops it. Drop-in for the stock loader:
 //   <node pkg="vrm_sim" type="nodelet_keeper" name="scene_manager" args="load vrm_sim/scene_manager MANAGER"/>
+// A nodelet loaded again gets the extra argument --reloaded (getMyArgv()): a simulation node resumes its session
+// from its journal then, and a device twin holds its script until it hears where the session was (issue 39).
 // Parameters: none (the nodelet's own parameters live under its name, which it keeps across reloads).
 #include <nodelet/NodeletList.h>
 #include <nodelet/NodeletLoad.h>
@@ -60,6 +62,8 @@ class Keeper {
       load.request.remap_target_args.push_back(to);
     }
     load.request.my_argv = argv_;
+    // Loaded again after a crash of the manager: the nodelet may resume what the crashed one did (issue 39).
+    if (!loaded_uri_.empty()) load.request.my_argv.push_back("--reloaded");
     if (ros::service::call(manager_ + "/load_nodelet", load) && load.response.success) {
       loaded_uri_ = uri;
       ++loads_;

@@ -11,8 +11,10 @@
 // after STOP, default 1.0), bag (the first part's path; empty = no part report), recorder_timeout (s of wall time
 // after the first simulated frame; a recorder that does not listen by then ends the session, default 30).
 //
-// Faults (issue 14). A simulation that comes back after a crash of its nodelet manager (a new process publishes
-// scenario_status) gets the scenario restarted cleanly: LOAD of the same scene, difficulty and seed, then START,
+// Faults (issues 14, 39). A simulation that comes back after a crash of its nodelet manager announces it on
+// simulation_resume (vrm_msgs/SessionResume). Crash = pause: when it resumed the session from its journal, the session
+// goes on, one session with one result; its STOP moves by the time the clock stood still. When it had nothing to
+// resume (no journal), the scenario is restarted cleanly: LOAD of the same scene, difficulty and seed, then START,
 // both recorded, so a replay of the bag resets its world where the live one was restarted (the interrupted session's
 // result is kept, marked interrupted, by scenario_manager). A recorder that dies (its process no longer answers) is
 // respawned by the launch into the next bag part; the gap is logged while it lasts, and at the end the killed parts
@@ -39,6 +41,7 @@
 #include "vrm_msgs/ScenarioCommand.h"
 #include "vrm_msgs/ScenarioStatus.h"
 #include "vrm_msgs/SessionInfo.h"
+#include "vrm_msgs/SessionResume.h"
 #include "vrm_msgs/SimulationState.h"
 #include "vrm_sim/bag/session_bag.h"
 #include "vrm_sim/cli/cli.h"
@@ -75,23 +78,6 @@ bool answers(const std::string& uri) {
   return ok;
 }
 
-// The URIs of the processes publishing `topic`.
-std::set<std::string> publisherUris(const std::string& topic) {
-  std::set<std::string> uris;
-  XmlRpc::XmlRpcValue request, response, payload;
-  request[0] = ros::this_node::getName();
-  if (!ros::master::execute("getSystemState", request, response, payload, false)) return uris;
-  const XmlRpc::XmlRpcValue& publications = payload[0];
-  for (int i = 0; i < publications.size(); ++i) {
-    if (static_cast<std::string>(publications[i][0]) != topic) continue;
-    for (int j = 0; j < publications[i][1].size(); ++j) {
-      const std::string uri = lookupNode(static_cast<std::string>(publications[i][1][j]));
-      if (!uri.empty()) uris.insert(uri);
-    }
-  }
-  return uris;
-}
-
 struct Gap {
   ros::Time from, to;  // input time: the newest frame when the recorder was found dead / listening again
 };
@@ -112,6 +98,7 @@ class SessionControl {
     command_publisher_ = nh_.advertise<vrm_msgs::ScenarioCommand>("scenario_command", 5);
     state_subscriber_ = nh_.subscribe("simulation_state", 50, &SessionControl::onFrame, this);
     status_subscriber_ = nh_.subscribe("scenario_status", 5, &SessionControl::onStatus, this);
+    resume_subscriber_ = nh_.subscribe("simulation_resume", 1, &SessionControl::onResume, this);
     timer_ = nh_.createWallTimer(ros::WallDuration(0.1), &SessionControl::onTimer, this);
   }
 
@@ -140,13 +127,27 @@ class SessionControl {
 
   void onSessionInfo(const vrm_msgs::SessionInfo::ConstPtr& info) { info_ = info; }
 
-  // The simulation's process (a manager restart) and the recorder's (a respawn), twice a second.
-  void checkHealth(const ros::WallTimerEvent&) {
-    const std::set<std::string> simulation = publisherUris(status_subscriber_.getTopic());
-    if (!simulation.empty()) {
-      if (!simulation_uris_.empty() && simulation != simulation_uris_ && started_ && !session_over_) restartScenario();
-      simulation_uris_ = simulation;
+  // A simulation node loaded again after a crash of its manager (one announcement per new process, latched).
+  void onResume(const vrm_msgs::SessionResume::ConstPtr& resume) {
+    if (session_over_) return;
+    if (!resume->resumed) {
+      if (started_) restartScenario();
+      return;
     }
+    ++restarts_;
+    ++resumes_;
+    const ros::Duration paused = resume->header.stamp - resume->paused_at;
+    // The session's input time stood still from the pause to the resume: its end moves by as much.
+    if (started_ && !resume->session_start.isZero()) start_ += paused;
+    newest_ = std::max(newest_, resume->header.stamp);
+    ROS_WARN(
+        "session_control: the simulation resumed the session after a crash (%u frames restored in %.2f s); paused "
+        "%.2f s of input time, the session goes on (resume %u)",
+        resume->frames_restored, resume->restore_seconds, paused.toSec(), resumes_);
+  }
+
+  // The recorder's process (a respawn), twice a second.
+  void checkHealth(const ros::WallTimerEvent&) {
     ros::param::get(recorder_ + "/part", next_part_);
     if (!started_) return;
     const std::string recorder_uri = lookupNode(recorder_);
@@ -185,9 +186,9 @@ class SessionControl {
   void restartScenario() {
     ++restarts_;
     ROS_WARN(
-        "session_control: the simulation restarted (a new process publishes %s); its interrupted session keeps "
-        "its result, marked interrupted; the scenario starts again (restart %u)",
-        status_subscriber_.getTopic().c_str(), restarts_);
+        "session_control: the simulation restarted with nothing to resume; its interrupted session keeps its "
+        "result, marked interrupted; the scenario starts again (restart %u)",
+        restarts_);
     started_ = false;
     stop_sent_ = false;
     scenario_ended_ = false;
@@ -317,7 +318,7 @@ class SessionControl {
            << ", \"to\": " << (gaps_[i].to.isZero() ? newest_.toSec() : gaps_[i].to.toSec())
            << ", \"seconds\": " << ((gaps_[i].to.isZero() ? newest_ : gaps_[i].to) - gaps_[i].from).toSec() << "}";
     }
-    json << "], \"simulation_restarts\": " << restarts_ << "}\n";
+    json << "], \"simulation_restarts\": " << restarts_ << ", \"simulation_resumes\": " << resumes_ << "}\n";
     const std::string report = stem + ".recording.json";
     std::ofstream(report) << json.str();
     if (current > 1 || !gaps_.empty() || restarts_ > 0) {
@@ -334,14 +335,13 @@ class SessionControl {
   bool send_start_ = true;
   ros::Duration start_delay_, tail_;
   ros::Publisher command_publisher_;
-  ros::Subscriber state_subscriber_, status_subscriber_, info_subscriber_;
+  ros::Subscriber state_subscriber_, status_subscriber_, info_subscriber_, resume_subscriber_;
   ros::WallTimer timer_, health_timer_;
   std::string bag_;
   vrm_msgs::SessionInfo::ConstPtr info_;
-  std::set<std::string> simulation_uris_;
   std::vector<Gap> gaps_;
   bool gap_open_ = false, reload_ = false, session_over_ = false;
-  unsigned restarts_ = 0;
+  unsigned restarts_ = 0, resumes_ = 0;  // restarts of the simulation node; of them resumed from the journal
   int next_part_ = 2;
   double recorder_timeout_ = 30.0;
   ros::WallTime first_frame_wall_;  // the recorder's ~part: the part its next start records into

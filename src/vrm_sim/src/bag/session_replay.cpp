@@ -4,6 +4,7 @@
 #include <rosbag/view.h>
 
 #include <algorithm>
+#include <boost/make_shared.hpp>
 #include <chrono>
 #include <filesystem>
 #include <iomanip>
@@ -11,6 +12,7 @@
 
 #include "vrm_msgs/EyeState.h"
 #include "vrm_msgs/InputFrame.h"
+#include "vrm_msgs/InputFrames.h"
 #include "vrm_msgs/InstrumentState.h"
 #include "vrm_msgs/PedalState.h"
 #include "vrm_msgs/ScenarioCommand.h"
@@ -89,9 +91,18 @@ ReplayResult replaySession(const PreparedBag& prepared, const SessionSetup& setu
     // order or on a silent source is in them, so the replay repeats the session whatever the load was.
     result.input = "input_frame";
     std::vector<vrm_msgs::InputFrame::ConstPtr> recorded;
-    rosbag::View view(bag, rosbag::TopicQuery(std::vector<std::string>{inputFrameTopic()}));
+    rosbag::View view(bag, rosbag::TopicQuery(std::vector<std::string>{inputFrameTopic(), resentFramesTopic()}));
+    std::size_t resent = 0;
     for (const rosbag::MessageInstance& message : view) {
       if (auto frame = message.instantiate<vrm_msgs::InputFrame>()) recorded.push_back(frame);
+      // A simulation node that resumed after a crash resends the frames the dead process may still have had queued
+      // for the recorder (issue 39): they fill the bag's hole; the ones it has are skipped below.
+      if (auto frames = message.instantiate<vrm_msgs::InputFrames>()) {
+        for (const vrm_msgs::InputFrame& frame : frames->frames) {
+          recorded.push_back(boost::make_shared<vrm_msgs::InputFrame>(frame));
+          ++resent;
+        }
+      }
     }
     // A simulation node restarted after a crash numbers its frames from 1 again under a new run: the runs in the
     // order the recorder saw them, each in its sequence.
@@ -107,6 +118,15 @@ ReplayResult replaySession(const PreparedBag& prepared, const SessionSetup& setu
       }
       std::stable_sort(of_run.begin(), of_run.end(),
                        [](const auto& a, const auto& b) { return a->sequence < b->sequence; });
+      if (resent > 0) {
+        // A frame both recorded and resent is one frame (the same sequence, stamp and kind).
+        of_run.erase(std::unique(of_run.begin(), of_run.end(),
+                                 [](const auto& a, const auto& b) {
+                                   return a->sequence == b->sequence && a->header.stamp == b->header.stamp &&
+                                          a->kind == b->kind;
+                                 }),
+                     of_run.end());
+      }
       for (std::size_t i = 1; i < of_run.size(); ++i) {
         if (of_run[i]->sequence == of_run[i - 1]->sequence + 1) continue;
         std::ostringstream what;

@@ -37,14 +37,28 @@
 // renamed, so a crash never leaves half a file. A scenario_manager that starts and finds a provisional result (its
 // manager died mid-session) keeps it as <stem>.interrupted[-N].result.json with "state": "interrupted", so the
 // interrupted session is in the records, not missing.
+// Crash = pause (issue 39). A recorded session (~bag set, ~journal true) appends every input frame it applies to
+// <bag without .bag>.journal before publishing it (bag/session_journal.h). A scenario_manager that starts and finds
+// the journal of an unfinished session (no final result; the same scene, difficulty and seed) restores the session
+// from it instead of starting a new one: the frames go to the Session as in a replay, so the World, the scenario,
+// the bleeding and every random draw are where the crashed process left them, the grasps included. Once the
+// recorder listens again it picks a resume stamp R (now + ~resume_margin, default 0.3 s), records PAUSE at the last
+// restored frame and RESUME at R (the session clock stands still in between), resends the journal's last
+// ~resend_frames frames (default 150) as one latched vrm_msgs/InputFrames on input_frame_resent (frames the dead
+// process had queued for the recorder; a replay skips those it has), and announces vrm_msgs/SessionResume on
+// simulation_resume (latched). Inputs stamped before R are not applied; the device twins loaded again into the
+// restarted manager play on from their script time at R. The session keeps its one result. A node loaded again
+// (nodelet_keeper --reloaded) with nothing to resume announces resumed = false, and a new session starts.
 // Diagnostics (/diagnostics, 1 Hz wall clock): frames, inputs, rejected inputs (non-finite or implausible values,
 // unknown slot or frame, stamps far ahead) and late inputs per second; WARN while inputs are being rejected.
 #include <diagnostic_msgs/DiagnosticArray.h>
 #include <nodelet/nodelet.h>
+#include <ros/master.h>
 #include <ros/ros.h>
 #include <unistd.h>
 #include <visualization_msgs/MarkerArray.h>
 
+#include <algorithm>
 #include <boost/make_shared.hpp>
 #include <cmath>
 #include <cstdio>
@@ -55,14 +69,17 @@
 #include <pluginlib/class_list_macros.hpp>
 
 #include "vrm_msgs/CollisionReport.h"
+#include "vrm_msgs/InputFrames.h"
 #include "vrm_msgs/RunningScene.h"
 #include "vrm_msgs/ScenarioStatus.h"
 #include "vrm_msgs/Score.h"
 #include "vrm_msgs/SessionResult.h"
+#include "vrm_msgs/SessionResume.h"
 #include "vrm_msgs/SimulationState.h"
 #include "vrm_msgs/StageTiming.h"
 #include "vrm_msgs/TissueMesh.h"
 #include "vrm_msgs/publish.h"
+#include "vrm_sim/bag/session_journal.h"
 #include "vrm_sim/conversions.h"
 #include "vrm_sim/graph_failure.h"
 #include "vrm_sim/mge/membrane.h"
@@ -113,8 +130,15 @@ class ScenarioManager : public nodelet::Nodelet {
       result_files_.push_back(stem + ".result.json");
     }
     if (!result_file_.empty()) result_files_.push_back(result_file_);
-    keepInterruptedResults();
     seed_ = static_cast<std::uint32_t>(private_nh.param("seed", 0));
+    const std::vector<std::string>& argv = getMyArgv();
+    reloaded_ = std::find(argv.begin(), argv.end(), "--reloaded") != argv.end();
+    journal_enabled_ = private_nh.param("journal", true) && !bag_path_.empty() && input_mode_ == "devices";
+    resume_margin_ = std::max(0.0, private_nh.param("resume_margin", 0.3));
+    resend_frames_ = static_cast<std::size_t>(std::max(0, private_nh.param("resend_frames", 150)));
+    bag::JournalHeader journal_header{scene_parameter, difficulty, seed_, run_};
+    std::optional<bag::JournalContents> journal = resumableJournal(journal_header);
+    if (!journal) keepInterruptedResults();
     user_ = private_nh.param<std::string>("user", "");
     char host[256] = {0};
     station_ = private_nh.param<std::string>("station", gethostname(host, sizeof(host) - 1) == 0 ? host : "");
@@ -138,6 +162,14 @@ class ScenarioManager : public nodelet::Nodelet {
     session_->setInputObserver([this](const world::InputFrame& frame) { publishInputFrame(frame); });
     session_->setLoadObserver([this](world::World& world) { onLoaded(world); });
     onLoaded(session_->world());
+    resume_publisher_ = nh.advertise<vrm_msgs::SessionResume>("simulation_resume", 1, /*latch=*/true);
+    resent_publisher_ = nh.advertise<vrm_msgs::InputFrames>("input_frame_resent", 1, /*latch=*/true);
+    if (journal) {
+      restore(std::move(*journal));
+    } else {
+      if (journal_enabled_) startJournal(journal_header);
+      if (reloaded_) announceFreshStart();
+    }
     // Deep queues (pointers only, zero copy): on a loaded machine an input dropped here would be missing from the
     // live session but present in its bag, and the replay would differ. Two seconds of every input at 50 Hz.
     if (input_mode_ == "frames") {
@@ -162,18 +194,209 @@ class ScenarioManager : public nodelet::Nodelet {
     if (session_) writeResult();
   }
 
+  // ---- crash = pause (issue 39) ----
+
+  // The journal of this session's crashed process, if there is one to resume; otherwise why not (logged) and nullopt.
+  std::optional<bag::JournalContents> resumableJournal(const bag::JournalHeader& expected) {
+    if (!journal_enabled_) return std::nullopt;
+    const std::string path = bag::journalPath(bag_path_);
+    if (!std::filesystem::exists(path)) return std::nullopt;
+    const auto not_resumed = [&](const std::string& why) -> std::optional<bag::JournalContents> {
+      resume_reason_ = why;
+      NODELET_WARN("scenario_manager: the journal %s is not resumed: %s; a new session starts", path.c_str(),
+                   why.c_str());
+      return std::nullopt;
+    };
+    for (const std::string& result_path : result_files_) {
+      try {
+        if (std::filesystem::exists(result_path) && !result::readResultFile(result_path).in_progress) {
+          return not_resumed("the session it records has ended (" + result_path + " is final)");
+        }
+      } catch (const result::ResultError&) {
+        // An unreadable result is no final result.
+      }
+    }
+    bag::JournalContents journal;
+    try {
+      journal = bag::readJournal(path);
+    } catch (const bag::JournalError& error) {
+      const std::string kept = path + ".unreadable";
+      std::error_code ignored;
+      std::filesystem::rename(path, kept, ignored);
+      NODELET_ERROR("scenario_manager: %s (kept as %s)", error.what(), kept.c_str());
+      return not_resumed(error.what());
+    }
+    if (journal.header.scene != expected.scene || journal.header.difficulty != expected.difficulty ||
+        journal.header.seed != expected.seed) {
+      return not_resumed("it records scene '" + journal.header.scene + "' (difficulty '" + journal.header.difficulty +
+                         "', seed " + std::to_string(journal.header.seed) + "), this node runs '" + expected.scene +
+                         "' ('" + expected.difficulty + "', " + std::to_string(expected.seed) + ")");
+    }
+    if (journal.frames.empty()) return not_resumed("it holds no frame");
+    return journal;
+  }
+
+  void startJournal(const bag::JournalHeader& header) {
+    try {
+      journal_.create(bag::journalPath(bag_path_), header);
+    } catch (const bag::JournalError& error) {
+      NODELET_ERROR("scenario_manager: %s; this session cannot resume after a crash", error.what());
+    }
+  }
+
+  // Every frame of the crashed process, applied as a replay applies it; nothing is published meanwhile.
+  void restore(bag::JournalContents journal) {
+    const ros::WallTime wall_start = ros::WallTime::now();
+    restoring_ = true;
+    run_ = journal.header.run;
+    for (const vrm_msgs::InputFrame::Ptr& message : journal.frames) {
+      for (const vrm_msgs::ScenarioCommand& command : message->commands) {
+        if (command.command == vrm_msgs::ScenarioCommand::START) session_start_ = command.header.stamp;
+        if (command.command == vrm_msgs::ScenarioCommand::LOAD) session_start_ = ros::Time();
+      }
+      paused_at_ = std::max(paused_at_, message->header.stamp);
+      session_->handle(toWorld(*message));
+    }
+    restoring_ = false;
+    restored_sequence_ = journal.frames.back()->sequence;
+    session_->continueSequence(restored_sequence_ + 1);
+    frames_restored_ = static_cast<std::uint32_t>(journal.frames.size());
+    restore_seconds_ = (ros::WallTime::now() - wall_start).toSec();
+    const std::size_t tail = std::min(resend_frames_, journal.frames.size());
+    resend_.assign(journal.frames.end() - static_cast<std::ptrdiff_t>(tail), journal.frames.end());
+    try {
+      journal_.reopen(bag::journalPath(bag_path_), journal.valid_bytes);
+    } catch (const bag::JournalError& error) {
+      NODELET_ERROR("scenario_manager: %s; this session cannot resume after another crash", error.what());
+    }
+    // Until the resume stamp is chosen every device input is held off (stamps before it are never applied).
+    resume_stamp_ = ros::TIME_MAX;
+    NODELET_WARN(
+        "scenario_manager: resumed the session of %s from its journal: %u frames (to sequence %lu, input time "
+        "%.3f s) restored in %.2f s%s; state %s",
+        bag_path_.c_str(), frames_restored_, static_cast<unsigned long>(restored_sequence_), paused_at_.toSec(),
+        restore_seconds_,
+        journal.torn_bytes
+            ? (", a torn last record of " + std::to_string(journal.torn_bytes) + " bytes dropped").c_str()
+            : "",
+        world::hashString(session_->world().stateHash()).c_str());
+    resume_timer_ = getNodeHandle().createWallTimer(ros::WallDuration(0.05), &ScenarioManager::finishResume, this);
+  }
+
+  // Whether every subscriber the master knows of `publisher`'s topic is connected to it (the recorder, a process of
+  // its own, connects to this new process a moment after it advertises).
+  static bool allSubscribersConnected(const ros::Publisher& publisher) {
+    XmlRpc::XmlRpcValue request, response, payload;
+    request[0] = ros::this_node::getName();
+    if (!ros::master::execute("getSystemState", request, response, payload, false)) return false;
+    const XmlRpc::XmlRpcValue& subscriptions = payload[1];
+    for (int i = 0; i < subscriptions.size(); ++i) {
+      if (static_cast<std::string>(subscriptions[i][0]) != publisher.getTopic()) continue;
+      return publisher.getNumSubscribers() >= static_cast<std::uint32_t>(subscriptions[i][1].size());
+    }
+    return true;
+  }
+
+  // Once the recorder listens (or after 10 s): PAUSE at the last restored frame, RESUME at the resume stamp, the
+  // journal's tail resent, the resume announced.
+  void finishResume(const ros::WallTimerEvent&) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (resume_wait_start_.isZero()) resume_wait_start_ = ros::WallTime::now();
+    const double waited = (ros::WallTime::now() - resume_wait_start_).toSec();
+    const bool connected =
+        allSubscribersConnected(input_frame_publisher_) && allSubscribersConnected(resent_publisher_);
+    if (!connected && waited < 10.0) return;
+    if (!connected) NODELET_ERROR("scenario_manager: the recorder did not connect within 10 s; resuming all the same");
+    resume_timer_.stop();
+    // A live decision (when the session goes on), recorded as the PAUSE / RESUME commands below: a replay reads them.
+    const ros::Time resume_at = std::max(ros::Time::now(), paused_at_) + ros::Duration(resume_margin_);
+    const bool clock_running = session_->world().simulating();
+    std::vector<vrm_msgs::InputFrame::Ptr> own;
+    if (clock_running) {
+      own.push_back(applyOwnCommand(world::ScenarioCommand::Type::kPause, paused_at_));
+      own.push_back(applyOwnCommand(world::ScenarioCommand::Type::kResume, resume_at));
+    }
+    resume_stamp_ = resume_at;
+    auto resent = boost::make_shared<vrm_msgs::InputFrames>();
+    resent->header.stamp = resume_at;
+    for (const auto& frame : resend_) resent->frames.push_back(*frame);
+    for (const auto& frame : own) resent->frames.push_back(*frame);
+    resend_.clear();
+    vrm_msgs::publishShared(resent_publisher_, resent);
+    auto message = boost::make_shared<vrm_msgs::SessionResume>();
+    message->header.stamp = resume_at;
+    message->resumed = true;
+    message->run = run_;
+    message->sequence = restored_sequence_;
+    message->paused_at = paused_at_;
+    message->session_start = session_start_;
+    message->frames_restored = frames_restored_;
+    message->restore_seconds = restore_seconds_;
+    vrm_msgs::publishShared(resume_publisher_, message);
+    publishAllTissues(paused_at_);
+    publishStatus(resume_at, true);
+    NODELET_WARN(
+        "scenario_manager: the session goes on at input time %.3f s (paused at %.3f s, script time %.3f s%s); "
+        "%zu frames resent for the recorder",
+        resume_at.toSec(), paused_at_.toSec(), session_start_.isZero() ? 0.0 : (paused_at_ - session_start_).toSec(),
+        clock_running ? ", PAUSE and RESUME recorded" : ", its clock was not running", resent->frames.size());
+  }
+
+  // A command of this node's own (the resume's PAUSE and RESUME) as a frame of its own, applied, journaled and
+  // published like every frame.
+  vrm_msgs::InputFrame::Ptr applyOwnCommand(world::ScenarioCommand::Type type, const ros::Time& stamp) {
+    world::InputFrame frame;
+    frame.kind = world::InputFrame::Kind::kState;
+    frame.stamp = toStamp(stamp);
+    frame.sequence = session_->nextSequence();
+    session_->continueSequence(frame.sequence + 1);
+    frame.commands.push_back(world::ScenarioCommand{frame.stamp, type, "", "", 0});
+    last_own_frame_.reset();
+    session_->handle(frame);
+    return last_own_frame_;
+  }
+
+  void announceFreshStart() {
+    auto message = boost::make_shared<vrm_msgs::SessionResume>();
+    message->header.stamp = ros::Time::now();
+    message->resumed = false;
+    message->run = run_;
+    message->reason = resume_reason_.empty() ? "no journal of an unfinished session" : resume_reason_;
+    vrm_msgs::publishShared(resume_publisher_, message);
+    NODELET_WARN("scenario_manager: loaded again after a crash of its manager; nothing to resume (%s)",
+                 message->reason.c_str());
+  }
+
+  void removeJournal() {
+    if (!journal_.isOpen()) return;
+    const std::string path = journal_.path();
+    journal_.close();
+    std::error_code ignored;
+    std::filesystem::remove(path, ignored);
+  }
+
  private:
   // The manager runs callbacks on several threads; the core is one state machine.
+  // A resumed session applies no device input stamped before its resume stamp (the twins of the restarted manager
+  // start their scripts over until they hear where the session was).
+  bool beforeResume(const ros::Time& stamp) {
+    if (stamp >= resume_stamp_) return false;
+    ++inputs_before_resume_;
+    return true;
+  }
   void onEyeState(const vrm_msgs::EyeState::ConstPtr& eye) {
     std::lock_guard<std::mutex> lock(mutex_);
+    if (beforeResume(eye->header.stamp)) return;
     session_->handle(toWorld(*eye));
   }
   void onInstrumentState(const vrm_msgs::InstrumentState::ConstPtr& instrument) {
     std::lock_guard<std::mutex> lock(mutex_);
+    if (beforeResume(instrument->header.stamp)) return;
     session_->handle(toWorld(*instrument));
   }
   void onPedals(const vrm_msgs::PedalState::ConstPtr& pedals) {
     std::lock_guard<std::mutex> lock(mutex_);
+    if (beforeResume(pedals->header.stamp)) return;
     session_->handle(toWorld(*pedals));
   }
   void onScenarioCommand(const vrm_msgs::ScenarioCommand::ConstPtr& command) {
@@ -219,11 +442,22 @@ class ScenarioManager : public nodelet::Nodelet {
   // Called once a frame's inputs are applied, before it steps: whether this frame reports rigid-object collisions
   // is decided here, once per frame (not per input message: a flood of them must not cost a subscriber count each).
   void publishInputFrame(const world::InputFrame& frame) {
-    if (frame.kind == world::InputFrame::Kind::kFrame) prepareReports();
     if (frame.kind == world::InputFrame::Kind::kLoad) last_load_stamp_ = frame.stamp;  // announced by onLoaded
+    if (restoring_) return;
+    if (frame.kind == world::InputFrame::Kind::kFrame) prepareReports();
     auto message = boost::make_shared<vrm_msgs::InputFrame>();
     fillInputFrame(frame, world_frame_, eye_frame_, *message);
     message->run = run_;
+    // Journaled before it is published: every frame the recorder may hold is one a restart restores.
+    if (journal_.isOpen()) {
+      try {
+        journal_.append(*message);
+      } catch (const bag::JournalError& error) {
+        NODELET_ERROR("scenario_manager: %s; this session cannot resume after a crash from here on", error.what());
+        journal_.close();
+      }
+    }
+    if (frame.kind == world::InputFrame::Kind::kState && !frame.commands.empty()) last_own_frame_ = message;
     vrm_msgs::publishShared(input_frame_publisher_, message);
   }
 
@@ -275,34 +509,50 @@ class ScenarioManager : public nodelet::Nodelet {
 
   static ros::Time wallStamp(double seconds) { return ros::Time(std::max(seconds, 0.0)); }
 
+  void publishTissue(const world::TissueReport& tissue, const ros::Time& stamp) {
+    auto mesh = boost::make_shared<vrm_msgs::TissueMesh>();
+    mge::Membrane& membrane = *session_->world().membrane(tissue.object);
+    fillTissueMesh(membrane.positions(), membrane.nodeCount(), membrane.triangleNodeSlots(), membrane.triangleCount(),
+                   *mesh);
+    mesh->header.stamp = stamp;
+    mesh->header.frame_id = frameName(tissue.frame_id);
+    mesh->tissue_id = tissue.object;
+    mesh->version = tissue.version;
+    mesh->topology_version = tissue.topology_version;
+    mesh->integrator = tissue.integrator;
+    vrm_msgs::publishShared(mesh_publishers_[tissue.object], mesh);
+    ++meshes_published_;
+  }
+
+  void publishInjury(const world::InjuryReport& injury, const ros::Time& stamp) {
+    auto mesh = boost::make_shared<vrm_msgs::TissueMesh>();
+    fillTissueMesh(*injury.mesh, *mesh);
+    mesh->injury = *injury.injury;
+    mesh->header.stamp = stamp;
+    mesh->header.frame_id = frameName(injury.frame_id);
+    mesh->tissue_id = injury.object;
+    mesh->version = injury.version;
+    mesh->topology_version = 1;
+    vrm_msgs::publishShared(mesh_publishers_[injury.object], mesh);
+  }
+
+  // Every tissue and bleeding surface as it is now (after a restore, whose frames published nothing).
+  void publishAllTissues(const ros::Time& stamp) {
+    world::World& world = session_->world();
+    for (const std::string& name : world.tissueNames()) publishTissue(world.tissueReport(name), stamp);
+    for (const world::InjuryReport& injury : world.injuries()) {
+      if (injury.mesh && injury.injury) publishInjury(injury, stamp);
+    }
+  }
+
   void publish(const world::FrameResult& frame) {
+    if (restoring_) return;
     const ros::Time stamp = toRosTime(frame.stamp);
     for (const world::TissueReport& tissue : frame.tissues) {
-      if (!tissue.changed) continue;
-      auto mesh = boost::make_shared<vrm_msgs::TissueMesh>();
-      mge::Membrane& membrane = *session_->world().membrane(tissue.object);
-      fillTissueMesh(membrane.positions(), membrane.nodeCount(), membrane.triangleNodeSlots(), membrane.triangleCount(),
-                     *mesh);
-      mesh->header.stamp = stamp;
-      mesh->header.frame_id = frameName(tissue.frame_id);
-      mesh->tissue_id = tissue.object;
-      mesh->version = tissue.version;
-      mesh->topology_version = tissue.topology_version;
-      mesh->integrator = tissue.integrator;
-      vrm_msgs::publishShared(mesh_publishers_[tissue.object], mesh);
-      ++meshes_published_;
+      if (tissue.changed) publishTissue(tissue, stamp);
     }
     for (const world::InjuryReport& injury : frame.injuries) {
-      if (!injury.changed) continue;
-      auto mesh = boost::make_shared<vrm_msgs::TissueMesh>();
-      fillTissueMesh(*injury.mesh, *mesh);
-      mesh->injury = *injury.injury;
-      mesh->header.stamp = stamp;
-      mesh->header.frame_id = frameName(injury.frame_id);
-      mesh->tissue_id = injury.object;
-      mesh->version = injury.version;
-      mesh->topology_version = 1;
-      vrm_msgs::publishShared(mesh_publishers_[injury.object], mesh);
+      if (injury.changed) publishInjury(injury, stamp);
     }
     boost::shared_ptr<visualization_msgs::MarkerArray> markers;
     if (markers_wanted_) markers = boost::make_shared<visualization_msgs::MarkerArray>();
@@ -404,6 +654,7 @@ class ScenarioManager : public nodelet::Nodelet {
     message->result_files = result_files_;
     if (ros::ok()) vrm_msgs::publishShared(result_publisher_, message);  // not from the destructor at shutdown
     writeResultFiles(final_result);
+    removeJournal();  // a final result is never resumed
   }
 
   void writeResultFiles(const result::SessionResult& session_result) {
@@ -567,6 +818,22 @@ class ScenarioManager : public nodelet::Nodelet {
   ros::WallTimer diagnostics_timer_;
   ros::WallTime last_diagnostics_;
   world::WorldStatistics reported_;
+  // Crash = pause (issue 39).
+  bool reloaded_ = false, journal_enabled_ = false, restoring_ = false;
+  double resume_margin_ = 0.3;
+  std::size_t resend_frames_ = 150;
+  bag::JournalWriter journal_;
+  std::string resume_reason_;
+  ros::Time resume_stamp_;  // device inputs stamped before it are not applied
+  ros::Time paused_at_, session_start_;
+  std::uint64_t restored_sequence_ = 0, inputs_before_resume_ = 0;
+  std::uint32_t frames_restored_ = 0;
+  double restore_seconds_ = 0.0;
+  std::vector<vrm_msgs::InputFrame::Ptr> resend_;
+  vrm_msgs::InputFrame::Ptr last_own_frame_;
+  ros::WallTimer resume_timer_;
+  ros::WallTime resume_wait_start_;
+  ros::Publisher resume_publisher_, resent_publisher_;
 };
 
 }  // namespace vrm_sim

@@ -1,10 +1,12 @@
 #!/usr/bin/env python3
 """Runtime faults of the product graph (issue 14), each against launch/simulator.launch as a user starts it.
 
-  manager_crash   kill -9 of the nodelet manager in a recorded session: the supervisor restarts it, every nodelet is
-                  loaded again, the scenario restarts (recorded LOAD + START), the interrupted session's result is
-                  kept marked "interrupted", the bag holds every input seen before the crash, and the bag replays
-                  offline to the restarted session's final state.
+  manager_crash   crash = pause (issue 39): kill -9 of the nodelet manager in a recorded session, while a grasp is
+                  held: the supervisor restarts it, every nodelet is loaded again, the simulation restores the session
+                  from its journal and goes on (the grasp held, the scenario clock stopped while it was down, the
+                  twins on at their script time): one session, one result, no LOAD or second START in the bag, the
+                  bag's frames without a hole (with the resent ones), and the bag replays offline to the live final
+                  state.
   recorder_crash  kill -9 of the recorder: the simulation keeps its rate, a respawned recorder writes part 2, the
                   killed part is recovered at the end, the gap is reported in <bag>.recording.json.
   hostile_flood   instrument_state / eye_state with NaN, Inf, 1e300, non-unit quaternions, stamps 100 s in the
@@ -116,7 +118,7 @@ class Graph:
 class Watch:
     """Subscribes to the graph's outputs and counts what arrives (thread-safe enough for counters)."""
 
-    def __init__(self, views=False):
+    def __init__(self, views=False, keep_states=False):
         import rospy
         from diagnostic_msgs.msg import DiagnosticArray
         from vrm_msgs.msg import InstrumentState, ScenarioStatus, SimulationState
@@ -128,6 +130,9 @@ class Watch:
         self.instrument_stamps = []  # (wall, stamp, slot)
         self.views = []  # wall: stereo frames the station's display twin showed
         self.non_finite = 0
+        self.keep_states = keep_states
+        self.states = []  # keep_states: (wall, stamp, grasped nodes, frame_time, state hash)
+        self.status_objects = []  # keep_states: (wall, ScenarioStatus)
         self.diagnostics = {}
         self.levels_seen = set()  # scenario_manager's diagnostic levels
         self.subscribers = [
@@ -146,6 +151,8 @@ class Watch:
         with self.lock:
             self.status = message
             self.status_history.append((time.monotonic(), message.state, message.header.stamp.to_sec()))
+            if self.keep_states:
+                self.status_objects.append((time.monotonic(), message))
 
     def _on_frame(self, message):
         values = [message.header.stamp.to_sec(), message.frame_time, message.max_injury]
@@ -153,6 +160,10 @@ class Watch:
             values += [tissue.max_strain, tissue.max_lift, tissue.lifted_fraction]
         with self.lock:
             self.frames.append((time.monotonic(), message.header.stamp.to_sec()))
+            if self.keep_states:
+                self.states.append((time.monotonic(), message.header.stamp.to_sec(),
+                                    sum(t.grasped_nodes for t in message.tissues), message.frame_time,
+                                    getattr(message, "state_hash", "")))
             self.non_finite += sum(1 for v in values if not math.isfinite(v))
 
     def _on_instrument(self, message):
@@ -177,6 +188,10 @@ class Watch:
                     self.levels_seen.add(ord(status.level) if isinstance(status.level, bytes) else status.level)
                 self.diagnostics[status.name] = (time.monotonic(), status.level, status.message,
                                                  {kv.key: kv.value for kv in status.values})
+
+    def grasped_now(self):
+        with self.lock:
+            return self.states[-1][2] if self.states else 0
 
     def state(self):
         with self.lock:
@@ -238,60 +253,82 @@ def replay_hash(bag_path):
 # --- cases -----------------------------------------------------------------------------------------------------------
 
 def manager_crash(args):
+    """Crash = pause (issue 39): the restarted simulation resumes the session from its journal."""
     bag = os.path.join(args.out, "session.bag")
     graph = Graph(args.out, args.port, ["record:=true", "duration:=40", "bag:=" + bag, "render:=false",
                                         "script:=scenario:expert", "latency_monitor:=false"], timeout=300)
     try:
-        watch = Watch()
+        watch = Watch(keep_states=True)
         RUN = running_state()
         check("the recorded session runs", wait_for(lambda: watch.state() == RUN, 90), watch.state())
-        wait_for(lambda: len(watch.frames) > 150, 30)
+        # Kill while a grasp is held, so that "grasps held at the checkpoint stay held" is tested (the expert's
+        # first grasp comes a few seconds in); without one within 30 s, at 150 frames.
+        grasping = wait_for(lambda: watch.frames and watch.grasped_now() > 0, 30)
+        if not grasping:
+            wait_for(lambda: len(watch.frames) > 150, 30)
         old_uri = graph.uri("/vrm_manager")
         pid = graph.pid("/vrm_manager")
         if not check("the manager's pid from the master", pid is not None):
             return
         with watch.lock:
             seen_before = [(stamp, slot) for _, stamp, slot in watch.instrument_stamps]
+            last_state = watch.states[-1] if watch.states else None
+            last_status = watch.status
         kill_wall = time.monotonic()
         os.kill(pid, signal.SIGKILL)
-        print("graph_faults: kill -9 %d (the nodelet manager) after %d instrument states" % (pid, len(seen_before)))
+        print("graph_faults: kill -9 %d (the nodelet manager) after %d instrument states; last frame %.3f s, "
+              "grasped nodes %s, scenario time %.3f s" %
+              (pid, len(seen_before), last_state[1] if last_state else -1, last_state[2] if last_state else None,
+               last_status.elapsed if last_status else -1))
         restarted = wait_for(lambda: graph.uri("/vrm_manager") not in ("", old_uri), 30)
         check("the supervisor restarts the manager", bool(restarted))
-        running_again = wait_for(lambda: any(w > kill_wall and s == RUN for w, s, _ in list(watch.status_history)), 90)
-        check("the scenario runs again after the restart (nodelets reloaded, LOAD + START)", bool(running_again),
-              "states after the kill: %s" % [s for w, s, _ in watch.status_history if w > kill_wall][:10])
-        if running_again:
-            restart_seconds = min(w for w, s, _ in watch.status_history if w > kill_wall and s == RUN) - kill_wall
-            print("graph_faults: the scenario ran again %.1f s after the kill" % restart_seconds)
+        resumed = wait_for(lambda: [st for st in list(watch.states) if st[0] > kill_wall][:6]
+                           if len([st for st in list(watch.states) if st[0] > kill_wall]) >= 6 else None, 90)
+        check("the simulation goes on after the restart", bool(resumed))
+        if resumed:
+            print("graph_faults: the first frames after the resume (%.1f s after the kill):" %
+                  (resumed[0][0] - kill_wall))
+            for wall, stamp, grasped, frame_time, hash_ in resumed:
+                print("graph_faults:   input time %.3f s (+%.3f s after the last frame before the kill), frame_time "
+                      "%.3f s, grasped nodes %s, state %s" % (stamp, stamp - last_state[1], frame_time, grasped,
+                                                              hash_))
+            if grasping:
+                check("the grasp held at the crash is held after the resume", resumed[0][2] == last_state[2] > 0,
+                      "%s before, %s after" % (last_state[2], resumed[0][2]))
+        status_after = wait_for(lambda: next((st for w, st in list(watch.status_objects) if w > kill_wall and
+                                              st.state == RUN), None), 30)
+        if status_after and last_status:
+            advanced = status_after.elapsed - last_status.elapsed
+            input_gap = status_after.header.stamp.to_sec() - last_status.header.stamp.to_sec()
+            check("the scenario clock stood still while the simulation was down",
+                  advanced < 0.5 and input_gap > advanced + 0.5,
+                  "scenario time +%.3f s over %.3f s of input time" % (advanced, input_gap))
+            print("graph_faults: scenario time %.3f -> %.3f s over %.3f s of input time across the crash" %
+                  (last_status.elapsed, status_after.elapsed, input_gap))
         code = graph.wait_exit(200)
         check("the launch ends by itself after the session", code is not None, code)
     finally:
         graph.stop()
     stem = bag[:-4]
-    interrupted = read_result(stem + ".interrupted.result.json")
-    check("the interrupted session's result is kept, marked interrupted",
-          interrupted is not None and interrupted.get("state") == "interrupted" and interrupted.get("interrupted"),
-          interrupted)
-    if interrupted:
-        check("... with the frames it ran", interrupted.get("frames", 0) > 100, interrupted.get("frames"))
+    check("no interrupted result: one session", not os.path.exists(stem + ".interrupted.result.json"))
     final = read_result(stem + ".result.json")
-    check("the restarted session's final result", final is not None and final.get("in_progress") is False, final)
-    # The training records take both, the interrupted one as such (what the console imports from the sessions folder).
+    check("the session's one final result", final is not None and final.get("in_progress") is False and
+          final.get("state") in ("finished", "failed", "stopped"), final and final.get("state"))
+    check("the journal is gone once the result is final", not os.path.exists(stem + ".journal"))
     database = os.path.join(args.out, "records.sqlite")
     subprocess.run(["rosrun", "eyesi_gui", "records", "--db", database, "import", args.out], capture_output=True,
                    timeout=60)
     listing = subprocess.run(["rosrun", "eyesi_gui", "records", "--db", database, "list"], capture_output=True,
                              text=True, timeout=60).stdout
-    check("the records store holds the interrupted and the finished session",
-          " interrupted " in listing and " finished " in listing, listing[-400:])
+    check("the records store holds the one finished session",
+          " interrupted " not in listing and listing.count(" finished ") == 1, listing[-400:])
     recording = read_json(stem + ".recording.json")
-    check("recording.json counts one simulation restart",
-          recording is not None and recording.get("simulation_restarts") == 1, recording)
-    messages = bag_messages(bag, ["/instrument_state", "/scenario_command"])
+    check("recording.json counts one simulation restart, resumed",
+          recording is not None and recording.get("simulation_restarts") == 1 and
+          recording.get("simulation_resumes") == 1, recording)
+    messages = bag_messages(bag, ["/instrument_state", "/scenario_command", "/input_frame", "/input_frame_resent"])
     in_bag = {(round(m.header.stamp.to_sec(), 6), m.instrument_id) for topic, m, _ in messages
               if topic == "/instrument_state"}
-    # From the recorder's first message on (it connects to the publisher a moment after this test may have); the
-    # last few ms before the kill may sit in the dead manager's outgoing queue for the recorder.
     newest = max(stamp for stamp, _ in seen_before)
     first_recorded = min(stamp for stamp, _ in in_bag) if in_bag else newest
     seen_before = [entry for entry in seen_before if entry[0] >= first_recorded]
@@ -300,13 +337,23 @@ def manager_crash(args):
     check("the bag holds every input seen before the crash (%d; %d of the last 50 ms missing)" %
           (len(seen_before), len(missing)), not missing_old, missing_old[:5])
     commands = [m.command for topic, m, _ in messages if topic == "/scenario_command"]
-    from vrm_msgs.msg import ScenarioCommand
-    check("the bag records START, then LOAD + START of the restart",
-          commands[:1] == [ScenarioCommand.START] and commands[1:3] == [ScenarioCommand.LOAD, ScenarioCommand.START],
-          commands)
+    from vrm_msgs.msg import InputFrame, ScenarioCommand
+    check("the bag records one START and no restart (no LOAD)", commands.count(ScenarioCommand.START) == 1 and
+          ScenarioCommand.LOAD not in commands, commands)
+    frames = [m for topic, m, _ in messages if topic == "/input_frame"]
+    resent = [f for topic, m, _ in messages if topic == "/input_frame_resent" for f in m.frames]
+    runs = {f.run for f in frames}
+    check("one run of frames across the crash", len(runs) == 1, runs)
+    sequences = sorted({f.sequence for f in frames} | {f.sequence for f in resent})
+    holes = [s for a, s in zip(sequences, sequences[1:]) if s != a + 1]
+    check("with the resent frames the bag's frames have no hole (%d resent)" % len(resent),
+          bool(sequences) and not holes, holes[:5])
+    own = [c.command for f in resent if f.kind == InputFrame.KIND_STATE for c in f.commands]
+    check("PAUSE and RESUME of the resume are recorded", own[-2:] == [ScenarioCommand.PAUSE, ScenarioCommand.RESUME],
+          own)
     if final:
         replayed, log = replay_hash(bag)
-        check("the bag replays offline to the restarted session's final state",
+        check("the bag replays offline to the live final state (session_replay of the crashed session's bag)",
               replayed == final.get("final_state_hash"), "%s vs %s %s" % (replayed, final.get("final_state_hash"),
                                                                             log[-300:]))
 

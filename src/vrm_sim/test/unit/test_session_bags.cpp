@@ -22,8 +22,11 @@
 #include "vrm_msgs/InstrumentState.h"
 #include "vrm_msgs/SessionInfo.h"
 #include "vrm_sim/bag/session_bag.h"
+#include "vrm_sim/bag/session_journal.h"
 #include "vrm_sim/bag/session_replay.h"
+#include "vrm_sim/conversions.h"
 #include "vrm_sim/world/offline.h"
+#include "vrm_sim/world/session.h"
 
 namespace vrm_sim {
 namespace bag {
@@ -281,6 +284,185 @@ TEST_F(WorkFolder, ABagOfAnotherSceneOrVersionIsReplayedWithItsOwnSceneAndAWarni
   const Process process = run("--bag " + old_version.string() + " --print scene");
   EXPECT_EQ(process.status, 0);
   EXPECT_NE(process.out.find("navigation"), std::string::npos) << process.out;
+}
+
+// ---- the session journal (issue 39: crash = pause) ----
+
+vrm_msgs::InputFrame journalFrame(std::uint64_t sequence) {
+  vrm_msgs::InputFrame frame;
+  frame.header.stamp = ros::Time(100, static_cast<std::uint32_t>(sequence * 20000000));
+  frame.run = 42;
+  frame.sequence = sequence;
+  frame.kind = vrm_msgs::InputFrame::KIND_FRAME;
+  vrm_msgs::InstrumentState instrument;
+  instrument.header.stamp = frame.header.stamp;
+  instrument.instrument_id = "right";
+  instrument.tip_pose.orientation.w = 1.0;
+  instrument.tip_pose.position.z = 0.001 * static_cast<double>(sequence);
+  instrument.valid = true;
+  frame.instrument_inputs.push_back(instrument);
+  if (sequence == 1) {
+    vrm_msgs::ScenarioCommand start;
+    start.header.stamp = frame.header.stamp;
+    start.command = vrm_msgs::ScenarioCommand::START;
+    frame.commands.push_back(start);
+  }
+  frame.missing.push_back("eye");
+  return frame;
+}
+
+TEST_F(WorkFolder, AJournalReadsBackItsHeaderAndEveryFrameAsWritten) {
+  const std::string path = journalPath((work_ / "session.bag").string());
+  EXPECT_EQ(path, (work_ / "session.journal").string());
+  JournalWriter writer;
+  writer.create(path, JournalHeader{"membrane_peeling", "hard", 7, 42});
+  for (std::uint64_t sequence = 1; sequence <= 3; ++sequence) writer.append(journalFrame(sequence));
+  writer.close();
+  const JournalContents contents = readJournal(path);
+  EXPECT_EQ(contents.header.scene, "membrane_peeling");
+  EXPECT_EQ(contents.header.difficulty, "hard");
+  EXPECT_EQ(contents.header.seed, 7u);
+  EXPECT_EQ(contents.header.run, 42u);
+  EXPECT_EQ(contents.torn_bytes, 0u);
+  ASSERT_EQ(contents.frames.size(), 3u);
+  for (std::uint64_t i = 0; i < 3; ++i) {
+    const vrm_msgs::InputFrame expected = journalFrame(i + 1);
+    const vrm_msgs::InputFrame& read = *contents.frames[i];
+    EXPECT_EQ(read.sequence, expected.sequence);
+    EXPECT_EQ(read.header.stamp, expected.header.stamp);
+    ASSERT_EQ(read.instrument_inputs.size(), 1u);
+    EXPECT_EQ(read.instrument_inputs[0].tip_pose.position.z, expected.instrument_inputs[0].tip_pose.position.z);
+    EXPECT_EQ(read.commands.size(), expected.commands.size());
+    EXPECT_EQ(read.missing, expected.missing);
+  }
+}
+
+TEST_F(WorkFolder, ARecordCutOffByTheWritersDeathIsDroppedAndTheJournalGoesOnAfterTheLastWholeOne) {
+  const std::string path = (work_ / "s.journal").string();
+  JournalWriter writer;
+  writer.create(path, JournalHeader{"navigation", "", 1, 5});
+  for (std::uint64_t sequence = 1; sequence <= 4; ++sequence) writer.append(journalFrame(sequence));
+  writer.close();
+  fs::resize_file(path, fs::file_size(path) - 7);  // the process died inside the 4th write
+  JournalContents contents = readJournal(path);
+  ASSERT_EQ(contents.frames.size(), 3u);
+  EXPECT_GT(contents.torn_bytes, 0u);
+  EXPECT_EQ(contents.valid_bytes + contents.torn_bytes, fs::file_size(path));
+  writer.reopen(path, contents.valid_bytes);
+  writer.append(journalFrame(4));
+  writer.close();
+  contents = readJournal(path);
+  ASSERT_EQ(contents.frames.size(), 4u);
+  EXPECT_EQ(contents.torn_bytes, 0u);
+  EXPECT_EQ(contents.frames.back()->sequence, 4u);
+  // Cut inside a record's length: still the last whole record.
+  fs::resize_file(path, contents.valid_bytes - (fs::file_size(path) - contents.valid_bytes) + 2);
+  EXPECT_NO_THROW(readJournal(path));
+}
+
+TEST_F(WorkFolder, AFileThatIsNoJournalOrACorruptRecordIsAClearErrorNamingThePath) {
+  const fs::path garbage = work_ / "garbage.journal";
+  std::ofstream(garbage) << "this is not a journal at all";
+  try {
+    readJournal(garbage.string());
+    FAIL() << "no error";
+  } catch (const JournalError& error) {
+    EXPECT_NE(std::string(error.what()).find(garbage.string()), std::string::npos) << error.what();
+    EXPECT_NE(std::string(error.what()).find("VRMJ"), std::string::npos) << error.what();
+  }
+  EXPECT_THROW(readJournal((work_ / "absent.journal").string()), JournalError);
+  // A sane header, then a record whose length no frame has.
+  const std::string path = (work_ / "huge.journal").string();
+  {
+    JournalWriter writer;
+    writer.create(path, JournalHeader{"navigation", "", 1, 5});
+    writer.append(journalFrame(1));
+  }
+  {
+    std::ofstream append(path, std::ios::binary | std::ios::app);
+    const unsigned char huge[4] = {0xff, 0xff, 0xff, 0x7f};
+    append.write(reinterpret_cast<const char*>(huge), 4);
+    append << std::string(64, 'x');
+  }
+  try {
+    readJournal(path);
+    FAIL() << "no error";
+  } catch (const JournalError& error) {
+    EXPECT_NE(std::string(error.what()).find("a record of"), std::string::npos) << error.what();
+  }
+  // A record of a plausible length whose bytes are no frame (string lengths past the record).
+  {
+    JournalWriter writer;
+    writer.create(path, JournalHeader{"navigation", "", 1, 5});
+  }
+  {
+    std::ofstream append(path, std::ios::binary | std::ios::app);
+    const unsigned char length[4] = {16, 0, 0, 0};
+    append.write(reinterpret_cast<const char*>(length), 4);
+    append << std::string(16, '\xff');
+  }
+  try {
+    readJournal(path);
+    FAIL() << "no error";
+  } catch (const JournalError& error) {
+    EXPECT_NE(std::string(error.what()).find("does not deserialise"), std::string::npos) << error.what();
+  }
+  JournalWriter writer;
+  EXPECT_THROW(writer.create((work_ / "no" / "such" / "folder.journal").string(), JournalHeader{}), JournalError);
+}
+
+// The property crash = pause rests on: a Session handed the journal of a live one, midway, is in the live one's state
+// and stays in it as both go on with the same inputs.
+TEST_F(WorkFolder, ASessionRestoredFromTheJournalMidwayGoesOnInTheStateOfTheUninterruptedOne) {
+  // The scene with its expert's paths (what scenario_offline plays).
+  const scene::SceneDescription scene = scene::withScript(world::Session::loadByName("membrane_peeling", ""), "expert");
+  const world::Stamp start = 1'000'000'000'000;
+  const std::vector<world::InstrumentState> inputs = world::scriptedInputs(scene, 50.0, 6.0, start);
+  ASSERT_GT(inputs.size(), 100u);
+  world::WorldOptions options;
+  options.log = [](world::Severity, const std::string&) {};
+  const std::string path = (work_ / "s.journal").string();
+  JournalWriter journal;
+  journal.create(path, JournalHeader{"membrane_peeling", "", 0, 9});
+  world::Session live(scene, options);
+  live.setInputObserver([&journal](const world::InputFrame& frame) {
+    vrm_msgs::InputFrame message;
+    fillInputFrame(frame, "world", "eye", message);
+    message.run = 9;
+    journal.append(message);
+  });
+  // 4 s in (the expert holds the membrane), between two ticks: the crashed process applied whole frames.
+  const std::size_t per_tick =
+      static_cast<std::size_t>(std::count_if(inputs.begin(), inputs.end(), [&](const world::InstrumentState& input) {
+        return input.stamp == inputs[0].stamp;
+      }));
+  const std::size_t crash = inputs.size() * 2 / 3 / per_tick * per_tick;
+  for (std::size_t i = 0; i < crash; ++i) live.handle(inputs[i]);
+  live.flush();  // what the live session applied is what its journal holds
+  std::size_t grasped = 0;
+  for (const std::string& name : live.world().tissueNames()) grasped += live.world().tissueReport(name).grasped_nodes;
+  EXPECT_GT(grasped, 0u) << "the journal is cut while the expert holds the membrane";
+
+  const JournalContents contents = readJournal(path);
+  ASSERT_FALSE(contents.frames.empty());
+  world::Session restored(scene, options);
+  for (const vrm_msgs::InputFrame::Ptr& frame : contents.frames) restored.handle(toWorld(*frame));
+  restored.continueSequence(contents.frames.back()->sequence + 1);
+  EXPECT_EQ(restored.world().stateHash(), live.world().stateHash()) << "after " << contents.frames.size() << " frames";
+  EXPECT_EQ(restored.nextSequence(), live.nextSequence());
+  std::size_t restored_grasped = 0;
+  for (const std::string& name : restored.world().tissueNames())
+    restored_grasped += restored.world().tissueReport(name).grasped_nodes;
+  EXPECT_EQ(restored_grasped, grasped);
+
+  for (std::size_t i = crash; i < inputs.size(); ++i) {
+    live.handle(inputs[i]);
+    restored.handle(inputs[i]);
+  }
+  live.flush();
+  restored.flush();
+  EXPECT_EQ(restored.world().stateHash(), live.world().stateHash());
+  EXPECT_EQ(restored.world().statistics().frames, live.world().statistics().frames);
 }
 
 }  // namespace

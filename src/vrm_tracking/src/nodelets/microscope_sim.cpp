@@ -29,6 +29,7 @@
 #include "device_script.h"
 #include "vrm_tracking/conversions.h"
 #include "vrm_tracking/microscope_knobs.h"
+#include "vrm_tracking/resume_gate.h"
 #include "vrm_tracking/scene_trocars.h"
 #include "vrm_tracking/surgeon_script.h"
 
@@ -75,6 +76,11 @@ class MicroscopeSim : public nodelet::Nodelet {
     if (pnh.param("start_with_session", true)) {
       session_sub_ = nh.subscribe("scenario_command", 10, &MicroscopeSim::onSessionCommand, this);
     }
+    resume_gate_.init(nh, getMyArgv(), getName(), [this](const ros::Time& start, bool session_clock) {
+      std::lock_guard<std::mutex> lock(mutex_);
+      start_ = start;
+      session_clock_ = session_clock;
+    });
     timer_ = nh.createTimer(ros::Duration(period_), &MicroscopeSim::onTick, this);
     NODELET_INFO("microscope track of '%s' at %.1f Hz; zoom [%.2f, %.2f], focus [%.3f, %.3f] m",
                  script_->name().c_str(), rate, limits.zoom_min, limits.zoom_max, limits.focus_min, limits.focus_max);
@@ -132,7 +138,7 @@ class MicroscopeSim : public nodelet::Nodelet {
   void onTick(const ros::TimerEvent& event) {
     ros::Time stamp = event.current_expected;
     if (stamp.isZero()) stamp = ros::Time::now();
-    if (stamp.isZero()) return;
+    if (stamp.isZero() || resume_gate_.withholds(stamp)) return;
     const double dt = last_tick_.isZero() ? 0.0 : (stamp - last_tick_).toSec();
     last_tick_ = stamp;
 
@@ -165,6 +171,7 @@ class MicroscopeSim : public nodelet::Nodelet {
   ros::Publisher pub_;
   ros::Subscriber pedal_sub_, setpoint_sub_, session_sub_;
   ros::Timer timer_;
+  ResumeGate resume_gate_;
   double period_ = 0.05;
   ros::Time start_;             // guarded by mutex_ (the START callback may run on another manager thread)
   bool session_clock_ = false;  // start_ is a START's stamp

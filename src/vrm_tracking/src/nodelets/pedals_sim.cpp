@@ -24,6 +24,7 @@
 
 #include "device_script.h"
 #include "vrm_tracking/conversions.h"
+#include "vrm_tracking/resume_gate.h"
 #include "vrm_tracking/scene_trocars.h"
 #include "vrm_tracking/surgeon_script.h"
 
@@ -60,6 +61,11 @@ class PedalsSim : public nodelet::Nodelet {
     if (pnh.param("start_with_session", true)) {
       session_sub_ = nh.subscribe("scenario_command", 10, &PedalsSim::onSessionCommand, this);
     }
+    resume_gate_.init(nh, getMyArgv(), getName(), [this](const ros::Time& start, bool session_clock) {
+      std::lock_guard<std::mutex> lock(mutex_);
+      start_ = start;
+      session_clock_ = session_clock;
+    });
     timer_ = nh.createTimer(ros::Duration(period_), &PedalsSim::onTick, this);
     NODELET_INFO("pedal track of '%s' at %.1f Hz; overrides on %s", script_->name().c_str(), rate,
                  command_sub_.getTopic().c_str());
@@ -103,7 +109,7 @@ class PedalsSim : public nodelet::Nodelet {
   void onTick(const ros::TimerEvent& event) {
     ros::Time stamp = event.current_expected;
     if (stamp.isZero()) stamp = ros::Time::now();
-    if (stamp.isZero()) return;
+    if (stamp.isZero() || resume_gate_.withholds(stamp)) return;
     PedalSample pedals;
     {
       std::lock_guard<std::mutex> lock(mutex_);
@@ -131,6 +137,7 @@ class PedalsSim : public nodelet::Nodelet {
   ros::Publisher pub_;
   ros::Subscriber command_sub_;
   ros::Timer timer_;
+  ResumeGate resume_gate_;
   ros::Time start_;
   double period_ = 0.01;
   bool session_clock_ = false;  // start_ is a START's stamp

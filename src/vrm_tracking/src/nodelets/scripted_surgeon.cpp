@@ -35,6 +35,7 @@
 #include "vrm_sim/package_data.h"
 #include "vrm_sim/scene/scene_loader.h"
 #include "vrm_tracking/conversions.h"
+#include "vrm_tracking/resume_gate.h"
 #include "vrm_tracking/scene_trocars.h"
 #include "vrm_tracking/surgeon_script.h"
 
@@ -98,6 +99,11 @@ class ScriptedSurgeon : public nodelet::Nodelet {
     }
     // Latched: the scene that runs now arrives however late this nodelet starts.
     running_scene_sub_ = nh.subscribe("running_scene", 1, &ScriptedSurgeon::onRunningScene, this);
+    resume_gate_.init(nh, getMyArgv(), getName(), [this](const ros::Time& start, bool session_clock) {
+      std::lock_guard<std::mutex> lock(mutex_);
+      start_ = start;
+      session_clock_ = session_clock;
+    });
     timer_ = nh.createTimer(ros::Duration(1.0 / rate), &ScriptedSurgeon::onTick, this);
     if (separate_eye_) eye_timer_ = nh.createTimer(ros::Duration(1.0 / eye_rate), &ScriptedSurgeon::onEyeTick, this);
 
@@ -204,14 +210,14 @@ class ScriptedSurgeon : public nodelet::Nodelet {
   void onEyeTick(const ros::TimerEvent& event) {
     std::lock_guard<std::mutex> lock(mutex_);
     const ros::Time stamp = tickStamp(event);
-    if (stamp.isZero()) return;
+    if (stamp.isZero() || resume_gate_.withholds(stamp)) return;
     publishEye(script_->sample((stamp - start_).toSec()), stamp);
   }
 
   void onTick(const ros::TimerEvent& event) {
     std::lock_guard<std::mutex> lock(mutex_);
     const ros::Time stamp = tickStamp(event);
-    if (stamp.isZero()) return;
+    if (stamp.isZero() || resume_gate_.withholds(stamp)) return;
 
     const SurgeonSnapshot snap = script_->sample((stamp - start_).toSec());
     if (snap.finished && !announced_end_) {
@@ -248,6 +254,7 @@ class ScriptedSurgeon : public nodelet::Nodelet {
   ros::Time start_;
   bool session_clock_ = false;  // start_ is a START's stamp
   ros::Subscriber command_sub_, running_scene_sub_;
+  ResumeGate resume_gate_;
   bool announced_end_ = false;
 };
 

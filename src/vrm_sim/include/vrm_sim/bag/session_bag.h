@@ -34,6 +34,11 @@ inline const std::string& inputFrameTopic() {
   static const std::string topic = "/input_frame";
   return topic;
 }
+// Frames a simulation node resent after resuming a session (vrm_msgs/InputFrames, issue 39).
+inline const std::string& resentFramesTopic() {
+  static const std::string topic = "/input_frame_resent";
+  return topic;
+}
 const std::vector<std::string>& inputTopics();   // inputFrameTopic() + deviceTopics()
 const std::vector<std::string>& deviceTopics();  // /eye_state /instrument_state /pedals /scenario_command
 const std::vector<std::string>& sessionTopics();  // inputTopics() + /microscope + /session_info

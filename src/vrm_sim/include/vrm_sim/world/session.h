@@ -40,6 +40,10 @@ class Session {
   // Every input frame once the World applied its inputs (a LOAD's after the switch): see World::setInputObserver.
   void setInputObserver(InputObserver observer);
   const MediatorStatistics& mediatorStatistics() const { return mediator_.statistics(); }
+  // A session restored from its journal after a crash (issue 39) numbers its next frames on from the restored ones,
+  // so the recorded frames of both processes form one sequence.
+  std::uint64_t nextSequence() const { return mediator_.nextSequence(); }
+  void continueSequence(std::uint64_t next) { mediator_.setNextSequence(next); }
 
   World& world() { return *world_; }
   const World& world() const { return *world_; }

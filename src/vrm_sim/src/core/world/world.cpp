@@ -425,7 +425,12 @@ void World::apply(const ScenarioCommand& command) {
       break;
     case Type::kResume:
       if (runner_) refused = runner_->resume(time, command.stamp);
-      if (refused.empty()) paused_ = false;
+      if (refused.empty()) {
+        paused_ = false;
+        // The clock goes on at the resume: the first frame steps from there, not over the pause (a crash = pause
+        // resume, issue 39, would otherwise integrate max_frame_time at once where the trainee's hands moved 20 ms).
+        if (last_frame_stamp_ && *last_frame_stamp_ < command.stamp) last_frame_stamp_ = command.stamp;
+      }
       break;
     case Type::kStart:
       if (runner_) refused = runner_->start(time, command.stamp);
