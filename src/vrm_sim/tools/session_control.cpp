@@ -28,6 +28,7 @@
 #include <rosbag/view.h>
 
 #include <boost/make_shared.hpp>
+#include <csignal>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -63,6 +64,23 @@ std::map<std::string, std::vector<std::string>> subscribersByTopic() {
       nodes.push_back(static_cast<std::string>(subscriptions[i][1][j]));
   }
   return result;
+}
+
+// The pid of the process behind `uri` (0: it does not answer).
+int processId(const std::string& uri) {
+  std::string host;
+  std::uint32_t port = 0;
+  if (!ros::network::splitURI(uri, host, port)) return 0;
+  XmlRpc::XmlRpcClient client(host.c_str(), static_cast<int>(port), "/");
+  XmlRpc::XmlRpcValue request, response;
+  request[0] = ros::this_node::getName();
+  int pid = 0;
+  if (client.execute("getPid", request, response) && !client.isFault() && response.size() >= 3 &&
+      response[2].getType() == XmlRpc::XmlRpcValue::TypeInt) {
+    pid = static_cast<int>(response[2]);
+  }
+  client.close();
+  return pid;
 }
 
 // Whether the process behind `uri` still answers (the master keeps a killed node registered until it is replaced).
@@ -120,6 +138,7 @@ class SessionControl {
     }
     if (newest_ >= end + tail_) {
       ROS_INFO("session_control: session over (%.1f s from START); ending the recording", duration_);
+      closeRecording();
       reportParts();
       ros::shutdown();
     }
@@ -148,7 +167,7 @@ class SessionControl {
 
   // The recorder's process (a respawn), twice a second.
   void checkHealth(const ros::WallTimerEvent&) {
-    ros::param::get(recorder_ + "/part", next_part_);
+    if (final_part_ == 0) ros::param::get(recorder_ + "/part", next_part_);
     if (!started_) return;
     const std::string recorder_uri = lookupNode(recorder_);
     const bool recording =
@@ -163,8 +182,10 @@ class SessionControl {
     } else if (recording && gap_open_) {
       gap_open_ = false;
       gaps_.back().to = newest_;
-      ROS_WARN("session_control: the recorder is back; %.2f s of input time (%.3f .. %.3f) were not recorded",
-               (gaps_.back().to - gaps_.back().from).toSec(), gaps_.back().from.toSec(), gaps_.back().to.toSec());
+      ROS_WARN(
+          "session_control: the recorder is back after %.2f s of input time (%.3f .. %.3f); the simulation resends "
+          "it the input frames of that time (the raw device topics of it are not in the bag)",
+          (gaps_.back().to - gaps_.back().from).toSec(), gaps_.back().from.toSec(), gaps_.back().to.toSec());
     }
   }
 
@@ -262,23 +283,55 @@ class SessionControl {
  public:
   // After the session: the parts the (respawned) recorder wrote, the killed ones recovered, and the gaps between
   // them, in <bag without .bag>.recording.json. Runs while the current recorder still writes its part.
+  // The manifest describes closed parts (issue 39): the recorder is asked to close its part (SIGINT: rosbag record
+  // writes the index and drops .active) and not to record again (~part 0: the respawned session_recorder idles),
+  // and the part is waited for, before reportParts writes the manifest.
+  void closeRecording() {
+    if (bag_.empty() || session_over_) return;
+    ros::param::get(recorder_ + "/part", next_part_);
+    final_part_ = std::max(1, next_part_ - 1);
+    ros::param::set(recorder_ + "/part", 0);
+    const std::string uri = lookupNode(recorder_);
+    const int pid = uri.empty() ? 0 : processId(uri);
+    const std::string stem =
+        bag_.size() > 4 && bag_.compare(bag_.size() - 4, 4, ".bag") == 0 ? bag_.substr(0, bag_.size() - 4) : bag_;
+    const std::string path = final_part_ == 1 ? bag_ : stem + ".part" + std::to_string(final_part_) + ".bag";
+    std::string host;
+    std::uint32_t port = 0;
+    // Only a recorder on this machine can be signalled; another's part is described as still recording.
+    if (pid <= 0 || !ros::network::splitURI(uri, host, port) ||
+        (host != "localhost" && host != ros::network::getHost()) || ::kill(pid, SIGINT) != 0) {
+      ROS_WARN("session_control: cannot ask the recorder %s to close its part; the manifest lists it as recording",
+               recorder_.c_str());
+      return;
+    }
+    namespace fs = std::filesystem;
+    const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(15.0);
+    std::error_code error;
+    while (ros::WallTime::now() < deadline && (fs::exists(path + ".active", error) || !fs::exists(path, error))) {
+      ros::WallDuration(0.05).sleep();
+    }
+    part_closed_ = !fs::exists(path + ".active", error) && fs::exists(path, error);
+    if (!part_closed_) ROS_ERROR("session_control: the recorder did not close %s within 15 s", path.c_str());
+  }
+
   void reportParts() {
     if (session_over_ || bag_.empty()) return;
     session_over_ = true;
     namespace fs = std::filesystem;
     const std::string stem =
         bag_.size() > 4 && bag_.compare(bag_.size() - 4, 4, ".bag") == 0 ? bag_.substr(0, bag_.size() - 4) : bag_;
-    const int current = std::max(1, next_part_ - 1);
+    const int current = final_part_ > 0 ? final_part_ : std::max(1, next_part_ - 1);
     std::ostringstream json;
     json << std::setprecision(15) << "{\"bag\": \"" << bag_ << "\", \"parts\": [";
     std::vector<std::string> lines;
     for (int part = 1; part <= current; ++part) {
       const std::string path = part == 1 ? bag_ : stem + ".part" + std::to_string(part) + ".bag";
-      std::string state = "recording";  // the current part: its recorder closes it when the launch ends
+      std::string state = "recording";  // the current part, unless closeRecording closed it
       std::error_code error;
       double first = 0.0, last = 0.0;
       std::uint64_t messages = 0;
-      if (part < current) {
+      if (part < current || part_closed_) {
         state = "complete";
         if (!fs::exists(path, error) && fs::exists(path + ".active", error)) {
           try {
@@ -342,6 +395,8 @@ class SessionControl {
   std::vector<Gap> gaps_;
   bool gap_open_ = false, reload_ = false, session_over_ = false;
   unsigned restarts_ = 0, resumes_ = 0;  // restarts of the simulation node; of them resumed from the journal
+  int final_part_ = 0;                   // closeRecording: the last part
+  bool part_closed_ = false;             // closeRecording: closed before the manifest
   int next_part_ = 2;
   double recorder_timeout_ = 30.0;
   ros::WallTime first_frame_wall_;  // the recorder's ~part: the part its next start records into

@@ -33,6 +33,26 @@ std::string versionNumber(const std::string& version) {
   return space == std::string::npos ? version : version.substr(space + 1);
 }
 
+// The later parts of a session recorded across a recorder crash (<stem>.part<k>.bag, k = 2, 3, ...; a part whose
+// recorder was killed too is recovered into a copy): their frames belong to the session as well (issue 39).
+std::vector<std::string> laterParts(const std::string& original) {
+  std::vector<std::string> parts;
+  const bool has_suffix = original.size() > 4 && original.compare(original.size() - 4, 4, ".bag") == 0;
+  if (!has_suffix || original.find(".part") != std::string::npos) return parts;
+  const std::string stem = original.substr(0, original.size() - 4);
+  for (int part = 2;; ++part) {
+    const std::string path = stem + ".part" + std::to_string(part) + ".bag";
+    if (std::filesystem::exists(path)) {
+      parts.push_back(prepareSessionBag(path).usable);
+    } else if (std::filesystem::exists(path + ".active")) {
+      parts.push_back(prepareSessionBag(path + ".active").usable);
+    } else {
+      break;
+    }
+  }
+  return parts;
+}
+
 }  // namespace
 
 SessionSetup resolveSession(const PreparedBag& bag, const std::string& scene_override) {
@@ -91,18 +111,31 @@ ReplayResult replaySession(const PreparedBag& prepared, const SessionSetup& setu
     // order or on a silent source is in them, so the replay repeats the session whatever the load was.
     result.input = "input_frame";
     std::vector<vrm_msgs::InputFrame::ConstPtr> recorded;
-    rosbag::View view(bag, rosbag::TopicQuery(std::vector<std::string>{inputFrameTopic(), resentFramesTopic()}));
     std::size_t resent = 0;
-    for (const rosbag::MessageInstance& message : view) {
-      if (auto frame = message.instantiate<vrm_msgs::InputFrame>()) recorded.push_back(frame);
-      // A simulation node that resumed after a crash resends the frames the dead process may still have had queued
-      // for the recorder (issue 39): they fill the bag's hole; the ones it has are skipped below.
-      if (auto frames = message.instantiate<vrm_msgs::InputFrames>()) {
-        for (const vrm_msgs::InputFrame& frame : frames->frames) {
-          recorded.push_back(boost::make_shared<vrm_msgs::InputFrame>(frame));
-          ++resent;
+    const auto read_frames = [&](rosbag::Bag& part) {
+      rosbag::View view(part, rosbag::TopicQuery(std::vector<std::string>{inputFrameTopic(), resentFramesTopic()}));
+      for (const rosbag::MessageInstance& message : view) {
+        if (auto frame = message.instantiate<vrm_msgs::InputFrame>()) recorded.push_back(frame);
+        // Frames a simulation node resent (issue 39): after resuming from its journal, those the dead process may
+        // still have had queued for the recorder; to a respawned recorder, those published while it was down. They
+        // fill the record's holes; the ones it has are skipped below.
+        if (auto frames = message.instantiate<vrm_msgs::InputFrames>()) {
+          for (const vrm_msgs::InputFrame& frame : frames->frames) {
+            recorded.push_back(boost::make_shared<vrm_msgs::InputFrame>(frame));
+            ++resent;
+          }
         }
       }
+    };
+    read_frames(bag);
+    const std::vector<std::string> later_parts = laterParts(prepared.original);
+    for (const std::string& path : later_parts) {
+      rosbag::Bag part(path, rosbag::bagmode::Read);
+      read_frames(part);
+    }
+    if (!later_parts.empty()) {
+      result.setup.warnings.push_back("the session was recorded in " + std::to_string(later_parts.size() + 1) +
+                                      " parts (its recorder restarted); replayed from all of them");
     }
     // A simulation node restarted after a crash numbers its frames from 1 again under a new run: the runs in the
     // order the recorder saw them, each in its sequence.

@@ -62,6 +62,7 @@
 #include <boost/make_shared.hpp>
 #include <cmath>
 #include <cstdio>
+#include <deque>
 #include <filesystem>
 #include <map>
 #include <memory>
@@ -149,7 +150,10 @@ class ScenarioManager : public nodelet::Nodelet {
       failGraph("scenario_manager: cannot set up scene '" + scene_parameter + "': " + error.what());
       return;
     }
-    input_frame_publisher_ = nh.advertise<vrm_msgs::InputFrame>("input_frame", 100);
+    ring_frames_ = static_cast<std::size_t>(std::max(0, private_nh.param("ring_frames", 500)));
+    input_frame_publisher_ = nh.advertise<vrm_msgs::InputFrame>(
+        "input_frame", 100, [this](const ros::SingleSubscriberPublisher& peer) { onFrameSubscriber(peer, true); },
+        [this](const ros::SingleSubscriberPublisher& peer) { onFrameSubscriber(peer, false); });
     state_publisher_ = nh.advertise<vrm_msgs::SimulationState>("simulation_state", 50);
     timing_publisher_ = nh.advertise<vrm_msgs::StageTiming>("tissue_timing", 5);
     report_publisher_ = nh.advertise<vrm_msgs::CollisionReport>("collision_report", 20);
@@ -458,7 +462,49 @@ class ScenarioManager : public nodelet::Nodelet {
       }
     }
     if (frame.kind == world::InputFrame::Kind::kState && !frame.commands.empty()) last_own_frame_ = message;
+    if (ring_frames_ > 0 && !restoring_) {
+      ring_.push_back(message);  // read-only from here on, like every subscriber's copy
+      if (ring_.size() > ring_frames_) ring_.pop_front();
+    }
     vrm_msgs::publishShared(input_frame_publisher_, message);
+  }
+
+  // No gap in the record (issue 39): a subscriber of input_frame that left (a recorder that died) and comes back under
+  // its name (the respawned recorder) gets the frames published since it left, and the last ~100 before (those the
+  // dead process may not have written), from the ring of the last ~ring_frames frames, as one latched InputFrames on
+  // input_frame_resent, which the recorder also records. A replay merges the parts and skips the frames it has.
+  void onFrameSubscriber(const ros::SingleSubscriberPublisher& peer, bool connected) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    const std::string name = peer.getSubscriberName();
+    const std::uint64_t newest = ring_.empty() ? 0 : ring_.back()->sequence;
+    if (!connected) {
+      departed_[name] = newest;
+      return;
+    }
+    const auto departed = departed_.find(name);
+    if (departed == departed_.end()) return;
+    const std::uint64_t left_at = departed->second;
+    departed_.erase(departed);
+    constexpr std::uint64_t kBeforeLeaving = 100;
+    const std::uint64_t from = left_at > kBeforeLeaving ? left_at - kBeforeLeaving : 0;
+    auto resent = boost::make_shared<vrm_msgs::InputFrames>();
+    for (const vrm_msgs::InputFrame::ConstPtr& frame : ring_) {
+      if (frame->sequence > from) resent->frames.push_back(*frame);
+    }
+    if (resent->frames.empty()) return;
+    resent->header.stamp = resent->frames.back().header.stamp;
+    const std::uint64_t oldest = resent->frames.front().sequence;
+    if (oldest > left_at + 1) {
+      NODELET_ERROR(
+          "scenario_manager: %s is back after %lu frames; the ring holds the last %zu, so frames %lu to %lu are not "
+          "in the record",
+          name.c_str(), static_cast<unsigned long>(newest - left_at), ring_.size(),
+          static_cast<unsigned long>(left_at + 1), static_cast<unsigned long>(oldest - 1));
+    }
+    NODELET_WARN("scenario_manager: %s is back; %zu frames resent (sequence %lu to %lu; it left after %lu)",
+                 name.c_str(), resent->frames.size(), static_cast<unsigned long>(oldest),
+                 static_cast<unsigned long>(resent->frames.back().sequence), static_cast<unsigned long>(left_at));
+    vrm_msgs::publishShared(resent_publisher_, resent);
   }
 
   // A (new) scene: its tissue and retina topics, and its scenario's first status.
@@ -834,6 +880,9 @@ class ScenarioManager : public nodelet::Nodelet {
   ros::WallTimer resume_timer_;
   ros::WallTime resume_wait_start_;
   ros::Publisher resume_publisher_, resent_publisher_;
+  std::size_t ring_frames_ = 500;
+  std::deque<vrm_msgs::InputFrame::ConstPtr> ring_;  // the last published frames
+  std::map<std::string, std::uint64_t> departed_;    // subscribers that left: the newest frame when they did
 };
 
 }  // namespace vrm_sim

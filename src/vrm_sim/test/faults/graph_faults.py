@@ -8,7 +8,10 @@
                   bag's frames without a hole (with the resent ones), and the bag replays offline to the live final
                   state.
   recorder_crash  kill -9 of the recorder: the simulation keeps its rate, a respawned recorder writes part 2, the
-                  killed part is recovered at the end, the gap is reported in <bag>.recording.json.
+                  killed part is recovered at the end, the recorder's downtime is reported in <bag>.recording.json,
+                  which is written after the last part closed; no input frame is missing from the parts (the
+                  simulation node resends the downtime's frames to the respawned recorder, issue 39) and they replay
+                  to the live final state.
   hostile_flood   instrument_state / eye_state with NaN, Inf, 1e300, non-unit quaternions, stamps 100 s in the
                   past and future, at 10x the normal rate in 1 s bursts, 8 s in all: rejected and counted
                   (scenario_manager's /diagnostics), no crash, the simulation and the renderer keep >= 90 % of the
@@ -401,12 +404,31 @@ def recorder_crash(args):
     check("part 2 was written", os.path.isfile(stem + ".part2.bag"))
     final = read_result(stem + ".result.json")
     check("the session's result is written", final is not None and final.get("in_progress") is False, final)
+    if recording:
+        states = [part.get("state") for part in recording.get("parts", [])]
+        check("the manifest describes closed parts (written after the last one closed)",
+              bool(states) and states[-1] == "complete" and all(st in ("complete", "recovered") for st in states),
+              states)
     if os.path.isfile(bag) and os.path.isfile(stem + ".part2.bag"):
         first_part = bag_messages(bag, ["/instrument_state"])
         second_part = bag_messages(stem + ".part2.bag", ["/instrument_state"])
         if first_part and second_part:
             gap = second_part[0][1].header.stamp.to_sec() - first_part[-1][1].header.stamp.to_sec()
-            print("graph_faults: input time not recorded between the parts: %.2f s" % gap)
+            print("graph_faults: device input time not recorded between the parts: %.2f s" % gap)
+        # No gap in the record: the simulation node resent the frames of the recorder's downtime to its successor.
+        frames = []
+        for path in (bag, stem + ".part2.bag"):
+            for topic, message, _ in bag_messages(path, ["/input_frame", "/input_frame_resent"]):
+                frames += message.frames if topic == "/input_frame_resent" else [message]
+        sequences = sorted({f.sequence for f in frames})
+        holes = [(a, b) for a, b in zip(sequences, sequences[1:]) if b != a + 1]
+        check("no input frame is missing from the record across the recorder's crash (%d frames, sequence %s..%s)" %
+              (len(sequences), sequences[0] if sequences else None, sequences[-1] if sequences else None),
+              bool(sequences) and not holes, holes[:5])
+        if final:
+            replayed, log = replay_hash(bag)
+            check("the parts replay offline to the live final state", replayed == final.get("final_state_hash"),
+                  "%s vs %s %s" % (replayed, final.get("final_state_hash"), log[-300:]))
 
 
 def hostile_flood(args):
