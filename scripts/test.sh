@@ -185,8 +185,9 @@ script_test station_one_graph two_sessions_one_graph /usr/bin/python3 "$ROOT/src
 # The security defaults SECURITY.md claims, and its firewall rules in a network-namespace pair (issue 14).
 script_test security_defaults security_defaults_hold "$ROOT/src/eyesi_gui/test/security_defaults.sh"
 script_test security_firewall firewall_rules_in_netns "$ROOT/src/eyesi_gui/test/security_firewall.sh"
-# Runtime faults of the product graph (issue 14): crashes, a hostile flood, a consumer that never reads.
-for fault in manager_crash recorder_crash hostile_flood slow_consumer; do
+# Runtime faults of the product graph (issues 14, 39): crashes (crash = pause; no gap in the record), a hostile flood,
+# a consumer that never reads, the recorder's disk full.
+for fault in manager_crash recorder_crash hostile_flood slow_consumer disk_full; do
   script_test "fault_$fault" "$fault" /usr/bin/python3 "$ROOT/src/vrm_sim/test/faults/graph_faults.py" "$fault"
 done
 # The install space runs the simulator without the source tree (issue 18): a temporary prefix, strace for the checkout.

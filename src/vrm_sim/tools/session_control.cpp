@@ -9,7 +9,9 @@
 // to), duration (s of input time; 0 = until Ctrl-C), start (default true; false: a console sends START),
 // start_delay (s of input time between the newest frame and START, default 0.5), tail (s of input time recorded
 // after STOP, default 1.0), bag (the first part's path; empty = no part report), recorder_timeout (s of wall time
-// after the first simulated frame; a recorder that does not listen by then ends the session, default 30).
+// after the first simulated frame; a recorder that does not listen by then ends the session, default 30),
+// min_free_mb (default 20: below this free space on the bag's file system the session stops with a recorded STOP
+// that names the full disk, so the recording, its journal and its result stay whole, issue 39).
 //
 // Faults (issues 14, 39). A simulation that comes back after a crash of its nodelet manager announces it on
 // simulation_resume (vrm_msgs/SessionResume). Crash = pause: when it resumed the session from its journal, the session
@@ -26,6 +28,7 @@
 #include <ros/xmlrpc_manager.h>
 #include <rosbag/bag.h>
 #include <rosbag/view.h>
+#include <sys/statvfs.h>
 
 #include <boost/make_shared.hpp>
 #include <csignal>
@@ -111,6 +114,7 @@ class SessionControl {
     tail_ = ros::Duration(private_nh_.param("tail", 1.0));
     bag_ = private_nh_.param<std::string>("bag", "");
     recorder_timeout_ = private_nh_.param("recorder_timeout", 30.0);
+    min_free_mb_ = private_nh_.param("min_free_mb", 20.0);
     info_subscriber_ = nh_.subscribe("session_info", 1, &SessionControl::onSessionInfo, this);
     health_timer_ = nh_.createWallTimer(ros::WallDuration(0.5), &SessionControl::checkHealth, this);
     command_publisher_ = nh_.advertise<vrm_msgs::ScenarioCommand>("scenario_command", 5);
@@ -123,8 +127,8 @@ class SessionControl {
  private:
   void onFrame(const vrm_msgs::SimulationState::ConstPtr& state) {
     newest_ = std::max(newest_, state->header.stamp);
-    if (!started_ || duration_ <= 0.0) return;
-    const ros::Time end = start_ + ros::Duration(duration_);
+    if (!started_ || (duration_ <= 0.0 && forced_end_.isZero())) return;
+    const ros::Time end = forced_end_.isZero() ? start_ + ros::Duration(duration_) : forced_end_;
     // STOP goes out ahead of the frame it applies to (like START), so its arrival never races that frame.
     if (!stop_sent_ && newest_ + start_delay_ >= end) {
       stop_sent_ = true;
@@ -137,7 +141,7 @@ class SessionControl {
       }
     }
     if (newest_ >= end + tail_) {
-      ROS_INFO("session_control: session over (%.1f s from START); ending the recording", duration_);
+      ROS_INFO("session_control: session over (%.1f s from START); ending the recording", (end - start_).toSec());
       closeRecording();
       reportParts();
       ros::shutdown();
@@ -169,6 +173,7 @@ class SessionControl {
   void checkHealth(const ros::WallTimerEvent&) {
     if (final_part_ == 0) ros::param::get(recorder_ + "/part", next_part_);
     if (!started_) return;
+    checkDiskSpace();
     const std::string recorder_uri = lookupNode(recorder_);
     const bool recording =
         !recorder_uri.empty() && answers(recorder_uri) && topicsRecorderMisses(subscribersByTopic()).empty();
@@ -283,6 +288,26 @@ class SessionControl {
  public:
   // After the session: the parts the (respawned) recorder wrote, the killed ones recovered, and the gaps between
   // them, in <bag without .bag>.recording.json. Runs while the current recorder still writes its part.
+  // Disk full (issue 39): the session stops, with a recorded STOP naming why, while the bag's file system still has
+  // min_free_mb: the recording up to there, the journal and the result file are whole, and a replay reaches the
+  // state the session stopped in. A full disk would otherwise cut the bag and the journal at random.
+  void checkDiskSpace() {
+    if (bag_.empty() || stop_sent_ || session_over_ || newest_.isZero()) return;
+    struct statvfs space {};
+    const std::string folder = std::filesystem::path(bag_).parent_path().string();
+    if (::statvfs(folder.empty() ? "." : folder.c_str(), &space) != 0) return;
+    const double free_mb = static_cast<double>(space.f_bavail) * static_cast<double>(space.f_frsize) / 1048576.0;
+    if (free_mb >= min_free_mb_) return;
+    stop_sent_ = true;
+    forced_end_ = newest_ + start_delay_;
+    char reason[256];
+    std::snprintf(reason, sizeof(reason), "the disk of the recording is full (%.1f MB free in %s, below %.0f MB)",
+                  free_mb, folder.c_str(), min_free_mb_);
+    ROS_ERROR("session_control: %s: the session stops; what was recorded is kept and replays", reason);
+    if (scenario_ended_) return;
+    send(vrm_msgs::ScenarioCommand::STOP, forced_end_, reason);
+  }
+
   // The manifest describes closed parts (issue 39): the recorder is asked to close its part (SIGINT: rosbag record
   // writes the index and drops .active) and not to record again (~part 0: the respawned session_recorder idles),
   // and the part is waited for, before reportParts writes the manifest.
@@ -399,6 +424,8 @@ class SessionControl {
   bool part_closed_ = false;             // closeRecording: closed before the manifest
   int next_part_ = 2;
   double recorder_timeout_ = 30.0;
+  double min_free_mb_ = 20.0;
+  ros::Time forced_end_;            // a STOP of this node's own (disk full)
   ros::WallTime first_frame_wall_;  // the recorder's ~part: the part its next start records into
   ros::WallTime last_note_;
   ros::Time newest_, start_;
@@ -413,7 +440,8 @@ int main(int argc, char** argv) {
       "session_control", "[NAME:=VALUE ...]",
       "Frames a recorded session: START once the recorder listens, STOP after ~duration s of input time.",
       "Private parameters: recorder (/session_recorder), topics, duration (s; 0 = until Ctrl-C), start (true),\n"
-      "start_delay (0.5 s), tail (1.0 s), bag, recorder_timeout (30 s).");
+      "start_delay (0.5 s), tail (1.0 s), bag, recorder_timeout (30 s), min_free_mb (20: the session stops below\n"
+      "this free space on the bag's file system).");
   if (const auto status = cli.parse(argc, argv)) return *status;
   SessionControl control;
   ros::spin();

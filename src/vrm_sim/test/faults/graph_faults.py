@@ -17,6 +17,9 @@
                   (scenario_manager's /diagnostics), no crash, the simulation and the renderer keep >= 90 % of the
                   rate they have in the quiet seconds between the bursts, nothing non-finite in the published
                   simulation state or tissue.
+  disk_full       the recorder's disk (a 6 MB tmpfs) fills mid-session (issue 39): the session stops with a recorded
+                  STOP naming the full disk while 2 MB are left, its result is final, the bag up to there replays to
+                  its state, the records store imports it intact. SKIP where no tmpfs can be mounted.
   slow_consumer   a TCPROS subscriber of the stereo images that never reads: the manager's RSS stays bounded.
 
 Every wait is on a condition with a timeout. Prints PASS/FAIL lines and exits 1 on any failure.
@@ -630,9 +633,64 @@ def slow_consumer(args):
         graph.stop()
 
 
+def disk_full(args):
+    """The recorder's disk fills mid-session (issue 39): a small tmpfs holds the bag, its journal and its result."""
+    disk = os.path.join(args.out, "disk")
+    os.makedirs(disk, exist_ok=True)
+    mount = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=6m", "tmpfs", disk], capture_output=True, text=True)
+    if mount.returncode != 0:
+        print("SKIP: disk_full needs a tmpfs mount (root with CAP_SYS_ADMIN): " + mount.stderr.strip(), flush=True)
+        return
+    try:
+        bag = os.path.join(disk, "session.bag")
+        graph = Graph(args.out, args.port, ["record:=true", "duration:=150", "bag:=" + bag, "render:=false",
+                                            "latency_monitor:=false", "min_free_mb:=2"], timeout=300)
+        try:
+            watch = Watch()
+            check("the recorded session runs", wait_for(lambda: watch.state() == running_state(), 90), watch.state())
+            code = graph.wait_exit(240)
+            check("the session ends by itself once the disk is (nearly) full", code is not None, code)
+        finally:
+            graph.stop()
+        with open(os.path.join(args.out, "launch.log"), errors="replace") as handle:
+            log = handle.read()
+        check("a clear message names the full disk", "the disk of the recording is full" in log)
+        stem = bag[:-4]
+        final = read_result(stem + ".result.json")
+        # A STOP ends a running scenario as failed, with the STOP's reason as its message.
+        check("the session's result is final, stopped, and says why",
+              final is not None and final.get("in_progress") is False and
+              final.get("state") in ("failed", "stopped") and "disk of the recording is full" in json.dumps(final),
+              final and (final.get("state"), final.get("message")))
+        if final:
+            check("it stopped early (%.1f s of the 150 s)" % final.get("elapsed", -1), 0 < final.get("elapsed", 0) < 140)
+        recording = read_json(stem + ".recording.json")
+        check("the manifest describes a closed bag", recording is not None and
+              [p.get("state") for p in recording.get("parts", [])] == ["complete"], recording)
+        if final:
+            replayed, replay_log = replay_hash(bag)
+            check("the bag up to that point replays to the stopped session's state",
+                  replayed == final.get("final_state_hash"), "%s vs %s %s" % (replayed, final.get("final_state_hash"),
+                                                                              replay_log[-300:]))
+        database = os.path.join(args.out, "records.sqlite")
+        subprocess.run(["rosrun", "eyesi_gui", "records", "--db", database, "import", disk], capture_output=True,
+                       timeout=60)
+        integrity = subprocess.run(["rosrun", "eyesi_gui", "records", "--db", database, "check"],
+                                   capture_output=True, text=True, timeout=60)
+        listing = subprocess.run(["rosrun", "eyesi_gui", "records", "--db", database, "list"], capture_output=True,
+                                 text=True, timeout=60).stdout
+        check("the records store is intact and holds the stopped session",
+              integrity.returncode == 0 and listing.count("membrane_peeling") == 1, integrity.stdout[-300:] + listing)
+        usage = subprocess.run(["df", "-k", disk], capture_output=True, text=True).stdout.strip().splitlines()[-1]
+        print("graph_faults: the tmpfs at the end: " + usage)
+    finally:
+        subprocess.run(["umount", "-l", disk], capture_output=True)
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("case", choices=["manager_crash", "recorder_crash", "hostile_flood", "slow_consumer"])
+    parser.add_argument("case", choices=["manager_crash", "recorder_crash", "hostile_flood", "slow_consumer",
+                                         "disk_full"])
     parser.add_argument("--port", type=int, default=11900 + os.getpid() % 90)
     parser.add_argument("--out", default="")
     parser.add_argument("--no-flood", action="store_true",
