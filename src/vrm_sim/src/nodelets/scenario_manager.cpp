@@ -137,8 +137,8 @@ class ScenarioManager : public nodelet::Nodelet {
     journal_enabled_ = private_nh.param("journal", true) && !bag_path_.empty() && input_mode_ == "devices";
     resume_margin_ = std::max(0.0, private_nh.param("resume_margin", 0.3));
     resend_frames_ = static_cast<std::size_t>(std::max(0, private_nh.param("resend_frames", 150)));
-    bag::JournalHeader journal_header{scene_parameter, difficulty, seed_, run_};
-    std::optional<bag::JournalContents> journal = resumableJournal(journal_header);
+    journal_header_ = bag::JournalHeader{scene_parameter, difficulty, seed_, run_};
+    std::optional<bag::JournalContents> journal = resumableJournal(journal_header_);
     if (!journal) keepInterruptedResults();
     user_ = private_nh.param<std::string>("user", "");
     char host[256] = {0};
@@ -171,7 +171,7 @@ class ScenarioManager : public nodelet::Nodelet {
     if (journal) {
       restore(std::move(*journal));
     } else {
-      if (journal_enabled_) startJournal(journal_header);
+      if (journal_enabled_) startJournal(journal_header_);
       if (reloaded_) announceFreshStart();
     }
     // Deep queues (pointers only, zero copy): on a loaded machine an input dropped here would be missing from the
@@ -252,7 +252,9 @@ class ScenarioManager : public nodelet::Nodelet {
   void restore(bag::JournalContents journal) {
     const ros::WallTime wall_start = ros::WallTime::now();
     restoring_ = true;
-    run_ = journal.header.run;
+    // The frames' run, continued: the resumed session's frames form one sequence with the crashed process's.
+    run_ = journal.frames.back()->run;
+    journal_header_.run = run_;
     for (const vrm_msgs::InputFrame::Ptr& message : journal.frames) {
       for (const vrm_msgs::ScenarioCommand& command : message->commands) {
         if (command.command == vrm_msgs::ScenarioCommand::START) session_start_ = command.header.stamp;
@@ -452,6 +454,11 @@ class ScenarioManager : public nodelet::Nodelet {
     auto message = boost::make_shared<vrm_msgs::InputFrame>();
     fillInputFrame(frame, world_frame_, eye_frame_, *message);
     message->run = run_;
+    // A LOAD after a finished session (its journal removed with its final result) starts the next session's journal:
+    // a restore replays the LOAD first, so the header's scene (this node's parameters) still describes it.
+    if (!journal_.isOpen() && journal_enabled_ && frame.kind == world::InputFrame::Kind::kLoad) {
+      startJournal(journal_header_);
+    }
     // Journaled before it is published: every frame the recorder may hold is one a restart restores.
     if (journal_.isOpen()) {
       try {
@@ -869,6 +876,7 @@ class ScenarioManager : public nodelet::Nodelet {
   double resume_margin_ = 0.3;
   std::size_t resend_frames_ = 150;
   bag::JournalWriter journal_;
+  bag::JournalHeader journal_header_;  // this node's scene, difficulty, seed and run
   std::string resume_reason_;
   ros::Time resume_stamp_;  // device inputs stamped before it are not applied
   ros::Time paused_at_, session_start_;
