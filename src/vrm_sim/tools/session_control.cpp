@@ -160,8 +160,14 @@ class SessionControl {
     ++restarts_;
     ++resumes_;
     const ros::Duration paused = resume->header.stamp - resume->paused_at;
-    // The session's input time stood still from the pause to the resume: its end moves by as much.
+    // The session's input time stood still from the pause to the resume: its end moves by as much. A STOP sent for a
+    // frame the crashed process never closed was lost with the process's mediator: it goes out again at the new end.
     if (started_ && !resume->session_start.isZero()) start_ += paused;
+    if (stop_sent_ && forced_end_.isZero() && stop_stamp_ > resume->paused_at) stop_sent_ = false;
+    if (!forced_end_.isZero() && forced_end_ > resume->paused_at) {
+      forced_end_ += paused;
+      send(vrm_msgs::ScenarioCommand::STOP, forced_end_, stop_reason_);
+    }
     newest_ = std::max(newest_, resume->header.stamp);
     ROS_WARN(
         "session_control: the simulation resumed the session after a crash (%u frames restored in %.2f s); paused "
@@ -272,6 +278,10 @@ class SessionControl {
   }
 
   void send(std::uint8_t command, const ros::Time& stamp, const std::string& argument) {
+    if (command == vrm_msgs::ScenarioCommand::STOP) {
+      stop_stamp_ = stamp;
+      stop_reason_ = argument;
+    }
     auto message = boost::make_shared<vrm_msgs::ScenarioCommand>();
     message->header.stamp = stamp;
     message->command = command;
@@ -426,6 +436,8 @@ class SessionControl {
   double recorder_timeout_ = 30.0;
   double min_free_mb_ = 20.0;
   ros::Time forced_end_;            // a STOP of this node's own (disk full)
+  ros::Time stop_stamp_;            // of the STOP sent
+  std::string stop_reason_;
   ros::WallTime first_frame_wall_;  // the recorder's ~part: the part its next start records into
   ros::WallTime last_note_;
   ros::Time newest_, start_;

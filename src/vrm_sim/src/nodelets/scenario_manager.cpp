@@ -199,6 +199,7 @@ class ScenarioManager : public nodelet::Nodelet {
   }
 
   // ---- crash = pause (issue 39) ----
+ private:
 
   // The journal of this session's crashed process, if there is one to resume; otherwise why not (logged) and nullopt.
   std::optional<bag::JournalContents> resumableJournal(const bag::JournalHeader& expected) {
@@ -382,7 +383,6 @@ class ScenarioManager : public nodelet::Nodelet {
   }
 
  private:
-  // The manager runs callbacks on several threads; the core is one state machine.
   // A resumed session applies no device input stamped before its resume stamp (the twins of the restarted manager
   // start their scripts over until they hear where the session was).
   bool beforeResume(const ros::Time& stamp) {
@@ -390,6 +390,7 @@ class ScenarioManager : public nodelet::Nodelet {
     ++inputs_before_resume_;
     return true;
   }
+  // The manager runs callbacks on several threads; the core is one state machine.
   void onEyeState(const vrm_msgs::EyeState::ConstPtr& eye) {
     std::lock_guard<std::mutex> lock(mutex_);
     if (beforeResume(eye->header.stamp)) return;
@@ -807,6 +808,10 @@ class ScenarioManager : public nodelet::Nodelet {
     add("frames_without_source_total", std::to_string(statistics.frames_without_source));
     if (input_mode_ == "frames") add("recorded_frame_gaps", std::to_string(sequence_gaps_));
     add("frames_total", std::to_string(statistics.frames));
+    if (frames_restored_ > 0) {
+      add("frames_restored", std::to_string(frames_restored_));
+      add("inputs_before_resume_total", std::to_string(inputs_before_resume_));
+    }
     // The integrator each membrane runs (with "auto", the one chosen for its stiffness, masses and dt).
     for (const std::string& name : session_->world().tissueNames()) {
       if (const auto* simulator = session_->world().tissueSimulator(name)) {
