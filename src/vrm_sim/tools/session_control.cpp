@@ -87,17 +87,7 @@ int processId(const std::string& uri) {
 }
 
 // Whether the process behind `uri` still answers (the master keeps a killed node registered until it is replaced).
-bool answers(const std::string& uri) {
-  std::string host, path;
-  std::uint32_t port = 0;
-  if (!ros::network::splitURI(uri, host, port)) return false;
-  XmlRpc::XmlRpcClient client(host.c_str(), static_cast<int>(port), "/");
-  XmlRpc::XmlRpcValue request, response;
-  request[0] = ros::this_node::getName();
-  const bool ok = client.execute("getPid", request, response) && !client.isFault();
-  client.close();
-  return ok;
-}
+bool answers(const std::string& uri) { return processId(uri) > 0; }
 
 struct Gap {
   ros::Time from, to;  // input time: the newest frame when the recorder was found dead / listening again
@@ -298,6 +288,14 @@ class SessionControl {
  public:
   // After the session: the parts the (respawned) recorder wrote, the killed ones recovered, and the gaps between
   // them, in <bag without .bag>.recording.json. Runs while the current recorder still writes its part.
+  std::string bagStem() const {
+    return bag_.size() > 4 && bag_.compare(bag_.size() - 4, 4, ".bag") == 0 ? bag_.substr(0, bag_.size() - 4) : bag_;
+  }
+  // Part 1 is the bag itself, part k > 1 <stem>.part<k>.bag (session_recorder's names).
+  std::string partPath(int part) const {
+    return part == 1 ? bag_ : bagStem() + ".part" + std::to_string(part) + ".bag";
+  }
+
   // Disk full (issue 39): the session stops, with a recorded STOP naming why, while the bag's file system still has
   // min_free_mb: the recording up to there, the journal and the result file are whole, and a replay reaches the
   // state the session stopped in. A full disk would otherwise cut the bag and the journal at random.
@@ -328,9 +326,7 @@ class SessionControl {
     ros::param::set(recorder_ + "/part", 0);
     const std::string uri = lookupNode(recorder_);
     const int pid = uri.empty() ? 0 : processId(uri);
-    const std::string stem =
-        bag_.size() > 4 && bag_.compare(bag_.size() - 4, 4, ".bag") == 0 ? bag_.substr(0, bag_.size() - 4) : bag_;
-    const std::string path = final_part_ == 1 ? bag_ : stem + ".part" + std::to_string(final_part_) + ".bag";
+    const std::string path = partPath(final_part_);
     std::string host;
     std::uint32_t port = 0;
     // Only a recorder on this machine can be signalled; another's part is described as still recording.
@@ -354,14 +350,13 @@ class SessionControl {
     if (session_over_ || bag_.empty()) return;
     session_over_ = true;
     namespace fs = std::filesystem;
-    const std::string stem =
-        bag_.size() > 4 && bag_.compare(bag_.size() - 4, 4, ".bag") == 0 ? bag_.substr(0, bag_.size() - 4) : bag_;
+    const std::string stem = bagStem();
     const int current = final_part_ > 0 ? final_part_ : std::max(1, next_part_ - 1);
     std::ostringstream json;
     json << std::setprecision(15) << "{\"bag\": \"" << bag_ << "\", \"parts\": [";
     std::vector<std::string> lines;
     for (int part = 1; part <= current; ++part) {
-      const std::string path = part == 1 ? bag_ : stem + ".part" + std::to_string(part) + ".bag";
+      const std::string path = partPath(part);
       std::string state = "recording";  // the current part, unless closeRecording closed it
       std::error_code error;
       double first = 0.0, last = 0.0;

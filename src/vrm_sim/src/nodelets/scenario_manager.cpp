@@ -470,7 +470,7 @@ class ScenarioManager : public nodelet::Nodelet {
       }
     }
     if (frame.kind == world::InputFrame::Kind::kState && !frame.commands.empty()) last_own_frame_ = message;
-    if (ring_frames_ > 0 && !restoring_) {
+    if (ring_frames_ > 0) {
       ring_.push_back(message);  // read-only from here on, like every subscriber's copy
       if (ring_.size() > ring_frames_) ring_.pop_front();
     }
