@@ -4,18 +4,23 @@
 # from the shipped files by src/vrm_fuzz/scripts/make_seeds.py). Writes bench/results/fuzz.json (one row per
 # target: executions, exec/s, coverage = libFuzzer's edges `cov:`, features `ft:`, crashes) and the table in
 # BENCHMARKS.md's "Fuzzing" section; copies every crash input to src/vrm_fuzz/regressions/<target>/.
-# Usage: scripts/fuzz.sh [--seconds N | --runs N] [--no-build] [target ...]   (default: 300 s, all targets)
+# Executions count libFuzzer's mutated runs only (the seed corpus's first pass, `#N INITED`, is left out); each row
+# also says where coverage last grew (`last_new_coverage_at`, in mutated executions), whether it stopped growing in
+# the run's last third (`plateau`), and the previous row's coverage as the baseline it must reach.
+# Usage: scripts/fuzz.sh [--seconds N | --runs N] [--jobs J] [--no-build] [target ...]   (default: 300 s, all
+#        targets, one at a time; --jobs 2 runs two targets at once, one per core)
 set -euo pipefail
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 export PATH="/usr/bin:$PATH"
-seconds=300 runs="" build=1 targets=()
+seconds=300 runs="" build=1 jobs=1 targets=()
 command_line="scripts/fuzz.sh $*"
 while (($#)); do
   case $1 in
     --seconds) seconds=$2; shift 2 ;;
     --runs) runs=$2; shift 2 ;;
     --no-build) build=0; shift ;;
-    -h | --help) sed -n '2,7p' "$0"; exit 0 ;;
+    --jobs) jobs=$2; shift 2 ;;
+    -h | --help) sed -n '2,11p' "$0"; exit 0 ;;
     *) targets+=("$1"); shift ;;
   esac
 done
@@ -28,7 +33,7 @@ for t in "${targets[@]}"; do
 done
 
 # Per-target input caps: images and bags are large inputs; a cap keeps one execution short (see BENCHMARKS.md).
-declare -A max_len=([marker_detector]=8192 [session_bag]=32768 [sim_messages]=4096 [tracking_messages]=4096
+declare -A max_len=([marker_detector]=8192 [calibrator_images]=32768 [mesh_upload]=16384 [session_bag]=32768 [sim_messages]=4096 [tracking_messages]=4096
                     [scene_yaml]=16384 [mesh_import]=8192 [surgeon_script]=8192)
 
 if ((build)); then
@@ -54,14 +59,15 @@ export ROS_HOSTNAME=localhost
 mkdir -p "$BUILD/fuzz_runs" "$ROOT/bench/results"
 results="$BUILD/fuzz_runs/results.tsv"
 : >"$results"
-for t in "${targets[@]}"; do
-  work="$BUILD/fuzz_runs/$t"
+run_target() {
+  local t=$1 work="$BUILD/fuzz_runs/$1"
   rm -rf "$work" && mkdir -p "$work/corpus" "$work/artifacts"
-  limit=(-max_total_time="$seconds")
+  local limit=(-max_total_time="$seconds")
   [[ -n $runs ]] && limit=(-runs="$runs")
-  len=()
+  local len=()
   [[ -n ${max_len[$t]:-} ]] && len=(-max_len="${max_len[$t]}")
   echo "== fuzz_$t (${limit[*]}${len:+ ${len[*]}})"
+  local start end rc crashes=0
   start=$(date +%s.%N)
   set +e
   (cd "$work" && nice -n 10 "$BUILD/fuzz/fuzz_$t" "${limit[@]}" "${len[@]}" -timeout=20 -rss_limit_mb=3072 \
@@ -69,18 +75,22 @@ for t in "${targets[@]}"; do
   rc=$?
   set -e
   end=$(date +%s.%N)
-  crashes=0
   for artifact in "$work"/artifacts/{crash,leak,timeout,oom}-*; do
     [[ -f $artifact ]] || continue
     crashes=$((crashes + 1))
     mkdir -p "$PKG/regressions/$t"
     cp "$artifact" "$PKG/regressions/$t/"
-    echo "   crash input -> src/vrm_fuzz/regressions/$t/$(basename "$artifact")"
+    echo "   $t: crash input -> src/vrm_fuzz/regressions/$t/$(basename "$artifact")"
   done
-  if ((rc != 0 && crashes == 0)); then crashes=1; echo "   fuzzer exited $rc without an artifact (see $work/log)"; fi
-  grep -E '^#[0-9]+' "$work/log" | tail -n 1 | sed 's/^/   /' || true
+  if ((rc != 0 && crashes == 0)); then crashes=1; echo "   $t: fuzzer exited $rc without an artifact (see $work/log)"; fi
+  grep -E '^#[0-9]+' "$work/log" | tail -n 1 | sed "s/^/   $t: /" || true
   printf '%s\t%s\t%s\t%s\t%s\n' "$t" "$(echo "$end - $start" | bc)" "$crashes" "${max_len[$t]:-}" "$work/log" >>"$results"
+}
+for t in "${targets[@]}"; do
+  while (($(jobs -rp | wc -l) >= jobs)); do wait -n || true; done
+  run_target "$t" &
 done
+wait
 
 /usr/bin/python3 - "$results" "$ROOT" "$command_line" "$seconds" "${runs:-}" <<'PY'
 import datetime, json, os, pathlib, platform, re, subprocess, sys
@@ -102,8 +112,23 @@ for line in open(results):
     cov = re.search(r"cov: (\d+)", last)
     ft = re.search(r"ft: (\d+)", last)
     corp = re.search(r"corp: (\d+)", last)
-    executions = int(stat.get("number_of_executed_units", 0))
+    total = int(stat.get("number_of_executed_units", 0))
+    inited = re.search(r"^#(\d+)\s+INITED", text, re.M)
+    executions = total - (int(inited.group(1)) if inited else 0)  # mutated runs only
+    # Where coverage (cov:) last grew, in mutated executions; a plateau = no growth in the last third of the run.
+    last_growth, best = 0, None
+    for line in status:
+        n, c = re.match(r"^#(\d+)", line), re.search(r"cov: (\d+)", line)
+        if not (n and c):
+            continue
+        if best is None or int(c.group(1)) > best:
+            best, last_growth = int(c.group(1)), max(0, int(n.group(1)) - (int(inited.group(1)) if inited else 0))
+    previous = rows.get(target, {})
+    baseline = previous.get("coverage_baseline") or previous.get("coverage")
+    baseline_date = previous.get("coverage_baseline_date") or previous.get("date")
     wall = float(wall)
+    per_s = executions / wall if wall > 0 else 0.0
+    goal = 1_000_000 if per_s >= 1000 else 100_000
     rows[target] = {
         "suite": "fuzz", "target": target, "executions": executions,
         "executions_per_s": round(executions / wall, 1) if wall > 0 else None,
@@ -112,6 +137,11 @@ for line in open(results):
         "features": int(ft.group(1)) if ft else 0, "corpus": int(corp.group(1)) if corp else 0,
         "crashes": int(crashes), "seconds": round(wall, 1), "max_len": int(max_len) if max_len else None,
         "peak_rss_mb": int(stat.get("peak_rss_mb", 0)), "reached_1M": executions >= 1_000_000,
+        "executions_counted": "mutated runs only (number_of_executed_units minus the #INITED seed pass)",
+        "goal_executions": goal, "reached_goal": executions >= goal,
+        "last_new_coverage_at": last_growth, "plateau": executions > 0 and last_growth <= executions * 2 / 3,
+        "coverage_baseline": baseline, "coverage_baseline_date": baseline_date,
+        "coverage_at_least_baseline": baseline is None or (int(cov.group(1)) if cov else 0) >= baseline,
         "date": date, "clang": clang, "machine": machine, "command": command,
     }
 doc = {"suite": "fuzz", "command": command, "quick": False, "date": date, "clang": clang, "machine": machine,
@@ -122,12 +152,18 @@ doc = {"suite": "fuzz", "command": command, "quick": False, "date": date, "clang
 out.write_text(json.dumps(doc, indent=1) + "\n")
 
 # The table in BENCHMARKS.md between the fuzz markers (appended as a section the first time).
-table = ["| target | executions | exec/s | coverage (edges) | features | crashes | seconds | max_len | date |",
-         "|---|---:|---:|---:|---:|---:|---:|---:|---|"]
+table = ["| target | mutated executions | goal | exec/s | coverage (edges) | before | last growth at | features | crashes | seconds | max_len | date |",
+         "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|"]
+def mark(ok):
+    return "" if ok is None else (" ✓" if ok else " ✗")
 for r in doc["rows"]:
-    table.append("| %s | %s | %s | %d | %d | %d | %.0f | %s | %s |" % (
-        r["target"], f'{r["executions"]:,}', f'{r["executions_per_s"]:,.0f}' if r["executions_per_s"] else "-",
-        r["coverage"], r["features"], r["crashes"], r["seconds"], r["max_len"] or "default", r["date"]))
+    table.append("| %s | %s | %s%s | %s | %d%s | %s | %s | %d | %d | %.0f | %s | %s |" % (
+        r["target"], f'{r["executions"]:,}', f'{r["goal_executions"]:,}' if r.get("goal_executions") else "-",
+        mark(r.get("reached_goal")), f'{r["executions_per_s"]:,.0f}' if r["executions_per_s"] else "-",
+        r["coverage"], mark(r.get("coverage_at_least_baseline")), r.get("coverage_baseline") or "-",
+        ("%s (%s)" % (f'{r["last_new_coverage_at"]:,}', "plateau" if r.get("plateau") else "still growing"))
+        if "last_new_coverage_at" in r else "-",
+        r["features"], r["crashes"], r["seconds"], r["max_len"] or "default", r["date"]))
 block = "<!-- fuzz:table:begin (scripts/fuzz.sh writes this table) -->\n%s\n\n%s; %s; command of the last run: `%s`.\n<!-- fuzz:table:end -->" % (
     "\n".join(table), clang, machine, command)
 md = root / "BENCHMARKS.md"

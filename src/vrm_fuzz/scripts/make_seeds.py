@@ -108,6 +108,50 @@ seed("marker_detector", "two_markers_rgb8", image(32, 24, [(8, 8, 3, colours[2])
 seed("marker_detector", "grey_bgra8", struct.pack("<HHBBhhhhB3d", 16, 8, 2, 0, -4, -4, 40, 40, 1, 1.0, 1.0, 2.0) +
      bytes([90, 90, 90, 255]))
 
+# --- calibrator images: [u8 role][u8 encoding][u16 w][u16 h] pixels (fuzz/calibrator_images.cpp) ---
+# A 5 x 4 inner-corner chessboard (6 x 5 squares, the first black, a one-square white border on grey) seen through
+# three homographies and on the fixture, 96 x 80 mono8, 2 x 2 supersampled.
+import math
+
+
+def board_grey(u, v):
+    if u < -1 or u >= 7 or v < -1 or v >= 6:
+        return 110
+    if u < 0 or u >= 6 or v < 0 or v >= 5:
+        return 255
+    return 0 if (math.floor(u) + math.floor(v)) % 2 == 0 else 255
+
+
+def board_image(w, h, hom):  # hom: pixel -> board squares (3 x 3, row-major)
+    out = bytearray()
+    for y in range(h):
+        for x in range(w):
+            acc = 0
+            for sy in (0.25, 0.75):
+                for sx in (0.25, 0.75):
+                    px, py = x + sx, y + sy
+                    d = hom[6] * px + hom[7] * py + hom[8]
+                    acc += board_grey((hom[0] * px + hom[1] * py + hom[2]) / d, (hom[3] * px + hom[4] * py + hom[5]) / d)
+            out.append(acc // 4)
+    return bytes(out)
+
+
+def board_pose(scale, angle, tx, ty, px, py):
+    c, s = math.cos(angle), math.sin(angle)
+    return [c / scale, s / scale, tx, -s / scale, c / scale, ty, px, py, 1.0]
+
+
+BW, BH = 96, 80
+board_views = [board_pose(10.0, 0.05, -1.6, -1.4, 0.0008, 0.0), board_pose(9.0, -0.12, -1.4, -0.8, -0.0006, 0.0009),
+               board_pose(10.0, 0.15, -1.9, -1.0, 0.0, -0.0010)]
+board_fixture = board_pose(10.0, 0.0, -1.8, -1.5, 0.0, 0.0)
+seed("calibrator_images", "chessboard_three_views_and_fixture",
+     b"".join(struct.pack("<BBBHH", 0, 0, 0, BW, BH) + board_image(BW, BH, v) for v in board_views) +
+     struct.pack("<BBBHH", 1, 0, 0, BW, BH) + board_image(BW, BH, board_fixture))
+seed("calibrator_images", "one_view_bgr8", struct.pack("<BBBHH", 0, 1, 0, BW, BH) +
+     bytes(b for p in board_image(BW, BH, board_views[0]) for b in (p, p, p)))
+seed("calibrator_images", "unknown_encoding_short", struct.pack("<BBBHH", 0, 8, 0x41, 17, 9) + bytes(range(40)))
+
 # --- messages of the reference bags (vrm_sim topics) ---
 KIND = {"/eye_state": 0, "/instrument_state": 1, "/pedals": 2, "/scenario_command": 3, "/microscope": 4,
         "/session_info": 5}
@@ -187,6 +231,44 @@ for name, a, b in (("camera", 0, 1), ("detection_camera_0", 1, 3), ("reconstruct
 frames.append(frame(7, ser(timing)))
 seed("tracking_messages", "three_camera_frames", bytes([0]) + b"".join(frames))
 seed("tracking_messages", "one_euro_filter", bytes([1]) + b"".join(frames))
+
+# --- mesh upload (fuzz/mesh_upload.cpp): kind % 8 = 0 mesh, 1 pose, 2 microscope, 3 burns, 4 light pipe, 5 visibility,
+# 6 style, 7 render; kind bits 3-4 pick the object (0 membrane, 1 retina, 2 instrument, 3 ghost) ---
+def grid_mesh(n, size, z, version):
+    m = vm.TissueMesh(tissue_id="membrane", version=version, topology_version=1)
+    m.header.frame_id = "eye"
+    for j in range(n):
+        for i in range(n):
+            m.positions += [(i / (n - 1) - 0.5) * size, (j / (n - 1) - 0.5) * size, z]
+            m.colors += [0.9, 0.8, 0.7, 0.6]
+            m.injury += [(i + j) / (2.0 * n)]
+    for j in range(n - 1):
+        for i in range(n - 1):
+            a = j * n + i
+            m.triangles += [a, a + 1, a + n, a + 1, a + n + 1, a + n]
+    return m
+
+
+def pose(x, y, z):
+    p = vm.InstrumentState().tip_pose
+    p.position.x, p.position.y, p.position.z = x, y, z
+    p.orientation.w = 1.0
+    return p
+
+
+burns = vm.SimulationState()
+for k in range(3):
+    b = vm.LaserBurn(diameter=0.0004, whiteness=0.8)
+    b.position.x, b.position.y, b.position.z = 0.001 * k, 0.0005, -0.011
+    burns.burns.append(b)
+upload = (frame(0, ser(grid_mesh(6, 0.004, -0.008, 1))) + frame(8, ser(grid_mesh(8, 0.02, -0.012, 1))) +
+          frame(16, ser(grid_mesh(3, 0.002, -0.004, 1))) + frame(17, ser(pose(0.0, 0.0, 0.002))) +
+          frame(2, ser(settings)) + frame(3, ser(burns)) + frame(4 | 0x80, ser(pose(0.001, 0.0, -0.002))) +
+          frame(7, b"") + frame(0, ser(grid_mesh(6, 0.004, -0.007, 2))) + frame(24 | 6, bytes([0x30])) +
+          frame(24, ser(grid_mesh(3, 0.002, -0.003, 1))) + frame(5 | 0x20, b"") + frame(7, b""))
+seed("mesh_upload", "membrane_retina_instrument_rendered", upload)
+seed("mesh_upload", "mesh_replaced_then_removed", frame(0, ser(grid_mesh(4, 0.003, -0.008, 1))) +
+     frame(0, ser(grid_mesh(5, 0.003, -0.008, 2))) + frame(5 | 0x80, b"") + frame(7, b""))
 
 check = "--check" in sys.argv
 changed = [p for p, d in seeds.items() if not p.exists() or p.read_bytes() != d]

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <string>
@@ -159,6 +160,100 @@ TEST(MeshImportErrors, InvalidScale) {
   MeshImportOptions options;
   options.scale = -1.0;
   EXPECT_THROW(importMesh(kMeshDir + "tetrahedron.ply", options), MeshIoError);
+}
+
+// --- the helper process (issue 39): same result as in this process; a hang, a crash, a bad reply are errors ---
+
+TEST(MeshImportHelper, SameMeshAsInProcess) {
+  for (const char* file : {"cube_quads.obj", "tetrahedron.ply", "tetrahedron_ascii.stl", "degenerate.obj"}) {
+    for (const bool join : {true, false}) {
+      MeshImportOptions options;
+      options.scale = 0.001;
+      options.join_identical_vertices = join;
+      const TriangleMesh helper = importMesh(kMeshDir + file, options);
+      const TriangleMesh here = importMeshInProcess(kMeshDir + file, options);
+      EXPECT_EQ(helper.name, here.name) << file;
+      EXPECT_EQ(helper.triangles, here.triangles) << file;
+      ASSERT_EQ(helper.vertices.size(), here.vertices.size()) << file;
+      for (std::size_t i = 0; i < here.vertices.size(); ++i) {
+        EXPECT_EQ(helper.vertices[i], here.vertices[i]) << file << " vertex " << i;  // bit for bit
+      }
+    }
+  }
+}
+
+TEST(MeshImportHelper, ErrorsReadAsInProcess) {
+  for (const char* file : {"malformed.obj", "nan_vertex.obj", "bad_index.obj", "empty.obj"}) {
+    std::string helper_error, here_error;
+    try {
+      importMesh(kMeshDir + file);
+    } catch (const MeshIoError& error) {
+      helper_error = error.what();
+    }
+    try {
+      importMeshInProcess(kMeshDir + file);
+    } catch (const MeshIoError& error) {
+      here_error = error.what();
+    }
+    EXPECT_FALSE(here_error.empty()) << file;
+    EXPECT_EQ(helper_error, here_error) << file;
+  }
+}
+
+// A stand-in for the helper (a shell script), set through VRM_MESH_IMPORT_HELPER for one test.
+class FakeHelper {
+ public:
+  explicit FakeHelper(const std::string& body) : script_(".sh") {
+    std::FILE* handle = std::fopen(script_.path().c_str(), "w");
+    std::fprintf(handle, "#!/bin/sh\n%s\n", body.c_str());
+    std::fclose(handle);
+    std::filesystem::permissions(script_.path(), std::filesystem::perms::owner_all);
+    setenv("VRM_MESH_IMPORT_HELPER", script_.path().c_str(), 1);
+  }
+  ~FakeHelper() { unsetenv("VRM_MESH_IMPORT_HELPER"); }
+
+ private:
+  TemporaryFile script_;
+};
+
+std::string helperError(const MeshImportOptions& options = {}) {
+  try {
+    importMesh(kMeshDir + "tetrahedron.ply", options);
+  } catch (const MeshIoError& error) {
+    return error.what();
+  }
+  return "no error";
+}
+
+TEST(MeshImportHelper, HangingImporterIsStoppedAtTheTimeLimit) {
+  FakeHelper helper("exec sleep 60");
+  MeshImportOptions options;
+  options.time_limit = 0.3;
+  const auto start = std::chrono::steady_clock::now();
+  const std::string error = helperError(options);
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  EXPECT_NE(error.find("did not finish within 0.3 s"), std::string::npos) << error;
+  EXPECT_GE(seconds, 0.3);
+  EXPECT_LT(seconds, 5.0);
+}
+
+TEST(MeshImportHelper, CrashingImporterIsAnError) {
+  FakeHelper helper("echo 'half a line' >&2; kill -SEGV $$");
+  const std::string error = helperError();
+  EXPECT_NE(error.find("died of signal 11"), std::string::npos) << error;
+  EXPECT_NE(error.find("half a line"), std::string::npos) << error;
+}
+
+TEST(MeshImportHelper, MalformedReplyIsAnError) {
+  FakeHelper helper("printf 'VRMMESH1garbage'");
+  EXPECT_NE(helperError().find("reply is malformed"), std::string::npos) << helperError();
+}
+
+TEST(MeshImportHelper, MissingHelperIsNamed) {
+  setenv("VRM_MESH_IMPORT_HELPER", "/nonexistent/vrm_mesh_import", 1);
+  const std::string error = helperError();
+  unsetenv("VRM_MESH_IMPORT_HELPER");
+  EXPECT_NE(error.find("'/nonexistent/vrm_mesh_import' is missing"), std::string::npos) << error;
 }
 
 TEST(MeshExport, RoundTripOfGeneratedMeshes) {

@@ -19,6 +19,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <opencv2/core.hpp>
 #include <string>
 #include <vector>
 
@@ -81,6 +82,10 @@ std::vector<geometry_msgs::TransformStamped> trocarTransforms(const MarkerLayout
 // A BGR8 image message of width x height pixels with its buffer allocated, for a renderer to draw straight into
 // (no copy between the renderer and the subscribers in the manager).
 sensor_msgs::ImagePtr makeBgr8Image(const std_msgs::Header& header, int width, int height);
+
+// An image message as a BGR8 matrix (a copy, through cv_bridge, as rig_calibrator takes its views): empty when
+// cv_bridge cannot convert it (an unknown encoding, a step or data size that does not match the size).
+cv::Mat toBgrImage(const sensor_msgs::Image& msg);
 
 // ~loop, when set, overrides the script's playback mode (true: loop, false: once); unset, the script's stays.
 void applyLoopParam(const ros::NodeHandle& private_nh, SurgeonScript* script);

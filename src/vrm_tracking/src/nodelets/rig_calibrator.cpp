@@ -5,11 +5,9 @@
 // the tracker and camera_info_manager load. Publishes the rig file's path, latched, on rig_calibration/rig_file.
 // The offline equivalent is `rosrun vrm_tracking calibrate_rig`.
 
-#include <cv_bridge/cv_bridge.h>
 #include <image_transport/image_transport.h>
 #include <nodelet/nodelet.h>
 #include <ros/ros.h>
-#include <sensor_msgs/image_encodings.h>
 #include <std_msgs/String.h>
 #include <vrm_msgs/publish.h>
 
@@ -17,121 +15,103 @@
 #include <cmath>
 #include <filesystem>
 #include <memory>
-#include <mutex>
+#include <optional>
 #include <pluginlib/class_list_macros.hpp>
 #include <string>
 #include <vector>
 
 #include "vrm_tracking/calibration.h"
+#include "vrm_tracking/calibration_collector.h"
+#include "vrm_tracking/conversions.h"
 
 namespace vrm_tracking {
 
+// The images in, the files and the rig file's path out; what is done with the images is CalibrationCollector's.
 class RigCalibrator : public nodelet::Nodelet {
  private:
-  struct Camera {
-    std::string name;
-    std::vector<cv::Mat> views;
-    std::vector<std::vector<cv::Point2f>> corners;  // of the stored views: a repeated pose adds nothing
-    cv::Mat fixture;
-    image_transport::Subscriber view_sub;
-    ros::Subscriber fixture_sub;
-  };
-
   void onInit() override {
     ros::NodeHandle& nh = getNodeHandle();
     ros::NodeHandle& pnh = getPrivateNodeHandle();
     std::vector<std::string> names = {"camera_0", "camera_1", "camera_2"};
     pnh.param("cameras", names, names);
-    pnh.param("views", views_needed_, 12);
+    int views_needed = 12;
+    pnh.param("views", views_needed, views_needed);
     pnh.param<std::string>("output_dir", output_dir_, "");
-    pnh.param("target_cols", target_.cols, target_.cols);
-    pnh.param("target_rows", target_.rows, target_.rows);
-    pnh.param("target_square", target_.square, target_.square);
+    ChessboardTarget target;
+    pnh.param("target_cols", target.cols, target.cols);
+    pnh.param("target_rows", target.rows, target.rows);
+    pnh.param("target_square", target.square, target.square);
     std::vector<double> centre = {0.0, 0.0, 0.0};
     pnh.param("fixture_centre", centre, centre);
-    if (output_dir_.empty() || centre.size() != 3 || views_needed_ < 3) {
-      NODELET_FATAL("rig_calibrator: needs output_dir, views >= 3 and fixture_centre [x, y, z]");
+    if (output_dir_.empty() || centre.size() != 3) {
+      NODELET_FATAL("rig_calibrator: needs output_dir and fixture_centre [x, y, z]");
       throw std::runtime_error("rig_calibrator: bad parameters");
     }
-    fixture_ = fixturePose(target_, Eigen::Vector3d(centre[0], centre[1], centre[2]));
+    try {
+      collector_ = std::make_unique<CalibrationCollector>(
+          names, target, fixturePose(target, Eigen::Vector3d(centre[0], centre[1], centre[2])), views_needed);
+    } catch (const std::invalid_argument& error) {
+      NODELET_FATAL("rig_calibrator: %s", error.what());
+      throw std::runtime_error(std::string("rig_calibrator: bad parameters: ") + error.what());
+    }
     result_pub_ = nh.advertise<std_msgs::String>("rig_calibration/rig_file", 1, /*latch=*/true);
     image_transport::ImageTransport it(nh);
-    for (const std::string& name : names) {
-      auto cam = std::make_unique<Camera>();
-      cam->name = name;
-      Camera* raw = cam.get();
-      cam->view_sub = it.subscribe(name + "/image_raw", 2,
-                                   [this, raw](const sensor_msgs::ImageConstPtr& msg) { onView(raw, msg); });
-      cam->fixture_sub = nh.subscribe<sensor_msgs::Image>(
-          name + "/fixture/image_raw", 1, [this, raw](const sensor_msgs::ImageConstPtr& msg) { onFixture(raw, msg); });
-      cameras_.push_back(std::move(cam));
+    for (std::size_t camera = 0; camera < names.size(); ++camera) {
+      view_subs_.push_back(
+          it.subscribe(names[camera] + "/image_raw", 2,
+                       [this, camera](const sensor_msgs::ImageConstPtr& msg) { onView(camera, *msg); }));
+      fixture_subs_.push_back(nh.subscribe<sensor_msgs::Image>(
+          names[camera] + "/fixture/image_raw", 1,
+          [this, camera](const sensor_msgs::ImageConstPtr& msg) { onFixture(camera, *msg); }));
     }
-    NODELET_INFO("rig_calibrator: %zu cameras, %d views each, %dx%d target of %.1f mm squares -> %s", cameras_.size(),
-                 views_needed_, target_.cols, target_.rows, target_.square * 1e3, output_dir_.c_str());
+    NODELET_INFO("rig_calibrator: %zu cameras, %d views each, %dx%d target of %.1f mm squares -> %s", names.size(),
+                 views_needed, target.cols, target.rows, target.square * 1e3, output_dir_.c_str());
   }
 
-  static cv::Mat toBgr(const sensor_msgs::ImageConstPtr& msg) {
-    try {
-      return cv_bridge::toCvCopy(msg, sensor_msgs::image_encodings::BGR8)->image;
-    } catch (const std::exception&) {
-      return cv::Mat();
+  void onFixture(std::size_t camera, const sensor_msgs::Image& msg) {
+    if (collector_->setFixture(camera, toBgrImage(msg))) finishIfComplete();
+  }
+
+  void onView(std::size_t camera, const sensor_msgs::Image& msg) {
+    const std::string& name = collector_->cameraName(camera);
+    switch (collector_->addView(camera, toBgrImage(msg))) {
+      case CalibrationCollector::ViewOutcome::kAdded:
+        NODELET_INFO("rig_calibrator: %s view %zu/%d", name.c_str(), collector_->viewCount(camera),
+                     collector_->viewsNeeded());
+        finishIfComplete();
+        break;
+      case CalibrationCollector::ViewOutcome::kNoTarget:
+        NODELET_WARN_THROTTLE(5.0, "rig_calibrator: %s: no target in view", name.c_str());
+        break;
+      case CalibrationCollector::ViewOutcome::kOtherSize:
+        NODELET_WARN_THROTTLE(5.0, "rig_calibrator: %s: a view of another image size than the first (ignored)",
+                              name.c_str());
+        break;
+      case CalibrationCollector::ViewOutcome::kSamePose:
+      case CalibrationCollector::ViewOutcome::kEnough:
+        break;
     }
   }
 
-  void onFixture(Camera* cam, const sensor_msgs::ImageConstPtr& msg) {
-    cv::Mat image = toBgr(msg);
-    std::lock_guard<std::mutex> lock(mutex_);
-    if (done_ || image.empty()) return;
-    cam->fixture = image;
-    maybeCalibrateLocked();
-  }
-
-  void onView(Camera* cam, const sensor_msgs::ImageConstPtr& msg) {
-    {
-      std::lock_guard<std::mutex> lock(mutex_);
-      if (done_ || static_cast<int>(cam->views.size()) >= views_needed_) return;
-    }
-    cv::Mat image = toBgr(msg);
-    std::vector<cv::Point2f> corners;
-    if (image.empty() || !detectTarget(image, target_, &corners)) {
-      NODELET_WARN_THROTTLE(5.0, "rig_calibrator: %s: no target in view", cam->name.c_str());
-      return;
-    }
-    std::lock_guard<std::mutex> lock(mutex_);
-    for (const auto& seen : cam->corners) {
-      double d = 0.0;
-      for (std::size_t i = 0; i < corners.size(); ++i)
-        d += std::hypot(corners[i].x - seen[i].x, corners[i].y - seen[i].y);
-      if (d / corners.size() < 5.0) return;  // the same pose again
-    }
-    cam->views.push_back(image);
-    cam->corners.push_back(corners);
-    NODELET_INFO("rig_calibrator: %s view %zu/%d", cam->name.c_str(), cam->views.size(), views_needed_);
-    maybeCalibrateLocked();
-  }
-
-  void maybeCalibrateLocked() {
-    for (const auto& cam : cameras_) {
-      if (cam->fixture.empty() || static_cast<int>(cam->views.size()) < views_needed_) return;
-    }
-    done_ = true;
-    CameraRig rig;
-    for (const auto& cam : cameras_) {
-      const CameraCalibrationResult r = calibrateCamera(cam->name, cam->views, cam->fixture, target_, fixture_);
-      if (!r.ok) {
-        NODELET_ERROR("rig_calibrator: %s", r.error.c_str());
-        return;
-      }
+  void finishIfComplete() {
+    const std::optional<CalibrationCollector::Calibration> calibration = collector_->calibrateIfComplete();
+    if (!calibration) return;
+    for (const CameraCalibrationResult& r : calibration->cameras) {
+      if (!r.ok) continue;
       NODELET_INFO("rig_calibrator: %s fx %.2f fy %.2f cx %.2f cy %.2f, rms %.3f px (intrinsics) %.3f px (fixture)",
-                   cam->name.c_str(), r.camera.K(0, 0), r.camera.K(1, 1), r.camera.K(0, 2), r.camera.K(1, 2),
+                   r.camera.name.c_str(), r.camera.K(0, 0), r.camera.K(1, 1), r.camera.K(0, 2), r.camera.K(1, 2),
                    r.intrinsic_rms_px, r.extrinsic_rms_px);
-      rig.cameras.push_back(r.camera);
+    }
+    if (!calibration->ok) {
+      NODELET_ERROR("rig_calibrator: %s", calibration->error.c_str());
+      return;
     }
     const std::filesystem::path dir(output_dir_);
     try {
       std::filesystem::create_directories(dir);
-      for (const CameraModel& cam : rig.cameras) saveCameraYaml(cam, (dir / (cam.name + ".yaml")).string());
-      saveRigYaml(rig, (dir / "rig.yaml").string());
+      for (const CameraModel& cam : calibration->rig.cameras)
+        saveCameraYaml(cam, (dir / (cam.name + ".yaml")).string());
+      saveRigYaml(calibration->rig, (dir / "rig.yaml").string());
     } catch (const std::exception& e) {
       NODELET_ERROR("rig_calibrator: %s", e.what());
       return;
@@ -142,14 +122,11 @@ class RigCalibrator : public nodelet::Nodelet {
     NODELET_INFO("rig_calibrator: wrote %s", msg->data.c_str());
   }
 
-  std::vector<std::unique_ptr<Camera>> cameras_;
-  ChessboardTarget target_;
-  Eigen::Isometry3d fixture_ = Eigen::Isometry3d::Identity();
-  int views_needed_ = 12;
+  std::unique_ptr<CalibrationCollector> collector_;
+  std::vector<image_transport::Subscriber> view_subs_;
+  std::vector<ros::Subscriber> fixture_subs_;
   std::string output_dir_;
   ros::Publisher result_pub_;
-  std::mutex mutex_;
-  bool done_ = false;
 };
 
 }  // namespace vrm_tracking

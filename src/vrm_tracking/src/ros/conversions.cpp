@@ -1,5 +1,6 @@
 #include "vrm_tracking/conversions.h"
 
+#include <cv_bridge/cv_bridge.h>
 #include <sensor_msgs/image_encodings.h>
 
 #include <boost/make_shared.hpp>
@@ -247,6 +248,14 @@ sensor_msgs::ImagePtr makeBgr8Image(const std_msgs::Header& header, int width, i
   image->step = 3 * image->width;
   image->data.resize(static_cast<std::size_t>(image->step) * image->height);
   return image;
+}
+
+cv::Mat toBgrImage(const sensor_msgs::Image& msg) {
+  try {
+    return cv_bridge::toCvCopy(msg, sensor_msgs::image_encodings::BGR8)->image;
+  } catch (const std::exception&) {  // cv_bridge::Exception, cv::Exception (a size the data does not hold)
+    return cv::Mat();
+  }
 }
 
 void applyLoopParam(const ros::NodeHandle& private_nh, SurgeonScript* script) {

@@ -5,10 +5,12 @@
 
 #include <cmath>
 #include <cstdio>
+#include <opencv2/imgproc.hpp>
 #include <random>
 #include <string>
 
 #include "vrm_tracking/calibration.h"
+#include "vrm_tracking/calibration_collector.h"
 #include "vrm_tracking/triangulation.h"
 
 namespace vrm_tracking {
@@ -146,6 +148,69 @@ TEST(Calibration, CalibrateCameraProcedureWithinStatedTolerances) {
       calibrateCamera("camera_1", std::vector<cv::Mat>(views.begin(), views.begin() + 2), reference, target, fixture);
   EXPECT_FALSE(bad.ok);
   EXPECT_NE(bad.error.find("3 needed"), std::string::npos);
+}
+
+// What rig_calibrator does with its images (CalibrationCollector): distinct views, the fixture, one calibration.
+TEST(CalibrationCollector, CollectsDistinctViewsAndCalibratesOnce) {
+  const CameraRig truth = makeDefaultRig();
+  const ChessboardTarget target;
+  const Eigen::Isometry3d fixture = fixturePose(target, Eigen::Vector3d::Zero());
+  const CameraModel& cam = truth.cameras[1];
+  CalibrationCollector collector({"camera_1"}, target, fixture, 4);
+  using Outcome = CalibrationCollector::ViewOutcome;
+  EXPECT_EQ(collector.addView(0, cv::Mat()), Outcome::kNoTarget);
+  EXPECT_EQ(collector.addView(0, cv::Mat(480, 640, CV_8UC3, cv::Scalar(128, 128, 128))), Outcome::kNoTarget);
+  std::vector<cv::Mat> views;
+  for (const Eigen::Isometry3d& pose : calibrationPoses(cam, target, Eigen::Vector3d::Zero(), 5, 118)) {
+    views.emplace_back();
+    renderTarget(cam, pose, target, &views.back(), 2);
+  }
+  EXPECT_EQ(collector.addView(0, views[0]), Outcome::kAdded);
+  EXPECT_EQ(collector.addView(0, views[0]), Outcome::kSamePose);
+  cv::Mat smaller;
+  cv::resize(views[1], smaller, cv::Size(320, 240));
+  EXPECT_EQ(collector.addView(0, smaller), Outcome::kOtherSize);
+  for (int i = 1; i < 4; ++i) EXPECT_EQ(collector.addView(0, views[i]), Outcome::kAdded) << i;
+  EXPECT_EQ(collector.addView(0, views[4]), Outcome::kEnough);
+  EXPECT_EQ(collector.viewCount(0), 4u);
+  EXPECT_FALSE(collector.calibrateIfComplete()) << "no fixture view yet";
+  cv::Mat reference;
+  renderTarget(cam, fixture, target, &reference, 3);
+  EXPECT_FALSE(collector.setFixture(0, cv::Mat()));
+  EXPECT_TRUE(collector.setFixture(0, reference));
+  const auto calibration = collector.calibrateIfComplete();
+  ASSERT_TRUE(calibration);
+  ASSERT_TRUE(calibration->ok) << calibration->error;
+  ASSERT_EQ(calibration->rig.cameras.size(), 1u);
+  const CalibrationError e = compareCameras(calibration->rig.cameras[0], cam);
+  EXPECT_LT(e.focal_percent, 1.0);
+  EXPECT_LT(e.position_m, 0.002);
+  EXPECT_TRUE(collector.done());
+  EXPECT_FALSE(collector.calibrateIfComplete()) << "one attempt only";
+  EXPECT_EQ(collector.addView(0, views[4]), Outcome::kEnough);
+}
+
+TEST(CalibrationCollector, AFailedCalibrationIsAnErrorNotAnException) {
+  // Views of one pose at four sizes cannot be a calibration; neither can a fixture image without the target.
+  const CameraRig truth = makeDefaultRig();
+  const ChessboardTarget target;
+  const Eigen::Isometry3d fixture = fixturePose(target, Eigen::Vector3d::Zero());
+  CalibrationCollector collector({"camera_0"}, target, fixture, 3);
+  for (const Eigen::Isometry3d& pose : calibrationPoses(truth.cameras[0], target, Eigen::Vector3d::Zero(), 3, 7)) {
+    cv::Mat view;
+    renderTarget(truth.cameras[0], pose, target, &view, 2);
+    ASSERT_EQ(collector.addView(0, view), CalibrationCollector::ViewOutcome::kAdded);
+  }
+  collector.setFixture(0, cv::Mat(480, 640, CV_8UC3, cv::Scalar(0, 0, 0)));
+  const auto calibration = collector.calibrateIfComplete();
+  ASSERT_TRUE(calibration);
+  EXPECT_FALSE(calibration->ok);
+  EXPECT_NE(calibration->error.find("camera_0"), std::string::npos) << calibration->error;
+  EXPECT_THROW(CalibrationCollector({}, target, fixture, 3), std::invalid_argument);
+  EXPECT_THROW(CalibrationCollector({"a"}, target, fixture, 2), std::invalid_argument);
+  ChessboardTarget square_board;
+  square_board.cols = square_board.rows = 6;
+  EXPECT_THROW(CalibrationCollector({"a"}, square_board, fixture, 3), std::invalid_argument);
 }
 
 }  // namespace

@@ -26,13 +26,28 @@ struct MeshImportOptions {
   // triangle separately; without this, a mesh would fall apart into loose triangles under the tissue simulation.
   bool join_identical_vertices = true;
   std::string name;  // mesh name; empty = the file name without directory and extension
+  // importMesh() reads the file in a helper process and kills it after this many seconds, so a file that hangs or
+  // crashes assimp is an import error instead of a hung or dead nodelet manager (issue 39).
+  double time_limit = 30.0;
 };
 
 // Triangulates polygons, flattens the node hierarchy (node transforms are applied) and concatenates all meshes of
 // the file; points and lines are dropped. Normals are not imported (they would prevent welding); see
 // computeVertexNormals(). Throws MeshIoError for a missing or unreadable file, a syntax error, out-of-range
 // indices, NaN/Inf coordinates, or a file without triangles.
+//
+// The import runs in the helper executable vrm_mesh_import (meshImportHelperPath()), started with posix_spawn: never a
+// fork of the caller, which may be a multi-threaded nodelet manager. A helper that outlives options.time_limit is
+// killed (MeshIoError "did not finish within"); one that dies of a signal is a MeshIoError too.
 TriangleMesh importMesh(const std::string& path, const MeshImportOptions& options = {});
+
+// The same import in this process (no time limit, an importer crash is this process's): the helper itself, the fuzz
+// target, and tools that want no child process.
+TriangleMesh importMeshInProcess(const std::string& path, const MeshImportOptions& options = {});
+
+// The helper importMesh() runs: $VRM_MESH_IMPORT_HELPER if set, else vrm_sim/vrm_mesh_import next to the library
+// that holds this code (devel/lib/vrm_sim/ or <prefix>/lib/vrm_sim/).
+std::string meshImportHelperPath();
 
 // Writes vertices with 17 significant digits, normals if present and 1-based faces. Fixed vertices are written as
 // a comment only ("# fixed_vertices ..."); OBJ has no element for them. Throws MeshIoError.

@@ -133,7 +133,7 @@ std::string plyHeaderProblem(const std::string& path) {
 MeshIoError::MeshIoError(const std::string& path, const std::string& problem)
     : std::runtime_error(path + ": " + problem), path_(path) {}
 
-TriangleMesh importMesh(const std::string& path, const MeshImportOptions& options) {
+TriangleMesh importMeshInProcess(const std::string& path, const MeshImportOptions& options) {
   std::error_code error;
   if (!std::filesystem::exists(path, error)) throw MeshIoError(path, "file not found");
   if (!std::filesystem::is_regular_file(path, error)) throw MeshIoError(path, "not a regular file");
