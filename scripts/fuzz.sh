@@ -57,8 +57,10 @@ export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1:${UBSAN_OPTIONS:-}"
 export ROS_HOSTNAME=localhost
 
 mkdir -p "$BUILD/fuzz_runs" "$ROOT/bench/results"
-results="$BUILD/fuzz_runs/results.tsv"
+# One results file per invocation, and the merge into fuzz.json under a lock: two invocations may run at once.
+results="$BUILD/fuzz_runs/results.$$.tsv"
 : >"$results"
+trap 'rm -f "$results"' EXIT
 run_target() {
   local t=$1 work="$BUILD/fuzz_runs/$1"
   rm -rf "$work" && mkdir -p "$work/corpus" "$work/artifacts"
@@ -92,7 +94,7 @@ for t in "${targets[@]}"; do
 done
 wait
 
-/usr/bin/python3 - "$results" "$ROOT" "$command_line" "$seconds" "${runs:-}" <<'PY'
+flock "$ROOT/bench/results/.fuzz.lock" /usr/bin/python3 - "$results" "$ROOT" "$command_line" "$seconds" "${runs:-}" <<'PY'
 import datetime, json, os, pathlib, platform, re, subprocess, sys
 results, root, command, seconds, runs = sys.argv[1:6]
 root = pathlib.Path(root)

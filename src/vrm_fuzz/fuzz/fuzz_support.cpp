@@ -28,6 +28,24 @@ bool registerTarget(const char* name, EntryPoint entry) {
 }
 
 namespace {
+std::vector<void (*)()>& resets() {
+  static std::vector<void (*)()> hooks;
+  return hooks;
+}
+}  // namespace
+
+void registerReset(void (*reset)()) {
+  for (auto hook : resets()) {
+    if (hook == reset) return;
+  }
+  resets().push_back(reset);
+}
+
+void resetPersistentState() {
+  for (auto hook : resets()) hook();
+}
+
+namespace {
 struct ScratchDirectory {
   std::string path;
   ScratchDirectory() {

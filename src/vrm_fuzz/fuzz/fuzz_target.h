@@ -60,6 +60,11 @@ class Bytes {
   std::size_t pos_ = 0;
 };
 
+// State a target keeps across inputs (sim_messages' persistent World) registers how to drop it; the regression replay
+// drops it before every file, so a file replays against the state a fresh fuzzer process starts from.
+void registerReset(void (*reset)());
+void resetPersistentState();
+
 // A private temporary directory for targets that must hand a *file* to the code under test (mesh import by
 // extension, bags); in /dev/shm when available. Created once per process, removed at exit.
 const std::string& scratchDirectory();

@@ -7,15 +7,24 @@
 //   scene_manager     EyeState, InstrumentState (pose -> toEigen -> toTransformMsg), MicroscopeSettings, SessionInfo
 //   stereo_renderer   MicroscopeSettings -> the microscope cameras (vrm_render microscope_camera.h; the mesh upload
 //                     itself needs a GL context, see README), TissueMesh -> fillTriangleListMarker (RViz path)
-// The first byte picks the shipped scene the session starts with (as the nodelet's ~scene parameter). Building a
-// World costs 0.1-1 s under ASan (tissue scenes most), so this target runs slowly; sim_conversions.cpp runs the same
+// The first byte picks the shipped scene (as the nodelet's ~scene parameter); its bit 7 turns on rigid reports.
+// A persistent World per scene (issue 39 §3): building one costs 10-200 ms under ASan (the membrane most), so the
+// Session lives on across inputs as it does in a running node, and each input is the next stretch of its session: its
+// stamps are moved to start 20 ms after the previous input's last frame (their differences, backwards ones included,
+// are kept). The World is built again every kRebuildEvery inputs, and whenever a fuzzed LOAD switched it to another
+// scene. A crash that needs the inputs before it may not replay alone: the regression replay builds a fresh World for
+// every file (vrm_fuzz::resetPersistentState). Frames step at most kMaxFrameTime (the nodelet's max_frame_time,
+// smaller): with 64 messages per input that bounds the physics an input costs. sim_conversions.cpp runs the same
 // messages through the same handlers without a World, at full speed.
 #include <vrm_msgs/MicroscopeSettings.h>
 #include <vrm_msgs/SessionInfo.h>
 
+#include <algorithm>
 #include <cmath>
+#include <limits>
 #include <map>
 #include <memory>
+#include <optional>
 
 #include "ros_messages.h"
 #include "vrm_render/microscope_camera.h"
@@ -29,9 +38,17 @@ namespace {  // a copy per entry point: both are linked into the replay test
 
 using namespace vrm_sim;
 
+// Every shipped scene; the seeds' first byte picks from the first seven.
+const std::vector<std::string>& shippedSceneNames() {
+  static const std::vector<std::string> names = {
+      "navigation",     "membrane_peeling", "vitrectomy",        "steady_hold",       "ilm_peeling",
+      "pick_and_place", "trajectory",       "laser_coagulation", "retina_relocation", "posterior_hyaloid",
+      "bimanual",       "object_manipulation"};
+  return names;
+}
+
 const scene::SceneDescription& shippedScene(std::uint8_t selector) {
-  static const std::vector<std::string> names = {"navigation",  "membrane_peeling", "vitrectomy", "steady_hold",
-                                                 "ilm_peeling", "pick_and_place",   "trajectory"};
+  const std::vector<std::string>& names = shippedSceneNames();
   static std::map<std::string, scene::SceneDescription> cache;
   const std::string& name = names[selector % names.size()];
   auto found = cache.find(name);
@@ -100,25 +117,79 @@ void rendererMicroscope(const vrm_msgs::MicroscopeSettings& settings) {
   }
 }
 
+constexpr int kRebuildEvery = 256;
+constexpr double kMaxFrameTime = 0.005;  // s
+
+struct PersistentSession {
+  std::unique_ptr<world::Session> session;
+  std::string scene;  // the shipped scene it was built for
+  int inputs = 0;
+  world::Stamp next_base = 1'000'000'000;  // where the next input's stamps start (ns)
+};
+
+std::map<std::uint8_t, PersistentSession>& persistentSessions() {
+  static std::map<std::uint8_t, PersistentSession> sessions;
+  return sessions;
+}
+
+void dropPersistentSessions() { persistentSessions().clear(); }
+
+// The session of scene `selector`, built (again) when needed; nullptr if it cannot be built.
+PersistentSession* sessionFor(std::uint8_t selector) {
+  vrm_fuzz::registerReset(&dropPersistentSessions);
+  PersistentSession& entry = persistentSessions()[static_cast<std::uint8_t>(selector % shippedSceneNames().size())];
+  const scene::SceneDescription& description = shippedScene(selector);
+  if (entry.session && entry.inputs < kRebuildEvery && entry.session->world().scene().name == description.name) {
+    ++entry.inputs;
+    return &entry;
+  }
+  world::WorldOptions options;
+  options.clock = [] { return 0.0; };  // measurement only; a constant keeps runs reproducible
+  options.log = [](world::Severity, const std::string&) {};
+  options.max_frame_time = kMaxFrameTime;
+  entry = PersistentSession{};
+  try {
+    entry.session = std::make_unique<world::Session>(description, options);
+  } catch (const std::exception&) {
+    return nullptr;  // cannot happen for a shipped scene (the World tests say so); not the fuzzed part
+  }
+  world::Session* current = entry.session.get();
+  entry.session->setFrameObserver([current](const world::FrameResult& frame) { publishFrame(*current, frame); });
+  entry.scene = description.name;
+  entry.inputs = 1;
+  return &entry;
+}
+
+// Moves an input's stamps behind the session's last frame, keeping their differences (saturating, not wrapping).
+class StampShift {
+ public:
+  explicit StampShift(world::Stamp base) : base_(base) {}
+  world::Stamp operator()(world::Stamp stamp) {
+    if (!first_) first_ = stamp;
+    const __int128 shifted = static_cast<__int128>(base_) + stamp - *first_;
+    const __int128 limit = std::numeric_limits<world::Stamp>::max() / 2;
+    return static_cast<world::Stamp>(shifted > limit ? limit : shifted < -limit ? -limit : shifted);
+  }
+
+ private:
+  world::Stamp base_;
+  std::optional<world::Stamp> first_;
+};
+
 // with_world = false: the conversions only (sim_conversions).
 inline int runSimMessages(const std::uint8_t* data, std::size_t size, bool with_world) {
   vrm_fuzz::Bytes in(data, size);
   if (in.empty()) return 0;
-  if (!with_world) in.take<std::uint8_t>();
-  world::WorldOptions options;
-  options.clock = [] { return 0.0; };  // measurement only; a constant keeps runs reproducible
-  options.log = [](world::Severity, const std::string&) {};
-  std::unique_ptr<world::Session> session;
+  const std::uint8_t selector = in.take<std::uint8_t>();  // the scene; bit 7: rigid reports
+  PersistentSession* persistent = nullptr;
+  world::Session* session = nullptr;
   if (with_world) {
-    try {
-      session = std::make_unique<world::Session>(shippedScene(in.take<std::uint8_t>()), options);
-    } catch (const std::exception&) {
-      return 0;  // cannot happen for a shipped scene (the World tests say so); not the fuzzed part
-    }
-    world::Session* current = session.get();
-    session->setFrameObserver([current](const world::FrameResult& frame) { publishFrame(*current, frame); });
-    session->world().setRigidReports((data[0] & 0x80) != 0);
+    persistent = sessionFor(selector);
+    if (persistent == nullptr) return 0;
+    session = persistent->session.get();
+    session->world().setRigidReports((selector & 0x80) != 0);
   }
+  StampShift shift(persistent ? persistent->next_base : 0);
 
   vrm_fuzz::Frame frame;
   int messages = 0;
@@ -127,7 +198,8 @@ inline int runSimMessages(const std::uint8_t* data, std::size_t size, bool with_
       case 0: {
         vrm_msgs::EyeState eye;
         if (!vrm_fuzz::deserialize(frame, &eye)) break;
-        const world::EyeState converted = toWorld(eye);
+        world::EyeState converted = toWorld(eye);
+        converted.stamp = shift(converted.stamp);
         if (session) session->handle(converted);
         geometry_msgs::Pose pose;
         pose.position = eye.rotation_center;
@@ -139,7 +211,8 @@ inline int runSimMessages(const std::uint8_t* data, std::size_t size, bool with_
       case 1: {
         vrm_msgs::InstrumentState instrument;
         if (!vrm_fuzz::deserialize(frame, &instrument)) break;
-        const world::InstrumentState converted = toWorld(instrument);
+        world::InstrumentState converted = toWorld(instrument);
+        converted.stamp = shift(converted.stamp);
         if (session) session->handle(converted);
         if (instrument.valid) sceneManagerPose(instrument.tip_pose);
         break;
@@ -147,16 +220,18 @@ inline int runSimMessages(const std::uint8_t* data, std::size_t size, bool with_
       case 2: {
         vrm_msgs::PedalState pedals;
         if (!vrm_fuzz::deserialize(frame, &pedals)) break;
-        const world::PedalState converted = toWorld(pedals);
+        world::PedalState converted = toWorld(pedals);
+        converted.stamp = shift(converted.stamp);
         if (session) session->handle(converted);
         break;
       }
       case 3: {
         vrm_msgs::ScenarioCommand command;
         if (!vrm_fuzz::deserialize(frame, &command)) break;
-        const auto converted = toWorld(command);
+        auto converted = toWorld(command);
         if (!session) break;
         if (converted) {
+          converted->stamp = shift(converted->stamp);
           session->handle(*converted);
         } else {
           session->world().note("unknown command " + std::to_string(command.command) + " ignored");
@@ -185,6 +260,11 @@ inline int runSimMessages(const std::uint8_t* data, std::size_t size, bool with_
   if (session) {
     session->flush();
     session->world().stateHash();
+    // A LOAD replaced the World; the next input's stamps follow this one's last frame.
+    if (session->world().scene().name != persistent->scene) persistent->inputs = kRebuildEvery;
+    if (const auto last = session->world().lastFrameStamp()) {
+      persistent->next_base = std::max(persistent->next_base, *last + 20'000'000);
+    }
   }
   return 0;
 }

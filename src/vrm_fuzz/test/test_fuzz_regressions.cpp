@@ -53,6 +53,7 @@ std::map<std::string, std::string> knownBugs() {
 // Runs one input; an exception escaping the entry point is what libFuzzer reports as a crash (abort).
 void replay(vrm_fuzz::EntryPoint entry, const fs::path& file) {
   const std::vector<std::uint8_t> bytes = readFile(file);
+  vrm_fuzz::resetPersistentState();
   try {
     entry(bytes.data(), bytes.size());
   } catch (const std::exception& e) {
