@@ -8,7 +8,8 @@
 #                                graph), two at a time, after building only what they need (on an up-to-date build
 #                                that check is the only build step). Prints the list it ran.
 #   scripts/test.sh PKG [PKG..]  one package's unit tests (two at a time), then its graph tests (one at a time).
-#   scripts/test.sh --sanitize   the unit and graph tests built with ASan + UBSan in build_asan/.
+#   scripts/test.sh --sanitize [--part K/N]   the unit and graph tests built with ASan + UBSan in build_asan/ (all,
+#                                or the K-th of N parts: scripts/sanitizers/run_tests.sh).
 #
 # Every tier first checks that bench/results/latency.json is newer than the last commit that changed what it measures
 # (scripts/check_bench_fresh.sh, milliseconds, before building). A stale result does not stop the tests — a developer
@@ -23,7 +24,7 @@ BUILD="$ROOT/build"
 RESULTS="$BUILD/test_results"
 
 usage() {
-  sed -n '2,15p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'
+  sed -n '2,16p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'
   echo "packages: $(cd "$ROOT/src" && ls -d */ | tr -d / | tr '\n' ' ')"
 }
 
@@ -79,7 +80,8 @@ esac
 case ${1:-} in
   --sanitize)
     status=0
-    "$ROOT/scripts/sanitizers/run_tests.sh" || status=$?
+    shift
+    "$ROOT/scripts/sanitizers/run_tests.sh" "$@" || status=$?
     finish $status
     ;;
   --fast)

@@ -7,9 +7,30 @@
 # start the Release build in build/ through scripts/common.sh, and the nodelets they exercise are the ones the
 # rostests load here; under ASan their wall-clock checks (frames in N seconds) would measure the sanitizer.
 #
-# Usage: scripts/test.sh --sanitize          (run it with `nice -n 10` on a shared machine)
+# Usage: scripts/test.sh --sanitize [--part K/N]   (run it with `nice -n 10` on a shared machine)
+#   --part K/N  the K-th of N parts of the tests (CTest's stride selection: tests K, K+N, K+2N, ... of the workspace's
+#               catkin tests in CTest order), so that a full run fits in sittings; every part builds what is missing
+#               first (the first part the whole workspace), then prints its totals and the test names it ran. The
+#               sanitizer-report case counts the reports of that part only.
 # Environment: VRM_ASAN_BUILD (default <ws>/build_asan), VRM_SANITIZE_JOBS (default nproc).
 set -euo pipefail
+part="" parts=""
+while (($#)); do
+  case $1 in
+    --part)
+      [[ ${2:-} =~ ^([0-9]+)/([0-9]+)$ ]] && ((BASH_REMATCH[1] >= 1 && BASH_REMATCH[1] <= BASH_REMATCH[2])) || {
+        echo "test.sh --sanitize: --part needs K/N with 1 <= K <= N (got '${2:-}')" >&2
+        exit 2
+      }
+      part=${BASH_REMATCH[1]} parts=${BASH_REMATCH[2]}
+      shift 2
+      ;;
+    *)
+      echo "test.sh --sanitize: unknown argument '$1' (usage: test.sh --sanitize [--part K/N])" >&2
+      exit 2
+      ;;
+  esac
+done
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)
 BUILD=${VRM_ASAN_BUILD:-$ROOT/build_asan}
 JOBS=${VRM_SANITIZE_JOBS:-$(nproc)}
@@ -53,8 +74,15 @@ mkdir -p "$SANITIZER_REPORTS"
 
 start=$(date +%s)
 # One test at a time: rostests start their own masters and the machine has two cores.
-cmake --build "$BUILD" --target run_tests -j1 || true
-echo "test.sh --sanitize: tests $(($(date +%s) - start)) s"
+if [[ -n $part ]]; then
+  # CTest runs catkin's run_tests_* commands, which write the same JUnit files into test_results/.
+  ctest --test-dir "$BUILD/src" -I "$part,,$parts" --output-on-failure --timeout 4800 \
+    | sed -E '/^ +Start +[0-9]+: /d; s/_ctest_//; /^Internal ctest changing into directory/d' || true
+  echo "test.sh --sanitize: part $part/$parts: tests $(($(date +%s) - start)) s"
+else
+  cmake --build "$BUILD" --target run_tests -j1 || true
+  echo "test.sh --sanitize: tests $(($(date +%s) - start)) s"
+fi
 
 # Sanitizer reports as one JUnit case: a report from a process no test checks (a nodelet manager at its exit, a helper
 # node) still fails the run. Each file is named <asan|ubsan>.<pid>.
