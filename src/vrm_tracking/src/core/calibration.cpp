@@ -69,11 +69,18 @@ bool detectTarget(const cv::Mat& bgr, const ChessboardTarget& target, std::vecto
   }
   const cv::Size pattern(target.cols, target.rows);
   std::vector<cv::Point2f> found;
-  if (!cv::findChessboardCorners(grey, pattern, found, cv::CALIB_CB_ADAPTIVE_THRESH | cv::CALIB_CB_NORMALIZE_IMAGE)) {
+  // OpenCV asserts on images it cannot search (fuzz_calibrator_images: a 14 x 224 view makes findChessboardCorners
+  // pick an even adaptive-threshold block size, and adaptiveThreshold throws). Such an image holds no board for us.
+  try {
+    if (!cv::findChessboardCorners(grey, pattern, found, cv::CALIB_CB_ADAPTIVE_THRESH | cv::CALIB_CB_NORMALIZE_IMAGE)) {
+      return false;
+    }
+    cv::cornerSubPix(grey, found, cv::Size(5, 5), cv::Size(-1, -1),
+                     cv::TermCriteria(cv::TermCriteria::EPS + cv::TermCriteria::COUNT, 50, 1e-4));
+  } catch (const cv::Exception&) {
     return false;
   }
-  cv::cornerSubPix(grey, found, cv::Size(5, 5), cv::Size(-1, -1),
-                   cv::TermCriteria(cv::TermCriteria::EPS + cv::TermCriteria::COUNT, 50, 1e-4));
+  if (found.size() != static_cast<std::size_t>(target.cols * target.rows)) return false;
   // OpenCV may return the rows in either direction (a mirror of the target's order) and start at either end (a
   // 180° turn). Handedness first: the printed face (+z of the target) faces the camera, so the target's x and y
   // axes appear clockwise in the image (y down): cross(x, y) < 0.

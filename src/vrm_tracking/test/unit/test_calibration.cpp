@@ -190,6 +190,16 @@ TEST(CalibrationCollector, CollectsDistinctViewsAndCalibratesOnce) {
   EXPECT_EQ(collector.addView(0, views[4]), Outcome::kEnough);
 }
 
+TEST(Calibration, ImagesOpenCVCannotSearchHoldNoTarget) {
+  // fuzz_calibrator_images: a 14 x 224 view made findChessboardCorners throw (adaptiveThreshold's block size).
+  const ChessboardTarget target;
+  std::vector<cv::Point2f> corners;
+  for (const cv::Size size : {cv::Size(14, 224), cv::Size(1, 1), cv::Size(224, 3), cv::Size(2, 2)}) {
+    const cv::Mat image(size, CV_8UC3, cv::Scalar(40, 200, 90));
+    EXPECT_NO_THROW(EXPECT_FALSE(detectTarget(image, target, &corners))) << size;
+  }
+}
+
 TEST(CalibrationCollector, AFailedCalibrationIsAnErrorNotAnException) {
   // Views of one pose at four sizes cannot be a calibration; neither can a fixture image without the target.
   const CameraRig truth = makeDefaultRig();
