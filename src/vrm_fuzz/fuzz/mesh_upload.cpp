@@ -71,7 +71,11 @@ VRM_FUZZ_TARGET(mesh_upload) {
       }
       case 1: {
         geometry_msgs::Pose pose;
-        if (vrm_fuzz::deserialize(frame, &pose)) r.setPose(id, toIsometry(pose));
+        if (!vrm_fuzz::deserialize(frame, &pose)) break;
+        try {
+          r.setPose(id, toIsometry(pose));
+        } catch (const RenderError&) {  // a non-finite pose: the nodelet warns and skips it
+        }
         break;
       }
       case 2: {
