@@ -160,15 +160,17 @@ PersistentSession* sessionFor(std::uint8_t selector) {
   return &entry;
 }
 
-// Moves an input's stamps behind the session's last frame, keeping their differences (saturating, not wrapping).
+// Moves an input's stamps behind the session's last frame, keeping their differences. A shifted stamp stays what a
+// ros::Time header can carry (0 to 2^32 s), as every stamp the nodelet converts does: one outside made toRosTime
+// throw in the harness, a case the node cannot meet.
 class StampShift {
  public:
   explicit StampShift(world::Stamp base) : base_(base) {}
   world::Stamp operator()(world::Stamp stamp) {
     if (!first_) first_ = stamp;
     const __int128 shifted = static_cast<__int128>(base_) + stamp - *first_;
-    const __int128 limit = std::numeric_limits<world::Stamp>::max() / 2;
-    return static_cast<world::Stamp>(shifted > limit ? limit : shifted < -limit ? -limit : shifted);
+    const __int128 latest = static_cast<__int128>(std::numeric_limits<std::uint32_t>::max()) * 1'000'000'000 + 999'999'999;
+    return static_cast<world::Stamp>(shifted > latest ? latest : shifted < 0 ? 0 : shifted);
   }
 
  private:
