@@ -1,13 +1,17 @@
 // Marker layout files (vrm_tracking marker_layout.h): an accepted layout builds the detector's lookup table, feeds
 // a pose tracker with the default rig, and turns a surgeon snapshot into world markers (camera_rig_sim's path). The
 // detector's 64^3 lookup table takes ~60 ms under ASan, so that deep path runs only for inputs whose size is a
-// multiple of 8 (the fuzzer reaches both; the parser, the part this target is for, runs ~100x faster).
+// multiple of 8 (the fuzzer reaches both; the parser, the part this target is for, runs ~100x faster). The deep path
+// applies the default scene's trocars first, as the tracker nodelet does.
+#include <memory>
 #include <stdexcept>
 
 #include "fuzz_target.h"
+#include "vrm_sim/scene/scene_loader.h"
 #include "vrm_tracking/marker_detector.h"
 #include "vrm_tracking/marker_layout.h"
 #include "vrm_tracking/pose_tracker.h"
+#include "vrm_tracking/scene_trocars.h"
 
 VRM_FUZZ_TARGET(marker_layout_yaml) {
   using namespace vrm_tracking;
@@ -25,8 +29,20 @@ VRM_FUZZ_TARGET(marker_layout_yaml) {
   detector.classify(0, 0, 255);
   detector.classify(255, 0, 0);
 
+  // As the tracker nodelet takes a layout (loadLayout): the default scene decides the eye centre and the trocars a
+  // layout leaves to it (applyScene), before the PoseTracker, which refuses a slot without a trocar, gets it.
+  // A layout the scene or the tracker refuses ends the nodelet's start-up with that message (NODELET_FATAL): a clear
+  // error, not a crash.
+  static const vrm_sim::scene::SceneDescription scene = vrm_sim::scene::loadScene(sceneOrDefault(""));
   static const CameraRig rig = makeDefaultRig();
-  PoseTracker tracker(rig, layout);
+  std::unique_ptr<PoseTracker> built;
+  try {
+    applyScene(scene, &layout);
+    built = std::make_unique<PoseTracker>(rig, layout);
+  } catch (const std::exception&) {
+    return 0;
+  }
+  PoseTracker& tracker = *built;
   std::vector<CameraObservations> frame;
   for (std::size_t c = 0; c < rig.size(); ++c) {
     CameraObservations observations{c, {}};
