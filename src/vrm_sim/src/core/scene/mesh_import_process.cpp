@@ -117,13 +117,7 @@ std::string describeStatus(int status) {
 }  // namespace
 
 TriangleMesh importMesh(const std::string& path, const MeshImportOptions& options) {
-  // The checks that need no importer stay here: their messages are the same as importMeshInProcess's.
-  std::error_code error;
-  if (!std::filesystem::exists(path, error)) throw MeshIoError(path, "file not found");
-  if (!std::filesystem::is_regular_file(path, error)) throw MeshIoError(path, "not a regular file");
-  if (!(options.scale > 0.0) || !std::isfinite(options.scale)) {
-    throw MeshIoError(path, "the import scale must be a positive finite number");
-  }
+  checkImportRequest(path, options);  // what needs no importer is refused here, with importMeshInProcess's words
   if (!(options.time_limit > 0.0)) throw MeshIoError(path, "the import time limit must be positive");
   const std::string helper = meshImportHelperPath();
   if (helper.empty() || access(helper.c_str(), X_OK) != 0) {

@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <string>
 
+#include "vrm_sim/scene/mesh_io.h"
 #include "vrm_sim/triangle_mesh.h"
 
 namespace vrm_sim {
@@ -14,6 +15,9 @@ namespace scene {
 
 constexpr char kMeshReplyMagic[8] = {'V', 'R', 'M', 'M', 'E', 'S', 'H', '1'};
 constexpr int kMeshImportFailed = 3;
+
+// Throws MeshIoError for a request no importer needs to see: a missing or irregular file, a bad scale.
+void checkImportRequest(const std::string& path, const MeshImportOptions& options);
 
 // The reply bytes of a mesh (vertices and triangles only: the name is the caller's, normals are never imported).
 std::string encodeMeshReply(const TriangleMesh& mesh);

@@ -1,5 +1,7 @@
 #include "vrm_sim/scene/mesh_io.h"
 
+#include "mesh_import_wire.h"
+
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
 
@@ -133,14 +135,17 @@ std::string plyHeaderProblem(const std::string& path) {
 MeshIoError::MeshIoError(const std::string& path, const std::string& problem)
     : std::runtime_error(path + ": " + problem), path_(path) {}
 
-TriangleMesh importMeshInProcess(const std::string& path, const MeshImportOptions& options) {
+void checkImportRequest(const std::string& path, const MeshImportOptions& options) {
   std::error_code error;
   if (!std::filesystem::exists(path, error)) throw MeshIoError(path, "file not found");
   if (!std::filesystem::is_regular_file(path, error)) throw MeshIoError(path, "not a regular file");
   if (!(options.scale > 0.0) || !std::isfinite(options.scale)) {
     throw MeshIoError(path, "the import scale must be a positive finite number");
   }
+}
 
+TriangleMesh importMeshInProcess(const std::string& path, const MeshImportOptions& options) {
+  checkImportRequest(path, options);
   if (const std::string problem = plyHeaderProblem(path); !problem.empty()) {
     throw MeshIoError(path, "cannot import: " + problem);
   }
