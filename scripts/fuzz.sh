@@ -126,8 +126,12 @@ for line in open(results):
         if best is None or int(c.group(1)) > best:
             best, last_growth = int(c.group(1)), max(0, int(n.group(1)) - (int(inited.group(1)) if inited else 0))
     previous = rows.get(target, {})
-    baseline = previous.get("coverage_baseline") or previous.get("coverage")
-    baseline_date = previous.get("coverage_baseline_date") or previous.get("date")
+    # The baseline is pinned by the first run in this format: the coverage of the row before it (an older format's
+    # row), or none for a target new then; later runs carry it on.
+    if "coverage_baseline" in previous:
+        baseline, baseline_date = previous["coverage_baseline"], previous.get("coverage_baseline_date")
+    else:
+        baseline, baseline_date = previous.get("coverage"), previous.get("date")
     wall = float(wall)
     per_s = executions / wall if wall > 0 else 0.0
     goal = 1_000_000 if per_s >= 1000 else 100_000
