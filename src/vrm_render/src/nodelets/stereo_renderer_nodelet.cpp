@@ -47,7 +47,10 @@
 // one the scene manager and the World use, styles, fundus) on the thread that received it, then shown by the render
 // thread between two frames: the previous scene's objects, instruments, ghosts and tissue subscriptions are removed,
 // and input frames and tissue meshes stamped before the announcement are dropped (the previous World's); frames
-// stamped after it wait until the scene is shown (an image shows the scene that ran at its stamp). One INFO
+// stamped after it wait until the scene is shown (an image shows the scene that ran at its stamp). They wait from
+// the LOAD's input frame on (KIND_LOAD, ordered with the frames on input_frame; the announcement travels on another
+// topic and may come after the first frames of the new scene), until its announcement comes, a simulation_state
+// after it tells that the LOAD was refused (no announcement), or ~load_hold_limit s have passed. One INFO
 // line per switch gives its time; a scene that cannot be loaded is an ERROR and the old scene stays. The static
 // objects come from the scene itself, not from the scene manager's meshes/<object>: those carry the same meshes, and
 // a latched copy of the previous scene's could arrive after the switch.
@@ -320,6 +323,7 @@ class StereoRendererNodelet : public nodelet::Nodelet {
     pnh.param("max_input_age", max_input_age_, 0.005);
     pnh.param("render_nice", render_nice_, 10);
     pnh.param("simulation_timeout", simulation_timeout_, 0.5);
+    pnh.param("load_hold_limit", load_hold_limit_, 2.0);
     pnh.param("snapshot_dir", snapshot_dir_, std::string());
     pnh.param("snapshot_count", snapshot_count_, 0);
     pnh.param("snapshot_every", snapshot_every_, 10);
@@ -416,6 +420,18 @@ class StereoRendererNodelet : public nodelet::Nodelet {
       std::lock_guard<std::mutex> lock(mutex_);
       announced_ = message;  // a newer announcement replaces one not taken yet
       announced_at_ = std::chrono::steady_clock::now();
+      // Inputs of another scene wait from here, not from when the loader thread (niced, on a busy machine maybe
+      // hundreds of ms later) takes the announcement: a frame rendered in between would draw them in the old scene.
+      SceneKey key;
+      key.file = message->file;
+      key.difficulty = message->difficulty;
+      key.content_hash = message->content_hash;
+      if (!(key == (next_scene_ ? next_scene_->key : shown_key_)) && !(key == shown_key_)) {
+        scene_loading_ = true;
+        loading_since_ = message->header.stamp;
+      }
+      if (message->header.stamp > newest_announcement_) newest_announcement_ = message->header.stamp;
+      if (!load_since_.isZero() && message->header.stamp >= load_since_) load_since_ = ros::Time();  // it came
     }
     loader_wake_.notify_one();
   }
@@ -446,7 +462,10 @@ class StereoRendererNodelet : public nodelet::Nodelet {
     std::string shown_name;
     {
       std::lock_guard<std::mutex> lock(mutex_);
-      if (key == (next_scene_ ? next_scene_->key : shown_key_)) return;
+      if (key == (next_scene_ ? next_scene_->key : shown_key_)) {
+        scene_loading_ = next_scene_ != nullptr;  // onRunningScene may have marked a replaced announcement's load
+        return;
+      }
       if (key == shown_key_) {  // back to the shown scene before the switch to another one happened
         next_scene_.reset();
         scene_loading_ = false;
@@ -642,6 +661,10 @@ class StereoRendererNodelet : public nodelet::Nodelet {
     const ros::Time& stamp = frame->header.stamp;
     if (stamp < scene_since_) return;  // the previous scene's World applied it: neither drawn nor a trigger
     if (stamp > newest_frame_stamp_) newest_frame_stamp_ = stamp;
+    if (frame->kind == vrm_msgs::InputFrame::KIND_LOAD && stamp > newest_announcement_ && stamp > load_since_) {
+      load_since_ = stamp;  // its announcement is still to come: later frames may belong to another scene
+      load_seen_wall_ = ros::WallTime::now();
+    }
     if (frame->kind == vrm_msgs::InputFrame::KIND_FRAME) {
       remember(&frames_, frame);
       noteStamp(stamp);
@@ -664,6 +687,10 @@ class StereoRendererNodelet : public nodelet::Nodelet {
     const ros::Time& stamp = state->header.stamp;
     if (!simulation_stamps_.empty() && stamp <= simulation_stamps_.back()) return;
     simulation_stamps_.push_back(stamp);
+    // The simulation announces a scene it loaded while it handles the LOAD, before it finishes any later frame (in
+    // one manager: one callback queue, in publishing order); a later frame done without one means the LOAD was
+    // refused and the scene stays.
+    if (!load_since_.isZero() && stamp > load_since_) load_since_ = ros::Time();
     if (stamp >= scene_since_) remember(&states_, state);  // where the scenario has moved objects in this frame
     while (simulation_stamps_.size() > kHistory) simulation_stamps_.pop_front();
     if (trigger_ == Trigger::kInput) return;
@@ -799,6 +826,14 @@ class StereoRendererNodelet : public nodelet::Nodelet {
     // Inputs of an announced scene wait until it is shown: an image stamped after a LOAD shows the scene that ran then
     // (the old scene's objects with the new World's instruments would be neither).
     if (scene_loading_ && *stamp >= loading_since_) return false;
+    if (!load_since_.isZero() && *stamp >= load_since_) {
+      if ((ros::WallTime::now() - load_seen_wall_).toSec() < load_hold_limit_) return false;
+      NODELET_WARN_THROTTLE(10.0,
+                            "stereo_renderer: no announcement and no simulation frame %.1f s after the LOAD at %.3f: "
+                            "rendering on in scene '%s'",
+                            load_hold_limit_, load_since_.toSec(), shown_name_.c_str());
+      load_since_ = ros::Time();
+    }
     last_stamp_ = *stamp;
     if (*stamp >= newest_stamp_) dirty_ = false;
     for (auto it = pending_meshes_.begin(); it != pending_meshes_.end();) {
@@ -1197,6 +1232,10 @@ class StereoRendererNodelet : public nodelet::Nodelet {
   std::unique_ptr<PreparedScene> next_scene_;  // announced and built, for the render thread to show
   bool scene_loading_ = false;                 // another scene was announced and is not shown yet
   ros::Time loading_since_;                    // its announcement's stamp
+  ros::Time newest_announcement_;              // stamp of the newest announcement received
+  ros::Time load_since_;          // a LOAD frame whose announcement (or refusal) has not come yet (zero: none)
+  ros::WallTime load_seen_wall_;  // when it came
+  double load_hold_limit_ = 2.0;  // s that frames after such a LOAD wait at most
   SceneKey shown_key_;
   std::string shown_name_;
   std::uint32_t shown_load_ = 0;

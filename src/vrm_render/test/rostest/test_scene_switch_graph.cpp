@@ -2,7 +2,7 @@
 // vrm_msgs/RunningScene) without a restart. The test stands in for scenario_manager: it announces the renderer's own
 // start-up scene (navigation: nothing changes), then membrane_peeling (the renderer reports it on /diagnostics and in
 // its log with the switch time, subscribes the new scene's tissue topics, and its images change, from the first one
-// stamped after the LOAD), then a scene file
+// stamped after the LOAD; announcements go out between two frames, as scenario_manager sends them), then a scene file
 // that does not exist (an ERROR; the renderer keeps membrane_peeling and keeps rendering), then navigation again (the
 // images are those of the start again: nothing of membrane_peeling is left).
 
@@ -18,8 +18,11 @@
 #include <Eigen/Geometry>
 #include <atomic>
 #include <boost/make_shared.hpp>
+#include <chrono>
+#include <condition_variable>
 #include <cstdlib>
 #include <map>
+#include <mutex>
 #include <string>
 #include <thread>
 #include <vector>
@@ -100,10 +103,22 @@ class FrameSource {
     thread_ = std::thread([this] {
       ros::WallRate rate(50.0);
       for (std::uint64_t sequence = 1; running_ && ros::ok(); ++sequence) {
+        publishAnnouncement(&sequence);
         publisher_.publish(vrm_render::testing::simulationFrame(ros::Time::now(), sequence, instruments_));
         rate.sleep();
       }
     });
+  }
+  // Announces a scene between two frames, as scenario_manager does: a LOAD (load > 0) is an input frame of its own
+  // (KIND_LOAD), stamped after every frame before it, then comes its announcement with the LOAD's stamp (on another
+  // topic: it may reach the renderer after the frames that follow it). Returns once published.
+  void announce(ros::Publisher& publisher, const vrm_msgs::RunningScene::Ptr& message) {
+    std::unique_lock<std::mutex> lock(mutex_);
+    announcement_publisher_ = &publisher;
+    announcement_ = message;
+    const bool published =
+        announced_.wait_for(lock, std::chrono::duration<double>(kTimeout), [&] { return announcement_ == nullptr; });
+    EXPECT_TRUE(published) << "the frame thread did not publish the announcement";
   }
   ~FrameSource() {
     running_ = false;
@@ -111,7 +126,25 @@ class FrameSource {
   }
 
  private:
+  void publishAnnouncement(std::uint64_t* sequence) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (!announcement_) return;
+    if (announcement_->load != 0) {
+      announcement_->header.stamp = ros::Time::now();
+      auto load = vrm_render::testing::simulationFrame(announcement_->header.stamp, (*sequence)++, instruments_);
+      load->kind = vrm_msgs::InputFrame::KIND_LOAD;
+      publisher_.publish(load);
+    }
+    announcement_publisher_->publish(announcement_);
+    announcement_ = nullptr;
+    announced_.notify_all();
+  }
+
   ros::Publisher publisher_;
+  std::mutex mutex_;
+  std::condition_variable announced_;
+  ros::Publisher* announcement_publisher_ = nullptr;  // guarded by mutex_, like announcement_
+  vrm_msgs::RunningScene::Ptr announcement_;
   std::vector<vrm_msgs::AppliedInstrument> instruments_;
   std::atomic<bool> running_{true};
   std::thread thread_;
@@ -185,7 +218,7 @@ TEST_F(SceneSwitchGraph, TheRendererFollowsTheAnnouncedSceneAndKeepsItsSceneWhen
   ASSERT_TRUE(waitFor([&] { return running_scene.getNumSubscribers() > 0; }, kTimeout)) << "running_scene unheard";
 
   // 1. The start-up announcement of the scene the renderer runs already: no switch.
-  running_scene.publish(announcement("navigation", 0));
+  frames.announce(running_scene, announcement("navigation", 0));
   const sensor_msgs::Image::ConstPtr navigation = nextFrames(watch);
   ASSERT_TRUE(navigation);
   ASSERT_TRUE(twoMoreStatuses(watch));
@@ -198,7 +231,7 @@ TEST_F(SceneSwitchGraph, TheRendererFollowsTheAnnouncedSceneAndKeepsItsSceneWhen
 
   // 2. A LOAD the simulation accepted: the renderer switches, says so, and draws the new scene.
   const vrm_msgs::RunningScene::Ptr peeling_announced = announcement("membrane_peeling", 1);
-  running_scene.publish(peeling_announced);
+  frames.announce(running_scene, peeling_announced);
   EXPECT_TRUE(watch.waitFor([&] { return watch.reports("scene", "membrane_peeling"); }, kTimeout))
       << "the renderer's diagnostics do not report the announced scene";
   {
@@ -242,7 +275,7 @@ TEST_F(SceneSwitchGraph, TheRendererFollowsTheAnnouncedSceneAndKeepsItsSceneWhen
   bad->name = "no_such_scene";
   bad->file = "/nonexistent/no_such_scene.yaml";
   bad->content_hash = 0;
-  running_scene.publish(bad);
+  frames.announce(running_scene, bad);
   EXPECT_TRUE(
       watch.waitFor([&] { return watch.line(rosgraph_msgs::Log::ERROR, "no_such_scene") != nullptr; }, kTimeout))
       << "no ERROR for a scene that cannot be loaded";
@@ -259,7 +292,7 @@ TEST_F(SceneSwitchGraph, TheRendererFollowsTheAnnouncedSceneAndKeepsItsSceneWhen
 
   // 4. Back to navigation: the images are those of the start (nothing of membrane_peeling left), the membrane's
   // tissue is no longer listened to.
-  running_scene.publish(announcement("navigation", 3));
+  frames.announce(running_scene, announcement("navigation", 3));
   EXPECT_TRUE(watch.waitFor([&] { return watch.reports("scene switches", "2"); }, kTimeout));
   {
     std::lock_guard<std::mutex> lock(watch.mutex_);
