@@ -7,8 +7,11 @@ reads the renderer's and the latency monitor's /diagnostics. Once a minute it wr
 dropped frames, latency p99) and, half-way through every minute, cycles the scenario STOP -> LOAD -> START with
 vrm_msgs/ScenarioCommand on /scenario_command, stamped like the console does (a little after the newest
 /simulation_state stamp: the commands are session inputs, recorded in the bag and applied to the same frames in a
-replay). The images are consumed with rospy.AnyMsg (counted, never deserialised), which makes the monitor a viewer
-in its own process like the console: the renderer renders because it is watched. The monitor's own CPU is a column.
+replay). The view's rate is counted on /render_timing (one per frame rendered, both eyes) and /display_timing (one
+per frame the headless station's display twin shows): the display twin watches the renderer, as a station's screen
+does, so the monitor need not take the images. Taking them (2 x 1.4 MB at 15-25 Hz through rospy) cost the monitor
+56-58 % of a core in the soak of 2026-11-29, on the two cores the graph shares. --images subscribes them as well
+(rospy.AnyMsg, counted, never deserialised). The monitor's own CPU is a column.
 
 The JSON (--out) holds the rows, the verdict (RSS growth <= 5 % from the baseline minute to the end, no rate below
 90 % of the baseline minute's, zero crashes; baseline minute 5, or minute 1 with fewer than 6 minutes: smoke mode)
@@ -28,11 +31,15 @@ from vrm_msgs.msg import ScenarioCommand, ScenarioStatus
 
 TICKS = os.sysconf("SC_CLK_TCK")
 PAGE = os.sysconf("SC_PAGE_SIZE")
-RATE_TOPICS = ["/eye_state", "/instrument_state", "/simulation_state", "/stereo/left/image_raw",
-               "/stereo/right/image_raw"]
+RATE_TOPICS = ["/eye_state", "/instrument_state", "/simulation_state", "/render_timing", "/display_timing"]
+IMAGE_TOPICS = ["/stereo/left/image_raw", "/stereo/right/image_raw"]
 # Judged against the baseline: the steady streams. /tissue/<object> is published only when the tissue changed, i.e.
 # depending on where the looping demo script is relative to the scenario cycle; its rate is reported, not judged.
 JUDGED_TOPICS = RATE_TOPICS
+
+
+def judged_topics(args):
+    return JUDGED_TOPICS + (IMAGE_TOPICS if args.images else [])
 
 
 def parse_diagnostics(buff):
@@ -162,7 +169,7 @@ class Monitor:
         self.status = None
         self.diag = {"render_fps": [], "render_dropped": 0, "render_frames": 0, "p99": {}}
         self.subscribers = []
-        for topic in RATE_TOPICS:
+        for topic in RATE_TOPICS + (IMAGE_TOPICS if args.images else []):
             self.watch(topic)
         self.command_pub = rospy.Publisher("/scenario_command", ScenarioCommand, queue_size=5)
         rospy.Subscriber("/scenario_status", ScenarioStatus, self.on_status, queue_size=5)
@@ -281,6 +288,8 @@ def main():
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--minute", type=float, default=60.0, help="s per row (tests: shorter)")
     parser.add_argument("--warmup-timeout", type=float, default=180.0)
+    parser.add_argument("--images", action="store_true",
+                        help="also take both eyes' images (counted, judged like the rest); the monitor then costs more")
     parser.add_argument("--no-cycle", action="store_true", help="never cycle the scenario (a control run)")
     parser.add_argument("--bag", default="")
     parser.add_argument("--out", required=True)
@@ -300,7 +309,7 @@ def main():
         graph.scan(0.0)
         counts = dict(monitor.counts)
         ready = (args.manager in graph.pids and counts["/simulation_state"] > 0 and
-                 counts["/stereo/left/image_raw"] > 0 and monitor.state() == ScenarioStatus.RUNNING and
+                 counts["/display_timing"] > 0 and monitor.state() == ScenarioStatus.RUNNING and
                  monitor.command_pub.get_num_connections() >= 2)
         if ready:
             break
@@ -380,7 +389,7 @@ def main():
         e2e = (row["latency_p99_ms"].get("end_to_end") or {}).get("max")
         print(f"soak_monitor: minute {minute}: manager RSS {row['manager_rss_mb']} MB, CPU {row['manager_cpu_percent']} %"
               f" (graph {row['graph_cpu_percent']} %, monitor {row['monitor_cpu_percent']} %), simulation "
-              f"{row['rates_hz'].get('/simulation_state')} Hz, images {row['rates_hz'].get('/stereo/left/image_raw')} Hz,"
+              f"{row['rates_hz'].get('/simulation_state')} Hz, view {row['rates_hz'].get('/display_timing')} Hz,"
               f" dropped {row['render_dropped']}, end-to-end p99 {e2e} ms, crashes {len(graph.crashes)}", flush=True)
         if not graph_alive:
             print("soak_monitor: the graph is gone (roslaunch ended: a required node died)", flush=True)
@@ -411,7 +420,7 @@ def verdict(rows, graph, cycles, args, baseline, smoke):
     low = []
     if base:
         for row in rows[baseline:]:
-            for topic in JUDGED_TOPICS:
+            for topic in judged_topics(args):
                 rate = row["rates_hz"].get(topic, 0.0)
                 reference = base["rates_hz"].get(topic, 0.0)
                 if reference > 0 and rate < 0.9 * reference:
@@ -434,12 +443,14 @@ def verdict(rows, graph, cycles, args, baseline, smoke):
         "baseline_minute": baseline,
         "scene": args.scene,
         "bag": args.bag,
-        "graph": "launch/simulator.launch headless:=true sim:=true tracking:=true record:=true render watched "
-                 "(this monitor subscribes to both eyes), built-in demo script looping, " +
+        "graph": "launch/simulator.launch headless:=true sim:=true tracking:=true record:=true, render watched by "
+                 "the display twin" + (" and this monitor (--images: both eyes)" if args.images else
+                                       " (the view counted on render_timing / display_timing)") +
+                 ", built-in demo script looping, " +
                  ("scenario never cycled (--no-cycle control run)" if args.no_cycle else
                   "scenario STOP/LOAD/START every minute"),
         "cycled": not args.no_cycle,
-        "judged_topics": JUDGED_TOPICS,
+        "judged_topics": judged_topics(args),
         "notes": "rates in Hz over each minute (/tissue/* reported, not judged: published only when the tissue "
                  "changed); CPU in % of one core; load_average = the host's 1-min load at the end of the minute; latency_p99_ms per stage = max and median of "
                  "the latency monitor's 10 s-window p99 reported during the minute; render_dropped = the renderer's "

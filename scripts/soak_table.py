@@ -8,8 +8,9 @@ import json
 import os
 import sys
 
-RATE_COLUMNS = [("/eye_state", "eye Hz"), ("/instrument_state", "instr. Hz"), ("/simulation_state", "sim. Hz"),
-                ("/stereo/left/image_raw", "left img Hz"), ("/stereo/right/image_raw", "right img Hz")]
+COLUMN_NAMES = {"/eye_state": "eye Hz", "/instrument_state": "instr. Hz", "/simulation_state": "sim. Hz",
+                "/render_timing": "rendered Hz", "/display_timing": "shown Hz", "/stereo/left/image_raw": "left img Hz",
+                "/stereo/right/image_raw": "right img Hz"}
 
 
 def p99(row, stage):
@@ -20,7 +21,8 @@ def p99(row, stage):
 def table(result, every):
     rows = result["rows"]
     tissue = sorted({t for row in rows for t in row["rates_hz"] if t.startswith("/tissue/")})
-    columns = RATE_COLUMNS + [(t, t[len("/tissue/"):] + " Hz") for t in tissue]
+    judged = result.get("judged_topics") or list(COLUMN_NAMES)
+    columns = [(t, COLUMN_NAMES.get(t, t + " Hz")) for t in judged] + [(t, t[len("/tissue/"):] + " Hz") for t in tissue]
     head = (["min", "manager RSS MB", "manager CPU %", "graph RSS MB", "graph CPU %", "host load"] + [c[1] for c in columns] +
             ["frames dropped", "e2e p99 ms", "sim. p99 ms", "render p99 ms", "crashes", "cycles ok"])
     lines = ["| " + " | ".join(head) + " |", "|" + "---:|" * len(head)]
