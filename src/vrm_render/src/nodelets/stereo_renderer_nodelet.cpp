@@ -431,7 +431,9 @@ class StereoRendererNodelet : public nodelet::Nodelet {
         loading_since_ = message->header.stamp;
       }
       if (message->header.stamp > newest_announcement_) newest_announcement_ = message->header.stamp;
-      if (!load_since_.isZero() && message->header.stamp >= load_since_) load_since_ = ros::Time();  // it came
+      while (!pending_loads_.empty() && pending_loads_.front().first <= message->header.stamp) {
+        pending_loads_.pop_front();  // announced (a later LOAD's announcement answers the earlier ones too)
+      }
     }
     loader_wake_.notify_one();
   }
@@ -661,9 +663,10 @@ class StereoRendererNodelet : public nodelet::Nodelet {
     const ros::Time& stamp = frame->header.stamp;
     if (stamp < scene_since_) return;  // the previous scene's World applied it: neither drawn nor a trigger
     if (stamp > newest_frame_stamp_) newest_frame_stamp_ = stamp;
-    if (frame->kind == vrm_msgs::InputFrame::KIND_LOAD && stamp > newest_announcement_ && stamp > load_since_) {
-      load_since_ = stamp;  // its announcement is still to come: later frames may belong to another scene
-      load_seen_wall_ = ros::WallTime::now();
+    if (frame->kind == vrm_msgs::InputFrame::KIND_LOAD && stamp > newest_announcement_ &&
+        (pending_loads_.empty() || stamp > pending_loads_.back().first)) {
+      // Its announcement is still to come: later frames may belong to another scene.
+      pending_loads_.emplace_back(stamp, ros::WallTime::now());
     }
     if (frame->kind == vrm_msgs::InputFrame::KIND_FRAME) {
       remember(&frames_, frame);
@@ -690,7 +693,7 @@ class StereoRendererNodelet : public nodelet::Nodelet {
     // The simulation announces a scene it loaded while it handles the LOAD, before it finishes any later frame (in
     // one manager: one callback queue, in publishing order); a later frame done without one means the LOAD was
     // refused and the scene stays.
-    if (!load_since_.isZero() && stamp > load_since_) load_since_ = ros::Time();
+    while (!pending_loads_.empty() && pending_loads_.front().first < stamp) pending_loads_.pop_front();
     if (stamp >= scene_since_) remember(&states_, state);  // where the scenario has moved objects in this frame
     while (simulation_stamps_.size() > kHistory) simulation_stamps_.pop_front();
     if (trigger_ == Trigger::kInput) return;
@@ -826,13 +829,13 @@ class StereoRendererNodelet : public nodelet::Nodelet {
     // Inputs of an announced scene wait until it is shown: an image stamped after a LOAD shows the scene that ran then
     // (the old scene's objects with the new World's instruments would be neither).
     if (scene_loading_ && *stamp >= loading_since_) return false;
-    if (!load_since_.isZero() && *stamp >= load_since_) {
-      if ((ros::WallTime::now() - load_seen_wall_).toSec() < load_hold_limit_) return false;
+    if (!pending_loads_.empty() && *stamp >= pending_loads_.front().first) {
+      if ((ros::WallTime::now() - pending_loads_.front().second).toSec() < load_hold_limit_) return false;
       NODELET_WARN_THROTTLE(10.0,
                             "stereo_renderer: no announcement and no simulation frame %.1f s after the LOAD at %.3f: "
                             "rendering on in scene '%s'",
-                            load_hold_limit_, load_since_.toSec(), shown_name_.c_str());
-      load_since_ = ros::Time();
+                            load_hold_limit_, pending_loads_.front().first.toSec(), shown_name_.c_str());
+      pending_loads_.pop_front();
     }
     last_stamp_ = *stamp;
     if (*stamp >= newest_stamp_) dirty_ = false;
@@ -1233,8 +1236,8 @@ class StereoRendererNodelet : public nodelet::Nodelet {
   bool scene_loading_ = false;                 // another scene was announced and is not shown yet
   ros::Time loading_since_;                    // its announcement's stamp
   ros::Time newest_announcement_;              // stamp of the newest announcement received
-  ros::Time load_since_;          // a LOAD frame whose announcement (or refusal) has not come yet (zero: none)
-  ros::WallTime load_seen_wall_;  // when it came
+  // LOAD frames whose announcement (or refusal) has not come yet: their stamps and when they came, oldest first.
+  std::deque<std::pair<ros::Time, ros::WallTime>> pending_loads_;
   double load_hold_limit_ = 2.0;  // s that frames after such a LOAD wait at most
   SceneKey shown_key_;
   std::string shown_name_;
