@@ -136,7 +136,8 @@ void dropPersistentSessions() { persistentSessions().clear(); }
 
 // The session of scene `selector`, built (again) when needed; nullptr if it cannot be built.
 PersistentSession* sessionFor(std::uint8_t selector) {
-  vrm_fuzz::registerReset(&dropPersistentSessions);
+  static const bool reset_registered = (vrm_fuzz::registerReset(&dropPersistentSessions), true);
+  (void)reset_registered;
   PersistentSession& entry = persistentSessions()[static_cast<std::uint8_t>(selector % shippedSceneNames().size())];
   const scene::SceneDescription& description = shippedScene(selector);
   if (entry.session && entry.inputs < kRebuildEvery && entry.session->world().scene().name == description.name) {

@@ -29,8 +29,8 @@ int main(int argc, char** argv) {
     } else if (argument == "--" && i + 1 == argc - 1) {
       path = argv[++i];
     } else {
-      std::fprintf(stderr, "usage: vrm_mesh_import [--scale S] [--no-join] -- PATH (started by scene::importMesh)\n");
-      return 2;
+      path.clear();
+      break;
     }
   }
   if (path.empty()) {

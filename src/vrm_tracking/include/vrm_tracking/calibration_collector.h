@@ -57,6 +57,8 @@ class CalibrationCollector {
     std::vector<std::vector<cv::Point2f>> corners;  // of the kept views
     cv::Mat fixture;
   };
+  std::optional<ViewOutcome> refusal(const Camera& cam, const cv::Mat& bgr) const;
+
   mutable std::mutex mutex_;
   std::vector<Camera> cameras_;
   ChessboardTarget target_;

@@ -16,19 +16,25 @@ CalibrationCollector::CalibrationCollector(std::vector<std::string> cameras, con
   for (std::string& name : cameras) cameras_.push_back(Camera{std::move(name), {}, {}, {}});
 }
 
+// Why camera `cam` takes no view of this size now, if it does not (mutex_ held).
+std::optional<CalibrationCollector::ViewOutcome> CalibrationCollector::refusal(const Camera& cam,
+                                                                               const cv::Mat& bgr) const {
+  if (done_ || static_cast<int>(cam.views.size()) >= views_needed_) return ViewOutcome::kEnough;
+  if (!cam.views.empty() && bgr.size() != cam.views.front().size()) return ViewOutcome::kOtherSize;
+  return std::nullopt;
+}
+
 CalibrationCollector::ViewOutcome CalibrationCollector::addView(std::size_t camera, const cv::Mat& bgr) {
   {
+    // Before the detection (tens of ms): a camera that has its views costs nothing.
     std::lock_guard<std::mutex> lock(mutex_);
-    const Camera& cam = cameras_.at(camera);
-    if (done_ || static_cast<int>(cam.views.size()) >= views_needed_) return ViewOutcome::kEnough;
-    if (!cam.views.empty() && bgr.size() != cam.views.front().size()) return ViewOutcome::kOtherSize;
+    if (const auto refused = refusal(cameras_.at(camera), bgr)) return *refused;
   }
   std::vector<cv::Point2f> corners;
   if (bgr.empty() || !detectTarget(bgr, target_, &corners)) return ViewOutcome::kNoTarget;
   std::lock_guard<std::mutex> lock(mutex_);
   Camera& cam = cameras_.at(camera);
-  if (done_ || static_cast<int>(cam.views.size()) >= views_needed_) return ViewOutcome::kEnough;
-  if (!cam.views.empty() && bgr.size() != cam.views.front().size()) return ViewOutcome::kOtherSize;
+  if (const auto refused = refusal(cam, bgr)) return *refused;  // again: another thread may have added meanwhile
   for (const auto& seen : cam.corners) {
     double distance = 0.0;
     for (std::size_t i = 0; i < corners.size(); ++i) {
