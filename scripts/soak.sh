@@ -62,7 +62,8 @@ echo "soak.sh: ${minutes} min$([[ -n $suffix ]] && echo " (smoke mode: baseline 
   "scene membrane_peeling, tracking, recording to $bag; run folder $out"
 # duration:=0: session_control starts the session once the recorder listens and never stops it; the monitor's
 # cycles are the session's STOP/LOAD/START (recorded inputs, like the console's).
-setsid roslaunch -p "$port" "$tree/launch/simulator.launch" headless:=true sim:=true tracking:=true record:=true \
+# A manager that crashes leaves its core and every thread's stack in the run folder (vrm_sim/supervised_manager).
+VRM_MANAGER_CORE_DIR="$out" setsid roslaunch -p "$port" "$tree/launch/simulator.launch" headless:=true sim:=true tracking:=true record:=true \
   duration:=0 "bag:=$bag" scene:=membrane_peeling "${extra[@]}" >"$out/launch.log" 2>&1 &
 launch_pid=$!
 stop_graph() {
@@ -86,6 +87,9 @@ trap - EXIT
 
 grep -hE "FATAL|ERROR|REQUIRED process|has died" "$out/launch.log" | sed -E 's/\x1b\[[0-9;]*m//g' | head -n 10 || true
 echo "launch log: $out/launch.log"
+for stacks in "$out"/core.*.backtrace.txt; do
+  [[ -f $stacks ]] && echo "a manager crashed: its core ${stacks%.backtrace.txt}, every thread's stack in $stacks"
+done
 # roslaunch exits 0 when a required part failed: the soak fails then too (issue 20).
 if ! failed=$(required_failures "$out/launch.log"); then
   echo "soak.sh: the simulator graph failed: $failed" >&2
