@@ -261,8 +261,11 @@ def replay_hash(bag_path):
 def manager_crash(args):
     """Crash = pause (issue 39): the restarted simulation resumes the session from its journal."""
     bag = os.path.join(args.out, "session.bag")
+    # --tracking: the camera rig twin and the tracker in the manager as well, so the inputs that resume are the
+    # tracker's poses of the restarted rig's images (the twin's script time resumes like the other twins').
     graph = Graph(args.out, args.port, ["record:=true", "duration:=40", "bag:=" + bag, "render:=false",
-                                        "script:=scenario:expert", "latency_monitor:=false"], timeout=300)
+                                        "script:=scenario:expert", "latency_monitor:=false",
+                                        "tracking:=%s" % ("true" if args.tracking else "false")], timeout=300)
     try:
         watch = Watch(keep_states=True)
         RUN = running_state()
@@ -693,6 +696,9 @@ def main():
                                          "disk_full"])
     parser.add_argument("--port", type=int, default=11900 + os.getpid() % 90)
     parser.add_argument("--out", default="")
+    parser.add_argument("--tracking", action="store_true",
+                        help="manager_crash with optical tracking (camera rig twin + tracker) instead of the scripted "
+                        "surgeon's poses (by hand: not in test.sh)")
     parser.add_argument("--no-flood", action="store_true",
                         help="hostile_flood's schedule without sending anything: the rate checks' noise floor (the "
                         "counting checks then fail)")
