@@ -330,6 +330,7 @@ class ScenarioManager : public nodelet::Nodelet {
     for (const auto& frame : own) resent->frames.push_back(*frame);
     resend_.clear();
     vrm_msgs::publishShared(resent_publisher_, resent);
+    resent_latched_ = true;
     auto message = boost::make_shared<vrm_msgs::SessionResume>();
     message->header.stamp = resume_at;
     message->resumed = true;
@@ -451,6 +452,15 @@ class ScenarioManager : public nodelet::Nodelet {
   void publishInputFrame(const world::InputFrame& frame) {
     if (frame.kind == world::InputFrame::Kind::kLoad) last_load_stamp_ = frame.stamp;  // announced by onLoaded
     if (restoring_) return;
+    if (frame.kind == world::InputFrame::Kind::kLoad && resent_latched_) {
+      // The latched resend belongs to the session before this LOAD. A recorder that subscribes from now on — the
+      // next session's, started by the station under the same name — would record it as its own first frames, and
+      // a gap between them and the frames it records live makes its bag unreplayable. An empty one replaces it.
+      auto cleared = boost::make_shared<vrm_msgs::InputFrames>();
+      cleared->header.stamp = toRosTime(frame.stamp);
+      vrm_msgs::publishShared(resent_publisher_, cleared);
+      resent_latched_ = false;
+    }
     if (frame.kind == world::InputFrame::Kind::kFrame) prepareReports();
     auto message = boost::make_shared<vrm_msgs::InputFrame>();
     fillInputFrame(frame, world_frame_, eye_frame_, *message);
@@ -513,6 +523,7 @@ class ScenarioManager : public nodelet::Nodelet {
                  name.c_str(), resent->frames.size(), static_cast<unsigned long>(oldest),
                  static_cast<unsigned long>(resent->frames.back().sequence), static_cast<unsigned long>(left_at));
     vrm_msgs::publishShared(resent_publisher_, resent);
+    resent_latched_ = true;
   }
 
   // A (new) scene: its tissue and retina topics, and its scenario's first status.
@@ -893,6 +904,7 @@ class ScenarioManager : public nodelet::Nodelet {
   ros::WallTimer resume_timer_;
   ros::WallTime resume_wait_start_;
   ros::Publisher resume_publisher_, resent_publisher_;
+  bool resent_latched_ = false;  // input_frame_resent holds frames (the latest resend), not an empty message
   std::size_t ring_frames_ = 500;
   std::deque<vrm_msgs::InputFrame::ConstPtr> ring_;  // the last published frames
   std::map<std::string, std::uint64_t> departed_;    // subscribers that left: the newest frame when they did
