@@ -69,11 +69,12 @@ class Station:
             raise RuntimeError("no ROS master on port %d" % port)
         launch = os.path.join(ROOT, "launch")
         station = [station_binary] if station_binary else ["rosrun", "eyesi_gui", "session_station"]
-        self.station = self._spawn(station + [
+        self.station_command = station + [
             "__name:=station", "_simulator_launch:=" + os.path.join(launch, "simulator.launch"),
             "_replay_launch:=" + os.path.join(launch, "replay.launch"),
             "_recorder_launch:=" + os.path.join(launch, "recorder.launch"), "_records_dir:=" + self.records,
-            "_launch_args:=sim:=true tracking:=false", "_script:=scenario:expert"], "station.log")
+            "_launch_args:=sim:=true tracking:=false", "_script:=scenario:expert"]
+        self.station = self._spawn(self.station_command, "station.log")
         import rospy  # after ROS_MASTER_URI is set
         from vrm_msgs.msg import RunningScene, ScenarioCommand, ScenarioStatus, SimulationState, StationStatus
         self.rospy = rospy
@@ -93,6 +94,22 @@ class Station:
         self.ScenarioCommand = ScenarioCommand
         self.StationStatus = StationStatus
         rospy.wait_for_service("/station/load_session", timeout=30)
+
+    def crash_station(self):
+        """kill -9 of the station alone (its graphs run in process groups of their own)."""
+        self.station.kill()
+        self.station.wait()
+
+    def restart_station(self, log):
+        self.station = self._spawn(self.station_command, log)
+        self.rospy.wait_for_service("/station/load_session", timeout=30)
+
+    def state_file(self):
+        try:
+            with open(os.path.join(self.records, "station_state.json")) as handle:
+                return json.load(handle)
+        except (OSError, ValueError):
+            return None
 
     def _spawn(self, command, log):
         handle = open(os.path.join(self.out, log), "w")
@@ -285,15 +302,93 @@ def run_test(station, out):
     bags = sorted(name for name in os.listdir(station.records) if name.endswith(".bag"))
     check("two bags in the records folder, one per session: %s" % bags, len(bags) == 2)
     if result.get("final_state_hash") and os.path.isfile(bag_b):
-        replay = subprocess.run(["rosrun", "vrm_sim", "session_replay", "--bag", bag_b], capture_output=True,
-                                text=True, timeout=300)
-        replayed = ""
-        try:
-            replayed = json.loads(replay.stdout.splitlines()[0])["final_state_hash"]
-        except (IndexError, ValueError, KeyError):
-            pass
+        replayed, why = replayed_hash(bag_b)
         check("session 2's bag replays offline to its result's final state (%s / %s)" % (
-            result["final_state_hash"], replayed), replayed == result["final_state_hash"], replay.stderr[-300:])
+            result["final_state_hash"], replayed), replayed == result["final_state_hash"], why)
+
+    run_station_crashes(station, manager)
+
+
+def replayed_hash(bag):
+    replay = subprocess.run(["rosrun", "vrm_sim", "session_replay", "--bag", bag], capture_output=True, text=True,
+                            timeout=300)
+    try:
+        return json.loads(replay.stdout.splitlines()[0])["final_state_hash"], ""
+    except (IndexError, ValueError, KeyError):
+        return "", replay.stderr[-300:]
+
+
+def status_with(station, start, text):
+    with station.lock:
+        return next((m for t, m in station.statuses if t >= start and text in m.message), None)
+
+
+def run_station_crashes(station, manager):
+    # --- a station crash mid-session; the session ends while no station runs
+    start, response = load(station, SCENE_A, 44, user="ben")
+    check("load_session %s accepted" % SCENE_A, response.accepted, response.message)
+    bag, result_file = response.bag, response.result_file
+    ready, why = wait_ready(station, start, 120)
+    if not check("%s READY (LOAD)" % SCENE_A, ready is not None, why):
+        return
+    station.send(station.ScenarioCommand.START)
+    check("session 3 RUNNING", wait_for(lambda: station.status_since(start, station.StationStatus.RUNNING), 30))
+    state = station.state_file()
+    check("the station's state file names its graph and session 3's bag",
+          state is not None and state["graph"]["pid"] > 0 and state["session"]["bag"] == bag, state)
+    station.crash_station()
+    crashed = time.monotonic()
+    station.send(station.ScenarioCommand.STOP, "stopped while no station runs")
+    check("session 3 ends while no station runs",
+          wait_for(lambda: next((m for t, m in list(station.scenario) if t >= crashed and m.scenario == SCENE_A and
+                                 m.state not in (m.RUNNING, m.PAUSED)), None), 30) is not None)
+    check("no result file while no station runs", not os.path.exists(result_file))
+    restarted = time.monotonic()
+    station.restart_station("station.2.log")
+    took_over = wait_for(lambda: status_with(station, restarted, "took over"), 30)
+    check("the station started again takes the session over: '%s'" % (took_over.message if took_over else ""),
+          took_over is not None)
+    ended = wait_for(lambda: station.status_since(restarted, station.StationStatus.ENDED), 60)
+    check("session 3 ENDED after the take-over", ended is not None, station.status().message if station.status() else "")
+    result = session_result.read(result_file) if wait_for(lambda: os.path.isfile(result_file), 10) else {}
+    check("session 3's result file, written by the new station, names its scene, bag and trainee",
+          result.get("scene") == SCENE_A and result.get("bag") == bag and result.get("user") == "ben", result)
+    check("session 3's bag is closed", wait_for(lambda: os.path.isfile(bag) and not os.path.exists(bag + ".active"), 20))
+    check("the same nodelet manager process still runs the graph (pid %s)" % station.pid("/vrm_manager"),
+          station.pid("/vrm_manager") == manager)
+    if result.get("final_state_hash") and os.path.isfile(bag):
+        replayed, why = replayed_hash(bag)
+        check("session 3's bag replays offline to its result's final state (%s / %s)" % (
+            result["final_state_hash"], replayed), replayed == result["final_state_hash"], why)
+
+    # --- a station crash, and its graph ends too before a station runs again: the result comes from the bag
+    start, response = load(station, SCENE_B, 55, user="cleo")
+    bag, result_file = response.bag, response.result_file
+    ready, why = wait_ready(station, start, 120)
+    if not check("%s READY (LOAD)" % SCENE_B, ready is not None, why):
+        return
+    station.send(station.ScenarioCommand.START)
+    running = wait_for(lambda: station.status_since(start, station.StationStatus.RUNNING), 30)
+    check("session 4 RUNNING", running is not None)
+    check("session 4 simulates frames", wait_for(lambda: station.frames_after(running[0]) >= 50, 20) if running else 0)
+    state = station.state_file()
+    station.crash_station()
+    graph = state["graph"]["pid"] if state else 0
+    if graph:
+        os.killpg(graph, signal.SIGINT)  # the graph's roslaunch ends its nodes; its recorder is left orphaned
+        check("session 4's graph ends", wait_for(lambda: not os.path.exists("/proc/%d" % graph), 60))
+    restarted = time.monotonic()
+    station.restart_station("station.3.log")
+    ended = wait_for(lambda: station.status_since(restarted, station.StationStatus.ENDED), 120)
+    check("the next station replays session 4's bag into its result: '%s'" % (
+        ended[1].message if ended else (station.status().message if station.status() else "")), ended is not None)
+    result = session_result.read(result_file) if os.path.isfile(result_file) else {}
+    check("session 4's result is interrupted, names its scene, bag and trainee",
+          result.get("scene") == SCENE_B and result.get("bag") == bag and result.get("user") == "cleo" and
+          result.get("interrupted") is True and result.get("state") == "interrupted", result)
+    check("session 4's bag was closed by its orphaned recorder's shutdown", os.path.isfile(bag) and
+          not os.path.exists(bag + ".active"))
+    check("no state file is left once nothing runs", wait_for(lambda: station.state_file() is None, 10))
 
 
 def run_measure(station, runs, record):

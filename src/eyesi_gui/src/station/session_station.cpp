@@ -10,6 +10,10 @@
 // console sends START) only once that recorder listens. The result file next to the bag is the station's: the graph's
 // scenario_manager was started for the first session only, so the station writes each session's result (from
 // session_result) with that session's bag and user.
+// A station that crashes loses nothing (issue 39 §2): simulator.launch starts it again, and it takes over the graph,
+// the recorder and the session its predecessor left (the state file <records_dir>/station_state.json, takeOver()); a
+// session that ended meanwhile gets its result file from the latched session_result, and one whose graph died
+// meanwhile from a replay of its bag.
 // A replay (mode "replay") runs launch/replay.launch instead, a graph of its own (bag time, the bag's scene); the
 // live graph is stopped for it, and the next live session launches a new one. A live graph that died is launched
 // again by the next session, as is one whose surgeon script differs from the requested one (a launch argument).
@@ -48,6 +52,7 @@
 #include <ctime>
 #include <fstream>
 #include <mutex>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <random>
 #include <sstream>
@@ -107,9 +112,57 @@ std::string hostName() {
   return gethostname(host, sizeof(host) - 1) == 0 ? host : "";
 }
 
+// /proc/<pid>/stat after the command name (which may hold spaces and parentheses): state, ppid, pgrp, ... ; empty
+// when there is no such process.
+std::vector<std::string> procStatFields(pid_t pid) {
+  std::ifstream stat("/proc/" + std::to_string(pid) + "/stat");
+  std::string line;
+  if (!std::getline(stat, line)) return {};
+  const std::size_t close = line.rfind(')');
+  if (close == std::string::npos) return {};
+  std::istringstream rest(line.substr(close + 1));
+  std::vector<std::string> fields;
+  for (std::string field; rest >> field;) fields.push_back(field);
+  return fields;
+}
+
+// The process's start time (clock ticks after boot, /proc/<pid>/stat field 22): with the pid it names one process,
+// not a later one that reuses the number. 0 when there is no such process.
+std::uint64_t processStartTime(pid_t pid) {
+  const std::vector<std::string> fields = procStatFields(pid);
+  return fields.size() > 19 ? std::stoull(fields[19]) : 0;
+}
+
+// Whether the process runs (exists and is not a zombie: an orphan's reaper may be slow or absent in a container).
+bool processRuns(pid_t pid) {
+  const std::vector<std::string> fields = procStatFields(pid);
+  return !fields.empty() && fields[0] != "Z" && fields[0] != "X";
+}
+
+std::string processCommandLine(pid_t pid) {
+  std::ifstream file("/proc/" + std::to_string(pid) + "/cmdline");
+  std::string text((std::istreambuf_iterator<char>(file)), std::istreambuf_iterator<char>());
+  std::replace(text.begin(), text.end(), '\0', ' ');
+  return text;
+}
+
 // A child process in its own process group (roslaunch and everything it starts), output to a log file.
 class ChildProcess {
  public:
+  static constexpr int kUnknownExit = -1;  // an adopted process's exit status: it was not ours to wait for
+
+  // A process group this station started before it crashed and was started again (the station's state file names
+  // it): its leader's pid and start time. It is not our child, so poll() reads /proc instead of waitpid().
+  static std::unique_ptr<ChildProcess> adopt(pid_t pid, std::uint64_t start_time) {
+    if (pid <= 1 || start_time == 0 || processStartTime(pid) != start_time || ::getpgid(pid) != pid ||
+        !processRuns(pid))
+      return nullptr;
+    std::unique_ptr<ChildProcess> process(new ChildProcess());
+    process->pid_ = pid;
+    process->adopted_ = true;
+    return process;
+  }
+
   ChildProcess(const std::vector<std::string>& argv, const std::string& log_path) {
     // Everything the child needs is prepared before fork: after it, only async-signal-safe calls until exec.
     std::vector<char*> args;
@@ -141,6 +194,7 @@ class ChildProcess {
   ~ChildProcess() { stop(10.0); }
 
   pid_t pid() const { return pid_; }
+  bool adopted() const { return adopted_; }
 
   // SIGINT to the group now; finishStopping() escalates later, so the caller is not blocked while it shuts down.
   void interrupt() {
@@ -160,6 +214,10 @@ class ChildProcess {
   // Exit status once it ended (waitpid), else nullopt.
   std::optional<int> poll() {
     if (status_) return status_;
+    if (adopted_) {
+      if (!processRuns(pid_)) status_ = kUnknownExit;
+      return status_;
+    }
     int status = 0;
     if (::waitpid(pid_, &status, WNOHANG) == pid_)
       status_ = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
@@ -180,7 +238,10 @@ class ChildProcess {
   }
 
  private:
+  ChildProcess() = default;
+
   pid_t pid_ = -1;
+  bool adopted_ = false;
   std::optional<int> status_;
   std::chrono::steady_clock::time_point interrupted_at_;
 };
@@ -200,15 +261,9 @@ std::string lastLines(const std::string& path, std::size_t count) {
 bool descendsFrom(pid_t pid, pid_t ancestor) {
   for (int depth = 0; pid > 1 && depth < 16; ++depth) {
     if (pid == ancestor) return true;
-    std::ifstream stat("/proc/" + std::to_string(pid) + "/stat");
-    std::string line;
-    if (!std::getline(stat, line)) return false;
-    // pid (comm) state ppid ...: comm may hold spaces and parentheses, so read after the last ')'.
-    const std::size_t close = line.rfind(')');
-    if (close == std::string::npos) return false;
-    std::istringstream rest(line.substr(close + 1));
-    std::string state;
-    rest >> state >> pid;
+    const std::vector<std::string> fields = procStatFields(pid);
+    if (fields.size() < 2) return false;
+    pid = static_cast<pid_t>(std::stol(fields[1]));
   }
   return false;
 }
@@ -272,10 +327,16 @@ class SessionStation {
     result_subscriber_ = nh_.subscribe("session_result", 2, &SessionStation::onSessionResult, this);
     // 10 Hz: a session is READY within 0.1 s of its last condition (the switch time the console sees).
     timer_ = nh_.createWallTimer(ros::WallDuration(0.1), &SessionStation::onTimer, this);
-    publishStatus("station ready: records in " + records_dir_);
     ROS_INFO("session_station on %s: records in %s, session graph from %s", status_.station.c_str(),
              records_dir_.c_str(), simulator_launch_.c_str());
-    if (private_nh_.hasParam("initial_scene")) {
+    std::string took_over;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      took_over = takeOver();
+      publishStatus(took_over.empty() ? "station ready: records in " + records_dir_ : took_over);
+    }
+    if (!took_over.empty()) ROS_WARN("session_station: %s", took_over.c_str());
+    if (took_over.empty() && private_nh_.hasParam("initial_scene")) {
       vrm_msgs::LoadSession::Request request;
       vrm_msgs::LoadSession::Response response;
       request.scene = private_nh_.param<std::string>("initial_scene", "");
@@ -290,6 +351,9 @@ class SessionStation {
     recorder_.reset();  // first: the bag closes while the graph still runs
     closing_recorders_.clear();
     graph_.reset();
+    // Stopped on purpose: nothing for a next station to take over, unless a result was still being recovered.
+    if (!recovery_) std::remove(statePath().c_str());
+    recovery_.reset();
   }
 
  private:
@@ -302,6 +366,13 @@ class SessionStation {
     std::uint32_t loads_before = 0;  // running_scene's load count when the LOAD went out
     bool announced = false, seen_info = false, seen_frame = false;
     ros::WallTime requested_at, announced_at, first_frame_at;
+  };
+
+  // A session whose graph ended while no station ran: its result comes from a replay of its bag (session_replay, a
+  // process of its own), for the file and trainee the session had.
+  struct Recovery {
+    std::unique_ptr<ChildProcess> replay;
+    std::string output, result_file, bag, user;
   };
 
   // What a refused LOAD returns to: the session that ran before the request.
@@ -627,6 +698,7 @@ class SessionStation {
     } catch (const vrm_sim::result::ResultError& error) {
       ROS_ERROR("session_station: %s", error.what());
     }
+    saveState();
   }
 
   void onTimer(const ros::WallTimerEvent&) {
@@ -647,6 +719,7 @@ class SessionStation {
         }
       }
     }
+    if (recovery_) stepRecovery();
     if (!graph_) return;
     if (const auto exit_status = graph_->poll()) {
       graph_.reset();
@@ -656,7 +729,9 @@ class SessionStation {
         publishStatus(status_.mode == "replay" ? "replay finished" : "session over");
       } else {
         status_.state = vrm_msgs::StationStatus::FAILED;
-        publishStatus("the session graph ended (exit " + std::to_string(*exit_status) +
+        publishStatus("the session graph ended (" +
+                      (*exit_status == ChildProcess::kUnknownExit ? std::string("taken over after a station restart")
+                                                                  : "exit " + std::to_string(*exit_status)) +
                       "): " + lastLines(graph_log_, 3));
       }
       return;
@@ -804,6 +879,201 @@ class SessionStation {
     status_.header.stamp = ros::Time::now();  // the station's own wall clock: not part of any session's inputs
     auto out = boost::make_shared<vrm_msgs::StationStatus>(status_);
     status_publisher_.publish(out);
+    saveState();
+  }
+
+  // --- Taking over after a crash (issue 39 §2). The graph and the recorder run in process groups of their own and
+  // outlive a station that crashes. The state file names them (leader pid + start time, so a reused pid is not
+  // taken for them) and the session they serve; it is written on every status change (temporary file + rename) and
+  // removed when no graph runs. A station started again (simulator.launch respawns it) reads it in takeOver().
+  std::string statePath() const { return records_dir_ + "/station_state.json"; }
+
+  void saveState() {
+    if (!graph_) {
+      // A recovery in progress keeps the file of the session it recovers: a crash meanwhile starts it again.
+      if (!recovery_) std::remove(statePath().c_str());
+      return;
+    }
+    const auto launch = [](const std::unique_ptr<ChildProcess>& process) {
+      return process ? nlohmann::json{{"pid", process->pid()}, {"start", processStartTime(process->pid())}}
+                     : nlohmann::json();
+    };
+    const nlohmann::json state = {{"graph",
+                                   {{"pid", graph_->pid()},
+                                    {"start", processStartTime(graph_->pid())},
+                                    {"mode", graph_mode_},
+                                    {"script", graph_script_},
+                                    {"log", graph_log_}}},
+                                  {"recorder", launch(recorder_)},
+                                  {"session",
+                                   {{"state", status_.state},
+                                    {"mode", status_.mode},
+                                    {"user", status_.user},
+                                    {"scene", status_.scene},
+                                    {"difficulty", status_.difficulty},
+                                    {"seed", status_.seed},
+                                    {"bag", status_.bag},
+                                    {"recording", static_cast<bool>(status_.recording)},
+                                    {"result_file", status_.result_file},
+                                    {"stem", session_stem_},
+                                    {"stamp", {session_stamp_.sec, session_stamp_.nsec}},
+                                    {"launched", {launched_stamp_.sec, launched_stamp_.nsec}},
+                                    {"seen_result", seen_result_}}}};
+    const std::string path = statePath(), temporary = path + ".tmp";
+    {
+      std::ofstream file(temporary, std::ios::trunc);
+      file << state.dump(1) << "\n";
+      if (!file.flush()) {
+        ROS_WARN_THROTTLE(60, "session_station: cannot write %s: a station restart could not take over", path.c_str());
+        return;
+      }
+    }
+    if (std::rename(temporary.c_str(), path.c_str()) != 0)
+      ROS_WARN_THROTTLE(60, "session_station: cannot write %s: %s", path.c_str(), std::strerror(errno));
+  }
+
+  // The launch a state file names, if it still runs: the same process (pid and start time), a roslaunch of
+  // `launch_file`, leader of its process group. Anything else is left alone (adopting would let us stop it).
+  static std::unique_ptr<ChildProcess> adoptLaunch(const nlohmann::json& entry, const std::string& launch_file) {
+    if (!entry.is_object() || launch_file.empty()) return nullptr;
+    const pid_t pid = entry.at("pid").get<pid_t>();
+    const std::string command = processCommandLine(pid);
+    if (command.find("roslaunch") == std::string::npos || command.find(launch_file) == std::string::npos)
+      return nullptr;
+    return ChildProcess::adopt(pid, entry.at("start").get<std::uint64_t>());
+  }
+
+  // What a crashed station left (its state file): a graph that still runs is taken over with its session — its
+  // scene, frames and result count as if the station had never stopped, and a session that ended meanwhile has its
+  // latched session_result, so its file is written now. A graph that ended meanwhile leaves the session's bag: the
+  // result is replayed from it in the background (stepRecovery). Returns what happened ("" without a state file).
+  std::string takeOver() {
+    std::ifstream file(statePath());
+    if (!file) return "";
+    nlohmann::json state;
+    std::unique_ptr<ChildProcess> graph, recorder;
+    try {
+      file >> state;
+      const nlohmann::json& session = state.at("session");
+      const nlohmann::json& graph_entry = state.at("graph");
+      graph_mode_ = graph_entry.at("mode").get<std::string>();
+      graph = adoptLaunch(graph_entry, graph_mode_ == "replay" ? replay_launch_ : simulator_launch_);
+      recorder = adoptLaunch(state.at("recorder"), recorder_launch_);
+      graph_script_ = graph_entry.at("script").get<std::string>();
+      graph_log_ = graph_entry.at("log").get<std::string>();
+      status_.state = session.at("state").get<std::uint8_t>();
+      status_.mode = session.at("mode").get<std::string>();
+      status_.user = session.at("user").get<std::string>();
+      status_.scene = session.at("scene").get<std::string>();
+      status_.difficulty = session.at("difficulty").get<std::string>();
+      status_.seed = session.at("seed").get<std::uint32_t>();
+      status_.bag = session.at("bag").get<std::string>();
+      status_.recording = session.at("recording").get<bool>();
+      status_.result_file = session.at("result_file").get<std::string>();
+      session_stem_ = session.at("stem").get<std::string>();
+      session_stamp_ =
+          ros::Time(session.at("stamp").at(0).get<std::uint32_t>(), session.at("stamp").at(1).get<std::uint32_t>());
+      launched_stamp_ = ros::Time(session.at("launched").at(0).get<std::uint32_t>(),
+                                  session.at("launched").at(1).get<std::uint32_t>());
+      seen_result_ = session.at("seen_result").get<bool>();
+    } catch (const std::exception& error) {
+      status_ = vrm_msgs::StationStatus();
+      status_.station = hostName();
+      std::remove(statePath().c_str());
+      return "station restarted; its state file " + statePath() + " could not be read (" + error.what() +
+             "): nothing taken over";
+    }
+    status_.station = hostName();
+    const std::string session = "'" + status_.scene + "' of " + status_.user;
+    const bool live = status_.mode == "session" && (status_.state == vrm_msgs::StationStatus::READY ||
+                                                    status_.state == vrm_msgs::StationStatus::RUNNING);
+    graph_ = std::move(graph);
+    recorder_ = std::move(recorder);
+    if (graph_) {
+      if (status_.state == vrm_msgs::StationStatus::LOADING) {
+        // Which of the load's conditions were met is gone with the station: the trainee loads again (a LOAD into
+        // the running graph, a second or so).
+        closeRecorder();
+        status_.state = vrm_msgs::StationStatus::IDLE;
+        status_.recording = false;
+        return "station restarted while loading " + session + ": load it again (the session graph runs on)";
+      }
+      loading_.announced = true;                           // its scene runs: its status, frames and result count
+      if (seen_result_) ended_at_ = ros::WallTime::now();  // its recording ends after the tail, as it would have
+      return "station restarted: took over the session " + session + (seen_result_ ? " (ended)" : " (runs on)");
+    }
+    closeRecorder();  // an orphaned recorder of a graph that ended: its bag closes
+    if (!live || seen_result_ || ::access(status_.result_file.c_str(), F_OK) == 0) {
+      status_.state = vrm_msgs::StationStatus::IDLE;
+      status_.recording = false;
+      return "station restarted; the session graph had ended, and no session result was outstanding";
+    }
+    if (status_.bag.empty()) {
+      status_.state = vrm_msgs::StationStatus::FAILED;
+      status_.recording = false;
+      return "station restarted: the session " + session +
+             " was not recorded and its graph ended while no station ran: its result is lost";
+    }
+    recovery_ = Recovery{nullptr, session_stem_ + ".recovery.log", status_.result_file, status_.bag, status_.user};
+    status_.state = vrm_msgs::StationStatus::IDLE;
+    status_.recording = false;
+    return "station restarted: the session graph of " + session +
+           " ended while no station ran; replaying its bag for its result";
+  }
+
+  // (timer) The recovery's replay: started once the orphaned recorder has closed the bag; its result written when it
+  // ends. A session that had not ended at the bag's end is kept as interrupted (vrm_sim::result::interrupted).
+  void stepRecovery() {
+    Recovery& recovery = *recovery_;
+    if (!recovery.replay) {
+      if (!closing_recorders_.empty()) return;
+      try {
+        recovery.replay = std::make_unique<ChildProcess>(
+            std::vector<std::string>{"rosrun", "vrm_sim", "session_replay", "--bag", recovery.bag}, recovery.output);
+      } catch (const std::exception& error) {
+        finishRecovery(std::string("cannot start session_replay: ") + error.what());
+      }
+      return;
+    }
+    const auto exit_status = recovery.replay->poll();
+    if (!exit_status) return;
+    if (*exit_status != 0) {
+      return finishRecovery("session_replay of " + recovery.bag + " failed (exit " + std::to_string(*exit_status) +
+                            "): " + lastLines(recovery.output, 2));
+    }
+    try {
+      // Its one JSON line (stdout) among the recovery notes (stderr) in the same log.
+      std::ifstream log(recovery.output);
+      nlohmann::json replayed;
+      for (std::string line; std::getline(log, line);)
+        if (!line.empty() && line.front() == '{') replayed = nlohmann::json::parse(line);
+      if (!replayed.is_object() || !replayed.contains("result") || !replayed["result"].is_object())
+        return finishRecovery("session_replay of " + recovery.bag + " printed no result");
+      vrm_sim::result::SessionResult result =
+          vrm_sim::result::resultFromJson(replayed["result"].dump(), "session_replay of " + recovery.bag);
+      const bool ended = result.state && (*result.state == "finished" || *result.state == "failed");
+      if (!ended) result = vrm_sim::result::interrupted(std::move(result));
+      result.bag = recovery.bag;
+      result.user = recovery.user.empty() ? std::nullopt : std::optional<std::string>(recovery.user);
+      vrm_sim::result::writeResultFile(recovery.result_file, result);
+      finishRecovery("", std::string(ended ? "result" : "interrupted result") + " replayed from " + recovery.bag +
+                             " into " + recovery.result_file);
+    } catch (const std::exception& error) {
+      finishRecovery(std::string("the replayed result could not be written: ") + error.what());
+    }
+  }
+
+  void finishRecovery(const std::string& error, const std::string& done = "") {
+    const bool current = status_.result_file == recovery_->result_file && !graph_;
+    recovery_.reset();
+    if (!error.empty()) ROS_ERROR("session_station: recovery: %s", error.c_str());
+    if (!done.empty()) ROS_INFO("session_station: %s", done.c_str());
+    if (current) {
+      status_.state = error.empty() ? vrm_msgs::StationStatus::ENDED : vrm_msgs::StationStatus::FAILED;
+      publishStatus(error.empty() ? "session over: " + done : "no result: " + error);
+    } else {
+      saveState();
+    }
   }
 
   ros::NodeHandle nh_, private_nh_;
@@ -812,6 +1082,7 @@ class SessionStation {
   double load_timeout_ = 90.0, end_tail_ = 1.0;
   vrm_msgs::StationStatus status_;
   std::unique_ptr<ChildProcess> graph_, recorder_, ghost_;
+  std::optional<Recovery> recovery_;
   std::vector<std::unique_ptr<ChildProcess>> closing_recorders_;  // interrupted, closing their bags
   std::string graph_mode_, graph_script_, graph_log_, session_stem_;
   Loading loading_;
