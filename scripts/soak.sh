@@ -17,6 +17,10 @@
 #   --minute-seconds S   rows (and cycles) every S s instead of 60 (development: many cycles in a short run)
 #   --tree     another checkout's launch files and packages (ROS_PACKAGE_PATH=TREE/src) with this build, e.g. a
 #              `git worktree` of the last commit while the working tree's launch files wait for a rebuild
+#   --sanitize the graph of the ASan + UBSan build (build_asan/, as scripts/test.sh --sanitize builds it; VRM_ASAN_BUILD
+#              names another): a memory error is reported where it happens, not minutes later as a corrupted heap.
+#              Reports go to <out>/sanitizer_reports; any report fails the soak. Rates and latencies then measure the
+#              sanitizer, so such a run's JSON goes to soak.sanitize[.quick].json, never over the plain one.
 set -euo pipefail
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 minutes=30
@@ -26,6 +30,7 @@ results="$ROOT/bench/results"
 extra=()
 monitor_args=()
 tree=$ROOT
+sanitize=0
 while (($#)); do
   case $1 in
     --minutes) minutes=$2; shift 2 ;;
@@ -34,6 +39,7 @@ while (($#)); do
     --results) results=$2; shift 2 ;;
     --tree) tree=$(cd "$2" && pwd); shift 2 ;;
     --no-cycle) monitor_args+=(--no-cycle); shift ;;
+    --sanitize) sanitize=1; shift ;;
     --minute-seconds) monitor_args+=(--minute "$2"); shift 2 ;;
     -h | --help) sed -n '2,20p' "$0"; exit 0 ;;
     *) extra+=("$1"); shift ;;
@@ -47,18 +53,37 @@ source "$ROOT/scripts/common.sh"
 [[ $tree == "$ROOT" ]] || export ROS_PACKAGE_PATH="$tree/src"
 [[ -n $out ]] || out="$ROOT/build/soak/$(date -u +%Y%m%d_%H%M%S)"
 mkdir -p "$out" "$results"
+# Absolute: the manager runs in this folder (its core dumps land there), so a relative bag or result path would
+# resolve against it instead.
+out=$(cd "$out" && pwd)
+suffix=""
+if ((sanitize)); then
+  asan_build=${VRM_ASAN_BUILD:-$ROOT/build_asan}
+  [[ -f $asan_build/devel/setup.bash ]] || {
+    echo "soak.sh --sanitize: no ASan build in $asan_build (build it with scripts/test.sh --sanitize)" >&2
+    exit 2
+  }
+  # The Debian nodelet binary with libasan preloaded (see the wrapper), found first by roslaunch in this devel space.
+  install -D -m 755 "$ROOT/scripts/sanitizers/nodelet" "$asan_build/devel/lib/nodelet/nodelet"
+  set +u
+  # shellcheck disable=SC1091
+  source "$asan_build/devel/setup.bash"
+  set -u
+  # shellcheck source=scripts/sanitizers/env.sh disable=SC1091
+  source "$ROOT/scripts/sanitizers/env.sh" "$out"
+  suffix=".sanitize"
+fi
 export ROS_MASTER_URI=http://localhost:$port ROS_LOG_DIR="$out/ros_log"
 if ss -ltn "sport = :$port" | grep -q LISTEN; then
   echo "soak.sh: port $port is in use (another soak?); choose another with --port" >&2
   exit 2
 fi
-suffix=""
-((minutes < 6)) && suffix=".quick"
+((minutes < 6)) && suffix="$suffix.quick"
 json="$results/soak$suffix.json"
 png="$results/soak$suffix.png"
 bag="$out/soak.bag"
 
-echo "soak.sh: ${minutes} min$([[ -n $suffix ]] && echo " (smoke mode: baseline minute 1)"), master port $port," \
+echo "soak.sh: ${minutes} min$([[ $suffix == *.quick ]] && echo " (smoke mode: baseline minute 1)")$( ((sanitize)) && echo " (ASan + UBSan build)"), master port $port," \
   "scene membrane_peeling, tracking, recording to $bag; run folder $out"
 # duration:=0: session_control starts the session once the recorder listens and never stops it; the monitor's
 # cycles are the session's STOP/LOAD/START (recorded inputs, like the console's).
@@ -90,6 +115,19 @@ echo "launch log: $out/launch.log"
 for stacks in "$out"/core.*.backtrace.txt; do
   [[ -f $stacks ]] && echo "a manager crashed: its core ${stacks%.backtrace.txt}, every thread's stack in $stacks"
 done
+if ((sanitize)); then
+  reports=("$SANITIZER_REPORTS"/*)
+  if [[ -e ${reports[0]} ]]; then
+    echo "soak.sh: ${#reports[@]} sanitizer report(s) in $SANITIZER_REPORTS:" >&2
+    for report in "${reports[@]}"; do
+      echo "== $report" >&2
+      grep -E 'ERROR|SUMMARY|runtime error|^    #[0-9] ' "$report" | head -n 16 >&2 || true
+    done
+    status=1
+  else
+    echo "soak.sh: no sanitizer report"
+  fi
+fi
 # roslaunch exits 0 when a required part failed: the soak fails then too (issue 20).
 if ! failed=$(required_failures "$out/launch.log"); then
   echo "soak.sh: the simulator graph failed: $failed" >&2
