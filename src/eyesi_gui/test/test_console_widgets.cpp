@@ -4,6 +4,9 @@
 #include <gtest/gtest.h>
 
 #include <QApplication>
+#ifdef __SANITIZE_ADDRESS__
+#include <sanitizer/lsan_interface.h>
+#endif
 #include <QCheckBox>
 #include <QComboBox>
 #include <QDir>
@@ -345,7 +348,15 @@ TEST(StereoView, AnaglyphTakesRedFromTheLeftEyeAndCyanFromTheRight) {
 
 int main(int argc, char** argv) {
   qputenv("QT_QPA_PLATFORM", "offscreen");
+#ifdef __SANITIZE_ADDRESS__
+  // Qt 5.15's offscreen platform plugin never frees the screen it creates while QApplication starts (QScreen and its
+  // QObject data: indirect leaks, all in Qt): not reported, so that LSan still judges everything this test allocates.
+  __lsan_disable();
+#endif
   QApplication app(argc, argv);
+#ifdef __SANITIZE_ADDRESS__
+  __lsan_enable();
+#endif
   ::testing::InitGoogleTest(&argc, argv);
   return RUN_ALL_TESTS();
 }

@@ -544,7 +544,8 @@ TEST(Renderer, LaserBurnsWhitenTheFundusWhereTheyLieAndTheAimGlowsRed) {
   pose.linear() =
       Eigen::Quaternionf::FromTwoVectors(Eigen::Vector3f::UnitZ(), -pose.translation().normalized()).toRotationMatrix();
   reference.setPose(kLaserAimId, pose);
-  const RgbImage& aimed = renderFrame(reference).images[0];
+  const StereoFrame aimed_frame = renderFrame(reference);  // named: a reference into the temporary would dangle
+  const RgbImage& aimed = aimed_frame.images[0];
   const std::uint8_t* rgb = &aimed.data[(static_cast<int>(away.y()) * aimed.width + static_cast<int>(away.x())) * 3];
   EXPECT_GT(rgb[0], 200);
   EXPECT_GT(rgb[0], 3 * rgb[1]);
