@@ -159,6 +159,7 @@ class ChildProcess {
       return nullptr;
     std::unique_ptr<ChildProcess> process(new ChildProcess());
     process->pid_ = pid;
+    process->start_time_ = start_time;
     process->adopted_ = true;
     return process;
   }
@@ -190,11 +191,13 @@ class ChildProcess {
       ::_exit(127);
     }
     ::setpgid(pid_, pid_);
+    start_time_ = processStartTime(pid_);  // set by the fork, kept across the exec
   }
   ~ChildProcess() { stop(10.0); }
 
   pid_t pid() const { return pid_; }
-  bool adopted() const { return adopted_; }
+  // Its start time (/proc), read once: with the pid it names the process in the station's state file.
+  std::uint64_t startTime() const { return start_time_; }
 
   // SIGINT to the group now; finishStopping() escalates later, so the caller is not blocked while it shuts down.
   void interrupt() {
@@ -241,6 +244,7 @@ class ChildProcess {
   ChildProcess() = default;
 
   pid_t pid_ = -1;
+  std::uint64_t start_time_ = 0;
   bool adopted_ = false;
   std::optional<int> status_;
   std::chrono::steady_clock::time_point interrupted_at_;
@@ -895,15 +899,13 @@ class SessionStation {
       return;
     }
     const auto launch = [](const std::unique_ptr<ChildProcess>& process) {
-      return process ? nlohmann::json{{"pid", process->pid()}, {"start", processStartTime(process->pid())}}
-                     : nlohmann::json();
+      return process ? nlohmann::json{{"pid", process->pid()}, {"start", process->startTime()}} : nlohmann::json();
     };
-    const nlohmann::json state = {{"graph",
-                                   {{"pid", graph_->pid()},
-                                    {"start", processStartTime(graph_->pid())},
-                                    {"mode", graph_mode_},
-                                    {"script", graph_script_},
-                                    {"log", graph_log_}}},
+    nlohmann::json graph = launch(graph_);
+    graph["mode"] = graph_mode_;
+    graph["script"] = graph_script_;
+    graph["log"] = graph_log_;
+    const nlohmann::json state = {{"graph", graph},
                                   {"recorder", launch(recorder_)},
                                   {"session",
                                    {{"state", status_.state},
