@@ -176,8 +176,11 @@ class ScenarioManager : public nodelet::Nodelet {
     }
     // Deep queues (pointers only, zero copy): on a loaded machine an input dropped here would be missing from the
     // live session but present in its bag, and the replay would differ. Two seconds of every input at 50 Hz.
+    // A replay's frames come from rosbag play, which cannot wait for a simulation slower than the recording (a slow
+    // or sanitizer-built machine, or rate > 1): every frame it sends is kept, up to 20 minutes of them at 50 Hz (a
+    // lost one ends the replay's equality, see onRecordedFrame).
     if (input_mode_ == "frames") {
-      frame_subscriber_ = nh.subscribe("recorded_input_frame", 200, &ScenarioManager::onRecordedFrame, this);
+      frame_subscriber_ = nh.subscribe("recorded_input_frame", 60000, &ScenarioManager::onRecordedFrame, this);
     } else {
       eye_subscriber_ = nh.subscribe("eye_state", 100, &ScenarioManager::onEyeState, this);
       instrument_subscriber_ = nh.subscribe("instrument_state", 200, &ScenarioManager::onInstrumentState, this);
