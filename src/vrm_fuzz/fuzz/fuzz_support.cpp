@@ -79,7 +79,15 @@ std::string packageDirectory(const std::string& package) { return std::string(VR
 
 }  // namespace vrm_fuzz
 
-#ifdef VRM_FUZZ_LIBFUZZER
+#if defined(VRM_FUZZ_LIBFUZZER) || defined(__SANITIZE_ADDRESS__)
+// The same holds for test_fuzz_regressions in scripts/test.sh --sanitize (gcc's ASan build), which replays those
+// inputs: without this, a regression input's gigabyte array length ends it with ASan's "Failed to mmap" instead of the
+// std::bad_alloc the entry point is tested to survive.
+#ifndef VRM_FUZZ_LIBFUZZER
+// scripts/fuzz.sh sets these for the fuzz executables; the sanitizer test run's env.sh does not (ASAN_OPTIONS, when
+// set, overrides each option it names).
+extern "C" const char* __asan_default_options() { return "allocator_may_return_null=1:max_allocation_size_mb=128"; }
+#endif
 // ASan's operator new reports an allocation it cannot serve (max_allocation_size_mb, scripts/fuzz.sh) as a fatal
 // out-of-memory instead of throwing std::bad_alloc. A fuzzed array length prefix asks for gigabytes in roscpp's
 // deserializer; what the simulator must survive is the std::bad_alloc a normal build throws there, so the fuzz
