@@ -94,7 +94,8 @@ class Reader {
     if (n > limit) fail(std::string(field) + ": " + std::to_string(n) + " values, more than " + std::to_string(limit));
     need(n * sizeof(T), field);
     std::vector<T> values(n);
-    std::memcpy(values.data(), bytes_.data() + offset_, n * sizeof(T));
+    // An empty vector's data() may be null, and memcpy from or to null is undefined even for 0 bytes (UBSan).
+    if (n > 0) std::memcpy(values.data(), bytes_.data() + offset_, n * sizeof(T));
     offset_ += n * sizeof(T);
     return values;
   }
