@@ -76,6 +76,9 @@
 
 namespace {
 
+// recorder.launch's default node name, and the prefix of the per-session names the station gives (startRecorder).
+constexpr const char* kRecorderNodePrefix = "/session_recorder";
+
 std::string expandHome(const std::string& path) {
   if (path.rfind("~/", 0) != 0) return path;
   const char* home = std::getenv("HOME");
@@ -809,7 +812,7 @@ class SessionStation {
         const std::string topic = static_cast<std::string>(subscriptions[i][0]);
         if (topic != "/scenario_command" && topic != "/input_frame") continue;
         for (int j = 0; j < subscriptions[i][1].size(); ++j)
-          if (static_cast<std::string>(subscriptions[i][1][j]) == "/session_recorder") return;
+          if (static_cast<std::string>(subscriptions[i][1][j]).rfind(kRecorderNodePrefix, 0) == 0) return;
       }
     }
     auto command = boost::make_shared<vrm_msgs::ScenarioCommand>();
@@ -829,8 +832,12 @@ class SessionStation {
 
   void startRecorder() {
     const std::string log = session_stem_ + ".recorder.log";
-    std::vector<std::string> argv = {"roslaunch", "--skip-log-check", recorder_launch_, "bag:=" + status_.bag,
-                                     "start:=false"};
+    // A name of its own per session (station pid + count): scenario_manager resends the frames a recorder missed to
+    // one that comes back under a name that left — a respawn — and must not take this one for the last session's.
+    recorder_node_ =
+        std::string(kRecorderNodePrefix) + "_" + std::to_string(getpid()) + "_" + std::to_string(++recorders_started_);
+    std::vector<std::string> argv = {"roslaunch",           "--skip-log-check", recorder_launch_,
+                                     "bag:=" + status_.bag, "start:=false",     "name:=" + recorder_node_.substr(1)};
     try {
       recorder_ = std::make_unique<ChildProcess>(argv, log);
       ROS_INFO("session_station: recording %s (log %s)", status_.bag.c_str(), log.c_str());
@@ -855,10 +862,10 @@ class SessionStation {
           topic != "/input_frame")
         continue;
       for (int j = 0; j < subscriptions[i][1].size(); ++j)
-        if (static_cast<std::string>(subscriptions[i][1][j]) == "/session_recorder") ++topics;
+        if (static_cast<std::string>(subscriptions[i][1][j]) == recorder_node_) ++topics;
     }
     if (topics != 4) return false;
-    const pid_t recorder = nodePid("/session_recorder");
+    const pid_t recorder = nodePid(recorder_node_);
     return recorder > 0 && descendsFrom(recorder, recorder_->pid());
   }
 
@@ -905,8 +912,10 @@ class SessionStation {
     graph["mode"] = graph_mode_;
     graph["script"] = graph_script_;
     graph["log"] = graph_log_;
+    nlohmann::json recorder = launch(recorder_);
+    if (recorder_) recorder["node"] = recorder_node_;
     const nlohmann::json state = {{"graph", graph},
-                                  {"recorder", launch(recorder_)},
+                                  {"recorder", recorder},
                                   {"session",
                                    {{"state", status_.state},
                                     {"mode", status_.mode},
@@ -961,6 +970,7 @@ class SessionStation {
       graph_mode_ = graph_entry.at("mode").get<std::string>();
       graph = adoptLaunch(graph_entry, graph_mode_ == "replay" ? replay_launch_ : simulator_launch_);
       recorder = adoptLaunch(state.at("recorder"), recorder_launch_);
+      if (recorder) recorder_node_ = state.at("recorder").value("node", std::string(kRecorderNodePrefix));
       graph_script_ = graph_entry.at("script").get<std::string>();
       graph_log_ = graph_entry.at("log").get<std::string>();
       status_.state = session.at("state").get<std::uint8_t>();
@@ -1084,6 +1094,8 @@ class SessionStation {
   double load_timeout_ = 90.0, end_tail_ = 1.0;
   vrm_msgs::StationStatus status_;
   std::unique_ptr<ChildProcess> graph_, recorder_, ghost_;
+  std::string recorder_node_;  // recorder_'s node name (per session, see startRecorder)
+  unsigned recorders_started_ = 0;
   std::optional<Recovery> recovery_;
   std::vector<std::unique_ptr<ChildProcess>> closing_recorders_;  // interrupted, closing their bags
   std::string graph_mode_, graph_script_, graph_log_, session_stem_;
