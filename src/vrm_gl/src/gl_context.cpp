@@ -50,6 +50,11 @@ void GlContext::makeCurrent() {
   }
 }
 
+void GlContext::releaseCurrent() {
+  // OSMesa's documented way to unbind: no context and no buffer.
+  if (!OSMesaMakeCurrent(nullptr, nullptr, GL_UNSIGNED_BYTE, 0, 0)) throw GlContextError("OSMesa unbind failed");
+}
+
 void GlContext::resize(int width, int height) {
   if (width <= 0 || height <= 0) throw GlContextError("GlContext::resize: size must be positive");
   width_ = width;

@@ -35,6 +35,10 @@ class GlContext {
   GlContext& operator=(const GlContext&) = delete;
 
   void makeCurrent();
+  // Unbinds the context current on the calling thread (any). A thread that used a context briefly (start-up, a
+  // snapshot) must let it go: left bound, the context is flushed from that thread whenever the thread binds another
+  // one, possibly while its owner is drawing with it on another thread.
+  static void releaseCurrent();
   // Changes the size of the default framebuffer; reallocates the colour buffer and rebinds.
   void resize(int width, int height);
 

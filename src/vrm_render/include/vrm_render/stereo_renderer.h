@@ -98,6 +98,9 @@ class StereoRenderer {
   // `same_fundus` false accepts a changed fundus generator (then the frame shows today's fundus).
   RenderState captureState() const;
   void restoreState(const RenderState& state, bool same_fundus = true);
+  // Every call binds the renderer's context to the calling thread. A thread that is not the one drawing (a nodelet's
+  // start-up, a snapshot on a service thread) lets it go afterwards (vrm_gl::GlContext::releaseCurrent).
+  static void releaseContext();
   // The last frame's depth buffer of one eye (window depth 0..1, top row first, width x height): the check tools
   // find the visible surface point of each pixel from it (CameraView::viewProjection inverse).
   void readDepth(Eye eye, std::vector<float>* depth) const;

@@ -798,6 +798,8 @@ void StereoRenderer::render(StereoFrame* frame) {
   if (error != GL_NO_ERROR) throw RenderError("OpenGL error " + std::to_string(error) + " while rendering");
 }
 
+void StereoRenderer::releaseContext() { vrm_gl::GlContext::releaseCurrent(); }
+
 RenderState StereoRenderer::captureState() const {
   Impl& im = *impl_;
   im.context->makeCurrent();

@@ -213,11 +213,15 @@ class StereoRendererNodelet : public nodelet::Nodelet {
       }
       // The same path as a switch at run time, so the start-up scene and a followed one are drawn alike.
       showPreparedScene(*startup);
+      // This is the manager's loader thread, which goes on to load other nodelets: the render thread owns the context.
+      StereoRenderer::releaseContext();
     } catch (const std::exception& error) {
       NODELET_FATAL("stereo_renderer cannot start: %s", error.what());
       throw;
     }
     shown_ = std::move(startup);
+    // Read before the render thread starts: a scene announced meanwhile replaces shown_ there.
+    const std::string startup_scene = shown_->scene.name;
 
     snapshots_pending_ = snapshot_count_ > 0 && !snapshot_dir_.empty();
     {
@@ -250,8 +254,8 @@ class StereoRendererNodelet : public nodelet::Nodelet {
     NODELET_INFO(
         "stereo_renderer: scene '%s', %dx%d %s, passes shadow=%d dof=%d, frames %s; render thread and %zu "
         "llvmpipe threads at nice %d",
-        shown_->scene.name.c_str(), options.width, options.height, options.stereo ? "stereo" : "mono",
-        options.shadow_pass, options.dof_pass, describeTrigger().c_str(), render_threads_.size(), render_nice_);
+        startup_scene.c_str(), options.width, options.height, options.stereo ? "stereo" : "mono", options.shadow_pass,
+        options.dof_pass, describeTrigger().c_str(), render_threads_.size(), render_nice_);
   }
 
  private:
@@ -762,7 +766,15 @@ class StereoRendererNodelet : public nodelet::Nodelet {
     if (!frame.images[1].data.empty()) savePng(frame.images[1], dir + name + "_right.png");
     // Issue 33: what the frame was drawn from, so frame_check can re-render it with a pass switched off. The renderer
     // still holds the frame's state (render_mutex_ is held and inputs apply only before the next render).
-    writeRenderState(renderer_->captureState(), dir + name + ".frame");
+    RenderState state;
+    try {
+      state = renderer_->captureState();  // binds the context to this service thread
+    } catch (...) {
+      StereoRenderer::releaseContext();
+      throw;
+    }
+    StereoRenderer::releaseContext();
+    writeRenderState(state, dir + name + ".frame");
     return dir + name;
   }
 

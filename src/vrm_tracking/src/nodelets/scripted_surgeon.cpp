@@ -97,8 +97,6 @@ class ScriptedSurgeon : public nodelet::Nodelet {
     if (pnh.param("start_with_session", true)) {
       command_sub_ = nh.subscribe("scenario_command", 10, &ScriptedSurgeon::onCommand, this);
     }
-    // Latched: the scene that runs now arrives however late this nodelet starts.
-    running_scene_sub_ = nh.subscribe("running_scene", 1, &ScriptedSurgeon::onRunningScene, this);
     resume_gate_.init(nh, getMyArgv(), getName(), [this](const ros::Time& start, bool session_clock) {
       std::lock_guard<std::mutex> lock(mutex_);
       start_ = start;
@@ -110,6 +108,9 @@ class ScriptedSurgeon : public nodelet::Nodelet {
     NODELET_INFO("playing script '%s' (%s, %zu instruments, %.1f s, %s) at %.1f Hz (eye %.1f Hz)",
                  script_->name().c_str(), script_->source().c_str(), script_->session().instruments.size(),
                  script_->duration(), script_->playback() == Playback::kLoop ? "loop" : "once", rate, eye_rate);
+    // Latched: the scene that runs now arrives however late this nodelet starts. Last: its callback replaces script_,
+    // which the lines above read on this (the manager's loader) thread.
+    running_scene_sub_ = nh.subscribe("running_scene", 1, &ScriptedSurgeon::onRunningScene, this);
   }
 
   // The script to play in `scene`: the scene's session of that name (scenario:NAME, what scenario_offline plays), or

@@ -133,12 +133,13 @@ class Tracker : public nodelet::Nodelet {
           topic, 10, [this, c](const vrm_msgs::MarkerObservations::ConstPtr& msg) { onMarkers(c, msg); }));
     }
     if (publish_tf_) static_broadcaster_.sendTransform(trocarTransforms(tracker_->layout(), eye_frame_));
-    // Latched: the scene that runs now arrives however late this nodelet starts.
-    running_scene_sub_ = nh.subscribe("running_scene", 1, &Tracker::onRunningScene, this);
     NODELET_INFO("tracker: %zu cameras (%s), %zu instruments, tf %s, filter %s, dropout after %.0f ms", rig.size(),
                  markers_topic.c_str(), tracker_->layout().instruments.size(),
                  publish_tf_ ? "on" : "off (scene_manager broadcasts)", toString(config.filter.type).c_str(),
                  1e3 * watchdog_config.timeout);
+    // Latched: the scene that runs now arrives however late this nodelet starts. Last: its callback replaces
+    // tracker_, which the lines above read on this (the manager's loader) thread.
+    running_scene_sub_ = nh.subscribe("running_scene", 1, &Tracker::onRunningScene, this);
   }
 
   CameraRig loadRig(const ros::NodeHandle& pnh) {
