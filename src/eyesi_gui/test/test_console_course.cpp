@@ -16,6 +16,7 @@
 #include <QTemporaryDir>
 
 #include "eyesi_gui/console/main_window.h"
+#include "offscreen_application.h"
 
 namespace eyesi_gui {
 namespace {
@@ -204,8 +205,7 @@ TEST_F(CourseConsoleTest, ACourseNamingASceneTheStationLacksIsNotAssigned) {
 }  // namespace eyesi_gui
 
 int main(int argc, char** argv) {
-  qputenv("QT_QPA_PLATFORM", "offscreen");
-  QApplication app(argc, argv);
+  const auto app = eyesi_gui::testing::offscreenApplication(argc, argv);
   ::testing::InitGoogleTest(&argc, argv);
   return RUN_ALL_TESTS();
 }

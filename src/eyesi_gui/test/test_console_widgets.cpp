@@ -4,9 +4,6 @@
 #include <gtest/gtest.h>
 
 #include <QApplication>
-#ifdef __SANITIZE_ADDRESS__
-#include <sanitizer/lsan_interface.h>
-#endif
 #include <QCheckBox>
 #include <QComboBox>
 #include <QDir>
@@ -23,6 +20,7 @@
 
 #include "../src/console/stereo_view.h"
 #include "eyesi_gui/console/main_window.h"
+#include "offscreen_application.h"
 
 namespace eyesi_gui {
 namespace {
@@ -347,16 +345,7 @@ TEST(StereoView, AnaglyphTakesRedFromTheLeftEyeAndCyanFromTheRight) {
 }  // namespace eyesi_gui
 
 int main(int argc, char** argv) {
-  qputenv("QT_QPA_PLATFORM", "offscreen");
-#ifdef __SANITIZE_ADDRESS__
-  // Qt 5.15's offscreen platform plugin never frees the screen it creates while QApplication starts (QScreen and its
-  // QObject data: indirect leaks, all in Qt): not reported, so that LSan still judges everything this test allocates.
-  __lsan_disable();
-#endif
-  QApplication app(argc, argv);
-#ifdef __SANITIZE_ADDRESS__
-  __lsan_enable();
-#endif
+  const auto app = eyesi_gui::testing::offscreenApplication(argc, argv);
   ::testing::InitGoogleTest(&argc, argv);
   return RUN_ALL_TESTS();
 }
