@@ -130,7 +130,18 @@ class SessionControl {
         send(vrm_msgs::ScenarioCommand::STOP, end, reason);
       }
     }
-    if (newest_ >= end + tail_) {
+    // The tail counts from where the session ended. A STOP takes effect in the first frame the simulation's mediator
+    // closes after the STOP arrives; on a simulation slower than its inputs (a loaded or sanitizer-built machine)
+    // that frame is later than the STOP's stamp, and a recording closed `tail` after the stamp would end before it.
+    const bool ended = !ended_at_.isZero();
+    const bool over = ended ? newest_ >= std::max(end, ended_at_) + tail_ : newest_ >= end + tail_ + kStopGrace;
+    if (over) {
+      if (!ended) {
+        ROS_WARN(
+            "session_control: the session did not end within %.0f s of input time after its STOP at %.3f; ending the "
+            "recording anyway",
+            (tail_ + kStopGrace).toSec(), end.toSec());
+      }
       ROS_INFO("session_control: session over (%.1f s from START); ending the recording", (end - start_).toSec());
       closeRecording();
       reportParts();
@@ -214,6 +225,7 @@ class SessionControl {
     started_ = false;
     stop_sent_ = false;
     scenario_ended_ = false;
+    ended_at_ = ros::Time();
     reload_ = true;
     newest_ = ros::Time();
   }
@@ -221,6 +233,11 @@ class SessionControl {
   void onStatus(const vrm_msgs::ScenarioStatus::ConstPtr& status) {
     scenario_ended_ =
         status->state == vrm_msgs::ScenarioStatus::FINISHED || status->state == vrm_msgs::ScenarioStatus::FAILED;
+    if (!scenario_ended_) {
+      ended_at_ = ros::Time();
+    } else if (ended_at_.isZero()) {
+      ended_at_ = status->header.stamp.isZero() ? newest_ : status->header.stamp;
+    }
   }
 
   void onTimer(const ros::WallTimerEvent&) {
@@ -432,6 +449,10 @@ class SessionControl {
   double min_free_mb_ = 20.0;
   ros::Time forced_end_;            // a STOP of this node's own (disk full)
   ros::Time stop_stamp_;            // of the STOP sent
+  ros::Time ended_at_;  // stamp of the scenario_status that first reported the session ended (FINISHED/FAILED)
+  // Input time after the session's planned end (plus tail) at which a session whose STOP never took effect is closed
+  // anyway (a simulation that stopped applying commands); far more than a slow simulation's lag.
+  const ros::Duration kStopGrace{10.0};
   std::string stop_reason_;
   ros::WallTime first_frame_wall_;  // the recorder's ~part: the part its next start records into
   ros::WallTime last_note_;

@@ -267,10 +267,11 @@ TEST(TissueDeformationGraph, VitrectorCutsOnlyWithSuctionAndKeepsTheMeshConsiste
     state.suction = suction;
     state.cut_rate = suction > 0.0 ? 2500.0 : 0.0;
   };
-  // No suction: the vitrector only pushes; wait until the membrane has been published at least once.
+  // No suction: the vitrector only pushes; wait until the membrane is published whole (the RESET applied: a
+  // membrane published before it is the other test's, which may be torn — on a slow machine that one can still come).
   drive(
-      publisher, [&](double, vrm_msgs::InstrumentState& s) { vitrectorAt(0.0, s); }, 10.0,
-      [&] { return watcher.topologyVersion() > 0; });
+      publisher, [&](double, vrm_msgs::InstrumentState& s) { vitrectorAt(0.0, s); }, 20.0,
+      [&] { return watcher.topologyVersion() > 0 && watcher.triangles() == membrane.mesh.triangleCount(); });
   drive(
       publisher, [&](double, vrm_msgs::InstrumentState& s) { vitrectorAt(0.0, s); }, 0.3);
   const std::uint64_t version_before = watcher.topologyVersion();

@@ -115,7 +115,10 @@ TEST(SessionReplayTool, PrintsOneJsonLineWithTheFieldsOtherToolsReadAndExitsZero
                           "recovered_seconds"}) {
     EXPECT_FALSE(jsonField(process.out, key).empty()) << key << " missing in " << process.out;
   }
+#ifndef __SANITIZE_ADDRESS__
+  // Not under ASan (scripts/test.sh --sanitize): the instrumented World runs at 0.8x real time there (measured).
   EXPECT_GT(std::stod(jsonField(process.out, "speedup")), 1.0) << "offline replay runs faster than real time";
+#endif
   EXPECT_EQ(run("--scene vitrectomy").status, 2) << "usage: no --bag";
   EXPECT_EQ(run("--bag").status, 2);
 }
