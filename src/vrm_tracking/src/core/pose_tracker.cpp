@@ -181,7 +181,9 @@ MarkerEstimate PoseTracker::reconstructWith(int class_id, const std::vector<Came
         obs.push_back(k.obs);
         areas.push_back(k.area);
         clean = clean && k.quality >= config_.clean_quality_ratio * best_quality;
-        ring_contaminated = ring_contaminated || k.contamination > config_.pair_contamination_max;
+        // A coloured ring the occlusion model predicted (a neighbour marker) is accounted for by the weights.
+        ring_contaminated =
+            ring_contaminated || (k.contamination > config_.pair_contamination_max && !isCut(k.obs.camera));
       }
       Solution s;
       for (const PixelObservation& o : obs) s.cut = s.cut || isCut(o.camera);
@@ -255,7 +257,7 @@ MarkerEstimate PoseTracker::reconstructWith(int class_id, const std::vector<Came
     // is coloured (cut by a shaft, blended with a distractor) is not taken, unless the occlusion model predicted the
     // cut and weighed the blob for it (the tips passing each other colour each other's rings: 4-9 % of the demo's
     // frames with a camera stopped were dropped for it).
-    if (prediction && s.t.cameras.size() < 3 && s.ring_contaminated && !s.cut) continue;
+    if (prediction && s.t.cameras.size() < 3 && s.ring_contaminated) continue;
     if (consistent(s) && (!best || rank(s) < rank(*best))) best = &s;
   }
   // While the marker is predicted, blobs that do not agree are not taken: one missing frame (the instrument holds its
@@ -349,31 +351,38 @@ std::vector<PoseTracker::Occlusion> PoseTracker::predictOcclusions(const std::ve
     }
     return layout_.tip_marker_radius;
   };
+  // Only where the prediction is good to a fraction of a marker's radius: at 60 mm/s with quick reversals the
+  // constant-velocity prediction is off by ~0.3 mm (3 px), and a cut predicted in the wrong camera does harm.
+  auto reliable = [this, &predicted](std::size_t k) {
+    return predicted[k] && prediction_error_[k] >= 0.0 &&
+           prediction_error_[k] <= config_.occlusion_max_prediction_error;
+  };
   for (std::size_t k = 0; k < classes; ++k) {
-    if (predicted[k]) spheres.push_back({k, predictions[k].position, radiusOf(layout_.classes[k].id)});
+    if (reliable(k)) spheres.push_back({k, predictions[k].position, radiusOf(layout_.classes[k].id)});
   }
   if (spheres.empty()) return out;
-  // The eye's rotation from the eye markers' predictions when both are predicted (it carries the trocars), else the
-  // last one measured.
-  Eigen::Quaterniond q = last_eye_.rotation.normalized();
+  // The shafts turn with the eye (their trocars are fixed in it): its rotation from the eye markers' predictions.
   auto classIndex = [this](int class_id) -> int {
     for (std::size_t k = 0; k < layout_.classes.size(); ++k) {
       if (layout_.classes[k].id == class_id) return static_cast<int>(k);
     }
     return -1;
   };
+  bool eye_known = false;
+  Eigen::Quaterniond q = Eigen::Quaterniond::Identity();
   if (layout_.eye_markers.size() == 2) {
     const int a = classIndex(layout_.eye_markers[0].class_id), b = classIndex(layout_.eye_markers[1].class_id);
-    if (a >= 0 && b >= 0 && predicted[a] && predicted[b]) {
+    if (a >= 0 && b >= 0 && reliable(a) && reliable(b)) {
       q = eyeRotationFromMarkers(layout_.eye_markers[0].position, layout_.eye_markers[1].position,
                                  predictions[a].position - layout_.rotation_center,
                                  predictions[b].position - layout_.rotation_center);
+      eye_known = true;
     }
   }
   std::vector<WorldSegment> shafts;
   for (const InstrumentMarker& slot : layout_.instruments) {
     const int k = classIndex(slot.class_id);
-    if (k < 0 || !predicted[k]) continue;
+    if (!eye_known || k < 0 || !reliable(k)) continue;
     const Eigen::Vector3d tip = q.conjugate() * (predictions[k].position - layout_.rotation_center);
     const Eigen::Vector3d d = tip - slot.trocar;
     if (d.norm() < 1e-6) continue;
