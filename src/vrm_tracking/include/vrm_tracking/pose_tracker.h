@@ -197,6 +197,7 @@ class PoseTracker {
     PointPrior prior;
   };
   // The occlusion of every class this frame from the predictions (classes without a prediction: none).
+  double markerRadius(int class_id) const;  // m: an eye marker's or a tip marker's
   // Learns the unoccluded blob size of class index k from this frame's blobs of it (cameras not predicted cut).
   void learnBlobArea(std::size_t k, const Eigen::Vector3d& position, const std::vector<CameraObservations>& frame,
                      const Occlusion& occlusion);

@@ -267,6 +267,11 @@ std::vector<Blob> MarkerDetector::detect(const cv::Mat& bgr) const {
         cv::Rect(cv::Point(2 * x0 - kMargin, 2 * y0 - kMargin), cv::Point(2 * x1 + kMargin + 1, 2 * y1 + kMargin + 1)) &
         image);
   }
+  // A cluttered image (noise, a coloured background) gives many groups: then the plain search of the whole image is
+  // cheaper than boxes, and its cost is bounded.
+  const auto plain = [&] { return detect(bgr, image); };
+  constexpr std::size_t kMaxBoxes = 64;
+  if (boxes.size() > kMaxBoxes) return plain();
   // Overlapping boxes are merged, so no pixel is searched twice and no blob is split between two.
   for (bool merged = true; merged;) {
     merged = false;
@@ -285,23 +290,33 @@ std::vector<Blob> MarkerDetector::detect(const cv::Mat& bgr) const {
   for (std::size_t i = 0; i < boxes.size(); ++i) {
     cv::Rect box = boxes[i];
     std::vector<Blob> found = detect(bgr, box);
-    // A blob reaching the box's edge inside the image may go on beyond it: search a wider box (twice at most; a
-    // blob at the image's own edge touches it in every box).
-    for (int grow = 0; grow < 2; ++grow) {
-      const bool inner_touch =
-          std::any_of(found.begin(), found.end(), [](const Blob& b) { return b.touches_region_border; });
-      if (!inner_touch || box == image) break;
+    // A blob reaching the box's edge may go on beyond it: search a wider box, twice at most. A blob that still
+    // touches is at the image's own edge if the box reaches it (kept), else the whole image goes to the plain
+    // search, as it does when a wider box would take in another box.
+    auto touching = [](const std::vector<Blob>& blobs) {
+      return std::any_of(blobs.begin(), blobs.end(), [](const Blob& b) { return b.touches_region_border; });
+    };
+    auto atImageEdge = [&image](const cv::Rect& r) {
+      return r.x == 0 || r.y == 0 || r.br().x == image.width || r.br().y == image.height;
+    };
+    for (int grow = 0; touching(found); ++grow) {
+      if (grow == 2) {
+        if (atImageEdge(box)) break;
+        return plain();
+      }
       const cv::Rect wider = cv::Rect(box.x - 8, box.y - 8, box.width + 16, box.height + 16) & image;
-      // The wider box must not take in another box's blobs twice.
+      if (wider == box) break;
       bool overlaps = false;
       for (std::size_t j = 0; j < boxes.size(); ++j) overlaps = overlaps || (j != i && (boxes[j] & wider).area() > 0);
-      if (overlaps) break;
+      if (overlaps) return plain();
       box = wider;
       found = detect(bgr, box);
     }
-    const bool inside = box.x > 0 && box.y > 0 && box.br().x < image.width && box.br().y < image.height;
+    const bool edge = atImageEdge(box);
     for (Blob& b : found) {
-      if (inside) b.touches_region_border = false;  // as in a whole-image search: only the image's edge counts
+      // As in a whole-image search, only the image's edge counts as touching (a blob on a box side that is the
+      // image's edge keeps its flag; at an inner side it cannot touch, by the loop above).
+      if (!edge) b.touches_region_border = false;
       accepted.push_back(b);
     }
   }

@@ -299,15 +299,17 @@ bool PoseTracker::predictionFor(std::size_t k, double stamp, Prediction* predict
   return true;
 }
 
+double PoseTracker::markerRadius(int class_id) const {
+  for (const EyeMarker& m : layout_.eye_markers) {
+    if (m.class_id == class_id) return layout_.eye_marker_radius;
+  }
+  return layout_.tip_marker_radius;
+}
+
 void PoseTracker::learnBlobArea(std::size_t k, const Eigen::Vector3d& position,
                                 const std::vector<CameraObservations>& frame, const Occlusion& occlusion) {
   if (!config_.occlusion_model) return;
-  const double radius = [this, k] {
-    for (const EyeMarker& m : layout_.eye_markers) {
-      if (m.class_id == layout_.classes[k].id) return layout_.eye_marker_radius;
-    }
-    return layout_.tip_marker_radius;
-  }();
+  const double radius = markerRadius(layout_.classes[k].id);
   for (const CameraObservations& cam : frame) {
     if (cam.camera >= rig_.size()) continue;
     // Only a camera with the marker's one blob and nothing predicted near it.
@@ -345,12 +347,6 @@ std::vector<PoseTracker::Occlusion> PoseTracker::predictOcclusions(const std::ve
     double radius;
   };
   std::vector<Sphere> spheres;
-  auto radiusOf = [this](int class_id) {
-    for (const EyeMarker& m : layout_.eye_markers) {
-      if (m.class_id == class_id) return layout_.eye_marker_radius;
-    }
-    return layout_.tip_marker_radius;
-  };
   // Only where the prediction is good to a fraction of a marker's radius: at 60 mm/s with quick reversals the
   // constant-velocity prediction is off by ~0.3 mm (3 px), and a cut predicted in the wrong camera does harm.
   auto reliable = [this, &predicted](std::size_t k) {
@@ -358,7 +354,7 @@ std::vector<PoseTracker::Occlusion> PoseTracker::predictOcclusions(const std::ve
            prediction_error_[k] <= config_.occlusion_max_prediction_error;
   };
   for (std::size_t k = 0; k < classes; ++k) {
-    if (reliable(k)) spheres.push_back({k, predictions[k].position, radiusOf(layout_.classes[k].id)});
+    if (reliable(k)) spheres.push_back({k, predictions[k].position, markerRadius(layout_.classes[k].id)});
   }
   if (spheres.empty()) return out;
   // The shafts turn with the eye (their trocars are fixed in it): its rotation from the eye markers' predictions.
