@@ -58,7 +58,7 @@ mapfile -t stale < <("${git[@]}" rev-list HEAD "^$result_commit" -- "${pathspecs
 describe() { "${git[@]}" log -1 --format='%h (%cs) %s' "$1" | cut -c1-150; }
 if ((${#stale[@]} == 0)); then
   echo "check_bench_fresh: $RESULT ($(describe "$result_commit" | cut -c1-60)...) is newer than the last change" \
-    "of the renderer core, the rig twin and the simulation frame"
+    "of the renderer core, the rig twin, the tracking path and the simulation frame"
   exit 0
 fi
 {
