@@ -357,8 +357,11 @@ RecoveryReport recoverBag(const std::string& broken, const std::string& copy) {
       };
       topic_tools::ShapeShifter message;
       message.morph(field("md5sum"), field("type"), field("message_definition"), field("latching"));
-      ros::serialization::IStream stream(const_cast<std::uint8_t*>(bytes.data() + raw.offset), raw.length);
-      message.read(stream);
+      // An empty record stays an empty message: ShapeShifter::read would memcpy from it into a null buffer (UB).
+      if (raw.length > 0) {
+        ros::serialization::IStream stream(const_cast<std::uint8_t*>(bytes.data() + raw.offset), raw.length);
+        message.read(stream);
+      }
       out.write(connection->second.topic, raw.time, message, connection->second.header);
       ++report.messages;
     }
