@@ -20,6 +20,8 @@ struct Blob {
   double u = 0.0;  // px, pixel centres at integers
   double v = 0.0;
   double area = 0.0;       // px²
+  // Σ chroma over the blob's pixels / 255 (the mass of its chroma-weighted centroid), px²; 0 = not known.
+  double weight = 0.0;
   double roundness = 0.0;  // sqrt(λmin/λmax) of the weighted second moments, 1 = round
   double quality = 0.0;    // 0..1: roundness, exposure (mean chroma), saturation, clean surroundings
   // Fraction of a ring just outside the blob (1.5..3 px beyond its equivalent radius) that is coloured: a marker

@@ -181,17 +181,20 @@ class PoseTracker {
   bool predictionFor(std::size_t k, double stamp, Prediction* prediction) const;
   // Per colour class: the recent error of its prediction against clean (uncut) solutions, m (the prior's sigma).
   std::vector<double> prediction_error_;
-  // Per colour class and camera: the blob area of the unoccluded marker over its projected radius squared (EMA;
-  // < 0 unknown), so a cut blob's missing area, hence its centroid's shift, can be told (see TrackerConfig).
+  // Per colour class and camera: the blob area and the blob weight (Blob::weight) of the unoccluded marker over its
+  // projected radius squared (EMA; < 0 unknown), so a cut blob's missing part, hence its centroid's shift, can be told
+  // (see TrackerConfig).
   std::vector<std::vector<double>> area_ratio_;
+  std::vector<std::vector<double>> weight_ratio_;
   // Predicted occlusion of one class in every camera: the weight of a blob's pixel residual relative to an ordinary
   // centroid's (identity: not cut; eigenvalue (centroid σ / cut_sigma_px)² across a predicted cut).
   struct Occlusion {
     std::vector<Eigen::Matrix2d> relative_information;  // per rig camera
     // Per rig camera: the unit image vector from the one occluder towards the marker (zero: no occluder, or several)
-    // and the area (px²) the blob would have unoccluded (0: not known yet).
+    // and the area and weight (px²) the blob would have unoccluded (0: not known yet).
     std::vector<Eigen::Vector2d> away;
     std::vector<double> full_area;
+    std::vector<double> full_weight;
     bool any = false;
     double centroid_sigma_px = 0.0;
     PointPrior prior;

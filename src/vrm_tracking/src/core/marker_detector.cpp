@@ -194,6 +194,7 @@ std::vector<Blob> MarkerDetector::components(const cv::Mat& bgr, cv::Rect region
     b.u = region.x + mx;
     b.v = region.y + my;
     b.area = acc.n;
+    b.weight = acc.sw / 255.0;
     const double cxx = acc.sxx / acc.sw - mx * mx, cyy = acc.syy / acc.sw - my * my, cxy = acc.sxy / acc.sw - mx * my;
     const double tr = cxx + cyy, det = cxx * cyy - cxy * cxy;
     const double disc = std::sqrt(std::max(0.0, tr * tr / 4.0 - det));

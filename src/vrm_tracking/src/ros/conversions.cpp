@@ -160,6 +160,7 @@ void toMsg(const std::vector<Blob>& blobs, vrm_msgs::MarkerObservations* msg) {
     m.u = b.u;
     m.v = b.v;
     m.area = static_cast<float>(b.area);
+    m.weight = static_cast<float>(b.weight);
     m.quality = static_cast<float>(b.quality);
     msg->markers.push_back(m);
   }
@@ -174,6 +175,7 @@ std::vector<Blob> fromMsg(const vrm_msgs::MarkerObservations& msg) {
     b.u = m.u;
     b.v = m.v;
     b.area = m.area;
+    b.weight = m.weight;
     b.quality = m.quality;
     blobs.push_back(b);
   }

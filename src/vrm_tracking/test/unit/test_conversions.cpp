@@ -109,6 +109,7 @@ TEST(Conversions, MarkerObservationsRoundTrip) {
   b.u = 12.25;
   b.v = 400.125;
   b.area = 42;
+  b.weight = 30.5;
   b.quality = 0.75;
   vrm_msgs::MarkerObservations msg;
   toMsg(std::vector<Blob>{b}, &msg);
@@ -117,6 +118,8 @@ TEST(Conversions, MarkerObservationsRoundTrip) {
   EXPECT_EQ(back[0].class_id, 3);
   EXPECT_DOUBLE_EQ(back[0].u, 12.25);
   EXPECT_DOUBLE_EQ(back[0].v, 400.125);
+  EXPECT_DOUBLE_EQ(back[0].area, 42.0);
+  EXPECT_DOUBLE_EQ(back[0].weight, 30.5);
   EXPECT_FLOAT_EQ(static_cast<float>(back[0].quality), 0.75f);
 }
 
