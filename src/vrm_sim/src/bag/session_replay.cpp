@@ -27,6 +27,26 @@ namespace bag {
 
 namespace {
 
+// Reads every message of `view` with `read`. A message whose bytes do not hold its type throws from deserialization
+// (ros::serialization::StreamOverrunException, std::bad_alloc): a corrupt record that prepareSessionBag's check let
+// through (a wildcard md5sum, a later part of a session) becomes a BagError naming it, not an abort.
+template <typename Read>
+void readEach(rosbag::View& view, const std::string& path, Read&& read) {
+  for (const rosbag::MessageInstance& message : view) {
+    try {
+      read(message);
+    } catch (const BagError&) {
+      throw;
+    } catch (const std::exception& error) {
+      std::ostringstream what;
+      what << path << ": corrupt message on " << message.getTopic() << " at bag time " << std::fixed
+           << std::setprecision(3) << message.getTime().toSec() << " s (" << error.what()
+           << "); the bag cannot be replayed";
+      throw BagError(what.str());
+    }
+  }
+}
+
 // "0.1.0" of "vrm_sim 0.1.0": what a version comparison looks at.
 std::string versionNumber(const std::string& version) {
   const auto space = version.rfind(' ');
@@ -112,9 +132,9 @@ ReplayResult replaySession(const PreparedBag& prepared, const SessionSetup& setu
     result.input = "input_frame";
     std::vector<vrm_msgs::InputFrame::ConstPtr> recorded;
     std::size_t resent = 0;
-    const auto read_frames = [&](rosbag::Bag& part) {
+    const auto read_frames = [&](rosbag::Bag& part, const std::string& path) {
       rosbag::View view(part, rosbag::TopicQuery(std::vector<std::string>{inputFrameTopic(), resentFramesTopic()}));
-      for (const rosbag::MessageInstance& message : view) {
+      readEach(view, path, [&](const rosbag::MessageInstance& message) {
         if (auto frame = message.instantiate<vrm_msgs::InputFrame>()) recorded.push_back(frame);
         // Frames a simulation node resent (issue 39): after resuming from its journal, those the dead process may
         // still have had queued for the recorder; to a respawned recorder, those published while it was down. They
@@ -125,13 +145,13 @@ ReplayResult replaySession(const PreparedBag& prepared, const SessionSetup& setu
             ++resent;
           }
         }
-      }
+      });
     };
-    read_frames(bag);
+    read_frames(bag, prepared.usable);
     const std::vector<std::string> later_parts = laterParts(prepared.original);
     for (const std::string& path : later_parts) {
       rosbag::Bag part(path, rosbag::bagmode::Read);
-      read_frames(part);
+      read_frames(part, path);
     }
     if (!later_parts.empty()) {
       result.setup.warnings.push_back("the session was recorded in " + std::to_string(later_parts.size() + 1) +
@@ -207,7 +227,7 @@ ReplayResult replaySession(const PreparedBag& prepared, const SessionSetup& setu
       vrm_msgs::ScenarioCommand::ConstPtr command;
     };
     std::vector<Input> inputs;
-    for (const rosbag::MessageInstance& message : view) {
+    readEach(view, prepared.usable, [&](const rosbag::MessageInstance& message) {
       Input input;
       input.stamp = message.getTime();
       if ((input.eye = message.instantiate<vrm_msgs::EyeState>())) {
@@ -220,7 +240,7 @@ ReplayResult replaySession(const PreparedBag& prepared, const SessionSetup& setu
         input.stamp = input.command->header.stamp;
       }
       inputs.push_back(std::move(input));
-    }
+    });
     std::stable_sort(inputs.begin(), inputs.end(), [](const Input& a, const Input& b) { return a.stamp < b.stamp; });
     for (const Input& input : inputs) {
       ++result.inputs;
