@@ -1,6 +1,7 @@
 // The mass-spring model (thesis §5.1): the integrator-driven step of TissueSimulator — integrate with the simulator's
-// integrator, Provot strain limit (Alg. 5.1), collision response (eq. 5.12), plasticity — under the stability
-// watchdog (WatchdogConfig: halved steps, then implicit Euler, rolled back on failure).
+// integrator, Provot strain limit (Alg. 5.1), collision response (eq. 5.12), the bound projection (issue 40),
+// plasticity — under the stability watchdog (WatchdogConfig: halved steps, then implicit Euler, rolled back on
+// failure).
 #include <algorithm>
 #include <cmath>
 #include <cstring>
@@ -21,10 +22,15 @@ class MassSpringModel : public TissueModel {
     IntegratorOptions fallback_options = config.integrator_options;
     fallback_options.cg_max_iterations = std::max(fallback_options.cg_max_iterations, 50);
     implicit_fallback_ = makeIntegrator("implicit_euler", fallback_options);
+    const double tau = config.tear_strain > 0.0 ? config.tear_strain : config.strain_limit;
+    bound_ = tissue::strainBound(tau);
+    bound_target_ = strainBoundTarget(tau);
   }
   const char* name() const override { return "mass_spring"; }
   bool supportsRefinement() const override { return true; }
   bool supportsEarlyStop() const override { return true; }
+  double strainBound() const override { return bound_; }
+  void onTopologyChanged(TissueSimulator& simulator) override;
   bool step(TissueSimulator& simulator) override;
   int fallbackLevel() const override { return fallback_level_; }
 
@@ -42,6 +48,20 @@ class MassSpringModel : public TissueModel {
   void integrate(TissueSimulator& simulator, const SystemView& system, Integrator& integrator, double dt);
   // Provot's strain limit (Alg. 5.1) in BFS order from the interaction points.
   void limitStrain(TissueSimulator& simulator, const SystemView& system);
+  // Stable means bounded (issue 40), after the contact response: springs beyond bound_ shortened to bound_target_
+  // (boundPass()), first outwards from the interaction with the instruments holding; where that cannot succeed (a
+  // grasp pulled farther than the pinned membrane can follow) the tissue wins: inwards from the pinned nodes with the
+  // grasped nodes free, then symmetric sweeps, and the grasped nodes this moved slip out of the jaws. With tearing the
+  // instruments always hold: what stays beyond the bound tears (topologyAfterStep()). Sets bound_exceeded_ if a spring
+  // that cannot tear stays beyond the bound (the watchdog then rejects the step).
+  void enforceBound(TissueSimulator& simulator, const SystemView& system);
+  // Up to `sweeps` boundPass() sweeps, until one corrects nothing; the statistics of the last.
+  // (Without a sorter the sweeps alternate their direction.) `stop_when_stalled`: also stop once a sweep corrects no
+  // fewer springs than the one before.
+  BoundPassStatistics sweepBound(const SystemView& system, BoundPassOptions options, int sweeps,
+                                 bool stop_when_stalled = false);
+  // Tearing: a bending spring (which never tears) beyond the bound.
+  bool untearableBeyond(const SystemView& system) const;
   // Collision response (eq. 5.12): the instruments' capsules and the collision library's deformation vectors.
   void respondToContacts(TissueSimulator& simulator, const SystemView& system);
   // Plasticity (TissueConfig::plastic): rest lengths follow the longest length reached.
@@ -67,10 +87,42 @@ class MassSpringModel : public TissueModel {
   std::vector<NodeDeformation> pending_deformations_;  // external deformations, replayed after a rollback
   int fallback_level_ = 0;
   int hold_remaining_ = 0;
+
+  // The bound projection (enforceBound()): strainBound() and strainBoundTarget() of the tear strain (tearing) or of
+  // τ_c; its per-spring bending flags (tearing), pinned nodes, moved nodes and the BFS from the pinned nodes.
+  double bound_ = 0.0, bound_target_ = 0.0;
+  bool bound_exceeded_ = false;  // this attempt left a spring beyond the bound (see enforceBound())
+  bool slipped_ = false;         // grasped nodes slipped in this step: the constraints are rebuilt after it
+  std::vector<std::uint8_t> bending_, pinned_, moved_;
+  std::vector<std::uint32_t> pinned_seeds_, pinned_sorted_seeds_;
+  SpringSorter pinned_sorter_;
+  bool pinned_sorted_ = false;
+  // Sweeps per projection at most. Outwards: a pull through a membrane that can follow it converges in two or three
+  // (the second settles nodes with two parents, the last proves it); the tissue-wins phases run only when a kinematic
+  // driver asks more than the membrane can give.
+  static constexpr int kOutwardSweeps = 6;
+  static constexpr int kInwardSweeps = 4;
+  static constexpr int kSymmetricSweeps = 24;
 };
 
 std::unique_ptr<TissueModel> makeMassSpringModel(mge::Membrane& /*membrane*/, const TissueConfig& config) {
   return std::make_unique<MassSpringModel>(config);
+}
+
+void MassSpringModel::onTopologyChanged(TissueSimulator& s) {
+  if (!std::isfinite(bound_)) return;
+  const SystemView system = s.view();
+  pinned_sorter_.rebuild(system);
+  pinned_sorted_ = false;
+  // Sized once per topology: a projection allocates nothing.
+  pinned_.assign(system.node_count, 0);
+  moved_.assign(system.node_count, 0);
+  pinned_seeds_.reserve(system.node_count);
+  pinned_sorted_seeds_.reserve(system.node_count);
+  bending_.assign(system.spring_count, 0);
+  if (s.config_.tear_strain > 0.0) {
+    for (std::size_t k = 0; k < system.spring_count; ++k) bending_[k] = s.membrane_->springAtSlot(k).bending() ? 1 : 0;
+  }
 }
 
 bool MassSpringModel::step(TissueSimulator& simulator) {
@@ -79,6 +131,10 @@ bool MassSpringModel::step(TissueSimulator& simulator) {
   s.topologyBeforeStep();
   if (!config.watchdog.enabled) {
     for (int k = 0; k < s.choice_.substeps; ++k) rawStep(s, *s.integrator_, config.dt / s.choice_.substeps);
+    if (slipped_) {
+      slipped_ = false;
+      s.rebuildConstraints();
+    }
     s.topologyAfterStep();
     return true;
   }
@@ -96,6 +152,10 @@ bool MassSpringModel::step(TissueSimulator& simulator) {
     for (std::size_t i = 0; i < s.membrane_->nodeCount(); ++i) s.membrane_->velocities()[i].setZero();
     ++s.statistics_.unrecovered;
   }
+  if (slipped_) {
+    slipped_ = false;
+    s.rebuildConstraints();
+  }
   if (ok) s.topologyAfterStep();
   return ok;
 }
@@ -103,6 +163,7 @@ bool MassSpringModel::step(TissueSimulator& simulator) {
 bool MassSpringModel::attempt(TissueSimulator& s, int level) {
   const TissueConfig& config = s.config_;
   energy_excess_ = -std::numeric_limits<double>::infinity();
+  bound_exceeded_ = false;
   // Implicit Euler is stable at any dt: its residual energy error (truncated CG) is no instability to roll back.
   measure_energy_ = level <= config.watchdog.max_halvings && std::strcmp(s.integrator_->name(), "implicit_euler") != 0;
   if (level > fallback_level_) {
@@ -136,6 +197,7 @@ void MassSpringModel::rawStep(TissueSimulator& s, Integrator& integrator, double
   // (the few springs at the contact may then exceed τ_c slightly until the next step).
   if (s.config_.strain_limit > 0.0) limitStrain(s, system);
   respondToContacts(s, system);
+  if (std::isfinite(bound_)) enforceBound(s, system);
   if (s.config_.plastic) yield(s, system);
 }
 
@@ -172,6 +234,94 @@ void MassSpringModel::limitStrain(TissueSimulator& s, const SystemView& system) 
       break;
     }
   }
+}
+
+BoundPassStatistics MassSpringModel::sweepBound(const SystemView& system, BoundPassOptions options, int sweeps,
+                                                bool stop_when_stalled) {
+  BoundPassStatistics stats;
+  std::size_t previous = 0;
+  for (int k = 0; k < sweeps; ++k) {
+    options.reverse = (k % 2) == 1;
+    stats = boundPass(system, options);
+    if (stats.corrected == 0) break;
+    // A sweep that corrects as many as the one before makes no headway (a driver asks more than the membrane can
+    // give: the same springs are pulled back and forth); the next phase decides.
+    if (stop_when_stalled && k > 0 && stats.corrected >= previous) break;
+    previous = stats.corrected;
+  }
+  return stats;
+}
+
+bool MassSpringModel::untearableBeyond(const SystemView& system) const {
+  const double bound2 = bound_ * bound_;
+  for (std::size_t k = 0; k < system.spring_count && k < bending_.size(); ++k) {
+    if (!bending_[k] || !(system.rest_lengths[k] >= kMinSpringLength)) continue;
+    const auto& ends = system.springs[k];
+    const double rest = system.rest_lengths[k];
+    if (!((system.positions[ends[1]] - system.positions[ends[0]]).squaredNorm() <= bound2 * rest * rest)) return true;
+  }
+  return false;
+}
+
+void MassSpringModel::enforceBound(TissueSimulator& s, const SystemView& system) {
+  // The common case costs one sweep of squared lengths: nothing beyond the bound, nothing to do.
+  if (!anyBeyond(system, bound_)) return;
+  ++s.statistics_.bound_projections;
+  const bool tearing = s.config_.tear_strain > 0.0;
+  BoundPassOptions options;
+  options.bound = bound_;
+  options.target = bound_target_;
+  options.velocities = system.velocities;
+  if (tearing) {
+    s.markPressed();
+    options.tear_strain = s.config_.tear_strain;
+    options.pressed = s.pressed_.data();
+    options.bending = bending_.size() == system.spring_count ? bending_.data() : nullptr;
+  }
+  // Outwards from the interaction points (Alg. 5.2's BFS; the contacts and grasped nodes are its seeds): a kinematic
+  // pull or push propagates through the whole membrane in one sweep.
+  s.sortSprings();
+  options.sorter = s.sorted_valid_ ? &s.sorter_ : nullptr;
+  BoundPassStatistics stats = sweepBound(system, options, kOutwardSweeps, /*stop_when_stalled=*/!tearing);
+  const auto settled = [](const BoundPassStatistics& last) { return last.corrected == 0 && last.skipped_fixed == 0; };
+  if (settled(stats)) return;
+  if (tearing) {
+    // The instruments hold: a stretch spring still beyond the bound tears after the step (tearOverstretched()).
+    if (untearableBeyond(system)) bound_exceeded_ = true;
+    return;
+  }
+  // The tissue wins over the instruments: only the pinned nodes hold; grasped nodes and contacts may move.
+  const std::size_t n = system.node_count;
+  pinned_.assign(n, 0);
+  pinned_seeds_.clear();
+  for (std::size_t i = 0; i < n; ++i) {
+    if (system.isFree(i) || s.grasped_[i]) continue;
+    pinned_[i] = 1;
+    pinned_seeds_.push_back(static_cast<std::uint32_t>(i));
+  }
+  moved_.assign(n, 0);
+  options.fixed = pinned_.data();
+  options.moved = moved_.data();
+  if (!pinned_seeds_.empty()) {
+    // Inwards from the pinned nodes: a grasp pulled beyond reach is pulled back to where the membrane can hold it.
+    if (!pinned_sorted_ || pinned_seeds_ != pinned_sorted_seeds_) {
+      pinned_sorter_.sort(system, pinned_seeds_);
+      pinned_sorted_seeds_ = pinned_seeds_;
+      pinned_sorted_ = true;
+    }
+    options.sorter = &pinned_sorter_;
+    stats = sweepBound(system, options, kInwardSweeps, /*stop_when_stalled=*/true);
+  }
+  if (!settled(stats)) {
+    options.sorter = nullptr;
+    stats = sweepBound(system, options, kSymmetricSweeps);
+  }
+  for (const std::uint32_t node : s.grasped_nodes_) {
+    if (!moved_[node] || !s.grasped_[node]) continue;
+    s.slipGraspedNode(node);
+    slipped_ = true;
+  }
+  if (!settled(stats) && anyBeyond(system, bound_)) bound_exceeded_ = true;
 }
 
 void MassSpringModel::respondToContacts(TissueSimulator& s, const SystemView& system) {
@@ -303,6 +453,12 @@ bool MassSpringModel::unstable(TissueSimulator& s) {
   }
   if (!(energy_excess_ <= 0.0)) {
     ++s.statistics_.energy_growth;
+    return true;
+  }
+  // Stable means bounded (issue 40): a spring the projection could not bring back within the bound is an instability
+  // to roll back and retry at smaller steps.
+  if (bound_exceeded_) {
+    ++s.statistics_.over_bound;
     return true;
   }
   return false;

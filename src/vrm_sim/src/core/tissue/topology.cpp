@@ -45,7 +45,7 @@ mge::RemovalSummary cutCapsule(mge::Membrane& membrane, const Capsule& capsule) 
   return membrane.removeElements(triangles, {}, nodes);
 }
 
-TearResult tearOverstretched(mge::Membrane& membrane, double tear_strain, const std::uint8_t* pressed) {
+TearResult tearOverstretched(mge::Membrane& membrane, double tear_strain, const std::uint8_t* pressed, double bound) {
   TearResult result;
   if (!(tear_strain > 0.0) || !std::isfinite(tear_strain)) return result;
   const Eigen::Vector3d* x = membrane.positions();
@@ -56,7 +56,7 @@ TearResult tearOverstretched(mge::Membrane& membrane, double tear_strain, const 
     if (!(rest[s] >= kMinSpringLength)) continue;
     const double length = (x[ends[s][1]] - x[ends[s][0]]).norm();
     if (!(length > tear_strain * rest[s]) || !std::isfinite(length)) continue;
-    if (pressed != nullptr && (pressed[ends[s][0]] || pressed[ends[s][1]])) continue;
+    if (pressed != nullptr && (pressed[ends[s][0]] || pressed[ends[s][1]]) && !(length > bound * rest[s])) continue;
     mge::Spring& spring = membrane.springAtSlot(s);
     if (!spring.bending()) broken.push_back(&spring);
   }
@@ -221,11 +221,7 @@ void TissueSimulator::releaseOverloadedAdhesions() {
   rebuildConstraints();
 }
 
-void TissueSimulator::topologyAfterStep() {
-  releaseOverloadedAdhesions();
-  if (refinement_) refinement_->updateVirtualNodes();
-  if (!(config_.tear_strain > 0.0)) return;
-  const std::vector<std::uint64_t> grasped_ids = graspedNodeIds();
+void TissueSimulator::markPressed() {
   pressed_.assign(membrane_->nodeCount(), 0);
   if (frame_pressed_.size() == pressed_.size()) pressed_ = frame_pressed_;
   for (const NodeDeformation& contact : contacts_) {
@@ -234,7 +230,16 @@ void TissueSimulator::topologyAfterStep() {
   // The jaws hold what they grasped: tissue tears beside them, not inside them (their kinematic pinch would
   // otherwise break the springs it squeezes past in the step it closes).
   for (std::uint32_t node : grasped_nodes_) pressed_[node] = 1;
-  const TearResult torn = tearOverstretched(*membrane_, config_.tear_strain, pressed_.data());
+}
+
+void TissueSimulator::topologyAfterStep() {
+  releaseOverloadedAdhesions();
+  if (refinement_) refinement_->updateVirtualNodes();
+  if (!(config_.tear_strain > 0.0)) return;
+  const std::vector<std::uint64_t> grasped_ids = graspedNodeIds();
+  markPressed();
+  // Issue 40: a pressed spring the bound projection could not bring back within the bound tears too.
+  const TearResult torn = tearOverstretched(*membrane_, config_.tear_strain, pressed_.data(), statistics_.strain_bound);
   if (torn.broken_springs == 0) return;
   statistics_.torn_springs += torn.broken_springs;
   statistics_.removed_nodes += torn.removed.nodes;
