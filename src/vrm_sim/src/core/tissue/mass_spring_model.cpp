@@ -97,6 +97,11 @@ class MassSpringModel : public TissueModel {
   std::vector<std::uint32_t> pinned_seeds_, pinned_sorted_seeds_;
   SpringSorter pinned_sorter_;
   bool pinned_sorted_ = false;
+  // BFS from the kinematic drivers of this step (grasped nodes, contacts): unlike Alg. 5.2's interaction points it
+  // holds no node an instrument touched in earlier steps.
+  std::vector<std::uint32_t> driver_seeds_, driver_sorted_seeds_;
+  SpringSorter driver_sorter_;
+  bool driver_sorted_ = false;
   // Sweeps per projection at most. Outwards: a pull through a membrane that can follow it converges in two or three
   // (the second settles nodes with two parents, the last proves it); the tissue-wins phases run only when a kinematic
   // driver asks more than the membrane can give.
@@ -114,6 +119,10 @@ void MassSpringModel::onTopologyChanged(TissueSimulator& s) {
   const SystemView system = s.view();
   pinned_sorter_.rebuild(system);
   pinned_sorted_ = false;
+  driver_sorter_.rebuild(system);
+  driver_sorted_ = false;
+  driver_seeds_.reserve(system.node_count);
+  driver_sorted_seeds_.reserve(system.node_count);
   // Sized once per topology: a projection allocates nothing.
   pinned_.assign(system.node_count, 0);
   moved_.assign(system.node_count, 0);
@@ -278,10 +287,23 @@ void MassSpringModel::enforceBound(TissueSimulator& s, const SystemView& system)
     options.pressed = s.pressed_.data();
     options.bending = bending_.size() == system.spring_count ? bending_.data() : nullptr;
   }
-  // Outwards from the interaction points (Alg. 5.2's BFS; the contacts and grasped nodes are its seeds): a kinematic
-  // pull or push propagates through the whole membrane in one sweep.
-  s.sortSprings();
-  options.sorter = s.sorted_valid_ ? &s.sorter_ : nullptr;
+  // Outwards from the kinematic drivers of this step (the grasped nodes and the contacts, as Alg. 5.2's BFS): a pull
+  // or push propagates through the whole membrane in one sweep.
+  driver_seeds_.assign(s.grasped_nodes_.begin(), s.grasped_nodes_.end());
+  for (const NodeDeformation& contact : s.contacts_) {
+    if (contact.node < system.node_count) driver_seeds_.push_back(contact.node);
+  }
+  std::sort(driver_seeds_.begin(), driver_seeds_.end());
+  driver_seeds_.erase(std::unique(driver_seeds_.begin(), driver_seeds_.end()), driver_seeds_.end());
+  options.sorter = nullptr;
+  if (!driver_seeds_.empty()) {
+    if (!driver_sorted_ || driver_seeds_ != driver_sorted_seeds_) {
+      driver_sorter_.sort(system, driver_seeds_);
+      driver_sorted_seeds_ = driver_seeds_;
+      driver_sorted_ = true;
+    }
+    options.sorter = &driver_sorter_;
+  }
   BoundPassStatistics stats = sweepBound(system, options, kOutwardSweeps, /*stop_when_stalled=*/!tearing);
   const auto settled = [](const BoundPassStatistics& last) { return last.corrected == 0 && last.skipped_fixed == 0; };
   if (settled(stats)) return;
