@@ -206,7 +206,8 @@ void MassSpringModel::rawStep(TissueSimulator& s, Integrator& integrator, double
   // (the few springs at the contact may then exceed τ_c slightly until the next step).
   if (s.config_.strain_limit > 0.0) limitStrain(s, system);
   respondToContacts(s, system);
-  if (std::isfinite(bound_)) enforceBound(s, system);
+  // An attempt whose integration already created energy is rejected anyway (unstable()): no projection for it.
+  if (std::isfinite(bound_) && !(measure_energy_ && energy_excess_ > 0.0)) enforceBound(s, system);
   if (s.config_.plastic) yield(s, system);
 }
 
