@@ -207,7 +207,7 @@ void MassSpringModel::rawStep(TissueSimulator& s, Integrator& integrator, double
   if (s.config_.strain_limit > 0.0) limitStrain(s, system);
   respondToContacts(s, system);
   // An attempt whose integration already created energy is rejected anyway (unstable()): no projection for it.
-  if (std::isfinite(bound_) && !(measure_energy_ && energy_excess_ > 0.0)) enforceBound(s, system);
+  if (std::isfinite(bound_)) enforceBound(s, system);
   if (s.config_.plastic) yield(s, system);
 }
 
@@ -308,6 +308,13 @@ void MassSpringModel::enforceBound(TissueSimulator& s, const SystemView& system)
   BoundPassStatistics stats = sweepBound(system, options, kOutwardSweeps, /*stop_when_stalled=*/!tearing);
   const auto settled = [](const BoundPassStatistics& last) { return last.corrected == 0 && last.skipped_fixed == 0; };
   if (settled(stats)) return;
+  // Then from Alg. 5.2's interaction points (the nodes instruments touched in the last steps hold too).
+  s.sortSprings();
+  if (s.sorted_valid_) {
+    options.sorter = &s.sorter_;
+    stats = sweepBound(system, options, kOutwardSweeps, /*stop_when_stalled=*/!tearing);
+    if (settled(stats)) return;
+  }
   if (tearing) {
     // The instruments hold: a stretch spring still beyond the bound tears after the step (tearOverstretched()).
     if (untearableBeyond(system)) bound_exceeded_ = true;
