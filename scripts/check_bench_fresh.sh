@@ -19,6 +19,11 @@ MEASURED=(
   src/vrm_tracking/src/core/rig_renderer.cpp              # camera rig twin
   src/vrm_tracking/include/vrm_tracking/rig_renderer.h
   src/vrm_tracking/src/nodelets/camera_rig_sim.cpp
+  src/vrm_tracking/src/core/marker_detector.cpp          # tracking:=true: detection and reconstruction
+  src/vrm_tracking/src/core/pose_tracker.cpp
+  src/vrm_tracking/src/core/triangulation.cpp
+  src/vrm_tracking/src/nodelets/marker_detector.cpp
+  src/vrm_tracking/src/nodelets/tracker.cpp
   src/vrm_sim/src/core/world/                             # simulation frame
   src/vrm_sim/include/vrm_sim/world/
 )
@@ -53,7 +58,7 @@ mapfile -t stale < <("${git[@]}" rev-list HEAD "^$result_commit" -- "${pathspecs
 describe() { "${git[@]}" log -1 --format='%h (%cs) %s' "$1" | cut -c1-150; }
 if ((${#stale[@]} == 0)); then
   echo "check_bench_fresh: $RESULT ($(describe "$result_commit" | cut -c1-60)...) is newer than the last change" \
-    "of the renderer core, the rig twin and the simulation frame"
+    "of the renderer core, the rig twin, the tracking path and the simulation frame"
   exit 0
 fi
 {

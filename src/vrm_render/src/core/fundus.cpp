@@ -186,7 +186,11 @@ TexelRect paintBurn(std::vector<std::uint8_t>* texture, int size, float eye_radi
   }
   const float radius = 0.5f * burn.diameter;
   const float texel = 2.0f * eye_radius / size;
-  const auto toTexel = [&](float v) { return static_cast<int>(std::floor((v + eye_radius) / texel)); };
+  // Clamped before the cast: a finite but huge burn (a corrupt LaserBurn) lies far off the texture, and a float beyond
+  // int's range cast to int is undefined (found by the mesh_upload fuzz target).
+  const auto toTexel = [&](float v) {
+    return static_cast<int>(std::clamp(std::floor((v + eye_radius) / texel), -1.0f, static_cast<float>(size)));
+  };
   const int x0 = std::max(0, toTexel(burn.position.x() - radius)),
             x1 = std::min(size - 1, toTexel(burn.position.x() + radius));
   const int y0 = std::max(0, toTexel(burn.position.y() - radius)),

@@ -589,6 +589,15 @@ TEST(FundusBurn, PaintsOnlyTheTexelsWithinItsRadius) {
   off = burn;
   off.diameter = std::numeric_limits<float>::quiet_NaN();
   EXPECT_EQ(paintBurn(&texture, size, radius, off).width, 0);
+  // Finite but far beyond int texel indices (the fuzzer's input: -1.8e11 texels); UBSan catches a cast out of range.
+  for (const float far : {-3e38f, -1e7f, 1e7f, 3e38f}) {
+    off = burn;
+    off.position.x() = far;
+    EXPECT_EQ(paintBurn(&texture, size, radius, off).width, 0) << far;
+    off = burn;
+    off.diameter = std::abs(far);
+    EXPECT_EQ(paintBurn(&texture, size, radius, off).width, size) << "a burn larger than the texture covers it all";
+  }
   std::vector<std::uint8_t> wrong_size(10);
   EXPECT_EQ(paintBurn(&wrong_size, size, radius, burn).width, 0);
 }

@@ -32,6 +32,23 @@ Triangulation triangulateDlt(const CameraRig& rig, const std::vector<PixelObserv
 // DLT + Gauss-Newton on the pixel residuals (stops when the step is below 1e-10 m).
 Triangulation triangulate(const CameraRig& rig, const std::vector<PixelObservation>& observations,
                           int max_iterations = 10);
+// Observations of unequal reliability (issue 43 §2: a marker partly hidden by a shaft or another marker). The
+// visible part of a disc cut by a straight edge is symmetric about the normal of the edge through the disc's centre,
+// so its centroid moves along that normal only: a cut centroid is exact along the edge and biased across it.
+// information[i] (2×2, symmetric positive semi-definite, px⁻²) weighs observation i's pixel residual rᵢ (an
+// ordinary centroid of noise σ: identity / σ²); prior (optional): a point and its isotropic standard deviation (m),
+// e.g. the marker's prediction, for the direction two rays alone cannot fix when one of them is cut along it.
+// Gauss-Newton on Σ rᵢᵀ Wᵢ rᵢ + |x − prior|² / σ², started from the DLT. rms_px / max_px measure each residual in
+// its observation's reliable directions (rᵢᵀ Ŵᵢ rᵢ with Ŵᵢ = Wᵢ / its largest eigenvalue), so a bias in a direction
+// known to be biased does not make the solution look inconsistent. Invalid as triangulate(), or for a non-finite or
+// missing weight.
+struct PointPrior {
+  Eigen::Vector3d point = Eigen::Vector3d::Zero();
+  double sigma = 0.0;  // m; <= 0 or non-finite: no prior
+};
+Triangulation triangulateWeighted(const CameraRig& rig, const std::vector<PixelObservation>& observations,
+                                  const std::vector<Eigen::Matrix2d>& information, const PointPrior* prior = nullptr,
+                                  int max_iterations = 10);
 // One refined solution for every pair of observations (diagnostics; the EyeSi-style per-pair reconstruction).
 std::vector<Triangulation> triangulatePairs(const CameraRig& rig, const std::vector<PixelObservation>& observations);
 // RMS and max pixel residual of a point; infinity if it does not project into some camera.

@@ -217,6 +217,115 @@ std::vector<Blob> MarkerDetector::detect(const cv::Mat& bgr, cv::Rect region, in
   return accepted;
 }
 
+std::vector<Blob> MarkerDetector::detect(const cv::Mat& bgr) const {
+  if (bgr.empty()) return {};
+  if (bgr.type() != CV_8UC3) throw std::invalid_argument("marker detection needs an 8-bit 3-channel BGR image");
+  const cv::Rect image(0, 0, bgr.cols, bgr.rows);
+  const int cw = (bgr.cols + 1) / 2, ch = (bgr.rows + 1) / 2;
+  thread_local std::vector<std::uint8_t> coarse_tls;
+  thread_local std::vector<int> stack_tls;
+  std::vector<std::uint8_t>& coarse = coarse_tls;
+  std::vector<int>& stack = stack_tls;
+  coarse.assign(static_cast<std::size_t>(cw) * ch, 0);
+  bool any = false;
+  for (int y = 0; y < ch; ++y) {
+    const std::uint8_t* p = bgr.ptr<std::uint8_t>(2 * y);
+    std::uint8_t* row = coarse.data() + static_cast<std::size_t>(y) * cw;
+    for (int x = 0; x < cw; ++x, p += 6) {
+      const int mx = std::max(p[0], std::max(p[1], p[2])), mn = std::min(p[0], std::min(p[1], p[2]));
+      if (mx - mn < min_chroma_ || lut_[lutIndex(p[0], p[1], p[2])] < 0) continue;
+      row[x] = 1;
+      any = true;
+    }
+  }
+  if (!any) return {};
+  // Boxes around the coarse hits' connected groups (8-connected, so pieces of one blob join), 3 px beyond them: a
+  // full-resolution pixel of a blob lies within one pixel of a coarse one, and the fringe a little further.
+  constexpr int kMargin = 3;
+  std::vector<cv::Rect> boxes;
+  for (int start = 0; start < cw * ch; ++start) {
+    if (!coarse[start]) continue;
+    int x0 = start % cw, x1 = x0, y0 = start / cw, y1 = y0;
+    stack.clear();
+    stack.push_back(start);
+    coarse[start] = 0;
+    while (!stack.empty()) {
+      const int idx = stack.back();
+      stack.pop_back();
+      const int x = idx % cw, y = idx / cw;
+      x0 = std::min(x0, x), x1 = std::max(x1, x), y0 = std::min(y0, y), y1 = std::max(y1, y);
+      for (int dy = -1; dy <= 1; ++dy) {
+        for (int dx = -1; dx <= 1; ++dx) {
+          const int xx = x + dx, yy = y + dy;
+          if (xx < 0 || yy < 0 || xx >= cw || yy >= ch || !coarse[yy * cw + xx]) continue;
+          coarse[yy * cw + xx] = 0;
+          stack.push_back(yy * cw + xx);
+        }
+      }
+    }
+    boxes.push_back(
+        cv::Rect(cv::Point(2 * x0 - kMargin, 2 * y0 - kMargin), cv::Point(2 * x1 + kMargin + 1, 2 * y1 + kMargin + 1)) &
+        image);
+  }
+  // A cluttered image (noise, a coloured background) gives many groups: then the plain search of the whole image is
+  // cheaper than boxes, and its cost is bounded.
+  const auto plain = [&] { return detect(bgr, image); };
+  constexpr std::size_t kMaxBoxes = 64;
+  if (boxes.size() > kMaxBoxes) return plain();
+  // Overlapping boxes are merged, so no pixel is searched twice and no blob is split between two.
+  for (bool merged = true; merged;) {
+    merged = false;
+    for (std::size_t i = 0; i < boxes.size() && !merged; ++i) {
+      for (std::size_t j = i + 1; j < boxes.size(); ++j) {
+        if ((boxes[i] & boxes[j]).area() > 0) {
+          boxes[i] |= boxes[j];
+          boxes.erase(boxes.begin() + static_cast<std::ptrdiff_t>(j));
+          merged = true;
+          break;
+        }
+      }
+    }
+  }
+  std::vector<Blob> accepted;
+  for (std::size_t i = 0; i < boxes.size(); ++i) {
+    cv::Rect box = boxes[i];
+    std::vector<Blob> found = detect(bgr, box);
+    // A blob reaching the box's edge may go on beyond it: search a wider box, twice at most. A blob that still
+    // touches is at the image's own edge if the box reaches it (kept), else the whole image goes to the plain
+    // search, as it does when a wider box would take in another box.
+    auto touching = [](const std::vector<Blob>& blobs) {
+      return std::any_of(blobs.begin(), blobs.end(), [](const Blob& b) { return b.touches_region_border; });
+    };
+    auto atImageEdge = [&image](const cv::Rect& r) {
+      return r.x == 0 || r.y == 0 || r.br().x == image.width || r.br().y == image.height;
+    };
+    for (int grow = 0; touching(found); ++grow) {
+      if (grow == 2) {
+        if (atImageEdge(box)) break;
+        return plain();
+      }
+      const cv::Rect wider = cv::Rect(box.x - 8, box.y - 8, box.width + 16, box.height + 16) & image;
+      if (wider == box) break;
+      bool overlaps = false;
+      for (std::size_t j = 0; j < boxes.size(); ++j) overlaps = overlaps || (j != i && (boxes[j] & wider).area() > 0);
+      if (overlaps) return plain();
+      box = wider;
+      found = detect(bgr, box);
+    }
+    const bool edge = atImageEdge(box);
+    for (Blob& b : found) {
+      // As in a whole-image search, only the image's edge counts as touching (a blob on a box side that is the
+      // image's edge keeps its flag; at an inner side it cannot touch, by the loop above).
+      if (!edge) b.touches_region_border = false;
+      accepted.push_back(b);
+    }
+  }
+  std::stable_sort(accepted.begin(), accepted.end(), [](const Blob& a, const Blob& b) {
+    return a.class_id != b.class_id ? a.class_id < b.class_id : a.quality > b.quality;
+  });
+  return accepted;
+}
+
 RoiTracker::RoiTracker(const MarkerDetector* detector, RoiTrackerConfig config) : detector_(detector), config_(config) {
   reset();
 }

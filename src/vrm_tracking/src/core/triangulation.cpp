@@ -63,32 +63,41 @@ Triangulation triangulateDlt(const CameraRig& rig, const std::vector<PixelObserv
   return t;
 }
 
+namespace {
+// Pixel residuals and their Jacobian (central differences: exact enough, 1e-7 m against µm-scale steps, and valid
+// with lens distortion) at x; false if x does not project into some camera.
+bool residualsAt(const CameraRig& rig, const std::vector<PixelObservation>& obs, const Eigen::Vector3d& x,
+                 Eigen::VectorXd* r, Eigen::MatrixXd* J) {
+  const int m = static_cast<int>(obs.size());
+  r->resize(2 * m);
+  J->resize(2 * m, 3);
+  for (int i = 0; i < m; ++i) {
+    const CameraModel& cam = rig.cameras[obs[i].camera];
+    Eigen::Vector2d px;
+    if (!cam.project(x, &px)) return false;
+    r->segment<2>(2 * i) = px - obs[i].pixel;
+    for (int k = 0; k < 3; ++k) {
+      const double h = 1e-7;
+      Eigen::Vector3d xp = x, xm = x;
+      xp(k) += h;
+      xm(k) -= h;
+      Eigen::Vector2d pp, pm;
+      if (!cam.project(xp, &pp) || !cam.project(xm, &pm)) return false;
+      J->block<2, 1>(2 * i, k) = (pp - pm) / (2.0 * h);
+    }
+  }
+  return true;
+}
+}  // namespace
+
 Triangulation triangulate(const CameraRig& rig, const std::vector<PixelObservation>& obs, int max_iterations) {
   Triangulation t = triangulateDlt(rig, obs);
   if (!t.valid) return t;
   Eigen::Vector3d x = t.point;
-  const int m = static_cast<int>(obs.size());
-  Eigen::VectorXd r(2 * m);
-  Eigen::MatrixXd J(2 * m, 3);
+  Eigen::VectorXd r;
+  Eigen::MatrixXd J;
   for (int it = 0; it < max_iterations; ++it) {
-    bool ok = true;
-    for (int i = 0; i < m && ok; ++i) {
-      const CameraModel& cam = rig.cameras[obs[i].camera];
-      Eigen::Vector2d px;
-      ok = cam.project(x, &px);
-      r.segment<2>(2 * i) = px - obs[i].pixel;
-      // Central differences: exact enough (1e-7 m against µm-scale steps) and valid with lens distortion.
-      for (int k = 0; k < 3 && ok; ++k) {
-        const double h = 1e-7;
-        Eigen::Vector3d xp = x, xm = x;
-        xp(k) += h;
-        xm(k) -= h;
-        Eigen::Vector2d pp, pm;
-        ok = cam.project(xp, &pp) && cam.project(xm, &pm);
-        J.block<2, 1>(2 * i, k) = (pp - pm) / (2.0 * h);
-      }
-    }
-    if (!ok) break;
+    if (!residualsAt(rig, obs, x, &r, &J)) break;
     const Eigen::Vector3d step = (J.transpose() * J).ldlt().solve(-J.transpose() * r);
     if (!step.allFinite()) break;
     x += step;
@@ -96,6 +105,60 @@ Triangulation triangulate(const CameraRig& rig, const std::vector<PixelObservati
   }
   t.point = x;
   finish(rig, obs, &t);
+  return t;
+}
+
+Triangulation triangulateWeighted(const CameraRig& rig, const std::vector<PixelObservation>& obs,
+                                  const std::vector<Eigen::Matrix2d>& information, const PointPrior* prior,
+                                  int max_iterations) {
+  Triangulation t;
+  if (information.size() != obs.size()) return t;
+  for (const Eigen::Matrix2d& w : information) {
+    if (!w.allFinite()) return t;
+  }
+  t = triangulateDlt(rig, obs);
+  if (!t.valid) return t;
+  const bool use_prior = prior && prior->point.allFinite() && std::isfinite(prior->sigma) && prior->sigma > 0.0;
+  Eigen::Vector3d x = t.point;
+  Eigen::VectorXd r;
+  Eigen::MatrixXd J;
+  for (int it = 0; it < max_iterations; ++it) {
+    if (!residualsAt(rig, obs, x, &r, &J)) break;
+    Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
+    Eigen::Vector3d g = Eigen::Vector3d::Zero();
+    for (std::size_t i = 0; i < obs.size(); ++i) {
+      const Eigen::Matrix<double, 2, 3> Ji = J.block<2, 3>(2 * i, 0);
+      H += Ji.transpose() * information[i] * Ji;
+      g += Ji.transpose() * information[i] * r.segment<2>(2 * i);
+    }
+    if (use_prior) {
+      const double w = 1.0 / (prior->sigma * prior->sigma);
+      H += w * Eigen::Matrix3d::Identity();
+      g += w * (x - prior->point);
+    }
+    const Eigen::Vector3d step = H.ldlt().solve(-g);
+    if (!step.allFinite()) break;
+    x += step;
+    if (step.norm() < 1e-10) break;
+  }
+  t.point = x;
+  t.cameras.clear();
+  for (const PixelObservation& o : obs) t.cameras.push_back(o.camera);
+  // Residuals in the reliable directions: Ŵ = W / λmax(W).
+  double sum = 0.0, mx = 0.0;
+  bool projects = true;
+  for (std::size_t i = 0; i < obs.size() && projects; ++i) {
+    Eigen::Vector2d px;
+    projects = rig.cameras[obs[i].camera].project(x, &px);
+    const Eigen::Vector2d e = px - obs[i].pixel;
+    const double top = Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(information[i]).eigenvalues().maxCoeff();
+    const double e2 = top > 0.0 ? std::max(0.0, e.dot(information[i] * e) / top) : 0.0;
+    sum += e2;
+    mx = std::max(mx, std::sqrt(e2));
+  }
+  t.rms_px = projects ? std::sqrt(sum / obs.size()) : std::numeric_limits<double>::infinity();
+  t.max_px = projects ? mx : std::numeric_limits<double>::infinity();
+  t.valid = projects && x.allFinite();
   return t;
 }
 

@@ -75,6 +75,8 @@ class Tracker : public nodelet::Nodelet {
     pnh.param("consistent_px", config.consistent_px, config.consistent_px);
     pnh.param("pair_consistent_px", config.pair_consistent_px, config.pair_consistent_px);
     pnh.param("max_marker_speed", config.max_marker_speed, config.max_marker_speed);
+    pnh.param("occlusion_model", config.occlusion_model, config.occlusion_model);
+    pnh.param("occlusion_margin_px", config.occlusion_margin_px, config.occlusion_margin_px);
     double sync_window = 0.03;
     pnh.param("sync_window", sync_window, sync_window);
     pnh.param("publish_tf", publish_tf_, false);

@@ -4,8 +4,10 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <opencv2/imgproc.hpp>
+#include <tuple>
 
 #include "vrm_sim/yaml/yaml_error.h"
 #include "vrm_tracking/marker_detector.h"
@@ -75,6 +77,56 @@ TEST_F(Pipeline, CentroidsOfNoiselessRenderingsAreSubPixelExact) {
       EXPECT_EQ(matches, 1) << "camera " << c << " class " << t.class_id;
     }
   }
+}
+
+// The whole-image search is coarse to fine (MarkerDetector::detect(bgr)): it must find exactly the blobs of the plain
+// search over the whole image, with noise, shafts, 12 distractors, markers at the image's edge and a noise image.
+TEST_F(Pipeline, CoarseToFineWholeImageSearchFindsTheSameBlobs) {
+  RenderConfig config;
+  config.distractors = 12;
+  RigRenderer renderer(rig_, layout_, config);
+  auto key = [](const Blob& b) { return std::make_tuple(b.class_id, b.area, b.u, b.v); };
+  auto same = [&](const cv::Mat& image, const std::string& what) {
+    std::vector<Blob> fast = detector_.detect(image),
+                      plain = detector_.detect(image, cv::Rect(0, 0, image.cols, image.rows));
+    auto order = [&](const Blob& a, const Blob& b) { return key(a) < key(b); };
+    std::sort(fast.begin(), fast.end(), order);
+    std::sort(plain.begin(), plain.end(), order);
+    ASSERT_EQ(fast.size(), plain.size()) << what;
+    // The moments are summed from each search region's corner, so the last bits of a centroid may differ.
+    for (std::size_t i = 0; i < fast.size(); ++i) {
+      EXPECT_EQ(fast[i].class_id, plain[i].class_id) << what << " blob " << i;
+      EXPECT_EQ(fast[i].area, plain[i].area) << what << " blob " << i;
+      EXPECT_NEAR(fast[i].u, plain[i].u, 1e-9) << what << " blob " << i;
+      EXPECT_NEAR(fast[i].v, plain[i].v, 1e-9) << what << " blob " << i;
+      EXPECT_NEAR(fast[i].quality, plain[i].quality, 1e-9) << what << " blob " << i;
+      EXPECT_NEAR(fast[i].roundness, plain[i].roundness, 1e-9) << what << " blob " << i;
+      EXPECT_EQ(fast[i].contamination, plain[i].contamination) << what << " blob " << i;
+      EXPECT_EQ(fast[i].touches_region_border, plain[i].touches_region_border) << what << " blob " << i;
+    }
+  };
+  int blobs = 0;
+  for (std::uint64_t frame = 0; frame < 20; ++frame) {
+    const WorldScene scene =
+        worldSceneFromSnapshot(snapshot(0.02 * frame, Eigen::Vector3d(-0.002 + 3e-4 * frame, 0.001, -0.005),
+                                        Eigen::Vector3d(0.003, -0.002 + 2e-4 * frame, -0.008)),
+                               layout_);
+    for (std::size_t c = 0; c < rig_.size(); ++c) {
+      cv::Mat image;
+      renderer.render(c, scene, frame, &image);
+      same(image, "camera " + std::to_string(c) + " frame " + std::to_string(frame));
+      blobs += static_cast<int>(detector_.detect(image).size());
+      // A marker cut by the image's edge, and the image shifted by one pixel (the coarse grid's other phase).
+      same(image(cv::Rect(image.cols / 3, 0, image.cols - image.cols / 3, image.rows)).clone(), "cropped");
+      same(image(cv::Rect(1, 1, image.cols - 1, image.rows - 1)).clone(), "shifted");
+    }
+  }
+  EXPECT_GT(blobs, 20 * 3 * 4);  // the markers and the distractors that match a class
+  cv::Mat noise(97, 131, CV_8UC3);
+  cv::randu(noise, 0, 256);
+  same(noise, "uniform noise");
+  EXPECT_TRUE(detector_.detect(cv::Mat()).empty());
+  EXPECT_THROW(detector_.detect(cv::Mat(4, 4, CV_8UC1, cv::Scalar(0))), std::invalid_argument);
 }
 
 TEST_F(Pipeline, RenderedFramesTrackWithinTensOfMicrometres) {
