@@ -72,6 +72,9 @@ double strainBoundTarget(double tau);
 struct BoundPassOptions {
   double bound = 0.0;   // springs longer than bound·l are corrected ...
   double target = 0.0;  // ... to target·l (<= bound)
+  // Over-relaxation of a correction (successive over-relaxation of Gauss-Seidel, 1 = none): the spring is shortened
+  // by `relaxation` times its excess over target·l, to no less than its rest length.
+  double relaxation = 1.0;
   // BFS order from `sorter` (after sort()) with only the spring's outer end moved, so a kinematic pull or push
   // propagates outwards through the whole membrane in one sweep, like ChainMail (the inner end moves only when the
   // outer one is fixed, or both halfway in the unreachable set); null: spring order, both ends halfway.
@@ -102,6 +105,33 @@ struct BoundPassStatistics {
 // the moving ends of `options` (see BoundPassOptions). A sweep that corrects nothing proves the bound holds for every
 // spring but the skipped ones.
 BoundPassStatistics boundPass(const SystemView& system, const BoundPassOptions& options);
+
+// Issue 40: Gauss-Seidel on the bound constraints (boundPass()'s rule per spring) over the region of a violation only.
+// seed() lists the springs beyond the bound and those of their nodes; a sweep visits the listed springs, and every node
+// it moves brings its own springs into the list, so the region grows as far as the correction travels and a sweep
+// costs that region, not the membrane. Run until a sweep corrects nothing (converged: no spring beyond the bound
+// that may be corrected) or a budget; unlike the BFS sweeps it converges wherever the constraints can be met.
+class ActiveBoundSolver {
+ public:
+  // Sized once per topology; `offsets`/`adjacency` the CSR node -> springs map (SpringSorter::adjacency*()), kept by
+  // reference.
+  void reset(std::size_t node_count, std::size_t spring_count, const std::vector<std::uint32_t>& offsets,
+             const std::vector<std::uint32_t>& adjacency);
+  // Starts a solve: the springs beyond options.bound and their nodes' springs; false if there is none.
+  bool seed(const SystemView& system, double bound);
+  // One sweep over the listed springs (forward, or backward with `reverse`), growing the list as it moves nodes.
+  BoundPassStatistics sweep(const SystemView& system, const BoundPassOptions& options, bool reverse);
+  // A node the caller moved between sweeps (an instrument pushed it back out) joins the region.
+  void activate(std::uint32_t node);
+  const std::vector<std::uint32_t>& activeNodes() const { return nodes_; }
+  std::size_t activeSprings() const { return springs_.size(); }
+
+ private:
+  const std::vector<std::uint32_t>* offsets_ = nullptr;
+  const std::vector<std::uint32_t>* adjacency_ = nullptr;
+  std::vector<std::uint8_t> node_active_, spring_listed_;
+  std::vector<std::uint32_t> nodes_, springs_;
+};
 
 // Whether any spring (rest length >= kMinSpringLength) is longer than bound·l; +inf bounds nothing.
 bool anyBeyond(const SystemView& system, double bound);

@@ -60,6 +60,11 @@ class MassSpringModel : public TissueModel {
   // fewer springs than the one before.
   BoundPassStatistics sweepBound(const SystemView& system, BoundPassOptions options, int sweeps,
                                  bool stop_when_stalled = false);
+  // Up to `sweeps` sweeps of active_ (seeded), alternating directions; true once a sweep corrects nothing (every
+  // spring within the bound but those left to tear).
+  bool solveActive(const SystemView& system, const BoundPassOptions& options, int sweeps);
+  // The grasped nodes the tissue-wins phase moved slip out of the jaws.
+  void slipMovedGrasps(TissueSimulator& simulator);
   // Tearing: a bending spring (which never tears) beyond the bound.
   bool untearableBeyond(const SystemView& system) const;
   // Collision response (eq. 5.12): the instruments' capsules and the collision library's deformation vectors.
@@ -93,7 +98,7 @@ class MassSpringModel : public TissueModel {
   double bound_ = 0.0, bound_target_ = 0.0;
   bool bound_exceeded_ = false;  // this attempt left a spring beyond the bound (see enforceBound())
   bool slipped_ = false;         // grasped nodes slipped in this step: the constraints are rebuilt after it
-  std::vector<std::uint8_t> bending_, pinned_, moved_;
+  std::vector<std::uint8_t> bending_, pinned_, moved_, holding_;
   std::vector<std::uint32_t> pinned_seeds_, pinned_sorted_seeds_;
   SpringSorter pinned_sorter_;
   bool pinned_sorted_ = false;
@@ -107,7 +112,12 @@ class MassSpringModel : public TissueModel {
   // driver asks more than the membrane can give.
   static constexpr int kOutwardSweeps = 6;
   static constexpr int kInwardSweeps = 4;
-  static constexpr int kSymmetricSweeps = 24;
+  // ActiveBoundSolver sweeps: with the instruments holding, then with the tissue winning (over-relaxed: a grasp pulled
+  // back across the membrane is a long-range correction, which plain Gauss-Seidel propagates slowly).
+  static constexpr int kHoldingSweeps = 32;
+  static constexpr int kTissueWinsSweeps = 128;
+  static constexpr double kRelaxation = 1.5;
+  ActiveBoundSolver active_;
 };
 
 std::unique_ptr<TissueModel> makeMassSpringModel(mge::Membrane& /*membrane*/, const TissueConfig& config) {
@@ -117,17 +127,18 @@ std::unique_ptr<TissueModel> makeMassSpringModel(mge::Membrane& /*membrane*/, co
 void MassSpringModel::onTopologyChanged(TissueSimulator& s) {
   if (!std::isfinite(bound_)) return;
   const SystemView system = s.view();
-  pinned_sorter_.rebuild(system);
-  pinned_sorted_ = false;
   driver_sorter_.rebuild(system);
   driver_sorted_ = false;
+  pinned_sorter_.rebuild(system);
+  pinned_sorted_ = false;
+  pinned_seeds_.reserve(system.node_count);
+  pinned_sorted_seeds_.reserve(system.node_count);
+  active_.reset(system.node_count, system.spring_count, driver_sorter_.adjacencyOffsets(), driver_sorter_.adjacency());
   driver_seeds_.reserve(system.node_count);
   driver_sorted_seeds_.reserve(system.node_count);
   // Sized once per topology: a projection allocates nothing.
   pinned_.assign(system.node_count, 0);
   moved_.assign(system.node_count, 0);
-  pinned_seeds_.reserve(system.node_count);
-  pinned_sorted_seeds_.reserve(system.node_count);
   bending_.assign(system.spring_count, 0);
   if (s.config_.tear_strain > 0.0) {
     for (std::size_t k = 0; k < system.spring_count; ++k) bending_[k] = s.membrane_->springAtSlot(k).bending() ? 1 : 0;
@@ -274,8 +285,8 @@ bool MassSpringModel::untearableBeyond(const SystemView& system) const {
 }
 
 void MassSpringModel::enforceBound(TissueSimulator& s, const SystemView& system) {
-  // The common case costs one sweep of squared lengths: nothing beyond the bound, nothing to do.
-  if (!anyBeyond(system, bound_)) return;
+  // The common case costs one sweep of squared lengths: nothing beyond the bound, nothing to do (seed() is that sweep).
+  if (!active_.seed(system, bound_)) return;
   ++s.statistics_.bound_projections;
   const bool tearing = s.config_.tear_strain > 0.0;
   BoundPassOptions options;
@@ -288,39 +299,46 @@ void MassSpringModel::enforceBound(TissueSimulator& s, const SystemView& system)
     options.pressed = s.pressed_.data();
     options.bending = bending_.size() == system.spring_count ? bending_.data() : nullptr;
   }
-  // Outwards from the kinematic drivers of this step (the grasped nodes and the contacts, as Alg. 5.2's BFS): a pull
-  // or push propagates through the whole membrane in one sweep.
+  // The kinematic drivers of this step: the grasped nodes and the contacts (where the contact response put them).
   driver_seeds_.assign(s.grasped_nodes_.begin(), s.grasped_nodes_.end());
   for (const NodeDeformation& contact : s.contacts_) {
     if (contact.node < system.node_count) driver_seeds_.push_back(contact.node);
   }
   std::sort(driver_seeds_.begin(), driver_seeds_.end());
   driver_seeds_.erase(std::unique(driver_seeds_.begin(), driver_seeds_.end()), driver_seeds_.end());
-  options.sorter = nullptr;
   if (!driver_seeds_.empty()) {
+    // Outwards from the drivers in BFS order (Alg. 5.2), only the outer end of a spring moved: a pull or a push
+    // propagates through a membrane that can follow it in one sweep (ChainMail-like).
     if (!driver_sorted_ || driver_seeds_ != driver_sorted_seeds_) {
       driver_sorter_.sort(system, driver_seeds_);
       driver_sorted_seeds_ = driver_seeds_;
       driver_sorted_ = true;
     }
     options.sorter = &driver_sorter_;
-  }
-  BoundPassStatistics stats = sweepBound(system, options, kOutwardSweeps, /*stop_when_stalled=*/!tearing);
-  const auto settled = [](const BoundPassStatistics& last) { return last.corrected == 0 && last.skipped_fixed == 0; };
-  if (settled(stats)) return;
-  // Then from Alg. 5.2's interaction points (the nodes instruments touched in the last steps hold too).
-  s.sortSprings();
-  if (s.sorted_valid_) {
-    options.sorter = &s.sorter_;
-    stats = sweepBound(system, options, kOutwardSweeps, /*stop_when_stalled=*/!tearing);
-    if (settled(stats)) return;
+    const BoundPassStatistics stats = sweepBound(system, options, kOutwardSweeps, /*stop_when_stalled=*/!tearing);
+    if (stats.corrected == 0 && stats.skipped_fixed == 0) return;
+    options.sorter = nullptr;
+    // Then Gauss-Seidel to convergence on the violation's region, the instruments holding: grasped nodes (constrained)
+    // and contacts fixed.
+    if (!active_.seed(system, bound_)) return;
+    holding_.assign(system.node_count, 0);
+    for (std::size_t i = 0; i < system.node_count; ++i) holding_[i] = system.isFree(i) ? 0 : 1;
+    for (const NodeDeformation& contact : s.contacts_) {
+      if (contact.node < system.node_count) holding_[contact.node] = 1;
+    }
+    options.fixed = holding_.data();
+    const bool held = solveActive(system, options, kHoldingSweeps);
+    options.fixed = nullptr;
+    if (held) return;
   }
   if (tearing) {
     // The instruments hold: a stretch spring still beyond the bound tears after the step (tearOverstretched()).
     if (untearableBeyond(system)) bound_exceeded_ = true;
     return;
   }
-  // The tissue wins over the instruments: only the pinned nodes hold; grasped nodes and contacts may move.
+  // The tissue wins: only the pinned nodes hold. Gauss-Seidel on the violation's region to convergence; grasped nodes
+  // it moves slip out of the jaws (a grasp pulled farther than the pinned membrane can follow), contacts it moves are
+  // pulled into the instrument (a dent deeper than the tissue can follow is passed through, not stretched around).
   const std::size_t n = system.node_count;
   pinned_.assign(n, 0);
   pinned_seeds_.clear();
@@ -333,25 +351,43 @@ void MassSpringModel::enforceBound(TissueSimulator& s, const SystemView& system)
   options.fixed = pinned_.data();
   options.moved = moved_.data();
   if (!pinned_seeds_.empty()) {
-    // Inwards from the pinned nodes: a grasp pulled beyond reach is pulled back to where the membrane can hold it.
+    // Inwards from the pinned nodes in BFS order first: a grasp pulled beyond reach comes back to where the membrane
+    // can hold it in about one sweep, where Gauss-Seidel needs many.
     if (!pinned_sorted_ || pinned_seeds_ != pinned_sorted_seeds_) {
       pinned_sorter_.sort(system, pinned_seeds_);
       pinned_sorted_seeds_ = pinned_seeds_;
       pinned_sorted_ = true;
     }
     options.sorter = &pinned_sorter_;
-    stats = sweepBound(system, options, kInwardSweeps, /*stop_when_stalled=*/true);
-  }
-  if (!settled(stats)) {
+    sweepBound(system, options, kInwardSweeps, /*stop_when_stalled=*/true);
     options.sorter = nullptr;
-    stats = sweepBound(system, options, kSymmetricSweeps);
+    if (!active_.seed(system, bound_)) {
+      slipMovedGrasps(s);
+      return;
+    }
   }
+  options.relaxation = kRelaxation;
+  const bool converged = solveActive(system, options, kTissueWinsSweeps);
+  slipMovedGrasps(s);
+  if (!converged) bound_exceeded_ = true;
+}
+
+void MassSpringModel::slipMovedGrasps(TissueSimulator& s) {
   for (const std::uint32_t node : s.grasped_nodes_) {
     if (!moved_[node] || !s.grasped_[node]) continue;
     s.slipGraspedNode(node);
     slipped_ = true;
   }
-  if (!settled(stats) && anyBeyond(system, bound_)) bound_exceeded_ = true;
+}
+
+bool MassSpringModel::solveActive(const SystemView& system, const BoundPassOptions& options, int sweeps) {
+  for (int k = 0; k < sweeps; ++k) {
+    const BoundPassStatistics stats = active_.sweep(system, options, (k % 2) == 1);
+    // A spring beyond the bound between two fixed nodes stays so whatever the sweeps do.
+    if (stats.skipped_fixed > 0) return false;
+    if (stats.corrected == 0) return true;
+  }
+  return false;
 }
 
 void MassSpringModel::respondToContacts(TissueSimulator& s, const SystemView& system) {
