@@ -78,6 +78,8 @@ class MassSpringModel : public TissueModel {
   double energyAllowance(const TissueSimulator& simulator, const Energy& before) const;
   // Work of pressure and external forces during an integration step of dt just done (estimate, see below).
   double externalWork(const TissueSimulator& simulator, double dt) const;
+  // This attempt's integration created energy: unstable() rejects it.
+  bool doomed() const { return measure_energy_ && energy_excess_ > 0.0; }
   // Non-finite, too fast, or an integration step that created energy (energy_excess_ > 0).
   bool unstable(TissueSimulator& simulator);
   void saveState(TissueSimulator& simulator);
@@ -193,7 +195,7 @@ bool MassSpringModel::attempt(TissueSimulator& s, int level) {
   }
   if (level <= config.watchdog.max_halvings) {
     const int substeps = s.choice_.substeps << level;
-    for (int k = 0; k < substeps; ++k) rawStep(s, *s.integrator_, config.dt / substeps);
+    for (int k = 0; k < substeps && !doomed(); ++k) rawStep(s, *s.integrator_, config.dt / substeps);
   } else {
     ++s.statistics_.implicit_fallbacks;
     rawStep(s, *implicit_fallback_, config.dt);
@@ -213,11 +215,13 @@ bool MassSpringModel::attempt(TissueSimulator& s, int level) {
 void MassSpringModel::rawStep(TissueSimulator& s, Integrator& integrator, double dt) {
   const SystemView system = s.view();
   integrate(s, system, integrator, dt);
+  // An attempt whose integration created energy is rejected (unstable()) and rolled back whatever follows: its
+  // projections would be spent on an exploded state (hard_mass_ratio_1e5: ~100x the cost of the step).
+  if (doomed()) return;
   // Strain limit first, then collision response: the instrument has the last word, so no node is left inside it
   // (the few springs at the contact may then exceed τ_c slightly until the next step).
   if (s.config_.strain_limit > 0.0) limitStrain(s, system);
   respondToContacts(s, system);
-  // An attempt whose integration already created energy is rejected anyway (unstable()): no projection for it.
   if (std::isfinite(bound_)) enforceBound(s, system);
   if (s.config_.plastic) yield(s, system);
 }
