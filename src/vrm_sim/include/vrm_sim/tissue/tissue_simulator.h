@@ -313,6 +313,7 @@ class TissueSimulator {
   std::vector<std::uint8_t> anchored_;
   std::vector<std::uint8_t> pressed_;        // nodes with a contact in the current step (tearing spares them)
   std::vector<std::uint8_t> frame_pressed_;  // nodes the detector's vectors moved in the current frame
+  std::vector<std::uint8_t> over_tear_;      // springs past the tear strain after the last step (tearOverstretched())
 
   std::vector<InstrumentInput> previous_instruments_, target_instruments_, current_instruments_;
   std::vector<Eigen::Isometry3d> step_start_poses_;

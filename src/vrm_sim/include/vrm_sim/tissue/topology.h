@@ -34,8 +34,12 @@ struct TearResult {
 // `pressed` (optional, one flag per node slot): springs at a node an instrument presses or holds in this step do not
 // break up to `bound` (strainBound(), issue 40) — a blunt push dents tissue for one step, and tissue tears beside the
 // jaws, not in them — but no spring stays beyond the bound: past it they break too.
+// `over_last_step` (optional, one flag per spring slot, read and rewritten): a spring breaks at the tear strain only if
+// it was past it at the end of the previous step too (a one-step transient of a projection or a contact does not
+// tear; a pull that holds the stretch does, one step later); past `bound` it breaks at once.
 TearResult tearOverstretched(mge::Membrane& membrane, double tear_strain, const std::uint8_t* pressed = nullptr,
-                             double bound = std::numeric_limits<double>::infinity());
+                             double bound = std::numeric_limits<double>::infinity(),
+                             std::vector<std::uint8_t>* over_last_step = nullptr);
 
 struct TopologyCheckOptions {
   bool allow_isolated_nodes = false;  // a fresh chain / mesh may have none anyway

@@ -101,6 +101,7 @@ TissueSimulator::~TissueSimulator() = default;
 
 void TissueSimulator::onTopologyChanged() {
   const std::size_t n = membrane_->nodeCount();
+  over_tear_.assign(membrane_->springCount(), 0);  // spring slots are renumbered
   grasped_.assign(n, 0);
   for (Grasp& grasp : grasps_) grasp = Grasp{};
   grasped_nodes_.clear();
