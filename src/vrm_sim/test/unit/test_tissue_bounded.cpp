@@ -148,6 +148,49 @@ TEST(TissueStrainBound, SpringBetweenFixedNodesIsReported) {
   EXPECT_TRUE(anyBeyond(system, options.bound));
 }
 
+// The convergent solve: a chain between two fixed ends, its middle node pulled far sideways (a dent the fixed ends
+// can follow). Gauss-Seidel on the violation's region converges within the bound, the fixed ends held; a node far
+// from the violation is never visited.
+TEST(TissueStrainBound, ActiveSolverConvergesOnTheViolationsRegion) {
+  const int springs = 40;
+  auto chain = makeChain(springs, 2.0, 1e-5, 1e-4);
+  std::vector<std::uint8_t> constrained(chain->nodeCount(), 0);
+  constrained[0] = constrained[springs] = 1;
+  const SystemView system = viewOf(*chain, constrained.data());
+  system.positions[10].y() += 2.5e-4;  // springs 9 and 10 at ~2.7
+  SpringSorter adjacency;
+  adjacency.rebuild(system);
+  ActiveBoundSolver solver;
+  solver.reset(system.node_count, system.spring_count, adjacency.adjacencyOffsets(), adjacency.adjacency());
+  BoundPassOptions options;
+  options.bound = strainBound(1.1);
+  options.target = strainBoundTarget(1.1);
+  ASSERT_TRUE(solver.seed(system, options.bound));
+  const Eigen::Vector3d far_node = system.positions[35];
+  int sweeps = 0;
+  while (sweeps < 200 && solver.sweep(system, options, (sweeps % 2) == 1).corrected > 0) ++sweeps;
+  EXPECT_LT(sweeps, 200);
+  EXPECT_FALSE(anyBeyond(system, options.bound));
+  EXPECT_TRUE(system.positions[35].isApprox(far_node, 0.0));
+  EXPECT_LT(solver.activeSprings(), static_cast<std::size_t>(springs));
+  EXPECT_FALSE(solver.seed(system, options.bound));  // converged: nothing beyond the bound left
+}
+
+// Over-relaxation converges too, and never shortens a spring below its rest length.
+TEST(TissueStrainBound, OverRelaxedSweepsStopAtTheRestLength) {
+  auto chain = makeChain(1, 2.0, 1e-5, 1e-4);
+  std::vector<std::uint8_t> constrained(chain->nodeCount(), 0);
+  constrained[0] = 1;
+  const SystemView system = viewOf(*chain, constrained.data());
+  system.positions[1].x() += 1e-3;  // 11 rest lengths
+  BoundPassOptions options;
+  options.bound = strainBound(1.1);
+  options.target = strainBoundTarget(1.1);
+  options.relaxation = 1.5;
+  EXPECT_EQ(boundPass(system, options).corrected, 1u);
+  EXPECT_NEAR((system.positions[1] - system.positions[0]).norm(), 1e-4, 1e-12);
+}
+
 class TissueBounded : public ::testing::TestWithParam<std::string> {};
 
 // The 0.6 m/s yank of a grasped node: 3 mm in 5 ms, the membrane's border pinned 2.5 mm away — farther than it can

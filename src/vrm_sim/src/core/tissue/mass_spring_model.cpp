@@ -354,9 +354,9 @@ void MassSpringModel::enforceBound(TissueSimulator& s, const SystemView& system)
   moved_.assign(n, 0);
   options.fixed = pinned_.data();
   options.moved = moved_.data();
-  if (!pinned_seeds_.empty()) {
+  if (!pinned_seeds_.empty() && !s.grasped_nodes_.empty()) {
     // Inwards from the pinned nodes in BFS order first: a grasp pulled beyond reach comes back to where the membrane
-    // can hold it in about one sweep, where Gauss-Seidel needs many.
+    // can hold it in about one sweep, where Gauss-Seidel needs many. (A dent needs no such long-range correction.)
     if (!pinned_sorted_ || pinned_seeds_ != pinned_sorted_seeds_) {
       pinned_sorter_.sort(system, pinned_seeds_);
       pinned_sorted_seeds_ = pinned_seeds_;
