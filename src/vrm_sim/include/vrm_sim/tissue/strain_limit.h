@@ -88,6 +88,10 @@ struct BoundPassOptions {
   double tear_strain = 0.0;
   const std::uint8_t* pressed = nullptr;
   const std::uint8_t* bending = nullptr;
+  // Or, per spring, instead of `pressed` and `bending`: the springs that may tear (those the dynamics stretched past
+  // the tear strain before the projection began), so that a spring the projection itself stretches beyond the bound is
+  // corrected rather than torn.
+  const std::uint8_t* tearable = nullptr;
   // Optional: a moved node loses the part of its velocity that points against its correction (an inelastic stop, as a
   // ChainMail link; never adds energy), so it does not fly on past the bound in the next step.
   Eigen::Vector3d* velocities = nullptr;

@@ -63,6 +63,8 @@ class MassSpringModel : public TissueModel {
   // Up to `sweeps` sweeps of active_ (seeded), alternating directions; true once a sweep corrects nothing (every
   // spring within the bound but those left to tear).
   bool solveActive(const SystemView& system, const BoundPassOptions& options, int sweeps);
+  // tearable_: the springs this step's dynamics stretched past the tear strain (see BoundPassOptions::tearable).
+  void markTearable(const SystemView& system, const std::uint8_t* pressed, double tear_strain);
   // The grasped nodes the tissue-wins phase moved slip out of the jaws.
   void slipMovedGrasps(TissueSimulator& simulator);
   // Tearing: a bending spring (which never tears) beyond the bound.
@@ -100,7 +102,7 @@ class MassSpringModel : public TissueModel {
   double bound_ = 0.0, bound_target_ = 0.0;
   bool bound_exceeded_ = false;  // this attempt left a spring beyond the bound (see enforceBound())
   bool slipped_ = false;         // grasped nodes slipped in this step: the constraints are rebuilt after it
-  std::vector<std::uint8_t> bending_, pinned_, moved_, holding_;
+  std::vector<std::uint8_t> bending_, pinned_, moved_, holding_, tearable_;
   std::vector<std::uint32_t> pinned_seeds_, pinned_sorted_seeds_;
   SpringSorter pinned_sorter_;
   bool pinned_sorted_ = false;
@@ -298,10 +300,13 @@ void MassSpringModel::enforceBound(TissueSimulator& s, const SystemView& system)
   options.target = bound_target_;
   options.velocities = system.velocities;
   if (tearing) {
+    // The springs that may be left to tear: stretched past the tear strain by this step's dynamics (integration,
+    // Alg. 5.1, contact response), no end pressed by an instrument, not a bending spring. A spring the projection's
+    // own moves stretch beyond the bound is corrected like any other (a pinch of the closing jaws tears nothing).
     s.markPressed();
     options.tear_strain = s.config_.tear_strain;
-    options.pressed = s.pressed_.data();
-    options.bending = bending_.size() == system.spring_count ? bending_.data() : nullptr;
+    markTearable(system, s.pressed_.data(), s.config_.tear_strain);
+    options.tearable = tearable_.data();
   }
   // The kinematic drivers of this step: the grasped nodes and the contacts (where the contact response put them).
   driver_seeds_.assign(s.grasped_nodes_.begin(), s.grasped_nodes_.end());
@@ -381,6 +386,18 @@ void MassSpringModel::slipMovedGrasps(TissueSimulator& s) {
     if (!moved_[node] || !s.grasped_[node]) continue;
     s.slipGraspedNode(node);
     slipped_ = true;
+  }
+}
+
+void MassSpringModel::markTearable(const SystemView& system, const std::uint8_t* pressed, double tear_strain) {
+  tearable_.assign(system.spring_count, 0);
+  const double tear2 = tear_strain * tear_strain;
+  for (std::size_t k = 0; k < system.spring_count; ++k) {
+    const auto& ends = system.springs[k];
+    if ((k < bending_.size() && bending_[k]) || pressed[ends[0]] || pressed[ends[1]]) continue;
+    const double rest = system.rest_lengths[k];
+    const double length2 = (system.positions[ends[1]] - system.positions[ends[0]]).squaredNorm();
+    tearable_[k] = length2 > tear2 * rest * rest ? 1 : 0;
   }
 }
 

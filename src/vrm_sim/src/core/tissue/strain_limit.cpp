@@ -189,9 +189,12 @@ inline int boundSpring(const SystemView& system, const BoundPassOptions& options
   const double length2 = d.squaredNorm();
   if (length2 <= limit * limit || !std::isfinite(length2)) return 0;
   const double length = std::sqrt(length2);
-  if (options.tear_strain > 0.0 && length > options.tear_strain * rest &&
-      (options.bending == nullptr || options.bending[s] == 0) &&
-      (options.pressed == nullptr || (options.pressed[ends[0]] == 0 && options.pressed[ends[1]] == 0))) {
+  const bool may_tear =
+      options.tearable != nullptr
+          ? options.tearable[s] != 0
+          : (options.bending == nullptr || options.bending[s] == 0) &&
+                (options.pressed == nullptr || (options.pressed[ends[0]] == 0 && options.pressed[ends[1]] == 0));
+  if (options.tear_strain > 0.0 && length > options.tear_strain * rest && may_tear) {
     ++stats.left_to_tear;
     return 0;
   }
