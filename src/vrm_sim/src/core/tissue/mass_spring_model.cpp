@@ -324,7 +324,9 @@ void MassSpringModel::enforceBound(TissueSimulator& s, const SystemView& system)
       driver_sorted_ = true;
     }
     options.sorter = &driver_sorter_;
-    const BoundPassStatistics stats = sweepBound(system, options, kOutwardSweeps, /*stop_when_stalled=*/!tearing);
+    // (A push alone: the first sweep does the propagation, the rest is left to the convergent solve below.)
+    const int outward = s.grasped_nodes_.empty() ? 1 : kOutwardSweeps;
+    const BoundPassStatistics stats = sweepBound(system, options, outward, /*stop_when_stalled=*/!tearing);
     if (stats.corrected == 0 && stats.skipped_fixed == 0) return;
     options.sorter = nullptr;
     // Then Gauss-Seidel to convergence on the violation's region, the instruments holding: grasped nodes (constrained)
