@@ -48,12 +48,13 @@ class MassSpringModel : public TissueModel {
   void integrate(TissueSimulator& simulator, const SystemView& system, Integrator& integrator, double dt);
   // Provot's strain limit (Alg. 5.1) in BFS order from the interaction points.
   void limitStrain(TissueSimulator& simulator, const SystemView& system);
-  // Stable means bounded (issue 40), after the contact response: springs beyond bound_ shortened to bound_target_
-  // (boundPass()), first outwards from the interaction with the instruments holding; where that cannot succeed (a
-  // grasp pulled farther than the pinned membrane can follow) the tissue wins: inwards from the pinned nodes with the
-  // grasped nodes free, then symmetric sweeps, and the grasped nodes this moved slip out of the jaws. With tearing the
-  // instruments always hold: what stays beyond the bound tears (topologyAfterStep()). Sets bound_exceeded_ if a spring
-  // that cannot tear stays beyond the bound (the watchdog then rejects the step).
+  // Stable means bounded (issue 40), after the contact response: springs beyond bound_ shortened towards bound_target_
+  // (boundPass()): outwards from this step's drivers, then Gauss-Seidel on the violation's region to convergence with
+  // the instruments holding; where that is infeasible (a grasp pulled farther than the pinned membrane can follow, a
+  // dent deeper than it can follow) the tissue wins — only the pinned nodes hold, grasped nodes it moves slip out of
+  // the jaws, contacts are passed through. With tearing the instruments always hold and what the dynamics stretched
+  // past the tear strain is left to tear (topologyAfterStep()). Sets bound_exceeded_ if a spring that cannot tear stays
+  // beyond the bound (the watchdog then rejects the step).
   void enforceBound(TissueSimulator& simulator, const SystemView& system);
   // Up to `sweeps` boundPass() sweeps, until one corrects nothing; the statistics of the last.
   // (Without a sorter the sweeps alternate their direction.) `stop_when_stalled`: also stop once a sweep corrects no
@@ -98,7 +99,8 @@ class MassSpringModel : public TissueModel {
   int hold_remaining_ = 0;
 
   // The bound projection (enforceBound()): strainBound() and strainBoundTarget() of the tear strain (tearing) or of
-  // τ_c; its per-spring bending flags (tearing), pinned nodes, moved nodes and the BFS from the pinned nodes.
+  // τ_c; its per-spring bending and tearable flags (tearing), pinned, held and moved nodes, the BFS from the pinned
+  // nodes and the region solver.
   double bound_ = 0.0, bound_target_ = 0.0;
   bool bound_exceeded_ = false;  // this attempt left a spring beyond the bound (see enforceBound())
   bool slipped_ = false;         // grasped nodes slipped in this step: the constraints are rebuilt after it
@@ -143,6 +145,8 @@ void MassSpringModel::onTopologyChanged(TissueSimulator& s) {
   // Sized once per topology: a projection allocates nothing.
   pinned_.assign(system.node_count, 0);
   moved_.assign(system.node_count, 0);
+  holding_.assign(system.node_count, 0);
+  tearable_.assign(system.spring_count, 0);
   bending_.assign(system.spring_count, 0);
   if (s.config_.tear_strain > 0.0) {
     for (std::size_t k = 0; k < system.spring_count; ++k) bending_[k] = s.membrane_->springAtSlot(k).bending() ? 1 : 0;
