@@ -10,12 +10,13 @@
 # --resume starts from the corpus the target's last run left in build_fuzz/fuzz_runs/<target>/corpus instead of the
 # seeds alone (libFuzzer's usual way to spread a slow target's fuzzing over sittings); the row then also gives the
 # mutated executions of all sittings of that corpus (`executions_all_sittings`, `sittings`) beside this run's.
-# Usage: scripts/fuzz.sh [--seconds N | --runs N] [--jobs J] [--no-build] [--resume] [target ...]   (default: 300 s,
+# Usage: scripts/fuzz.sh [--seconds N] [--runs N] [--jobs J] [--no-build] [--resume] [target ...]   (default: 300 s;
+#        --runs alone runs to N executions, with --seconds too whichever comes first,
 #        all targets, one at a time; --jobs 2 runs two targets at once, one per core)
 set -euo pipefail
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 export PATH="/usr/bin:$PATH"
-seconds=300 runs="" build=1 jobs=1 resume=0 targets=()
+seconds="" runs="" build=1 jobs=1 resume=0 targets=()
 command_line="scripts/fuzz.sh $*"
 while (($#)); do
   case $1 in
@@ -24,10 +25,11 @@ while (($#)); do
     --no-build) build=0; shift ;;
     --resume) resume=1; shift ;;
     --jobs) jobs=$2; shift 2 ;;
-    -h | --help) sed -n '2,14p' "$0"; exit 0 ;;
+    -h | --help) sed -n '2,15p' "$0"; exit 0 ;;
     *) targets+=("$1"); shift ;;
   esac
 done
+[[ -z $seconds && -z $runs ]] && seconds=300
 PKG="$ROOT/src/vrm_fuzz"
 BUILD="$ROOT/build_fuzz"
 all_targets=($(cd "$PKG/fuzz" && ls *.cpp | sed 's/\.cpp$//' | grep -v '^fuzz_support$' | sort))
@@ -74,8 +76,9 @@ run_target() {
   else
     rm -rf "$work" && mkdir -p "$work/corpus" "$work/artifacts"
   fi
-  local limit=(-max_total_time="$seconds")
-  [[ -n $runs ]] && limit=(-runs="$runs")
+  local limit=()
+  [[ -n $seconds ]] && limit+=(-max_total_time="$seconds")
+  [[ -n $runs ]] && limit+=(-runs="$runs")
   local len=()
   [[ -n ${max_len[$t]:-} ]] && len=(-max_len="${max_len[$t]}")
   echo "== fuzz_$t (${limit[*]}${len:+ ${len[*]}})"
@@ -176,7 +179,7 @@ for line in open(results):
         "date": date, "clang": clang, "machine": machine, "command": command,
     }
 doc = {"suite": "fuzz", "command": command, "quick": False, "date": date, "clang": clang, "machine": machine,
-       "seconds_per_target": None if runs else float(seconds), "runs_per_target": int(runs) if runs else None,
+       "seconds_per_target": float(seconds) if seconds else None, "runs_per_target": int(runs) if runs else None,
        "coverage": "edges: libFuzzer's cov: of the last status line (ft: = features, also given)",
        "sanitizers": "address, undefined (-fsanitize=fuzzer-no-link,address,undefined on all workspace code)",
        "rows": [rows[k] for k in sorted(rows)]}

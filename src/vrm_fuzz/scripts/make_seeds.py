@@ -143,7 +143,7 @@ def board_pose(scale, angle, tx, ty, px, py):
 
 BW, BH = 96, 80
 board_views = [board_pose(10.0, 0.05, -1.6, -1.4, 0.0008, 0.0), board_pose(9.0, -0.12, -1.4, -0.8, -0.0006, 0.0009),
-               board_pose(10.0, 0.15, -1.9, -1.0, 0.0, -0.0010)]
+               board_pose(9.0, 0.3, -2.4, -1.0, 0.0, -0.0012)]
 board_fixture = board_pose(10.0, 0.0, -1.8, -1.5, 0.0, 0.0)
 seed("calibrator_images", "chessboard_three_views_and_fixture",
      b"".join(struct.pack("<BBBHH", 0, 0, 0, BW, BH) + board_image(BW, BH, v) for v in board_views) +

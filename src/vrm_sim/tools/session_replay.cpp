@@ -41,6 +41,10 @@ void reportRecovery(const vrm_sim::bag::PreparedBag& bag) {
     std::fprintf(stderr, "session_replay: %llu compressed chunks could not be recovered\n",
                  static_cast<unsigned long long>(recovery.lost_compressed_chunks));
   }
+  if (recovery.empty_records > 0) {
+    std::fprintf(stderr, "session_replay: %llu empty message records were left out\n",
+                 static_cast<unsigned long long>(recovery.empty_records));
+  }
 }
 
 }  // namespace

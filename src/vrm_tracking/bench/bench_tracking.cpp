@@ -177,12 +177,12 @@ EstimatedRig estimateRig(const CameraRig& truth, unsigned seed) {
     std::vector<cv::Mat> views;
     for (const Eigen::Isometry3d& pose : calibrationPoses(cam, target, centre, kCalibViews, seed + 101 * c)) {
       cv::Mat image;
-      renderTarget(cam, pose, target, &image, 3);
+      renderTarget(cam, pose, target, &image);
       addSensorNoise(&image, &rng);
       views.push_back(image);
     }
     cv::Mat reference;
-    renderTarget(cam, fixture, target, &reference, 4);
+    renderTarget(cam, fixture, target, &reference);
     addSensorNoise(&reference, &rng);
     const CameraCalibrationResult r = calibrateCamera(cam.name, views, reference, target, fixture);
     out.cameras.push_back(r);

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 #include <rosbag/bag.h>
 #include <rosbag/view.h>
+#include <std_msgs/Empty.h>
 #include <std_msgs/String.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -191,6 +192,37 @@ TEST_F(WorkFolder, AnUnfinishedBagIsRecoveredIntoACopyAndTheOriginalIsLeftAlone)
   EXPECT_NE(process.err.find("recovered"), std::string::npos) << process.err;
   EXPECT_EQ(jsonField(process.out, "recovered_messages"), std::to_string(prepared.recovery->messages));
   EXPECT_GT(std::stoi(jsonField(process.out, "simulated_frames")), 0);
+}
+
+// A message record of zero bytes (a std_msgs/Empty, or a fuzzed length): recovery leaves it out and counts it, since
+// rosbag cannot copy an empty message without a memcpy through a null pointer (fuzz_session_bag, UBSan).
+TEST_F(WorkFolder, AnEmptyMessageInAnUnfinishedBagIsLeftOutOfTheRecoveredCopyAndCounted) {
+  const fs::path active = work_ / "with_empty.bag.active";
+  const PreparedBag reference = prepareSessionBag((kBags / "navigation_expert.bag").string());
+  constexpr int kCopied = 200;
+  const pid_t child = fork();
+  ASSERT_GE(child, 0);
+  if (child == 0) {
+    rosbag::Bag source(reference.usable, rosbag::bagmode::Read);
+    rosbag::Bag out(active.string(), rosbag::bagmode::Write);
+    rosbag::View view(source);
+    int n = 0;
+    for (const rosbag::MessageInstance& message : view) {
+      out.write(message.getTopic(), message.getTime(), message);
+      // After a non-empty message: rosbag's own write of a first empty one is what the recovery avoids.
+      if (n == 0) out.write("/empty", message.getTime(), std_msgs::Empty());
+      if (++n == kCopied) break;
+    }
+    _exit(0);  // no close: no index
+  }
+  int status = 0;
+  waitpid(child, &status, 0);
+  const PreparedBag prepared = prepareSessionBag(active.string());
+  ASSERT_TRUE(prepared.recovery.has_value());
+  EXPECT_EQ(prepared.recovery->empty_records, 1u);
+  EXPECT_GT(prepared.recovery->messages, 0u);
+  EXPECT_LE(prepared.recovery->messages, static_cast<std::uint64_t>(kCopied));
+  EXPECT_EQ(prepared.topics.count("/empty"), 0u);
 }
 
 // Under load the recorder, a process of its own, falls behind on one topic: instrument states were recorded up to

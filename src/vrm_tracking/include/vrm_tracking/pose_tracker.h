@@ -195,6 +195,10 @@ class PoseTracker {
     bool any = false;
     double centroid_sigma_px = 0.0;
     PointPrior prior;
+    // Whether rig camera `camera` sees the marker partly hidden (its weight is not the identity).
+    bool cutIn(std::size_t camera) const {
+      return any && camera < relative_information.size() && !relative_information[camera].isIdentity(1e-12);
+    }
   };
   // The occlusion of every class this frame from the predictions (classes without a prediction: none).
   double markerRadius(int class_id) const;  // m: an eye marker's or a tip marker's

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
+#include <vector>
 
 namespace vrm_tracking {
 
@@ -37,6 +38,35 @@ struct Accumulator {
   double n = 0, sw = 0, sx = 0, sy = 0, sxx = 0, syy = 0, sxy = 0, saturated = 0;
   bool border = false;
 };
+
+// Takes the 8-connected component of the cells equal to cells[start] (non-zero) out of a w x h grid, clearing each
+// cell and calling visit(index, x, y) once per cell. `stack` is the caller's scratch.
+template <typename Cell, typename Visit>
+void takeComponent(Cell* cells, int w, int h, int start, std::vector<int>& stack, Visit&& visit) {
+  const Cell value = cells[start];
+  stack.clear();
+  stack.push_back(start);
+  cells[start] = 0;
+  while (!stack.empty()) {
+    const int idx = stack.back();
+    stack.pop_back();
+    const int x = idx % w, y = idx / w;
+    visit(idx, x, y);
+    for (int dy = -1; dy <= 1; ++dy) {
+      const int yy = y + dy;
+      if (yy < 0 || yy >= h) continue;
+      for (int dx = -1; dx <= 1; ++dx) {
+        const int xx = x + dx;
+        if (xx < 0 || xx >= w) continue;
+        const int j = yy * w + xx;
+        if (cells[j] == value) {
+          cells[j] = 0;
+          stack.push_back(j);
+        }
+      }
+    }
+  }
+}
 }  // namespace
 
 double MarkerDetector::ringContamination(const cv::Mat& bgr, double u, double v, double radius) const {
@@ -145,13 +175,7 @@ std::vector<Blob> MarkerDetector::components(const cv::Mat& bgr, cv::Rect region
     const std::int8_t cls = labels[start];
     if (cls == 0) continue;  // the common case; the compiler vectorises nothing here, but the branch is predictable
     Accumulator acc;
-    stack.clear();
-    stack.push_back(start);
-    labels[start] = 0;
-    while (!stack.empty()) {
-      const int idx = stack.back();
-      stack.pop_back();
-      const int x = idx % w, y = idx / w;
+    takeComponent(labels, w, h, start, stack, [&](int idx, int x, int y) {
       const double wt = weight[idx];
       acc.n += 1;
       acc.sw += wt;
@@ -162,20 +186,7 @@ std::vector<Blob> MarkerDetector::components(const cv::Mat& bgr, cv::Rect region
       acc.sxy += wt * x * y;
       acc.saturated += saturated[idx];
       if (x == 0 || y == 0 || x == w - 1 || y == h - 1) acc.border = true;
-      for (int dy = -1; dy <= 1; ++dy) {
-        const int yy = y + dy;
-        if (yy < 0 || yy >= h) continue;
-        for (int dx = -1; dx <= 1; ++dx) {
-          const int xx = x + dx;
-          if (xx < 0 || xx >= w) continue;
-          const int j = yy * w + xx;
-          if (labels[j] == cls) {
-            labels[j] = 0;
-            stack.push_back(j);
-          }
-        }
-      }
-    }
+    });
     const ColourClass& c = classes_[cls - 1];
     Blob b;
     b.class_id = c.id;
@@ -246,23 +257,9 @@ std::vector<Blob> MarkerDetector::detect(const cv::Mat& bgr) const {
   for (int start = 0; start < cw * ch; ++start) {
     if (!coarse[start]) continue;
     int x0 = start % cw, x1 = x0, y0 = start / cw, y1 = y0;
-    stack.clear();
-    stack.push_back(start);
-    coarse[start] = 0;
-    while (!stack.empty()) {
-      const int idx = stack.back();
-      stack.pop_back();
-      const int x = idx % cw, y = idx / cw;
+    takeComponent(coarse.data(), cw, ch, start, stack, [&](int, int x, int y) {
       x0 = std::min(x0, x), x1 = std::max(x1, x), y0 = std::min(y0, y), y1 = std::max(y1, y);
-      for (int dy = -1; dy <= 1; ++dy) {
-        for (int dx = -1; dx <= 1; ++dx) {
-          const int xx = x + dx, yy = y + dy;
-          if (xx < 0 || yy < 0 || xx >= cw || yy >= ch || !coarse[yy * cw + xx]) continue;
-          coarse[yy * cw + xx] = 0;
-          stack.push_back(yy * cw + xx);
-        }
-      }
-    }
+    });
     boxes.push_back(
         cv::Rect(cv::Point(2 * x0 - kMargin, 2 * y0 - kMargin), cv::Point(2 * x1 + kMargin + 1, 2 * y1 + kMargin + 1)) &
         image);

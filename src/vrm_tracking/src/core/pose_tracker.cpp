@@ -4,6 +4,8 @@
 #include <Eigen/SVD>
 #include <algorithm>
 #include <cmath>
+#include <limits>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <tuple>
@@ -150,10 +152,7 @@ MarkerEstimate PoseTracker::reconstructWith(int class_id, const std::vector<Came
     bool cut = false;                // some blob is predicted to be partly hidden (weighted solution)
     double from_prediction = 0.0;    // m
   };
-  auto isCut = [occlusion](std::size_t camera) {
-    return occlusion && occlusion->any && camera < occlusion->relative_information.size() &&
-           !occlusion->relative_information[camera].isIdentity(1e-12);
-  };
+  auto isCut = [occlusion](std::size_t camera) { return occlusion && occlusion->cutIn(camera); };
   std::vector<Solution> solutions;
   const std::size_t n = all.size();
   // Largest subsets first; once a clean consistent solution of three or more cameras exists no pair can outrank it
@@ -313,7 +312,7 @@ void PoseTracker::learnBlobArea(std::size_t k, const Eigen::Vector3d& position,
   for (const CameraObservations& cam : frame) {
     if (cam.camera >= rig_.size()) continue;
     // Only a camera with the marker's one blob and nothing predicted near it.
-    if (occlusion.any && !occlusion.relative_information[cam.camera].isIdentity(1e-12)) continue;
+    if (occlusion.cutIn(cam.camera)) continue;
     const Blob* only = nullptr;
     int count = 0;
     for (const Blob& b : cam.blobs) {
@@ -359,10 +358,8 @@ std::vector<PoseTracker::Occlusion> PoseTracker::predictOcclusions(const std::ve
   if (spheres.empty()) return out;
   // The shafts turn with the eye (their trocars are fixed in it): its rotation from the eye markers' predictions.
   auto classIndex = [this](int class_id) -> int {
-    for (std::size_t k = 0; k < layout_.classes.size(); ++k) {
-      if (layout_.classes[k].id == class_id) return static_cast<int>(k);
-    }
-    return -1;
+    const ColourClass* c = layout_.findClass(class_id);
+    return c ? static_cast<int>(c - layout_.classes.data()) : -1;
   };
   bool eye_known = false;
   Eigen::Quaterniond q = Eigen::Quaterniond::Identity();
@@ -394,8 +391,7 @@ std::vector<PoseTracker::Occlusion> PoseTracker::predictOcclusions(const std::ve
     o.full_area.assign(rig_.size(), 0.0);
     o.centroid_sigma_px = centroid_sigma;
     o.prior.point = target.centre;
-    o.prior.sigma =
-        prediction_error_[target.k] < 0.0 ? 0.001 : std::max(config_.prior_sigma_min, prediction_error_[target.k]);
+    o.prior.sigma = std::max(config_.prior_sigma_min, prediction_error_[target.k]);  // known: reliable()
     for (std::size_t c = 0; c < rig_.size(); ++c) {
       const CameraModel& cam = rig_.cameras[c];
       const double depth = (cam.world_to_camera * target.centre).z();
@@ -480,10 +476,14 @@ TrackingResult PoseTracker::update(const std::vector<CameraObservations>& frame,
   // hiding, when the blob coming out from behind a shaft is a sliver) a first solution of its blobs as they are.
   std::vector<Prediction> located = predictions;
   std::vector<bool> known = predicted;
+  // A first solution, with its smallest multi-camera residual; it is final unless the model finds its marker cut.
+  std::vector<std::optional<std::pair<MarkerEstimate, double>>> first_solutions(classes);
   if (config_.occlusion_model) {
     for (std::size_t k = 0; k < classes; ++k) {
       if (known[k]) continue;
-      const MarkerEstimate first = reconstructWith(layout_.classes[k].id, frame, nullptr, thresholds, nullptr);
+      double multi_sample_px = 0.0;
+      const MarkerEstimate first = reconstructWith(layout_.classes[k].id, frame, nullptr, thresholds, &multi_sample_px);
+      first_solutions[k].emplace(first, multi_sample_px);
       if (!first.valid) continue;
       located[k].position = first.raw_position;
       known[k] = true;
@@ -493,8 +493,13 @@ TrackingResult PoseTracker::update(const std::vector<CameraObservations>& frame,
   for (std::size_t k = 0; k < classes; ++k) {
     double multi_sample_px = 0.0;
     bool used_cut = false;
-    MarkerEstimate m = reconstructWith(layout_.classes[k].id, frame, predicted[k] ? &predictions[k] : nullptr,
-                                       thresholds, &multi_sample_px, &occlusions[k], &used_cut);
+    MarkerEstimate m;
+    if (first_solutions[k] && !occlusions[k].any) {
+      std::tie(m, multi_sample_px) = *first_solutions[k];
+    } else {
+      m = reconstructWith(layout_.classes[k].id, frame, predicted[k] ? &predictions[k] : nullptr, thresholds,
+                          &multi_sample_px, &occlusions[k], &used_cut);
+    }
     multi_residuals_.add(multi_sample_px, config_.consistent_window);
     if (m.valid && m.cameras == 2 && !used_cut) pair_residuals_.add(m.max_px, config_.consistent_window);
     if (m.valid) learnBlobArea(k, m.raw_position, frame, occlusions[k]);

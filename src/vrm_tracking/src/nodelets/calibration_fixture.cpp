@@ -68,7 +68,7 @@ class CalibrationFixture : public nodelet::Nodelet {
                                           const std_msgs::Header& header) const {
     sensor_msgs::ImagePtr image = makeBgr8Image(header, cam.width, cam.height);
     cv::Mat view(cam.height, cam.width, CV_8UC3, image->data.data(), image->step);
-    renderTarget(cam, pose, target_, &view, 3);
+    renderTarget(cam, pose, target_, &view);
     return image;
   }
 

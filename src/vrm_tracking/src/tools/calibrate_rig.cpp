@@ -72,11 +72,11 @@ int main(int argc, char** argv) {
         std::vector<cv::Mat> imgs;
         for (const Eigen::Isometry3d& pose : calibrationPoses(cam, target, centre, views, seed + 101 * c)) {
           cv::Mat image;
-          renderTarget(cam, pose, target, &image, 3);
+          renderTarget(cam, pose, target, &image);
           imgs.push_back(image);
         }
         cv::Mat reference;
-        renderTarget(cam, fixture, target, &reference, 4);
+        renderTarget(cam, fixture, target, &reference);
         if (!save_dir.empty()) {
           fs::create_directories(fs::path(save_dir) / cam.name);
           for (std::size_t i = 0; i < imgs.size(); ++i) {

@@ -49,6 +49,7 @@ struct RecoveryReport {
   std::uint64_t end_offset = 0;  // where the intact records end (byte offset in the original)
   std::uint64_t file_size = 0;
   std::uint64_t lost_compressed_chunks = 0;
+  std::uint64_t empty_records = 0;  // message records of zero bytes, not copied
   std::string stop_reason;  // why the scan stopped before the end of the file ("" = it reached the end)
 };
 
