@@ -50,7 +50,8 @@
 // restarted manager play on from their script time at R. The session keeps its one result. A node loaded again
 // (nodelet_keeper --reloaded) with nothing to resume announces resumed = false, and a new session starts.
 // Diagnostics (/diagnostics, 1 Hz wall clock): frames, inputs, rejected inputs (non-finite or implausible values,
-// unknown slot or frame, stamps far ahead) and late inputs per second; WARN while inputs are being rejected.
+// unknown slot or frame, stamps far ahead) and late inputs per second; WARN while inputs are being rejected. Per
+// membrane: its integrator and tissue_stable_<name> (finite and bounded, issue 40).
 #include <diagnostic_msgs/DiagnosticArray.h>
 #include <nodelet/nodelet.h>
 #include <ros/master.h>
@@ -830,6 +831,9 @@ class ScenarioManager : public nodelet::Nodelet {
     for (const std::string& name : session_->world().tissueNames()) {
       if (const auto* simulator = session_->world().tissueSimulator(name)) {
         add("integrator_" + name, simulator->integratorLabel());
+        // Stable = finite and bounded (issue 40): no step the watchdog could not recover, no spring left stretched
+        // beyond the strain bound at a frame's end.
+        add("tissue_stable_" + name, simulator->stable() ? "true" : "false");
       }
     }
     array->status.push_back(status);

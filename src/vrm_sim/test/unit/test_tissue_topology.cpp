@@ -148,6 +148,21 @@ TEST(TissueTopology, TearBreaksOnlyOverstretchedSpringsAndTheirTriangles) {
   EXPECT_EQ(tearOverstretched(*membrane, 1.5).broken_springs, 0u);
 }
 
+// Issue 40: with the previous step's flags, a stretch past the tear strain tears only when it holds for a second
+// step; past the bound it tears at once.
+TEST(TissueTopology, TearNeedsTheStretchToHoldForTwoStepsBelowTheBound) {
+  auto membrane = makeGridMembrane(6, 0.006, 2.0, 1e-5, false, 0.1);
+  membrane->positions()[0] += Eigen::Vector3d(-1e-3, 0.0, 0.0);  // the corner's x spring at 2.0, the diagonal < 1.8
+  std::vector<std::uint8_t> over;
+  EXPECT_EQ(tearOverstretched(*membrane, 1.5, nullptr, 2.5, &over).broken_springs, 0u);  // first step: a transient
+  EXPECT_GT(tearOverstretched(*membrane, 1.5, nullptr, 2.5, &over).broken_springs, 0u);  // it held: tears
+  expectValid(*membrane);
+  auto again = makeGridMembrane(6, 0.006, 2.0, 1e-5, false, 0.1);
+  again->positions()[0] += Eigen::Vector3d(-1e-3, 0.0, 0.0);
+  std::vector<std::uint8_t> fresh;
+  EXPECT_GT(tearOverstretched(*again, 1.5, nullptr, 1.8, &fresh).broken_springs, 0u);  // past the bound: at once
+}
+
 TEST(TissueTopology, DegenerateInputIsHandled) {
   auto membrane = makeGridMembrane(6, 0.006, 2.0, 1e-5);
   const std::size_t nodes = membrane->nodeCount();

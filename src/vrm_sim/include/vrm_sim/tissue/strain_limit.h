@@ -2,6 +2,7 @@
 // Provot's strain limit (thesis Alg. 5.1, Provot 1995) and the BFS spring sorting from the interaction points
 // (thesis Alg. 5.2) that lets one Provot pass propagate a large deformation outwards like ChainMail.
 
+#include <Eigen/Core>
 #include <cstdint>
 #include <vector>
 
@@ -59,6 +60,85 @@ struct ProvotStatistics {
 // Springs with a zero rest length are skipped (no meaningful strain).
 ProvotStatistics provotPass(const SystemView& system, double tau, const SpringSorter* sorter = nullptr,
                             bool outer_only = false);
+
+// Issue 40, "stable means bounded": the largest stretch L/l a step may leave, 1 + 1.5·(τ − 1) and never above 2, for
+// τ the tear strain (tearing) or the strain limit τ_c (1.15 for τ_c = 1.1); +inf for τ <= 1 or non-finite (no bound).
+double strainBound(double tau);
+// What boundPass() shortens a spring beyond the bound to: 80 % of the way from τ to the bound (1.14 for τ_c = 1.1),
+// so the corrections leave slack and a sweep seldom pushes a neighbour back over the bound; at least 2 % of the bound's
+// stretch below it where τ is at or above the bound (a tear strain above 2).
+double strainBoundTarget(double tau);
+
+struct BoundPassOptions {
+  double bound = 0.0;   // springs longer than bound·l are corrected ...
+  double target = 0.0;  // ... to target·l (<= bound)
+  // Over-relaxation of a correction (successive over-relaxation of Gauss-Seidel, 1 = none): the spring is shortened
+  // by `relaxation` times its excess over target·l, to no less than its rest length.
+  double relaxation = 1.0;
+  // BFS order from `sorter` (after sort()) with only the spring's outer end moved, so a kinematic pull or push
+  // propagates outwards through the whole membrane in one sweep, like ChainMail (the inner end moves only when the
+  // outer one is fixed, or both halfway in the unreachable set); null: spring order, both ends halfway.
+  const SpringSorter* sorter = nullptr;
+  // Without a sorter: the springs in reverse order (alternating directions, Gauss-Seidel converges faster).
+  bool reverse = false;
+  // Per node: never moved by this pass (null: the system's constrained nodes).
+  const std::uint8_t* fixed = nullptr;
+  // Tearing: a stretch spring longer than tear_strain·l, with no end in `pressed` (per node) and not a bending spring
+  // (`bending`, per spring), is left alone — it tears after the step (topology.h).
+  double tear_strain = 0.0;
+  const std::uint8_t* pressed = nullptr;
+  const std::uint8_t* bending = nullptr;
+  // Or, per spring, instead of `pressed` and `bending`: the springs that may tear (those the dynamics stretched past
+  // the tear strain before the projection began), so that a spring the projection itself stretches beyond the bound is
+  // corrected rather than torn.
+  const std::uint8_t* tearable = nullptr;
+  // Optional: a moved node loses the part of its velocity that points against its correction (an inelastic stop, as a
+  // ChainMail link; never adds energy), so it does not fly on past the bound in the next step.
+  Eigen::Vector3d* velocities = nullptr;
+  // Optional, per node: set to 1 when the pass moved the node.
+  std::uint8_t* moved = nullptr;
+};
+
+struct BoundPassStatistics {
+  std::size_t corrected = 0;      // springs shortened
+  std::size_t skipped_fixed = 0;  // beyond the bound between two fixed nodes (left alone)
+  std::size_t left_to_tear = 0;   // beyond the bound, left to tear (BoundPassOptions::tear_strain)
+};
+
+// One sweep of the bound projection (issue 40): Alg. 5.1 restricted to springs beyond the bound, in the order and with
+// the moving ends of `options` (see BoundPassOptions). A sweep that corrects nothing proves the bound holds for every
+// spring but the skipped ones.
+BoundPassStatistics boundPass(const SystemView& system, const BoundPassOptions& options);
+
+// Issue 40: Gauss-Seidel on the bound constraints (boundPass()'s rule per spring) over the region of a violation only.
+// seed() lists the springs beyond the bound and those of their nodes; a sweep visits the listed springs, and every node
+// it moves brings its own springs into the list, so the region grows as far as the correction travels and a sweep
+// costs that region, not the membrane. Run until a sweep corrects nothing (converged: no spring beyond the bound
+// that may be corrected) or a budget; unlike the BFS sweeps it converges wherever the constraints can be met.
+class ActiveBoundSolver {
+ public:
+  // Sized once per topology; `offsets`/`adjacency` the CSR node -> springs map (SpringSorter::adjacency*()), kept by
+  // reference.
+  void reset(std::size_t node_count, std::size_t spring_count, const std::vector<std::uint32_t>& offsets,
+             const std::vector<std::uint32_t>& adjacency);
+  // Starts a solve: the springs beyond options.bound and their nodes' springs; false if there is none.
+  bool seed(const SystemView& system, double bound);
+  // One sweep over the listed springs (forward, or backward with `reverse`), growing the list as it moves nodes.
+  BoundPassStatistics sweep(const SystemView& system, const BoundPassOptions& options, bool reverse);
+  // A node the caller moved between sweeps (an instrument pushed it back out) joins the region.
+  void activate(std::uint32_t node);
+  const std::vector<std::uint32_t>& activeNodes() const { return nodes_; }
+  std::size_t activeSprings() const { return springs_.size(); }
+
+ private:
+  const std::vector<std::uint32_t>* offsets_ = nullptr;
+  const std::vector<std::uint32_t>* adjacency_ = nullptr;
+  std::vector<std::uint8_t> node_active_, spring_listed_;
+  std::vector<std::uint32_t> nodes_, springs_;
+};
+
+// Whether any spring (rest length >= kMinSpringLength) is longer than bound·l; +inf bounds nothing.
+bool anyBeyond(const SystemView& system, double bound);
 
 }  // namespace tissue
 }  // namespace vrm_sim

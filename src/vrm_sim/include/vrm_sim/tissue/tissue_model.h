@@ -34,6 +34,8 @@ class TissueModel {
   virtual bool supportsRefinement() const { return false; }
   // advance() may end a frame early once the static forces fall below TissueConfig::early_stop_force.
   virtual bool supportsEarlyStop() const { return false; }
+  // The largest stretch L/l an accepted step may leave (issue 40, strainBound()); +inf: the model keeps none.
+  virtual double strainBound() const;
 
   // After the simulator rebuilt its constraints for the membrane's current topology (once at construction, then
   // after every cut, tear or refinement).

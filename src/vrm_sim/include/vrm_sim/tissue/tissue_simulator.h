@@ -69,7 +69,11 @@ struct TissueConfig {
   double time_budget_ms = 2.0;  // wall time per frame
   int max_steps_per_frame = 1000;
   ForceParameters forces;
-  double strain_limit = 1.1;  // τ_c of Alg. 5.1; <= 0 disables
+  // τ_c of Alg. 5.1; <= 0 disables. Stable means bounded (issue 40): the mass-spring model ends every accepted step
+  // with no spring stretched beyond strainBound(τ) (strain_limit.h; 1.15 for τ_c = 1.1), τ = tear_strain where the
+  // membrane tears, else τ_c (no bound with neither). The passes below stay Alg. 5.1 at τ_c as before; after the
+  // contact response a bound projection acts only on springs beyond the bound (MassSpringModel::enforceBound).
+  double strain_limit = 1.1;
   int strain_limit_passes = 1;
   bool strain_limit_outer_only = false;  // see provotPass()
   bool plastic = false;                  // rest length follows the maximum length reached (thesis §5.1)
@@ -169,8 +173,16 @@ struct SimulatorStatistics {
   std::uint64_t implicit_fallbacks = 0;  // steps redone with implicit Euler after all halvings failed
   std::uint64_t unrecovered = 0;         // steps that failed even the implicit fallback (state rolled back)
   double max_strain = 0.0;               // largest strain seen at the end of any frame
-  // Why steps were rejected.
-  std::uint64_t non_finite = 0, too_fast = 0, energy_growth = 0;
+  // Issue 40: the bound every accepted step keeps (TissueModel::strainBound(), +inf: none), the frames that ended
+  // beyond it anyway (0 = bounded; with the watchdog on a step beyond it is rejected, so this counts what the watchdog
+  // could not catch), the bound projections that ran (a step had a spring beyond the bound) and the grasped nodes
+  // that slipped out of the jaws because the membrane could not follow them within the bound (tearing off).
+  double strain_bound = std::numeric_limits<double>::infinity();
+  std::uint64_t bound_violations = 0;
+  std::uint64_t bound_projections = 0;
+  std::uint64_t slipped_nodes = 0;
+  // Why steps were rejected (over_bound: a spring beyond the bound the projection could not bring back).
+  std::uint64_t non_finite = 0, too_fast = 0, energy_growth = 0, over_bound = 0;
   // J: of accepted explicit steps, the most an integration created beyond its allowance (negative: all stayed below;
   // how close stable steps come).
   double max_energy_excess = -std::numeric_limits<double>::infinity();
@@ -208,6 +220,9 @@ class TissueSimulator {
   void onTopologyChanged();
   void addInteractionPoint(std::uint32_t node);
   void releaseAll();
+  // Stable = finite and bounded (issue 40): no step the watchdog could not recover (the state was rolled back) and no
+  // frame that ended with a spring beyond statistics().strain_bound.
+  bool stable() const { return statistics_.unrecovered == 0 && statistics_.bound_violations == 0; }
 
   const std::vector<std::uint32_t>& graspedNodes() const { return grasped_nodes_; }
   // Where adhesions tore the tissue beneath (adhesion_tear_force), in the membrane's frame, oldest first.
@@ -274,6 +289,12 @@ class TissueSimulator {
   void topologyBeforeStep();
   void topologyAfterStep();
   void releaseOverloadedAdhesions();
+  // pressed_ = the nodes an instrument presses or holds in this step (contacts, the frame's deformation vectors,
+  // grasped nodes): tearing spares their springs up to the bound.
+  void markPressed();
+  // A grasped node the membrane cannot follow within the bound lets go of the jaws (issue 40); the constraint flags
+  // change at once, rebuildConstraints() follows after the step.
+  void slipGraspedNode(std::uint32_t node);
   void finishRemoval(const std::vector<std::uint64_t>& grasped_ids);
   std::vector<std::uint64_t> graspedNodeIds() const;
 
@@ -292,6 +313,7 @@ class TissueSimulator {
   std::vector<std::uint8_t> anchored_;
   std::vector<std::uint8_t> pressed_;        // nodes with a contact in the current step (tearing spares them)
   std::vector<std::uint8_t> frame_pressed_;  // nodes the detector's vectors moved in the current frame
+  std::vector<std::uint8_t> over_tear_;      // springs past the tear strain after the last step (tearOverstretched())
 
   std::vector<InstrumentInput> previous_instruments_, target_instruments_, current_instruments_;
   std::vector<Eigen::Isometry3d> step_start_poses_;

@@ -6,6 +6,7 @@
 // whole elements; nothing is re-meshed, so the complexity of the tissue never grows through topology changes.
 
 #include <cstddef>
+#include <limits>
 
 #include "vrm_sim/mge/membrane.h"
 #include "vrm_sim/tissue/contact.h"
@@ -30,9 +31,15 @@ struct TearResult {
 // spring as an edge go with it (with their bending springs and orphaned edges), and nodes left without springs and
 // triangles are removed. tear_strain <= 0 or non-finite disables tearing. Springs with a zero rest length or a
 // non-finite length never break (the latter is the stability watchdog's business).
-// `pressed` (optional, one flag per node slot): springs at a node an instrument presses or holds in this step never
-// break — a blunt push dents tissue for one step beyond any strain, and tissue tears beside the jaws, not in them.
-TearResult tearOverstretched(mge::Membrane& membrane, double tear_strain, const std::uint8_t* pressed = nullptr);
+// `pressed` (optional, one flag per node slot): springs at a node an instrument presses or holds in this step do not
+// break up to `bound` (strainBound(), issue 40) — a blunt push dents tissue for one step, and tissue tears beside the
+// jaws, not in them — but no spring stays beyond the bound: past it they break too.
+// `over_last_step` (optional, one flag per spring slot, read and rewritten): a spring breaks at the tear strain only if
+// it was past it at the end of the previous step too (a one-step transient of a projection or a contact does not
+// tear; a pull that holds the stretch does, one step later); past `bound` it breaks at once.
+TearResult tearOverstretched(mge::Membrane& membrane, double tear_strain, const std::uint8_t* pressed = nullptr,
+                             double bound = std::numeric_limits<double>::infinity(),
+                             std::vector<std::uint8_t>* over_last_step = nullptr);
 
 struct TopologyCheckOptions {
   bool allow_isolated_nodes = false;  // a fresh chain / mesh may have none anyway

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace vrm_sim {
 namespace tissue {
@@ -135,6 +136,180 @@ ProvotStatistics provotPass(const SystemView& system, double tau, const SpringSo
     }
   } else {
     for (std::size_t s = 0; s < system.spring_count; ++s) limitSpring(system, s, system.springs[s], tau, -1, stats);
+  }
+  return stats;
+}
+
+double strainBound(double tau) {
+  if (!(tau > 1.0) || !std::isfinite(tau)) return std::numeric_limits<double>::infinity();
+  return std::min(2.0, 1.0 + 1.5 * (tau - 1.0));
+}
+
+double strainBoundTarget(double tau) {
+  const double bound = strainBound(tau);
+  if (!std::isfinite(bound)) return bound;
+  return bound - std::max(0.2 * (bound - tau), 0.02 * (bound - 1.0));
+}
+
+bool anyBeyond(const SystemView& system, double bound) {
+  if (!std::isfinite(bound)) return false;
+  const double bound2 = bound * bound;
+  for (std::size_t s = 0; s < system.spring_count; ++s) {
+    const double rest = system.rest_lengths[s];
+    const auto& ends = system.springs[s];
+    const double length2 = (system.positions[ends[1]] - system.positions[ends[0]]).squaredNorm();
+    // A non-finite length counts too (the watchdog rejects such a state anyway).
+    if (!(length2 <= bound2 * (rest * rest)) && rest >= kMinSpringLength) return true;
+  }
+  return false;
+}
+
+namespace {
+
+// Moves node `i` by `delta`; its velocity loses the component against the move (see BoundPassOptions::velocities).
+inline void moveNode(const SystemView& system, const BoundPassOptions& options, std::uint32_t i,
+                     const Eigen::Vector3d& delta) {
+  system.positions[i] += delta;
+  if (options.moved != nullptr) options.moved[i] = 1;
+  if (options.velocities == nullptr) return;
+  const double norm2 = delta.squaredNorm();
+  if (!(norm2 > 0.0)) return;
+  Eigen::Vector3d& v = options.velocities[i];
+  const double along = v.dot(delta);
+  if (along < 0.0) v -= (along / norm2) * delta;
+}
+
+// Returns which ends it moved: bit 0 the first, bit 1 the second.
+inline int boundSpring(const SystemView& system, const BoundPassOptions& options, std::size_t s,
+                       const std::array<std::uint32_t, 2>& ends, int inner, BoundPassStatistics& stats) {
+  const double rest = system.rest_lengths[s];
+  if (!(rest >= kMinSpringLength)) return 0;
+  const Eigen::Vector3d d = system.positions[ends[1]] - system.positions[ends[0]];
+  const double limit = options.bound * rest;
+  const double length2 = d.squaredNorm();
+  if (length2 <= limit * limit || !std::isfinite(length2)) return 0;
+  const double length = std::sqrt(length2);
+  const bool may_tear =
+      options.tearable != nullptr
+          ? options.tearable[s] != 0
+          : (options.bending == nullptr || options.bending[s] == 0) &&
+                (options.pressed == nullptr || (options.pressed[ends[0]] == 0 && options.pressed[ends[1]] == 0));
+  if (options.tear_strain > 0.0 && length > options.tear_strain * rest && may_tear) {
+    ++stats.left_to_tear;
+    return 0;
+  }
+  const bool free0 = options.fixed != nullptr ? options.fixed[ends[0]] == 0 : system.isFree(ends[0]);
+  const bool free1 = options.fixed != nullptr ? options.fixed[ends[1]] == 0 : system.isFree(ends[1]);
+  if (!free0 && !free1) {
+    ++stats.skipped_fixed;
+    return 0;
+  }
+  const double shortened = std::max(rest, length - options.relaxation * (length - options.target * rest));
+  const Eigen::Vector3d excess = ((length - shortened) / length) * d;
+  bool move0 = free0;
+  bool move1 = free1;
+  if (free0 && free1 && inner >= 0) {
+    move0 = inner == 1;
+    move1 = inner == 0;
+  }
+  ++stats.corrected;
+  if (move0 && move1) {
+    moveNode(system, options, ends[0], 0.5 * excess);
+    moveNode(system, options, ends[1], -0.5 * excess);
+    return 3;
+  }
+  if (move0) {
+    moveNode(system, options, ends[0], excess);
+    return 1;
+  }
+  moveNode(system, options, ends[1], -excess);
+  return 2;
+}
+
+}  // namespace
+
+BoundPassStatistics boundPass(const SystemView& system, const BoundPassOptions& options) {
+  BoundPassStatistics stats;
+  if (!std::isfinite(options.bound)) return stats;
+  const SpringSorter* sorter = options.sorter;
+  if (sorter != nullptr && sorter->order().size() == system.spring_count) {
+    const auto& order = sorter->order();
+    const auto& ends = sorter->orderedEnds();
+    const auto& inner_second = sorter->innerIsSecond();
+    const auto& distance = sorter->nodeDistances();
+    const std::size_t reachable_end = sorter->levelOffsets()[sorter->levelOffsets().size() - 2];
+    for (std::size_t k = 0; k < order.size(); ++k) {
+      // Both ends equally far from the seeds (two contacts of one instrument, a ring around it): neither is inner.
+      const bool level = distance[ends[k][0]] == distance[ends[k][1]];
+      boundSpring(system, options, order[k], ends[k], k < reachable_end && !level ? inner_second[k] : -1, stats);
+    }
+  } else if (options.reverse) {
+    for (std::size_t s = system.spring_count; s-- > 0;) boundSpring(system, options, s, system.springs[s], -1, stats);
+  } else {
+    for (std::size_t s = 0; s < system.spring_count; ++s) boundSpring(system, options, s, system.springs[s], -1, stats);
+  }
+  return stats;
+}
+
+void ActiveBoundSolver::reset(std::size_t node_count, std::size_t spring_count,
+                              const std::vector<std::uint32_t>& offsets, const std::vector<std::uint32_t>& adjacency) {
+  offsets_ = &offsets;
+  adjacency_ = &adjacency;
+  node_active_.assign(node_count, 0);
+  spring_listed_.assign(spring_count, 0);
+  nodes_.clear();
+  nodes_.reserve(node_count);
+  springs_.clear();
+  springs_.reserve(spring_count);
+}
+
+void ActiveBoundSolver::activate(std::uint32_t node) {
+  if (node >= node_active_.size() || node_active_[node]) return;
+  node_active_[node] = 1;
+  nodes_.push_back(node);
+  for (std::uint32_t k = (*offsets_)[node]; k < (*offsets_)[node + 1]; ++k) {
+    const std::uint32_t spring = (*adjacency_)[k];
+    if (spring_listed_[spring]) continue;
+    spring_listed_[spring] = 1;
+    springs_.push_back(spring);
+  }
+}
+
+bool ActiveBoundSolver::seed(const SystemView& system, double bound) {
+  for (std::uint32_t node : nodes_) node_active_[node] = 0;
+  for (std::uint32_t spring : springs_) spring_listed_[spring] = 0;
+  nodes_.clear();
+  springs_.clear();
+  if (offsets_ == nullptr || node_active_.size() != system.node_count ||
+      spring_listed_.size() != system.spring_count || !std::isfinite(bound)) {
+    return false;
+  }
+  const double bound2 = bound * bound;
+  for (std::size_t s = 0; s < system.spring_count; ++s) {
+    const double rest = system.rest_lengths[s];
+    const auto& ends = system.springs[s];
+    const double length2 = (system.positions[ends[1]] - system.positions[ends[0]]).squaredNorm();
+    if (!(length2 <= bound2 * (rest * rest)) && rest >= kMinSpringLength) {
+      activate(ends[0]);
+      activate(ends[1]);
+    }
+  }
+  return !springs_.empty();
+}
+
+BoundPassStatistics ActiveBoundSolver::sweep(const SystemView& system, const BoundPassOptions& options, bool reverse) {
+  BoundPassStatistics stats;
+  const auto visit = [&](std::uint32_t s) {
+    const auto& ends = system.springs[s];
+    const int moved = boundSpring(system, options, s, ends, -1, stats);
+    if (moved & 1) activate(ends[0]);
+    if (moved & 2) activate(ends[1]);
+  };
+  if (reverse) {
+    for (std::size_t k = springs_.size(); k-- > 0;) visit(springs_[k]);
+  } else {
+    // The list grows while it is walked: springs a correction brought in are visited in the same sweep.
+    for (std::size_t k = 0; k < springs_.size(); ++k) visit(springs_[k]);
   }
   return stats;
 }

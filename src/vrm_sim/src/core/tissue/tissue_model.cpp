@@ -1,9 +1,13 @@
 #include "vrm_sim/tissue/tissue_model.h"
 
+#include <limits>
+
 #include "tissue_models_impl.h"
 
 namespace vrm_sim {
 namespace tissue {
+
+double TissueModel::strainBound() const { return std::numeric_limits<double>::infinity(); }
 
 const Registry<TissueModelFactory>& tissueModelRegistry() {
   static const Registry<TissueModelFactory> registry(

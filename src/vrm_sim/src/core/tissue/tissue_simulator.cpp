@@ -54,6 +54,7 @@ TissueSimulator::TissueSimulator(mge::Membrane& membrane, const TissueConfig& co
   choice_.reason = "configured";
   forces_.params = config_.forces;
   model_ = tissueModelRegistry().at(config_.model).make(membrane, config_);
+  statistics_.strain_bound = model_->strainBound();
   onTopologyChanged();
   if (config_.repair_massless_nodes) repairMasslessNodes();
   if (config_.refinement.levels > 0) {
@@ -100,6 +101,7 @@ TissueSimulator::~TissueSimulator() = default;
 
 void TissueSimulator::onTopologyChanged() {
   const std::size_t n = membrane_->nodeCount();
+  over_tear_.assign(membrane_->springCount(), 0);  // spring slots are renumbered
   grasped_.assign(n, 0);
   for (Grasp& grasp : grasps_) grasp = Grasp{};
   grasped_nodes_.clear();
@@ -191,6 +193,21 @@ void TissueSimulator::releaseAll() {
   for (Grasp& grasp : grasps_) grasp = Grasp{};
   std::fill(grasped_.begin(), grasped_.end(), 0);
   rebuildConstraints();
+}
+
+void TissueSimulator::slipGraspedNode(std::uint32_t node) {
+  if (node >= grasped_.size() || !grasped_[node]) return;
+  grasped_[node] = 0;
+  constrained_[node] = membrane_->fixedFlags()[node] && !anchored_[node] ? 1 : 0;
+  for (Grasp& grasp : grasps_) {
+    for (std::size_t k = 0; k < grasp.nodes.size(); ++k) {
+      if (grasp.nodes[k] != node) continue;
+      grasp.nodes.erase(grasp.nodes.begin() + static_cast<std::ptrdiff_t>(k));
+      grasp.local.erase(grasp.local.begin() + static_cast<std::ptrdiff_t>(k));
+      break;
+    }
+  }
+  ++statistics_.slipped_nodes;
 }
 
 void TissueSimulator::updateInstruments(double alpha) {
@@ -395,6 +412,8 @@ FrameReport TissueSimulator::advance(double frame_time, const Clock& clock) {
   // The watchdog measured the state after the last step already.
   report.max_strain = maxStrain();
   statistics_.max_strain = std::max(statistics_.max_strain, report.max_strain);
+  // Issue 40: what the model's bound projection and the watchdog let through (or a rolled-back step left).
+  if (planned > 0 && !(report.max_strain <= statistics_.strain_bound * (1.0 + 1e-9))) ++statistics_.bound_violations;
   return report;
 }
 

@@ -45,18 +45,26 @@ mge::RemovalSummary cutCapsule(mge::Membrane& membrane, const Capsule& capsule) 
   return membrane.removeElements(triangles, {}, nodes);
 }
 
-TearResult tearOverstretched(mge::Membrane& membrane, double tear_strain, const std::uint8_t* pressed) {
+TearResult tearOverstretched(mge::Membrane& membrane, double tear_strain, const std::uint8_t* pressed, double bound,
+                             std::vector<std::uint8_t>* over_last_step) {
   TearResult result;
   if (!(tear_strain > 0.0) || !std::isfinite(tear_strain)) return result;
   const Eigen::Vector3d* x = membrane.positions();
   const std::array<std::uint32_t, 2>* ends = membrane.springNodeSlots();
   const double* rest = membrane.restLengths();
+  if (over_last_step != nullptr) over_last_step->resize(membrane.springCount(), 0);
   std::vector<mge::Spring*> broken;
   for (std::size_t s = 0; s < membrane.springCount(); ++s) {
     if (!(rest[s] >= kMinSpringLength)) continue;
     const double length = (x[ends[s][1]] - x[ends[s][0]]).norm();
-    if (!(length > tear_strain * rest[s]) || !std::isfinite(length)) continue;
-    if (pressed != nullptr && (pressed[ends[s][0]] || pressed[ends[s][1]])) continue;
+    const bool over = length > tear_strain * rest[s] && std::isfinite(length);
+    if (over_last_step != nullptr) {
+      const bool was_over = (*over_last_step)[s] != 0;
+      (*over_last_step)[s] = over ? 1 : 0;
+      if (over && !was_over && !(length > bound * rest[s])) continue;
+    }
+    if (!over) continue;
+    if (pressed != nullptr && (pressed[ends[s][0]] || pressed[ends[s][1]]) && !(length > bound * rest[s])) continue;
     mge::Spring& spring = membrane.springAtSlot(s);
     if (!spring.bending()) broken.push_back(&spring);
   }
@@ -221,11 +229,7 @@ void TissueSimulator::releaseOverloadedAdhesions() {
   rebuildConstraints();
 }
 
-void TissueSimulator::topologyAfterStep() {
-  releaseOverloadedAdhesions();
-  if (refinement_) refinement_->updateVirtualNodes();
-  if (!(config_.tear_strain > 0.0)) return;
-  const std::vector<std::uint64_t> grasped_ids = graspedNodeIds();
+void TissueSimulator::markPressed() {
   pressed_.assign(membrane_->nodeCount(), 0);
   if (frame_pressed_.size() == pressed_.size()) pressed_ = frame_pressed_;
   for (const NodeDeformation& contact : contacts_) {
@@ -234,7 +238,18 @@ void TissueSimulator::topologyAfterStep() {
   // The jaws hold what they grasped: tissue tears beside them, not inside them (their kinematic pinch would
   // otherwise break the springs it squeezes past in the step it closes).
   for (std::uint32_t node : grasped_nodes_) pressed_[node] = 1;
-  const TearResult torn = tearOverstretched(*membrane_, config_.tear_strain, pressed_.data());
+}
+
+void TissueSimulator::topologyAfterStep() {
+  releaseOverloadedAdhesions();
+  if (refinement_) refinement_->updateVirtualNodes();
+  if (!(config_.tear_strain > 0.0)) return;
+  const std::vector<std::uint64_t> grasped_ids = graspedNodeIds();
+  markPressed();
+  // Issue 40: a pressed spring the bound projection could not bring back within the bound tears too.
+  // Issue 40: a stretch past the tear strain tears when it holds for two steps (or at once past the bound).
+  const TearResult torn =
+      tearOverstretched(*membrane_, config_.tear_strain, pressed_.data(), statistics_.strain_bound, &over_tear_);
   if (torn.broken_springs == 0) return;
   statistics_.torn_springs += torn.broken_springs;
   statistics_.removed_nodes += torn.removed.nodes;
