@@ -97,7 +97,13 @@ run_target() {
     cp "$artifact" "$PKG/regressions/$t/"
     echo "   $t: crash input -> src/vrm_fuzz/regressions/$t/$(basename "$artifact")"
   done
-  if ((rc != 0 && crashes == 0)); then crashes=1; echo "   $t: fuzzer exited $rc without an artifact (see $work/log)"; fi
+  # 72: libFuzzer's exit after SIGINT (kill -INT the fuzzer to end a run early; its stats and corpus are kept).
+  if ((rc == 72 && crashes == 0)) && grep -q 'libFuzzer: run interrupted' "$work/log"; then
+    echo "   $t: interrupted (SIGINT), not a crash"
+  elif ((rc != 0 && crashes == 0)); then
+    crashes=1
+    echo "   $t: fuzzer exited $rc without an artifact (see $work/log)"
+  fi
   grep -E '^#[0-9]+' "$work/log" | tail -n 1 | sed "s/^/   $t: /" || true
   printf '%s\t%s\t%s\t%s\t%s\t%s\n' "$t" "$(echo "$end - $start" | bc)" "$crashes" "${max_len[$t]:-}" "$work/log" \
     "$work/sittings.json" >>"$results"
