@@ -102,6 +102,7 @@ int main(int argc, char** argv) {
     return 2;
   }
   std::vector<std::string> topics;
+  std::uint32_t played_messages = 0;
   bool frames = false;
   FramePosition last_frame;  // the bag's last input frame (frames bags)
   try {
@@ -118,6 +119,7 @@ int main(int argc, char** argv) {
       if (frames && device) continue;
       if (present.count(topic)) topics.push_back(topic);
     }
+    played_messages = rosbag::View(bag, rosbag::TopicQuery(topics)).size();
     if (frames) {
       rosbag::View recorded(bag, rosbag::TopicQuery(vrm_sim::bag::inputFrameTopic()));
       for (const rosbag::MessageInstance& message : recorded) {
@@ -133,7 +135,10 @@ int main(int argc, char** argv) {
   }
   const char* player = "/usr/lib/rosbag/play";
   std::vector<std::string> arguments = {
-      player, "--clock", "--wait-for-subscribers", "--quiet", "--rate=" + std::to_string(rate), bag_path, "--topics"};
+      player, "--clock", "--wait-for-subscribers", "--quiet", "--rate=" + std::to_string(rate),
+      // The player's outgoing queue holds the whole play: a publisher drops its oldest message when a subscriber reads
+      // slower than the play (its default 100 lost frames at 50x on a loaded machine: a replay that ended elsewhere).
+      "--queue=" + std::to_string(std::max<std::uint32_t>(100, played_messages)), bag_path, "--topics"};
   arguments.insert(arguments.end(), topics.begin(), topics.end());
   if (frames) arguments.push_back(vrm_sim::bag::inputFrameTopic() + ":=/recorded_input_frame");
   // A name of its own (ros::init took roslaunch's remappings out of argv): two nodes of one name would make the master
