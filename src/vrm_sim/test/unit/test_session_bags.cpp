@@ -13,7 +13,9 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <iterator>
+#include <limits>
 #include <nlohmann/json.hpp>
 #include <regex>
 #include <string>
@@ -57,6 +59,31 @@ Process run(const std::string& arguments) {
   process.err = readText(err_file);
   fs::remove(err_file);
   return process;
+}
+
+// Copies the first `limit` messages of `source` into `path` in a child process that exits without closing the bag,
+// exactly as a killed rosbag record leaves <name>.bag.active (no index, the last chunk open); `after_each(out, message,
+// n)` may write more records after the n-th message.
+void writeUnfinishedBag(
+    const fs::path& path, const std::string& source, std::size_t limit = std::numeric_limits<std::size_t>::max(),
+    const std::function<void(rosbag::Bag&, const rosbag::MessageInstance&, std::size_t)>& after_each = {}) {
+  const pid_t child = fork();
+  ASSERT_GE(child, 0);
+  if (child == 0) {
+    rosbag::Bag in(source, rosbag::bagmode::Read);
+    rosbag::Bag out(path.string(), rosbag::bagmode::Write);
+    rosbag::View view(in);
+    std::size_t n = 0;
+    for (const rosbag::MessageInstance& message : view) {
+      if (n == limit) break;
+      out.write(message.getTopic(), message.getTime(), message);
+      if (after_each) after_each(out, message, n);
+      ++n;
+    }
+    _exit(0);  // no close
+  }
+  int status = 0;
+  waitpid(child, &status, 0);
 }
 
 class WorkFolder : public ::testing::Test {
@@ -162,17 +189,7 @@ TEST_F(WorkFolder, AGarbageFileIsNotABag) {
 TEST_F(WorkFolder, AnUnfinishedBagIsRecoveredIntoACopyAndTheOriginalIsLeftAlone) {
   const fs::path active = work_ / "killed.bag.active";
   const PreparedBag reference = prepareSessionBag((kBags / "membrane_peeling_novice.bag").string());
-  const pid_t child = fork();
-  ASSERT_GE(child, 0);
-  if (child == 0) {
-    rosbag::Bag source(reference.usable, rosbag::bagmode::Read);
-    rosbag::Bag out(active.string(), rosbag::bagmode::Write);
-    rosbag::View view(source);
-    for (const rosbag::MessageInstance& message : view) out.write(message.getTopic(), message.getTime(), message);
-    _exit(0);  // no close: no index, the last chunk open
-  }
-  int status = 0;
-  waitpid(child, &status, 0);
+  writeUnfinishedBag(active, reference.usable);
   ASSERT_TRUE(fs::exists(active));
   const std::string original_bytes = readText(active);
   {
@@ -199,24 +216,12 @@ TEST_F(WorkFolder, AnUnfinishedBagIsRecoveredIntoACopyAndTheOriginalIsLeftAlone)
 TEST_F(WorkFolder, AnEmptyMessageInAnUnfinishedBagIsLeftOutOfTheRecoveredCopyAndCounted) {
   const fs::path active = work_ / "with_empty.bag.active";
   const PreparedBag reference = prepareSessionBag((kBags / "navigation_expert.bag").string());
-  constexpr int kCopied = 200;
-  const pid_t child = fork();
-  ASSERT_GE(child, 0);
-  if (child == 0) {
-    rosbag::Bag source(reference.usable, rosbag::bagmode::Read);
-    rosbag::Bag out(active.string(), rosbag::bagmode::Write);
-    rosbag::View view(source);
-    int n = 0;
-    for (const rosbag::MessageInstance& message : view) {
-      out.write(message.getTopic(), message.getTime(), message);
-      // After a non-empty message: rosbag's own write of a first empty one is what the recovery avoids.
-      if (n == 0) out.write("/empty", message.getTime(), std_msgs::Empty());
-      if (++n == kCopied) break;
-    }
-    _exit(0);  // no close: no index
-  }
-  int status = 0;
-  waitpid(child, &status, 0);
+  constexpr std::size_t kCopied = 200;
+  // After a non-empty message: rosbag's own write of a first empty one is what the recovery avoids.
+  writeUnfinishedBag(active, reference.usable, kCopied,
+                     [](rosbag::Bag& out, const rosbag::MessageInstance& message, std::size_t n) {
+                       if (n == 0) out.write("/empty", message.getTime(), std_msgs::Empty());
+                     });
   const PreparedBag prepared = prepareSessionBag(active.string());
   ASSERT_TRUE(prepared.recovery.has_value());
   EXPECT_EQ(prepared.recovery->empty_records, 1u);

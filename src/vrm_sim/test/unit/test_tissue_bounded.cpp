@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "../../bench/tissue_bench_scene.h"
 #include "vrm_sim/tissue/reference_scenes.h"
 #include "vrm_sim/tissue/strain_limit.h"
 #include "vrm_sim/tissue/tissue_simulator.h"
@@ -23,7 +24,7 @@ constexpr double kStiffness = 2.0;
 
 double zeroClock() { return 0.0; }
 
-double nodeMass(int cells) { return 1e-5 * (22.0 / cells) * (22.0 / cells); }
+double nodeMass(int cells) { return bench::gridNodeMass(cells); }
 
 TissueConfig configFor(const std::string& integrator, double dt = 1e-3) {
   TissueConfig config;
@@ -35,17 +36,7 @@ TissueConfig configFor(const std::string& integrator, double dt = 1e-3) {
   return config;
 }
 
-// Closed forceps pointing down (-z world = +z instrument) with the tip at `tip`.
-InstrumentInput forcepsAt(const Eigen::Vector3d& tip) {
-  InstrumentInput forceps;
-  forceps.pose.linear() = Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitX()).toRotationMatrix();
-  forceps.pose.translation() = tip;
-  forceps.can_grasp = true;
-  forceps.collides = false;
-  forceps.jaw_angle = 0.0;
-  forceps.jaw_length = 1e-3;
-  return forceps;
-}
+using bench::forcepsAt;
 
 InstrumentInput sphereAt(const Eigen::Vector3d& centre, double radius) {
   InstrumentInput sphere;
@@ -226,14 +217,18 @@ TEST_P(TissueBounded, MassRatio1e5) {
   expectBounded(simulator, *membrane);
 }
 
-// A push: a sphere driven through the membrane at 0.1 m/s, 6 mm down (far beyond what the membrane can follow).
+// A 0.6 mm sphere driven down through the membrane at 0.1 m/s, 6 mm (far beyond what the membrane can follow).
+void pushSphereThrough(TissueSimulator& simulator) {
+  for (int f = 0; f < 60; ++f) {
+    advanceChecked(simulator, sphereAt(Eigen::Vector3d(1e-5, 2e-5, 5e-4 - f * 1e-4), 3e-4), 1e-3);
+  }
+}
+
 TEST_P(TissueBounded, InstrumentPushedThrough) {
   const int cells = 12;
   auto membrane = makeGridMembrane(cells, kSize, kStiffness, nodeMass(cells));
   TissueSimulator simulator(*membrane, configFor(GetParam()));
-  for (int f = 0; f < 60; ++f) {
-    advanceChecked(simulator, sphereAt(Eigen::Vector3d(1e-5, 2e-5, 5e-4 - f * 1e-4), 3e-4), 1e-3);
-  }
+  pushSphereThrough(simulator);
   expectBounded(simulator, *membrane);
 }
 
@@ -258,9 +253,7 @@ TEST_P(TissueBounded, PushThroughWhereTearingIsOn) {
   TissueConfig config = configFor(GetParam());
   config.tear_strain = 1.6;
   TissueSimulator simulator(*membrane, config);
-  for (int f = 0; f < 60; ++f) {
-    advanceChecked(simulator, sphereAt(Eigen::Vector3d(1e-5, 2e-5, 5e-4 - f * 1e-4), 3e-4), 1e-3);
-  }
+  pushSphereThrough(simulator);
   expectBounded(simulator, *membrane);
 }
 
