@@ -62,7 +62,8 @@ struct ReplayResult {
 enum class ReplayInput { kAsRecorded, kDevices };
 
 // Replays `bag`. Throws scene::SceneError for a scene that does not load, and BagError for recorded input frames with
-// a gap in their sequence (a lost frame: which, and where).
+// a gap in their sequence (a lost frame: which, and where) or for a message whose bytes do not hold its type (its
+// topic and bag time).
 ReplayResult replaySession(const PreparedBag& bag, const SessionSetup& setup,
                            ReplayInput input = ReplayInput::kAsRecorded);
 
