@@ -9,6 +9,7 @@
 
 #include <algorithm>
 #include <boost/make_shared.hpp>
+#include <cstdint>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -24,6 +25,12 @@ namespace vrm_sim {
 namespace bag {
 
 namespace {
+
+// to − from in seconds. ros::Time's own difference is a Duration, which throws beyond ±2^31 s (a corrupt bag's
+// times; fuzz_session_bag); the nanoseconds' difference fits an int64 for every ros::Time.
+double secondsBetween(const ros::Time& from, const ros::Time& to) {
+  return static_cast<double>(static_cast<std::int64_t>(to.toNSec()) - static_cast<std::int64_t>(from.toNSec())) * 1e-9;
+}
 
 namespace fs = std::filesystem;
 
@@ -386,7 +393,7 @@ RecoveryReport recoverBag(const std::string& broken, const std::string& copy) {
     last = raw.time;
     any = true;
   }
-  report.seconds = (last - first).toSec();
+  report.seconds = secondsBetween(first, last);
   return report;
 }
 
@@ -465,7 +472,7 @@ PreparedBag prepareSessionBag(const std::string& path, const PrepareOptions& opt
     std::string where = "after " + std::to_string(index) + " intact messages";
     if (index > 0) {
       char seconds[32];
-      std::snprintf(seconds, sizeof(seconds), "%.3f", (last - first).toSec());
+      std::snprintf(seconds, sizeof(seconds), "%.3f", secondsBetween(first, last));
       where += " (the last on " + last_topic + " at +" + seconds + " s)";
     }
     std::string position;
@@ -478,7 +485,7 @@ PreparedBag prepareSessionBag(const std::string& path, const PrepareOptions& opt
     throw BagError(path + ": corrupt: " + error.what() + " " + where + position);
   }
   prepared.messages = index;
-  prepared.seconds = index > 0 ? (last - first).toSec() : 0.0;
+  prepared.seconds = index > 0 ? secondsBetween(first, last) : 0.0;
   const bool has_input = std::any_of(inputTopics().begin(), inputTopics().end(),
                                      [&](const std::string& topic) { return prepared.topics.count(topic) > 0; });
   if (!has_input) {
