@@ -103,7 +103,9 @@ TEST(IntegratorChoice, SimulatorChoosesOnceAndAgainWhenTheFreeNodesChange) {
   // Grasped nodes are no longer integrated; the uniform grid keeps its bound, so the choice and its count stay.
   EXPECT_EQ(simulator.integratorLabel(), before);
   EXPECT_EQ(simulator.integratorChoiceChanges(), 1u);
-  EXPECT_EQ(simulator.statistics().fallbacks, 0u);
+  EXPECT_EQ(simulator.statistics().fallbacks, 0u)
+      << simulator.integratorLabel() << ": energy growth " << simulator.statistics().energy_growth << ", over bound "
+      << simulator.statistics().over_bound << ", too fast " << simulator.statistics().too_fast;
   // Heavier nodes make the explicit bound larger: a new topology is decided afresh (and counted).
   for (std::size_t i = 0; i < membrane->nodeCount(); ++i) membrane->nodeAtSlot(i).mass() *= 100.0;
   simulator.onTopologyChanged();

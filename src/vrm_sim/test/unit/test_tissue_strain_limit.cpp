@@ -60,6 +60,31 @@ TEST(TissueStrainLimit, FixedEndDoesNotMoveAndFreeEndIsPulledIn) {
   EXPECT_NEAR(chain->positions()[1].x(), 0.011, 1e-12);
 }
 
+// Provot (1995) makes the velocities agree with the corrected positions. Without it a node the pass pulled back keeps
+// the velocity that over-stretched the spring, the next integration throws it out again, and an instability grows under
+// the limit where the energy watchdog does not see it (issue 40: the shipped peel's slow pull tore with explicit Euler
+// and XPBD). A corrected node loses the velocity component against its correction, nothing else.
+TEST(TissueStrainLimit, CorrectionStopsTheVelocityAgainstIt) {
+  auto chain = makeChain(1, 1.0, 1e-3, 0.01);
+  chain->positions()[1].x() = 0.02;
+  chain->velocities()[1] = Eigen::Vector3d(0.3, 0.2, 0.0);  // outwards along the spring, and sideways
+  auto constrained = fixedFlags(*chain);
+  provotPass(viewOf(*chain, constrained.data()), 1.1, nullptr, false, chain->velocities());
+  EXPECT_NEAR(chain->positions()[1].x(), 0.011, 1e-12);
+  EXPECT_DOUBLE_EQ(chain->velocities()[1].x(), 0.0);
+  EXPECT_DOUBLE_EQ(chain->velocities()[1].y(), 0.2);
+  // A node already moving along its correction keeps its velocity (the stop never adds energy).
+  chain->positions()[1].x() = 0.02;
+  chain->velocities()[1] = Eigen::Vector3d(-0.3, 0.0, 0.0);
+  provotPass(viewOf(*chain, constrained.data()), 1.1, nullptr, false, chain->velocities());
+  EXPECT_DOUBLE_EQ(chain->velocities()[1].x(), -0.3);
+  // Without velocities the pass is the positional Alg. 5.1 (the test above).
+  chain->positions()[1].x() = 0.02;
+  chain->velocities()[1] = Eigen::Vector3d(0.3, 0.0, 0.0);
+  provotPass(viewOf(*chain, constrained.data()), 1.1);
+  EXPECT_DOUBLE_EQ(chain->velocities()[1].x(), 0.3);
+}
+
 // Pulling the end of a long chain: one pass in BFS order from the pulled node propagates the deformation along the
 // whole chain (ChainMail-like), whereas one pass in array order does not.
 TEST(TissueStrainLimit, SortedPassPropagatesInOnePass) {

@@ -37,6 +37,10 @@ class Integrator {
   virtual int lastIterations() const { return 1; }
   // Relative residual |r| / |b| the last step's linear solve ended with (0 for methods without one).
   virtual double lastResidual() const { return 0.0; }
+  // Every step starts from rest (quasi-static Euler): the velocities it leaves are reported for the collision
+  // response and rendering, not carried into the next step (so the strain limit need not make them agree with its
+  // corrections).
+  virtual bool startsFromRest() const { return false; }
 };
 
 using IntegratorFactory = std::unique_ptr<Integrator> (*)(const IntegratorOptions& options);

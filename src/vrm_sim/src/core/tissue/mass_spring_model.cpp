@@ -260,7 +260,10 @@ void MassSpringModel::limitStrain(TissueSimulator& s, const SystemView& system) 
   const TissueConfig& config = s.config_;
   s.sortSprings();
   for (int pass = 0; pass < config.strain_limit_passes; ++pass) {
-    if (provotPass(system, config.strain_limit, s.sorted_valid_ ? &s.sorter_ : nullptr, config.strain_limit_outer_only)
+    // Provot's velocity adjustment (the moved nodes stop against their correction) for integrators that carry their
+    // velocities into the next step; quasi-static Euler starts every step from rest.
+    if (provotPass(system, config.strain_limit, s.sorted_valid_ ? &s.sorter_ : nullptr, config.strain_limit_outer_only,
+                   s.integrator_->startsFromRest() ? nullptr : system.velocities)
             .corrected == 0) {
       break;
     }

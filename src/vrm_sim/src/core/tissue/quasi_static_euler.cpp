@@ -9,6 +9,7 @@ namespace {
 class QuasiStaticEuler : public Integrator {
  public:
   const char* name() const override { return "quasi_static_euler"; }
+  bool startsFromRest() const override { return true; }
   void step(const SystemView& system, const ForceModel& forces, double dt) override {
     Eigen::Vector3d* f = ensureSize(forces_, system.node_count);
     if (zero_velocities_.size() < system.node_count)

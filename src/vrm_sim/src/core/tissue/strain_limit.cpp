@@ -81,8 +81,29 @@ namespace {
 
 // Shortens spring s (nodes `ends`) to tau·l. `inner` = 0/1 names the end that stays put when known (BFS order),
 // -1 = unknown.
+// A node moved by `delta` loses the part of its velocity that points against the move (an inelastic stop, as a
+// ChainMail link: it never adds energy); nothing without velocities.
+inline void stopAgainst(Eigen::Vector3d* velocities, std::uint32_t i, const Eigen::Vector3d& delta) {
+  if (velocities == nullptr) return;
+  const double norm2 = delta.squaredNorm();
+  if (!(norm2 > 0.0)) return;
+  Eigen::Vector3d& v = velocities[i];
+  const double along = v.dot(delta);
+  if (along < 0.0) v -= (along / norm2) * delta;
+}
+
+// Which ends a correction moves: only the free ones; of two free ends only the outer one when `inner` (0 or 1) names
+// the end nearer the interaction (Alg. 5.2 order), both halfway otherwise.
+struct MovingEnds {
+  bool first, second;
+};
+inline MovingEnds movingEnds(bool free0, bool free1, int inner) {
+  if (free0 && free1 && inner >= 0) return {inner == 1, inner == 0};
+  return {free0, free1};
+}
+
 inline bool limitSpring(const SystemView& system, std::size_t s, const std::array<std::uint32_t, 2>& ends, double tau,
-                        int inner, ProvotStatistics& stats) {
+                        int inner, ProvotStatistics& stats, Eigen::Vector3d* velocities) {
   const double rest = system.rest_lengths[s];
   if (rest < kMinSpringLength) return false;
   Eigen::Vector3d& x0 = system.positions[ends[0]];
@@ -102,20 +123,18 @@ inline bool limitSpring(const SystemView& system, std::size_t s, const std::arra
     return false;
   }
   const Eigen::Vector3d excess = ((length - limit) / length) * d;
-  // Move only the outer end when the inner one is known (Alg. 5.2 order) or the other end is constrained.
-  bool move0 = free0;
-  bool move1 = free1;
-  if (free0 && free1 && inner >= 0) {
-    move0 = inner == 1;
-    move1 = inner == 0;
-  }
-  if (move0 && move1) {
+  const MovingEnds move = movingEnds(free0, free1, inner);
+  if (move.first && move.second) {
     x0 += 0.5 * excess;
     x1 -= 0.5 * excess;
-  } else if (move0) {
+    stopAgainst(velocities, ends[0], 0.5 * excess);
+    stopAgainst(velocities, ends[1], -0.5 * excess);
+  } else if (move.first) {
     x0 += excess;
+    stopAgainst(velocities, ends[0], excess);
   } else {
     x1 -= excess;
+    stopAgainst(velocities, ends[1], -excess);
   }
   ++stats.corrected;
   return true;
@@ -123,7 +142,8 @@ inline bool limitSpring(const SystemView& system, std::size_t s, const std::arra
 
 }  // namespace
 
-ProvotStatistics provotPass(const SystemView& system, double tau, const SpringSorter* sorter, bool outer_only) {
+ProvotStatistics provotPass(const SystemView& system, double tau, const SpringSorter* sorter, bool outer_only,
+                            Eigen::Vector3d* velocities) {
   ProvotStatistics stats;
   if (sorter != nullptr && sorter->order().size() == system.spring_count) {
     const auto& order = sorter->order();
@@ -132,10 +152,11 @@ ProvotStatistics provotPass(const SystemView& system, double tau, const SpringSo
     // The last set (not connected to an interaction) has no inner end.
     const std::size_t reachable_end = sorter->levelOffsets()[sorter->levelOffsets().size() - 2];
     for (std::size_t k = 0; k < order.size(); ++k) {
-      limitSpring(system, order[k], ends[k], tau, (outer_only && k < reachable_end) ? inner_second[k] : -1, stats);
+      limitSpring(system, order[k], ends[k], tau, (outer_only && k < reachable_end) ? inner_second[k] : -1, stats,
+                  velocities);
     }
   } else {
-    for (std::size_t s = 0; s < system.spring_count; ++s) limitSpring(system, s, system.springs[s], tau, -1, stats);
+    for (std::size_t s = 0; s < system.spring_count; ++s) limitSpring(system, s, system.springs[s], tau, -1, stats, velocities);
   }
   return stats;
 }
@@ -171,12 +192,7 @@ inline void moveNode(const SystemView& system, const BoundPassOptions& options, 
                      const Eigen::Vector3d& delta) {
   system.positions[i] += delta;
   if (options.moved != nullptr) options.moved[i] = 1;
-  if (options.velocities == nullptr) return;
-  const double norm2 = delta.squaredNorm();
-  if (!(norm2 > 0.0)) return;
-  Eigen::Vector3d& v = options.velocities[i];
-  const double along = v.dot(delta);
-  if (along < 0.0) v -= (along / norm2) * delta;
+  stopAgainst(options.velocities, i, delta);
 }
 
 // Returns which ends it moved: bit 0 the first, bit 1 the second.
@@ -206,19 +222,14 @@ inline int boundSpring(const SystemView& system, const BoundPassOptions& options
   }
   const double shortened = std::max(rest, length - options.relaxation * (length - options.target * rest));
   const Eigen::Vector3d excess = ((length - shortened) / length) * d;
-  bool move0 = free0;
-  bool move1 = free1;
-  if (free0 && free1 && inner >= 0) {
-    move0 = inner == 1;
-    move1 = inner == 0;
-  }
+  const MovingEnds move = movingEnds(free0, free1, inner);
   ++stats.corrected;
-  if (move0 && move1) {
+  if (move.first && move.second) {
     moveNode(system, options, ends[0], 0.5 * excess);
     moveNode(system, options, ends[1], -0.5 * excess);
     return 3;
   }
-  if (move0) {
+  if (move.first) {
     moveNode(system, options, ends[0], excess);
     return 1;
   }
