@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <ctime>
 #include <vector>
 
 #include "vrm_sim/tissue/tissue_simulator.h"
@@ -28,6 +29,15 @@ inline double medianOf(std::vector<double> values) {
 
 inline double wallClock() {
   return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+// CPU time of the calling thread (s): what a computation cost, without the time the thread waited for a core. On a
+// shared machine it compares integrators far more steadily than the wall clock (issue 40 §2: instruction counters
+// are not available in this VM).
+inline double threadCpuClock() {
+  timespec now{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &now);
+  return static_cast<double>(now.tv_sec) + 1e-9 * static_cast<double>(now.tv_nsec);
 }
 
 // Closed forceps pointing down (−z world = +z instrument) with the tip at `tip`: grasps what lies between its jaws.

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "../../bench/tissue_bench_scene.h"
+#include "../../bench/tissue_hard_cases.h"
 #include "vrm_sim/tissue/reference_scenes.h"
 #include "vrm_sim/tissue/strain_limit.h"
 #include "vrm_sim/tissue/tissue_simulator.h"
@@ -83,6 +84,40 @@ void graspLiftYank(TissueSimulator& simulator, int lift_frames, double lift_spee
     advanceChecked(simulator, forcepsAt(tip), 1e-3);
   }
   for (int f = 0; f < 5; ++f) advanceChecked(simulator, forcepsAt(tip), 1e-3);
+}
+
+// Issue 40 §2's unseen scenes: a seed names one scene on every machine (SplitMix64, no <random> distributions), the
+// draws stay in their stated ranges, and different seeds give different scenes.
+TEST(TissueHardCases, DrawnScenesAreReproducibleAndInRange) {
+  EXPECT_EQ(bench::randomHardCase(1).description, bench::randomHardCase(1).description);
+  EXPECT_NE(bench::randomHardCase(1).description, bench::randomHardCase(2).description);
+  std::uint64_t state = 0;
+  EXPECT_EQ(bench::splitMix64(state), 0xe220a8397b1dcdafULL);  // the published first output for seed 0
+  bool pulls = false, yanks = false;
+  for (std::uint64_t seed = 1; seed <= 200; ++seed) {
+    const bench::HardCase hard = bench::randomHardCase(seed);
+    EXPECT_EQ(hard.seed, seed);
+    EXPECT_GE(hard.cells, 12);
+    EXPECT_LE(hard.cells, 40);
+    EXPECT_GE(hard.stiffness_scale, 1.0);
+    EXPECT_LE(hard.stiffness_scale, 1e3);
+    EXPECT_GE(hard.stiffness_ratio, 1.0);
+    EXPECT_LE(hard.stiffness_ratio, 1e2);
+    EXPECT_GE(hard.mass_ratio, 1.0);
+    EXPECT_LE(hard.mass_ratio, 1e4);
+    EXPECT_GE(hard.dt, 2.5e-4);
+    EXPECT_LE(hard.dt, 5e-3);
+    if (hard.yank) {
+      EXPECT_GT(hard.yank_speed, 0.05);
+      EXPECT_LE(hard.yank_speed, 0.6);
+      yanks = true;
+    } else {
+      EXPECT_GE(hard.pull_speed, 3e-3);
+      EXPECT_LE(hard.pull_speed, 0.05);
+      pulls = true;
+    }
+  }
+  EXPECT_TRUE(pulls && yanks);
 }
 
 TEST(TissueStrainBound, IsOnePointFiveTimesTheSlackAndNeverAboveTwo) {

@@ -57,9 +57,10 @@ struct ProvotStatistics {
 // as fixed, so the correction flows outwards in one pass (ChainMail-like) — exact for a chain pulled at one end, but
 // with many instrument contacts it drags outer nodes into the instrument and the collision response then throws them
 // through it (measured: strain grows without bound on a 64² membrane), so the simulator uses it only on request.
-// Springs with a zero rest length are skipped (no meaningful strain). With `velocities`, a moved node loses the velocity
-// component against its correction (Provot's velocity adjustment: an inelastic stop, never adding energy); without it
-// the integrator's next step throws the node out again and an instability grows beneath the limit (issue 40).
+// Springs with a zero rest length are skipped (no meaningful strain). With `velocities`, a moved node loses the
+// velocity component against its correction (Provot's velocity adjustment: an inelastic stop, never adding energy);
+// without it the integrator's next step throws the node out again and an instability grows beneath the limit (issue
+// 40).
 ProvotStatistics provotPass(const SystemView& system, double tau, const SpringSorter* sorter = nullptr,
                             bool outer_only = false, Eigen::Vector3d* velocities = nullptr);
 

@@ -156,7 +156,8 @@ ProvotStatistics provotPass(const SystemView& system, double tau, const SpringSo
                   velocities);
     }
   } else {
-    for (std::size_t s = 0; s < system.spring_count; ++s) limitSpring(system, s, system.springs[s], tau, -1, stats, velocities);
+    for (std::size_t s = 0; s < system.spring_count; ++s)
+      limitSpring(system, s, system.springs[s], tau, -1, stats, velocities);
   }
   return stats;
 }
