@@ -15,7 +15,9 @@
 // step reported) against Bullet's stepSimulation with the same grasp and a kinematic sphere as the probe.
 // Every timed figure: median over repetitions in one run (ms_per_step), with ms_min/ms_max beside it.
 // Plus the hard cases (stable yes/no, max strain, energy, watchdog fallbacks; their reference stays RK2 at a tiny dt).
-// Usage: bench_tissue [--quick] [--out FILE]
+// Usage: bench_tissue [--quick] [--out FILE] [--only SECTION[,SECTION...]]
+//   sections: accuracy (references, speed against error, Bullet, matched), full_step, hard, bullet_sweep (issue 40
+//   §4: Bullet with 10 iterations across the dt sweep at 100×100 against our fastest configuration as accurate).
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -620,11 +622,21 @@ BulletRun runBullet(const std::string& scene_name, int cells, double dt, int fra
 
 int main(int argc, char** argv) {
   vrm_sim::bench::BenchArgs args;
-  if (const auto status = vrm_sim::bench::parseBenchArgs(
-          argc, argv, "bench_tissue", "Tissue: speed against error for every integrator, dt and mesh size.", "",
-          &args)) {
-    return *status;
-  }
+  std::string only;
+  vrm_sim::cli::CommandLine cli("bench_tissue", "[--quick] [--out FILE] [--only SECTION[,SECTION...]]",
+                                "Tissue: speed against error for every integrator, dt and mesh size.");
+  vrm_sim::bench::addBenchOptions(cli, &args);
+  cli.add()("only", vrm_sim::cli::po::value(&only)->value_name("SECTIONS"),
+            "only these sections (comma-separated: accuracy, full_step, hard, bullet_sweep; default all)");
+  if (const auto status = cli.parse(argc, argv)) return *status;
+  const auto runs = [&only](const std::string& section) {
+    if (only.empty()) return true;
+    std::stringstream list(only);
+    for (std::string item; std::getline(list, item, ',');) {
+      if (item == section) return true;
+    }
+    return false;
+  };
   const bool quick = args.quick;
   const std::string out_path = args.out_path;
   std::string command = "bench_tissue";
@@ -654,7 +666,7 @@ int main(int argc, char** argv) {
     std::vector<std::uint32_t> grasped;
   };
   std::vector<AccuracyCase> cases;
-  for (int cells : sizes) {
+  for (int cells : runs("accuracy") ? sizes : std::vector<int>{}) {
     AccuracyCase c;
     c.name = "grasp_pull_" + std::to_string(cells) + "x" + std::to_string(cells);
     c.spec = SceneSpec{cells, duration, lift, false, false};
@@ -695,7 +707,7 @@ int main(int argc, char** argv) {
     }
     cases.push_back(c);
   }
-  for (int cells : sag_sizes) {
+  for (int cells : runs("accuracy") ? sag_sizes : std::vector<int>{}) {
     AccuracyCase c;
     c.name = "static_sag_" + std::to_string(cells) + "x" + std::to_string(cells);
     c.spec = SceneSpec{cells, sag_duration, 0.0, true, false};
@@ -862,7 +874,7 @@ int main(int argc, char** argv) {
   // Full step: TissueSimulator::advance with the forceps grasping and pulling and the probe pressed into the
   // membrane (forces + integration + Provot + collision response + grasp + watchdog), at the scene's Δt = 1 ms and at
   // 0.25 ms, below the explicit bound of the 100×100 mesh (≈ 0.6 ms).
-  for (int cells : sizes) {
+  for (int cells : runs("full_step") ? sizes : std::vector<int>{}) {
     const Scene scene{cells};
     const std::string scene_name = "full_step_" + std::to_string(cells) + "x" + std::to_string(cells);
     const SceneSpec spec{cells, duration, lift, false, true};
@@ -1001,6 +1013,7 @@ int main(int argc, char** argv) {
                                    {"hard_yank_0.6", 22, 1e-3, 1, 1, 0.01, 0, 1.0, 1.0, 2e-3, true},
                                    {"hard_push_through", 22, 1e-3, 1, 1, 0, 0.1}};
   if (!quick) hard_cases.push_back({"hard_membrane_128", 128, -0.5, 1, 1, 0.01, 0});
+  if (!runs("hard")) hard_cases.clear();
   struct HardRun {
     Row row;
     std::vector<Eigen::Vector3d> positions;

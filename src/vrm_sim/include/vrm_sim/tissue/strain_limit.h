@@ -135,6 +135,7 @@ class ActiveBoundSolver {
   const std::vector<std::uint32_t>* adjacency_ = nullptr;
   std::vector<std::uint8_t> node_active_, spring_listed_;
   std::vector<std::uint32_t> nodes_, springs_;
+  std::vector<std::uint32_t> beyond_;  // seed()'s springs beyond the bound
 };
 
 // Whether any spring (rest length >= kMinSpringLength) is longer than bound·l; +inf bounds nothing.

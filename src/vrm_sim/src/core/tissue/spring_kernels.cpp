@@ -2,6 +2,12 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
+
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+#include <immintrin.h>
+#define VRM_TISSUE_AVX2_GATHER 1
+#endif
 
 // Built twice, for AVX2 (4 doubles per instruction) and for the baseline x86-64 SSE2, and picked at load time.
 // AVX2 without FMA on purpose: FMA contraction would round differently from the baseline and the Eigen loops.
@@ -63,11 +69,140 @@ inline void energyOnVectors(std::size_t spring_count, const double* __restrict s
   }
 }
 
+#ifdef VRM_TISSUE_AVX2_GATHER
+// Explicit AVX2 (issue 40 §3): the gather and the arithmetic in one pass, four springs per iteration, so the spring
+// vectors never go through memory. Every lane runs the operations of the scalar loops above in the same order
+// (IEEE sqrt and division are exact in SIMD; AVX2 without FMA, nothing contracts), so the results are bit for bit
+// those of the SSE2 baseline. Node indices are gathered as 32-bit offsets of doubles: < 2^31 / 3 nodes.
+bool haveAvx2() {
+  static const bool avx2 = __builtin_cpu_supports("avx2");
+  return avx2;
+}
+
+struct SpringQuad {
+  __m256d dx, dy, dz;
+};
+
+__attribute__((target("avx2"))) inline SpringQuad gatherQuad(const std::array<std::uint32_t, 2>* springs,
+                                                             const double* base) {
+  // a0 b0 a1 b1 a2 b2 a3 b3 -> (a0 a1 a2 a3 | b0 b1 b2 b3), × 3 doubles per node.
+  const __m256i pairs = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(springs));
+  const __m256i split = _mm256_permutevar8x32_epi32(pairs, _mm256_setr_epi32(0, 2, 4, 6, 1, 3, 5, 7));
+  const __m256i offsets = _mm256_mullo_epi32(split, _mm256_set1_epi32(3));
+  const __m128i ia = _mm256_castsi256_si128(offsets);
+  const __m128i ib = _mm256_extracti128_si256(offsets, 1);
+  SpringQuad q;
+  q.dx = _mm256_sub_pd(_mm256_i32gather_pd(base, ib, 8), _mm256_i32gather_pd(base, ia, 8));
+  q.dy = _mm256_sub_pd(_mm256_i32gather_pd(base + 1, ib, 8), _mm256_i32gather_pd(base + 1, ia, 8));
+  q.dz = _mm256_sub_pd(_mm256_i32gather_pd(base + 2, ib, 8), _mm256_i32gather_pd(base + 2, ia, 8));
+  return q;
+}
+
+// (dx² + dy²) + dz², the order of the scalar loops and of Eigen's squaredNorm().
+__attribute__((target("avx2"))) inline __m256d squaredLengths(const SpringQuad& q) {
+  return _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(q.dx, q.dx), _mm256_mul_pd(q.dy, q.dy)), _mm256_mul_pd(q.dz, q.dz));
+}
+
+template <bool kEnergy>
+__attribute__((target("avx2"))) void hookeAvx2(std::size_t spring_count, const std::array<std::uint32_t, 2>* springs,
+                                               const Eigen::Vector3d* x, const double* __restrict stiffnesses,
+                                               const double* __restrict rest_lengths, double* __restrict fx,
+                                               double* __restrict fy, double* __restrict fz,
+                                               double* __restrict energies) {
+  const double* base = x->data();
+  const __m256d min_length = _mm256_set1_pd(kMinSpringLength);
+  const __m256d half = _mm256_set1_pd(0.5);
+  const std::size_t blocks = spring_count / 4 * 4;
+  for (std::size_t s = 0; s < blocks; s += 4) {
+    const SpringQuad q = gatherQuad(springs + s, base);
+    const __m256d length = _mm256_sqrt_pd(squaredLengths(q));
+    const __m256d k = _mm256_loadu_pd(stiffnesses + s);
+    const __m256d stretch = _mm256_sub_pd(length, _mm256_loadu_pd(rest_lengths + s));
+    // std::max(length, kMinSpringLength) with its NaN behaviour (NaN stays NaN): max_pd returns its second operand
+    // unless the first is greater.
+    const __m256d scale = _mm256_div_pd(_mm256_mul_pd(k, stretch), _mm256_max_pd(min_length, length));
+    const __m256d used = _mm256_blendv_pd(scale, _mm256_setzero_pd(), _mm256_cmp_pd(length, min_length, _CMP_LT_OQ));
+    _mm256_storeu_pd(fx + s, _mm256_mul_pd(used, q.dx));
+    _mm256_storeu_pd(fy + s, _mm256_mul_pd(used, q.dy));
+    _mm256_storeu_pd(fz + s, _mm256_mul_pd(used, q.dz));
+    if (kEnergy) {
+      _mm256_storeu_pd(energies + s, _mm256_mul_pd(_mm256_mul_pd(_mm256_mul_pd(half, k), stretch), stretch));
+    }
+  }
+  const std::size_t rest = spring_count - blocks;
+  gatherSpringVectors(rest, springs + blocks, x, fx + blocks, fy + blocks, fz + blocks);
+  hookeOnVectors<kEnergy>(rest, stiffnesses + blocks, rest_lengths + blocks, fx + blocks, fy + blocks, fz + blocks,
+                          kEnergy ? energies + blocks : nullptr);
+}
+
+// Σ ½ k (|d| − l)² in the four interleaved partial sums of sumOf() (lane j = springs j, j + 4, ...).
+__attribute__((target("avx2"))) double springEnergyAvx2(std::size_t spring_count,
+                                                        const std::array<std::uint32_t, 2>* springs,
+                                                        const Eigen::Vector3d* x, const double* stiffnesses,
+                                                        const double* rest_lengths) {
+  const double* base = x->data();
+  const __m256d half = _mm256_set1_pd(0.5);
+  __m256d lanes = _mm256_setzero_pd();
+  const std::size_t blocks = spring_count / 4 * 4;
+  for (std::size_t s = 0; s < blocks; s += 4) {
+    const SpringQuad q = gatherQuad(springs + s, base);
+    const __m256d stretch = _mm256_sub_pd(_mm256_sqrt_pd(squaredLengths(q)), _mm256_loadu_pd(rest_lengths + s));
+    const __m256d energy =
+        _mm256_mul_pd(_mm256_mul_pd(_mm256_mul_pd(half, _mm256_loadu_pd(stiffnesses + s)), stretch), stretch);
+    lanes = _mm256_add_pd(lanes, energy);
+  }
+  double lane[4];
+  _mm256_storeu_pd(lane, lanes);
+  double sum = (lane[0] + lane[1]) + (lane[2] + lane[3]);
+  for (std::size_t s = blocks; s < spring_count; ++s) {
+    const auto& ends = springs[s];
+    const double dx = x[ends[1]].x() - x[ends[0]].x();
+    const double dy = x[ends[1]].y() - x[ends[0]].y();
+    const double dz = x[ends[1]].z() - x[ends[0]].z();
+    const double stretch = std::sqrt(dx * dx + dy * dy + dz * dz) - rest_lengths[s];
+    sum += 0.5 * stiffnesses[s] * stretch * stretch;
+  }
+  return sum;
+}
+
+// Appends to `out`, in spring order, every spring with rest >= kMinSpringLength and !(|d|² <= factor²·l²) (a
+// non-finite length counts).
+__attribute__((target("avx2"))) void springsBeyondAvx2(std::size_t spring_count,
+                                                       const std::array<std::uint32_t, 2>* springs,
+                                                       const Eigen::Vector3d* x, const double* rest_lengths,
+                                                       double factor2, std::vector<std::uint32_t>& out) {
+  const double* base = x->data();
+  const __m256d f2 = _mm256_set1_pd(factor2);
+  const __m256d min_length = _mm256_set1_pd(kMinSpringLength);
+  const std::size_t blocks = spring_count / 4 * 4;
+  for (std::size_t s = 0; s < blocks; s += 4) {
+    const SpringQuad q = gatherQuad(springs + s, base);
+    const __m256d rest = _mm256_loadu_pd(rest_lengths + s);
+    const __m256d within = _mm256_cmp_pd(squaredLengths(q), _mm256_mul_pd(f2, _mm256_mul_pd(rest, rest)), _CMP_LE_OQ);
+    const __m256d measurable = _mm256_cmp_pd(rest, min_length, _CMP_GE_OQ);
+    int mask = _mm256_movemask_pd(_mm256_andnot_pd(within, measurable));
+    while (mask != 0) {
+      const int lane = __builtin_ctz(static_cast<unsigned>(mask));
+      out.push_back(static_cast<std::uint32_t>(s + lane));
+      mask &= mask - 1;
+    }
+  }
+  for (std::size_t s = blocks; s < spring_count; ++s) {
+    const double rest = rest_lengths[s];
+    const double length2 = (x[springs[s][1]] - x[springs[s][0]]).squaredNorm();
+    if (!(length2 <= factor2 * (rest * rest)) && rest >= kMinSpringLength) out.push_back(static_cast<std::uint32_t>(s));
+  }
+}
+#endif
+
 }  // namespace
 
 VRM_TISSUE_KERNEL
 void hookeForces(std::size_t spring_count, const std::array<std::uint32_t, 2>* springs, const Eigen::Vector3d* x,
                  const double* stiffnesses, const double* rest_lengths, double* fx, double* fy, double* fz) {
+#ifdef VRM_TISSUE_AVX2_GATHER
+  if (haveAvx2()) return hookeAvx2<false>(spring_count, springs, x, stiffnesses, rest_lengths, fx, fy, fz, nullptr);
+#endif
   gatherSpringVectors(spring_count, springs, x, fx, fy, fz);
   hookeOnVectors<false>(spring_count, stiffnesses, rest_lengths, fx, fy, fz, nullptr);
 }
@@ -76,6 +211,9 @@ VRM_TISSUE_KERNEL
 void hookeForcesAndEnergy(std::size_t spring_count, const std::array<std::uint32_t, 2>* springs,
                           const Eigen::Vector3d* x, const double* stiffnesses, const double* rest_lengths, double* fx,
                           double* fy, double* fz, double* energies) {
+#ifdef VRM_TISSUE_AVX2_GATHER
+  if (haveAvx2()) return hookeAvx2<true>(spring_count, springs, x, stiffnesses, rest_lengths, fx, fy, fz, energies);
+#endif
   gatherSpringVectors(spring_count, springs, x, fx, fy, fz);
   hookeOnVectors<true>(spring_count, stiffnesses, rest_lengths, fx, fy, fz, energies);
 }
@@ -83,6 +221,9 @@ void hookeForcesAndEnergy(std::size_t spring_count, const std::array<std::uint32
 VRM_TISSUE_KERNEL
 double springEnergy(std::size_t spring_count, const std::array<std::uint32_t, 2>* springs, const Eigen::Vector3d* x,
                     const double* stiffnesses, const double* rest_lengths, double* dx, double* dy, double* dz) {
+#ifdef VRM_TISSUE_AVX2_GATHER
+  if (haveAvx2()) return springEnergyAvx2(spring_count, springs, x, stiffnesses, rest_lengths);
+#endif
   gatherSpringVectors(spring_count, springs, x, dx, dy, dz);
   energyOnVectors(spring_count, stiffnesses, rest_lengths, dx, dy, dz);
   return sumOf(dx, spring_count);
@@ -110,6 +251,22 @@ void scatterSpringForces(std::size_t spring_count, const std::array<std::uint32_
     const Eigen::Vector3d f(fx[s], fy[s], fz[s]);
     forces[springs[s][0]] += f;
     forces[springs[s][1]] -= f;
+  }
+}
+
+void springsBeyond(const SystemView& system, double factor, std::vector<std::uint32_t>& out) {
+  const double factor2 = factor * factor;
+#ifdef VRM_TISSUE_AVX2_GATHER
+  if (haveAvx2()) {
+    springsBeyondAvx2(system.spring_count, system.springs, system.positions, system.rest_lengths, factor2, out);
+    return;
+  }
+#endif
+  for (std::size_t s = 0; s < system.spring_count; ++s) {
+    const double rest = system.rest_lengths[s];
+    const auto& ends = system.springs[s];
+    const double length2 = (system.positions[ends[1]] - system.positions[ends[0]]).squaredNorm();
+    if (!(length2 <= factor2 * (rest * rest)) && rest >= kMinSpringLength) out.push_back(static_cast<std::uint32_t>(s));
   }
 }
 

@@ -6,6 +6,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <vector>
 
 #include "vrm_sim/tissue/system.h"
 
@@ -36,6 +37,10 @@ void hookeForcesAndEnergy(std::size_t spring_count, const std::array<std::uint32
 
 // Σ values in four interleaved partial sums (vectorises; a fixed order, so deterministic).
 double sumOf(const double* values, std::size_t count);
+
+// Appends to `out`, in spring order, the springs with l >= kMinSpringLength whose |d|² is not <= factor²·l² (beyond
+// factor·l, or a non-finite length): what a sweep of squared lengths would find, without a square root.
+void springsBeyond(const SystemView& system, double factor, std::vector<std::uint32_t>& out);
 
 // max |d|/l over springs with l >= kMinSpringLength, without a square root per spring: a spring is measured exactly
 // (sqrt, division) only when |d|² exceeds the running maximum's bound, which after the first few springs is rare. A

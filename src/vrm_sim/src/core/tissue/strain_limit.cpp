@@ -4,6 +4,8 @@
 #include <cmath>
 #include <limits>
 
+#include "spring_kernels.h"
+
 namespace vrm_sim {
 namespace tissue {
 
@@ -284,15 +286,12 @@ bool ActiveBoundSolver::seed(const SystemView& system, double bound) {
       spring_listed_.size() != system.spring_count || !std::isfinite(bound)) {
     return false;
   }
-  const double bound2 = bound * bound;
-  for (std::size_t s = 0; s < system.spring_count; ++s) {
-    const double rest = system.rest_lengths[s];
-    const auto& ends = system.springs[s];
-    const double length2 = (system.positions[ends[1]] - system.positions[ends[0]]).squaredNorm();
-    if (!(length2 <= bound2 * (rest * rest)) && rest >= kMinSpringLength) {
-      activate(ends[0]);
-      activate(ends[1]);
-    }
+  // The sweep of squared lengths (vectorised, the same test), then the springs it found in spring order.
+  beyond_.clear();
+  kernels::springsBeyond(system, bound, beyond_);
+  for (const std::uint32_t s : beyond_) {
+    activate(system.springs[s][0]);
+    activate(system.springs[s][1]);
   }
   return !springs_.empty();
 }
