@@ -78,8 +78,10 @@ class ForceModel {
   void captureSpringEnergy(double* spring_energy) const { capture_ = spring_energy; }
 
  private:
-  // Per-spring forces of the last compute() (structure of arrays), kept between steps so a step allocates nothing;
-  // grows only after a topology change. One ForceModel therefore serves one thread at a time.
+  // The Hooke terms without AVX2: per-spring forces into spring_forces_, then the scatter.
+  void scatterInTwoPasses(const SystemView& system, const Eigen::Vector3d* x, Eigen::Vector3d* forces) const;
+  // Per-spring forces of the last two-pass compute() (structure of arrays), kept between steps so a step allocates
+  // nothing; grows only after a topology change. One ForceModel therefore serves one thread at a time.
   mutable std::vector<double> spring_forces_;
   mutable double* capture_ = nullptr;
 };

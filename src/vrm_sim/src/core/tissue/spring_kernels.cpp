@@ -135,6 +135,54 @@ __attribute__((target("avx2"))) void hookeAvx2(std::size_t spring_count, const s
                           kEnergy ? energies + blocks : nullptr);
 }
 
+// hookeAvx2() with the scatter in the same loop (issue 40 §3, fused): each quad's forces go from registers to the
+// nodes, spring by spring in spring order — the additions scatterSpringForces() makes, in its order — and the
+// energies into sumOf()'s four partial sums. No per-spring arrays at all.
+__attribute__((target("avx2"))) void hookeScatterAvx2(std::size_t spring_count,
+                                                      const std::array<std::uint32_t, 2>* springs,
+                                                      const Eigen::Vector3d* x, const double* __restrict stiffnesses,
+                                                      const double* __restrict rest_lengths,
+                                                      Eigen::Vector3d* __restrict forces, double* energy) {
+  const double* base = x->data();
+  const __m256d min_length = _mm256_set1_pd(kMinSpringLength);
+  const __m256d half = _mm256_set1_pd(0.5);
+  __m256d lanes = _mm256_setzero_pd();
+  alignas(32) double f[3][4];
+  const std::size_t blocks = spring_count / 4 * 4;
+  for (std::size_t s = 0; s < blocks; s += 4) {
+    const SpringQuad q = gatherQuad(springs + s, base);
+    const __m256d length = _mm256_sqrt_pd(squaredLengths(q));
+    const __m256d k = _mm256_loadu_pd(stiffnesses + s);
+    const __m256d stretch = _mm256_sub_pd(length, _mm256_loadu_pd(rest_lengths + s));
+    const __m256d scale = _mm256_div_pd(_mm256_mul_pd(k, stretch), _mm256_max_pd(min_length, length));
+    const __m256d used = _mm256_blendv_pd(scale, _mm256_setzero_pd(), _mm256_cmp_pd(length, min_length, _CMP_LT_OQ));
+    _mm256_store_pd(f[0], _mm256_mul_pd(used, q.dx));
+    _mm256_store_pd(f[1], _mm256_mul_pd(used, q.dy));
+    _mm256_store_pd(f[2], _mm256_mul_pd(used, q.dz));
+    if (energy != nullptr) {
+      lanes = _mm256_add_pd(lanes, _mm256_mul_pd(_mm256_mul_pd(_mm256_mul_pd(half, k), stretch), stretch));
+    }
+    for (int j = 0; j < 4; ++j) {
+      const Eigen::Vector3d fs(f[0][j], f[1][j], f[2][j]);
+      forces[springs[s + j][0]] += fs;
+      forces[springs[s + j][1]] -= fs;
+    }
+  }
+  double lane[4];
+  _mm256_storeu_pd(lane, lanes);
+  double sum = (lane[0] + lane[1]) + (lane[2] + lane[3]);
+  for (std::size_t s = blocks; s < spring_count; ++s) {
+    double fx, fy, fz, e;
+    gatherSpringVectors(1, springs + s, x, &fx, &fy, &fz);
+    hookeOnVectors<true>(1, stiffnesses + s, rest_lengths + s, &fx, &fy, &fz, &e);
+    const Eigen::Vector3d fs(fx, fy, fz);
+    forces[springs[s][0]] += fs;
+    forces[springs[s][1]] -= fs;
+    sum += e;
+  }
+  if (energy != nullptr) *energy = sum;
+}
+
 // Σ ½ k (|d| − l)² in the four interleaved partial sums of sumOf() (lane j = springs j, j + 4, ...).
 __attribute__((target("avx2"))) double springEnergyAvx2(std::size_t spring_count,
                                                         const std::array<std::uint32_t, 2>* springs,
@@ -243,6 +291,18 @@ double sumOf(const double* values, std::size_t count) {
   double sum = (lanes[0] + lanes[1]) + (lanes[2] + lanes[3]);
   for (std::size_t s = blocks; s < count; ++s) sum += values[s];
   return sum;
+}
+
+bool hookeForcesScattered(std::size_t spring_count, const std::array<std::uint32_t, 2>* springs,
+                          const Eigen::Vector3d* x, const double* stiffnesses, const double* rest_lengths,
+                          Eigen::Vector3d* forces, double* energy) {
+#ifdef VRM_TISSUE_AVX2_GATHER
+  if (haveAvx2()) {
+    hookeScatterAvx2(spring_count, springs, x, stiffnesses, rest_lengths, forces, energy);
+    return true;
+  }
+#endif
+  return false;
 }
 
 void scatterSpringForces(std::size_t spring_count, const std::array<std::uint32_t, 2>* springs, const double* fx,

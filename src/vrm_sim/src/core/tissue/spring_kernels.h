@@ -20,6 +20,13 @@ namespace kernels {
 void hookeForces(std::size_t spring_count, const std::array<std::uint32_t, 2>* springs, const Eigen::Vector3d* x,
                  const double* stiffnesses, const double* rest_lengths, double* fx, double* fy, double* fz);
 
+// hookeForces() (+ hookeForcesAndEnergy()'s energies summed as sumOf() sums them, when energy != nullptr) and
+// scatterSpringForces() in one pass, without the per-spring arrays: the same forces, added in the same order. Only
+// with AVX2 (false, nothing done, without it: the caller runs the two passes).
+bool hookeForcesScattered(std::size_t spring_count, const std::array<std::uint32_t, 2>* springs,
+                          const Eigen::Vector3d* x, const double* stiffnesses, const double* rest_lengths,
+                          Eigen::Vector3d* forces, double* energy);
+
 // forces[a] += f_s, forces[b] −= f_s in spring order (the order of the fused loop, hence the same sums).
 void scatterSpringForces(std::size_t spring_count, const std::array<std::uint32_t, 2>* springs, const double* fx,
                          const double* fy, const double* fz, Eigen::Vector3d* forces);
