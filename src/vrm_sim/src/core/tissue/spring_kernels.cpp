@@ -4,11 +4,6 @@
 #include <cmath>
 #include <cstring>
 
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
-#include <immintrin.h>
-#define VRM_TISSUE_AVX2_GATHER 1
-#endif
-
 // Built twice, for AVX2 (4 doubles per instruction) and for the baseline x86-64 SSE2, and picked at load time.
 // AVX2 without FMA on purpose: FMA contraction would round differently from the baseline and the Eigen loops.
 #if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
@@ -70,39 +65,8 @@ inline void energyOnVectors(std::size_t spring_count, const double* __restrict s
 }
 
 #ifdef VRM_TISSUE_AVX2_GATHER
-// Explicit AVX2 (issue 40 §3): the gather and the arithmetic in one pass, four springs per iteration, so the spring
-// vectors never go through memory. Every lane runs the operations of the scalar loops above in the same order
-// (IEEE sqrt and division are exact in SIMD; AVX2 without FMA, nothing contracts), so the results are bit for bit
-// those of the SSE2 baseline. Node indices are gathered as 32-bit offsets of doubles: < 2^31 / 3 nodes.
-bool haveAvx2() {
-  static const bool avx2 = __builtin_cpu_supports("avx2");
-  return avx2;
-}
-
-struct SpringQuad {
-  __m256d dx, dy, dz;
-};
-
-__attribute__((target("avx2"))) inline SpringQuad gatherQuad(const std::array<std::uint32_t, 2>* springs,
-                                                             const double* base) {
-  // a0 b0 a1 b1 a2 b2 a3 b3 -> (a0 a1 a2 a3 | b0 b1 b2 b3), × 3 doubles per node.
-  const __m256i pairs = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(springs));
-  const __m256i split = _mm256_permutevar8x32_epi32(pairs, _mm256_setr_epi32(0, 2, 4, 6, 1, 3, 5, 7));
-  const __m256i offsets = _mm256_mullo_epi32(split, _mm256_set1_epi32(3));
-  const __m128i ia = _mm256_castsi256_si128(offsets);
-  const __m128i ib = _mm256_extracti128_si256(offsets, 1);
-  SpringQuad q;
-  q.dx = _mm256_sub_pd(_mm256_i32gather_pd(base, ib, 8), _mm256_i32gather_pd(base, ia, 8));
-  q.dy = _mm256_sub_pd(_mm256_i32gather_pd(base + 1, ib, 8), _mm256_i32gather_pd(base + 1, ia, 8));
-  q.dz = _mm256_sub_pd(_mm256_i32gather_pd(base + 2, ib, 8), _mm256_i32gather_pd(base + 2, ia, 8));
-  return q;
-}
-
-// (dx² + dy²) + dz², the order of the scalar loops and of Eigen's squaredNorm().
-__attribute__((target("avx2"))) inline __m256d squaredLengths(const SpringQuad& q) {
-  return _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(q.dx, q.dx), _mm256_mul_pd(q.dy, q.dy)), _mm256_mul_pd(q.dz, q.dz));
-}
-
+// The gather and the arithmetic in one pass, four springs per iteration (gatherQuad()), so the spring vectors never
+// go through memory; the lanes compute what the scalar loops above compute (see spring_kernels.h).
 template <bool kEnergy>
 __attribute__((target("avx2"))) void hookeAvx2(std::size_t spring_count, const std::array<std::uint32_t, 2>* springs,
                                                const Eigen::Vector3d* x, const double* __restrict stiffnesses,
@@ -292,6 +256,13 @@ double sumOf(const double* values, std::size_t count) {
   for (std::size_t s = blocks; s < count; ++s) sum += values[s];
   return sum;
 }
+
+#ifdef VRM_TISSUE_AVX2_GATHER
+bool haveAvx2() {
+  static const bool avx2 = __builtin_cpu_supports("avx2");
+  return avx2;
+}
+#endif
 
 bool hookeForcesScattered(std::size_t spring_count, const std::array<std::uint32_t, 2>* springs,
                           const Eigen::Vector3d* x, const double* stiffnesses, const double* rest_lengths,
