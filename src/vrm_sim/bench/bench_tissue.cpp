@@ -1132,6 +1132,38 @@ int main(int argc, char** argv) {
         printRow(row);
         std::printf("%-24s contacts per step %.1f\n", "", row.contacts);
         rows.push_back(row);
+        if (integrator != "symplectic_euler" && integrator != "quasi_static_euler") continue;
+        // Issue 40 §3, opt-in single-precision spring arithmetic: its time, and its distance from the double run
+        // above after the same steps (error_rms/error_max, reference "double run").
+        TissueConfig single_config = sceneConfig(integrator, dt, true);
+        single_config.forces.single_precision_springs = true;
+        std::vector<double> single_ms, single_cpu;
+        RunResult single;
+        for (int rep = 0; rep < repetitions; ++rep) {
+          RunResult r = runScene(spec, single_config);
+          single_ms.push_back(r.ms_per_step);
+          single_cpu.push_back(r.cpu_ms_per_step);
+          if (rep == 0) single = std::move(r);
+        }
+        Row srow = row;
+        srow.impl = "ours_single_precision_springs";
+        setSpread(srow, single_ms);
+        srow.ratio_to_naive = srow.ms_per_step / naive.ms_per_step;
+        srow.cpu_ms_per_step = vrm_sim::bench::medianOf(single_cpu);
+        srow.cpu_ratio_to_naive = srow.cpu_ms_per_step / naive.cpu_ms_per_step;
+        srow.ms_per_step_median = single.ms_per_step_median;
+        srow.ms_per_step_max = single.ms_per_step_max;
+        srow.steps = single.steps;
+        srow.stable = single.finite && single.bounded;
+        srow.fallbacks = single.fallbacks;
+        srow.max_strain = single.max_strain;
+        srow.contacts = single.contacts;
+        std::tie(srow.error_rms, srow.error_max) = distance(single.final_positions, run.final_positions);
+        srow.reference = "the double run of this row's integrator (same steps)";
+        printRow(srow);
+        std::printf("%-24s single precision: %.3e m rms, %.3e m max from the double run\n", "", srow.error_rms,
+                    srow.error_max);
+        rows.push_back(srow);
       }
 #ifdef VRM_HAVE_BULLET
       // Bullet with the same grasp and a kinematic sphere as the probe, 10 iterations, its best kLST for the pull.

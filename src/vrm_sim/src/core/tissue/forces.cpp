@@ -50,7 +50,12 @@ void ForceModel::compute(const SystemView& system, const Eigen::Vector3d* x, con
   const std::size_t m = system.spring_count;
   // One vectorised pass with the scatter fused where AVX2 is there; else two sweeps: the per-spring forces vectorise
   // (no scatter), the scatter then only adds. The same forces either way.
-  if (kernels::hookeForcesScattered(m, system.springs, x, system.stiffnesses, system.rest_lengths, forces, capture_)) {
+  const bool fused = params.single_precision_springs
+                         ? kernels::hookeForcesScatteredSingle(m, system.springs, x, system.stiffnesses,
+                                                               system.rest_lengths, forces, capture_)
+                         : kernels::hookeForcesScattered(m, system.springs, x, system.stiffnesses, system.rest_lengths,
+                                                         forces, capture_);
+  if (fused) {
     capture_ = nullptr;
   } else {
     scatterInTwoPasses(system, x, forces);

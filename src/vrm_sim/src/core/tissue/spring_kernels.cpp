@@ -147,6 +147,71 @@ __attribute__((target("avx2"))) void hookeScatterAvx2(std::size_t spring_count,
   if (energy != nullptr) *energy = sum;
 }
 
+// Two quads of doubles rounded into one register of eight floats (low quad first).
+__attribute__((target("avx2"))) inline __m256 pack(__m256d low, __m256d high) {
+  return _mm256_set_m128(_mm256_cvtpd_ps(high), _mm256_cvtpd_ps(low));
+}
+
+// hookeScatterAvx2() with the square roots, divisions and energies in single precision: two quads of springs
+// packed into one register of eight floats (the throughput of vsqrtps/vdivps per value is twice that of the double
+// forms), the spring vectors gathered and subtracted in double first, so only |d|, l and k are rounded to float.
+__attribute__((target("avx2"))) void hookeScatterSingleAvx2(std::size_t spring_count,
+                                                            const std::array<std::uint32_t, 2>* springs,
+                                                            const Eigen::Vector3d* x,
+                                                            const double* __restrict stiffnesses,
+                                                            const double* __restrict rest_lengths,
+                                                            Eigen::Vector3d* __restrict forces, double* energy) {
+  const double* base = x->data();
+  const __m256 min_length = _mm256_set1_ps(static_cast<float>(kMinSpringLength));
+  const __m256 half = _mm256_set1_ps(0.5f);
+  __m256d lanes = _mm256_setzero_pd();
+  alignas(32) double f[3][8];
+  const std::size_t blocks = spring_count / 8 * 8;
+  for (std::size_t s = 0; s < blocks; s += 8) {
+    const SpringQuad q0 = gatherQuad(springs + s, base);
+    const SpringQuad q1 = gatherQuad(springs + s + 4, base);
+    const __m256 dx = pack(q0.dx, q1.dx), dy = pack(q0.dy, q1.dy), dz = pack(q0.dz, q1.dz);
+    const __m256 length = _mm256_sqrt_ps(
+        _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(dx, dx), _mm256_mul_ps(dy, dy)), _mm256_mul_ps(dz, dz)));
+    const __m256 k = pack(_mm256_loadu_pd(stiffnesses + s), _mm256_loadu_pd(stiffnesses + s + 4));
+    const __m256 stretch =
+        _mm256_sub_ps(length, pack(_mm256_loadu_pd(rest_lengths + s), _mm256_loadu_pd(rest_lengths + s + 4)));
+    const __m256 scale = _mm256_div_ps(_mm256_mul_ps(k, stretch), _mm256_max_ps(min_length, length));
+    const __m256 used = _mm256_blendv_ps(scale, _mm256_setzero_ps(), _mm256_cmp_ps(length, min_length, _CMP_LT_OQ));
+    const __m256d used0 = _mm256_cvtps_pd(_mm256_castps256_ps128(used));
+    const __m256d used1 = _mm256_cvtps_pd(_mm256_extractf128_ps(used, 1));
+    _mm256_store_pd(f[0], _mm256_mul_pd(used0, q0.dx));
+    _mm256_store_pd(f[0] + 4, _mm256_mul_pd(used1, q1.dx));
+    _mm256_store_pd(f[1], _mm256_mul_pd(used0, q0.dy));
+    _mm256_store_pd(f[1] + 4, _mm256_mul_pd(used1, q1.dy));
+    _mm256_store_pd(f[2], _mm256_mul_pd(used0, q0.dz));
+    _mm256_store_pd(f[2] + 4, _mm256_mul_pd(used1, q1.dz));
+    if (energy != nullptr) {
+      const __m256 e = _mm256_mul_ps(_mm256_mul_ps(_mm256_mul_ps(half, k), stretch), stretch);
+      lanes = _mm256_add_pd(lanes, _mm256_add_pd(_mm256_cvtps_pd(_mm256_castps256_ps128(e)),
+                                                 _mm256_cvtps_pd(_mm256_extractf128_ps(e, 1))));
+    }
+    for (int j = 0; j < 8; ++j) {
+      const Eigen::Vector3d fs(f[0][j], f[1][j], f[2][j]);
+      forces[springs[s + j][0]] += fs;
+      forces[springs[s + j][1]] -= fs;
+    }
+  }
+  double lane[4];
+  _mm256_storeu_pd(lane, lanes);
+  double sum = (lane[0] + lane[1]) + (lane[2] + lane[3]);
+  for (std::size_t s = blocks; s < spring_count; ++s) {
+    double fx, fy, fz, e;
+    gatherSpringVectors(1, springs + s, x, &fx, &fy, &fz);
+    hookeOnVectors<true>(1, stiffnesses + s, rest_lengths + s, &fx, &fy, &fz, &e);
+    const Eigen::Vector3d fs(fx, fy, fz);
+    forces[springs[s][0]] += fs;
+    forces[springs[s][1]] -= fs;
+    sum += e;
+  }
+  if (energy != nullptr) *energy = sum;
+}
+
 // Σ ½ k (|d| − l)² in the four interleaved partial sums of sumOf() (lane j = springs j, j + 4, ...).
 __attribute__((target("avx2"))) double springEnergyAvx2(std::size_t spring_count,
                                                         const std::array<std::uint32_t, 2>* springs,
@@ -270,6 +335,18 @@ bool hookeForcesScattered(std::size_t spring_count, const std::array<std::uint32
 #ifdef VRM_TISSUE_AVX2_GATHER
   if (haveAvx2()) {
     hookeScatterAvx2(spring_count, springs, x, stiffnesses, rest_lengths, forces, energy);
+    return true;
+  }
+#endif
+  return false;
+}
+
+bool hookeForcesScatteredSingle(std::size_t spring_count, const std::array<std::uint32_t, 2>* springs,
+                                const Eigen::Vector3d* x, const double* stiffnesses, const double* rest_lengths,
+                                Eigen::Vector3d* forces, double* energy) {
+#ifdef VRM_TISSUE_AVX2_GATHER
+  if (haveAvx2()) {
+    hookeScatterSingleAvx2(spring_count, springs, x, stiffnesses, rest_lengths, forces, energy);
     return true;
   }
 #endif
