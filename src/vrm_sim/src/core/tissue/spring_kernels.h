@@ -69,26 +69,27 @@ double maxStrain(const SystemView& system, const Eigen::Vector3d* x);
 #ifdef VRM_TISSUE_AVX2_GATHER
 // Explicit AVX2 (issue 40 §3). Every lane runs the operations of the scalar loops in the same order (IEEE sqrt and
 // division are exact in SIMD; AVX2 without FMA, nothing contracts), so the results are bit for bit those of the SSE2
-// baseline. Node indices are gathered as 32-bit offsets of doubles: < 2^31 / 3 nodes.
+// baseline.
 bool haveAvx2();
 
 struct SpringQuad {
   __m256d dx, dy, dz;
 };
 
-// d = x_b − x_a of four consecutive (a, b) pairs.
+// d = x_b − x_a of four consecutive (a, b) pairs. Offsets of doubles in 64-bit lanes: any node index is in range.
 __attribute__((target("avx2"))) inline SpringQuad gatherQuad(const std::array<std::uint32_t, 2>* springs,
                                                              const double* base) {
-  // a0 b0 a1 b1 a2 b2 a3 b3 -> (a0 a1 a2 a3 | b0 b1 b2 b3), × 3 doubles per node.
+  // a0 b0 a1 b1 a2 b2 a3 b3 -> (a0 a1 a2 a3 | b0 b1 b2 b3), widened to 64 bits, × 3 doubles per node.
   const __m256i pairs = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(springs));
   const __m256i split = _mm256_permutevar8x32_epi32(pairs, _mm256_setr_epi32(0, 2, 4, 6, 1, 3, 5, 7));
-  const __m256i offsets = _mm256_mullo_epi32(split, _mm256_set1_epi32(3));
-  const __m128i ia = _mm256_castsi256_si128(offsets);
-  const __m128i ib = _mm256_extracti128_si256(offsets, 1);
+  const __m256i a = _mm256_cvtepu32_epi64(_mm256_castsi256_si128(split));
+  const __m256i b = _mm256_cvtepu32_epi64(_mm256_extracti128_si256(split, 1));
+  const __m256i ia = _mm256_add_epi64(a, _mm256_slli_epi64(a, 1));
+  const __m256i ib = _mm256_add_epi64(b, _mm256_slli_epi64(b, 1));
   SpringQuad q;
-  q.dx = _mm256_sub_pd(_mm256_i32gather_pd(base, ib, 8), _mm256_i32gather_pd(base, ia, 8));
-  q.dy = _mm256_sub_pd(_mm256_i32gather_pd(base + 1, ib, 8), _mm256_i32gather_pd(base + 1, ia, 8));
-  q.dz = _mm256_sub_pd(_mm256_i32gather_pd(base + 2, ib, 8), _mm256_i32gather_pd(base + 2, ia, 8));
+  q.dx = _mm256_sub_pd(_mm256_i64gather_pd(base, ib, 8), _mm256_i64gather_pd(base, ia, 8));
+  q.dy = _mm256_sub_pd(_mm256_i64gather_pd(base + 1, ib, 8), _mm256_i64gather_pd(base + 1, ia, 8));
+  q.dz = _mm256_sub_pd(_mm256_i64gather_pd(base + 2, ib, 8), _mm256_i64gather_pd(base + 2, ia, 8));
   return q;
 }
 
