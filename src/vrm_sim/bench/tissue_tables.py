@@ -71,6 +71,8 @@ for r in rows:
     name = label(r) if r.get("peer") == "ours" else f"btSoftBody {r['iterations']} it., kLST {g(r.get('bullet_klst'))}"
     if r.get("impl") == "naive_soa":
         name = "naive_soa (symplectic, no collision)"
+    elif r.get("impl") == "ours_single_precision_springs":
+        name += f" (single-precision springs, {g(r.get('error_rms'))} m rms from double)"
     extra = ""
     if r.get("peer") == "bullet":
         extra = f" (nodes inside the probe {g(r.get('nodes_inside_probe'), 2)}; auto/Bullet {g(r.get('ratio_ours_to_bullet'))})"

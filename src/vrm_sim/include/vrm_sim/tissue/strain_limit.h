@@ -36,6 +36,7 @@ class SpringSorter {
 
  private:
   std::vector<std::uint32_t> adjacency_offsets_, adjacency_;  // CSR node -> incident springs
+  std::vector<std::uint32_t> neighbours_;                     // beside adjacency_: the spring's other node
   std::vector<int> distance_;
   std::vector<std::uint32_t> queue_;
   std::vector<std::uint32_t> order_;
@@ -43,6 +44,7 @@ class SpringSorter {
   std::vector<std::size_t> level_offsets_;
   std::vector<std::uint8_t> inner_is_second_;
   std::vector<int> spring_level_;
+  std::vector<std::uint8_t> spring_inner_second_;  // per spring, inner_is_second_ before the ordering
   std::vector<std::size_t> level_fill_;
 };
 
@@ -138,6 +140,7 @@ class ActiveBoundSolver {
   const std::vector<std::uint32_t>* adjacency_ = nullptr;
   std::vector<std::uint8_t> node_active_, spring_listed_;
   std::vector<std::uint32_t> nodes_, springs_;
+  std::vector<std::uint32_t> beyond_;  // seed()'s springs beyond the bound
 };
 
 // Whether any spring (rest length >= kMinSpringLength) is longer than bound·l; +inf bounds nothing.

@@ -49,6 +49,10 @@ struct ForceParameters {
   Eigen::Vector3d gravity = Eigen::Vector3d::Zero();  // m/s^2
   // Pa on the triangles along their normals (corner order), a third of each triangle's force on each corner.
   double pressure = 0.0;
+  // Issue 40 §3, opt-in: the Hooke terms' square roots and divisions in single precision (8 lanes), the spring
+  // vectors and the forces in double. Changes every result by about 1e-7 relative (BENCHMARKS.md: the error against
+  // the double run and the reference); off, the forces are bit for bit the double ones.
+  bool single_precision_springs = false;
 };
 
 // Springs shorter than this are treated as having no direction (zero-length springs in degenerate input).
@@ -78,8 +82,10 @@ class ForceModel {
   void captureSpringEnergy(double* spring_energy) const { capture_ = spring_energy; }
 
  private:
-  // Per-spring forces of the last compute() (structure of arrays), kept between steps so a step allocates nothing;
-  // grows only after a topology change. One ForceModel therefore serves one thread at a time.
+  // The Hooke terms without AVX2: per-spring forces into spring_forces_, then the scatter.
+  void scatterInTwoPasses(const SystemView& system, const Eigen::Vector3d* x, Eigen::Vector3d* forces) const;
+  // Per-spring forces of the last two-pass compute() (structure of arrays), kept between steps so a step allocates
+  // nothing; grows only after a topology change. One ForceModel therefore serves one thread at a time.
   mutable std::vector<double> spring_forces_;
   mutable double* capture_ = nullptr;
 };

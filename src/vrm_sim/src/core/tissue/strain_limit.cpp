@@ -4,6 +4,8 @@
 #include <cmath>
 #include <limits>
 
+#include "spring_kernels.h"
+
 namespace vrm_sim {
 namespace tissue {
 
@@ -16,10 +18,14 @@ void SpringSorter::rebuild(const SystemView& system) {
   }
   for (std::size_t i = 0; i < n; ++i) adjacency_offsets_[i + 1] += adjacency_offsets_[i];
   adjacency_.assign(adjacency_offsets_[n], 0);
+  neighbours_.assign(adjacency_offsets_[n], 0);
   std::vector<std::uint32_t> fill(adjacency_offsets_.begin(), adjacency_offsets_.end() - 1);
   for (std::size_t s = 0; s < system.spring_count; ++s) {
-    adjacency_[fill[system.springs[s][0]]++] = static_cast<std::uint32_t>(s);
-    adjacency_[fill[system.springs[s][1]]++] = static_cast<std::uint32_t>(s);
+    const std::uint32_t a = system.springs[s][0], b = system.springs[s][1];
+    neighbours_[fill[a]] = b;
+    adjacency_[fill[a]++] = static_cast<std::uint32_t>(s);
+    neighbours_[fill[b]] = a;
+    adjacency_[fill[b]++] = static_cast<std::uint32_t>(s);
   }
   distance_.assign(n, -1);
   queue_.reserve(n);
@@ -29,51 +35,67 @@ void SpringSorter::rebuild(const SystemView& system) {
 }
 
 void SpringSorter::sort(const SystemView& system, const std::vector<std::uint32_t>& seeds) {
-  // Alg. 5.2: breadth-first search from the interaction nodes.
-  std::fill(distance_.begin(), distance_.end(), -1);
-  queue_.clear();
+  // Alg. 5.2: breadth-first search from the interaction nodes. (Raw pointers in the loops: through the vectors'
+  // members the compiler reloads every base pointer after each store.)
+  const std::size_t n = distance_.size();
+  const std::size_t m = system.spring_count;
+  int* const distance = distance_.data();
+  std::fill(distance, distance + n, -1);
+  queue_.resize(n);
+  std::uint32_t* const queue = queue_.data();
+  std::size_t tail = 0;
   for (std::uint32_t seed : seeds) {
-    if (seed < distance_.size() && distance_[seed] < 0) {
-      distance_[seed] = 0;
-      queue_.push_back(seed);
+    if (seed < n && distance[seed] < 0) {
+      distance[seed] = 0;
+      queue[tail++] = seed;
     }
   }
+  const std::uint32_t* const offsets = adjacency_offsets_.data();
+  const std::uint32_t* const neighbours = neighbours_.data();
   int max_distance = 0;
-  for (std::size_t head = 0; head < queue_.size(); ++head) {
-    const std::uint32_t node = queue_[head];
-    for (std::uint32_t k = adjacency_offsets_[node]; k < adjacency_offsets_[node + 1]; ++k) {
-      const auto& ends = system.springs[adjacency_[k]];
-      const std::uint32_t other = ends[0] == node ? ends[1] : ends[0];
-      if (distance_[other] < 0) {
-        distance_[other] = distance_[node] + 1;
-        max_distance = std::max(max_distance, distance_[other]);
-        queue_.push_back(other);
+  for (std::size_t head = 0; head < tail; ++head) {
+    const std::uint32_t node = queue[head];
+    const int next = distance[node] + 1;
+    for (std::uint32_t k = offsets[node]; k < offsets[node + 1]; ++k) {
+      const std::uint32_t other = neighbours[k];
+      if (distance[other] < 0) {
+        distance[other] = next;
+        max_distance = std::max(max_distance, next);
+        queue[tail++] = other;
       }
     }
   }
+  queue_.resize(tail);
   // Counting sort of the springs by the distance of their nearer end; level max_distance + 1 = unreachable.
   const int unreachable = max_distance + 1;
   level_offsets_.assign(static_cast<std::size_t>(unreachable) + 2, 0);
-  for (std::size_t s = 0; s < system.spring_count; ++s) {
-    const int d0 = distance_[system.springs[s][0]];
-    const int d1 = distance_[system.springs[s][1]];
+  spring_inner_second_.resize(m);
+  std::size_t* const counts = level_offsets_.data();
+  int* const spring_level = spring_level_.data();
+  std::uint8_t* const spring_inner_second = spring_inner_second_.data();
+  const std::array<std::uint32_t, 2>* const springs = system.springs;
+  for (std::size_t s = 0; s < m; ++s) {
+    const int d0 = distance[springs[s][0]];
+    const int d1 = distance[springs[s][1]];
     const int level = (d0 < 0 || d1 < 0) ? (d0 < 0 && d1 < 0 ? unreachable : std::max(d0, d1)) : std::min(d0, d1);
-    spring_level_[s] = level;
-    ++level_offsets_[level + 1];
+    spring_level[s] = level;
+    spring_inner_second[s] = (d1 >= 0 && (d0 < 0 || d1 < d0)) ? 1 : 0;
+    ++counts[level + 1];
   }
   for (std::size_t d = 1; d < level_offsets_.size(); ++d) level_offsets_[d] += level_offsets_[d - 1];
-  order_.resize(system.spring_count);
-  ordered_ends_.resize(system.spring_count);
-  inner_is_second_.resize(system.spring_count);
-  std::vector<std::size_t>& fill = level_fill_;
-  fill.assign(level_offsets_.begin(), level_offsets_.end() - 1);
-  for (std::size_t s = 0; s < system.spring_count; ++s) {
-    const std::size_t k = fill[spring_level_[s]]++;
-    order_[k] = static_cast<std::uint32_t>(s);
-    ordered_ends_[k] = system.springs[s];
-    const int d0 = distance_[system.springs[s][0]];
-    const int d1 = distance_[system.springs[s][1]];
-    inner_is_second_[k] = (d1 >= 0 && (d0 < 0 || d1 < d0)) ? 1 : 0;
+  order_.resize(m);
+  ordered_ends_.resize(m);
+  inner_is_second_.resize(m);
+  level_fill_.assign(level_offsets_.begin(), level_offsets_.end() - 1);
+  std::size_t* const fill = level_fill_.data();
+  std::uint32_t* const order = order_.data();
+  std::array<std::uint32_t, 2>* const ordered_ends = ordered_ends_.data();
+  std::uint8_t* const inner_is_second = inner_is_second_.data();
+  for (std::size_t s = 0; s < m; ++s) {
+    const std::size_t k = fill[spring_level[s]]++;
+    order[k] = static_cast<std::uint32_t>(s);
+    ordered_ends[k] = springs[s];
+    inner_is_second[k] = spring_inner_second[s];
   }
 }
 
@@ -296,15 +318,12 @@ bool ActiveBoundSolver::seed(const SystemView& system, double bound) {
       spring_listed_.size() != system.spring_count || !std::isfinite(bound)) {
     return false;
   }
-  const double bound2 = bound * bound;
-  for (std::size_t s = 0; s < system.spring_count; ++s) {
-    const double rest = system.rest_lengths[s];
-    const auto& ends = system.springs[s];
-    const double length2 = (system.positions[ends[1]] - system.positions[ends[0]]).squaredNorm();
-    if (!(length2 <= bound2 * (rest * rest)) && rest >= kMinSpringLength) {
-      activate(ends[0]);
-      activate(ends[1]);
-    }
+  // The sweep of squared lengths (vectorised, the same test), then the springs it found in spring order.
+  beyond_.clear();
+  kernels::springsBeyond(system, bound, beyond_);
+  for (const std::uint32_t s : beyond_) {
+    activate(system.springs[s][0]);
+    activate(system.springs[s][1]);
   }
   return !springs_.empty();
 }
