@@ -7,7 +7,10 @@ add_library(eyesi_records STATIC ${EYESI_RECORDS_SOURCES})
 set_target_properties(eyesi_records PROPERTIES POSITION_INDEPENDENT_CODE ON)
 target_include_directories(eyesi_records PUBLIC ${CMAKE_CURRENT_SOURCE_DIR}/include)
 # The result JSON is read by the simulator's one reader (vrm_sim/result/session_result.h).
-target_link_libraries(eyesi_records PUBLIC vrm_session_result SQLite::SQLite3 OpenSSL::Crypto)
+# The records server's client (issue 41): libpq from Debian's libpq-dev.
+find_package(PkgConfig REQUIRED)
+pkg_check_modules(LIBPQ REQUIRED IMPORTED_TARGET libpq)
+target_link_libraries(eyesi_records PUBLIC vrm_session_result SQLite::SQLite3 OpenSSL::Crypto PkgConfig::LIBPQ)
 target_compile_options(eyesi_records PRIVATE -Wall -Wextra)
 
 # Its command line: vrm_sim's vrm_cli (boost::program_options).

@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "eyesi_gui/records/server.h"
 #include "eyesi_gui/records/store.h"
 #include "vrm_sim/cli/cli.h"
 
@@ -29,6 +30,13 @@ constexpr const char* kCommandHelp =
     "  set-pin NAME --pin PIN                   set (or with an empty PIN clear) a user's PIN\n"
     "  list [--user U]                          sessions, oldest first\n"
     "  users                                    users and roles\n"
+    "Training centre (a records server on PostgreSQL; CONNINFO is libpq's key=value form, the password from\n"
+    "PGPASSWORD or ~/.pgpass):\n"
+    "  server-init --server CONNINFO            install the server schema (as the database owner)\n"
+    "  sign-in --server CONNINFO --station S    sign the connection's user in on station S (as that user)\n"
+    "  sync --server CONNINFO [--batch N] [--pause-ms MS]\n"
+    "                                           users and courses down, this station's sessions up (as the\n"
+    "                                           station's own login); exit 0 all synced, 3 some held\n"
     "--db defaults to $HOME/.ros/eyesi/records.sqlite\n";
 
 struct UsageError {
@@ -179,20 +187,49 @@ int runUsers(const records::Store& store, const Arguments& args) {
   return 0;
 }
 
+int positiveOption(const Arguments& args, const std::string& name, int fallback) {
+  if (!args.has(name)) return fallback;
+  try {
+    std::size_t used = 0;
+    const int value = std::stoi(args.option(name), &used);
+    if (used == args.option(name).size() && value >= 0) return value;
+  } catch (const std::exception&) {
+  }
+  throw UsageError{name + " must be a whole number >= 0, not '" + args.option(name) + "'"};
+}
+
+int runSync(records::Store& store, const Arguments& args) {
+  if (!args.positional.empty()) throw UsageError{"sync takes no positional arguments"};
+  if (!args.has("--server")) throw UsageError{"sync needs --server CONNINFO"};
+  records::SyncOptions options;
+  options.batch = static_cast<std::size_t>(positiveOption(args, "--batch", 50));
+  options.pause_ms = positiveOption(args, "--pause-ms", 0);
+  const records::SyncReport report = records::syncWithServer(store, args.option("--server"), options);
+  for (const std::string& line : report.held_reasons) std::cout << "held " << line << '\n';
+  std::cout << report.uploaded << " uploaded, " << report.already_on_server << " already on the server, " << report.held
+            << " held; " << report.users_changed << " users changed, " << report.assignments << " course assignments\n";
+  return report.held == 0 ? 0 : 3;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   namespace po = vrm_sim::cli::po;
   vrm_sim::cli::CommandLine cli("records", "[--db PATH] COMMAND [ARGS]",
                                 "The training-records database: import, export, check, users.", kCommandHelp);
-  static const std::vector<std::string> kValued{"db", "user", "scene", "out", "role", "pin", "table"};
+  static const std::vector<std::string> kValued{"db",    "user",   "scene",   "out",   "role",    "pin",
+                                                "table", "server", "station", "batch", "pause-ms"};
   cli.add()("db", po::value<std::string>()->value_name("PATH"), "the database")(
       "user", po::value<std::string>()->value_name("NAME"), "import: the trainee; export-csv, list: only this user")(
       "scene", po::value<std::string>()->value_name("S"), "export-csv: only this scene")(
       "out", po::value<std::string>()->value_name("FILE"), "export-csv: the CSV file (- or none: stdout)")(
       "table", po::value<std::string>()->value_name("T"), "export-csv: items (default), groups or events")(
       "role", po::value<std::string>()->value_name("ROLE"), "add-user: trainee or instructor")(
-      "pin", po::value<std::string>()->value_name("PIN"), "add-user, set-pin: the PIN (- reads it from stdin)");
+      "pin", po::value<std::string>()->value_name("PIN"), "add-user, set-pin: the PIN (- reads it from stdin)")(
+      "server", po::value<std::string>()->value_name("CONNINFO"), "server-init, sign-in, sync: the records server")(
+      "station", po::value<std::string>()->value_name("S"), "sign-in: the station's server login")(
+      "batch", po::value<std::string>()->value_name("N"), "sync: sessions per server transaction (50)")(
+      "pause-ms", po::value<std::string>()->value_name("MS"), "sync: pause between batches (0)");
   cli.hidden()("command", po::value<std::string>())("args", po::value<std::vector<std::string>>());
   cli.positional("command", 1).positional("args", -1);
   for (int i = 1; i < argc; ++i) {
@@ -217,7 +254,26 @@ int main(int argc, char** argv) {
       allowOnly(args, {});
       return runCheck(db, args);
     }
-    static const std::vector<std::string> kCommands{"import", "export-csv", "add-user", "set-pin", "list", "users"};
+    // The server commands that need no station database.
+    if (command == "server-init") {
+      allowOnly(args, {"--server"});
+      if (!args.has("--server") || !args.positional.empty()) throw UsageError{"server-init needs --server CONNINFO"};
+      const bool installed = records::installServerSchema(args.option("--server"));
+      std::cout << (installed ? "installed" : "already installed") << " records server schema version "
+                << records::Store::kSchemaVersion << '\n';
+      return 0;
+    }
+    if (command == "sign-in") {
+      allowOnly(args, {"--server", "--station"});
+      if (!args.has("--server") || !args.has("--station") || !args.positional.empty()) {
+        throw UsageError{"sign-in needs --server CONNINFO and --station S"};
+      }
+      records::signInOnServer(args.option("--server"), args.option("--station"));
+      std::cout << "signed in on " << args.option("--station") << '\n';
+      return 0;
+    }
+    static const std::vector<std::string> kCommands{"import", "export-csv", "add-user", "set-pin",
+                                                    "list",   "users",      "sync"};
     if (std::find(kCommands.begin(), kCommands.end(), command) == kCommands.end()) {
       throw UsageError{"unknown command " + command};
     }
@@ -227,6 +283,7 @@ int main(int argc, char** argv) {
     if (command == "set-pin") allowOnly(args, {"--pin"});
     if (command == "list") allowOnly(args, {"--user"});
     if (command == "users") allowOnly(args, {});
+    if (command == "sync") allowOnly(args, {"--server", "--batch", "--pause-ms"});
 
     records::Store store(db);
     if (command == "import") return runImport(store, args);
@@ -234,6 +291,7 @@ int main(int argc, char** argv) {
     if (command == "add-user") return runAddUser(store, args);
     if (command == "set-pin") return runSetPin(store, args);
     if (command == "list") return runList(store, args);
+    if (command == "sync") return runSync(store, args);
     return runUsers(store, args);
   } catch (const UsageError& e) {
     return cli.fail(e.message);

@@ -83,6 +83,9 @@ struct SessionRecord {
   std::vector<GroupRecord> groups;         // empty for sessions recorded before schema version 4
   std::vector<PenaltyEventRecord> events;  // at most 200 (the result's limit)
   std::uint64_t events_dropped = 0;        // penalty events the result did not keep
+  // Added to the contract (issue 41, schema version 5): the session's identity across the centre, a random UUID made
+  // when the station first stores it ("" in a record to store: one is made). Never derived from the content.
+  std::string global_key;
 };
 
 struct SessionFilter {
@@ -128,7 +131,7 @@ struct ImportResult {
 
 class Store {
  public:
-  static constexpr int kSchemaVersion = 4;
+  static constexpr int kSchemaVersion = 5;
 
   // Opens (creating parent folders and the file if missing) and migrates. Throws StoreError.
   explicit Store(const std::string& path);
@@ -179,6 +182,27 @@ class Store {
   // without any still has one line with those fields empty, so every session appears in every export.
   void exportGroupsCsv(std::ostream& out, const SessionFilter& filter = {}) const;
   void exportEventsCsv(std::ostream& out, const SessionFilter& filter = {}) const;
+
+  // Added to the contract (issue 41): the station's side of the sync with the records server (server.h).
+  // The sessions the server has not acknowledged yet with a row id above `after_id`, oldest first, at most `limit`,
+  // with their items.
+  std::vector<SessionRecord> unsyncedSessions(std::int64_t after_id, std::size_t limit) const;
+  std::int64_t unsyncedCount() const;
+  // Marks sessions as on the server (after the server committed them). Unknown keys are ignored.
+  void markSynced(const std::vector<std::string>& global_keys);
+  // Users as the server lists them. The conflict rules (README "Training centre"): the server's user wins its name
+  // and role (a station's own user of that name becomes the server's, keeping its PIN and sessions, which the server
+  // accepts only once that person has signed in on this station); a deleted (or vanished) server user is removed
+  // here with their sessions and course; PINs never travel either way. Returns the number of users changed.
+  struct ServerUser {
+    std::string name;
+    std::string role;  // trainee / instructor / admin (admins are not station users and are skipped)
+    bool deleted = false;
+  };
+  int applyServerUsers(const std::vector<ServerUser>& users);
+  // A course assignment from the server replaces this station's (the server's is the one instructors edit for the
+  // whole centre). The trainee must be a user here (applyServerUsers first); the instructor may be unknown here.
+  void applyServerAssignment(const CourseAssignment& assignment);
 
   // PRAGMA integrity_check of a database file, opened read-only ("ok" when sound). Throws StoreError if the file
   // cannot be opened at all.

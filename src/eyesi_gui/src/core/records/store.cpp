@@ -1,6 +1,7 @@
 #include "eyesi_gui/records/store.h"
 
 #include <fcntl.h>
+#include <openssl/rand.h>
 #include <sqlite3.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -10,6 +11,7 @@
 #include <cerrno>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <ctime>
 #include <filesystem>
@@ -105,6 +107,20 @@ std::string nowIso8601() {
   char buffer[32];
   std::strftime(buffer, sizeof(buffer), "%Y-%m-%dT%H:%M:%SZ", &utc);
   return buffer;
+}
+
+// A random (version 4) UUID: the session's key on the records server. Random rather than station id + row id, so a
+// station rebuilt from a backup, or two stations given the same name by mistake, still never reuse a key.
+std::string newGlobalKey() {
+  unsigned char bytes[16];
+  if (RAND_bytes(bytes, sizeof(bytes)) != 1) throw StoreError("RAND_bytes failed (OpenSSL)");
+  bytes[6] = static_cast<unsigned char>((bytes[6] & 0x0f) | 0x40);
+  bytes[8] = static_cast<unsigned char>((bytes[8] & 0x3f) | 0x80);
+  char text[37];
+  std::snprintf(text, sizeof(text), "%02x%02x%02x%02x-%02x%02x-%02x%02x-%02x%02x-%02x%02x%02x%02x%02x%02x", bytes[0],
+                bytes[1], bytes[2], bytes[3], bytes[4], bytes[5], bytes[6], bytes[7], bytes[8], bytes[9], bytes[10],
+                bytes[11], bytes[12], bytes[13], bytes[14], bytes[15]);
+  return text;
 }
 
 Role roleFromString(const std::string& text) { return text == "instructor" ? Role::kInstructor : Role::kTrainee; }
@@ -342,7 +358,8 @@ struct Store::Impl {
   static constexpr const char* kSessionColumns =
       "SELECT s.id, u.name, s.scene, s.scenario, s.difficulty, s.seed, s.state, s.message, s.total, s.passed, "
       "s.elapsed, s.start_stamp, s.end_stamp, s.recorded_at, s.bag_path, s.result_path, s.software_version, "
-      "s.final_state_hash, s.frames, s.station, s.annotation FROM sessions s JOIN users u ON u.id = s.user_id ";
+      "s.final_state_hash, s.frames, s.station, s.annotation, s.global_key FROM sessions s "
+      "JOIN users u ON u.id = s.user_id ";
 
   static SessionRecord sessionFromRow(const Statement& row) {
     SessionRecord s;
@@ -367,6 +384,7 @@ struct Store::Impl {
     s.frames = static_cast<std::uint64_t>(row.integerAt(18));
     s.station = row.textAt(19);
     s.annotation = row.textAt(20);
+    s.global_key = row.textAt(21);
     return s;
   }
 
@@ -574,9 +592,9 @@ ImportResult Store::recordSession(const SessionRecord& session) {
   Impl::Statement insert(*impl_,
                          "INSERT INTO sessions (session_key, user_id, scene, scenario, difficulty, seed, state, "
                          "message, total, passed, elapsed, start_stamp, end_stamp, recorded_at, bag_path, "
-                         "result_path, software_version, final_state_hash, frames, station, annotation) VALUES "
-                         "(?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18, ?19, "
-                         "?20, ?21)");
+                         "result_path, software_version, final_state_hash, frames, station, annotation, global_key) "
+                         "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18, "
+                         "?19, ?20, ?21, ?22)");
   insert.text(1, key)
       .integer(2, *user_id)
       .text(3, session.scene)
@@ -597,7 +615,8 @@ ImportResult Store::recordSession(const SessionRecord& session) {
       .text(18, session.final_state_hash)
       .integer(19, static_cast<std::int64_t>(session.frames))
       .text(20, session.station)
-      .text(21, session.annotation);
+      .text(21, session.annotation)
+      .text(22, session.global_key.empty() ? newGlobalKey() : session.global_key);
   insert.step();
   const std::int64_t id = sqlite3_last_insert_rowid(impl_->db);
 
@@ -821,6 +840,120 @@ std::optional<CourseAssignment> Store::courseAssignment(const std::string& train
   if (!stmt.step()) return std::nullopt;
   return CourseAssignment{stmt.textAt(0), stmt.textAt(1), stmt.textAt(2),
                           stmt.textAt(3), stmt.textAt(4), stmt.textAt(5)};
+}
+
+std::vector<SessionRecord> Store::unsyncedSessions(std::int64_t after_id, std::size_t limit) const {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  Impl::Transaction tx(*impl_, false);
+  Impl::Statement stmt(
+      *impl_,
+      (std::string(Impl::kSessionColumns) + "WHERE s.synced_at IS NULL AND s.id > ?2 ORDER BY s.id LIMIT ?1").c_str());
+  stmt.integer(1, static_cast<std::int64_t>(std::min<std::size_t>(limit, std::numeric_limits<std::int64_t>::max())))
+      .integer(2, after_id);
+  std::vector<SessionRecord> sessions;
+  while (stmt.step()) sessions.push_back(Impl::sessionFromRow(stmt));
+  impl_->loadItems(&sessions);
+  tx.commit();
+  return sessions;
+}
+
+std::int64_t Store::unsyncedCount() const {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  Impl::Statement stmt(*impl_, "SELECT count(*) FROM sessions WHERE synced_at IS NULL");
+  return stmt.step() ? stmt.integerAt(0) : 0;
+}
+
+void Store::markSynced(const std::vector<std::string>& global_keys) {
+  if (global_keys.empty()) return;
+  const std::string now = nowIso8601();
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  Impl::Transaction tx(*impl_, true);
+  Impl::Statement stmt(*impl_, "UPDATE sessions SET synced_at = ?2 WHERE global_key = ?1 AND synced_at IS NULL");
+  for (const std::string& key : global_keys) {
+    stmt.reset();
+    stmt.text(1, key).text(2, now);
+    stmt.step();
+  }
+  tx.commit();
+}
+
+int Store::applyServerUsers(const std::vector<ServerUser>& server_users) {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  Impl::Transaction tx(*impl_, true);
+  int changed = 0;
+  std::vector<std::string> listed;
+  const auto removeUser = [&](std::int64_t id) {
+    // Deletion on request reaches every station: the user's sessions (items, groups, events by cascade) and course.
+    for (const char* sql :
+         {"DELETE FROM sessions WHERE user_id = ?1", "DELETE FROM course_assignments WHERE user_id = ?1",
+          "UPDATE course_assignments SET assigned_by = NULL WHERE assigned_by = ?1",
+          "DELETE FROM users WHERE id = ?1"}) {
+      Impl::Statement stmt(*impl_, sql);
+      stmt.integer(1, id);
+      stmt.step();
+    }
+    ++changed;
+  };
+  for (const ServerUser& user : server_users) {
+    if (user.name == kGuest) continue;
+    listed.push_back(user.name);
+    Impl::Statement find(*impl_, "SELECT id, role, origin FROM users WHERE name = ?1");
+    find.text(1, user.name);
+    const bool exists = find.step();
+    const std::int64_t id = exists ? find.integerAt(0) : 0;
+    if (user.deleted || user.role == "admin") {
+      if (exists && (user.deleted || find.textAt(2) == "server")) removeUser(id);
+      continue;
+    }
+    if (user.role != "trainee" && user.role != "instructor") continue;
+    if (!exists) {
+      Impl::Statement insert(*impl_,
+                             "INSERT INTO users (name, role, iterations, created_at, origin) "
+                             "VALUES (?1, ?2, 0, ?3, 'server')");
+      insert.text(1, user.name).text(2, user.role).text(3, nowIso8601());
+      insert.step();
+      ++changed;
+    } else if (find.textAt(1) != user.role || find.textAt(2) != "server") {
+      Impl::Statement update(*impl_, "UPDATE users SET role = ?2, origin = 'server' WHERE id = ?1");
+      update.integer(1, id).text(2, user.role);
+      update.step();
+      ++changed;
+    }
+  }
+  // A server user that is no longer listed at all (purged on the server) is removed like a deleted one.
+  Impl::Statement server_users_here(*impl_, "SELECT id, name FROM users WHERE origin = 'server'");
+  std::vector<std::int64_t> vanished;
+  while (server_users_here.step()) {
+    if (std::find(listed.begin(), listed.end(), server_users_here.textAt(1)) == listed.end()) {
+      vanished.push_back(server_users_here.integerAt(0));
+    }
+  }
+  for (const std::int64_t id : vanished) removeUser(id);
+  tx.commit();
+  return changed;
+}
+
+void Store::applyServerAssignment(const CourseAssignment& assignment) {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  Impl::Transaction tx(*impl_, true);
+  const std::optional<std::int64_t> trainee = impl_->userId(assignment.user);
+  if (!trainee) throw StoreError(impl_->path + ": no user \"" + assignment.user + "\" for the server's course");
+  const std::optional<std::int64_t> instructor = impl_->userId(assignment.assigned_by);
+  Impl::Statement stmt(*impl_,
+                       "INSERT OR REPLACE INTO course_assignments (user_id, course_name, course_file, course_text, "
+                       "assigned_by, assigned_at) VALUES (?1, ?2, ?3, ?4, ?5, ?6)");
+  stmt.integer(1, *trainee)
+      .text(2, assignment.course_name)
+      .text(3, assignment.course_file)
+      .text(4, assignment.course_text)
+      .text(6, assignment.assigned_at.empty() ? nowIso8601() : assignment.assigned_at);
+  if (instructor) {
+    stmt.integer(5, *instructor);
+  } else {
+    stmt.null(5);
+  }
+  stmt.step();
+  tx.commit();
 }
 
 void Store::exportCsv(std::ostream& out, const SessionFilter& filter) const {

@@ -1,0 +1,264 @@
+#include "eyesi_gui/records/server.h"
+
+#include <libpq-fe.h>
+
+#include <chrono>
+#include <cmath>
+#include <memory>
+#include <optional>
+#include <thread>
+
+#include "eyesi_gui/records/csv.h"
+#include "eyesi_gui/records/schema.h"
+
+namespace eyesi_gui::records {
+namespace {
+
+struct ClearResult {
+  void operator()(PGresult* result) const { PQclear(result); }
+};
+using Result = std::unique_ptr<PGresult, ClearResult>;
+
+// A parameter of a query: text, or SQL NULL.
+using Param = std::optional<std::string>;
+
+std::string trimmed(const char* text) {
+  std::string message = text ? text : "";
+  while (!message.empty() && (message.back() == '\n' || message.back() == ' ')) message.pop_back();
+  return message;
+}
+
+bool succeeded(const PGresult* result) {
+  const ExecStatusType status = PQresultStatus(result);
+  return status == PGRES_COMMAND_OK || status == PGRES_TUPLES_OK;
+}
+
+// One libpq connection; every failure is a ServerError naming what was being done.
+class Connection {
+ public:
+  explicit Connection(const std::string& connection) {
+    // Earlier keywords are defaults that later ones override: the caller's connect_timeout wins.
+    conn_ = PQconnectdb(("connect_timeout=5 " + connection).c_str());
+    if (conn_ == nullptr || PQstatus(conn_) != CONNECTION_OK) {
+      const std::string message = conn_ ? trimmed(PQerrorMessage(conn_)) : "out of memory";
+      PQfinish(conn_);
+      conn_ = nullptr;
+      throw ServerError("cannot connect to the records server: " + message);
+    }
+  }
+  ~Connection() { PQfinish(conn_); }
+  Connection(const Connection&) = delete;
+  Connection& operator=(const Connection&) = delete;
+
+  // Runs `sql` with $1.. bound to `params`; throws ServerError (with the server's message) unless it succeeded.
+  Result run(const std::string& sql, const std::vector<Param>& params = {}, const char* what = "query") {
+    Result result = tryRun(sql, params);
+    const ExecStatusType status = PQresultStatus(result.get());
+    if (status != PGRES_COMMAND_OK && status != PGRES_TUPLES_OK) {
+      throw ServerError(std::string(what) + " failed on the records server: " + errorOf(result.get()));
+    }
+    return result;
+  }
+
+  // Several statements in one string (PQexec: no parameters), e.g. the schema.
+  void script(const char* sql, const char* what) {
+    Result result(PQexec(conn_, sql));
+    if (!result || !succeeded(result.get())) {
+      throw ServerError(std::string(what) + " failed on the records server: " + errorOf(result.get()));
+    }
+  }
+
+  // As run, but returns a failed result instead of throwing (the caller rolls back to a savepoint).
+  Result tryRun(const std::string& sql, const std::vector<Param>& params = {}) {
+    std::vector<const char*> values;
+    values.reserve(params.size());
+    for (const Param& param : params) values.push_back(param ? param->c_str() : nullptr);
+    Result result(
+        PQexecParams(conn_, sql.c_str(), static_cast<int>(values.size()), nullptr, values.data(), nullptr, nullptr, 0));
+    if (!result) throw ServerError("the records server connection failed: " + trimmed(PQerrorMessage(conn_)));
+    return result;
+  }
+
+  std::string errorOf(const PGresult* result) const {
+    const char* primary = result ? PQresultErrorField(result, PG_DIAG_MESSAGE_PRIMARY) : nullptr;
+    return primary ? primary : trimmed(PQerrorMessage(conn_));
+  }
+
+ private:
+  PGconn* conn_ = nullptr;
+};
+
+std::string value(const PGresult* result, int row, int column) { return PQgetvalue(result, row, column); }
+
+Param number(double x) { return std::isfinite(x) ? Param(formatNumber(x)) : std::nullopt; }
+
+constexpr const char* kInsertSession =
+    "INSERT INTO sessions (global_key, session_key, station_id, user_name, scene, scenario, difficulty, seed, state, "
+    "message, total, passed, elapsed, start_stamp, end_stamp, recorded_at, bag_path, result_path, software_version, "
+    "final_state_hash, frames, annotation, station, events_dropped) VALUES ($1, $2, current_user, $3, $4, $5, $6, $7, "
+    "$8, $9, $10, $11, $12, $13, $14, $15, $16, $17, $18, $19, $20, $21, $22, $23) "
+    "ON CONFLICT (global_key) DO NOTHING RETURNING id";
+
+// The session's rows on the server; false (with the server's reason) when the server refused it.
+enum class Upload { kInserted, kAlreadyThere, kRefused };
+
+Upload uploadSession(Connection& server, const SessionRecord& s, std::string* reason) {
+  server.run("SAVEPOINT one_session", {}, "a savepoint");
+  Result inserted = server.tryRun(kInsertSession, {s.global_key,
+                                                   sessionKey(s),
+                                                   s.user.empty() ? "guest" : s.user,
+                                                   s.scene,
+                                                   s.scenario,
+                                                   s.difficulty,
+                                                   std::to_string(s.seed),
+                                                   s.state,
+                                                   s.message,
+                                                   formatNumber(s.total),
+                                                   s.passed ? "1" : "0",
+                                                   formatNumber(s.elapsed),
+                                                   formatNumber(s.start_stamp),
+                                                   formatNumber(s.end_stamp),
+                                                   s.recorded_at,
+                                                   s.bag_path,
+                                                   s.result_path,
+                                                   s.software_version,
+                                                   s.final_state_hash,
+                                                   std::to_string(s.frames),
+                                                   s.annotation,
+                                                   s.station,
+                                                   std::to_string(s.events_dropped)});
+  if (!succeeded(inserted.get())) {
+    *reason = server.errorOf(inserted.get());
+    server.run("ROLLBACK TO SAVEPOINT one_session", {}, "a rollback to a savepoint");
+    return Upload::kRefused;
+  }
+  if (PQntuples(inserted.get()) == 0) return Upload::kAlreadyThere;  // its key is there: sent before, acknowledged now
+  const std::string id = value(inserted.get(), 0, 0);
+  for (std::size_t i = 0; i < s.items.size(); ++i) {
+    const ScoreItemRecord& it = s.items[i];
+    server.run(
+        "INSERT INTO score_items (session_id, position, name, value, unit, weight, points) "
+        "VALUES ($1, $2, $3, $4, $5, $6, $7)",
+        {id, std::to_string(i), it.name, number(it.value), it.unit, number(it.weight), number(it.points)},
+        "uploading a score item");
+  }
+  for (std::size_t i = 0; i < s.groups.size(); ++i) {
+    const GroupRecord& g = s.groups[i];
+    server.run("INSERT INTO score_groups (session_id, position, name, points, weight) VALUES ($1, $2, $3, $4, $5)",
+               {id, std::to_string(i), g.name, number(g.points), number(g.weight)}, "uploading a factor group");
+  }
+  for (std::size_t i = 0; i < s.events.size(); ++i) {
+    const PenaltyEventRecord& e = s.events[i];
+    server.run(
+        "INSERT INTO penalty_events (session_id, position, time, kind, item, slot, instrument, x, y, z, points) "
+        "VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11)",
+        {id, std::to_string(i), number(e.time), e.kind, e.item, e.slot, e.instrument, number(e.position[0]),
+         number(e.position[1]), number(e.position[2]), number(e.points)},
+        "uploading a penalty event");
+  }
+  return Upload::kInserted;
+}
+
+void hello(Connection& server) {
+  server.run("SELECT records_hello($1)", {std::to_string(Store::kSchemaVersion)}, "the station's schema check");
+}
+
+}  // namespace
+
+bool installServerSchema(const std::string& owner_connection) {
+  Connection server(owner_connection);
+  server.run("BEGIN", {}, "BEGIN");
+  Result installed = server.run("SELECT to_regclass('public.schema_info') IS NOT NULL", {}, "reading the schema");
+  if (value(installed.get(), 0, 0) == "t") {
+    Result version = server.run("SELECT version FROM schema_info", {}, "reading the schema version");
+    const std::string found = PQntuples(version.get()) ? value(version.get(), 0, 0) : "none";
+    server.run("ROLLBACK", {}, "ROLLBACK");
+    if (found == std::to_string(Store::kSchemaVersion)) return false;
+    throw ServerError("the records server has schema version " + found + ", this software " +
+                      std::to_string(Store::kSchemaVersion) + "; no migration between them exists yet");
+  }
+  server.script(serverSchemaSql(), "installing the records schema");
+  server.run("INSERT INTO schema_info (version, min_station_version) VALUES ($1, $2)",
+             {std::to_string(Store::kSchemaVersion), std::to_string(kMinStationSchemaVersion)},
+             "recording the schema version");
+  server.run("COMMIT", {}, "COMMIT");
+  return true;
+}
+
+void signInOnServer(const std::string& user_connection, const std::string& station) {
+  Connection server(user_connection);
+  server.run("SELECT records_sign_in($1)", {station}, "signing in");
+}
+
+SyncReport syncWithServer(Store& store, const std::string& station_connection, const SyncOptions& options) {
+  if (options.batch == 0) throw ServerError("sync: the batch size must be at least 1");
+  SyncReport report;
+  Connection server(station_connection);
+
+  // Down: users, then the courses assigned to them, from one snapshot.
+  std::vector<Store::ServerUser> users;
+  std::vector<CourseAssignment> assignments;
+  server.run("BEGIN ISOLATION LEVEL REPEATABLE READ READ ONLY", {}, "BEGIN");
+  hello(server);
+  {
+    Result rows = server.run("SELECT name, role, deleted_at IS NOT NULL FROM users ORDER BY name", {}, "reading users");
+    for (int row = 0; row < PQntuples(rows.get()); ++row) {
+      users.push_back({value(rows.get(), row, 0), value(rows.get(), row, 1), value(rows.get(), row, 2) == "t"});
+    }
+    Result courses = server.run(
+        "SELECT user_name, course_name, course_file, course_text, coalesce(assigned_by, ''), assigned_at "
+        "FROM course_assignments ORDER BY user_name",
+        {}, "reading course assignments");
+    for (int row = 0; row < PQntuples(courses.get()); ++row) {
+      assignments.push_back({value(courses.get(), row, 0), value(courses.get(), row, 1), value(courses.get(), row, 2),
+                             value(courses.get(), row, 3), value(courses.get(), row, 4), value(courses.get(), row, 5)});
+    }
+  }
+  server.run("COMMIT", {}, "COMMIT");
+  report.users_changed = store.applyServerUsers(users);
+  for (const CourseAssignment& assignment : assignments) {
+    const std::optional<User> trainee = store.findUser(assignment.user);
+    if (!trainee || trainee->role != Role::kTrainee) continue;
+    store.applyServerAssignment(assignment);
+    ++report.assignments;
+  }
+
+  // Up: the outbox in batches, one server transaction each, marked here only after the server's COMMIT.
+  std::int64_t after_id = 0;
+  for (;;) {
+    const std::vector<SessionRecord> batch = store.unsyncedSessions(after_id, options.batch);
+    if (batch.empty()) break;
+    after_id = batch.back().id;
+    std::vector<std::string> acknowledged;
+    SyncReport counts;
+    server.run("BEGIN", {}, "BEGIN");
+    hello(server);
+    for (const SessionRecord& session : batch) {
+      std::string reason;
+      switch (uploadSession(server, session, &reason)) {
+        case Upload::kInserted:
+          ++counts.uploaded;
+          acknowledged.push_back(session.global_key);
+          break;
+        case Upload::kAlreadyThere:
+          ++counts.already_on_server;
+          acknowledged.push_back(session.global_key);
+          break;
+        case Upload::kRefused:
+          ++counts.held;
+          counts.held_reasons.push_back(session.global_key + " " + session.user + ": " + reason);
+          break;
+      }
+    }
+    server.run("COMMIT", {}, "COMMIT");
+    store.markSynced(acknowledged);
+    report.uploaded += counts.uploaded;
+    report.already_on_server += counts.already_on_server;
+    report.held += counts.held;
+    report.held_reasons.insert(report.held_reasons.end(), counts.held_reasons.begin(), counts.held_reasons.end());
+    if (options.pause_ms > 0) std::this_thread::sleep_for(std::chrono::milliseconds(options.pause_ms));
+  }
+  return report;
+}
+
+}  // namespace eyesi_gui::records

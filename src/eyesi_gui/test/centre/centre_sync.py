@@ -1,0 +1,479 @@
+#!/usr/bin/env python3
+"""A training centre end to end (issue 41): a throw-away PostgreSQL cluster and three sync clients, each in its own
+network namespace, fed with the committed reference results.
+
+  server namespace  eyesi-ctr-srv   10.215.K.1 (one veth per station; postgres listens on the three and on a Unix
+                                    socket in the temporary folder, which the host reaches through the file system)
+  station K         eyesi-ctr-sK    10.215.K.2, a SQLite store of its own, `records import` + `records sync`
+
+What happens: users, stations, sign-ins and supervision are set up by an admin; every station imports its sessions in
+two waves, concurrently, syncing as it goes; station 3 is offline for the first wave; the server is killed (-9, the
+postmaster and its backends) in the middle of station 1's sync and restarted; station 2's sync process is killed (-9)
+mid-sync. At the end every session is on the server exactly once with all its items, groups and events, the sessions
+the server must refuse (a user not signed in on that station, guest) are still on their station, unsynced, and every
+local store passes its integrity check. Then the role checks run against the server directly, a deletion on request
+reaches the station, a course comes down, and an older station is refused.
+
+Needs root (namespaces; the cluster runs as the unprivileged user `postgres`, or `nobody`), Debian's postgresql and
+the built `records` tool (EYESI_RECORDS_TOOL, default build/devel/lib/eyesi_gui/records).
+Usage: centre_sync.py [--keep]  (--keep leaves the temporary folder for a look at the logs)
+"""
+import csv
+import glob
+import io
+import json
+import os
+import pwd
+import shutil
+import signal
+import sqlite3
+import subprocess
+import sys
+import tempfile
+import time
+
+ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "../../../.."))
+RECORDS = os.environ.get("EYESI_RECORDS_TOOL", os.path.join(ROOT, "build/devel/lib/eyesi_gui/records"))
+REFERENCE = sorted(glob.glob(os.path.join(ROOT, "src/vrm_sim/test/bags/*.result.json")))
+STATIONS = (1, 2, 3)
+SERVER_NS = "eyesi-ctr-srv"
+PASSWORD = {  # test-only secrets of a throw-away cluster; the policy asks for >= 12 characters, not only digits
+    "admin1": "admin-secret-01", "station_s1": "station-secret-1", "station_s2": "station-secret-2",
+    "station_s3": "station-secret-3", "i1": "instructor-one-1", "i2": "instructor-two-2",
+}
+TRAINEES = {1: ["t1", "t2"], 2: ["t3", "t4"], 3: ["t5", "t6"]}  # who signs in on which station
+for _t in [t for ts in TRAINEES.values() for t in ts] + ["t7"]:
+    PASSWORD[_t] = "trainee-secret-" + _t
+SESSIONS_PER_WAVE = 12  # per station and wave, plus the held ones of station 1
+
+failures = []
+
+
+def check(condition, what):
+    print(("PASS " if condition else "FAIL ") + what, flush=True)
+    if not condition:
+        failures.append(what)
+
+
+def run(cmd, check_rc=True, **kw):
+    result = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, **kw)
+    if check_rc and result.returncode != 0:
+        raise RuntimeError("%s failed (%d): %s" % (" ".join(cmd), result.returncode, result.stdout))
+    return result
+
+
+def station_ns(k):
+    return "eyesi-ctr-s%d" % k
+
+
+class Centre:
+    def __init__(self, tmp):
+        self.tmp = tmp
+        self.bin = sorted(glob.glob("/usr/lib/postgresql/*/bin"))[-1]
+        self.user = "postgres" if self._has_user("postgres") else "nobody"
+        self.port = 5432  # alone in its namespace: the default port cannot collide with anything on the host
+        self.data = os.path.join(tmp, "pgdata")
+        self.socket = os.path.join(tmp, "sock")
+
+    @staticmethod
+    def _has_user(name):
+        try:
+            pwd.getpwnam(name)
+            return True
+        except KeyError:
+            return False
+
+    # --- network namespaces ---
+    def netns_up(self):
+        self.netns_down()
+        run(["ip", "netns", "add", SERVER_NS])
+        run(["ip", "-n", SERVER_NS, "link", "set", "lo", "up"])
+        for k in STATIONS:
+            ns = station_ns(k)
+            run(["ip", "netns", "add", ns])
+            run(["ip", "-n", ns, "link", "set", "lo", "up"])
+            run(["ip", "link", "add", "ectrS%d" % k, "netns", ns, "type", "veth", "peer", "name", "ectrP%d" % k,
+                 "netns", SERVER_NS])
+            run(["ip", "-n", ns, "addr", "add", "10.215.%d.2/24" % k, "dev", "ectrS%d" % k])
+            run(["ip", "-n", SERVER_NS, "addr", "add", "10.215.%d.1/24" % k, "dev", "ectrP%d" % k])
+            run(["ip", "-n", ns, "link", "set", "ectrS%d" % k, "up"])
+            run(["ip", "-n", SERVER_NS, "link", "set", "ectrP%d" % k, "up"])
+
+    def netns_down(self):
+        for ns in [SERVER_NS] + [station_ns(k) for k in STATIONS]:
+            pids = run(["ip", "netns", "pids", ns], check_rc=False).stdout.split()
+            for pid in pids:
+                try:
+                    os.kill(int(pid), signal.SIGKILL)
+                except (ProcessLookupError, ValueError):
+                    pass
+            run(["ip", "netns", "del", ns], check_rc=False)
+
+    def set_online(self, k, online):
+        run(["ip", "-n", station_ns(k), "link", "set", "ectrS%d" % k, "up" if online else "down"])
+
+    # --- the cluster ---
+    def initdb(self):
+        os.makedirs(self.socket)
+        shutil.chown(self.tmp, self.user)
+        shutil.chown(self.socket, self.user)
+        os.chmod(self.tmp, 0o755)
+        run(["runuser", "-u", self.user, "--", os.path.join(self.bin, "initdb"), "-D", self.data, "-U", "postgres",
+             "-E", "UTF8", "--auth-local=trust", "--auth-host=scram-sha-256"])
+        # The owner (superuser) connects over the Unix socket only, without a password; everyone else with their own
+        # password (SCRAM-SHA-256), over the socket or from the stations' subnets.
+        with open(os.path.join(self.data, "pg_hba.conf"), "w") as hba:
+            hba.write("local all postgres trust\n"
+                      "local all all scram-sha-256\n"
+                      "host all all 10.215.0.0/16 scram-sha-256\n")
+        listen = ",".join("10.215.%d.1" % k for k in STATIONS)
+        with open(os.path.join(self.data, "postgresql.auto.conf"), "a") as conf:
+            conf.write("listen_addresses = '%s'\nport = %d\nunix_socket_directories = '%s'\n"
+                       "password_encryption = 'scram-sha-256'\n" % (listen, self.port, self.socket))
+
+    def start(self):
+        run(["ip", "netns", "exec", SERVER_NS, "runuser", "-u", self.user, "--", os.path.join(self.bin, "pg_ctl"),
+             "-D", self.data, "-l", os.path.join(self.tmp, "postgres.log"), "-w", "-t", "30", "start"])
+
+    def postmaster_pid(self):
+        with open(os.path.join(self.data, "postmaster.pid")) as f:
+            return int(f.readline())
+
+    def kill9(self):
+        """kill -9 of the server: the postmaster and every backend (the backends of a killed postmaster would keep
+        its shared memory and stop a restart)."""
+        pid = self.postmaster_pid()
+        children = run(["pgrep", "-P", str(pid)], check_rc=False).stdout.split()
+        os.kill(pid, signal.SIGKILL)
+        for child in children:
+            try:
+                os.kill(int(child), signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+        for _ in range(100):
+            if not any(os.path.exists("/proc/%s" % p) for p in [pid] + children):
+                break
+            time.sleep(0.05)
+
+    def stop(self):
+        run(["runuser", "-u", self.user, "--", os.path.join(self.bin, "pg_ctl"), "-D", self.data, "-m", "immediate",
+             "stop"], check_rc=False)
+
+    def psql(self, sql, user="postgres", db="records", ok=True):
+        """SQL over the Unix socket; as `user` with their password (the owner without). Returns (rc, output)."""
+        env = dict(os.environ, PGPASSWORD=PASSWORD.get(user, ""))
+        result = subprocess.run(["psql", "-X", "-q", "-A", "-t", "-v", "ON_ERROR_STOP=1", "-h", self.socket, "-p",
+                                 str(self.port), "-U", user, "-d", db, "-c", sql], stdout=subprocess.PIPE,
+                                stderr=subprocess.STDOUT, text=True, env=env)
+        if ok and result.returncode != 0:
+            raise RuntimeError("psql as %s: %s: %s" % (user, sql, result.stdout))
+        return result.returncode, result.stdout.strip()
+
+    def value(self, sql, user="postgres"):
+        return self.psql(sql, user)[1]
+
+    # --- stations ---
+    def conninfo(self, k, user):
+        return "host=10.215.%d.1 port=%d dbname=records user=%s connect_timeout=2" % (k, self.port, user)
+
+    def station_db(self, k):
+        return os.path.join(self.tmp, "s%d" % k, "records.sqlite")
+
+    def records(self, k, args, user=None, background=False, log=None):
+        """The records tool in station k's namespace, as the station's login (or `user`, e.g. to sign in)."""
+        login = user or "station_s%d" % k
+        env = dict(os.environ, PGPASSWORD=PASSWORD[login])
+        cmd = ["ip", "netns", "exec", station_ns(k), RECORDS, "--db", self.station_db(k)] + args
+        if "--server" in args:
+            cmd[cmd.index("--server") + 1] = self.conninfo(k, login)
+        if background:
+            return subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, env=env, start_new_session=True)
+        return subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
+
+    def sync(self, k, *extra):
+        return self.records(k, ["sync", "--server", "-"] + list(extra))
+
+
+def write_results(folder, count, users, first, shift_stamps=True):
+    """`count` copies of the reference results for `users` (round robin). Each copy is the same scripted session run
+    later (its stamps shifted by a whole number of hours), so its content hash differs; with shift_stamps False the
+    copies are the reference results unchanged (what another station running the same script records)."""
+    os.makedirs(folder, exist_ok=True)
+    paths = []
+    for i in range(count):
+        with open(REFERENCE[i % len(REFERENCE)]) as f:
+            result = json.load(f)
+        n = first + i
+        if shift_stamps:
+            for key in ("start_stamp", "end_stamp", "last_frame_stamp"):
+                if key in result:
+                    result[key] += 3600.0 * n
+        result["user"] = users[i % len(users)] if users else None
+        if result["user"] is None:
+            del result["user"]
+        path = os.path.join(folder, "%04d.result.json" % n)
+        with open(path, "w") as f:
+            json.dump(result, f)
+        paths.append(path)
+    return paths
+
+
+def wait_for_count(centre, station, count, timeout=20.0):
+    """Polls the server until `station` has at least `count` sessions there (a sync under way); returns the count."""
+    deadline = time.monotonic() + timeout
+    while True:
+        n = int(centre.value("SELECT count(*) FROM sessions WHERE station_id = '%s'" % station))
+        if n >= count or time.monotonic() > deadline:
+            return n
+        time.sleep(0.03)
+
+
+def local_sessions(db):
+    """{global_key: (user, synced, items, groups, events, total)} of a station's store, read without the tool."""
+    con = sqlite3.connect("file:%s?mode=ro" % db, uri=True)
+    rows = con.execute(
+        "SELECT s.global_key, u.name, s.synced_at IS NOT NULL, "
+        "(SELECT count(*) FROM score_items WHERE session_id = s.id), "
+        "(SELECT count(*) FROM score_groups WHERE session_id = s.id), "
+        "(SELECT count(*) FROM penalty_events WHERE session_id = s.id), s.total "
+        "FROM sessions s JOIN users u ON u.id = s.user_id").fetchall()
+    integrity = con.execute("PRAGMA integrity_check").fetchone()[0]
+    con.close()
+    return {r[0]: r[1:] for r in rows}, integrity
+
+
+def server_sessions(centre):
+    out = centre.value("COPY (SELECT global_key, user_name, station_id, session_key, "
+                       "(SELECT count(*) FROM score_items WHERE session_id = s.id), "
+                       "(SELECT count(*) FROM score_groups WHERE session_id = s.id), "
+                       "(SELECT count(*) FROM penalty_events WHERE session_id = s.id), total "
+                       "FROM sessions s) TO STDOUT WITH CSV")
+    return list(csv.reader(io.StringIO(out)))
+
+
+def main():
+    keep = "--keep" in sys.argv
+    if os.geteuid() != 0:
+        print("SKIP centre_sync needs root (network namespaces, the cluster as an unprivileged user)")
+        return 0
+    if not os.path.exists(RECORDS):
+        print("FAIL no records tool at %s (build the records target)" % RECORDS)
+        return 1
+    started = time.monotonic()
+    tmp = tempfile.mkdtemp(prefix="eyesi-centre-")
+    centre = Centre(tmp)
+    try:
+        centre.netns_up()
+        centre.initdb()
+        centre.start()
+        centre.psql("CREATE DATABASE records", db="postgres")
+        run([RECORDS, "server-init", "--server",
+             "host=%s port=%d dbname=records user=postgres" % (centre.socket, centre.port)])
+        again = run([RECORDS, "server-init", "--server",
+                     "host=%s port=%d dbname=records user=postgres" % (centre.socket, centre.port)])
+        check("already installed" in again.stdout, "server-init twice installs once")
+        print("cluster up, schema installed: %.1f s" % (time.monotonic() - started), flush=True)
+
+        # The admin, created by the owner; everything else by the admin as themselves.
+        centre.psql("SELECT records_create_user('admin1', 'admin', '%s')" % PASSWORD["admin1"])
+        admin_sql = ["SELECT records_create_station('station_s%d', '%s')" % (k, PASSWORD["station_s%d" % k])
+                     for k in STATIONS]
+        admin_sql += ["SELECT records_create_user('%s', 'instructor', '%s')" % (i, PASSWORD[i]) for i in ("i1", "i2")]
+        admin_sql += ["SELECT records_create_user('%s', 'trainee', '%s')" % (t, PASSWORD[t])
+                      for t in sorted(PASSWORD) if t.startswith("t")]
+        admin_sql += ["SELECT records_supervise('i1', '%s')" % t for t in ("t1", "t2", "t3")]
+        admin_sql += ["SELECT records_supervise('i2', '%s')" % t for t in ("t4", "t5", "t6")]
+        centre.psql("; ".join(admin_sql), user="admin1")
+        rc, out = centre.psql("SELECT records_create_user('t9', 'trainee', '123456')", user="admin1", ok=False)
+        check(rc != 0 and "password policy" in out, "a 6-digit PIN is refused as a server password: " + out[-80:])
+
+        # Each trainee signs in as themselves on the station they train on (through that station's network).
+        for k, trainees in TRAINEES.items():
+            for t in trainees:
+                r = centre.records(k, ["sign-in", "--server", "-", "--station", "station_s%d" % k], user=t)
+                check(r.returncode == 0, "%s signs in on station_s%d: %s" % (t, k, r.stdout.strip()))
+        env_wrong = dict(os.environ, PGPASSWORD="not-the-password")
+        wrong = subprocess.run(["ip", "netns", "exec", station_ns(2), RECORDS, "--db", centre.station_db(2), "sign-in",
+                                "--server", centre.conninfo(2, "t4"), "--station", "station_s2"],
+                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env_wrong)
+        check(wrong.returncode != 0 and "password authentication failed" in wrong.stdout,
+              "a wrong password does not sign in")
+
+        # Wave 1: every station imports and syncs concurrently; station 3 is offline throughout.
+        centre.set_online(3, False)
+        inbox = {k: os.path.join(tmp, "s%d" % k, "inbox") for k in STATIONS}
+        for k in STATIONS:
+            write_results(inbox[k] + "/w1", SESSIONS_PER_WAVE, TRAINEES[k], first=100 * k)
+        # The same scripted sessions, unchanged, on stations 2 and 3: two sessions each on the server, one hash.
+        write_results(inbox[2] + "/w1", len(REFERENCE), ["t3"], first=900, shift_stamps=False)
+        write_results(inbox[3] + "/w1", len(REFERENCE), ["t5"], first=900, shift_stamps=False)
+        # What the server must refuse from station 1: a trainee who never signed in there (t7), and guest.
+        write_results(inbox[1] + "/w1", 2, ["t7"], first=990)
+        write_results(inbox[1] + "/w1", 1, [], first=995)
+        procs = []
+        for k in STATIONS:
+            script = "%s --db %s import %s/w1 >/dev/null && PGPASSWORD=%s %s --db %s sync --server '%s' --batch 4" % (
+                RECORDS, centre.station_db(k), inbox[k], PASSWORD["station_s%d" % k], RECORDS, centre.station_db(k),
+                centre.conninfo(k, "station_s%d" % k))
+            procs.append(subprocess.Popen(["ip", "netns", "exec", station_ns(k), "bash", "-c", script],
+                                          stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True))
+        outs = [p.communicate()[0] for p in procs]
+        check(procs[0].returncode == 3 and "3 held" in outs[0], "wave 1, station 1: synced, 3 held: " +
+              outs[0].strip().splitlines()[-1])
+        check(procs[1].returncode == 0, "wave 1, station 2 synced: " + outs[1].strip().splitlines()[-1])
+        check(procs[2].returncode == 1 and "cannot connect" in outs[2],
+              "wave 1, station 3 offline: its sync fails, its sessions stay: " + outs[2].strip().splitlines()[-1])
+
+        # Wave 2 imported everywhere; the server is killed in the middle of station 1's sync and restarted.
+        for k in STATIONS:
+            write_results(inbox[k] + "/w2", SESSIONS_PER_WAVE, TRAINEES[k], first=100 * k + 50)
+            r = centre.records(k, ["import", inbox[k] + "/w2"])
+            check(r.returncode == 0, "wave 2 imported on station %d" % k)
+        with open(os.path.join(tmp, "s1-sync.log"), "w") as log:
+            slow = centre.records(1, ["sync", "--server", "-", "--batch", "1", "--pause-ms", "150"], background=True,
+                                  log=log)
+            on_server = wait_for_count(centre, "station_s1", SESSIONS_PER_WAVE + 2)
+            centre.kill9()
+            rc = slow.wait(timeout=30)
+        check(rc == 1, "station 1's sync fails when the server is killed (-9) under it (%d of its sessions were "
+                       "on the server then)" % on_server)
+        check(SESSIONS_PER_WAVE < on_server < 2 * SESSIONS_PER_WAVE,
+              "the server was killed mid-sync (part of wave 2 uploaded)")
+        centre.start()
+
+        # Station 2's sync process is killed (-9) mid-sync.
+        before = int(centre.value("SELECT count(*) FROM sessions WHERE station_id = 'station_s2'"))
+        with open(os.path.join(tmp, "s2-sync.log"), "w") as log:
+            slow = centre.records(2, ["sync", "--server", "-", "--batch", "1", "--pause-ms", "150"], background=True,
+                                  log=log)
+            wait_for_count(centre, "station_s2", before + 2)
+            os.killpg(slow.pid, signal.SIGKILL)
+            slow.wait(timeout=30)
+        after = int(centre.value("SELECT count(*) FROM sessions WHERE station_id = 'station_s2'"))
+        check(before < after < before + SESSIONS_PER_WAVE, "station 2 was killed mid-sync (%d -> %d of %d on the "
+              "server)" % (before, after, before + SESSIONS_PER_WAVE))
+
+        # Everyone back online: sync to the end (twice: the second must find nothing to do).
+        centre.set_online(3, True)
+        for k in STATIONS:
+            first = centre.sync(k)
+            second = centre.sync(k)
+            expect = 3 if k == 1 else 0
+            check(first.returncode == expect and second.returncode == expect,
+                  "station %d synced: %s / %s" % (k, first.stdout.strip().splitlines()[-1],
+                                                  second.stdout.strip().splitlines()[-1]))
+            check(" 0 uploaded, 0 already" in " " + second.stdout.strip().splitlines()[-1],
+                  "station %d: a second sync uploads nothing" % k)
+
+        # Every session exactly once, with all its items; the refused ones on their station only.
+        rows = server_sessions(centre)
+        keys = [r[0] for r in rows]
+        check(len(keys) == len(set(keys)), "no session twice on the server (%d rows)" % len(keys))
+        server = {r[0]: r for r in rows}
+        expected = 0
+        for k in STATIONS:
+            local, integrity = local_sessions(centre.station_db(k))
+            check(integrity == "ok", "station %d's store passes integrity_check" % k)
+            held = {key: v for key, v in local.items() if v[0] in ("t7", "guest")}
+            synced = {key: v for key, v in local.items() if key not in held}
+            expected += len(synced)
+            check(all(not v[1] for v in held.values()) and len(held) == (3 if k == 1 else 0),
+                  "station %d: the refused sessions (%d) stay unsynced" % (k, len(held)))
+            check(all(v[1] for v in synced.values()), "station %d: every other session is marked synced" % k)
+            missing = [key for key in synced if key not in server]
+            check(not missing, "station %d: all %d sessions on the server" % (k, len(synced)))
+            wrong = [key for key, v in synced.items() if key in server and (
+                server[key][1] != v[0] or server[key][2] != "station_s%d" % k or
+                [int(x) for x in server[key][4:7]] != list(v[2:5]) or float(server[key][7]) != v[5])]
+            check(not wrong, "station %d: user, station, items, groups, events and total equal on the server" % k)
+            check(not any(key in server for key in held), "station %d: nothing refused reached the server" % k)
+        check(len(rows) == expected, "the server holds exactly the stations' sessions (%d)" % expected)
+        per_hash = {}
+        for r in rows:
+            per_hash.setdefault(r[3], set()).add(r[2])
+        check(sum(1 for stations in per_hash.values() if stations == {"station_s2", "station_s3"}) == len(REFERENCE),
+              "the same scripted session on two stations is two sessions (one content hash, two keys)")
+
+        role_checks(centre)
+        print("centre_sync: %.1f s wall" % (time.monotonic() - started))
+    finally:
+        centre.stop()
+        centre.netns_down()
+        if keep or failures:
+            print("centre_sync: logs kept in %s" % tmp)
+        else:
+            shutil.rmtree(tmp, ignore_errors=True)
+    if failures:
+        print("FAILED: %d checks" % len(failures))
+        return 1
+    print("PASS centre_sync")
+    return 0
+
+
+def role_checks(centre):
+    """What each may read and write, asked of the server directly (the policies, not the clients)."""
+    own = centre.value("SELECT count(*), count(*) FILTER (WHERE user_name <> 't1') FROM sessions", user="t1")
+    check(own.split("|")[0] != "0" and own.split("|")[1] == "0", "trainee t1 reads only their own sessions (%s)" % own)
+    items = centre.value("SELECT count(DISTINCT session_id) FROM score_items", user="t1")
+    check(items == own.split("|")[0], "trainee t1 reads only their own sessions' items")
+    seen = centre.value("SELECT string_agg(DISTINCT user_name, ',' ORDER BY user_name) FROM sessions", user="i1")
+    check(seen == "t1,t2,t3", "instructor i1 reads their trainees' sessions only (%s)" % seen)
+    rc, out = centre.psql("SELECT count(*) FROM sessions", user="admin1", ok=False)
+    check(rc != 0 and "permission denied" in out, "admin reads no sessions")
+    rc, out = centre.psql("INSERT INTO sessions (global_key, session_key, station_id, user_name, scene, recorded_at) "
+                          "VALUES ('x', 'x', 'station_s1', 't1', 'navigation', 'now')", user="t1", ok=False)
+    check(rc != 0 and "permission denied" in out, "a trainee cannot insert sessions")
+    rc, out = centre.psql("SELECT records_create_user('t8', 'trainee', 'trainee-secret-x8')", user="t1", ok=False)
+    check(rc != 0, "a trainee cannot create users")
+    rc, out = centre.psql("SELECT records_create_user('t8', 'admin', 'trainee-secret-x8')", user="i1", ok=False)
+    check(rc != 0, "an instructor cannot create users")
+    insert = ("BEGIN; SELECT records_hello(5); INSERT INTO sessions (global_key, session_key, station_id, user_name, "
+              "scene, recorded_at) VALUES (gen_random_uuid()::text, 'x', current_user, '%s', 'navigation', 'now'); "
+              "ROLLBACK")
+    rc, out = centre.psql(insert % "t1", user="station_s1", ok=False)
+    check(rc == 0, "station_s1 may insert a session of t1, who signed in on it " + out)
+    rc, out = centre.psql(insert % "t3", user="station_s1", ok=False)
+    check(rc != 0 and "row-level security" in out, "station_s1 may not insert for t3, who signed in elsewhere")
+    rc, out = centre.psql(insert.replace("current_user", "'station_s2'") % "t1", user="station_s1", ok=False)
+    check(rc != 0, "station_s1 may not insert under station_s2's name")
+    rc, out = centre.psql(insert.replace("SELECT records_hello(5); ", "") % "t1", user="station_s1", ok=False)
+    check(rc != 0 and "row-level security" in out, "a station that did not state its schema version inserts nothing")
+    rc, out = centre.psql("SELECT records_hello(4)", user="station_s1", ok=False)
+    check(rc != 0 and "station schema version 4 is older" in out and "update the station software" in out,
+          "a station of schema version 4 is refused with a clear message: " + out.splitlines()[0][:160])
+    others = centre.value("SELECT count(*) FROM sessions WHERE station_id <> 'station_s1'", user="station_s1")
+    check(others == "0", "a station reads back only its own sessions")
+    rc, out = centre.psql("SELECT count(*) FROM station_signins", user="t1", ok=False)
+    check(rc != 0, "a trainee cannot read who signed in where")
+
+    # A course assigned on the server by the instructor comes down to the trainee's station.
+    course = "name: Basics\\nsteps:\\n  - scene: navigation\\n    pass_mark: 50\\n"
+    centre.psql("INSERT INTO course_assignments (user_name, course_name, course_text, assigned_by, assigned_at) "
+                "VALUES ('t1', 'Basics', E'%s', 'i1', '2026-11-30T10:00:00Z')" % course, user="i1")
+    rc, out = centre.psql("INSERT INTO course_assignments (user_name, course_name, course_text, assigned_by, "
+                          "assigned_at) VALUES ('t4', 'Basics', 'x', 'i1', 'now')", user="i1", ok=False)
+    check(rc != 0 and "row-level security" in out, "an instructor cannot assign a course to another's trainee")
+    r = centre.sync(1)
+    check("1 course assignments" in r.stdout, "the course comes down to station 1: " + r.stdout.strip()[-60:])
+    con = sqlite3.connect(centre.station_db(1))
+    course_here = con.execute("SELECT c.course_name FROM course_assignments c JOIN users u ON u.id = c.user_id "
+                              "WHERE u.name = 't1'").fetchall()
+    con.close()
+    check(course_here == [("Basics",)], "station 1 has t1's course")
+
+    # Deletion on request: t6's data leaves the server, and station 3 deletes its copy at the next sync.
+    centre.psql("SELECT records_delete_user('t6')", user="admin1")
+    check(centre.value("SELECT count(*) FROM sessions WHERE user_name = 't6'") == "0", "t6's sessions left the server")
+    r = centre.sync(3)
+    local, _ = local_sessions(centre.station_db(3))
+    con = sqlite3.connect(centre.station_db(3))
+    users = [u for (u,) in con.execute("SELECT name FROM users")]
+    con.close()
+    check(r.returncode == 0 and "t6" not in users and all(v[0] != "t6" for v in local.values()),
+          "station 3 deleted t6 and their sessions at its next sync")
+    rc, out = centre.psql("SELECT 1", user="t6", ok=False)
+    check(rc != 0, "t6 can no longer sign in")
+
+
+if __name__ == "__main__":
+    sys.exit(main())
