@@ -13,6 +13,7 @@
 #include <functional>
 #include <nlohmann/json.hpp>
 #include <random>
+#include <set>
 #include <sstream>
 #include <thread>
 
@@ -955,6 +956,99 @@ TEST(RecordsSchema, MigratesVersion3AddingGroupsAndEventsAndKeepingTheRows) {
   RawDb raw(path);
   EXPECT_EQ(raw.value("SELECT count(*) FROM sqlite_master WHERE name IN ('score_groups', 'penalty_events')"), "2");
   EXPECT_EQ(raw.value("SELECT count(*) FROM penalty_events WHERE x IS NULL"), "1");
+}
+
+// Issue 41: the station's side of the centre's sync (the server side runs in test/centre/centre_sync.py).
+TEST(RecordsSync, EverySessionGetsItsOwnGlobalKeyAndTheContentHashIsNotIt) {
+  TempDir dir;
+  Store a(dir.file("a.sqlite")), b(dir.file("b.sqlite"));
+  const SessionRecord scripted = makeSession("anna", "navigation", 1000, 80);
+  const auto in_a = a.recordSession(scripted), in_b = b.recordSession(scripted);
+  const std::string key_a = a.session(in_a.session_id)->global_key, key_b = b.session(in_b.session_id)->global_key;
+  EXPECT_EQ(key_a.size(), 36u);
+  EXPECT_EQ(key_a[14], '4');  // a version 4 (random) UUID
+  EXPECT_NE(key_a, key_b);    // the same scripted session on two stations: two sessions
+  SessionRecord given = makeSession("anna", "navigation", 2000, 70);
+  given.global_key = "6f1c2d3e-0000-4000-8000-000000000001";
+  EXPECT_EQ(a.session(a.recordSession(given).session_id)->global_key, given.global_key);
+}
+
+TEST(RecordsSync, TheOutboxListsUnsyncedSessionsInOrderUntilMarked) {
+  TempDir dir;
+  Store store(dir.file("s.sqlite"));
+  for (int i = 0; i < 5; ++i) store.recordSession(makeSession("anna", "navigation", 1000 + i, 60));
+  EXPECT_EQ(store.unsyncedCount(), 5);
+  const auto first = store.unsyncedSessions(0, 2);
+  ASSERT_EQ(first.size(), 2u);
+  EXPECT_LT(first[0].id, first[1].id);
+  EXPECT_EQ(first[0].items.size(), 2u);
+  EXPECT_EQ(store.unsyncedSessions(first.back().id, 10).size(), 3u);
+  store.markSynced({first[0].global_key, first[1].global_key, "not-a-key"});
+  EXPECT_EQ(store.unsyncedCount(), 3);
+  const auto rest = store.unsyncedSessions(0, 10);
+  ASSERT_EQ(rest.size(), 3u);
+  EXPECT_GT(rest[0].id, first[1].id);
+}
+
+TEST(RecordsSync, ServerUsersWinNamesAndRolesAndDeletionsReachTheStation) {
+  TempDir dir;
+  Store store(dir.file("s.sqlite"));
+  store.addUser("anna", Role::kTrainee, "1234");  // made on this station while offline
+  store.addUser("otto", Role::kTrainee, "");      // only on this station
+  store.recordSession(makeSession("anna", "navigation", 1000, 60));
+  store.recordSession(makeSession("carl", "navigation", 1001, 60));  // carl is created by the import
+  EXPECT_EQ(store.applyServerUsers({{"anna", "trainee", false},
+                                    {"bea", "instructor", false},
+                                    {"carl", "instructor", false},
+                                    {"root", "admin", false},
+                                    {"guest", "admin", true}}),
+            3);
+  EXPECT_TRUE(store.checkPin("anna", "1234"));  // the station's PIN stays; it never travels
+  EXPECT_EQ(store.findUser("bea")->role, Role::kInstructor);
+  EXPECT_FALSE(store.findUser("bea")->has_pin);
+  EXPECT_EQ(store.findUser("carl")->role, Role::kInstructor);  // the server's role wins
+  EXPECT_FALSE(store.findUser("root"));                        // admins are not station users
+  EXPECT_TRUE(store.findUser("guest"));
+  EXPECT_TRUE(store.findUser("otto"));  // a station's own user the server does not know stays
+  EXPECT_EQ(store.applyServerUsers({{"anna", "trainee", false}, {"bea", "instructor", false}}), 1);  // carl is gone
+  EXPECT_FALSE(store.findUser("carl"));
+  EXPECT_EQ(store.sessions({"carl", ""}).size(), 0u);
+  // Deletion on request: the user, their sessions and their course go.
+  store.applyServerAssignment({"anna", "Basics", "", "name: Basics", "bea", "2026-11-30T10:00:00Z"});
+  EXPECT_EQ(store.courseAssignment("anna")->assigned_by, "bea");
+  store.applyServerUsers({{"anna", "trainee", true}, {"bea", "instructor", false}});
+  EXPECT_FALSE(store.findUser("anna"));
+  EXPECT_EQ(store.sessions().size(), 0u);
+  EXPECT_FALSE(store.courseAssignment("anna"));
+  EXPECT_TRUE(store.findUser("otto"));
+}
+
+TEST(RecordsSchema, MigratesVersion4GivingEverySessionAGlobalKeyAndAnEmptyOutbox) {
+  TempDir dir;
+  const std::string path = dir.file("v4.sqlite");
+  {
+    RawDb raw(path);
+    std::string sql = "BEGIN;";
+    for (int version = 1; version <= 4; ++version) sql += migrationSql(version);
+    raw.exec(sql + "PRAGMA user_version = 4; COMMIT;");
+    raw.exec(
+        "INSERT INTO users (name, role, iterations, created_at) VALUES ('bob', 'trainee', 0, '2025-01-01T00:00:00Z')");
+    for (int i = 0; i < 3; ++i) {
+      raw.exec("INSERT INTO sessions (session_key, user_id, scene, recorded_at) SELECT 'k" + std::to_string(i) +
+               "', id, 'navigation', '2025-01-02T03:04:05Z' FROM users WHERE name = 'bob'");
+    }
+  }
+  Store store(path);
+  EXPECT_EQ(store.schemaVersion(), 5);
+  const auto sessions = store.unsyncedSessions(0, 10);
+  ASSERT_EQ(sessions.size(), 3u);  // everything recorded before a server existed waits to go up
+  std::set<std::string> keys;
+  for (const auto& s : sessions) {
+    EXPECT_EQ(s.global_key.size(), 36u) << s.global_key;
+    EXPECT_EQ(s.global_key[14], '4') << s.global_key;
+    keys.insert(s.global_key);
+  }
+  EXPECT_EQ(keys.size(), 3u);
 }
 
 TEST(RecordsExport, GroupsAndEventsCsvListEverySession) {

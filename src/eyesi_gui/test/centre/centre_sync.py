@@ -179,11 +179,11 @@ class Centre:
     def station_db(self, k):
         return os.path.join(self.tmp, "s%d" % k, "records.sqlite")
 
-    def records(self, k, args, user=None, background=False, log=None):
+    def records(self, k, args, user=None, background=False, log=None, db=None):
         """The records tool in station k's namespace, as the station's login (or `user`, e.g. to sign in)."""
         login = user or "station_s%d" % k
         env = dict(os.environ, PGPASSWORD=PASSWORD[login])
-        cmd = ["ip", "netns", "exec", station_ns(k), RECORDS, "--db", self.station_db(k)] + args
+        cmd = ["ip", "netns", "exec", station_ns(k), RECORDS, "--db", db or self.station_db(k)] + args
         if "--server" in args:
             cmd[cmd.index("--server") + 1] = self.conninfo(k, login)
         if background:
@@ -285,7 +285,7 @@ def main():
         admin_sql += ["SELECT records_supervise('i2', '%s')" % t for t in ("t4", "t5", "t6")]
         centre.psql("; ".join(admin_sql), user="admin1")
         rc, out = centre.psql("SELECT records_create_user('t9', 'trainee', '123456')", user="admin1", ok=False)
-        check(rc != 0 and "password policy" in out, "a 6-digit PIN is refused as a server password: " + out[-80:])
+        check(rc != 0 and "password policy" in out, "a 6-digit PIN is refused as a server password: " + out.splitlines()[0])
 
         # Each trainee signs in as themselves on the station they train on (through that station's network).
         for k, trainees in TRAINEES.items():
@@ -329,6 +329,11 @@ def main():
             write_results(inbox[k] + "/w2", SESSIONS_PER_WAVE, TRAINEES[k], first=100 * k + 50)
             r = centre.records(k, ["import", inbox[k] + "/w2"])
             check(r.returncode == 0, "wave 2 imported on station %d" % k)
+        # Station 1 as it is now, before the sync below: later the state of a station that crashed after the
+        # server's COMMIT and before its own mark (its sessions on the server, still in its outbox).
+        snapshot = os.path.join(tmp, "s1-before.sqlite")
+        with sqlite3.connect(centre.station_db(1)) as live, sqlite3.connect(snapshot) as copy:
+            live.backup(copy)
         with open(os.path.join(tmp, "s1-sync.log"), "w") as log:
             slow = centre.records(1, ["sync", "--server", "-", "--batch", "1", "--pause-ms", "150"], background=True,
                                   log=log)
@@ -365,6 +370,13 @@ def main():
             check(" 0 uploaded, 0 already" in " " + second.stdout.strip().splitlines()[-1],
                   "station %d: a second sync uploads nothing" % k)
 
+        # The crash between the server's COMMIT and the station's mark: the re-sent sessions are recognised by their key.
+        r = centre.records(1, ["sync", "--server", "-"], db=snapshot)
+        check(r.stdout.strip().splitlines()[-1].startswith("0 uploaded, %d already on the server, 3 held"
+                                                            % SESSIONS_PER_WAVE),
+              "a station that lost its marks re-sends, and the server keeps one copy: " +
+              r.stdout.strip().splitlines()[-1])
+
         # Every session exactly once, with all its items; the refused ones on their station only.
         rows = server_sessions(centre)
         keys = [r[0] for r in rows]
@@ -394,6 +406,7 @@ def main():
         check(sum(1 for stations in per_hash.values() if stations == {"station_s2", "station_s3"}) == len(REFERENCE),
               "the same scripted session on two stations is two sessions (one content hash, two keys)")
 
+        schema_parity(centre)
         role_checks(centre)
         print("centre_sync: %.1f s wall" % (time.monotonic() - started))
     finally:
@@ -408,6 +421,23 @@ def main():
         return 1
     print("PASS centre_sync")
     return 0
+
+
+def schema_parity(centre):
+    """One schema, two back ends: the session data tables have the same columns on the station and on the server
+    (the server adds its identity and centre columns: id, global_key, station_id, user_name, uploaded_at)."""
+    con = sqlite3.connect("file:%s?mode=ro" % centre.station_db(1), uri=True)
+    version = con.execute("PRAGMA user_version").fetchone()[0]
+    check(centre.value("SELECT version FROM schema_info") == str(version),
+          "station and server are at the same schema version (%d)" % version)
+    server_only = {"global_key", "station_id", "user_name", "uploaded_at"}
+    station_only = {"user_id", "synced_at"}
+    for table in ("sessions", "score_items", "score_groups", "penalty_events"):
+        local = {row[1] for row in con.execute("PRAGMA table_info(%s)" % table)} - station_only - {"global_key"}
+        remote = set(centre.value("SELECT string_agg(column_name, ',') FROM information_schema.columns "
+                                  "WHERE table_name = '%s'" % table).split(",")) - server_only
+        check(local == remote, "table %s: the same columns on both back ends %s" % (table, sorted(local ^ remote)))
+    con.close()
 
 
 def role_checks(centre):
