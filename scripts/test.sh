@@ -191,6 +191,9 @@ script_test security_firewall firewall_rules_in_netns "$ROOT/src/eyesi_gui/test/
 # server and a station killed mid-sync, one offline; every session on the server exactly once; roles checked against
 # the server directly (~20 s).
 script_test records_centre centre_sync_roles_and_kills /usr/bin/python3 "$ROOT/src/eyesi_gui/test/centre/centre_sync.py"
+# The researcher's export (issue 41): the reference sessions with their bags' trajectories exported as tidy CSV and
+# read back with Python (scores, trajectory lengths from the bags), and the pseudonymised export (~2 s).
+script_test records_export export_round_trips_and_pseudonymises /usr/bin/python3 "$ROOT/src/eyesi_gui/test/records_export.py"
 # Runtime faults of the product graph (issues 14, 39): crashes (crash = pause; no gap in the record), a hostile flood,
 # a consumer that never reads, the recorder's disk full.
 for fault in manager_crash recorder_crash hostile_flood slow_consumer disk_full; do

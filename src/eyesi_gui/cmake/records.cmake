@@ -11,6 +11,7 @@ target_include_directories(eyesi_records PUBLIC ${CMAKE_CURRENT_SOURCE_DIR}/incl
 find_package(PkgConfig REQUIRED)
 pkg_check_modules(LIBPQ REQUIRED IMPORTED_TARGET libpq)
 target_link_libraries(eyesi_records PUBLIC vrm_session_result SQLite::SQLite3 OpenSSL::Crypto PkgConfig::LIBPQ)
+target_link_libraries(eyesi_records PRIVATE nlohmann_json::nlohmann_json)
 target_compile_options(eyesi_records PRIVATE -Wall -Wextra)
 
 # Its command line: vrm_sim's vrm_cli (boost::program_options).
@@ -18,6 +19,14 @@ find_package(Boost REQUIRED COMPONENTS program_options)
 add_executable(records tools/records.cpp)
 target_link_libraries(records eyesi_records vrm_cli)
 install(TARGETS records RUNTIME DESTINATION ${CATKIN_PACKAGE_BIN_DESTINATION})
+
+# The trajectories of a session bag for the records (issue 41): the one ROS part, reading the bag with rosbag.
+find_package(rosbag REQUIRED)
+add_executable(session_trajectory tools/session_trajectory.cpp)
+target_include_directories(session_trajectory PRIVATE ${rosbag_INCLUDE_DIRS})
+target_link_libraries(session_trajectory eyesi_records vrm_cli ${rosbag_LIBRARIES} ${catkin_LIBRARIES})
+add_dependencies(session_trajectory vrm_msgs_generate_messages_cpp)
+install(TARGETS session_trajectory RUNTIME DESTINATION ${CATKIN_PACKAGE_BIN_DESTINATION})
 install(TARGETS eyesi_records ARCHIVE DESTINATION ${CATKIN_PACKAGE_LIB_DESTINATION})
 
 if(CATKIN_ENABLE_TESTING)

@@ -1023,6 +1023,41 @@ TEST(RecordsSync, ServerUsersWinNamesAndRolesAndDeletionsReachTheStation) {
   EXPECT_TRUE(store.findUser("otto"));
 }
 
+TEST(RecordsTrajectory, SamplesRoundTripThroughTheFileAndTheStoreAndBadFilesAreNamed) {
+  TempDir dir;
+  TrajectorySample eye;
+  eye.frame = 1;
+  eye.source = "eye";
+  eye.frame_id = "world";
+  eye.orientation[3] = 1.0;
+  eye.valid = true;
+  TrajectorySample tip = eye;
+  tip.source = "instrument:left";
+  tip.frame_id = "eye";
+  tip.time = 0.016;
+  tip.position[0] = -0.0035;
+  tip.valid = false;
+  const auto parsed = parseTrajectoryJson(trajectoryJson({eye, tip}, "a.bag"), "t.json");
+  ASSERT_EQ(parsed.size(), 2u);
+  EXPECT_EQ(parsed[1].source, "instrument:left");
+  EXPECT_DOUBLE_EQ(parsed[1].position[0], -0.0035);
+  EXPECT_FALSE(parsed[1].valid);
+  Store store(dir.file("s.sqlite"));
+  SessionRecord s = makeSession("anna", "navigation", 1000, 60);
+  s.trajectory = parsed;
+  const auto id = store.recordSession(s).session_id;
+  const auto back = store.trajectory(id);
+  ASSERT_EQ(back.size(), 2u);
+  EXPECT_EQ(back[1].frame_id, "eye");
+  EXPECT_DOUBLE_EQ(back[1].time, 0.016);
+  EXPECT_TRUE(store.session(id)->trajectory.empty());  // the lists do not carry them
+  EXPECT_EQ(store.unsyncedSessions(0, 1)[0].trajectory.size(), 2u);
+  EXPECT_EQ(trajectoryPathFor("/x/a.result.json"), "/x/a.trajectory.json");
+  expectStoreError([] { parseTrajectoryJson("{\"format\": \"other\"}", "bad.json"); }, {"bad.json", "format"});
+  expectStoreError([] { parseTrajectoryJson(R"({"format": "eyesi_trajectory/1", "samples": [[1, 0]]})", "b.json"); },
+                   {"b.json", "sample 0"});
+}
+
 TEST(RecordsSchema, MigratesVersion4GivingEverySessionAGlobalKeyAndAnEmptyOutbox) {
   TempDir dir;
   const std::string path = dir.file("v4.sqlite");

@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "eyesi_gui/records/export.h"
 #include "eyesi_gui/records/server.h"
 #include "eyesi_gui/records/store.h"
 #include "vrm_sim/cli/cli.h"
@@ -25,6 +26,10 @@ constexpr const char* kCommandHelp =
     "  export-csv [--user U] [--scene S] [--table items|groups|events] [--out FILE]\n"
     "                                           score items (default), factor groups or penalty events as CSV\n"
     "                                           (RFC 4180; stdout by default)\n"
+    "  export --out-dir DIR [--user U] [--scene S] [--pseudonym-key FILE]\n"
+    "                                           tidy CSV tables for research: sessions, score_items, score_groups,\n"
+    "                                           penalty_events, trajectories (README: data dictionary); with a key\n"
+    "                                           file (created if missing) users and stations are pseudonymised\n"
     "  check                                    integrity report of the database (exit 0 ok, 1 damaged)\n"
     "  add-user NAME --role trainee|instructor [--pin PIN]   (--pin - reads the PIN from stdin)\n"
     "  set-pin NAME --pin PIN                   set (or with an empty PIN clear) a user's PIN\n"
@@ -198,6 +203,20 @@ int positiveOption(const Arguments& args, const std::string& name, int fallback)
   throw UsageError{name + " must be a whole number >= 0, not '" + args.option(name) + "'"};
 }
 
+int runExportTables(const records::Store& store, const Arguments& args) {
+  if (!args.positional.empty()) throw UsageError{"export takes no positional arguments"};
+  if (!args.has("--out-dir")) throw UsageError{"export needs --out-dir DIR"};
+  records::ExportOptions options;
+  options.filter = {args.option("--user"), args.option("--scene")};
+  options.pseudonym_key_file = args.option("--pseudonym-key");
+  const records::ExportCounts counts = records::exportTables(store, args.option("--out-dir"), options);
+  std::cout << counts.sessions << " sessions, " << counts.items << " score items, " << counts.groups
+            << " factor groups, " << counts.events << " penalty events, " << counts.samples << " trajectory samples"
+            << (options.pseudonym_key_file.empty() ? "" : " (pseudonymised)") << " -> " << args.option("--out-dir")
+            << '\n';
+  return 0;
+}
+
 int runSync(records::Store& store, const Arguments& args) {
   if (!args.positional.empty()) throw UsageError{"sync takes no positional arguments"};
   if (!args.has("--server")) throw UsageError{"sync needs --server CONNINFO"};
@@ -217,8 +236,9 @@ int main(int argc, char** argv) {
   namespace po = vrm_sim::cli::po;
   vrm_sim::cli::CommandLine cli("records", "[--db PATH] COMMAND [ARGS]",
                                 "The training-records database: import, export, check, users.", kCommandHelp);
-  static const std::vector<std::string> kValued{"db",    "user",   "scene",   "out",   "role",    "pin",
-                                                "table", "server", "station", "batch", "pause-ms"};
+  static const std::vector<std::string> kValued{"db",       "user",    "scene",        "out",     "role",
+                                                "pin",      "table",   "server",       "station", "batch",
+                                                "pause-ms", "out-dir", "pseudonym-key"};
   cli.add()("db", po::value<std::string>()->value_name("PATH"), "the database")(
       "user", po::value<std::string>()->value_name("NAME"), "import: the trainee; export-csv, list: only this user")(
       "scene", po::value<std::string>()->value_name("S"), "export-csv: only this scene")(
@@ -229,7 +249,9 @@ int main(int argc, char** argv) {
       "server", po::value<std::string>()->value_name("CONNINFO"), "server-init, sign-in, sync: the records server")(
       "station", po::value<std::string>()->value_name("S"), "sign-in: the station's server login")(
       "batch", po::value<std::string>()->value_name("N"), "sync: sessions per server transaction (50)")(
-      "pause-ms", po::value<std::string>()->value_name("MS"), "sync: pause between batches (0)");
+      "pause-ms", po::value<std::string>()->value_name("MS"), "sync: pause between batches (0)")(
+      "out-dir", po::value<std::string>()->value_name("DIR"), "export: the folder of the CSV tables")(
+      "pseudonym-key", po::value<std::string>()->value_name("FILE"), "export: pseudonymise with this key file");
   cli.hidden()("command", po::value<std::string>())("args", po::value<std::vector<std::string>>());
   cli.positional("command", 1).positional("args", -1);
   for (int i = 1; i < argc; ++i) {
@@ -273,7 +295,7 @@ int main(int argc, char** argv) {
       return 0;
     }
     static const std::vector<std::string> kCommands{"import", "export-csv", "add-user", "set-pin",
-                                                    "list",   "users",      "sync"};
+                                                    "list",   "users",      "sync",     "export"};
     if (std::find(kCommands.begin(), kCommands.end(), command) == kCommands.end()) {
       throw UsageError{"unknown command " + command};
     }
@@ -284,6 +306,7 @@ int main(int argc, char** argv) {
     if (command == "list") allowOnly(args, {"--user"});
     if (command == "users") allowOnly(args, {});
     if (command == "sync") allowOnly(args, {"--server", "--batch", "--pause-ms"});
+    if (command == "export") allowOnly(args, {"--out-dir", "--user", "--scene", "--pseudonym-key"});
 
     records::Store store(db);
     if (command == "import") return runImport(store, args);
@@ -292,6 +315,7 @@ int main(int argc, char** argv) {
     if (command == "set-pin") return runSetPin(store, args);
     if (command == "list") return runList(store, args);
     if (command == "sync") return runSync(store, args);
+    if (command == "export") return runExportTables(store, args);
     return runUsers(store, args);
   } catch (const UsageError& e) {
     return cli.fail(e.message);

@@ -34,6 +34,7 @@ import time
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "../../../.."))
 RECORDS = os.environ.get("EYESI_RECORDS_TOOL", os.path.join(ROOT, "build/devel/lib/eyesi_gui/records"))
+TRAJECTORY = os.environ.get("EYESI_TRAJECTORY_TOOL", os.path.join(ROOT, "build/devel/lib/eyesi_gui/session_trajectory"))
 REFERENCE = sorted(glob.glob(os.path.join(ROOT, "src/vrm_sim/test/bags/*.result.json")))
 STATIONS = (1, 2, 3)
 SERVER_NS = "eyesi-ctr-srv"
@@ -194,6 +195,19 @@ class Centre:
         return self.records(k, ["sync", "--server", "-"] + list(extra))
 
 
+def make_trajectories(tmp):
+    """The trajectories of the reference bags (session_trajectory), once: every copy of a result carries its own."""
+    folder = os.path.join(tmp, "trajectories")
+    os.makedirs(folder)
+    for result in REFERENCE:
+        bag = result[: -len(".result.json")] + ".bag"
+        run([TRAJECTORY, bag, "--out", os.path.join(folder, os.path.basename(bag)[:-4] + ".trajectory.json")])
+    return folder
+
+
+TRAJECTORIES = None
+
+
 def write_results(folder, count, users, first, shift_stamps=True):
     """`count` copies of the reference results for `users` (round robin). Each copy is the same scripted session run
     later (its stamps shifted by a whole number of hours), so its content hash differs; with shift_stamps False the
@@ -214,6 +228,9 @@ def write_results(folder, count, users, first, shift_stamps=True):
         path = os.path.join(folder, "%04d.result.json" % n)
         with open(path, "w") as f:
             json.dump(result, f)
+        stem = os.path.basename(REFERENCE[i % len(REFERENCE)])[: -len(".result.json")]
+        shutil.copy(os.path.join(TRAJECTORIES, stem + ".trajectory.json"),
+                    os.path.join(folder, "%04d.trajectory.json" % n))
         paths.append(path)
     return paths
 
@@ -229,13 +246,15 @@ def wait_for_count(centre, station, count, timeout=20.0):
 
 
 def local_sessions(db):
-    """{global_key: (user, synced, items, groups, events, total)} of a station's store, read without the tool."""
+    """{global_key: (user, synced, items, groups, events, total, samples)} of a station's store, read without the
+    tool."""
     con = sqlite3.connect("file:%s?mode=ro" % db, uri=True)
     rows = con.execute(
         "SELECT s.global_key, u.name, s.synced_at IS NOT NULL, "
         "(SELECT count(*) FROM score_items WHERE session_id = s.id), "
         "(SELECT count(*) FROM score_groups WHERE session_id = s.id), "
-        "(SELECT count(*) FROM penalty_events WHERE session_id = s.id), s.total "
+        "(SELECT count(*) FROM penalty_events WHERE session_id = s.id), s.total, "
+        "(SELECT count(*) FROM trajectory_samples WHERE session_id = s.id) "
         "FROM sessions s JOIN users u ON u.id = s.user_id").fetchall()
     integrity = con.execute("PRAGMA integrity_check").fetchone()[0]
     con.close()
@@ -246,7 +265,8 @@ def server_sessions(centre):
     out = centre.value("COPY (SELECT global_key, user_name, station_id, session_key, "
                        "(SELECT count(*) FROM score_items WHERE session_id = s.id), "
                        "(SELECT count(*) FROM score_groups WHERE session_id = s.id), "
-                       "(SELECT count(*) FROM penalty_events WHERE session_id = s.id), total "
+                       "(SELECT count(*) FROM penalty_events WHERE session_id = s.id), total, "
+                       "(SELECT count(*) FROM trajectory_samples WHERE session_id = s.id) "
                        "FROM sessions s) TO STDOUT WITH CSV")
     return list(csv.reader(io.StringIO(out)))
 
@@ -262,7 +282,9 @@ def main():
     started = time.monotonic()
     tmp = tempfile.mkdtemp(prefix="eyesi-centre-")
     centre = Centre(tmp)
+    global TRAJECTORIES
     try:
+        TRAJECTORIES = make_trajectories(tmp)
         centre.netns_up()
         centre.initdb()
         centre.start()
@@ -396,8 +418,10 @@ def main():
             check(not missing, "station %d: all %d sessions on the server" % (k, len(synced)))
             wrong = [key for key, v in synced.items() if key in server and (
                 server[key][1] != v[0] or server[key][2] != "station_s%d" % k or
-                [int(x) for x in server[key][4:7]] != list(v[2:5]) or float(server[key][7]) != v[5])]
-            check(not wrong, "station %d: user, station, items, groups, events and total equal on the server" % k)
+                [int(x) for x in server[key][4:7]] != list(v[2:5]) or float(server[key][7]) != v[5] or
+                int(server[key][8]) != v[6] or v[6] == 0)]
+            check(not wrong, "station %d: user, station, items, groups, events, total and trajectory samples equal on "
+                  "the server" % k)
             check(not any(key in server for key in held), "station %d: nothing refused reached the server" % k)
         check(len(rows) == expected, "the server holds exactly the stations' sessions (%d)" % expected)
         per_hash = {}
@@ -432,7 +456,7 @@ def schema_parity(centre):
           "station and server are at the same schema version (%d)" % version)
     server_only = {"global_key", "station_id", "user_name", "uploaded_at"}
     station_only = {"user_id", "synced_at"}
-    for table in ("sessions", "score_items", "score_groups", "penalty_events"):
+    for table in ("sessions", "score_items", "score_groups", "penalty_events", "trajectory_samples"):
         local = {row[1] for row in con.execute("PRAGMA table_info(%s)" % table)} - station_only - {"global_key"}
         remote = set(centre.value("SELECT string_agg(column_name, ',') FROM information_schema.columns "
                                   "WHERE table_name = '%s'" % table).split(",")) - server_only

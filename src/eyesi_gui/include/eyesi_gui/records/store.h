@@ -21,6 +21,8 @@
 #include <string>
 #include <vector>
 
+#include "eyesi_gui/records/trajectory.h"
+
 namespace eyesi_gui::records {
 
 enum class Role { kTrainee, kInstructor };
@@ -86,6 +88,9 @@ struct SessionRecord {
   // Added to the contract (issue 41, schema version 5): the session's identity across the centre, a random UUID made
   // when the station first stores it ("" in a record to store: one is made). Never derived from the content.
   std::string global_key;
+  // Added (issue 41): the per-frame trajectories. Written by recordSession; read only by trajectory() and
+  // unsyncedSessions() (the lists the console shows do not need them).
+  std::vector<TrajectorySample> trajectory;
 };
 
 struct SessionFilter {
@@ -158,6 +163,7 @@ class Store {
   // live text does not name the session's trainee or bag). Throws StoreError on malformed JSON (naming the file).
   ImportResult importResultJson(const std::string& json_text, const std::string& origin, const std::string& user = "",
                                 const std::string& bag = "");
+  // Added (issue 41): the trajectories come from <stem>.trajectory.json next to the file, when there is one.
   ImportResult importResultFile(const std::string& path, const std::string& user = "");
   // Every *.result.json under `folder` (recursively); malformed ones are reported in `errors`, not thrown.
   std::vector<ImportResult> importFolder(const std::string& folder, std::vector<std::string>* errors = nullptr);
@@ -188,6 +194,8 @@ class Store {
   // with their items.
   std::vector<SessionRecord> unsyncedSessions(std::int64_t after_id, std::size_t limit) const;
   std::int64_t unsyncedCount() const;
+  // The session's trajectory samples in frame order (empty: none recorded).
+  std::vector<TrajectorySample> trajectory(std::int64_t session_id) const;
   // Marks sessions as on the server (after the server committed them). Unknown keys are ignored.
   void markSynced(const std::vector<std::string>& global_keys);
   // Users as the server lists them. The conflict rules (README "Training centre"): the server's user wins its name

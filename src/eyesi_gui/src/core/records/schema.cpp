@@ -114,7 +114,8 @@ CREATE TABLE penalty_events (
 // is the station's outbox: NULL until the server has acknowledged the session (a commit there, then this mark here,
 // so a crash between the two re-sends a session the server then recognises by its key). users.origin tells the
 // station's own users from those that came down from the server (their role is the server's; a server deletion
-// removes them and their sessions here too).
+// removes them and their sessions here too). trajectory_samples: the eye's and instruments' applied poses per frame
+// (records/trajectory.h), one row per source and frame in frame order; a position of NULL is an unknown one.
 constexpr const char* kVersion5 = R"sql(
 ALTER TABLE sessions ADD COLUMN global_key TEXT;
 UPDATE sessions SET global_key = lower(hex(randomblob(4)) || '-' || hex(randomblob(2)) || '-4' ||
@@ -124,6 +125,18 @@ CREATE UNIQUE INDEX sessions_global_key ON sessions (global_key);
 ALTER TABLE sessions ADD COLUMN synced_at TEXT;
 CREATE INDEX sessions_unsynced ON sessions (id) WHERE synced_at IS NULL;
 ALTER TABLE users ADD COLUMN origin TEXT NOT NULL DEFAULT 'local' CHECK (origin IN ('local', 'server'));
+CREATE TABLE trajectory_samples (
+  session_id INTEGER NOT NULL REFERENCES sessions (id) ON DELETE CASCADE,
+  position INTEGER NOT NULL,
+  frame INTEGER NOT NULL,
+  time REAL NOT NULL,
+  source TEXT NOT NULL,
+  frame_id TEXT NOT NULL DEFAULT '',
+  x REAL, y REAL, z REAL,
+  qx REAL, qy REAL, qz REAL, qw REAL,
+  valid INTEGER NOT NULL DEFAULT 0,
+  PRIMARY KEY (session_id, position)
+);
 )sql";
 
 // The records server's schema (PostgreSQL 15), the same schema version as the station's: the session, score item,
@@ -232,6 +245,18 @@ CREATE TABLE penalty_events (
   points double precision NOT NULL DEFAULT 0,
   PRIMARY KEY (session_id, position)
 );
+CREATE TABLE trajectory_samples (
+  session_id bigint NOT NULL REFERENCES sessions (id) ON DELETE CASCADE,
+  position integer NOT NULL,
+  frame bigint NOT NULL,
+  time double precision NOT NULL,
+  source text NOT NULL,
+  frame_id text NOT NULL DEFAULT '',
+  x double precision, y double precision, z double precision,
+  qx double precision, qy double precision, qz double precision, qw double precision,
+  valid integer NOT NULL DEFAULT 0,
+  PRIMARY KEY (session_id, position)
+);
 CREATE TABLE course_assignments (
   user_name text PRIMARY KEY REFERENCES users (name) ON DELETE CASCADE,
   course_name text NOT NULL,
@@ -260,9 +285,9 @@ GRANT USAGE ON SCHEMA public TO records_trainee, records_instructor, records_adm
 GRANT SELECT ON schema_info, users TO records_trainee, records_instructor, records_admin, records_station;
 GRANT SELECT ON supervision TO records_instructor, records_admin;
 GRANT SELECT ON stations, station_signins TO records_admin, records_station;
-GRANT SELECT ON sessions, score_items, score_groups, penalty_events
+GRANT SELECT ON sessions, score_items, score_groups, penalty_events, trajectory_samples
   TO records_trainee, records_instructor, records_station;
-GRANT INSERT ON sessions, score_items, score_groups, penalty_events TO records_station;
+GRANT INSERT ON sessions, score_items, score_groups, penalty_events, trajectory_samples TO records_station;
 GRANT USAGE ON SEQUENCE sessions_id_seq TO records_station;
 GRANT SELECT ON course_assignments TO records_trainee, records_instructor, records_admin, records_station;
 GRANT INSERT, UPDATE, DELETE ON course_assignments TO records_instructor, records_admin;
@@ -271,6 +296,7 @@ ALTER TABLE sessions ENABLE ROW LEVEL SECURITY;
 ALTER TABLE score_items ENABLE ROW LEVEL SECURITY;
 ALTER TABLE score_groups ENABLE ROW LEVEL SECURITY;
 ALTER TABLE penalty_events ENABLE ROW LEVEL SECURITY;
+ALTER TABLE trajectory_samples ENABLE ROW LEVEL SECURITY;
 ALTER TABLE station_signins ENABLE ROW LEVEL SECURITY;
 ALTER TABLE supervision ENABLE ROW LEVEL SECURITY;
 ALTER TABLE course_assignments ENABLE ROW LEVEL SECURITY;
@@ -290,6 +316,7 @@ CREATE POLICY station_inserts_signed_in ON sessions FOR INSERT TO records_statio
 CREATE POLICY follow_session ON score_items USING (session_id IN (SELECT id FROM sessions));
 CREATE POLICY follow_session ON score_groups USING (session_id IN (SELECT id FROM sessions));
 CREATE POLICY follow_session ON penalty_events USING (session_id IN (SELECT id FROM sessions));
+CREATE POLICY follow_session ON trajectory_samples USING (session_id IN (SELECT id FROM sessions));
 CREATE POLICY station_sees_own ON station_signins FOR SELECT TO records_station USING (station = current_user);
 CREATE POLICY admin_sees_all ON station_signins FOR SELECT TO records_admin USING (true);
 CREATE POLICY instructor_sees_own ON supervision FOR SELECT TO records_instructor USING (instructor = current_user);

@@ -99,6 +99,52 @@ constexpr const char* kInsertSession =
     "$8, $9, $10, $11, $12, $13, $14, $15, $16, $17, $18, $19, $20, $21, $22, $23) "
     "ON CONFLICT (global_key) DO NOTHING RETURNING id";
 
+// A PostgreSQL array literal of `count` elements ("{1,2,NULL}"); text elements quoted with " and \ escaped.
+template <typename Element>
+std::string arrayLiteral(std::size_t count, Element&& element) {
+  std::string text = "{";
+  for (std::size_t i = 0; i < count; ++i) {
+    if (i > 0) text += ',';
+    text += element(i);
+  }
+  return text + "}";
+}
+
+std::string quotedElement(const std::string& value) {
+  std::string text = "\"";
+  for (const char c : value) {
+    if (c == '"' || c == '\\') text += '\\';
+    text += c;
+  }
+  return text + "\"";
+}
+
+std::string numberElement(double x) { return std::isfinite(x) ? formatNumber(x) : "NULL"; }
+
+// All samples in one statement (unnest of one array per column): a session's thousands of rows in one round trip.
+void uploadTrajectory(Connection& server, const std::string& session_id, const std::vector<TrajectorySample>& t) {
+  const std::size_t n = t.size();
+  std::vector<Param> params{session_id};
+  params.push_back(arrayLiteral(n, [](std::size_t i) { return std::to_string(i); }));
+  params.push_back(arrayLiteral(n, [&](std::size_t i) { return std::to_string(t[i].frame); }));
+  params.push_back(arrayLiteral(n, [&](std::size_t i) { return numberElement(t[i].time); }));
+  params.push_back(arrayLiteral(n, [&](std::size_t i) { return quotedElement(t[i].source); }));
+  params.push_back(arrayLiteral(n, [&](std::size_t i) { return quotedElement(t[i].frame_id); }));
+  for (int k = 0; k < 3; ++k) {
+    params.push_back(arrayLiteral(n, [&](std::size_t i) { return numberElement(t[i].position[k]); }));
+  }
+  for (int k = 0; k < 4; ++k) {
+    params.push_back(arrayLiteral(n, [&](std::size_t i) { return numberElement(t[i].orientation[k]); }));
+  }
+  params.push_back(arrayLiteral(n, [&](std::size_t i) { return std::string(t[i].valid ? "1" : "0"); }));
+  server.run(
+      "INSERT INTO trajectory_samples (session_id, position, frame, time, source, frame_id, x, y, z, qx, qy, qz, qw, "
+      "valid) SELECT $1::bigint, * FROM unnest($2::integer[], $3::bigint[], $4::float8[], $5::text[], $6::text[], "
+      "$7::float8[], $8::float8[], $9::float8[], $10::float8[], $11::float8[], $12::float8[], $13::float8[], "
+      "$14::integer[])",
+      params, "uploading a trajectory");
+}
+
 // The session's rows on the server; false (with the server's reason) when the server refused it.
 enum class Upload { kInserted, kAlreadyThere, kRefused };
 
@@ -156,6 +202,7 @@ Upload uploadSession(Connection& server, const SessionRecord& s, std::string* re
          number(e.position[1]), number(e.position[2]), number(e.points)},
         "uploading a penalty event");
   }
+  if (!s.trajectory.empty()) uploadTrajectory(server, id, s.trajectory);
   return Upload::kInserted;
 }
 

@@ -401,6 +401,27 @@ struct Store::Impl {
     loadGroupsAndEvents(sessions);
   }
 
+  std::vector<TrajectorySample> loadTrajectory(std::int64_t session_id) const {
+    Statement stmt(*this,
+                   "SELECT frame, time, source, frame_id, x, y, z, qx, qy, qz, qw, valid FROM trajectory_samples "
+                   "WHERE session_id = ?1 ORDER BY position");
+    stmt.integer(1, session_id);
+    std::vector<TrajectorySample> samples;
+    while (stmt.step()) {
+      TrajectorySample t;
+      t.frame = static_cast<std::uint64_t>(stmt.integerAt(0));
+      t.time = stmt.realAt(1);
+      t.source = stmt.textAt(2);
+      t.frame_id = stmt.textAt(3);
+      double* values[] = {&t.position[0],    &t.position[1],    &t.position[2],   &t.orientation[0],
+                          &t.orientation[1], &t.orientation[2], &t.orientation[3]};
+      for (int k = 0; k < 7; ++k) *values[k] = stmt.isNull(4 + k) ? kNaN : stmt.realAt(4 + k);
+      t.valid = stmt.integerAt(11) != 0;
+      samples.push_back(std::move(t));
+    }
+    return samples;
+  }
+
   void loadGroupsAndEvents(std::vector<SessionRecord>* sessions) const {
     Statement dropped(*this, "SELECT events_dropped FROM sessions WHERE id = ?1");
     Statement groups(*this, "SELECT name, points, weight FROM score_groups WHERE session_id = ?1 ORDER BY position");
@@ -667,6 +688,33 @@ ImportResult Store::recordSession(const SessionRecord& session) {
     }
     event.step();
   }
+  if (!session.trajectory.empty()) {
+    Impl::Statement sample(*impl_,
+                           "INSERT INTO trajectory_samples (session_id, position, frame, time, source, frame_id, x, y, "
+                           "z, qx, qy, qz, qw, valid) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, "
+                           "?14)");
+    for (std::size_t i = 0; i < session.trajectory.size(); ++i) {
+      const TrajectorySample& t = session.trajectory[i];
+      sample.reset();
+      sample.integer(1, id)
+          .integer(2, static_cast<std::int64_t>(i))
+          .integer(3, static_cast<std::int64_t>(t.frame))
+          .real(4, t.time)
+          .text(5, t.source)
+          .text(6, t.frame_id)
+          .integer(14, t.valid ? 1 : 0);
+      const double values[] = {t.position[0],    t.position[1],    t.position[2],   t.orientation[0],
+                               t.orientation[1], t.orientation[2], t.orientation[3]};
+      for (int k = 0; k < 7; ++k) {
+        if (std::isfinite(values[k])) {
+          sample.real(7 + k, values[k]);
+        } else {
+          sample.null(7 + k);
+        }
+      }
+      sample.step();
+    }
+  }
   if (session.events_dropped > 0) {
     Impl::Statement dropped(*impl_, "UPDATE sessions SET events_dropped = ?2 WHERE id = ?1");
     dropped.integer(1, id).integer(2, static_cast<std::int64_t>(session.events_dropped));
@@ -695,6 +743,14 @@ ImportResult Store::importResultFile(const std::string& path, const std::string&
   // Absolute, so the console can find the file again whatever folder the import ran in.
   session.result_path = ec ? path : absolute.lexically_normal().string();
   if (!user.empty()) session.user = user;
+  const std::string trajectory_path = trajectoryPathFor(path);
+  if (fs::exists(trajectory_path, ec)) {
+    std::ifstream trajectory(trajectory_path, std::ios::binary);
+    if (!trajectory) throw StoreError(trajectory_path + ": cannot read the trajectory file: " + std::strerror(errno));
+    std::ostringstream trajectory_text;
+    trajectory_text << trajectory.rdbuf();
+    session.trajectory = parseTrajectoryJson(trajectory_text.str(), trajectory_path);
+  }
   return recordSession(session);
 }
 
@@ -853,8 +909,14 @@ std::vector<SessionRecord> Store::unsyncedSessions(std::int64_t after_id, std::s
   std::vector<SessionRecord> sessions;
   while (stmt.step()) sessions.push_back(Impl::sessionFromRow(stmt));
   impl_->loadItems(&sessions);
+  for (SessionRecord& s : sessions) s.trajectory = impl_->loadTrajectory(s.id);
   tx.commit();
   return sessions;
+}
+
+std::vector<TrajectorySample> Store::trajectory(std::int64_t session_id) const {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  return impl_->loadTrajectory(session_id);
 }
 
 std::int64_t Store::unsyncedCount() const {
