@@ -63,6 +63,20 @@ def run(cmd, check_rc=True, **kw):
     return result
 
 
+def children_of(pid):
+    """The processes whose parent is `pid` (from /proc: procps may not be installed)."""
+    children = []
+    for stat in glob.glob("/proc/[0-9]*/stat"):
+        try:
+            with open(stat) as f:
+                fields = f.read().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        if int(fields[1]) == pid:
+            children.append(stat.split("/")[2])
+    return children
+
+
 def station_ns(k):
     return "eyesi-ctr-s%d" % k
 
@@ -144,7 +158,7 @@ class Centre:
         """kill -9 of the server: the postmaster and every backend (the backends of a killed postmaster would keep
         its shared memory and stop a restart)."""
         pid = self.postmaster_pid()
-        children = run(["pgrep", "-P", str(pid)], check_rc=False).stdout.split()
+        children = children_of(pid)
         os.kill(pid, signal.SIGKILL)
         for child in children:
             try:

@@ -37,8 +37,10 @@ bool succeeded(const PGresult* result) {
 class Connection {
  public:
   explicit Connection(const std::string& connection) {
-    // Earlier keywords are defaults that later ones override: the caller's connect_timeout wins.
-    conn_ = PQconnectdb(("connect_timeout=5 " + connection).c_str());
+    // In the key=value form earlier keywords are defaults that later ones override: the caller's connect_timeout wins.
+    // A URI (postgresql://...) is taken as it is.
+    const bool uri = connection.rfind("postgres://", 0) == 0 || connection.rfind("postgresql://", 0) == 0;
+    conn_ = PQconnectdb((uri ? connection : "connect_timeout=5 " + connection).c_str());
     if (conn_ == nullptr || PQstatus(conn_) != CONNECTION_OK) {
       const std::string message = conn_ ? trimmed(PQerrorMessage(conn_)) : "out of memory";
       PQfinish(conn_);
