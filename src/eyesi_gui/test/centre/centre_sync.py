@@ -136,15 +136,44 @@ class Centre:
         run(["runuser", "-u", self.user, "--", os.path.join(self.bin, "initdb"), "-D", self.data, "-U", "postgres",
              "-E", "UTF8", "--auth-local=trust", "--auth-host=scram-sha-256"])
         # The owner (superuser) connects over the Unix socket only, without a password; everyone else with their own
-        # password (SCRAM-SHA-256), over the socket or from the stations' subnets.
+        # password (SCRAM-SHA-256), over the socket or from the stations' subnets. Stations 1 and 2 share the
+        # server's segment; station 3 stands for one off it: TLS only (hostssl), its certificate checked by the
+        # station (sslmode=verify-full against the centre's CA).
         with open(os.path.join(self.data, "pg_hba.conf"), "w") as hba:
             hba.write("local all postgres trust\n"
                       "local all all scram-sha-256\n"
-                      "host all all 10.215.0.0/16 scram-sha-256\n")
+                      "host all all 10.215.1.0/24 scram-sha-256\n"
+                      "host all all 10.215.2.0/24 scram-sha-256\n"
+                      "hostssl all all 10.215.3.0/24 scram-sha-256\n")
+        self.make_certificates()
         listen = ",".join("10.215.%d.1" % k for k in STATIONS)
         with open(os.path.join(self.data, "postgresql.auto.conf"), "a") as conf:
             conf.write("listen_addresses = '%s'\nport = %d\nunix_socket_directories = '%s'\n"
-                       "password_encryption = 'scram-sha-256'\n" % (listen, self.port, self.socket))
+                       "password_encryption = 'scram-sha-256'\n"
+                       "ssl = on\nssl_cert_file = '%s'\nssl_key_file = '%s'\n"
+                       % (listen, self.port, self.socket, self.server_cert, self.server_key))
+
+    def make_certificates(self):
+        """A throw-away CA and the server's certificate for its three addresses (openssl, which postgresql-common's
+        ssl-cert brings along)."""
+        tls = os.path.join(self.tmp, "tls")
+        os.makedirs(tls)
+        self.ca = os.path.join(tls, "ca.crt")
+        self.server_cert, self.server_key = os.path.join(tls, "server.crt"), os.path.join(tls, "server.key")
+        ca_key, csr = os.path.join(tls, "ca.key"), os.path.join(tls, "server.csr")
+        run(["openssl", "req", "-x509", "-newkey", "rsa:2048", "-nodes", "-days", "1", "-subj",
+             "/CN=eyesi centre test CA", "-keyout", ca_key, "-out", self.ca])
+        run(["openssl", "req", "-newkey", "rsa:2048", "-nodes", "-subj", "/CN=records.centre", "-keyout",
+             self.server_key, "-out", csr])
+        ext = os.path.join(tls, "san.ext")
+        with open(ext, "w") as f:
+            f.write("subjectAltName = " + ",".join("IP:10.215.%d.1" % k for k in STATIONS) + "\n")
+        run(["openssl", "x509", "-req", "-in", csr, "-CA", self.ca, "-CAkey", ca_key, "-CAcreateserial", "-days", "1",
+             "-extfile", ext, "-out", self.server_cert])
+        for path in (self.server_key, self.server_cert):
+            shutil.chown(path, self.user)
+        os.chmod(self.server_key, 0o600)
+        os.chmod(tls, 0o755)
 
     def start(self):
         run(["ip", "netns", "exec", SERVER_NS, "runuser", "-u", self.user, "--", os.path.join(self.bin, "pg_ctl"),
@@ -188,8 +217,11 @@ class Centre:
         return self.psql(sql, user)[1]
 
     # --- stations ---
-    def conninfo(self, k, user):
-        return "host=10.215.%d.1 port=%d dbname=records user=%s connect_timeout=2" % (k, self.port, user)
+    def conninfo(self, k, user, sslmode=None):
+        info = "host=10.215.%d.1 port=%d dbname=records user=%s connect_timeout=2" % (k, self.port, user)
+        if k == 3 or sslmode:  # off the server's segment: TLS, and the server's certificate checked
+            info += " sslmode=%s sslrootcert=%s" % (sslmode or "verify-full", self.ca)
+        return info
 
     def station_db(self, k):
         return os.path.join(self.tmp, "s%d" % k, "records.sqlite")
@@ -445,6 +477,7 @@ def main():
               "the same scripted session on two stations is two sessions (one content hash, two keys)")
 
         schema_parity(centre)
+        tls_checks(centre)
         role_checks(centre)
         print("centre_sync: %.1f s wall" % (time.monotonic() - started))
     finally:
@@ -476,6 +509,19 @@ def schema_parity(centre):
                                   "WHERE table_name = '%s'" % table).split(",")) - server_only
         check(local == remote, "table %s: the same columns on both back ends %s" % (table, sorted(local ^ remote)))
     con.close()
+
+
+def tls_checks(centre):
+    """Station 3 is off the server's segment: its connections are TLS, and one without TLS is refused."""
+    env = dict(os.environ, PGPASSWORD=PASSWORD["station_s3"])
+    query = ["ip", "netns", "exec", station_ns(3), "psql", "-X", "-A", "-t", "-c",
+             "SELECT ssl FROM pg_stat_ssl WHERE pid = pg_backend_pid()"]
+    r = subprocess.run(query + ["-d", centre.conninfo(3, "station_s3")], stdout=subprocess.PIPE,
+                       stderr=subprocess.STDOUT, text=True, env=env)
+    check(r.returncode == 0 and r.stdout.strip() == "t", "station 3's connection is TLS, the certificate verified")
+    r = subprocess.run(query + ["-d", centre.conninfo(3, "station_s3", sslmode="disable")], stdout=subprocess.PIPE,
+                       stderr=subprocess.STDOUT, text=True, env=env)
+    check(r.returncode != 0 and "no encryption" in r.stdout, "station 3 without TLS is refused")
 
 
 def role_checks(centre):
