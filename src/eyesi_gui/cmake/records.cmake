@@ -29,6 +29,12 @@ add_dependencies(session_trajectory vrm_msgs_generate_messages_cpp)
 install(TARGETS session_trajectory RUNTIME DESTINATION ${CATKIN_PACKAGE_BIN_DESTINATION})
 install(TARGETS eyesi_records ARCHIVE DESTINATION ${CATKIN_PACKAGE_LIB_DESTINATION})
 
+# The records benchmark (issue 41): SQLite vs a throw-away PostgreSQL cluster; `./scripts/bench.sh records`.
+add_executable(bench_records bench/bench_records.cpp)
+target_link_libraries(bench_records eyesi_records vrm_cli nlohmann_json::nlohmann_json)
+target_compile_definitions(bench_records PRIVATE EYESI_GUI_SOURCE_DIR="${CMAKE_CURRENT_SOURCE_DIR}")
+set_target_properties(bench_records PROPERTIES RUNTIME_OUTPUT_DIRECTORY ${CATKIN_DEVEL_PREFIX}/lib/${PROJECT_NAME})
+
 if(CATKIN_ENABLE_TESTING)
   catkin_add_gtest(test_records test/test_records.cpp)
   if(TARGET test_records)

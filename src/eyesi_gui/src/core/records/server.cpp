@@ -92,8 +92,6 @@ class Connection {
 
 std::string value(const PGresult* result, int row, int column) { return PQgetvalue(result, row, column); }
 
-Param number(double x) { return std::isfinite(x) ? Param(formatNumber(x)) : std::nullopt; }
-
 constexpr const char* kInsertSession =
     "INSERT INTO sessions (global_key, session_key, station_id, user_name, scene, scenario, difficulty, seed, state, "
     "message, total, passed, elapsed, start_stamp, end_stamp, recorded_at, bag_path, result_path, software_version, "
@@ -182,27 +180,49 @@ Upload uploadSession(Connection& server, const SessionRecord& s, std::string* re
   }
   if (PQntuples(inserted.get()) == 0) return Upload::kAlreadyThere;  // its key is there: sent before, acknowledged now
   const std::string id = value(inserted.get(), 0, 0);
-  for (std::size_t i = 0; i < s.items.size(); ++i) {
-    const ScoreItemRecord& it = s.items[i];
+  // Each table's rows in one statement (unnest of one array per column): a few round trips per session, not one per
+  // row.
+  const auto positions = [](std::size_t n) { return arrayLiteral(n, [](std::size_t i) { return std::to_string(i); }); };
+  if (!s.items.empty()) {
+    const auto& v = s.items;
     server.run(
-        "INSERT INTO score_items (session_id, position, name, value, unit, weight, points) "
-        "VALUES ($1, $2, $3, $4, $5, $6, $7)",
-        {id, std::to_string(i), it.name, number(it.value), it.unit, number(it.weight), number(it.points)},
-        "uploading a score item");
+        "INSERT INTO score_items (session_id, position, name, value, unit, weight, points) SELECT $1::bigint, * FROM "
+        "unnest($2::integer[], $3::text[], $4::float8[], $5::text[], $6::float8[], $7::float8[])",
+        {id, positions(v.size()), arrayLiteral(v.size(), [&](std::size_t i) { return quotedElement(v[i].name); }),
+         arrayLiteral(v.size(), [&](std::size_t i) { return numberElement(v[i].value); }),
+         arrayLiteral(v.size(), [&](std::size_t i) { return quotedElement(v[i].unit); }),
+         arrayLiteral(v.size(), [&](std::size_t i) { return numberElement(v[i].weight); }),
+         arrayLiteral(v.size(), [&](std::size_t i) { return numberElement(v[i].points); })},
+        "uploading the score items");
   }
-  for (std::size_t i = 0; i < s.groups.size(); ++i) {
-    const GroupRecord& g = s.groups[i];
-    server.run("INSERT INTO score_groups (session_id, position, name, points, weight) VALUES ($1, $2, $3, $4, $5)",
-               {id, std::to_string(i), g.name, number(g.points), number(g.weight)}, "uploading a factor group");
+  if (!s.groups.empty()) {
+    const auto& v = s.groups;
+    server.run(
+        "INSERT INTO score_groups (session_id, position, name, points, weight) SELECT $1::bigint, * FROM "
+        "unnest($2::integer[], $3::text[], $4::float8[], $5::float8[])",
+        {id, positions(v.size()), arrayLiteral(v.size(), [&](std::size_t i) { return quotedElement(v[i].name); }),
+         arrayLiteral(v.size(), [&](std::size_t i) { return numberElement(v[i].points); }),
+         arrayLiteral(v.size(), [&](std::size_t i) { return numberElement(v[i].weight); })},
+        "uploading the factor groups");
   }
-  for (std::size_t i = 0; i < s.events.size(); ++i) {
-    const PenaltyEventRecord& e = s.events[i];
+  if (!s.events.empty()) {
+    const auto& v = s.events;
+    std::vector<Param> params{id,
+                              positions(v.size()),
+                              arrayLiteral(v.size(), [&](std::size_t i) { return numberElement(v[i].time); }),
+                              arrayLiteral(v.size(), [&](std::size_t i) { return quotedElement(v[i].kind); }),
+                              arrayLiteral(v.size(), [&](std::size_t i) { return quotedElement(v[i].item); }),
+                              arrayLiteral(v.size(), [&](std::size_t i) { return quotedElement(v[i].slot); }),
+                              arrayLiteral(v.size(), [&](std::size_t i) { return quotedElement(v[i].instrument); })};
+    for (int axis = 0; axis < 3; ++axis) {
+      params.push_back(arrayLiteral(v.size(), [&](std::size_t i) { return numberElement(v[i].position[axis]); }));
+    }
+    params.push_back(arrayLiteral(v.size(), [&](std::size_t i) { return numberElement(v[i].points); }));
     server.run(
         "INSERT INTO penalty_events (session_id, position, time, kind, item, slot, instrument, x, y, z, points) "
-        "VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11)",
-        {id, std::to_string(i), number(e.time), e.kind, e.item, e.slot, e.instrument, number(e.position[0]),
-         number(e.position[1]), number(e.position[2]), number(e.points)},
-        "uploading a penalty event");
+        "SELECT $1::bigint, * FROM unnest($2::integer[], $3::float8[], $4::text[], $5::text[], $6::text[], "
+        "$7::text[], $8::float8[], $9::float8[], $10::float8[], $11::float8[])",
+        params, "uploading the penalty events");
   }
   if (!s.trajectory.empty()) uploadTrajectory(server, id, s.trajectory);
   return Upload::kInserted;
