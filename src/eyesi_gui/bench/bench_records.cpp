@@ -142,11 +142,6 @@ class Pg {
   PGconn* conn_;
 };
 
-std::string withDatabase(std::string connection, const std::string& database) {
-  const auto at = connection.find("dbname=records");
-  return connection.replace(at, std::string("dbname=records").size(), "dbname=" + database);
-}
-
 void fillPostgres(const std::string& owner, int sessions) {
   if (!records::installServerSchema(owner)) throw std::runtime_error("schema already installed");
   Pg pg(owner);
@@ -214,20 +209,21 @@ int main(int argc, char** argv) {
   const fs::path tmp(pattern);
   // The cluster's unprivileged user must reach its folder inside (the stores in it are 0600 on their own).
   fs::permissions(tmp, fs::perms::others_exec | fs::perms::group_exec, fs::perm_options::add);
-  const std::string cluster = (tmp / "pg").string();
   const std::string helper = std::string(EYESI_GUI_SOURCE_DIR) + "/bench/records_cluster.sh";
-  std::string connection;
-  {
+  // A cluster per size: roles are the cluster's, not a database's, and each size starts from an empty server.
+  const auto startCluster = [&](const std::string& cluster) {
     FILE* pipe = popen((helper + " start " + cluster).c_str(), "r");
     char line[512] = {0};
-    if (pipe == nullptr || std::fgets(line, sizeof(line), pipe) == nullptr || pclose(pipe) != 0) {
-      std::cerr << "bench_records: cannot start a PostgreSQL cluster (" << helper << ")\n";
-      return 1;
+    const bool read = pipe != nullptr && std::fgets(line, sizeof(line), pipe) != nullptr;
+    if (pipe == nullptr || pclose(pipe) != 0 || !read) {
+      throw std::runtime_error("cannot start a PostgreSQL cluster (" + helper + ")");
     }
-    connection = line;
-    connection.erase(connection.find_last_not_of("\n") + 1);
-  }
+    std::string connection = line;
+    connection.erase(connection.find_last_not_of('\n') + 1);
+    return connection;
+  };
   json rows = json::array();
+  std::vector<std::string> clusters;
   int status = 0;
   try {
     std::mt19937 random(41);
@@ -255,9 +251,9 @@ int main(int argc, char** argv) {
       rows.push_back(row("sqlite", n, "write_batch50", writes, kBatch));
 
       // PostgreSQL: a database of n sessions; a station syncing 50 at a time; the instructor's query under RLS.
-      const std::string database = "records_" + std::to_string(n);
-      Pg(connection).exec("CREATE DATABASE " + database);
-      const std::string owner = withDatabase(connection, database);
+      const std::string cluster = (tmp / ("pg_" + std::to_string(n))).string();
+      clusters.push_back(cluster);
+      const std::string owner = startCluster(cluster);
       fillPostgres(owner, n);
       std::string station_connection = owner;
       station_connection.replace(station_connection.find("user=postgres"), 13, "user=station_bench");
@@ -287,12 +283,14 @@ int main(int argc, char** argv) {
         if (got < n / kTrainees * kItems) throw std::runtime_error("short history on the server");
       }
       rows.push_back(row("postgresql", n, "history_query", queries));
+      std::system((helper + " stop " + cluster + " >/dev/null").c_str());
+      clusters.pop_back();
     }
   } catch (const std::exception& e) {
     std::cerr << "bench_records: " << e.what() << '\n';
     status = 1;
   }
-  std::system((helper + " stop " + cluster + " >/dev/null").c_str());
+  for (const std::string& cluster : clusters) std::system((helper + " stop " + cluster + " >/dev/null").c_str());
   fs::remove_all(tmp);
   if (status != 0) return status;
   const json result{{"command", std::string("./scripts/bench.sh ") + (quick ? "--quick " : "") + "records"},
