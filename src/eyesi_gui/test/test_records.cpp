@@ -17,6 +17,7 @@
 #include <sstream>
 #include <thread>
 
+#include "eyesi_gui/records/centre.h"
 #include "eyesi_gui/records/csv.h"
 #include "eyesi_gui/records/schema.h"
 #include "eyesi_gui/records/store.h"
@@ -1056,6 +1057,37 @@ TEST(RecordsTrajectory, SamplesRoundTripThroughTheFileAndTheStoreAndBadFilesAreN
   expectStoreError([] { parseTrajectoryJson("{\"format\": \"other\"}", "bad.json"); }, {"bad.json", "format"});
   expectStoreError([] { parseTrajectoryJson(R"({"format": "eyesi_trajectory/1", "samples": [[1, 0]]})", "b.json"); },
                    {"b.json", "sample 0"});
+}
+
+TEST(RecordsCentre, FiltersCurvesAndTheGroupsProgress) {
+  std::vector<SessionRecord> sessions;
+  for (int i = 0; i < 6; ++i) {
+    SessionRecord s = makeSession(i % 2 ? "ben" : "anna", i < 4 ? "membrane_peeling" : "navigation", 100 - i, 50 + i);
+    s.station = i % 3 ? "station_a" : "station_b";
+    s.recorded_at = "2026-11-2" + std::to_string(i) + "T09:00:00Z";
+    sessions.push_back(s);
+  }
+  EXPECT_EQ(filterSessions(sessions, {"station_b", "", "", "", ""}).size(), 2u);
+  EXPECT_EQ(filterSessions(sessions, {"", "anna", "membrane_peeling", "", ""}).size(), 2u);
+  EXPECT_EQ(filterSessions(sessions, {"", "", "", "2026-11-21", "2026-11-23"}).size(), 3u);  // both ends inclusive
+  expectStoreError([&] { filterSessions(sessions, {"", "", "", "21.11.2026", ""}); }, {"21.11.2026", "YYYY-MM-DD"});
+  const auto curves = learningCurves(sessions);
+  ASSERT_EQ(curves.size(), 4u);  // (anna, ben) x (membrane_peeling, navigation)
+  EXPECT_EQ(curves[0].trainee, "anna");
+  EXPECT_EQ(curves[0].scene, "membrane_peeling");
+  // In the order trained (start stamps fall as i rises): session 2 (total 52) before session 0 (total 50).
+  EXPECT_EQ(curves[0].totals, (std::vector<double>{52, 50}));
+  EXPECT_DOUBLE_EQ(curves[0].best, 52);
+  const std::string course = "name: Peel\nsteps:\n  - module: membrane_peeling\n    level: medium\n    pass_mark: 51\n";
+  const auto rows =
+      groupProgress({"anna", "ben", "cleo"},
+                    {{"anna", "Peel", "", course, "weber", ""}, {"ben", "Broken", "", "steps: [", "", ""}}, sessions);
+  ASSERT_EQ(rows.size(), 3u);
+  EXPECT_EQ(rows[0].steps_passed, 1u);
+  EXPECT_EQ(rows[0].steps, 1u);
+  EXPECT_FALSE(rows[1].problem.empty());  // an unreadable course is reported in its row
+  EXPECT_TRUE(rows[2].course.empty());
+  EXPECT_EQ(connectionValue("it's a \\ test"), "'it\\'s a \\\\ test'");
 }
 
 TEST(RecordsSchema, MigratesVersion4GivingEverySessionAGlobalKeyAndAnEmptyOutbox) {

@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "eyesi_gui/records/centre.h"
 #include "eyesi_gui/records/export.h"
 #include "eyesi_gui/records/server.h"
 #include "eyesi_gui/records/store.h"
@@ -39,6 +40,9 @@ constexpr const char* kCommandHelp =
     "PGPASSWORD or ~/.pgpass):\n"
     "  server-init --server CONNINFO            install the server schema (as the database owner)\n"
     "  sign-in --server CONNINFO --station S    sign the connection's user in on station S (as that user)\n"
+    "  centre --server CONNINFO [--station S] [--user U] [--scene S] [--from YYYY-MM-DD] [--to YYYY-MM-DD]\n"
+    "                                           as an instructor: the sessions of your trainees on every station,\n"
+    "                                           learning curves per trainee and module, the group's course progress\n"
     "  sync --server CONNINFO [--batch N] [--pause-ms MS]\n"
     "                                           users and courses down, this station's sessions up (as the\n"
     "                                           station's own login); exit 0 all synced, 3 some held\n"
@@ -217,6 +221,25 @@ int runExportTables(const records::Store& store, const Arguments& args) {
   return 0;
 }
 
+int runCentre(const Arguments& args) {
+  if (!args.positional.empty() || !args.has("--server")) throw UsageError{"centre needs --server CONNINFO"};
+  const records::CentreFilter filter{args.option("--station"), args.option("--user"), args.option("--scene"),
+                                     args.option("--from"), args.option("--to")};
+  const records::CentreData data = records::fetchCentre(args.option("--server"), filter);
+  std::cout << data.sessions.size() << " sessions\n";
+  for (const records::LearningCurve& curve : records::learningCurves(data.sessions)) {
+    std::cout << "curve " << curve.trainee << ' ' << curve.scene << ':';
+    for (const double total : curve.totals) std::printf(" %.1f", total);
+    std::printf(" (best %.1f)\n", curve.best);
+  }
+  for (const records::GroupProgressRow& row : records::groupProgress(data.trainees, data.assignments, data.sessions)) {
+    std::cout << "progress " << row.trainee << ' ' << (row.course.empty() ? "(no course)" : row.course) << ' '
+              << row.steps_passed << '/' << row.steps << (row.problem.empty() ? "" : " unreadable: " + row.problem)
+              << '\n';
+  }
+  return 0;
+}
+
 int runSync(records::Store& store, const Arguments& args) {
   if (!args.positional.empty()) throw UsageError{"sync takes no positional arguments"};
   if (!args.has("--server")) throw UsageError{"sync needs --server CONNINFO"};
@@ -236,9 +259,9 @@ int main(int argc, char** argv) {
   namespace po = vrm_sim::cli::po;
   vrm_sim::cli::CommandLine cli("records", "[--db PATH] COMMAND [ARGS]",
                                 "The training-records database: import, export, check, users.", kCommandHelp);
-  static const std::vector<std::string> kValued{"db",       "user",    "scene",        "out",     "role",
-                                                "pin",      "table",   "server",       "station", "batch",
-                                                "pause-ms", "out-dir", "pseudonym-key"};
+  static const std::vector<std::string> kValued{"db",       "user",    "scene",         "out",     "role",
+                                                "pin",      "table",   "server",        "station", "batch",
+                                                "pause-ms", "out-dir", "pseudonym-key", "from",    "to"};
   cli.add()("db", po::value<std::string>()->value_name("PATH"), "the database")(
       "user", po::value<std::string>()->value_name("NAME"), "import: the trainee; export-csv, list: only this user")(
       "scene", po::value<std::string>()->value_name("S"), "export-csv: only this scene")(
@@ -247,11 +270,13 @@ int main(int argc, char** argv) {
       "role", po::value<std::string>()->value_name("ROLE"), "add-user: trainee or instructor")(
       "pin", po::value<std::string>()->value_name("PIN"), "add-user, set-pin: the PIN (- reads it from stdin)")(
       "server", po::value<std::string>()->value_name("CONNINFO"), "server-init, sign-in, sync: the records server")(
-      "station", po::value<std::string>()->value_name("S"), "sign-in: the station's server login")(
+      "station", po::value<std::string>()->value_name("S"), "sign-in: the station's server login; centre: only it")(
       "batch", po::value<std::string>()->value_name("N"), "sync: sessions per server transaction (50)")(
       "pause-ms", po::value<std::string>()->value_name("MS"), "sync: pause between batches (0)")(
       "out-dir", po::value<std::string>()->value_name("DIR"), "export: the folder of the CSV tables")(
-      "pseudonym-key", po::value<std::string>()->value_name("FILE"), "export: pseudonymise with this key file");
+      "pseudonym-key", po::value<std::string>()->value_name("FILE"), "export: pseudonymise with this key file")(
+      "from", po::value<std::string>()->value_name("DATE"), "centre: from this day (YYYY-MM-DD)")(
+      "to", po::value<std::string>()->value_name("DATE"), "centre: to this day (YYYY-MM-DD)");
   cli.hidden()("command", po::value<std::string>())("args", po::value<std::vector<std::string>>());
   cli.positional("command", 1).positional("args", -1);
   for (int i = 1; i < argc; ++i) {
@@ -284,6 +309,10 @@ int main(int argc, char** argv) {
       std::cout << (installed ? "installed" : "already installed") << " records server schema version "
                 << records::Store::kSchemaVersion << '\n';
       return 0;
+    }
+    if (command == "centre") {
+      allowOnly(args, {"--server", "--station", "--user", "--scene", "--from", "--to"});
+      return runCentre(args);
     }
     if (command == "sign-in") {
       allowOnly(args, {"--server", "--station"});

@@ -93,6 +93,7 @@ MainWindow::MainWindow(SimulatorLink* link, records::Store* store, ConsoleOption
   stack_->addWidget(buildResult());
   stack_->addWidget(buildHistory());
   stack_->addWidget(buildInstructor());
+  stack_->addWidget(buildCentre());
   layout->addWidget(stack_, 1);
   setCentralWidget(central);
   status_line_ = new QLabel;
@@ -148,8 +149,12 @@ QWidget* MainWindow::buildTopBar() {
   nav_scenarios_ = bigButton("Scenarios", "navScenarios");
   nav_history_ = bigButton("History", "navHistory");
   nav_instructor_ = bigButton("Instructor", "navInstructor");
+  nav_centre_ = bigButton("Centre", "navCentre");
   nav_logout_ = bigButton("Log out", "navLogout");
-  for (QPushButton* button : {nav_scenarios_, nav_history_, nav_instructor_, nav_logout_}) layout->addWidget(button);
+  for (QPushButton* button : {nav_scenarios_, nav_history_, nav_instructor_, nav_centre_, nav_logout_}) {
+    layout->addWidget(button);
+  }
+  connect(nav_centre_, &QPushButton::clicked, this, [this] { showScreen(kCentre); });
   connect(nav_scenarios_, &QPushButton::clicked, this, [this] { showScreen(kScenarios); });
   connect(nav_history_, &QPushButton::clicked, this, [this] { showScreen(kHistory); });
   connect(nav_instructor_, &QPushButton::clicked, this, [this] { showScreen(kInstructor); });
@@ -1097,11 +1102,14 @@ void MainWindow::refreshInstructor() {
 void MainWindow::showScreen(Screen screen) {
   const bool logged_in = user_.has_value();
   if (!logged_in) screen = kLogin;
-  if (screen == kInstructor && (!user_ || user_->role != records::Role::kInstructor)) screen = kScenarios;
+  if ((screen == kInstructor || screen == kCentre) && (!user_ || user_->role != records::Role::kInstructor)) {
+    screen = kScenarios;
+  }
   nav_scenarios_->setVisible(logged_in);
   nav_history_->setVisible(logged_in);
   nav_logout_->setVisible(logged_in);
   nav_instructor_->setVisible(logged_in && user_->role == records::Role::kInstructor);
+  nav_centre_->setVisible(logged_in && user_->role == records::Role::kInstructor);
   if (screen == kScenarios) refreshScenarioList();
   if (screen == kHistory) refreshHistory();
   if (screen == kInstructor) refreshInstructor();

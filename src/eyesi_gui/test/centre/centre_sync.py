@@ -561,7 +561,7 @@ def role_checks(centre):
     check(rc != 0, "a trainee cannot read who signed in where")
 
     # A course assigned on the server by the instructor comes down to the trainee's station.
-    course = "name: Basics\\nsteps:\\n  - scene: navigation\\n    pass_mark: 50\\n"
+    course = "name: Basics\\nsteps:\\n  - module: navigation\\n    level: medium\\n    pass_mark: 50\\n"
     centre.psql("INSERT INTO course_assignments (user_name, course_name, course_text, assigned_by, assigned_at) "
                 "VALUES ('t1', 'Basics', E'%s', 'i1', '2026-11-30T10:00:00Z')" % course, user="i1")
     rc, out = centre.psql("INSERT INTO course_assignments (user_name, course_name, course_text, assigned_by, "
@@ -574,6 +574,22 @@ def role_checks(centre):
                               "WHERE u.name = 't1'").fetchall()
     con.close()
     check(course_here == [("Basics",)], "station 1 has t1's course")
+
+    # The instructor's centre view (what the console's centre screen shows), asked as i1 over station 1's network.
+    expected = int(centre.value("SELECT count(*) FROM sessions WHERE user_name IN ('t1', 't2', 't3')"))
+    r = centre.records(1, ["centre", "--server", "-"], user="i1")
+    lines = r.stdout.strip().splitlines()
+    curves = {tuple(line.split()[1:3]) for line in lines if line.startswith("curve ")}
+    progress = [line for line in lines if line.startswith("progress ")]
+    check(r.returncode == 0 and lines[0] == "%d sessions" % expected and {c[0] for c in curves} == {"t1", "t2", "t3"},
+          "records centre as i1: every station's sessions of t1..t3 (%s), their learning curves" % lines[0])
+    check(progress == ["progress t1 Basics 0/1", "progress t2 (no course) 0/0", "progress t3 (no course) 0/0"],
+          "records centre as i1: the group's course progress %s" % progress)
+    r = centre.records(1, ["centre", "--server", "-", "--station", "station_s2", "--scene", "navigation"],
+                       user="i1")
+    n = int(centre.value("SELECT count(*) FROM sessions WHERE user_name IN ('t1', 't2', 't3') "
+                         "AND station_id = 'station_s2' AND scene = 'navigation'"))
+    check(r.stdout.startswith("%d sessions" % n) and n > 0, "records centre filters by station and module (%d)" % n)
 
     # Deletion on request: t6's data leaves the server, and station 3 deletes its copy at the next sync.
     centre.psql("SELECT records_delete_user('t6')", user="admin1")

@@ -7,10 +7,12 @@
 #include <QMainWindow>
 #include <QMap>
 #include <QPointer>
+#include <functional>
 #include <memory>
 #include <optional>
 
 #include "eyesi_gui/console/simulator_link.h"
+#include "eyesi_gui/records/centre.h"
 #include "eyesi_gui/records/store.h"
 
 class QComboBox;
@@ -56,7 +58,14 @@ class MainWindow : public QMainWindow {
   Q_OBJECT
 
  public:
-  enum Screen { kLogin = 0, kScenarios, kSession, kResult, kHistory, kInstructor };
+  enum Screen { kLogin = 0, kScenarios, kSession, kResult, kHistory, kInstructor, kCentre };
+
+  // The whole centre (issue 41): where the centre screen gets its data. The console's default (main.cpp, with the
+  // ~centre_server parameter) asks the records server as the signed-in instructor with the password typed on that
+  // screen (records::fetchCentre); tests give a fake. Without a source the screen says there is no records server.
+  using CentreSource = std::function<records::CentreData(const QString& user, const QString& password,
+                                                         const records::CentreFilter& filter)>;
+  void setCentreSource(CentreSource source) { centre_source_ = std::move(source); }
 
   MainWindow(SimulatorLink* link, records::Store* store, ConsoleOptions options, QWidget* parent = nullptr);
   ~MainWindow() override;
@@ -92,6 +101,7 @@ class MainWindow : public QMainWindow {
   QWidget* buildResult();
   QWidget* buildHistory();
   QWidget* buildInstructor();
+  QWidget* buildCentre();
 
   void refreshUsers();
   void login(const records::User& user);
@@ -108,6 +118,7 @@ class MainWindow : public QMainWindow {
   void showResult(std::int64_t session_id);
   void refreshHistory();
   void refreshInstructor();
+  void refreshCentre();
   void exportCsv();
   void importFolderInBackground(const QString& folder);
   void replaySelected();
@@ -133,6 +144,7 @@ class MainWindow : public QMainWindow {
   QStackedWidget* stack_ = nullptr;
   QLabel* top_label_ = nullptr;
   QPushButton *nav_scenarios_ = nullptr, *nav_history_ = nullptr, *nav_instructor_ = nullptr, *nav_logout_ = nullptr;
+  QPushButton* nav_centre_ = nullptr;
   QLabel* status_line_ = nullptr;
   // login
   QListWidget* user_list_ = nullptr;
@@ -177,6 +189,14 @@ class MainWindow : public QMainWindow {
   QPlainTextEdit* annotation_edit_ = nullptr;
   CourseAssigner* course_assigner_ = nullptr;
   QFutureWatcher<QString> background_;
+  // centre (issue 41)
+  CentreSource centre_source_;
+  QLineEdit *centre_password_ = nullptr, *centre_station_ = nullptr, *centre_trainee_ = nullptr;
+  QLineEdit *centre_scene_ = nullptr, *centre_from_ = nullptr, *centre_to_ = nullptr;
+  QTableWidget* centre_table_ = nullptr;
+  QtCharts::QChartView* centre_chart_ = nullptr;
+  QTableWidget* centre_progress_ = nullptr;
+  QLabel* centre_summary_ = nullptr;
 
   // autopilot
   int autopilot_stage_ = -1;

@@ -4,10 +4,12 @@
 
 #include <chrono>
 #include <cmath>
+#include <map>
 #include <memory>
 #include <optional>
 #include <thread>
 
+#include "eyesi_gui/records/centre.h"
 #include "eyesi_gui/records/csv.h"
 #include "eyesi_gui/records/schema.h"
 
@@ -328,6 +330,75 @@ SyncReport syncWithServer(Store& store, const std::string& station_connection, c
     if (options.pause_ms > 0) std::this_thread::sleep_for(std::chrono::milliseconds(options.pause_ms));
   }
   return report;
+}
+
+CentreData fetchCentre(const std::string& instructor_connection, const CentreFilter& filter) {
+  matches(SessionRecord{}, filter);  // a malformed date is refused before anything is asked
+  Connection server(instructor_connection);
+  CentreData data;
+  server.run("BEGIN ISOLATION LEVEL REPEATABLE READ READ ONLY", {}, "BEGIN");
+  // Row-level security answers for the instructor: their own and their supervised trainees' sessions only.
+  Result rows = server.run(
+      "SELECT id, user_name, scene, scenario, difficulty, seed, state, message, total, passed, elapsed, start_stamp, "
+      "end_stamp, recorded_at, software_version, final_state_hash, frames, station_id, annotation, global_key "
+      "FROM sessions WHERE ($1 = '' OR station_id = $1) AND ($2 = '' OR user_name = $2) AND ($3 = '' OR scene = $3) "
+      "AND ($4 = '' OR left(recorded_at, 10) >= $4) AND ($5 = '' OR left(recorded_at, 10) <= $5) "
+      "ORDER BY start_stamp, id",
+      {filter.station, filter.trainee, filter.scene, filter.from_date, filter.to_date},
+      "reading the centre's sessions");
+  std::map<std::int64_t, std::size_t> index;
+  for (int row = 0; row < PQntuples(rows.get()); ++row) {
+    const auto text = [&](int column) { return value(rows.get(), row, column); };
+    SessionRecord s;
+    s.id = std::stoll(text(0));
+    s.user = text(1);
+    s.scene = text(2);
+    s.scenario = text(3);
+    s.difficulty = text(4);
+    s.seed = static_cast<std::uint32_t>(std::stoul(text(5)));
+    s.state = text(6);
+    s.message = text(7);
+    s.total = std::stod(text(8));
+    s.passed = text(9) == "1";
+    s.elapsed = std::stod(text(10));
+    s.start_stamp = std::stod(text(11));
+    s.end_stamp = std::stod(text(12));
+    s.recorded_at = text(13);
+    s.software_version = text(14);
+    s.final_state_hash = text(15);
+    s.frames = std::stoull(text(16));
+    s.station = text(17);
+    s.annotation = text(18);
+    s.global_key = text(19);
+    index[s.id] = data.sessions.size();
+    data.sessions.push_back(std::move(s));
+  }
+  if (!data.sessions.empty()) {
+    const std::string ids =
+        arrayLiteral(data.sessions.size(), [&](std::size_t i) { return std::to_string(data.sessions[i].id); });
+    Result items = server.run(
+        "SELECT session_id, name, value, unit, weight, points FROM score_items WHERE session_id = ANY($1::bigint[]) "
+        "ORDER BY session_id, position",
+        {ids}, "reading score items");
+    for (int row = 0; row < PQntuples(items.get()); ++row) {
+      const auto text = [&](int column) { return value(items.get(), row, column); };
+      data.sessions[index.at(std::stoll(text(0)))].items.push_back(
+          {text(1), std::stod(text(2)), text(3), std::stod(text(4)), std::stod(text(5))});
+    }
+  }
+  Result courses = server.run(
+      "SELECT user_name, course_name, course_file, course_text, coalesce(assigned_by, ''), assigned_at "
+      "FROM course_assignments ORDER BY user_name",
+      {}, "reading course assignments");
+  for (int row = 0; row < PQntuples(courses.get()); ++row) {
+    data.assignments.push_back({value(courses.get(), row, 0), value(courses.get(), row, 1),
+                                value(courses.get(), row, 2), value(courses.get(), row, 3),
+                                value(courses.get(), row, 4), value(courses.get(), row, 5)});
+  }
+  Result group = server.run("SELECT trainee FROM supervision ORDER BY trainee", {}, "reading the group");
+  for (int row = 0; row < PQntuples(group.get()); ++row) data.trainees.push_back(value(group.get(), row, 0));
+  server.run("COMMIT", {}, "COMMIT");
+  return data;
 }
 
 }  // namespace eyesi_gui::records
