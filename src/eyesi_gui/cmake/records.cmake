@@ -42,6 +42,7 @@ if(CATKIN_ENABLE_TESTING)
     # The simulator's reference results (real scenario_manager output) and the tool, run as a subprocess.
     target_compile_definitions(test_records PRIVATE EYESI_TEST_BAGS="${CMAKE_CURRENT_SOURCE_DIR}/../vrm_sim/test/bags"
                                                     EYESI_RECORDS_TOOL="$<TARGET_FILE:records>")
-    add_dependencies(test_records records)
+    # records_export.py and centre_sync.py (scripts/test.sh) run session_trajectory too.
+    add_dependencies(test_records records session_trajectory)
   endif()
 endif()

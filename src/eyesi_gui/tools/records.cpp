@@ -1,6 +1,7 @@
 // records: the training-records database from the command line (import results from another station or a USB
 // stick, export for a spreadsheet, check a database after a crash, add users). ROS-free; `rosrun eyesi_gui records`.
 #include <algorithm>
+#include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -9,6 +10,7 @@
 #include <map>
 #include <optional>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "eyesi_gui/records/centre.h"
@@ -43,9 +45,10 @@ constexpr const char* kCommandHelp =
     "  centre --server CONNINFO [--station S] [--user U] [--scene S] [--from YYYY-MM-DD] [--to YYYY-MM-DD]\n"
     "                                           as an instructor: the sessions of your trainees on every station,\n"
     "                                           learning curves per trainee and module, the group's course progress\n"
-    "  sync --server CONNINFO [--batch N] [--pause-ms MS]\n"
+    "  sync --server CONNINFO [--batch N] [--pause-ms MS] [--every S]\n"
     "                                           users and courses down, this station's sessions up (as the\n"
-    "                                           station's own login); exit 0 all synced, 3 some held\n"
+    "                                           station's own login); exit 0 all synced, 3 some held;\n"
+    "                                           --every S: again every S seconds, until stopped\n"
     "--db defaults to $HOME/.ros/eyesi/records.sqlite\n";
 
 struct UsageError {
@@ -246,6 +249,22 @@ int runSync(records::Store& store, const Arguments& args) {
   records::SyncOptions options;
   options.batch = static_cast<std::size_t>(positiveOption(args, "--batch", 50));
   options.pause_ms = positiveOption(args, "--pause-ms", 0);
+  const int every = positiveOption(args, "--every", 0);
+  // --every: the station's background sync (a launch file or a systemd service runs it): a round that cannot reach
+  // the server is reported and tried again; only a refusal of this station's schema version ends it.
+  while (every > 0) {
+    try {
+      const records::SyncReport report = records::syncWithServer(store, args.option("--server"), options);
+      if (report.uploaded + report.already_on_server + report.held + report.users_changed > 0) {
+        std::cout << report.uploaded << " uploaded, " << report.already_on_server << " already on the server, "
+                  << report.held << " held; " << report.users_changed << " users changed" << std::endl;
+      }
+    } catch (const records::ServerError& e) {
+      std::cerr << "records: " << e.what() << std::endl;
+      if (std::string(e.what()).find("station schema version") != std::string::npos) return 1;
+    }
+    std::this_thread::sleep_for(std::chrono::seconds(every));
+  }
   const records::SyncReport report = records::syncWithServer(store, args.option("--server"), options);
   for (const std::string& line : report.held_reasons) std::cout << "held " << line << '\n';
   std::cout << report.uploaded << " uploaded, " << report.already_on_server << " already on the server, " << report.held
@@ -259,9 +278,9 @@ int main(int argc, char** argv) {
   namespace po = vrm_sim::cli::po;
   vrm_sim::cli::CommandLine cli("records", "[--db PATH] COMMAND [ARGS]",
                                 "The training-records database: import, export, check, users.", kCommandHelp);
-  static const std::vector<std::string> kValued{"db",       "user",    "scene",         "out",     "role",
-                                                "pin",      "table",   "server",        "station", "batch",
-                                                "pause-ms", "out-dir", "pseudonym-key", "from",    "to"};
+  static const std::vector<std::string> kValued{
+      "db",      "user",  "scene",    "out",     "role",          "pin",  "table", "server",
+      "station", "batch", "pause-ms", "out-dir", "pseudonym-key", "from", "to",    "every"};
   cli.add()("db", po::value<std::string>()->value_name("PATH"), "the database")(
       "user", po::value<std::string>()->value_name("NAME"), "import: the trainee; export-csv, list: only this user")(
       "scene", po::value<std::string>()->value_name("S"), "export-csv: only this scene")(
@@ -275,6 +294,7 @@ int main(int argc, char** argv) {
       "pause-ms", po::value<std::string>()->value_name("MS"), "sync: pause between batches (0)")(
       "out-dir", po::value<std::string>()->value_name("DIR"), "export: the folder of the CSV tables")(
       "pseudonym-key", po::value<std::string>()->value_name("FILE"), "export: pseudonymise with this key file")(
+      "every", po::value<std::string>()->value_name("S"), "sync: again every S seconds until stopped")(
       "from", po::value<std::string>()->value_name("DATE"), "centre: from this day (YYYY-MM-DD)")(
       "to", po::value<std::string>()->value_name("DATE"), "centre: to this day (YYYY-MM-DD)");
   cli.hidden()("command", po::value<std::string>())("args", po::value<std::vector<std::string>>());
@@ -334,7 +354,7 @@ int main(int argc, char** argv) {
     if (command == "set-pin") allowOnly(args, {"--pin"});
     if (command == "list") allowOnly(args, {"--user"});
     if (command == "users") allowOnly(args, {});
-    if (command == "sync") allowOnly(args, {"--server", "--batch", "--pause-ms"});
+    if (command == "sync") allowOnly(args, {"--server", "--batch", "--pause-ms", "--every"});
     if (command == "export") allowOnly(args, {"--out-dir", "--user", "--scene", "--pseudonym-key"});
 
     records::Store store(db);

@@ -392,6 +392,11 @@ def main():
         check(procs[2].returncode == 1 and "cannot connect" in outs[2],
               "wave 1, station 3 offline: its sync fails, its sessions stay: " + outs[2].strip().splitlines()[-1])
 
+        # Station 3 runs its background sync (records sync --every 1, as a station would under a service) while it
+        # is offline and while its wave 2 is imported next to it.
+        background_log = open(os.path.join(tmp, "s3-background.log"), "w")
+        background = centre.records(3, ["sync", "--server", "-", "--every", "1"], background=True, log=background_log)
+
         # Wave 2 imported everywhere; the server is killed in the middle of station 1's sync and restarted.
         for k in STATIONS:
             write_results(inbox[k] + "/w2", SESSIONS_PER_WAVE, TRAINEES[k], first=100 * k + 50)
@@ -426,8 +431,17 @@ def main():
         check(before < after < before + SESSIONS_PER_WAVE, "station 2 was killed mid-sync (%d -> %d of %d on the "
               "server)" % (before, after, before + SESSIONS_PER_WAVE))
 
-        # Everyone back online: sync to the end (twice: the second must find nothing to do).
+        # Station 3 back online: its background sync uploads its backlog without being asked.
         centre.set_online(3, True)
+        backlog = len(local_sessions(centre.station_db(3))[0])
+        uploaded = wait_for_count(centre, "station_s3", backlog, timeout=60)
+        os.killpg(background.pid, signal.SIGKILL)
+        background.wait(timeout=10)
+        background_log.close()
+        check(uploaded == backlog, "station 3's background sync uploaded its %d sessions once it was back online (%d)"
+              % (backlog, uploaded))
+
+        # Everyone syncs to the end (twice: the second must find nothing to do).
         for k in STATIONS:
             first = centre.sync(k)
             second = centre.sync(k)
