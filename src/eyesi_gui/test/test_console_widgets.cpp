@@ -399,6 +399,44 @@ TEST_F(ConsoleTest, CentreScreenShowsTheServersSessionsCurvesAndTheGroupsProgres
   EXPECT_EQ(window->screen(), MainWindow::kScenarios);
 }
 
+TEST_F(ConsoleTest, ACentreUserWithoutAPinHereSignsInWithTheServerPasswordNeverAnEmptyPin) {
+  store_->applyServerUsers({{"anna", "trainee", false}, {"carla", "trainee", false}});  // carla: from the server
+  auto window = makeWindow();
+  auto chooseCarla = [&] {
+    auto* users = child<QListWidget>(*window, "userList");
+    for (int i = 0; i < users->count(); ++i)
+      if (users->item(i)->data(Qt::UserRole).toString() == "carla") users->setCurrentRow(i);
+  };
+  // Without a centre sign-in (a station on its own) carla cannot log in with an empty PIN.
+  chooseCarla();
+  child<QPushButton>(*window, "loginButton")->click();
+  EXPECT_EQ(window->screen(), MainWindow::kLogin);
+  QStringList signed_in;
+  window->setCentreSignIn([&](const QString& user, const QString& password) {
+    if (password != "carla-server-secret") throw std::runtime_error("password authentication failed");
+    signed_in << user;
+  });
+  EXPECT_TRUE(child<QLineEdit>(*window, "centreLoginPassword")->isVisible());
+  chooseCarla();
+  child<QLineEdit>(*window, "centreLoginPassword")->setText("wrong-password-1");
+  child<QPushButton>(*window, "loginButton")->click();
+  EXPECT_EQ(window->screen(), MainWindow::kLogin);
+  chooseCarla();
+  child<QLineEdit>(*window, "pinEdit")->setText("8642");
+  child<QLineEdit>(*window, "centreLoginPassword")->setText("carla-server-secret");
+  child<QPushButton>(*window, "loginButton")->click();
+  EXPECT_EQ(window->screen(), MainWindow::kScenarios);
+  EXPECT_EQ(signed_in, QStringList{"carla"});
+  EXPECT_TRUE(store_->checkPin("carla", "8642"));  // the PIN she chose, for this station only
+  EXPECT_FALSE(store_->checkPin("carla", ""));
+  // anna (a PIN of her own here) still logs in with it; a failed centre sign-in does not stop her (offline first).
+  child<QPushButton>(*window, "navLogout")->click();
+  child<QLineEdit>(*window, "centreLoginPassword")->setText("not-it");
+  loginAnna(*window);
+  EXPECT_EQ(window->screen(), MainWindow::kScenarios);
+  EXPECT_EQ(window->currentUser(), "anna");
+}
+
 TEST(StereoView, AnaglyphTakesRedFromTheLeftEyeAndCyanFromTheRight) {
   QImage left(4, 2, QImage::Format_RGB888), right(4, 2, QImage::Format_RGB888);
   left.fill(QColor(200, 10, 20));

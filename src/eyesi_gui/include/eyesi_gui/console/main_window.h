@@ -66,6 +66,11 @@ class MainWindow : public QMainWindow {
   using CentreSource = std::function<records::CentreData(const QString& user, const QString& password,
                                                          const records::CentreFilter& filter)>;
   void setCentreSource(CentreSource source) { centre_source_ = std::move(source); }
+  // Signing in for the centre on this station (records_sign_in as the person, with their server password): from then
+  // on the station may upload their sessions. A user that came down from the server and has no PIN here logs in
+  // only this way (then the PIN typed is set for this station); others may add it to a PIN login. Throws on failure.
+  using CentreSignIn = std::function<void(const QString& user, const QString& password)>;
+  void setCentreSignIn(CentreSignIn sign_in);
 
   MainWindow(SimulatorLink* link, records::Store* store, ConsoleOptions options, QWidget* parent = nullptr);
   ~MainWindow() override;
@@ -150,6 +155,8 @@ class MainWindow : public QMainWindow {
   QListWidget* user_list_ = nullptr;
   QLineEdit* pin_edit_ = nullptr;
   QLineEdit* new_user_edit_ = nullptr;
+  QLineEdit* centre_login_password_ = nullptr;  // issue 41: the server password (shown with a centre sign-in)
+  CentreSignIn centre_sign_in_;
   // scenarios
   QListWidget* scenario_list_ = nullptr;
   QLabel* scenario_details_ = nullptr;

@@ -33,6 +33,9 @@ struct User {
   std::string name;
   Role role = Role::kTrainee;
   bool has_pin = false;
+  // Added (issue 41): the user came down from the centre's records server (the console then asks for the server
+  // password, not an empty PIN, until the person has set a PIN on this station).
+  bool from_server = false;
 };
 
 struct ScoreItemRecord {

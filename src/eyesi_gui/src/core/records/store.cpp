@@ -558,20 +558,24 @@ void Store::setPin(const std::string& name, const std::string& pin) {
 
 std::vector<User> Store::users() const {
   std::lock_guard<std::mutex> lock(impl_->mutex);
-  Impl::Statement stmt(*impl_, "SELECT id, name, role, pin_hash IS NOT NULL FROM users ORDER BY name");
+  Impl::Statement stmt(*impl_,
+                       "SELECT id, name, role, pin_hash IS NOT NULL, origin = 'server' FROM users ORDER BY name");
   std::vector<User> users;
   while (stmt.step()) {
-    users.push_back({stmt.integerAt(0), stmt.textAt(1), roleFromString(stmt.textAt(2)), stmt.integerAt(3) != 0});
+    users.push_back({stmt.integerAt(0), stmt.textAt(1), roleFromString(stmt.textAt(2)), stmt.integerAt(3) != 0,
+                     stmt.integerAt(4) != 0});
   }
   return users;
 }
 
 std::optional<User> Store::findUser(const std::string& name) const {
   std::lock_guard<std::mutex> lock(impl_->mutex);
-  Impl::Statement stmt(*impl_, "SELECT id, name, role, pin_hash IS NOT NULL FROM users WHERE name = ?1");
+  Impl::Statement stmt(*impl_,
+                       "SELECT id, name, role, pin_hash IS NOT NULL, origin = 'server' FROM users WHERE name = ?1");
   stmt.text(1, name);
   if (!stmt.step()) return std::nullopt;
-  return User{stmt.integerAt(0), stmt.textAt(1), roleFromString(stmt.textAt(2)), stmt.integerAt(3) != 0};
+  return User{stmt.integerAt(0), stmt.textAt(1), roleFromString(stmt.textAt(2)), stmt.integerAt(3) != 0,
+              stmt.integerAt(4) != 0};
 }
 
 bool Store::checkPin(const std::string& name, const std::string& pin) const {
