@@ -29,10 +29,11 @@ constexpr const char* kCommandHelp =
     "  export-csv [--user U] [--scene S] [--table items|groups|events] [--out FILE]\n"
     "                                           score items (default), factor groups or penalty events as CSV\n"
     "                                           (RFC 4180; stdout by default)\n"
-    "  export --out-dir DIR [--user U] [--scene S] [--pseudonym-key FILE]\n"
+    "  export --out-dir DIR [--user U] [--scene S] [--pseudonym-key FILE] [--server CONNINFO]\n"
     "                                           tidy CSV tables for research: sessions, score_items, score_groups,\n"
     "                                           penalty_events, trajectories (README: data dictionary); with a key\n"
-    "                                           file (created if missing) users and stations are pseudonymised\n"
+    "                                           file (created if missing) users and stations are pseudonymised;\n"
+    "                                           --server: from the records server (what your role may read)\n"
     "  check                                    integrity report of the database (exit 0 ok, 1 damaged)\n"
     "  add-user NAME --role trainee|instructor [--pin PIN]   (--pin - reads the PIN from stdin)\n"
     "  set-pin NAME --pin PIN                   set (or with an empty PIN clear) a user's PIN\n"
@@ -210,13 +211,16 @@ int positiveOption(const Arguments& args, const std::string& name, int fallback)
   throw UsageError{name + " must be a whole number >= 0, not '" + args.option(name) + "'"};
 }
 
-int runExportTables(const records::Store& store, const Arguments& args) {
+// From the station's store, or with --server from the records server (what the connection's role may read).
+int runExportTables(const records::Store* store, const Arguments& args) {
   if (!args.positional.empty()) throw UsageError{"export takes no positional arguments"};
   if (!args.has("--out-dir")) throw UsageError{"export needs --out-dir DIR"};
   records::ExportOptions options;
   options.filter = {args.option("--user"), args.option("--scene")};
   options.pseudonym_key_file = args.option("--pseudonym-key");
-  const records::ExportCounts counts = records::exportTables(store, args.option("--out-dir"), options);
+  const records::ExportCounts counts =
+      store != nullptr ? records::exportTables(*store, args.option("--out-dir"), options)
+                       : records::exportServerTables(args.option("--server"), args.option("--out-dir"), options);
   std::cout << counts.sessions << " sessions, " << counts.items << " score items, " << counts.groups
             << " factor groups, " << counts.events << " penalty events, " << counts.samples << " trajectory samples"
             << (options.pseudonym_key_file.empty() ? "" : " (pseudonymised)") << " -> " << args.option("--out-dir")
@@ -330,6 +334,10 @@ int main(int argc, char** argv) {
                 << records::Store::kSchemaVersion << '\n';
       return 0;
     }
+    if (command == "export" && args.has("--server")) {
+      allowOnly(args, {"--server", "--out-dir", "--user", "--scene", "--pseudonym-key"});
+      return runExportTables(nullptr, args);
+    }
     if (command == "centre") {
       allowOnly(args, {"--server", "--station", "--user", "--scene", "--from", "--to"});
       return runCentre(args);
@@ -364,7 +372,7 @@ int main(int argc, char** argv) {
     if (command == "set-pin") return runSetPin(store, args);
     if (command == "list") return runList(store, args);
     if (command == "sync") return runSync(store, args);
-    if (command == "export") return runExportTables(store, args);
+    if (command == "export") return runExportTables(&store, args);
     return runUsers(store, args);
   } catch (const UsageError& e) {
     return cli.fail(e.message);

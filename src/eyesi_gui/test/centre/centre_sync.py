@@ -490,6 +490,7 @@ def main():
         check(sum(1 for stations in per_hash.values() if stations == {"station_s2", "station_s3"}) == len(REFERENCE),
               "the same scripted session on two stations is two sessions (one content hash, two keys)")
 
+        centre_export(centre, rows)
         schema_parity(centre)
         tls_checks(centre)
         role_checks(centre)
@@ -506,6 +507,33 @@ def main():
         return 1
     print("PASS centre_sync")
     return 0
+
+
+def centre_export(centre, rows):
+    """The data steward's export of the whole centre (records export --server as the database owner, on the server
+    host), pseudonymised, read back with Python: every session once, its total and trajectory length as stored."""
+    out = os.path.join(centre.tmp, "export")
+    r = run([RECORDS, "export", "--server", "host=%s port=%d dbname=records user=postgres" % (centre.socket, centre.port),
+             "--out-dir", out, "--pseudonym-key", os.path.join(centre.tmp, "centre.key")])
+    tables = {}
+    for name in ("sessions", "score_items", "trajectories"):
+        with open(os.path.join(out, name + ".csv"), newline="") as f:
+            tables[name] = list(csv.DictReader(f))
+    by_key = {row[0]: row for row in rows}
+    exported = {s["session_key"]: s for s in tables["sessions"]}
+    check(len(tables["sessions"]) == len(rows) and set(exported) == set(by_key),
+          "the centre's export lists every session on the server once (%d)" % len(rows))
+    samples = {}
+    for t in tables["trajectories"]:
+        samples[t["session_key"]] = samples.get(t["session_key"], 0) + 1
+    items = {}
+    for t in tables["score_items"]:
+        items[t["session_key"]] = items.get(t["session_key"], 0) + 1
+    check(all(float(exported[k]["total"]) == float(by_key[k][7]) and samples.get(k, 0) == int(by_key[k][8]) and
+              items.get(k, 0) == int(by_key[k][4]) for k in by_key),
+          "the export's totals, score items and trajectory lengths are the server's")
+    names = {s["user"] for s in tables["sessions"]} | {s["station"] for s in tables["sessions"]}
+    check(all(n.startswith("p-") for n in names), "the centre's export is pseudonymised (%d pseudonyms)" % len(names))
 
 
 def schema_parity(centre):

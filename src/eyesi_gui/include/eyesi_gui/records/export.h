@@ -25,6 +25,11 @@ struct ExportCounts {
 // The file names, in `folder` (created if missing): sessions.csv, score_items.csv, score_groups.csv,
 // penalty_events.csv, trajectories.csv. Throws StoreError naming the file that could not be written.
 ExportCounts exportTables(const Store& store, const std::string& folder, const ExportOptions& options = {});
+// The same tables from the records server (server.h's ServerReader): what the connection's role may read — the whole
+// centre for the database owner on the server host (the centre's data steward, who keeps the pseudonym key), an
+// instructor's group for an instructor. Throws ServerError / StoreError.
+ExportCounts exportServerTables(const std::string& connection, const std::string& folder,
+                                const ExportOptions& options = {});
 
 // "p-" and 16 hex digits of HMAC-SHA256(key, kind + ":" + name); kind "user" or "station".
 std::string pseudonym(const std::string& key, const std::string& kind, const std::string& name);

@@ -15,6 +15,8 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
+#include <memory>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -58,5 +60,22 @@ struct SyncReport {
 // server cannot be reached, refuses the station's schema version, or fails mid-way (what was committed stays
 // committed and marked; the rest goes next time).
 SyncReport syncWithServer(Store& store, const std::string& station_connection, const SyncOptions& options = {});
+
+// Reads sessions for `records export --server` (export.h), in one read-only snapshot: what the connection's role may
+// read under row-level security (an instructor: their group; the database owner on the server host: everything).
+class ServerReader {
+ public:
+  explicit ServerReader(const std::string& connection);  // throws ServerError
+  ~ServerReader();
+  ServerReader(const ServerReader&) = delete;
+  ServerReader& operator=(const ServerReader&) = delete;
+  // With items, groups and events; SessionRecord::station is the station's server login.
+  std::vector<SessionRecord> sessions(const SessionFilter& filter);
+  std::vector<TrajectorySample> trajectory(std::int64_t session_id);  // one session's, so an export streams them
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
 
 }  // namespace eyesi_gui::records

@@ -12,9 +12,11 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <sstream>
 
 #include "eyesi_gui/records/csv.h"
+#include "eyesi_gui/records/server.h"
 
 namespace eyesi_gui::records {
 namespace {
@@ -85,7 +87,11 @@ std::string pseudonym(const std::string& key, const std::string& kind, const std
   return text;
 }
 
-ExportCounts exportTables(const Store& store, const std::string& folder, const ExportOptions& options) {
+namespace {
+
+ExportCounts writeTables(const std::vector<SessionRecord>& all_sessions,
+                         const std::function<std::vector<TrajectorySample>(std::int64_t)>& trajectory_of,
+                         const std::string& folder, const ExportOptions& options) {
   std::error_code ec;
   fs::create_directories(folder, ec);
   if (ec) throw StoreError(folder + ": cannot create the export folder: " + ec.message());
@@ -107,7 +113,7 @@ ExportCounts exportTables(const Store& store, const std::string& folder, const E
                {"session_key", "position", "time", "kind", "item", "slot", "instrument", "x", "y", "z", "points"});
   Table samples(dir / "trajectories.csv",
                 {"session_key", "frame", "time", "source", "frame_id", "x", "y", "z", "qx", "qy", "qz", "qw", "valid"});
-  for (const SessionRecord& s : store.sessions(options.filter)) {
+  for (const SessionRecord& s : all_sessions) {
     const std::string& k = s.global_key;
     sessions.row({k, user(s.user), station(s.station), s.scene, s.scenario, s.difficulty, std::to_string(s.seed),
                   s.state, s.passed ? "1" : "0", number(s.total), number(s.elapsed), number(s.start_stamp),
@@ -126,7 +132,7 @@ ExportCounts exportTables(const Store& store, const std::string& folder, const E
       events.row({k, std::to_string(i), number(e.time), e.kind, e.item, e.slot, e.instrument, number(e.position[0]),
                   number(e.position[1]), number(e.position[2]), number(e.points)});
     }
-    for (const TrajectorySample& t : store.trajectory(s.id)) {
+    for (const TrajectorySample& t : trajectory_of(s.id)) {
       samples.row({k, std::to_string(t.frame), number(t.time), t.source, t.frame_id, number(t.position[0]),
                    number(t.position[1]), number(t.position[2]), number(t.orientation[0]), number(t.orientation[1]),
                    number(t.orientation[2]), number(t.orientation[3]), t.valid ? "1" : "0"});
@@ -139,6 +145,20 @@ ExportCounts exportTables(const Store& store, const std::string& folder, const E
   counts.events = events.close();
   counts.samples = samples.close();
   return counts;
+}
+
+}  // namespace
+
+ExportCounts exportTables(const Store& store, const std::string& folder, const ExportOptions& options) {
+  return writeTables(
+      store.sessions(options.filter), [&store](std::int64_t id) { return store.trajectory(id); }, folder, options);
+}
+
+ExportCounts exportServerTables(const std::string& connection, const std::string& folder,
+                                const ExportOptions& options) {
+  ServerReader reader(connection);
+  return writeTables(
+      reader.sessions(options.filter), [&reader](std::int64_t id) { return reader.trajectory(id); }, folder, options);
 }
 
 }  // namespace eyesi_gui::records

@@ -332,16 +332,17 @@ SyncReport syncWithServer(Store& store, const std::string& station_connection, c
   return report;
 }
 
-CentreData fetchCentre(const std::string& instructor_connection, const CentreFilter& filter) {
-  matches(SessionRecord{}, filter);  // a malformed date is refused before anything is asked
-  Connection server(instructor_connection);
-  CentreData data;
-  server.run("BEGIN ISOLATION LEVEL REPEATABLE READ READ ONLY", {}, "BEGIN");
-  // Row-level security answers for the instructor: their own and their supervised trainees' sessions only.
+namespace {
+
+// The sessions the connection's role may read (row-level security decides), with their score items, and with their
+// factor groups and penalty events when `everything`; in the order they were trained.
+std::vector<SessionRecord> readSessions(Connection& server, const CentreFilter& filter, bool everything) {
+  std::vector<SessionRecord> sessions;
   Result rows = server.run(
       "SELECT id, user_name, scene, scenario, difficulty, seed, state, message, total, passed, elapsed, start_stamp, "
-      "end_stamp, recorded_at, software_version, final_state_hash, frames, station_id, annotation, global_key "
-      "FROM sessions WHERE ($1 = '' OR station_id = $1) AND ($2 = '' OR user_name = $2) AND ($3 = '' OR scene = $3) "
+      "end_stamp, recorded_at, software_version, final_state_hash, frames, station_id, annotation, global_key, "
+      "events_dropped FROM sessions WHERE ($1 = '' OR station_id = $1) AND ($2 = '' OR user_name = $2) AND ($3 = '' OR "
+      "scene = $3) "
       "AND ($4 = '' OR left(recorded_at, 10) >= $4) AND ($5 = '' OR left(recorded_at, 10) <= $5) "
       "ORDER BY start_stamp, id",
       {filter.station, filter.trainee, filter.scene, filter.from_date, filter.to_date},
@@ -370,22 +371,66 @@ CentreData fetchCentre(const std::string& instructor_connection, const CentreFil
     s.station = text(17);
     s.annotation = text(18);
     s.global_key = text(19);
-    index[s.id] = data.sessions.size();
-    data.sessions.push_back(std::move(s));
+    s.events_dropped = std::stoull(text(20));
+    index[s.id] = sessions.size();
+    sessions.push_back(std::move(s));
   }
-  if (!data.sessions.empty()) {
+  if (!sessions.empty()) {
     const std::string ids =
-        arrayLiteral(data.sessions.size(), [&](std::size_t i) { return std::to_string(data.sessions[i].id); });
+        arrayLiteral(sessions.size(), [&](std::size_t i) { return std::to_string(sessions[i].id); });
     Result items = server.run(
         "SELECT session_id, name, value, unit, weight, points FROM score_items WHERE session_id = ANY($1::bigint[]) "
         "ORDER BY session_id, position",
         {ids}, "reading score items");
     for (int row = 0; row < PQntuples(items.get()); ++row) {
       const auto text = [&](int column) { return value(items.get(), row, column); };
-      data.sessions[index.at(std::stoll(text(0)))].items.push_back(
+      sessions[index.at(std::stoll(text(0)))].items.push_back(
           {text(1), std::stod(text(2)), text(3), std::stod(text(4)), std::stod(text(5))});
     }
   }
+  if (everything && !sessions.empty()) {
+    const std::string ids =
+        arrayLiteral(sessions.size(), [&](std::size_t i) { return std::to_string(sessions[i].id); });
+    Result groups = server.run(
+        "SELECT session_id, name, points, weight FROM score_groups WHERE session_id = ANY($1::bigint[]) "
+        "ORDER BY session_id, position",
+        {ids}, "reading factor groups");
+    for (int row = 0; row < PQntuples(groups.get()); ++row) {
+      const auto text = [&](int column) { return value(groups.get(), row, column); };
+      sessions[index.at(std::stoll(text(0)))].groups.push_back({text(1), std::stod(text(2)), std::stod(text(3))});
+    }
+    Result events = server.run(
+        "SELECT session_id, time, kind, item, slot, instrument, x, y, z, points FROM penalty_events "
+        "WHERE session_id = ANY($1::bigint[]) ORDER BY session_id, position",
+        {ids}, "reading penalty events");
+    for (int row = 0; row < PQntuples(events.get()); ++row) {
+      const auto text = [&](int column) { return value(events.get(), row, column); };
+      const auto coordinate = [&](int column) {
+        return PQgetisnull(events.get(), row, column) ? std::nan("") : std::stod(text(column));
+      };
+      PenaltyEventRecord e;
+      e.time = std::stod(text(1));
+      e.kind = text(2);
+      e.item = text(3);
+      e.slot = text(4);
+      e.instrument = text(5);
+      for (int axis = 0; axis < 3; ++axis) e.position[axis] = coordinate(6 + axis);
+      e.points = std::stod(text(9));
+      sessions[index.at(std::stoll(text(0)))].events.push_back(std::move(e));
+    }
+  }
+  return sessions;
+}
+
+}  // namespace
+
+CentreData fetchCentre(const std::string& instructor_connection, const CentreFilter& filter) {
+  matches(SessionRecord{}, filter);  // a malformed date is refused before anything is asked
+  Connection server(instructor_connection);
+  CentreData data;
+  server.run("BEGIN ISOLATION LEVEL REPEATABLE READ READ ONLY", {}, "BEGIN");
+  // Row-level security answers for the instructor: their own and their supervised trainees' sessions only.
+  data.sessions = readSessions(server, filter, false);
   Result courses = server.run(
       "SELECT user_name, course_name, course_file, course_text, coalesce(assigned_by, ''), assigned_at "
       "FROM course_assignments ORDER BY user_name",
@@ -399,6 +444,46 @@ CentreData fetchCentre(const std::string& instructor_connection, const CentreFil
   for (int row = 0; row < PQntuples(group.get()); ++row) data.trainees.push_back(value(group.get(), row, 0));
   server.run("COMMIT", {}, "COMMIT");
   return data;
+}
+
+struct ServerReader::Impl {
+  explicit Impl(const std::string& connection) : server(connection) {}
+  Connection server;
+};
+
+ServerReader::ServerReader(const std::string& connection) : impl_(std::make_unique<Impl>(connection)) {
+  // One snapshot for the whole export: sessions and their trajectories agree even while stations sync.
+  impl_->server.run("BEGIN ISOLATION LEVEL REPEATABLE READ READ ONLY", {}, "BEGIN");
+}
+
+ServerReader::~ServerReader() = default;
+
+std::vector<SessionRecord> ServerReader::sessions(const SessionFilter& filter) {
+  return readSessions(impl_->server, {"", filter.user, filter.scene, "", ""}, true);
+}
+
+std::vector<TrajectorySample> ServerReader::trajectory(std::int64_t session_id) {
+  Result rows = impl_->server.run(
+      "SELECT frame, time, source, frame_id, x, y, z, qx, qy, qz, qw, valid FROM trajectory_samples "
+      "WHERE session_id = $1 ORDER BY position",
+      {std::to_string(session_id)}, "reading a trajectory");
+  std::vector<TrajectorySample> samples;
+  samples.reserve(static_cast<std::size_t>(PQntuples(rows.get())));
+  for (int row = 0; row < PQntuples(rows.get()); ++row) {
+    TrajectorySample t;
+    t.frame = std::stoull(value(rows.get(), row, 0));
+    t.time = std::stod(value(rows.get(), row, 1));
+    t.source = value(rows.get(), row, 2);
+    t.frame_id = value(rows.get(), row, 3);
+    double* values[] = {&t.position[0],    &t.position[1],    &t.position[2],   &t.orientation[0],
+                        &t.orientation[1], &t.orientation[2], &t.orientation[3]};
+    for (int k = 0; k < 7; ++k) {
+      *values[k] = PQgetisnull(rows.get(), row, 4 + k) ? std::nan("") : std::stod(value(rows.get(), row, 4 + k));
+    }
+    t.valid = value(rows.get(), row, 11) == "1";
+    samples.push_back(std::move(t));
+  }
+  return samples;
 }
 
 }  // namespace eyesi_gui::records
