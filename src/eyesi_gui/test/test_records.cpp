@@ -1090,6 +1090,34 @@ TEST(RecordsCentre, FiltersCurvesAndTheGroupsProgress) {
   EXPECT_EQ(connectionValue("it's a \\ test"), "'it\\'s a \\\\ test'");
 }
 
+TEST(RecordsTrajectory, ALiveSessionsTrajectoryIsAttachedLaterAndGoesBackIntoTheOutbox) {
+  TempDir dir;
+  Store store(dir.file("s.sqlite"));
+  SessionRecord live = makeSession("anna", "navigation", 1000, 60);
+  live.bag_path = dir.file("live.bag");
+  live.recorded_at = "2026-11-30T10:00:00Z";
+  const auto id = store.recordSession(live).session_id;
+  store.markSynced({store.session(id)->global_key});
+  EXPECT_EQ(store.attachTrajectories("2026-11-30T00:00:00Z"), 0);  // no file yet
+  TrajectorySample eye;
+  eye.frame = 1;
+  eye.source = "eye";
+  writeBytes(dir.file("live.trajectory.json"), trajectoryJson({eye, eye}, live.bag_path));
+  EXPECT_EQ(store.attachTrajectories("2026-12-01T00:00:00Z"), 0);  // synced and older than asked for
+  EXPECT_EQ(store.attachTrajectories("2026-11-30T00:00:00Z"), 1);
+  EXPECT_EQ(store.trajectory(id).size(), 2u);
+  EXPECT_EQ(store.unsyncedCount(), 1);                             // back in the outbox, for the server's copy
+  EXPECT_EQ(store.attachTrajectories("2026-11-30T00:00:00Z"), 0);  // once
+  writeBytes(dir.file("broken.trajectory.json"), "{");
+  SessionRecord other = makeSession("anna", "navigation", 2000, 60);
+  other.bag_path = dir.file("broken.bag");
+  store.recordSession(other);
+  std::vector<std::string> errors;
+  EXPECT_EQ(store.attachTrajectories("", &errors), 0);
+  ASSERT_EQ(errors.size(), 1u);
+  EXPECT_NE(errors[0].find("broken.trajectory.json"), std::string::npos);
+}
+
 TEST(RecordsSchema, MigratesVersion4GivingEverySessionAGlobalKeyAndAnEmptyOutbox) {
   TempDir dir;
   const std::string path = dir.file("v4.sqlite");

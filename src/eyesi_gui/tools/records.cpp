@@ -271,6 +271,10 @@ int runSync(records::Store& store, const Arguments& args) {
   }
   const records::SyncReport report = records::syncWithServer(store, args.option("--server"), options);
   for (const std::string& line : report.held_reasons) std::cout << "held " << line << '\n';
+  for (const std::string& line : report.trajectory_errors) std::cerr << "records: " << line << '\n';
+  if (report.trajectories_attached > 0) {
+    std::cout << report.trajectories_attached << " trajectories attached since their sessions were stored\n";
+  }
   std::cout << report.uploaded << " uploaded, " << report.already_on_server << " already on the server, " << report.held
             << " held; " << report.users_changed << " users changed, " << report.assignments << " course assignments\n";
   return report.held == 0 ? 0 : 3;

@@ -8,6 +8,7 @@
 #include <rosbag/bag.h>
 #include <rosbag/view.h>
 
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -95,40 +96,74 @@ std::vector<records::TrajectorySample> fromDeviceTopics(rosbag::Bag& bag) {
   return samples;
 }
 
+// Writes the trajectory file of one bag; returns a line for the log. Throws on a bag without frames or states.
+std::string writeTrajectory(const std::string& bag_path, const std::string& out_path) {
+  rosbag::Bag bag(bag_path, rosbag::bagmode::Read);
+  std::vector<records::TrajectorySample> samples = fromInputFrames(bag);
+  const bool frames = !samples.empty();
+  if (!frames) samples = fromDeviceTopics(bag);
+  if (samples.empty()) throw std::runtime_error(bag_path + ": no input frames and no eye or instrument states");
+  // Written under a temporary name and renamed: a reader (records sync) never sees half a file.
+  const std::string partial = out_path + ".partial";
+  std::ofstream out(partial, std::ios::binary);
+  out << records::trajectoryJson(samples, bag_path) << '\n';
+  out.close();
+  if (!out || std::rename(partial.c_str(), out_path.c_str()) != 0) {
+    std::remove(partial.c_str());
+    throw std::runtime_error(out_path + ": cannot write the trajectory file");
+  }
+  return std::to_string(samples.size()) + " samples (" + (frames ? "input frames" : "device topics") + ") -> " +
+         out_path;
+}
+
+std::string besideTheBag(const std::filesystem::path& bag) {
+  return (bag.parent_path() / (bag.stem().string() + ".trajectory.json")).string();
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   namespace po = vrm_sim::cli::po;
-  vrm_sim::cli::CommandLine cli("session_trajectory", "BAG [--out FILE]",
+  vrm_sim::cli::CommandLine cli("session_trajectory", "BAG [--out FILE] | --missing FOLDER",
                                 "The per-frame eye and instrument trajectories of a session bag, as the JSON file "
-                                "`records import` reads next to the result (<stem>.trajectory.json).",
+                                "`records import` and `records sync` read next to it (<stem>.trajectory.json).",
                                 "");
-  cli.add()("out", po::value<std::string>()->value_name("FILE"), "where to write (default: next to the bag)");
+  cli.add()("out", po::value<std::string>()->value_name("FILE"), "where to write (default: next to the bag)")(
+      "missing", po::value<std::string>()->value_name("FOLDER"),
+      "every closed *.bag under FOLDER without its trajectory file (a station's sessions folder, before a sync)");
   cli.hidden()("bag", po::value<std::string>());
   cli.positional("bag", 1);
   if (const auto status = cli.parse(argc, argv)) return *status;
-  if (cli.values().count("bag") == 0) return cli.fail("no BAG");
-  const std::string bag_path = cli.values()["bag"].as<std::string>();
-  std::string out_path;
-  if (cli.values().count("out")) {
-    out_path = cli.values()["out"].as<std::string>();
-  } else {
-    out_path = (std::filesystem::path(bag_path).parent_path() /
-                (std::filesystem::path(bag_path).stem().string() + ".trajectory.json"))
-                   .string();
+  if (cli.values().count("missing")) {
+    const std::string folder = cli.values()["missing"].as<std::string>();
+    int failed = 0, written = 0;
+    std::error_code ec;
+    for (std::filesystem::recursive_directory_iterator it(folder, ec), end; !ec && it != end; it.increment(ec)) {
+      // A bag being recorded is <name>.bag.active: only closed bags are read.
+      if (!it->is_regular_file() || it->path().extension() != ".bag") continue;
+      const std::string out = besideTheBag(it->path());
+      if (std::filesystem::exists(out)) continue;
+      try {
+        std::cout << writeTrajectory(it->path().string(), out) << '\n';
+        ++written;
+      } catch (const std::exception& e) {
+        std::cerr << "session_trajectory: " << e.what() << '\n';
+        ++failed;
+      }
+    }
+    if (ec) {
+      std::cerr << "session_trajectory: " << folder << ": " << ec.message() << '\n';
+      return 1;
+    }
+    std::cout << written << " written, " << failed << " failed\n";
+    return failed == 0 ? 0 : 1;
   }
+  if (cli.values().count("bag") == 0) return cli.fail("no BAG (or --missing FOLDER)");
+  const std::string bag_path = cli.values()["bag"].as<std::string>();
+  const std::string out_path =
+      cli.values().count("out") ? cli.values()["out"].as<std::string>() : besideTheBag(bag_path);
   try {
-    rosbag::Bag bag(bag_path, rosbag::bagmode::Read);
-    std::vector<records::TrajectorySample> samples = fromInputFrames(bag);
-    const bool frames = !samples.empty();
-    if (!frames) samples = fromDeviceTopics(bag);
-    if (samples.empty()) throw std::runtime_error(bag_path + ": no input frames and no eye or instrument states");
-    std::ofstream out(out_path, std::ios::binary);
-    out << records::trajectoryJson(samples, bag_path) << '\n';
-    out.close();
-    if (!out) throw std::runtime_error(out_path + ": cannot write the trajectory file");
-    std::cout << samples.size() << " samples (" << (frames ? "input frames" : "device topics") << ") -> " << out_path
-              << '\n';
+    std::cout << writeTrajectory(bag_path, out_path) << '\n';
     return 0;
   } catch (const std::exception& e) {
     std::cerr << "session_trajectory: " << e.what() << '\n';

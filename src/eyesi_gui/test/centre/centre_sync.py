@@ -254,7 +254,7 @@ def make_trajectories(tmp):
 TRAJECTORIES = None
 
 
-def write_results(folder, count, users, first, shift_stamps=True):
+def write_results(folder, count, users, first, shift_stamps=True, trajectory=True, bag=None):
     """`count` copies of the reference results for `users` (round robin). Each copy is the same scripted session run
     later (its stamps shifted by a whole number of hours), so its content hash differs; with shift_stamps False the
     copies are the reference results unchanged (what another station running the same script records)."""
@@ -274,9 +274,14 @@ def write_results(folder, count, users, first, shift_stamps=True):
         path = os.path.join(folder, "%04d.result.json" % n)
         with open(path, "w") as f:
             json.dump(result, f)
+        if bag:
+            result["bag"] = bag
+            with open(path, "w") as f:
+                json.dump(result, f)
         stem = os.path.basename(REFERENCE[i % len(REFERENCE)])[: -len(".result.json")]
-        shutil.copy(os.path.join(TRAJECTORIES, stem + ".trajectory.json"),
-                    os.path.join(folder, "%04d.trajectory.json" % n))
+        if trajectory:
+            shutil.copy(os.path.join(TRAJECTORIES, stem + ".trajectory.json"),
+                        os.path.join(folder, "%04d.trajectory.json" % n))
         paths.append(path)
     return paths
 
@@ -441,11 +446,28 @@ def main():
         check(uploaded == backlog, "station 3's background sync uploaded its %d sessions once it was back online (%d)"
               % (backlog, uploaded))
 
+        # A live session: stored (and synced) before its bag's trajectory exists; session_trajectory --missing writes
+        # it beside the bag later, and the next sync attaches it and adds it on the server, once.
+        live = os.path.join(tmp, "s1", "live")
+        os.makedirs(live)
+        live_bag = os.path.join(live, "live_t1.bag")
+        shutil.copy(REFERENCE[0][: -len(".result.json")] + ".bag", live_bag)
+        write_results(live, 1, ["t1"], first=700, trajectory=False, bag=live_bag)
+        r = centre.records(1, ["import", live])
+        synced_before = centre.sync(1)
+        live_key = [key for key, v in local_sessions(centre.station_db(1))[0].items() if v[6] == 0]
+        check(len(live_key) == 1 and centre.value(
+            "SELECT count(*) FROM trajectory_samples t JOIN sessions s ON s.id = t.session_id WHERE s.global_key = "
+            "'%s'" % live_key[0]) == "0", "a live session goes up before its trajectory exists")
+        run([TRAJECTORY, "--missing", live])
+
         # Everyone syncs to the end (twice: the second must find nothing to do).
         for k in STATIONS:
             first = centre.sync(k)
             second = centre.sync(k)
             expect = 3 if k == 1 else 0
+            if k == 1:
+                check("1 trajectories attached" in first.stdout, "station 1 attached the live session's trajectory")
             check(first.returncode == expect and second.returncode == expect,
                   "station %d synced: %s / %s" % (k, first.stdout.strip().splitlines()[-1],
                                                   second.stdout.strip().splitlines()[-1]))

@@ -54,6 +54,8 @@ struct SyncReport {
   int already_on_server = 0;              // re-sent after a crash between the server's commit and the station's mark
   int held = 0;                           // refused by the server, kept on the station
   std::vector<std::string> held_reasons;  // one line per held session: global key, user, the server's reason
+  int trajectories_attached = 0;          // trajectory files found since their sessions were stored
+  std::vector<std::string> trajectory_errors;  // unreadable trajectory files (their sessions go up without)
 };
 
 // One sync of `store` as the station the connection's user is (its own login role). Throws ServerError when the

@@ -211,6 +211,12 @@ class Store {
     bool deleted = false;
   };
   int applyServerUsers(const std::vector<ServerUser>& users);
+  // A live session is stored before its bag is closed, so its trajectory file (session_trajectory) comes later:
+  // attaches <bag stem>.trajectory.json or <result stem>.trajectory.json to the recorded sessions that have none —
+  // those not yet synced and those recorded since `recorded_since` (ISO-8601) — and puts a synced one back into the
+  // outbox, so the next upload adds its trajectory on the server. Returns the sessions it attached; unreadable files
+  // are listed in `errors`.
+  int attachTrajectories(const std::string& recorded_since, std::vector<std::string>* errors = nullptr);
   // A course assignment from the server replaces this station's (the server's is the one instructors edit for the
   // whole centre). The trainee must be a user here (applyServerUsers first); the instructor may be unknown here.
   void applyServerAssignment(const CourseAssignment& assignment);

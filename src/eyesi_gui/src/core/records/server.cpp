@@ -4,6 +4,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <ctime>
 #include <map>
 #include <memory>
 #include <optional>
@@ -180,7 +181,20 @@ Upload uploadSession(Connection& server, const SessionRecord& s, std::string* re
     server.run("ROLLBACK TO SAVEPOINT one_session", {}, "a rollback to a savepoint");
     return Upload::kRefused;
   }
-  if (PQntuples(inserted.get()) == 0) return Upload::kAlreadyThere;  // its key is there: sent before, acknowledged now
+  if (PQntuples(inserted.get()) == 0) {
+    // Its key is there: sent before (and acknowledged now). Its trajectory may have been attached here since
+    // (Store::attachTrajectories): then the server gets it now, once.
+    if (!s.trajectory.empty()) {
+      Result existing = server.run(
+          "SELECT s.id, EXISTS (SELECT 1 FROM trajectory_samples t WHERE t.session_id = s.id) FROM sessions s "
+          "WHERE s.global_key = $1",
+          {s.global_key}, "checking a re-sent session's trajectory");
+      if (PQntuples(existing.get()) == 1 && value(existing.get(), 0, 1) == "f") {
+        uploadTrajectory(server, value(existing.get(), 0, 0), s.trajectory);
+      }
+    }
+    return Upload::kAlreadyThere;
+  }
   const std::string id = value(inserted.get(), 0, 0);
   // Each table's rows in one statement (unnest of one array per column): a few round trips per session, not one per
   // row.
@@ -293,6 +307,14 @@ SyncReport syncWithServer(Store& store, const std::string& station_connection, c
     store.applyServerAssignment(assignment);
     ++report.assignments;
   }
+
+  // Trajectories written since the sessions were stored (the last day's; see Store::attachTrajectories).
+  const auto day_ago = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now() - std::chrono::hours(24));
+  std::tm utc{};
+  gmtime_r(&day_ago, &utc);
+  char since[32];
+  std::strftime(since, sizeof(since), "%Y-%m-%dT%H:%M:%SZ", &utc);
+  report.trajectories_attached = store.attachTrajectories(since, &report.trajectory_errors);
 
   // Up: the outbox in batches, one server transaction each, marked here only after the server's COMMIT.
   std::int64_t after_id = 0;

@@ -401,6 +401,34 @@ struct Store::Impl {
     loadGroupsAndEvents(sessions);
   }
 
+  void insertTrajectory(std::int64_t id, const std::vector<TrajectorySample>& trajectory) {
+    if (trajectory.empty()) return;
+    Statement sample(*this,
+                     "INSERT INTO trajectory_samples (session_id, position, frame, time, source, frame_id, x, y, z, "
+                     "qx, qy, qz, qw, valid) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14)");
+    for (std::size_t i = 0; i < trajectory.size(); ++i) {
+      const TrajectorySample& t = trajectory[i];
+      sample.reset();
+      sample.integer(1, id)
+          .integer(2, static_cast<std::int64_t>(i))
+          .integer(3, static_cast<std::int64_t>(t.frame))
+          .real(4, t.time)
+          .text(5, t.source)
+          .text(6, t.frame_id)
+          .integer(14, t.valid ? 1 : 0);
+      const double values[] = {t.position[0],    t.position[1],    t.position[2],   t.orientation[0],
+                               t.orientation[1], t.orientation[2], t.orientation[3]};
+      for (int k = 0; k < 7; ++k) {
+        if (std::isfinite(values[k])) {
+          sample.real(7 + k, values[k]);
+        } else {
+          sample.null(7 + k);
+        }
+      }
+      sample.step();
+    }
+  }
+
   std::vector<TrajectorySample> loadTrajectory(std::int64_t session_id) const {
     Statement stmt(*this,
                    "SELECT frame, time, source, frame_id, x, y, z, qx, qy, qz, qw, valid FROM trajectory_samples "
@@ -692,33 +720,7 @@ ImportResult Store::recordSession(const SessionRecord& session) {
     }
     event.step();
   }
-  if (!session.trajectory.empty()) {
-    Impl::Statement sample(*impl_,
-                           "INSERT INTO trajectory_samples (session_id, position, frame, time, source, frame_id, x, y, "
-                           "z, qx, qy, qz, qw, valid) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, "
-                           "?14)");
-    for (std::size_t i = 0; i < session.trajectory.size(); ++i) {
-      const TrajectorySample& t = session.trajectory[i];
-      sample.reset();
-      sample.integer(1, id)
-          .integer(2, static_cast<std::int64_t>(i))
-          .integer(3, static_cast<std::int64_t>(t.frame))
-          .real(4, t.time)
-          .text(5, t.source)
-          .text(6, t.frame_id)
-          .integer(14, t.valid ? 1 : 0);
-      const double values[] = {t.position[0],    t.position[1],    t.position[2],   t.orientation[0],
-                               t.orientation[1], t.orientation[2], t.orientation[3]};
-      for (int k = 0; k < 7; ++k) {
-        if (std::isfinite(values[k])) {
-          sample.real(7 + k, values[k]);
-        } else {
-          sample.null(7 + k);
-        }
-      }
-      sample.step();
-    }
-  }
+  impl_->insertTrajectory(id, session.trajectory);
   if (session.events_dropped > 0) {
     Impl::Statement dropped(*impl_, "UPDATE sessions SET events_dropped = ?2 WHERE id = ?1");
     dropped.integer(1, id).integer(2, static_cast<std::int64_t>(session.events_dropped));
@@ -997,6 +999,56 @@ int Store::applyServerUsers(const std::vector<ServerUser>& server_users) {
   for (const std::int64_t id : vanished) removeUser(id);
   tx.commit();
   return changed;
+}
+
+int Store::attachTrajectories(const std::string& recorded_since, std::vector<std::string>* errors) {
+  struct Candidate {
+    std::int64_t id;
+    std::vector<std::string> files;
+  };
+  std::vector<Candidate> candidates;
+  {
+    std::lock_guard<std::mutex> lock(impl_->mutex);
+    Impl::Statement stmt(*impl_,
+                         "SELECT s.id, s.bag_path, s.result_path FROM sessions s WHERE s.bag_path <> '' AND "
+                         "(s.synced_at IS NULL OR s.recorded_at >= ?1) AND NOT EXISTS "
+                         "(SELECT 1 FROM trajectory_samples t WHERE t.session_id = s.id)");
+    stmt.text(1, recorded_since);
+    while (stmt.step()) {
+      Candidate c{stmt.integerAt(0), {}};
+      const fs::path bag(stmt.textAt(1));
+      c.files.push_back((bag.parent_path() / (bag.stem().string() + ".trajectory.json")).string());
+      if (!stmt.textAt(2).empty()) c.files.push_back(trajectoryPathFor(stmt.textAt(2)));
+      candidates.push_back(std::move(c));
+    }
+  }
+  int attached = 0;
+  for (const Candidate& c : candidates) {
+    for (const std::string& file : c.files) {
+      std::error_code ec;
+      if (!fs::exists(file, ec)) continue;
+      std::vector<TrajectorySample> trajectory;
+      try {
+        std::ifstream in(file, std::ios::binary);
+        std::ostringstream text;
+        text << in.rdbuf();
+        trajectory = parseTrajectoryJson(text.str(), file);
+      } catch (const StoreError& e) {
+        if (errors != nullptr) errors->push_back(e.what());
+        break;
+      }
+      std::lock_guard<std::mutex> lock(impl_->mutex);
+      Impl::Transaction tx(*impl_, true);
+      impl_->insertTrajectory(c.id, trajectory);
+      Impl::Statement outbox(*impl_, "UPDATE sessions SET synced_at = NULL WHERE id = ?1");
+      outbox.integer(1, c.id);
+      outbox.step();
+      tx.commit();
+      ++attached;
+      break;
+    }
+  }
+  return attached;
 }
 
 void Store::applyServerAssignment(const CourseAssignment& assignment) {
