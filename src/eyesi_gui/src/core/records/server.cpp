@@ -40,10 +40,15 @@ bool succeeded(const PGresult* result) {
 class Connection {
  public:
   explicit Connection(const std::string& connection) {
-    // In the key=value form earlier keywords are defaults that later ones override: the caller's connect_timeout wins.
-    // A URI (postgresql://...) is taken as it is.
+    // In the key=value form earlier keywords are defaults that later ones override: the caller's wins. An
+    // unreachable server is an error after 5 s, and a server that vanishes mid-sync without closing the connection (a
+    // cable pulled, a partition) after about 30 s of unacknowledged data or 25 s of silent keepalives, not the
+    // kernel's two hours; the transaction then rolls back on the server. A URI (postgresql://...) is taken as it is.
     const bool uri = connection.rfind("postgres://", 0) == 0 || connection.rfind("postgresql://", 0) == 0;
-    conn_ = PQconnectdb((uri ? connection : "connect_timeout=5 " + connection).c_str());
+    const std::string defaults =
+        "connect_timeout=5 keepalives=1 keepalives_idle=10 keepalives_interval=5 keepalives_count=3 "
+        "tcp_user_timeout=30000 ";
+    conn_ = PQconnectdb((uri ? connection : defaults + connection).c_str());
     if (conn_ == nullptr || PQstatus(conn_) != CONNECTION_OK) {
       const std::string message = conn_ ? trimmed(PQerrorMessage(conn_)) : "out of memory";
       PQfinish(conn_);
