@@ -12,6 +12,7 @@
 #include <QtCharts/QChartView>
 #include <QtCharts/QLineSeries>
 #include <QtCharts/QValueAxis>
+#include <QtConcurrent/QtConcurrent>
 #include <algorithm>
 
 #include "eyesi_gui/console/main_window.h"
@@ -80,6 +81,9 @@ QWidget* MainWindow::buildCentre() {
   centre_table_->horizontalHeader()->setSectionResizeMode(QHeaderView::ResizeToContents);
   centre_table_->horizontalHeader()->setStretchLastSection(true);
   layout->addWidget(centre_table_, 1);
+  centre_watcher_ = new QFutureWatcher<CentreAnswer>(this);
+  connect(centre_watcher_, &QFutureWatcher<CentreAnswer>::finished, this,
+          [this] { showCentre(centre_watcher_->result()); });
   connect(show, &QPushButton::clicked, this, &MainWindow::refreshCentre);
   connect(centre_password_, &QLineEdit::returnPressed, this, &MainWindow::refreshCentre);
   return page;
@@ -95,17 +99,31 @@ void MainWindow::refreshCentre() {
       centre_station_->text().trimmed().toStdString(), centre_trainee_->text().trimmed().toStdString(),
       centre_scene_->text().trimmed().toStdString(), centre_from_->text().trimmed().toStdString(),
       centre_to_->text().trimmed().toStdString()};
-  records::CentreData data;
-  std::vector<records::SessionRecord> sessions;
-  try {
-    records::matches(records::SessionRecord{}, filter);  // a malformed date: said here, nothing asked
-    data = centre_source_(q(user_->name), centre_password_->text(), filter);
-    // The server filtered already; filtering again keeps a source that returns more (a cache, a test) honest.
-    sessions = records::filterSessions(data.sessions, filter);
-  } catch (const std::exception& e) {
-    centre_summary_->setText(QString("No answer from the records server: %1").arg(e.what()));
+  if (centre_watcher_->isRunning()) return;  // one question at a time
+  centre_summary_->setText("asking the records server ...");
+  const CentreSource source = centre_source_;
+  const QString user = q(user_->name), password = centre_password_->text();
+  centre_watcher_->setFuture(QtConcurrent::run([source, user, password, filter] {
+    CentreAnswer answer;
+    try {
+      records::matches(records::SessionRecord{}, filter);  // a malformed date: said here, nothing asked
+      answer.data = source(user, password, filter);
+      // The server filtered already; filtering again keeps a source that returns more (a cache, a test) honest.
+      answer.sessions = records::filterSessions(answer.data.sessions, filter);
+    } catch (const std::exception& e) {
+      answer.error = e.what();
+    }
+    return answer;
+  }));
+}
+
+void MainWindow::showCentre(const CentreAnswer& answer) {
+  if (!answer.error.isEmpty()) {
+    centre_summary_->setText(QString("No answer from the records server: %1").arg(answer.error));
     return;
   }
+  const records::CentreData& data = answer.data;
+  const std::vector<records::SessionRecord>& sessions = answer.sessions;
   centre_table_->setRowCount(static_cast<int>(sessions.size()));
   for (int row = 0; row < static_cast<int>(sessions.size()); ++row) {
     const records::SessionRecord& s = sessions[row];

@@ -204,6 +204,14 @@ class MainWindow : public QMainWindow {
   QtCharts::QChartView* centre_chart_ = nullptr;
   QTableWidget* centre_progress_ = nullptr;
   QLabel* centre_summary_ = nullptr;
+  // The server is asked off the UI thread (an unreachable one takes up to its 5 s connect timeout).
+  struct CentreAnswer {
+    records::CentreData data;
+    std::vector<records::SessionRecord> sessions;  // filtered
+    QString error;
+  };
+  QFutureWatcher<CentreAnswer>* centre_watcher_ = nullptr;
+  void showCentre(const CentreAnswer& answer);
 
   // autopilot
   int autopilot_stage_ = -1;
