@@ -203,8 +203,9 @@ class Store {
   void markSynced(const std::vector<std::string>& global_keys);
   // Users as the server lists them. The conflict rules (README "Training centre"): the server's user wins its name
   // and role (a station's own user of that name becomes the server's, keeping its PIN and sessions, which the server
-  // accepts only once that person has signed in on this station); a deleted (or vanished) server user is removed
-  // here with their sessions and course; PINs never travel either way. Returns the number of users changed.
+  // accepts only once that person has signed in on this station); a server user deleted there (a tombstone) is removed
+  // here with their sessions and course; one the server does not list at all (an old backup, another server) becomes
+  // this station's own again, keeping everything; PINs never travel either way. Returns the number of users changed.
   struct ServerUser {
     std::string name;
     std::string role;  // trainee / instructor / admin (admins are not station users and are skipped)

@@ -988,15 +988,23 @@ int Store::applyServerUsers(const std::vector<ServerUser>& server_users) {
       ++changed;
     }
   }
-  // A server user that is no longer listed at all (purged on the server) is removed like a deleted one.
+  // A server user that is not listed at all (a server restored from an old backup, or another server by mistake) is
+  // not a deletion — only a tombstone is: the user becomes this station's own again, keeping their sessions, which
+  // stay here until a server knows them.
   Impl::Statement server_users_here(*impl_, "SELECT id, name FROM users WHERE origin = 'server'");
-  std::vector<std::int64_t> vanished;
+  std::vector<std::int64_t> unlisted;
   while (server_users_here.step()) {
     if (std::find(listed.begin(), listed.end(), server_users_here.textAt(1)) == listed.end()) {
-      vanished.push_back(server_users_here.integerAt(0));
+      unlisted.push_back(server_users_here.integerAt(0));
     }
   }
-  for (const std::int64_t id : vanished) removeUser(id);
+  Impl::Statement demote(*impl_, "UPDATE users SET origin = 'local' WHERE id = ?1");
+  for (const std::int64_t id : unlisted) {
+    demote.reset();
+    demote.integer(1, id);
+    demote.step();
+    ++changed;
+  }
   tx.commit();
   return changed;
 }
