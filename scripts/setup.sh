@@ -15,6 +15,8 @@ PACKAGES=(
   python3-matplotlib python3-diagnostic-msgs python3-sensor-msgs
   qtbase5-dev libqt5charts5-dev nlohmann-json3-dev libssl-dev xvfb xauth python3-pil
   nftables strace
+  # A training centre's records server (issue 41): PostgreSQL (the centre test starts a throw-away cluster) and libpq.
+  postgresql libpq-dev
   # What the README's commands need as a new user runs them (issue 20): the Python message modules of every topic the
   # graph publishes (rostopic echo), tf_echo, and RViz (simulator.launch rviz:=true).
   python3-visualization-msgs python3-tf2-msgs python3-tf2-ros tf-tools rviz

@@ -187,6 +187,13 @@ script_test station_one_graph two_sessions_one_graph /usr/bin/python3 "$ROOT/src
 # The security defaults SECURITY.md claims, and its firewall rules in a network-namespace pair (issue 14).
 script_test security_defaults security_defaults_hold "$ROOT/src/eyesi_gui/test/security_defaults.sh"
 script_test security_firewall firewall_rules_in_netns "$ROOT/src/eyesi_gui/test/security_firewall.sh"
+# A training centre (issue 41): a throw-away PostgreSQL cluster and three sync clients in network namespaces; the
+# server and a station killed mid-sync, one offline; every session on the server exactly once; roles checked against
+# the server directly (~20 s).
+script_test records_centre centre_sync_roles_and_kills /usr/bin/python3 "$ROOT/src/eyesi_gui/test/centre/centre_sync.py"
+# The researcher's export (issue 41): the reference sessions with their bags' trajectories exported as tidy CSV and
+# read back with Python (scores, trajectory lengths from the bags), and the pseudonymised export (~2 s).
+script_test records_export export_round_trips_and_pseudonymises /usr/bin/python3 "$ROOT/src/eyesi_gui/test/records_export.py"
 # Runtime faults of the product graph (issues 14, 39): crashes (crash = pause; no gap in the record), a hostile flood,
 # a consumer that never reads, the recorder's disk full.
 for fault in manager_crash recorder_crash hostile_flood slow_consumer disk_full; do

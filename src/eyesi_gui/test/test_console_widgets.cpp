@@ -15,6 +15,7 @@
 #include <QSpinBox>
 #include <QTableWidget>
 #include <QTemporaryDir>
+#include <QtCharts/QChartView>
 #include <QtTest/QTest>
 #include <fstream>
 
@@ -330,6 +331,114 @@ TEST_F(ConsoleTest, ResultScreenListsTheGroupsAndWhyPointsWereLost) {
   ASSERT_EQ(lines.size(), 3);  // header + two events
   EXPECT_TRUE(lines[1].contains("retina_touched"));
   EXPECT_TRUE(QFile::exists(QDir(dir_.path()).filePath("eyesi_anna_groups.csv")));
+}
+
+TEST_F(ConsoleTest, CentreScreenShowsTheServersSessionsCurvesAndTheGroupsProgress) {
+  store_->addUser("weber", records::Role::kInstructor, "2468");
+  auto window = makeWindow();
+  std::vector<records::CentreFilter> asked;
+  QString password_seen;
+  window->setCentreSource([&](const QString& user, const QString& password, const records::CentreFilter& filter) {
+    EXPECT_EQ(user, "weber");
+    password_seen = password;
+    asked.push_back(filter);
+    records::CentreData data;
+    const char* stations[] = {"station_or1", "station_or2"};
+    for (int i = 0; i < 6; ++i) {
+      records::SessionRecord s;
+      s.user = i % 2 ? "ben" : "anna";
+      s.scene = i < 4 ? "membrane_peeling" : "navigation";
+      s.difficulty = "medium";
+      s.station = stations[i % 2];
+      s.total = 40 + 10 * i;
+      s.state = "finished";
+      s.passed = true;
+      s.start_stamp = 100 + i;
+      s.recorded_at = "2026-11-2" + std::to_string(i) + "T10:00:00Z";
+      data.sessions.push_back(s);
+    }
+    data.trainees = {"anna", "ben", "cleo"};
+    data.assignments = {{"anna", "Basics", "basics.yaml",
+                         "name: Basics\nsteps:\n  - module: membrane_peeling\n    level: medium\n    pass_mark: 50\n",
+                         "weber", ""}};
+    return data;
+  });
+  auto* users = child<QListWidget>(*window, "userList");
+  for (int i = 0; i < users->count(); ++i)
+    if (users->item(i)->data(Qt::UserRole).toString() == "weber") users->setCurrentRow(i);
+  child<QLineEdit>(*window, "pinEdit")->setText("2468");
+  child<QPushButton>(*window, "loginButton")->click();
+  ASSERT_TRUE(child<QPushButton>(*window, "navCentre")->isVisible());
+  window->showScreen(MainWindow::kCentre);
+  ASSERT_EQ(window->screen(), MainWindow::kCentre);
+  child<QLineEdit>(*window, "centrePassword")->setText("server-secret-1");
+  child<QLineEdit>(*window, "centreStation")->setText("station_or1");
+  child<QPushButton>(*window, "centreShowButton")->click();
+  // Asked off the UI thread: the screen fills in when the answer is there.
+  ASSERT_TRUE(QTest::qWaitFor([&] { return child<QTableWidget>(*window, "centreTable")->rowCount() > 0; }, 5000));
+  ASSERT_EQ(asked.size(), 1u);
+  EXPECT_EQ(asked[0].station, "station_or1");
+  EXPECT_EQ(password_seen, "server-secret-1");
+  auto* table = child<QTableWidget>(*window, "centreTable");
+  ASSERT_EQ(table->rowCount(), 3);  // anna's three sessions on station_or1
+  for (int row = 0; row < 3; ++row) EXPECT_EQ(table->item(row, 1)->text(), "station_or1");
+  auto* chart = child<QtCharts::QChartView>(*window, "centreChart");
+  EXPECT_EQ(chart->chart()->series().size(), 2);  // anna in two modules
+  auto* progress = child<QTableWidget>(*window, "centreProgress");
+  ASSERT_EQ(progress->rowCount(), 3);  // the whole group, cleo without a course included
+  EXPECT_EQ(progress->item(0, 1)->text(), "Basics");
+  EXPECT_EQ(progress->item(0, 2)->text(), "1 / 1");  // from all of anna's sessions, not only the filtered ones
+  EXPECT_EQ(progress->item(2, 1)->text(), "(none)");
+  // A filter the server cannot take is reported on the screen, not thrown.
+  child<QLineEdit>(*window, "centreFrom")->setText("30.11.2026");
+  child<QPushButton>(*window, "centreShowButton")->click();
+  EXPECT_TRUE(
+      QTest::qWaitFor([&] { return child<QLabel>(*window, "centreSummary")->text().contains("YYYY-MM-DD"); }, 5000));
+  EXPECT_EQ(asked.size(), 1u);  // nothing was asked for it
+  // A trainee never reaches the centre screen.
+  child<QPushButton>(*window, "navLogout")->click();
+  loginAnna(*window);
+  EXPECT_FALSE(child<QPushButton>(*window, "navCentre")->isVisible());
+  window->showScreen(MainWindow::kCentre);
+  EXPECT_EQ(window->screen(), MainWindow::kScenarios);
+}
+
+TEST_F(ConsoleTest, ACentreUserWithoutAPinHereSignsInWithTheServerPasswordNeverAnEmptyPin) {
+  store_->applyServerUsers({{"anna", "trainee", false}, {"carla", "trainee", false}});  // carla: from the server
+  auto window = makeWindow();
+  auto chooseCarla = [&] {
+    auto* users = child<QListWidget>(*window, "userList");
+    for (int i = 0; i < users->count(); ++i)
+      if (users->item(i)->data(Qt::UserRole).toString() == "carla") users->setCurrentRow(i);
+  };
+  // Without a centre sign-in (a station on its own) carla cannot log in with an empty PIN.
+  chooseCarla();
+  child<QPushButton>(*window, "loginButton")->click();
+  EXPECT_EQ(window->screen(), MainWindow::kLogin);
+  QStringList signed_in;
+  window->setCentreSignIn([&](const QString& user, const QString& password) {
+    if (password != "carla-server-secret") throw std::runtime_error("password authentication failed");
+    signed_in << user;
+  });
+  EXPECT_TRUE(child<QLineEdit>(*window, "centreLoginPassword")->isVisible());
+  chooseCarla();
+  child<QLineEdit>(*window, "centreLoginPassword")->setText("wrong-password-1");
+  child<QPushButton>(*window, "loginButton")->click();
+  EXPECT_EQ(window->screen(), MainWindow::kLogin);
+  chooseCarla();
+  child<QLineEdit>(*window, "pinEdit")->setText("8642");
+  child<QLineEdit>(*window, "centreLoginPassword")->setText("carla-server-secret");
+  child<QPushButton>(*window, "loginButton")->click();
+  EXPECT_EQ(window->screen(), MainWindow::kScenarios);
+  EXPECT_EQ(signed_in, QStringList{"carla"});
+  EXPECT_TRUE(store_->checkPin("carla", "8642"));  // the PIN she chose, for this station only
+  EXPECT_FALSE(store_->checkPin("carla", ""));
+  // anna (a PIN of her own here) still logs in with it; a failed centre sign-in does not stop her (offline first).
+  child<QPushButton>(*window, "navLogout")->click();
+  child<QLineEdit>(*window, "centreLoginPassword")->setText("not-it");
+  loginAnna(*window);
+  EXPECT_EQ(window->screen(), MainWindow::kScenarios);
+  EXPECT_EQ(window->currentUser(), "anna");
 }
 
 TEST(StereoView, AnaglyphTakesRedFromTheLeftEyeAndCyanFromTheRight) {

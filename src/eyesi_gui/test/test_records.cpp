@@ -13,9 +13,11 @@
 #include <functional>
 #include <nlohmann/json.hpp>
 #include <random>
+#include <set>
 #include <sstream>
 #include <thread>
 
+#include "eyesi_gui/records/centre.h"
 #include "eyesi_gui/records/csv.h"
 #include "eyesi_gui/records/schema.h"
 #include "eyesi_gui/records/store.h"
@@ -955,6 +957,196 @@ TEST(RecordsSchema, MigratesVersion3AddingGroupsAndEventsAndKeepingTheRows) {
   RawDb raw(path);
   EXPECT_EQ(raw.value("SELECT count(*) FROM sqlite_master WHERE name IN ('score_groups', 'penalty_events')"), "2");
   EXPECT_EQ(raw.value("SELECT count(*) FROM penalty_events WHERE x IS NULL"), "1");
+}
+
+// Issue 41: the station's side of the centre's sync (the server side runs in test/centre/centre_sync.py).
+TEST(RecordsSync, EverySessionGetsItsOwnGlobalKeyAndTheContentHashIsNotIt) {
+  TempDir dir;
+  Store a(dir.file("a.sqlite")), b(dir.file("b.sqlite"));
+  const SessionRecord scripted = makeSession("anna", "navigation", 1000, 80);
+  const auto in_a = a.recordSession(scripted), in_b = b.recordSession(scripted);
+  const std::string key_a = a.session(in_a.session_id)->global_key, key_b = b.session(in_b.session_id)->global_key;
+  EXPECT_EQ(key_a.size(), 36u);
+  EXPECT_EQ(key_a[14], '4');  // a version 4 (random) UUID
+  EXPECT_NE(key_a, key_b);    // the same scripted session on two stations: two sessions
+  SessionRecord given = makeSession("anna", "navigation", 2000, 70);
+  given.global_key = "6f1c2d3e-0000-4000-8000-000000000001";
+  EXPECT_EQ(a.session(a.recordSession(given).session_id)->global_key, given.global_key);
+}
+
+TEST(RecordsSync, TheOutboxListsUnsyncedSessionsInOrderUntilMarked) {
+  TempDir dir;
+  Store store(dir.file("s.sqlite"));
+  for (int i = 0; i < 5; ++i) store.recordSession(makeSession("anna", "navigation", 1000 + i, 60));
+  EXPECT_EQ(store.unsyncedCount(), 5);
+  const auto first = store.unsyncedSessions(0, 2);
+  ASSERT_EQ(first.size(), 2u);
+  EXPECT_LT(first[0].id, first[1].id);
+  EXPECT_EQ(first[0].items.size(), 2u);
+  EXPECT_EQ(store.unsyncedSessions(first.back().id, 10).size(), 3u);
+  store.markSynced({first[0].global_key, first[1].global_key, "not-a-key"});
+  EXPECT_EQ(store.unsyncedCount(), 3);
+  const auto rest = store.unsyncedSessions(0, 10);
+  ASSERT_EQ(rest.size(), 3u);
+  EXPECT_GT(rest[0].id, first[1].id);
+}
+
+TEST(RecordsSync, ServerUsersWinNamesAndRolesAndDeletionsReachTheStation) {
+  TempDir dir;
+  Store store(dir.file("s.sqlite"));
+  store.addUser("anna", Role::kTrainee, "1234");  // made on this station while offline
+  store.addUser("otto", Role::kTrainee, "");      // only on this station
+  store.recordSession(makeSession("anna", "navigation", 1000, 60));
+  store.recordSession(makeSession("carl", "navigation", 1001, 60));  // carl is created by the import
+  EXPECT_EQ(store.applyServerUsers({{"anna", "trainee", false},
+                                    {"bea", "instructor", false},
+                                    {"carl", "instructor", false},
+                                    {"root", "admin", false},
+                                    {"guest", "admin", true}}),
+            3);
+  EXPECT_TRUE(store.checkPin("anna", "1234"));  // the station's PIN stays; it never travels
+  EXPECT_EQ(store.findUser("bea")->role, Role::kInstructor);
+  EXPECT_FALSE(store.findUser("bea")->has_pin);
+  EXPECT_EQ(store.findUser("carl")->role, Role::kInstructor);  // the server's role wins
+  EXPECT_FALSE(store.findUser("root"));                        // admins are not station users
+  EXPECT_TRUE(store.findUser("guest"));
+  EXPECT_TRUE(store.findUser("otto"));  // a station's own user the server does not know stays
+  // A server that does not list carl at all (restored from an old backup): not a deletion, carl and his session stay.
+  EXPECT_EQ(store.applyServerUsers({{"anna", "trainee", false}, {"bea", "instructor", false}}), 1);
+  ASSERT_TRUE(store.findUser("carl"));
+  EXPECT_FALSE(store.findUser("carl")->from_server);
+  EXPECT_EQ(store.sessions({"carl", ""}).size(), 1u);
+  // Deletion on request: the user, their sessions and their course go.
+  store.applyServerAssignment({"anna", "Basics", "", "name: Basics", "bea", "2026-11-30T10:00:00Z"});
+  EXPECT_EQ(store.courseAssignment("anna")->assigned_by, "bea");
+  store.applyServerUsers({{"anna", "trainee", true}, {"bea", "instructor", false}});
+  EXPECT_FALSE(store.findUser("anna"));
+  EXPECT_EQ(store.sessions({"anna", ""}).size(), 0u);
+  EXPECT_EQ(store.sessions().size(), 1u);  // carl's
+  EXPECT_FALSE(store.courseAssignment("anna"));
+  EXPECT_TRUE(store.findUser("otto"));
+}
+
+TEST(RecordsTrajectory, SamplesRoundTripThroughTheFileAndTheStoreAndBadFilesAreNamed) {
+  TempDir dir;
+  TrajectorySample eye;
+  eye.frame = 1;
+  eye.source = "eye";
+  eye.frame_id = "world";
+  eye.orientation[3] = 1.0;
+  eye.valid = true;
+  TrajectorySample tip = eye;
+  tip.source = "instrument:left";
+  tip.frame_id = "eye";
+  tip.time = 0.016;
+  tip.position[0] = -0.0035;
+  tip.valid = false;
+  const auto parsed = parseTrajectoryJson(trajectoryJson({eye, tip}, "a.bag"), "t.json");
+  ASSERT_EQ(parsed.size(), 2u);
+  EXPECT_EQ(parsed[1].source, "instrument:left");
+  EXPECT_DOUBLE_EQ(parsed[1].position[0], -0.0035);
+  EXPECT_FALSE(parsed[1].valid);
+  Store store(dir.file("s.sqlite"));
+  SessionRecord s = makeSession("anna", "navigation", 1000, 60);
+  s.trajectory = parsed;
+  const auto id = store.recordSession(s).session_id;
+  const auto back = store.trajectory(id);
+  ASSERT_EQ(back.size(), 2u);
+  EXPECT_EQ(back[1].frame_id, "eye");
+  EXPECT_DOUBLE_EQ(back[1].time, 0.016);
+  EXPECT_TRUE(store.session(id)->trajectory.empty());  // the lists do not carry them
+  EXPECT_EQ(store.unsyncedSessions(0, 1)[0].trajectory.size(), 2u);
+  EXPECT_EQ(trajectoryPathFor("/x/a.result.json"), "/x/a.trajectory.json");
+  expectStoreError([] { parseTrajectoryJson("{\"format\": \"other\"}", "bad.json"); }, {"bad.json", "format"});
+  expectStoreError([] { parseTrajectoryJson(R"({"format": "eyesi_trajectory/1", "samples": [[1, 0]]})", "b.json"); },
+                   {"b.json", "sample 0"});
+}
+
+TEST(RecordsCentre, FiltersCurvesAndTheGroupsProgress) {
+  std::vector<SessionRecord> sessions;
+  for (int i = 0; i < 6; ++i) {
+    SessionRecord s = makeSession(i % 2 ? "ben" : "anna", i < 4 ? "membrane_peeling" : "navigation", 100 - i, 50 + i);
+    s.station = i % 3 ? "station_a" : "station_b";
+    s.recorded_at = "2026-11-2" + std::to_string(i) + "T09:00:00Z";
+    sessions.push_back(s);
+  }
+  EXPECT_EQ(filterSessions(sessions, {"station_b", "", "", "", ""}).size(), 2u);
+  EXPECT_EQ(filterSessions(sessions, {"", "anna", "membrane_peeling", "", ""}).size(), 2u);
+  EXPECT_EQ(filterSessions(sessions, {"", "", "", "2026-11-21", "2026-11-23"}).size(), 3u);  // both ends inclusive
+  expectStoreError([&] { filterSessions(sessions, {"", "", "", "21.11.2026", ""}); }, {"21.11.2026", "YYYY-MM-DD"});
+  const auto curves = learningCurves(sessions);
+  ASSERT_EQ(curves.size(), 4u);  // (anna, ben) x (membrane_peeling, navigation)
+  EXPECT_EQ(curves[0].trainee, "anna");
+  EXPECT_EQ(curves[0].scene, "membrane_peeling");
+  // In the order trained (start stamps fall as i rises): session 2 (total 52) before session 0 (total 50).
+  EXPECT_EQ(curves[0].totals, (std::vector<double>{52, 50}));
+  EXPECT_DOUBLE_EQ(curves[0].best, 52);
+  const std::string course = "name: Peel\nsteps:\n  - module: membrane_peeling\n    level: medium\n    pass_mark: 51\n";
+  const auto rows =
+      groupProgress({"anna", "ben", "cleo"},
+                    {{"anna", "Peel", "", course, "weber", ""}, {"ben", "Broken", "", "steps: [", "", ""}}, sessions);
+  ASSERT_EQ(rows.size(), 3u);
+  EXPECT_EQ(rows[0].steps_passed, 1u);
+  EXPECT_EQ(rows[0].steps, 1u);
+  EXPECT_FALSE(rows[1].problem.empty());  // an unreadable course is reported in its row
+  EXPECT_TRUE(rows[2].course.empty());
+  EXPECT_EQ(connectionValue("it's a \\ test"), "'it\\'s a \\\\ test'");
+}
+
+TEST(RecordsTrajectory, ALiveSessionsTrajectoryIsAttachedLaterAndGoesBackIntoTheOutbox) {
+  TempDir dir;
+  Store store(dir.file("s.sqlite"));
+  SessionRecord live = makeSession("anna", "navigation", 1000, 60);
+  live.bag_path = dir.file("live.bag");
+  live.recorded_at = "2026-11-30T10:00:00Z";
+  const auto id = store.recordSession(live).session_id;
+  store.markSynced({store.session(id)->global_key});
+  EXPECT_EQ(store.attachTrajectories("2026-11-30T00:00:00Z"), 0);  // no file yet
+  TrajectorySample eye;
+  eye.frame = 1;
+  eye.source = "eye";
+  writeBytes(dir.file("live.trajectory.json"), trajectoryJson({eye, eye}, live.bag_path));
+  EXPECT_EQ(store.attachTrajectories("2026-12-01T00:00:00Z"), 0);  // synced and older than asked for
+  EXPECT_EQ(store.attachTrajectories("2026-11-30T00:00:00Z"), 1);
+  EXPECT_EQ(store.trajectory(id).size(), 2u);
+  EXPECT_EQ(store.unsyncedCount(), 1);                             // back in the outbox, for the server's copy
+  EXPECT_EQ(store.attachTrajectories("2026-11-30T00:00:00Z"), 0);  // once
+  writeBytes(dir.file("broken.trajectory.json"), "{");
+  SessionRecord other = makeSession("anna", "navigation", 2000, 60);
+  other.bag_path = dir.file("broken.bag");
+  store.recordSession(other);
+  std::vector<std::string> errors;
+  EXPECT_EQ(store.attachTrajectories("", &errors), 0);
+  ASSERT_EQ(errors.size(), 1u);
+  EXPECT_NE(errors[0].find("broken.trajectory.json"), std::string::npos);
+}
+
+TEST(RecordsSchema, MigratesVersion4GivingEverySessionAGlobalKeyAndAnEmptyOutbox) {
+  TempDir dir;
+  const std::string path = dir.file("v4.sqlite");
+  {
+    RawDb raw(path);
+    std::string sql = "BEGIN;";
+    for (int version = 1; version <= 4; ++version) sql += migrationSql(version);
+    raw.exec(sql + "PRAGMA user_version = 4; COMMIT;");
+    raw.exec(
+        "INSERT INTO users (name, role, iterations, created_at) VALUES ('bob', 'trainee', 0, '2025-01-01T00:00:00Z')");
+    for (int i = 0; i < 3; ++i) {
+      raw.exec("INSERT INTO sessions (session_key, user_id, scene, recorded_at) SELECT 'k" + std::to_string(i) +
+               "', id, 'navigation', '2025-01-02T03:04:05Z' FROM users WHERE name = 'bob'");
+    }
+  }
+  Store store(path);
+  EXPECT_EQ(store.schemaVersion(), 5);
+  const auto sessions = store.unsyncedSessions(0, 10);
+  ASSERT_EQ(sessions.size(), 3u);  // everything recorded before a server existed waits to go up
+  std::set<std::string> keys;
+  for (const auto& s : sessions) {
+    EXPECT_EQ(s.global_key.size(), 36u) << s.global_key;
+    EXPECT_EQ(s.global_key[14], '4') << s.global_key;
+    keys.insert(s.global_key);
+  }
+  EXPECT_EQ(keys.size(), 3u);
 }
 
 TEST(RecordsExport, GroupsAndEventsCsvListEverySession) {

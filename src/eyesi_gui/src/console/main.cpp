@@ -14,6 +14,7 @@
 #include <cstdio>
 
 #include "eyesi_gui/console/main_window.h"
+#include "eyesi_gui/records/server.h"
 #include "ros_link.h"
 
 namespace {
@@ -46,6 +47,11 @@ int main(int argc, char** argv) {
   options.course_dir = expandHome(QString::fromStdString(
       private_nh.param<std::string>("course_dir", package.empty() ? "" : package + "/config/courses")));
   const std::string station = private_nh.param<std::string>("station", "/station");
+  // The centre's records server (issue 41), libpq key=value without user and password, e.g. "host=records.centre
+  // dbname=records sslmode=verify-full sslrootcert=/etc/eyesi/centre-ca.crt"; "" = a station on its own.
+  const std::string centre_server = private_nh.param<std::string>("centre_server", "");
+  // This station's login on that server (station_<name>): where people sign in for the centre.
+  const std::string centre_station = private_nh.param<std::string>("centre_station", "");
 
   QCommandLineParser parser;
   parser.setApplicationDescription("EyeSi trainee and instructor console");
@@ -84,6 +90,24 @@ int main(int argc, char** argv) {
   spinner.start();
   eyesi_gui::RosLink link(nh, station);
   eyesi_gui::MainWindow window(&link, store.get(), options);
+  if (!centre_server.empty() && !centre_station.empty()) {
+    window.setCentreSignIn([centre_server, centre_station](const QString& user, const QString& password) {
+      eyesi_gui::records::signInOnServer(centre_server +
+                                             " user=" + eyesi_gui::records::connectionValue(user.toStdString()) +
+                                             " password=" + eyesi_gui::records::connectionValue(password.toStdString()),
+                                         centre_station);
+    });
+  }
+  if (!centre_server.empty()) {
+    // As the instructor themselves, with the password typed on the centre screen (never stored).
+    window.setCentreSource(
+        [centre_server](const QString& user, const QString& password, const eyesi_gui::records::CentreFilter& filter) {
+          return eyesi_gui::records::fetchCentre(
+              centre_server + " user=" + eyesi_gui::records::connectionValue(user.toStdString()) +
+                  " password=" + eyesi_gui::records::connectionValue(password.toStdString()),
+              filter);
+        });
+  }
   if (parser.isSet("fullscreen")) {
     window.showFullScreen();
   } else {

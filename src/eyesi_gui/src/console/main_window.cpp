@@ -93,6 +93,7 @@ MainWindow::MainWindow(SimulatorLink* link, records::Store* store, ConsoleOption
   stack_->addWidget(buildResult());
   stack_->addWidget(buildHistory());
   stack_->addWidget(buildInstructor());
+  stack_->addWidget(buildCentre());
   layout->addWidget(stack_, 1);
   setCentralWidget(central);
   status_line_ = new QLabel;
@@ -148,8 +149,12 @@ QWidget* MainWindow::buildTopBar() {
   nav_scenarios_ = bigButton("Scenarios", "navScenarios");
   nav_history_ = bigButton("History", "navHistory");
   nav_instructor_ = bigButton("Instructor", "navInstructor");
+  nav_centre_ = bigButton("Centre", "navCentre");
   nav_logout_ = bigButton("Log out", "navLogout");
-  for (QPushButton* button : {nav_scenarios_, nav_history_, nav_instructor_, nav_logout_}) layout->addWidget(button);
+  for (QPushButton* button : {nav_scenarios_, nav_history_, nav_instructor_, nav_centre_, nav_logout_}) {
+    layout->addWidget(button);
+  }
+  connect(nav_centre_, &QPushButton::clicked, this, [this] { showScreen(kCentre); });
   connect(nav_scenarios_, &QPushButton::clicked, this, [this] { showScreen(kScenarios); });
   connect(nav_history_, &QPushButton::clicked, this, [this] { showScreen(kHistory); });
   connect(nav_instructor_, &QPushButton::clicked, this, [this] { showScreen(kInstructor); });
@@ -158,6 +163,11 @@ QWidget* MainWindow::buildTopBar() {
 }
 
 // ---- login -------------------------------------------------------------------------------------------------------
+
+void MainWindow::setCentreSignIn(CentreSignIn sign_in) {
+  centre_sign_in_ = std::move(sign_in);
+  centre_login_password_->setVisible(static_cast<bool>(centre_sign_in_));
+}
 
 QWidget* MainWindow::buildLogin() {
   auto* page = new QWidget;
@@ -191,16 +201,44 @@ QWidget* MainWindow::buildLogin() {
     });
   }
   right->addLayout(pad);
+  centre_login_password_ = new QLineEdit;
+  centre_login_password_->setObjectName("centreLoginPassword");
+  centre_login_password_->setEchoMode(QLineEdit::Password);
+  centre_login_password_->setPlaceholderText("centre password (to sign in for the centre on this station)");
+  centre_login_password_->hide();  // until setCentreSignIn
+  right->addWidget(centre_login_password_);
   auto* login_button = bigButton("Log in", "loginButton");
   connect(login_button, &QPushButton::clicked, this, [this] {
     auto* item = user_list_->currentItem();
     if (!item) return note("choose your name in the list first");
     const std::string name = item->data(Qt::UserRole).toString().toStdString();
-    if (!store_->checkPin(name, pin_edit_->text().toStdString())) {
+    const std::optional<records::User> user = store_->findUser(name);
+    if (!user) return;
+    const QString server_password = centre_login_password_->text();
+    centre_login_password_->clear();
+    // A centre user without a PIN on this station proves who they are to the server, never with an empty PIN.
+    const bool needs_server = user->from_server && !user->has_pin;
+    if (needs_server && (!centre_sign_in_ || server_password.isEmpty())) {
+      pin_edit_->clear();
+      return note("first time on this station: sign in with your centre password (and choose a PIN)");
+    }
+    if (!needs_server && !store_->checkPin(name, pin_edit_->text().toStdString())) {
       pin_edit_->clear();
       return note("wrong PIN for " + q(name));
     }
-    if (auto user = store_->findUser(name)) login(*user);
+    if (centre_sign_in_ && !server_password.isEmpty()) {
+      try {
+        centre_sign_in_(q(name), server_password);
+        if (needs_server && !pin_edit_->text().isEmpty()) store_->setPin(name, pin_edit_->text().toStdString());
+        note("signed in for the centre: this station uploads your sessions");
+      } catch (const std::exception& error) {
+        pin_edit_->clear();
+        if (needs_server) return note(QString("centre sign-in failed: %1").arg(error.what()));
+        note(QString("centre sign-in failed (your sessions stay on this station until you sign in): %1")
+                 .arg(error.what()));
+      }
+    }
+    login(*store_->findUser(name));
   });
   right->addWidget(login_button);
   auto* guest = bigButton("Continue as guest", "guestButton");
@@ -1097,11 +1135,14 @@ void MainWindow::refreshInstructor() {
 void MainWindow::showScreen(Screen screen) {
   const bool logged_in = user_.has_value();
   if (!logged_in) screen = kLogin;
-  if (screen == kInstructor && (!user_ || user_->role != records::Role::kInstructor)) screen = kScenarios;
+  if ((screen == kInstructor || screen == kCentre) && (!user_ || user_->role != records::Role::kInstructor)) {
+    screen = kScenarios;
+  }
   nav_scenarios_->setVisible(logged_in);
   nav_history_->setVisible(logged_in);
   nav_logout_->setVisible(logged_in);
   nav_instructor_->setVisible(logged_in && user_->role == records::Role::kInstructor);
+  nav_centre_->setVisible(logged_in && user_->role == records::Role::kInstructor);
   if (screen == kScenarios) refreshScenarioList();
   if (screen == kHistory) refreshHistory();
   if (screen == kInstructor) refreshInstructor();

@@ -7,10 +7,12 @@
 #include <QMainWindow>
 #include <QMap>
 #include <QPointer>
+#include <functional>
 #include <memory>
 #include <optional>
 
 #include "eyesi_gui/console/simulator_link.h"
+#include "eyesi_gui/records/centre.h"
 #include "eyesi_gui/records/store.h"
 
 class QComboBox;
@@ -56,7 +58,19 @@ class MainWindow : public QMainWindow {
   Q_OBJECT
 
  public:
-  enum Screen { kLogin = 0, kScenarios, kSession, kResult, kHistory, kInstructor };
+  enum Screen { kLogin = 0, kScenarios, kSession, kResult, kHistory, kInstructor, kCentre };
+
+  // The whole centre (issue 41): where the centre screen gets its data. The console's default (main.cpp, with the
+  // ~centre_server parameter) asks the records server as the signed-in instructor with the password typed on that
+  // screen (records::fetchCentre); tests give a fake. Without a source the screen says there is no records server.
+  using CentreSource = std::function<records::CentreData(const QString& user, const QString& password,
+                                                         const records::CentreFilter& filter)>;
+  void setCentreSource(CentreSource source) { centre_source_ = std::move(source); }
+  // Signing in for the centre on this station (records_sign_in as the person, with their server password): from then
+  // on the station may upload their sessions. A user that came down from the server and has no PIN here logs in
+  // only this way (then the PIN typed is set for this station); others may add it to a PIN login. Throws on failure.
+  using CentreSignIn = std::function<void(const QString& user, const QString& password)>;
+  void setCentreSignIn(CentreSignIn sign_in);
 
   MainWindow(SimulatorLink* link, records::Store* store, ConsoleOptions options, QWidget* parent = nullptr);
   ~MainWindow() override;
@@ -92,6 +106,7 @@ class MainWindow : public QMainWindow {
   QWidget* buildResult();
   QWidget* buildHistory();
   QWidget* buildInstructor();
+  QWidget* buildCentre();
 
   void refreshUsers();
   void login(const records::User& user);
@@ -108,6 +123,7 @@ class MainWindow : public QMainWindow {
   void showResult(std::int64_t session_id);
   void refreshHistory();
   void refreshInstructor();
+  void refreshCentre();
   void exportCsv();
   void importFolderInBackground(const QString& folder);
   void replaySelected();
@@ -133,11 +149,14 @@ class MainWindow : public QMainWindow {
   QStackedWidget* stack_ = nullptr;
   QLabel* top_label_ = nullptr;
   QPushButton *nav_scenarios_ = nullptr, *nav_history_ = nullptr, *nav_instructor_ = nullptr, *nav_logout_ = nullptr;
+  QPushButton* nav_centre_ = nullptr;
   QLabel* status_line_ = nullptr;
   // login
   QListWidget* user_list_ = nullptr;
   QLineEdit* pin_edit_ = nullptr;
   QLineEdit* new_user_edit_ = nullptr;
+  QLineEdit* centre_login_password_ = nullptr;  // issue 41: the server password (shown with a centre sign-in)
+  CentreSignIn centre_sign_in_;
   // scenarios
   QListWidget* scenario_list_ = nullptr;
   QLabel* scenario_details_ = nullptr;
@@ -177,6 +196,22 @@ class MainWindow : public QMainWindow {
   QPlainTextEdit* annotation_edit_ = nullptr;
   CourseAssigner* course_assigner_ = nullptr;
   QFutureWatcher<QString> background_;
+  // centre (issue 41)
+  CentreSource centre_source_;
+  QLineEdit *centre_password_ = nullptr, *centre_station_ = nullptr, *centre_trainee_ = nullptr;
+  QLineEdit *centre_scene_ = nullptr, *centre_from_ = nullptr, *centre_to_ = nullptr;
+  QTableWidget* centre_table_ = nullptr;
+  QtCharts::QChartView* centre_chart_ = nullptr;
+  QTableWidget* centre_progress_ = nullptr;
+  QLabel* centre_summary_ = nullptr;
+  // The server is asked off the UI thread (an unreachable one takes up to its 5 s connect timeout).
+  struct CentreAnswer {
+    records::CentreData data;
+    std::vector<records::SessionRecord> sessions;  // filtered
+    QString error;
+  };
+  QFutureWatcher<CentreAnswer>* centre_watcher_ = nullptr;
+  void showCentre(const CentreAnswer& answer);
 
   // autopilot
   int autopilot_stage_ = -1;

@@ -21,6 +21,8 @@
 #include <string>
 #include <vector>
 
+#include "eyesi_gui/records/trajectory.h"
+
 namespace eyesi_gui::records {
 
 enum class Role { kTrainee, kInstructor };
@@ -31,6 +33,9 @@ struct User {
   std::string name;
   Role role = Role::kTrainee;
   bool has_pin = false;
+  // Added (issue 41): the user came down from the centre's records server (the console then asks for the server
+  // password, not an empty PIN, until the person has set a PIN on this station).
+  bool from_server = false;
 };
 
 struct ScoreItemRecord {
@@ -83,6 +88,12 @@ struct SessionRecord {
   std::vector<GroupRecord> groups;         // empty for sessions recorded before schema version 4
   std::vector<PenaltyEventRecord> events;  // at most 200 (the result's limit)
   std::uint64_t events_dropped = 0;        // penalty events the result did not keep
+  // Added to the contract (issue 41, schema version 5): the session's identity across the centre, a random UUID made
+  // when the station first stores it ("" in a record to store: one is made). Never derived from the content.
+  std::string global_key;
+  // Added (issue 41): the per-frame trajectories. Written by recordSession; read only by trajectory() and
+  // unsyncedSessions() (the lists the console shows do not need them).
+  std::vector<TrajectorySample> trajectory;
 };
 
 struct SessionFilter {
@@ -128,7 +139,7 @@ struct ImportResult {
 
 class Store {
  public:
-  static constexpr int kSchemaVersion = 4;
+  static constexpr int kSchemaVersion = 5;
 
   // Opens (creating parent folders and the file if missing) and migrates. Throws StoreError.
   explicit Store(const std::string& path);
@@ -155,6 +166,7 @@ class Store {
   // live text does not name the session's trainee or bag). Throws StoreError on malformed JSON (naming the file).
   ImportResult importResultJson(const std::string& json_text, const std::string& origin, const std::string& user = "",
                                 const std::string& bag = "");
+  // Added (issue 41): the trajectories come from <stem>.trajectory.json next to the file, when there is one.
   ImportResult importResultFile(const std::string& path, const std::string& user = "");
   // Every *.result.json under `folder` (recursively); malformed ones are reported in `errors`, not thrown.
   std::vector<ImportResult> importFolder(const std::string& folder, std::vector<std::string>* errors = nullptr);
@@ -179,6 +191,36 @@ class Store {
   // without any still has one line with those fields empty, so every session appears in every export.
   void exportGroupsCsv(std::ostream& out, const SessionFilter& filter = {}) const;
   void exportEventsCsv(std::ostream& out, const SessionFilter& filter = {}) const;
+
+  // Added to the contract (issue 41): the station's side of the sync with the records server (server.h).
+  // The sessions the server has not acknowledged yet with a row id above `after_id`, oldest first, at most `limit`,
+  // with their items.
+  std::vector<SessionRecord> unsyncedSessions(std::int64_t after_id, std::size_t limit) const;
+  std::int64_t unsyncedCount() const;
+  // The session's trajectory samples in frame order (empty: none recorded).
+  std::vector<TrajectorySample> trajectory(std::int64_t session_id) const;
+  // Marks sessions as on the server (after the server committed them). Unknown keys are ignored.
+  void markSynced(const std::vector<std::string>& global_keys);
+  // Users as the server lists them. The conflict rules (README "Training centre"): the server's user wins its name
+  // and role (a station's own user of that name becomes the server's, keeping its PIN and sessions, which the server
+  // accepts only once that person has signed in on this station); a server user deleted there (a tombstone) is removed
+  // here with their sessions and course; one the server does not list at all (an old backup, another server) becomes
+  // this station's own again, keeping everything; PINs never travel either way. Returns the number of users changed.
+  struct ServerUser {
+    std::string name;
+    std::string role;  // trainee / instructor / admin (admins are not station users and are skipped)
+    bool deleted = false;
+  };
+  int applyServerUsers(const std::vector<ServerUser>& users);
+  // A live session is stored before its bag is closed, so its trajectory file (session_trajectory) comes later:
+  // attaches <bag stem>.trajectory.json or <result stem>.trajectory.json to the recorded sessions that have none —
+  // those not yet synced and those recorded since `recorded_since` (ISO-8601) — and puts a synced one back into the
+  // outbox, so the next upload adds its trajectory on the server. Returns the sessions it attached; unreadable files
+  // are listed in `errors`.
+  int attachTrajectories(const std::string& recorded_since, std::vector<std::string>* errors = nullptr);
+  // A course assignment from the server replaces this station's (the server's is the one instructors edit for the
+  // whole centre). The trainee must be a user here (applyServerUsers first); the instructor may be unknown here.
+  void applyServerAssignment(const CourseAssignment& assignment);
 
   // PRAGMA integrity_check of a database file, opened read-only ("ok" when sound). Throws StoreError if the file
   // cannot be opened at all.

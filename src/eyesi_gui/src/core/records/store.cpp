@@ -1,6 +1,7 @@
 #include "eyesi_gui/records/store.h"
 
 #include <fcntl.h>
+#include <openssl/rand.h>
 #include <sqlite3.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -10,6 +11,7 @@
 #include <cerrno>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <ctime>
 #include <filesystem>
@@ -105,6 +107,20 @@ std::string nowIso8601() {
   char buffer[32];
   std::strftime(buffer, sizeof(buffer), "%Y-%m-%dT%H:%M:%SZ", &utc);
   return buffer;
+}
+
+// A random (version 4) UUID: the session's key on the records server. Random rather than station id + row id, so a
+// station rebuilt from a backup, or two stations given the same name by mistake, still never reuse a key.
+std::string newGlobalKey() {
+  unsigned char bytes[16];
+  if (RAND_bytes(bytes, sizeof(bytes)) != 1) throw StoreError("RAND_bytes failed (OpenSSL)");
+  bytes[6] = static_cast<unsigned char>((bytes[6] & 0x0f) | 0x40);
+  bytes[8] = static_cast<unsigned char>((bytes[8] & 0x3f) | 0x80);
+  char text[37];
+  std::snprintf(text, sizeof(text), "%02x%02x%02x%02x-%02x%02x-%02x%02x-%02x%02x-%02x%02x%02x%02x%02x%02x", bytes[0],
+                bytes[1], bytes[2], bytes[3], bytes[4], bytes[5], bytes[6], bytes[7], bytes[8], bytes[9], bytes[10],
+                bytes[11], bytes[12], bytes[13], bytes[14], bytes[15]);
+  return text;
 }
 
 Role roleFromString(const std::string& text) { return text == "instructor" ? Role::kInstructor : Role::kTrainee; }
@@ -342,7 +358,8 @@ struct Store::Impl {
   static constexpr const char* kSessionColumns =
       "SELECT s.id, u.name, s.scene, s.scenario, s.difficulty, s.seed, s.state, s.message, s.total, s.passed, "
       "s.elapsed, s.start_stamp, s.end_stamp, s.recorded_at, s.bag_path, s.result_path, s.software_version, "
-      "s.final_state_hash, s.frames, s.station, s.annotation FROM sessions s JOIN users u ON u.id = s.user_id ";
+      "s.final_state_hash, s.frames, s.station, s.annotation, s.global_key FROM sessions s "
+      "JOIN users u ON u.id = s.user_id ";
 
   static SessionRecord sessionFromRow(const Statement& row) {
     SessionRecord s;
@@ -367,6 +384,7 @@ struct Store::Impl {
     s.frames = static_cast<std::uint64_t>(row.integerAt(18));
     s.station = row.textAt(19);
     s.annotation = row.textAt(20);
+    s.global_key = row.textAt(21);
     return s;
   }
 
@@ -381,6 +399,55 @@ struct Store::Impl {
       }
     }
     loadGroupsAndEvents(sessions);
+  }
+
+  void insertTrajectory(std::int64_t id, const std::vector<TrajectorySample>& trajectory) {
+    if (trajectory.empty()) return;
+    Statement sample(*this,
+                     "INSERT INTO trajectory_samples (session_id, position, frame, time, source, frame_id, x, y, z, "
+                     "qx, qy, qz, qw, valid) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14)");
+    for (std::size_t i = 0; i < trajectory.size(); ++i) {
+      const TrajectorySample& t = trajectory[i];
+      sample.reset();
+      sample.integer(1, id)
+          .integer(2, static_cast<std::int64_t>(i))
+          .integer(3, static_cast<std::int64_t>(t.frame))
+          .real(4, t.time)
+          .text(5, t.source)
+          .text(6, t.frame_id)
+          .integer(14, t.valid ? 1 : 0);
+      const double values[] = {t.position[0],    t.position[1],    t.position[2],   t.orientation[0],
+                               t.orientation[1], t.orientation[2], t.orientation[3]};
+      for (int k = 0; k < 7; ++k) {
+        if (std::isfinite(values[k])) {
+          sample.real(7 + k, values[k]);
+        } else {
+          sample.null(7 + k);
+        }
+      }
+      sample.step();
+    }
+  }
+
+  std::vector<TrajectorySample> loadTrajectory(std::int64_t session_id) const {
+    Statement stmt(*this,
+                   "SELECT frame, time, source, frame_id, x, y, z, qx, qy, qz, qw, valid FROM trajectory_samples "
+                   "WHERE session_id = ?1 ORDER BY position");
+    stmt.integer(1, session_id);
+    std::vector<TrajectorySample> samples;
+    while (stmt.step()) {
+      TrajectorySample t;
+      t.frame = static_cast<std::uint64_t>(stmt.integerAt(0));
+      t.time = stmt.realAt(1);
+      t.source = stmt.textAt(2);
+      t.frame_id = stmt.textAt(3);
+      double* values[] = {&t.position[0],    &t.position[1],    &t.position[2],   &t.orientation[0],
+                          &t.orientation[1], &t.orientation[2], &t.orientation[3]};
+      for (int k = 0; k < 7; ++k) *values[k] = stmt.isNull(4 + k) ? kNaN : stmt.realAt(4 + k);
+      t.valid = stmt.integerAt(11) != 0;
+      samples.push_back(std::move(t));
+    }
+    return samples;
   }
 
   void loadGroupsAndEvents(std::vector<SessionRecord>* sessions) const {
@@ -519,20 +586,24 @@ void Store::setPin(const std::string& name, const std::string& pin) {
 
 std::vector<User> Store::users() const {
   std::lock_guard<std::mutex> lock(impl_->mutex);
-  Impl::Statement stmt(*impl_, "SELECT id, name, role, pin_hash IS NOT NULL FROM users ORDER BY name");
+  Impl::Statement stmt(*impl_,
+                       "SELECT id, name, role, pin_hash IS NOT NULL, origin = 'server' FROM users ORDER BY name");
   std::vector<User> users;
   while (stmt.step()) {
-    users.push_back({stmt.integerAt(0), stmt.textAt(1), roleFromString(stmt.textAt(2)), stmt.integerAt(3) != 0});
+    users.push_back({stmt.integerAt(0), stmt.textAt(1), roleFromString(stmt.textAt(2)), stmt.integerAt(3) != 0,
+                     stmt.integerAt(4) != 0});
   }
   return users;
 }
 
 std::optional<User> Store::findUser(const std::string& name) const {
   std::lock_guard<std::mutex> lock(impl_->mutex);
-  Impl::Statement stmt(*impl_, "SELECT id, name, role, pin_hash IS NOT NULL FROM users WHERE name = ?1");
+  Impl::Statement stmt(*impl_,
+                       "SELECT id, name, role, pin_hash IS NOT NULL, origin = 'server' FROM users WHERE name = ?1");
   stmt.text(1, name);
   if (!stmt.step()) return std::nullopt;
-  return User{stmt.integerAt(0), stmt.textAt(1), roleFromString(stmt.textAt(2)), stmt.integerAt(3) != 0};
+  return User{stmt.integerAt(0), stmt.textAt(1), roleFromString(stmt.textAt(2)), stmt.integerAt(3) != 0,
+              stmt.integerAt(4) != 0};
 }
 
 bool Store::checkPin(const std::string& name, const std::string& pin) const {
@@ -574,9 +645,9 @@ ImportResult Store::recordSession(const SessionRecord& session) {
   Impl::Statement insert(*impl_,
                          "INSERT INTO sessions (session_key, user_id, scene, scenario, difficulty, seed, state, "
                          "message, total, passed, elapsed, start_stamp, end_stamp, recorded_at, bag_path, "
-                         "result_path, software_version, final_state_hash, frames, station, annotation) VALUES "
-                         "(?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18, ?19, "
-                         "?20, ?21)");
+                         "result_path, software_version, final_state_hash, frames, station, annotation, global_key) "
+                         "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18, "
+                         "?19, ?20, ?21, ?22)");
   insert.text(1, key)
       .integer(2, *user_id)
       .text(3, session.scene)
@@ -597,7 +668,8 @@ ImportResult Store::recordSession(const SessionRecord& session) {
       .text(18, session.final_state_hash)
       .integer(19, static_cast<std::int64_t>(session.frames))
       .text(20, session.station)
-      .text(21, session.annotation);
+      .text(21, session.annotation)
+      .text(22, session.global_key.empty() ? newGlobalKey() : session.global_key);
   insert.step();
   const std::int64_t id = sqlite3_last_insert_rowid(impl_->db);
 
@@ -648,6 +720,7 @@ ImportResult Store::recordSession(const SessionRecord& session) {
     }
     event.step();
   }
+  impl_->insertTrajectory(id, session.trajectory);
   if (session.events_dropped > 0) {
     Impl::Statement dropped(*impl_, "UPDATE sessions SET events_dropped = ?2 WHERE id = ?1");
     dropped.integer(1, id).integer(2, static_cast<std::int64_t>(session.events_dropped));
@@ -676,6 +749,14 @@ ImportResult Store::importResultFile(const std::string& path, const std::string&
   // Absolute, so the console can find the file again whatever folder the import ran in.
   session.result_path = ec ? path : absolute.lexically_normal().string();
   if (!user.empty()) session.user = user;
+  const std::string trajectory_path = trajectoryPathFor(path);
+  if (fs::exists(trajectory_path, ec)) {
+    std::ifstream trajectory(trajectory_path, std::ios::binary);
+    if (!trajectory) throw StoreError(trajectory_path + ": cannot read the trajectory file: " + std::strerror(errno));
+    std::ostringstream trajectory_text;
+    trajectory_text << trajectory.rdbuf();
+    session.trajectory = parseTrajectoryJson(trajectory_text.str(), trajectory_path);
+  }
   return recordSession(session);
 }
 
@@ -821,6 +902,184 @@ std::optional<CourseAssignment> Store::courseAssignment(const std::string& train
   if (!stmt.step()) return std::nullopt;
   return CourseAssignment{stmt.textAt(0), stmt.textAt(1), stmt.textAt(2),
                           stmt.textAt(3), stmt.textAt(4), stmt.textAt(5)};
+}
+
+std::vector<SessionRecord> Store::unsyncedSessions(std::int64_t after_id, std::size_t limit) const {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  Impl::Transaction tx(*impl_, false);
+  Impl::Statement stmt(
+      *impl_,
+      (std::string(Impl::kSessionColumns) + "WHERE s.synced_at IS NULL AND s.id > ?2 ORDER BY s.id LIMIT ?1").c_str());
+  stmt.integer(1, static_cast<std::int64_t>(std::min<std::size_t>(limit, std::numeric_limits<std::int64_t>::max())))
+      .integer(2, after_id);
+  std::vector<SessionRecord> sessions;
+  while (stmt.step()) sessions.push_back(Impl::sessionFromRow(stmt));
+  impl_->loadItems(&sessions);
+  for (SessionRecord& s : sessions) s.trajectory = impl_->loadTrajectory(s.id);
+  tx.commit();
+  return sessions;
+}
+
+std::vector<TrajectorySample> Store::trajectory(std::int64_t session_id) const {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  return impl_->loadTrajectory(session_id);
+}
+
+std::int64_t Store::unsyncedCount() const {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  Impl::Statement stmt(*impl_, "SELECT count(*) FROM sessions WHERE synced_at IS NULL");
+  return stmt.step() ? stmt.integerAt(0) : 0;
+}
+
+void Store::markSynced(const std::vector<std::string>& global_keys) {
+  if (global_keys.empty()) return;
+  const std::string now = nowIso8601();
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  Impl::Transaction tx(*impl_, true);
+  Impl::Statement stmt(*impl_, "UPDATE sessions SET synced_at = ?2 WHERE global_key = ?1 AND synced_at IS NULL");
+  for (const std::string& key : global_keys) {
+    stmt.reset();
+    stmt.text(1, key).text(2, now);
+    stmt.step();
+  }
+  tx.commit();
+}
+
+int Store::applyServerUsers(const std::vector<ServerUser>& server_users) {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  Impl::Transaction tx(*impl_, true);
+  int changed = 0;
+  std::vector<std::string> listed;
+  const auto removeUser = [&](std::int64_t id) {
+    // Deletion on request reaches every station: the user's sessions (items, groups, events by cascade) and course.
+    for (const char* sql :
+         {"DELETE FROM sessions WHERE user_id = ?1", "DELETE FROM course_assignments WHERE user_id = ?1",
+          "UPDATE course_assignments SET assigned_by = NULL WHERE assigned_by = ?1",
+          "DELETE FROM users WHERE id = ?1"}) {
+      Impl::Statement stmt(*impl_, sql);
+      stmt.integer(1, id);
+      stmt.step();
+    }
+    ++changed;
+  };
+  for (const ServerUser& user : server_users) {
+    if (user.name == kGuest) continue;
+    listed.push_back(user.name);
+    Impl::Statement find(*impl_, "SELECT id, role, origin FROM users WHERE name = ?1");
+    find.text(1, user.name);
+    const bool exists = find.step();
+    const std::int64_t id = exists ? find.integerAt(0) : 0;
+    if (user.deleted || user.role == "admin") {
+      if (exists && (user.deleted || find.textAt(2) == "server")) removeUser(id);
+      continue;
+    }
+    if (user.role != "trainee" && user.role != "instructor") continue;
+    if (!exists) {
+      Impl::Statement insert(*impl_,
+                             "INSERT INTO users (name, role, iterations, created_at, origin) "
+                             "VALUES (?1, ?2, 0, ?3, 'server')");
+      insert.text(1, user.name).text(2, user.role).text(3, nowIso8601());
+      insert.step();
+      ++changed;
+    } else if (find.textAt(1) != user.role || find.textAt(2) != "server") {
+      Impl::Statement update(*impl_, "UPDATE users SET role = ?2, origin = 'server' WHERE id = ?1");
+      update.integer(1, id).text(2, user.role);
+      update.step();
+      ++changed;
+    }
+  }
+  // A server user that is not listed at all (a server restored from an old backup, or another server by mistake) is
+  // not a deletion — only a tombstone is: the user becomes this station's own again, keeping their sessions, which
+  // stay here until a server knows them.
+  Impl::Statement server_users_here(*impl_, "SELECT id, name FROM users WHERE origin = 'server'");
+  std::vector<std::int64_t> unlisted;
+  while (server_users_here.step()) {
+    if (std::find(listed.begin(), listed.end(), server_users_here.textAt(1)) == listed.end()) {
+      unlisted.push_back(server_users_here.integerAt(0));
+    }
+  }
+  Impl::Statement demote(*impl_, "UPDATE users SET origin = 'local' WHERE id = ?1");
+  for (const std::int64_t id : unlisted) {
+    demote.reset();
+    demote.integer(1, id);
+    demote.step();
+    ++changed;
+  }
+  tx.commit();
+  return changed;
+}
+
+int Store::attachTrajectories(const std::string& recorded_since, std::vector<std::string>* errors) {
+  struct Candidate {
+    std::int64_t id;
+    std::vector<std::string> files;
+  };
+  std::vector<Candidate> candidates;
+  {
+    std::lock_guard<std::mutex> lock(impl_->mutex);
+    Impl::Statement stmt(*impl_,
+                         "SELECT s.id, s.bag_path, s.result_path FROM sessions s WHERE s.bag_path <> '' AND "
+                         "(s.synced_at IS NULL OR s.recorded_at >= ?1) AND NOT EXISTS "
+                         "(SELECT 1 FROM trajectory_samples t WHERE t.session_id = s.id)");
+    stmt.text(1, recorded_since);
+    while (stmt.step()) {
+      Candidate c{stmt.integerAt(0), {}};
+      const fs::path bag(stmt.textAt(1));
+      c.files.push_back((bag.parent_path() / (bag.stem().string() + ".trajectory.json")).string());
+      if (!stmt.textAt(2).empty()) c.files.push_back(trajectoryPathFor(stmt.textAt(2)));
+      candidates.push_back(std::move(c));
+    }
+  }
+  int attached = 0;
+  for (const Candidate& c : candidates) {
+    for (const std::string& file : c.files) {
+      std::error_code ec;
+      if (!fs::exists(file, ec)) continue;
+      std::vector<TrajectorySample> trajectory;
+      try {
+        std::ifstream in(file, std::ios::binary);
+        std::ostringstream text;
+        text << in.rdbuf();
+        trajectory = parseTrajectoryJson(text.str(), file);
+      } catch (const StoreError& e) {
+        if (errors != nullptr) errors->push_back(e.what());
+        break;
+      }
+      std::lock_guard<std::mutex> lock(impl_->mutex);
+      Impl::Transaction tx(*impl_, true);
+      impl_->insertTrajectory(c.id, trajectory);
+      Impl::Statement outbox(*impl_, "UPDATE sessions SET synced_at = NULL WHERE id = ?1");
+      outbox.integer(1, c.id);
+      outbox.step();
+      tx.commit();
+      ++attached;
+      break;
+    }
+  }
+  return attached;
+}
+
+void Store::applyServerAssignment(const CourseAssignment& assignment) {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  Impl::Transaction tx(*impl_, true);
+  const std::optional<std::int64_t> trainee = impl_->userId(assignment.user);
+  if (!trainee) throw StoreError(impl_->path + ": no user \"" + assignment.user + "\" for the server's course");
+  const std::optional<std::int64_t> instructor = impl_->userId(assignment.assigned_by);
+  Impl::Statement stmt(*impl_,
+                       "INSERT OR REPLACE INTO course_assignments (user_id, course_name, course_file, course_text, "
+                       "assigned_by, assigned_at) VALUES (?1, ?2, ?3, ?4, ?5, ?6)");
+  stmt.integer(1, *trainee)
+      .text(2, assignment.course_name)
+      .text(3, assignment.course_file)
+      .text(4, assignment.course_text)
+      .text(6, assignment.assigned_at.empty() ? nowIso8601() : assignment.assigned_at);
+  if (instructor) {
+    stmt.integer(5, *instructor);
+  } else {
+    stmt.null(5);
+  }
+  stmt.step();
+  tx.commit();
 }
 
 void Store::exportCsv(std::ostream& out, const SessionFilter& filter) const {
