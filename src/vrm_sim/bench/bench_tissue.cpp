@@ -15,7 +15,7 @@
 // step reported) against Bullet's stepSimulation with the same grasp and a kinematic sphere as the probe.
 // Every timed figure: median over repetitions in one run (ms_per_step), with ms_min/ms_max beside it.
 // Plus the hard cases (stable yes/no, max strain, energy, watchdog fallbacks; their reference stays RK2 at a tiny dt).
-// Usage: bench_tissue [--quick] [--out FILE] [--only SECTION[,SECTION...]]
+// Usage: bench_tissue [--quick] [--out FILE] [--only SECTION[,SECTION...]] [--drawn-cases N]
 //   sections: accuracy (references, speed against error, Bullet, matched), full_step, hard, bullet_sweep (issue 40
 //   §4: Bullet with 10 iterations across the dt sweep at 100×100 against our fastest configuration as accurate).
 #include <time.h>
@@ -61,7 +61,8 @@ using vrm_sim::bench::forcepsAt;
 using vrm_sim::bench::wallClock;
 constexpr double kSize = vrm_sim::bench::kMembraneSize;
 constexpr double kStiffness = vrm_sim::bench::kSpringStiffness;
-// Issue 40 §2: scenes `auto` was never tuned on, drawn from seeds 1..kRandomHardCases (tissue_hard_cases.h).
+// Issue 40 §2: scenes `auto` was never tuned on, drawn from seeds 1..kRandomHardCases (tissue_hard_cases.h); more
+// with --drawn-cases N.
 constexpr int kRandomHardCases = 5;
 
 struct Scene {
@@ -1054,13 +1055,19 @@ void runHardCases(const std::vector<std::string>& integrators, bool quick, int r
 int main(int argc, char** argv) {
   vrm_sim::bench::BenchArgs args;
   std::string only;
-  vrm_sim::cli::CommandLine cli("bench_tissue", "[--quick] [--out FILE] [--only SECTION[,SECTION...]]",
+  vrm_sim::cli::CommandLine cli("bench_tissue",
+                                "[--quick] [--out FILE] [--only SECTION[,SECTION...]] [--drawn-cases N]",
                                 "Tissue: speed against error for every integrator, dt and mesh size.");
   vrm_sim::bench::addBenchOptions(cli, &args);
   cli.add()("only", vrm_sim::cli::po::value(&only)->value_name("SECTIONS"),
             "only these sections (comma-separated: accuracy, full_step, hard, bullet_sweep; default all); hard:NAME "
             "runs the hard cases whose name contains NAME");
+  int drawn_cases = kRandomHardCases;
+  cli.add()("drawn-cases", vrm_sim::cli::po::value(&drawn_cases)->value_name("N"),
+            "hard cases drawn from seeds 1..N (default 5; 1 with --quick)");
   if (const auto status = cli.parse(argc, argv)) return *status;
+  if (drawn_cases < 0) return cli.fail("--drawn-cases must be >= 0");
+  if (args.quick && !cli.given("drawn-cases")) drawn_cases = 1;
   std::string hard_filter;  // hard:NAME
   const auto runs = [&only, &hard_filter](const std::string& section) {
     if (only.empty()) return true;
@@ -1472,7 +1479,7 @@ int main(int argc, char** argv) {
     }
   }
 
-  if (runs("hard")) runHardCases(integrators, quick, repetitions, quick ? 1 : kRandomHardCases, hard_filter, rows);
+  if (runs("hard")) runHardCases(integrators, quick, repetitions, drawn_cases, hard_filter, rows);
 
 #ifdef VRM_HAVE_BULLET
   if (runs("bullet_sweep")) bulletSweep(quick, repetitions, integrators, rows);

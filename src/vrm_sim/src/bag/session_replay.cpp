@@ -150,7 +150,13 @@ ReplayResult replaySession(const PreparedBag& prepared, const SessionSetup& setu
     read_frames(bag, prepared.usable);
     const std::vector<std::string> later_parts = laterParts(prepared.original);
     for (const std::string& path : later_parts) {
-      rosbag::Bag part(path, rosbag::bagmode::Read);
+      rosbag::Bag part;
+      try {
+        part.open(path, rosbag::bagmode::Read);
+      } catch (const rosbag::BagException& error) {
+        // prepareSessionBag() checked it; it changed since (a recorder still writing it, a disk error).
+        throw BagError(path + ": cannot open this later part of the session: " + error.what());
+      }
       read_frames(part, path);
     }
     if (!later_parts.empty()) {
