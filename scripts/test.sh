@@ -203,6 +203,9 @@ done
 # A new user's first hour (issue 20): a failed graph fails the scripts that wrap roslaunch.
 script_test failed_graph wrapper_fails_when_a_required_part_fails "$ROOT/scripts/tests/failed_graph.sh"
 script_test readme_clients readme_ros_clients_answer "$ROOT/scripts/tests/readme_clients.sh"
+# The layers at link time (issue 42): ldd of the scene floor, tracking, rendering and the console's binaries (~1 s).
+script_test library_layers floor_tracking_render_and_console_link_no_physics_or_rosbag \
+  "$ROOT/scripts/tests/library_layers.sh"
 # The session result's Python reader against the reference results and the malformed corpus the C++ reader reads.
 script_test session_result_py python_reader_keeps_the_schema /usr/bin/python3 "$ROOT/scripts/tests/test_session_result.py"
 script_test install_space installed_simulator_runs_without_the_source_tree "$ROOT/scripts/install-test.sh"

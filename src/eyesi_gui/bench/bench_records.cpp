@@ -26,7 +26,7 @@
 
 #include "eyesi_gui/records/server.h"
 #include "eyesi_gui/records/store.h"
-#include "vrm_sim/cli/cli.h"
+#include "vrm_scene/cli/cli.h"
 
 namespace records = eyesi_gui::records;
 namespace fs = std::filesystem;

@@ -27,10 +27,10 @@
 #include <vector>
 
 #include "eyesi_gui/records/course.h"
-#include "vrm_sim/cli/cli.h"
-#include "vrm_sim/scene/scene_loader.h"
+#include "vrm_scene/cli/cli.h"
+#include "vrm_scene/scene_loader.h"
+#include "vrm_scene/yaml/strict_reader.h"
 #include "vrm_sim/world/offline.h"
-#include "vrm_sim/yaml/strict_reader.h"
 
 using namespace vrm_sim;
 using nlohmann::json;

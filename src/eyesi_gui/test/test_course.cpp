@@ -10,7 +10,7 @@
 
 #include "eyesi_gui/records/course.h"
 #include "eyesi_gui/records/schema.h"
-#include "vrm_sim/scene/scene_loader.h"
+#include "vrm_scene/scene_loader.h"
 
 namespace eyesi_gui::records {
 namespace {

@@ -823,7 +823,7 @@ TEST(RecordsTool, ImportCheckExportAndExitCodes) {
   EXPECT_EQ(run(tool + " --db " + db + " add-user dr --role instructor --pin 1357" + quiet), 1);
   EXPECT_EQ(run(tool + " --db " + db + " add-user x --role boss" + quiet), 2);
   EXPECT_EQ(run(tool + " --db " + db + " frobnicate" + quiet), 2);
-  // The shared command line (vrm_sim/cli/cli.h): --help, unknown and abbreviated options, a command's foreign option.
+  // The shared command line (vrm_scene/cli/cli.h): --help, unknown and abbreviated options, a command's foreign option.
   EXPECT_EQ(run(tool + " --help" + quiet), 0);
   EXPECT_EQ(run(tool + " --db " + db + " list --no-such-flag" + quiet), 2);
   EXPECT_EQ(run(tool + " --db " + db + " list --us anna" + quiet), 2);

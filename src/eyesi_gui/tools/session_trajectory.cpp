@@ -18,7 +18,7 @@
 #include "vrm_msgs/EyeState.h"
 #include "vrm_msgs/InputFrame.h"
 #include "vrm_msgs/InstrumentState.h"
-#include "vrm_sim/cli/cli.h"
+#include "vrm_scene/cli/cli.h"
 
 namespace {
 

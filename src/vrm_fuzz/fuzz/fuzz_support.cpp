@@ -8,7 +8,7 @@
 #include <stdexcept>
 
 #include "fuzz_target.h"
-#include "vrm_sim/scene/scene_loader.h"
+#include "vrm_scene/scene_loader.h"
 
 namespace vrm_fuzz {
 

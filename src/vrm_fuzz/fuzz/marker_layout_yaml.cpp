@@ -7,7 +7,7 @@
 #include <stdexcept>
 
 #include "fuzz_target.h"
-#include "vrm_sim/scene/scene_loader.h"
+#include "vrm_scene/scene_loader.h"
 #include "vrm_tracking/marker_detector.h"
 #include "vrm_tracking/marker_layout.h"
 #include "vrm_tracking/pose_tracker.h"

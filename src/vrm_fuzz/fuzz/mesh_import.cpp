@@ -4,8 +4,8 @@
 #include <stdexcept>
 
 #include "fuzz_target.h"
-#include "vrm_sim/scene/mesh_io.h"
-#include "vrm_sim/scene/mesh_validation.h"
+#include "vrm_scene/meshes/mesh_io.h"
+#include "vrm_scene/meshes/mesh_validation.h"
 
 VRM_FUZZ_TARGET(mesh_import) {
   using namespace vrm_sim::scene;

@@ -1,10 +1,12 @@
-// Scene files (vrm_sim scene_loader.h): arbitrary text through the loader; a scene it accepts must also build its
+// Scene files (vrm_scene scene_loader.h): arbitrary text through the loader and the World's check of the physics names
+// it read as text (world::checkSimulationNames, issue 42); a scene both accept must also build its
 // meshes (object generators, imported files, instruments) and pass mesh validation, since that is what every
 // consumer (scene_manager, the World, the renderer) does next. Building the meshes of a whole scene costs ~20 ms
 // under ASan, so it runs for inputs whose size is a multiple of 4 (the fuzzer reaches both paths).
 #include "fuzz_target.h"
-#include "vrm_sim/scene/mesh_validation.h"
-#include "vrm_sim/scene/scene_loader.h"
+#include "vrm_scene/meshes/mesh_validation.h"
+#include "vrm_scene/scene_loader.h"
+#include "vrm_sim/world/tissue_setup.h"
 
 VRM_FUZZ_TARGET(scene_yaml) {
   using namespace vrm_sim::scene;
@@ -14,6 +16,7 @@ VRM_FUZZ_TARGET(scene_yaml) {
   SceneDescription scene;
   try {
     scene = loadSceneFromString(text, virtual_path);
+    vrm_sim::world::checkSimulationNames(scene);
   } catch (const SceneError&) {
     return 0;  // a clear rejection is the expected outcome for most inputs
   }

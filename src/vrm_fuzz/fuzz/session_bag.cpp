@@ -12,8 +12,8 @@
 #include <filesystem>
 
 #include "fuzz_target.h"
+#include "vrm_scene/scene_loader.h"
 #include "vrm_sim/bag/session_replay.h"
-#include "vrm_sim/scene/scene_loader.h"
 
 VRM_FUZZ_TARGET(session_bag) {
   using namespace vrm_sim::bag;

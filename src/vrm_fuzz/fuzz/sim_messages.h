@@ -28,9 +28,9 @@
 
 #include "ros_messages.h"
 #include "vrm_render/microscope_camera.h"
+#include "vrm_scene/scene_loader.h"
 #include "vrm_sim/conversions.h"
 #include "vrm_sim/mge/membrane.h"
-#include "vrm_sim/scene/scene_loader.h"
 #include "vrm_sim/world/session.h"
 
 namespace vrm_fuzz_sim {

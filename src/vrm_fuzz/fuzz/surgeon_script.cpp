@@ -4,7 +4,7 @@
 #include "vrm_tracking/surgeon_script.h"
 
 #include "fuzz_target.h"
-#include "vrm_sim/scene/scene_loader.h"
+#include "vrm_scene/scene_loader.h"
 #include "vrm_tracking/scene_trocars.h"
 
 VRM_FUZZ_TARGET(surgeon_script) {

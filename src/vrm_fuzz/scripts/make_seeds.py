@@ -70,7 +70,7 @@ seed("surgeon_script", "exchange_and_target.yaml",
      b"    tremor: {amplitude: 2.0e-5, frequency_hz: 10}\neye: [{t: 0, rpy_deg: [1, 2, 3]}]\n")
 seed("rig_yaml", "rig_default.yaml", (TRK / "config" / "rig_default.yaml").read_bytes())
 seed("marker_layout_yaml", "markers_default.yaml", (TRK / "config" / "markers_default.yaml").read_bytes())
-# The strict reader's error paths (vrm_sim/yaml/strict_reader.h): a misspelt key, an unknown class name, a duplicate
+# The strict reader's error paths (vrm_scene/yaml/strict_reader.h): a misspelt key, an unknown class name, a duplicate
 # slot, a matrix of the wrong shape; the fuzzer mutates from each.
 seed("marker_layout_yaml", "typo_key.yaml", b"eye_marker_radius: 0.0005\ntip_marker_radus: 0.0004\n")
 seed("marker_layout_yaml", "unknown_class.yaml", b"instruments:\n  - {slot: left, class: tip_lft}\n")

@@ -1,7 +1,7 @@
 #include "vrm_render/conversions.h"
 
+#include "vrm_scene/scene_description.h"
 #include "vrm_sim/conversions.h"
-#include "vrm_sim/scene/scene_description.h"
 
 namespace vrm_render {
 

@@ -1,10 +1,10 @@
 #pragma once
-// The command line every benchmark takes from scripts/bench.sh: [--quick] [--out FILE] (vrm_sim/cli/cli.h: --help,
+// The command line every benchmark takes from scripts/bench.sh: [--quick] [--out FILE] (vrm_scene/cli/cli.h: --help,
 // exit status 2 for a usage error).
 #include <optional>
 #include <string>
 
-#include "vrm_sim/cli/cli.h"
+#include "vrm_scene/cli/cli.h"
 
 namespace vrm_sim {
 namespace bench {

@@ -25,10 +25,10 @@
 #include <vector>
 
 #include "bench_cli.h"
+#include "vrm_scene/meshes/mesh_utils.h"
+#include "vrm_scene/meshes/primitive_meshes.h"
 #include "vrm_sim/collision/collision_detector.h"
 #include "vrm_sim/collision/primitives.h"
-#include "vrm_sim/scene/mesh_utils.h"
-#include "vrm_sim/scene/primitive_meshes.h"
 
 namespace {
 

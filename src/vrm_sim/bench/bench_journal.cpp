@@ -19,9 +19,9 @@
 #include <vector>
 
 #include "bench_cli.h"
+#include "vrm_scene/scene_loader.h"
 #include "vrm_sim/bag/session_journal.h"
 #include "vrm_sim/conversions.h"
-#include "vrm_sim/scene/scene_loader.h"
 #include "vrm_sim/world/offline.h"
 #include "vrm_sim/world/session.h"
 

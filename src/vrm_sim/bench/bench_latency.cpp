@@ -53,7 +53,7 @@
 #include <vector>
 
 #include "bench_cli.h"
-#include "vrm_sim/scene/scene_loader.h"
+#include "vrm_scene/scene_loader.h"
 #include "vrm_sim/world/latency.h"
 
 namespace {

@@ -15,8 +15,8 @@
 #include <vector>
 
 #include "bench_cli.h"
-#include "vrm_sim/scene/eye_meshes.h"
-#include "vrm_sim/scene/mesh_io.h"
+#include "vrm_scene/meshes/eye_meshes.h"
+#include "vrm_scene/meshes/mesh_io.h"
 
 using namespace vrm_sim;
 using Clock = std::chrono::steady_clock;
@@ -54,7 +54,7 @@ int main(int argc, char** argv) {
   const std::string folder = std::filesystem::temp_directory_path().string() + "/bench_mesh_import_" +
                              std::to_string(static_cast<long>(::getpid()));
   std::filesystem::create_directories(folder);
-  const std::string data = std::string(VRM_SIM_PACKAGE_DIR) + "/test/data/meshes/";
+  const std::string data = std::string(VRM_SCENE_SOURCE_DIR) + "/test/data/meshes/";
   struct Case {
     std::string name, path, kind;
   };

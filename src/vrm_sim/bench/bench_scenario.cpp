@@ -13,7 +13,7 @@
 #include <vector>
 
 #include "bench_cli.h"
-#include "vrm_sim/scene/scene_loader.h"
+#include "vrm_scene/scene_loader.h"
 #include "vrm_sim/world/offline.h"
 
 using namespace vrm_sim;

@@ -8,8 +8,8 @@
 
 #include "vrm_msgs/InstrumentTypes.h"
 #include "vrm_msgs/msg_constants.h"
+#include "vrm_scene/scene_description.h"
 #include "vrm_sim/conversions.h"
-#include "vrm_sim/scene/scene_description.h"
 
 namespace vrm_sim {
 namespace {

@@ -27,7 +27,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "vrm_sim/cli/cli.h"
+#include "vrm_scene/cli/cli.h"
 
 namespace {
 

@@ -17,9 +17,9 @@
 #include <filesystem>
 #include <string>
 
-#include "vrm_sim/cli/cli.h"
-#include "vrm_sim/package_data.h"
-#include "vrm_sim/scene/scene_loader.h"
+#include "vrm_scene/cli/cli.h"
+#include "vrm_scene/package_data.h"
+#include "vrm_scene/scene_loader.h"
 #include "vrm_sim/world/offline.h"
 
 namespace {

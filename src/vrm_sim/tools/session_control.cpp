@@ -47,8 +47,8 @@
 #include "vrm_msgs/SessionInfo.h"
 #include "vrm_msgs/SessionResume.h"
 #include "vrm_msgs/SimulationState.h"
+#include "vrm_scene/cli/cli.h"
 #include "vrm_sim/bag/session_bag.h"
-#include "vrm_sim/cli/cli.h"
 
 namespace {
 

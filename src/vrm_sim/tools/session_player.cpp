@@ -31,8 +31,8 @@
 #include <vector>
 
 #include "vrm_msgs/InputFrame.h"
+#include "vrm_scene/cli/cli.h"
 #include "vrm_sim/bag/session_bag.h"
-#include "vrm_sim/cli/cli.h"
 
 namespace {
 

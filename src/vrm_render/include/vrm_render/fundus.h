@@ -32,7 +32,7 @@
 #include <vector>
 
 #include "vrm_render/render_types.h"
-#include "vrm_sim/anatomy/fundus_anatomy.h"
+#include "vrm_scene/anatomy/fundus_anatomy.h"
 
 namespace vrm_render {
 

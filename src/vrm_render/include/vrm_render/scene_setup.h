@@ -12,9 +12,9 @@
 #include "vrm_render/fundus.h"
 #include "vrm_render/render_types.h"
 #include "vrm_render/stereo_renderer.h"
-#include "vrm_sim/scene/scene_description.h"
-#include "vrm_sim/scene/scene_fundus.h"
-#include "vrm_sim/triangle_mesh.h"
+#include "vrm_scene/meshes/triangle_mesh.h"
+#include "vrm_scene/scene_description.h"
+#include "vrm_scene/scene_fundus.h"
 
 namespace vrm_render {
 
@@ -30,7 +30,7 @@ ObjectStyle instrumentStyle(const vrm_sim::scene::InstrumentDescription& instrum
 std::string instrumentObjectId(const vrm_sim::scene::InstrumentDescription& instrument);  // "instrument_<slot>"
 
 // An instrument slot's mesh for a type and jaw opening comes from the instrument model
-// (vrm_sim/scene/instrument_model.h: instrumentOfType, jawStepDeg, instrumentMesh), the one the simulation collides
+// (vrm_scene/instrument_model.h: instrumentOfType, jawStepDeg, instrumentMesh), the one the simulation collides
 // with; toMeshData() converts it.
 
 // The endoilluminator's light (issue 16): a soft-edged cone (the fibre's light falls off towards the rim rather than

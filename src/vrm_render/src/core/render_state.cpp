@@ -9,7 +9,7 @@
 #include <type_traits>
 
 #include "vrm_render/stereo_renderer.h"
-#include "vrm_sim/hash.h"
+#include "vrm_scene/hash.h"
 
 namespace vrm_render {
 namespace {

@@ -4,10 +4,10 @@
 #include <cmath>
 #include <variant>
 
+#include "vrm_scene/meshes/eye_meshes.h"
+#include "vrm_scene/meshes/instrument_meshes.h"
+#include "vrm_scene/scene_loader.h"
 #include "vrm_sim/scenario/laser.h"
-#include "vrm_sim/scene/eye_meshes.h"
-#include "vrm_sim/scene/instrument_meshes.h"
-#include "vrm_sim/scene/scene_loader.h"
 
 namespace vrm_render {
 

@@ -118,11 +118,11 @@
 #include "vrm_render/image_io.h"
 #include "vrm_render/scene_setup.h"
 #include "vrm_render/stereo_renderer.h"
+#include "vrm_scene/instrument_model.h"
+#include "vrm_scene/meshes/mesh_generators.h"
+#include "vrm_scene/package_data.h"
+#include "vrm_scene/scene_loader.h"
 #include "vrm_sim/conversions.h"
-#include "vrm_sim/package_data.h"
-#include "vrm_sim/scene/instrument_model.h"
-#include "vrm_sim/scene/mesh_generators.h"
-#include "vrm_sim/scene/scene_loader.h"
 
 namespace vrm_render {
 

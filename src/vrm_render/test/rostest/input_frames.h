@@ -11,7 +11,7 @@
 #include <string>
 #include <vector>
 
-#include "vrm_sim/scene/scene_description.h"
+#include "vrm_scene/scene_description.h"
 
 namespace vrm_render::testing {
 

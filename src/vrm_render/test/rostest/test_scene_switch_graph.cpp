@@ -28,8 +28,8 @@
 #include <vector>
 
 #include "input_frames.h"
-#include "vrm_sim/package_data.h"
-#include "vrm_sim/scene/scene_loader.h"
+#include "vrm_scene/package_data.h"
+#include "vrm_scene/scene_loader.h"
 #include "vrm_sim/testing/graph_test.h"
 
 namespace {

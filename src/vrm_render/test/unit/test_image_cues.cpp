@@ -15,8 +15,8 @@
 #include "vrm_render/image_io.h"
 #include "vrm_render/scene_setup.h"
 #include "vrm_render/stereo_renderer.h"
-#include "vrm_sim/scene/eye_meshes.h"
-#include "vrm_sim/scene/instrument_meshes.h"
+#include "vrm_scene/meshes/eye_meshes.h"
+#include "vrm_scene/meshes/instrument_meshes.h"
 
 namespace vrm_render {
 namespace {

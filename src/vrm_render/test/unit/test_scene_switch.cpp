@@ -11,7 +11,7 @@
 
 #include "vrm_render/scene_setup.h"
 #include "vrm_render/stereo_renderer.h"
-#include "vrm_sim/scene/scene_loader.h"
+#include "vrm_scene/scene_loader.h"
 
 namespace vrm_render {
 namespace {

@@ -21,8 +21,8 @@
 #include "vrm_msgs/ScenarioStatus.h"
 #include "vrm_msgs/SimulationState.h"
 #include "vrm_msgs/TissueMesh.h"
+#include "vrm_scene/meshes/triangle_mesh.h"
 #include "vrm_sim/collision/collision_detector.h"
-#include "vrm_sim/triangle_mesh.h"
 #include "vrm_sim/world/world.h"
 
 namespace vrm_sim {

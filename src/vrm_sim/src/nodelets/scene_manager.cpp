@@ -36,12 +36,12 @@
 #include "vrm_msgs/SessionInfo.h"
 #include "vrm_msgs/TissueMesh.h"
 #include "vrm_msgs/publish.h"
+#include "vrm_scene/package_data.h"
+#include "vrm_scene/scene_loader.h"
 #include "vrm_sim/conversions.h"
 #include "vrm_sim/graph_failure.h"
 #include "vrm_sim/mge/membrane.h"
-#include "vrm_sim/package_data.h"
-#include "vrm_sim/scene/scene_loader.h"
-#include "vrm_sim/scene/tissue_setup.h"
+#include "vrm_sim/world/tissue_setup.h"
 
 namespace vrm_sim {
 
@@ -79,6 +79,7 @@ class SceneManager : public nodelet::Nodelet {
     const std::string difficulty = private_nh.param<std::string>("difficulty", "");
     try {
       scene_ = scene::loadScene(scene_parameter, difficulty);
+      world::checkSimulationNames(scene_);  // as the World does: a typo fails here too, not only in the simulation
       content_hash_ = scene::sceneContentHash(scene_.source_file, loadedDifficulty(scene_));
       buildObjects();
     } catch (const std::exception& error) {
@@ -139,6 +140,7 @@ class SceneManager : public nodelet::Nodelet {
     scene::SceneDescription next;
     try {
       next = scene::loadScene(announced->file, announced->difficulty);
+      world::checkSimulationNames(next);
     } catch (const std::exception& error) {
       NODELET_ERROR("scene_manager: cannot follow the running scene '%s' (%s): %s; still on '%s'",
                     announced->name.c_str(), announced->file.c_str(), error.what(), scene_.name.c_str());
@@ -171,7 +173,7 @@ class SceneManager : public nodelet::Nodelet {
       // Model only what the scene needs: mass-spring state exists for deformable objects only.
       if (object.isDeformable() && scene_.simulates(scene::Simulation::kTissue)) {
         membranes_[object.name] =
-            mge::buildMembrane(*graph_, mesh, scene::membraneOptionsFor(object.tissue, mesh.vertexCount()));
+            mge::buildMembrane(*graph_, mesh, world::membraneOptionsFor(object.tissue, mesh.vertexCount()));
       }
       meshes_.emplace(object.name, std::move(mesh));
     }

@@ -19,8 +19,8 @@
 #include "vrm_msgs/InstrumentState.h"
 #include "vrm_msgs/StageTiming.h"
 #include "vrm_msgs/TissueMesh.h"
+#include "vrm_scene/scene_loader.h"
 #include "vrm_sim/conversions.h"
-#include "vrm_sim/scene/scene_loader.h"
 #include "vrm_sim/testing/graph_test.h"
 
 namespace {

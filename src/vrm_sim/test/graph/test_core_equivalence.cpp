@@ -13,8 +13,8 @@
 #include "vrm_msgs/InstrumentState.h"
 #include "vrm_msgs/SimulationState.h"
 #include "vrm_msgs/TissueMesh.h"
+#include "vrm_scene/scene_loader.h"
 #include "vrm_sim/conversions.h"
-#include "vrm_sim/scene/scene_loader.h"
 #include "vrm_sim/world/offline.h"
 
 namespace vrm_sim {

@@ -21,8 +21,8 @@
 #include "vrm_msgs/ScenarioStatus.h"
 #include "vrm_msgs/Score.h"
 #include "vrm_msgs/SimulationState.h"
+#include "vrm_scene/scene_loader.h"
 #include "vrm_sim/conversions.h"
-#include "vrm_sim/scene/scene_loader.h"
 #include "vrm_sim/world/offline.h"
 
 namespace vrm_sim {

@@ -17,8 +17,8 @@
 #include "vrm_msgs/ScenarioStatus.h"
 #include "vrm_msgs/Score.h"
 #include "vrm_msgs/SimulationState.h"
+#include "vrm_scene/scene_loader.h"
 #include "vrm_sim/conversions.h"
-#include "vrm_sim/scene/scene_loader.h"
 #include "vrm_sim/world/offline.h"
 
 namespace vrm_sim {
@@ -109,8 +109,8 @@ TEST(ScenarioGraph, LoadStartPlayFinishScore) {
       command(vrm_msgs::ScenarioCommand::START, "", "", world::toSeconds(stamp));
     }
     if (tick == 60) {
-      command(vrm_msgs::ScenarioCommand::LOAD, std::string(VRM_SIM_SOURCE_DIR) + "/test/data/scenes/syntax_error.yaml",
-              "", world::toSeconds(stamp));
+      command(vrm_msgs::ScenarioCommand::LOAD,
+              std::string(VRM_SCENE_SOURCE_DIR) + "/test/data/scenes/syntax_error.yaml", "", world::toSeconds(stamp));
     }
     if (tick > 50 && !(refused_start && refused_load)) {
       std::lock_guard<std::mutex> lock(observed.mutex);

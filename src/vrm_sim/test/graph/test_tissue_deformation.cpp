@@ -15,8 +15,8 @@
 #include "vrm_msgs/ScenarioCommand.h"
 #include "vrm_msgs/StageTiming.h"
 #include "vrm_msgs/TissueMesh.h"
+#include "vrm_scene/scene_loader.h"
 #include "vrm_sim/conversions.h"
-#include "vrm_sim/scene/scene_loader.h"
 #include "vrm_sim/testing/graph_test.h"
 
 namespace {

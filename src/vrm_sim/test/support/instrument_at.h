@@ -4,7 +4,7 @@
 #include <Eigen/Geometry>
 #include <string>
 
-#include "vrm_sim/scene/scene_description.h"
+#include "vrm_scene/scene_description.h"
 #include "vrm_sim/world/inputs.h"
 
 namespace vrm_sim {

@@ -1,4 +1,4 @@
-// The tools' shared command line (vrm_sim/cli/cli.h, issue 34 part 2): --help, usage errors with exit status 2,
+// The tools' shared command line (vrm_scene/cli/cli.h, issue 34 part 2): --help, usage errors with exit status 2,
 // strict numbers; and every vrm_sim tool and benchmark answering --help with 0 and an unknown flag with 2.
 #include <gtest/gtest.h>
 #include <sys/wait.h>
@@ -10,7 +10,7 @@
 #include <string>
 #include <vector>
 
-#include "vrm_sim/cli/cli.h"
+#include "vrm_scene/cli/cli.h"
 
 namespace {
 

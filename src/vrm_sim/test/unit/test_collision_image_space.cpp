@@ -2,10 +2,10 @@
 // and the z-convexity check (§4.1.4).
 #include <gtest/gtest.h>
 
+#include "vrm_scene/meshes/mesh_utils.h"
+#include "vrm_scene/meshes/primitive_meshes.h"
 #include "vrm_sim/collision/image_space.h"
 #include "vrm_sim/collision/primitives.h"
-#include "vrm_sim/scene/mesh_utils.h"
-#include "vrm_sim/scene/primitive_meshes.h"
 
 namespace vrm_sim {
 namespace collision {

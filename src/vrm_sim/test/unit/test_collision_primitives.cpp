@@ -7,9 +7,9 @@
 #include <cstdlib>
 #include <limits>
 
+#include "vrm_scene/meshes/primitive_meshes.h"
 #include "vrm_sim/collision/collision_detector.h"
 #include "vrm_sim/collision/primitives.h"
-#include "vrm_sim/scene/primitive_meshes.h"
 
 namespace vrm_sim {
 namespace collision {

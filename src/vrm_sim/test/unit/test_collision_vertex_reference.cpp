@@ -6,9 +6,9 @@
 
 #include <set>
 
+#include "vrm_scene/meshes/primitive_meshes.h"
 #include "vrm_sim/collision/collision_detector.h"
 #include "vrm_sim/collision/primitives.h"
-#include "vrm_sim/scene/primitive_meshes.h"
 
 using Eigen::Vector3d;
 using namespace vrm_sim::collision;

@@ -5,12 +5,12 @@
 #include <cmath>
 #include <set>
 
+#include "vrm_scene/meshes/instrument_meshes.h"
+#include "vrm_scene/meshes/mesh_utils.h"
+#include "vrm_scene/meshes/primitive_meshes.h"
 #include "vrm_sim/collision/collision_detector.h"
 #include "vrm_sim/collision/primitives.h"
 #include "vrm_sim/mge/membrane.h"
-#include "vrm_sim/scene/instrument_meshes.h"
-#include "vrm_sim/scene/mesh_utils.h"
-#include "vrm_sim/scene/primitive_meshes.h"
 
 namespace vrm_sim {
 namespace collision {

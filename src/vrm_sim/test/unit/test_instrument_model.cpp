@@ -1,19 +1,25 @@
-// The instrument model (scene/instrument_model.h) and the registries of the scene's variation points: one definition
-// each, so the drawn instrument is the one that collides and a name the schema accepts is one a factory builds.
+// The instrument model (vrm_scene/instrument_model.h; its physics shapes in vrm_sim/world/instrument_shapes.h) and
+// the registries of the scene's variation points: one definition each, so the drawn instrument is the one that collides
+// and a name the schema accepts is one a factory builds.
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <set>
 #include <string>
 
+#include "vrm_scene/instrument_model.h"
+#include "vrm_scene/scene_loader.h"
 #include "vrm_sim/collision/collision_detector.h"
 #include "vrm_sim/scenario/scenario.h"
-#include "vrm_sim/scene/instrument_model.h"
-#include "vrm_sim/scene/scene_loader.h"
+#include "vrm_sim/world/instrument_shapes.h"
+#include "vrm_sim/world/tissue_setup.h"
 
 namespace vrm_sim {
 namespace scene {
 namespace {
+
+using world::collisionModel;
+using world::tissueShape;
 
 InstrumentDescription forcepsSlot() {
   InstrumentDescription forceps;
@@ -111,7 +117,9 @@ simulations: []
   auto load = [&](const std::string& detector) {
     std::string text = base;
     text.replace(text.find("DETECTOR"), 8, detector);
-    return loadSceneFromString(text, "t.yaml");
+    SceneDescription scene = loadSceneFromString(text, "t.yaml");
+    world::checkSimulationNames(scene);  // where the World checks the names the loader read as text (issue 42)
+    return scene;
   };
   for (const std::string& name : collision::detectorRegistry().names()) {
     EXPECT_EQ(load(name).objects[0].collision.detector, name);

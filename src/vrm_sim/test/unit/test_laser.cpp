@@ -5,9 +5,9 @@
 #include <cmath>
 #include <limits>
 
-#include "vrm_sim/anatomy/fundus_anatomy.h"
+#include "vrm_scene/anatomy/fundus_anatomy.h"
+#include "vrm_scene/instrument_model.h"
 #include "vrm_sim/scenario/laser.h"
-#include "vrm_sim/scene/instrument_model.h"
 
 namespace vrm_sim {
 namespace scenario {

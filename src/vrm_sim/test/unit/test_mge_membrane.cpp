@@ -10,8 +10,8 @@
 #include <stdexcept>
 #include <vector>
 
+#include "vrm_scene/meshes/triangle_mesh.h"
 #include "vrm_sim/mge/membrane.h"
-#include "vrm_sim/triangle_mesh.h"
 
 namespace vrm_sim {
 namespace mge {

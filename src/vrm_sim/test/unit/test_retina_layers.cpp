@@ -11,12 +11,12 @@
 #include <string>
 
 #include "../support/instrument_at.h"
+#include "vrm_scene/meshes/eye_meshes.h"
+#include "vrm_scene/scene_loader.h"
 #include "vrm_sim/mge/membrane.h"
-#include "vrm_sim/scene/eye_meshes.h"
-#include "vrm_sim/scene/scene_loader.h"
-#include "vrm_sim/scene/tissue_setup.h"
 #include "vrm_sim/tissue/tissue_simulator.h"
 #include "vrm_sim/world/mediator.h"
+#include "vrm_sim/world/tissue_setup.h"
 #include "vrm_sim/world/world.h"
 
 namespace vrm_sim {
@@ -41,7 +41,7 @@ scene::MembraneParams patch(int rings, bool everywhere) {
 std::unique_ptr<mge::Membrane> membraneOf(const TriangleMesh& mesh) {
   scene::TissueParameters parameters;
   parameters.model = "mass_spring";
-  return mge::buildMembrane(mesh, scene::membraneOptionsFor(parameters, mesh.vertexCount()));
+  return mge::buildMembrane(mesh, world::membraneOptionsFor(parameters, mesh.vertexCount()));
 }
 
 tissue::TissueConfig fluidConfig() {

@@ -10,9 +10,9 @@
 #include <random>
 #include <sstream>
 
+#include "vrm_scene/scene_loader.h"
 #include "vrm_sim/collision/primitives.h"
 #include "vrm_sim/scenario/rigid_body.h"
-#include "vrm_sim/scene/scene_loader.h"
 #include "vrm_sim/world/offline.h"
 #include "vrm_sim/world/world.h"
 

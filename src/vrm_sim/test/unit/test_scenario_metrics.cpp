@@ -5,10 +5,10 @@
 #include <cmath>
 #include <memory>
 
+#include "vrm_scene/scene_loader.h"
 #include "vrm_sim/scenario/light_cone.h"
 #include "vrm_sim/scenario/metrics.h"
 #include "vrm_sim/scenario/runner.h"
-#include "vrm_sim/scene/scene_loader.h"
 
 namespace vrm_sim {
 namespace scenario {

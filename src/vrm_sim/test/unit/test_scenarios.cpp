@@ -11,10 +11,10 @@
 #include <map>
 #include <memory>
 
+#include "vrm_scene/scene_loader.h"
 #include "vrm_sim/scenario/factor_groups.h"
 #include "vrm_sim/scenario/runner.h"
 #include "vrm_sim/scenario/scenario.h"
-#include "vrm_sim/scene/scene_loader.h"
 #include "vrm_sim/world/offline.h"
 #include "vrm_sim/world/session.h"
 
@@ -363,7 +363,7 @@ TEST(Session, LoadSwitchesTheSceneAndABrokenLoadKeepsTheSession) {
   ASSERT_GT(frames, 10u);
 
   // A broken YAML, an unknown scene, an unknown level: refused, the membrane session goes on untouched.
-  const std::string broken = std::string(VRM_SIM_SOURCE_DIR) + "/test/data/scenes/syntax_error.yaml";
+  const std::string broken = std::string(VRM_SCENE_SOURCE_DIR) + "/test/data/scenes/syntax_error.yaml";
   for (const auto& [scene_name, level] : std::vector<std::pair<std::string, std::string>>{
            {broken, ""}, {"no_such_scene", ""}, {"navigation", "impossible"}}) {
     session.handle(
@@ -413,7 +413,8 @@ TEST(ScenarioOffline, InterfaceExitCodesAndJson) {
   std::tie(code, output) = run("--list");
   EXPECT_EQ(code, 0);
   for (const std::string& name : scenarioNames()) EXPECT_NE(output.find(name + "\n"), std::string::npos) << output;
-  std::tie(code, output) = run("--scene " + std::string(VRM_SIM_SOURCE_DIR) + "/test/data/scenes/typo_in_tissue.yaml");
+  std::tie(code, output) =
+      run("--scene " + std::string(VRM_SCENE_SOURCE_DIR) + "/test/data/scenes/typo_in_tissue.yaml");
   EXPECT_EQ(code, 1) << output;
   EXPECT_NE(output.find("typo_in_tissue.yaml:"), std::string::npos) << output;
   std::tie(code, output) = run("--scene navigation --difficulty impossible");

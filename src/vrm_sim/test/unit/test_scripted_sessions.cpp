@@ -9,8 +9,8 @@
 #include <string>
 #include <vector>
 
-#include "vrm_sim/scene/scene_loader.h"
-#include "vrm_sim/scene/surface_target.h"
+#include "vrm_scene/scene_loader.h"
+#include "vrm_scene/surface_target.h"
 #include "vrm_sim/world/offline.h"
 
 namespace vrm_sim {

@@ -10,8 +10,8 @@
 #include <string>
 
 #include "../test_files.h"
+#include "vrm_scene/scene_loader.h"
 #include "vrm_sim/result/session_result.h"
-#include "vrm_sim/scene/scene_loader.h"
 #include "vrm_sim/world/offline.h"
 #include "vrm_sim/world/session_result.h"
 #include "vrm_sim/world/world.h"

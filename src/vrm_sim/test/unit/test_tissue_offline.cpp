@@ -7,10 +7,11 @@
 #include <string>
 #include <utility>
 
-#include "vrm_sim/scene/instrument_model.h"
-#include "vrm_sim/scene/scene_loader.h"
-#include "vrm_sim/scene/tissue_setup.h"
+#include "vrm_scene/instrument_model.h"
+#include "vrm_scene/scene_loader.h"
+#include "vrm_sim/world/instrument_shapes.h"
 #include "vrm_sim/world/offline.h"
+#include "vrm_sim/world/tissue_setup.h"
 
 namespace vrm_sim {
 namespace tissue {
@@ -78,13 +79,13 @@ TEST(TissueOffline, PeelingPathLoadsAndMovesTheForceps) {
   ASSERT_NE(forceps, nullptr);
   ASSERT_EQ(forceps->path.size(), 6u);
   // Interpolated between waypoints, held after the last one; the shaft points from the trocar to the tip.
-  const InstrumentInput mid = vrm_sim::scene::scriptedInstrument(scene, *forceps, 0.5);
+  const InstrumentInput mid = vrm_sim::world::scriptedInstrument(scene, *forceps, 0.5);
   EXPECT_NEAR(mid.jaw_angle, 0.0, 1e-12);
   const Eigen::Vector3d expected = 0.5 * (forceps->path[2].tip_in_eye + forceps->path[3].tip_in_eye);
   EXPECT_TRUE(mid.pose.translation().isApprox(expected, 1e-12));
   const Eigen::Vector3d shaft = (mid.pose.translation() - scene.findTrocar("right")->position_in_eye).normalized();
   EXPECT_TRUE(mid.pose.linear().col(2).isApprox(shaft, 1e-12));
-  EXPECT_NEAR(vrm_sim::scene::scriptedInstrument(scene, *forceps, 5.0).jaw_angle, 30.0 * M_PI / 180.0, 1e-12);
+  EXPECT_NEAR(vrm_sim::world::scriptedInstrument(scene, *forceps, 5.0).jaw_angle, 30.0 * M_PI / 180.0, 1e-12);
 }
 
 TEST(TissueOffline, SceneTissueParametersReachTheSimulatorConfig) {
@@ -93,7 +94,7 @@ TEST(TissueOffline, SceneTissueParametersReachTheSimulatorConfig) {
   yaml.replace(yaml.find(key), key.size(),
                "{model: mass_spring, integrator: rk2, dt: 5.0e-4, early_stop_force: 1.0e-6}");
   const scene::SceneDescription scene = scene::loadSceneFromString(yaml, "early_stop.yaml");
-  const TissueConfig config = vrm_sim::scene::tissueConfigFor(scene.objects[0].tissue, scene.objects[0].collision);
+  const TissueConfig config = vrm_sim::world::tissueConfigFor(scene.objects[0].tissue, scene.objects[0].collision);
   EXPECT_EQ(config.integrator, "rk2");
   EXPECT_EQ(config.dt, 5e-4);
   EXPECT_EQ(config.early_stop_force, 1e-6);

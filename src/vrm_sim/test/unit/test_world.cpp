@@ -7,8 +7,8 @@
 #include <string>
 
 #include "../support/instrument_at.h"
+#include "vrm_scene/scene_loader.h"
 #include "vrm_sim/mge/membrane.h"
-#include "vrm_sim/scene/scene_loader.h"
 #include "vrm_sim/tissue/tissue_simulator.h"
 #include "vrm_sim/tissue/topology.h"
 #include "vrm_sim/world/world.h"

@@ -68,7 +68,7 @@ CameraRig makeDefaultRig(const DefaultRigGeometry& geometry = DefaultRigGeometry
 
 // Standard camera calibration YAML (image_width, image_height, camera_name, camera_matrix, distortion_model,
 // distortion_coefficients, rectification_matrix, projection_matrix) + world_to_camera {rotation (3×3 row major),
-// translation [m]}. Missing world_to_camera = identity. Read by the strict reader (vrm_sim/yaml/strict_reader.h):
+// translation [m]}. Missing world_to_camera = identity. Read by the strict reader (vrm_scene/yaml/strict_reader.h):
 // unknown keys and bad values throw vrm_sim::YamlError (a std::runtime_error) "<file>:<line>:<column>: <field>: ...".
 CameraModel cameraFromYaml(const YAML::Node& node, const std::string& source);
 void cameraToYaml(const CameraModel& camera, YAML::Emitter* out);

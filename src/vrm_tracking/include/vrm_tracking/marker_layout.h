@@ -69,7 +69,7 @@ MarkerLayout makeDefaultLayout();
 // eye_markers: [{class, position}], instruments: [{slot, class, trocar}], rotation_center, eye_marker_radius,
 // tip_marker_radius, shaft_radius, shaft_length}; every key optional except a class's name and a marker's class
 // (and slot); classes are referenced by name; trocar is optional (absent: trocar_from_scene). Read by the strict
-// reader (vrm_sim/yaml/strict_reader.h): unknown keys, duplicate names or slots and out-of-range values throw
+// reader (vrm_scene/yaml/strict_reader.h): unknown keys, duplicate names or slots and out-of-range values throw
 // vrm_sim::YamlError (a std::runtime_error) reading "<file>:<line>:<column>: <field>: <problem>", with a typo hint.
 MarkerLayout layoutFromYamlString(const std::string& text, const std::string& source = "<string>");
 MarkerLayout loadLayoutYaml(const std::string& path);

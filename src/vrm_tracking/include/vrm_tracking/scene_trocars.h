@@ -4,7 +4,7 @@
 // the nodelets apply their ~scene, or without one the default scene (vrm_sim::scene::kDefaultSceneName), so the twin
 // surgeon, the tracker and the VR part pivot the instruments at the same points. A script (the scene's format,
 // vrm_sim::scene::ScriptedSession) is played in a scene (playInScene): its waypoints written `on` scene objects are
-// put on that object's surface (vrm_sim/scene/surface_target.h), every shaft pivots at the scene's trocar of its slot.
+// put on that object's surface (vrm_scene/surface_target.h), every shaft pivots at the scene's trocar of its slot.
 // ROS-free; links vrm_sim's scene library (vrm_scene).
 
 #include <Eigen/Core>
@@ -12,9 +12,9 @@
 #include <string>
 #include <vector>
 
-#include "vrm_sim/scene/scene_description.h"
-#include "vrm_sim/scene/surface_target.h"
-#include "vrm_sim/triangle_mesh.h"
+#include "vrm_scene/meshes/triangle_mesh.h"
+#include "vrm_scene/scene_description.h"
+#include "vrm_scene/surface_target.h"
 #include "vrm_tracking/marker_layout.h"
 #include "vrm_tracking/surgeon_script.h"
 

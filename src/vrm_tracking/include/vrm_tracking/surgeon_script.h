@@ -20,8 +20,8 @@
 #include <string>
 #include <vector>
 
-#include "vrm_sim/scene/instrument_model.h"
-#include "vrm_sim/scene/scene_description.h"
+#include "vrm_scene/instrument_model.h"
+#include "vrm_scene/scene_description.h"
 
 namespace vrm_tracking {
 

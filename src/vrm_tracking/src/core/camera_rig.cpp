@@ -8,7 +8,7 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "vrm_sim/yaml/strict_reader.h"
+#include "vrm_scene/yaml/strict_reader.h"
 
 namespace vrm_tracking {
 

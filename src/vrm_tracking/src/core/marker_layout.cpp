@@ -4,7 +4,7 @@
 #include <string>
 #include <vector>
 
-#include "vrm_sim/yaml/strict_reader.h"
+#include "vrm_scene/yaml/strict_reader.h"
 
 namespace vrm_tracking {
 

@@ -8,8 +8,8 @@
 #include <stdexcept>
 #include <string>
 
-#include "vrm_sim/package_data.h"
-#include "vrm_sim/scene/scene_loader.h"
+#include "vrm_scene/package_data.h"
+#include "vrm_scene/scene_loader.h"
 #include "vrm_tracking/conversions.h"
 #include "vrm_tracking/scenario_devices.h"
 #include "vrm_tracking/scene_trocars.h"

@@ -7,7 +7,7 @@
 #include <utility>
 #include <vector>
 
-#include "vrm_sim/scene/scene_loader.h"
+#include "vrm_scene/scene_loader.h"
 
 namespace vrm_tracking {
 

@@ -18,7 +18,7 @@
 #include <string>
 #include <vector>
 
-#include "vrm_sim/cli/cli.h"
+#include "vrm_scene/cli/cli.h"
 #include "vrm_tracking/calibration.h"
 #include "vrm_tracking/camera_rig.h"
 

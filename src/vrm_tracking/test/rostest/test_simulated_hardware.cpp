@@ -16,8 +16,8 @@
 #include <string>
 #include <vector>
 
-#include "vrm_sim/package_data.h"
-#include "vrm_sim/scene/scene_loader.h"
+#include "vrm_scene/package_data.h"
+#include "vrm_scene/scene_loader.h"
 #include "vrm_sim/testing/graph_test.h"
 #include "vrm_tracking/conversions.h"
 #include "vrm_tracking/scene_trocars.h"

@@ -5,7 +5,7 @@
 #include <Eigen/Core>
 #include <string>
 
-#include "vrm_sim/scene/scene_loader.h"
+#include "vrm_scene/scene_loader.h"
 #include "vrm_tracking/scene_trocars.h"
 #include "vrm_tracking/surgeon_script.h"
 

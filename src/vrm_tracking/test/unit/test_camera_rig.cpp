@@ -7,7 +7,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "vrm_sim/yaml/yaml_error.h"
+#include "vrm_scene/yaml/yaml_error.h"
 #include "vrm_tracking/camera_rig.h"
 
 namespace vrm_tracking {

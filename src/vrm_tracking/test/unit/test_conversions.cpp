@@ -2,7 +2,7 @@
 
 #include <gtest/gtest.h>
 
-#include "vrm_sim/scene/scene_loader.h"
+#include "vrm_scene/scene_loader.h"
 #include "vrm_tracking/conversions.h"
 #include "vrm_tracking/scene_trocars.h"
 

@@ -9,7 +9,7 @@
 #include <opencv2/imgproc.hpp>
 #include <tuple>
 
-#include "vrm_sim/yaml/yaml_error.h"
+#include "vrm_scene/yaml/yaml_error.h"
 #include "vrm_tracking/marker_detector.h"
 #include "vrm_tracking/pose_tracker.h"
 #include "vrm_tracking/rig_renderer.h"
@@ -291,7 +291,7 @@ instruments:
   EXPECT_THROW(layoutFromYamlString("eye_markers:\n  - {class: eye_a, position: [0, 0, 0]}"), std::runtime_error);
 }
 
-// The strict reader's contract (vrm_sim/yaml/strict_reader.h), as for scenes: file:line:col, the field, a typo hint;
+// The strict reader's contract (vrm_scene/yaml/strict_reader.h), as for scenes: file:line:col, the field, a typo hint;
 // a key the format does not have is an error (a layout that relied on one being ignored now names it).
 std::string layoutError(const std::string& text) {
   try {

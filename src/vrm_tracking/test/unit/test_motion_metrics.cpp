@@ -5,7 +5,7 @@
 #include <cmath>
 #include <random>
 
-#include "vrm_sim/scene/scene_loader.h"
+#include "vrm_scene/scene_loader.h"
 #include "vrm_tracking/motion_metrics.h"
 #include "vrm_tracking/scene_trocars.h"
 #include "vrm_tracking/surgeon_script.h"

@@ -8,7 +8,7 @@
 #include <limits>
 #include <opencv2/imgproc.hpp>
 
-#include "vrm_sim/scene/scene_loader.h"
+#include "vrm_scene/scene_loader.h"
 #include "vrm_tracking/evaluation.h"
 #include "vrm_tracking/marker_detector.h"
 #include "vrm_tracking/marker_layout.h"

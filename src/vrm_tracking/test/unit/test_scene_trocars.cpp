@@ -10,7 +10,7 @@
 #include <string>
 #include <variant>
 
-#include "vrm_sim/scene/scene_loader.h"
+#include "vrm_scene/scene_loader.h"
 #include "vrm_sim/world/world.h"
 #include "vrm_tracking/scene_trocars.h"
 #include "vrm_tracking/tracker_diagnostics.h"

@@ -9,7 +9,7 @@
 #include <vector>
 
 #include "script_fixtures.h"
-#include "vrm_sim/scene/scene_loader.h"
+#include "vrm_scene/scene_loader.h"
 #include "vrm_tracking/scene_trocars.h"
 #include "vrm_tracking/surgeon_script.h"
 

@@ -1,4 +1,4 @@
-// vrm_tracking's tools on the shared command line (vrm_sim/cli/cli.h, issue 34 part 2), run as processes: --help
+// vrm_tracking's tools on the shared command line (vrm_scene/cli/cli.h, issue 34 part 2), run as processes: --help
 // exits 0 with the usage, an unknown flag or a bad value exits 2 with one line on stderr, before any work.
 #include <gtest/gtest.h>
 #include <sys/wait.h>

@@ -2,7 +2,7 @@
 // session's total, optionally a pass mark over the whole battery (the sum of the steps' best totals; published EyeSi
 // programmes use e.g. 596 of 700 over seven modules, Jaud 2021). Passing a step unlocks the next.
 //
-// The file is YAML read through the project's one strict reader (vrm_sim/yaml/strict_reader.h), so every problem is
+// The file is YAML read through the project's one strict reader (vrm_scene/yaml/strict_reader.h), so every problem is
 // a YamlError "<file>:<line>:<column>: <field>: <problem>" and a misspelt key is an error:
 //
 //   name: Basic vitreoretinal course       # required
@@ -24,7 +24,7 @@
 #include <vector>
 
 #include "eyesi_gui/records/store.h"
-#include "vrm_sim/yaml/yaml_error.h"
+#include "vrm_scene/yaml/yaml_error.h"
 
 namespace eyesi_gui::records {
 

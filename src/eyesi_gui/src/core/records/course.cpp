@@ -3,7 +3,7 @@
 #include <algorithm>
 #include <filesystem>
 
-#include "vrm_sim/yaml/strict_reader.h"
+#include "vrm_scene/yaml/strict_reader.h"
 
 namespace eyesi_gui::records {
 namespace fs = std::filesystem;

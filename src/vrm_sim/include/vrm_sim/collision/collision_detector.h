@@ -40,8 +40,8 @@
 #include <string>
 #include <vector>
 
-#include "vrm_sim/registry.h"
-#include "vrm_sim/triangle_mesh.h"
+#include "vrm_scene/meshes/triangle_mesh.h"
+#include "vrm_scene/registry.h"
 
 namespace vrm_sim {
 namespace mge {

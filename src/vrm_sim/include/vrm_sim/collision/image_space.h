@@ -13,7 +13,7 @@
 #include <optional>
 #include <vector>
 
-#include "vrm_sim/triangle_mesh.h"
+#include "vrm_scene/meshes/triangle_mesh.h"
 
 namespace vrm_sim {
 namespace collision {

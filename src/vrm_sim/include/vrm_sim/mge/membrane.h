@@ -13,11 +13,11 @@
 #include <optional>
 #include <vector>
 
+#include "vrm_scene/meshes/triangle_mesh.h"
 #include "vrm_sim/mge/array_manager.h"
 #include "vrm_sim/mge/elements.h"
 #include "vrm_sim/mge/graph.h"
 #include "vrm_sim/mge/list_access.h"
-#include "vrm_sim/triangle_mesh.h"
 
 namespace vrm_sim {
 namespace mge {

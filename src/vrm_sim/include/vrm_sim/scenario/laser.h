@@ -27,7 +27,7 @@
 #include <string>
 #include <vector>
 
-#include "vrm_sim/anatomy/fundus_anatomy.h"
+#include "vrm_scene/anatomy/fundus_anatomy.h"
 #include "vrm_sim/scenario/scenario.h"
 
 namespace vrm_sim {

@@ -15,9 +15,9 @@
 #include <string>
 #include <vector>
 
-#include "vrm_sim/hash.h"
-#include "vrm_sim/registry.h"
-#include "vrm_sim/scene/scene_description.h"
+#include "vrm_scene/hash.h"
+#include "vrm_scene/registry.h"
+#include "vrm_scene/scene_description.h"
 
 namespace vrm_sim {
 namespace scenario {

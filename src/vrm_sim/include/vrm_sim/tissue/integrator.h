@@ -10,7 +10,7 @@
 #include <string>
 #include <vector>
 
-#include "vrm_sim/registry.h"
+#include "vrm_scene/registry.h"
 #include "vrm_sim/tissue/system.h"
 
 namespace vrm_sim {

@@ -4,8 +4,8 @@
 
 #include <memory>
 
+#include "vrm_scene/meshes/triangle_mesh.h"
 #include "vrm_sim/mge/membrane.h"
-#include "vrm_sim/triangle_mesh.h"
 
 namespace vrm_sim {
 namespace tissue {

@@ -12,7 +12,7 @@
 #include <memory>
 #include <string>
 
-#include "vrm_sim/registry.h"
+#include "vrm_scene/registry.h"
 
 namespace vrm_sim {
 namespace mge {

@@ -19,6 +19,7 @@
 #include <string>
 #include <vector>
 
+#include "vrm_scene/instrument_limits.h"
 #include "vrm_sim/tissue/chainmail.h"
 #include "vrm_sim/tissue/contact.h"
 #include "vrm_sim/tissue/integrator.h"
@@ -129,8 +130,8 @@ struct TissueConfig {
 // open jaws push tissue only under the blades, and tissue between them can be grasped. Their mid-plane is the
 // instrument's xz plane. An instrument that holds a grasp pushes nothing (its grasped nodes follow it instead).
 // The forceps open no further than this (rad, full opening): the jaw capsules here and the instrument model's meshes
-// (scene/instrument_model.h) stop at the same angle.
-constexpr double kMaxJawOpening = 1.5;
+// stop at the same angle, the scene floor's (vrm_scene/instrument_limits.h).
+using scene::kMaxJawOpening;
 
 struct InstrumentInput {
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();

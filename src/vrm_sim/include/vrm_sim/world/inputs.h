@@ -8,7 +8,7 @@
 #include <optional>
 #include <string>
 
-#include "vrm_sim/scene/scene_description.h"
+#include "vrm_scene/scene_description.h"
 
 namespace vrm_sim {
 namespace world {

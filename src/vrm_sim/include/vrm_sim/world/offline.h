@@ -10,8 +10,8 @@
 #include <string>
 #include <vector>
 
+#include "vrm_scene/scene_description.h"
 #include "vrm_sim/result/session_result.h"
-#include "vrm_sim/scene/scene_description.h"
 #include "vrm_sim/world/world.h"
 
 namespace vrm_sim {

@@ -33,9 +33,9 @@
 #include <string>
 #include <vector>
 
+#include "vrm_scene/scene_description.h"
 #include "vrm_sim/collision/collision_detector.h"
 #include "vrm_sim/scenario/runner.h"
-#include "vrm_sim/scene/scene_description.h"
 #include "vrm_sim/world/bleeding.h"
 #include "vrm_sim/world/inputs.h"
 #include "vrm_sim/world/mediator.h"

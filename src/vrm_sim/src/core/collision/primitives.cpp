@@ -5,8 +5,8 @@
 #include <limits>
 #include <vector>
 
-#include "vrm_sim/scene/mesh_utils.h"
-#include "vrm_sim/scene/primitive_meshes.h"
+#include "vrm_scene/meshes/mesh_utils.h"
+#include "vrm_scene/meshes/primitive_meshes.h"
 
 namespace vrm_sim {
 namespace collision {

@@ -6,10 +6,10 @@
 #include <string>
 #include <vector>
 
+#include "vrm_scene/scene_loader.h"
 #include "vrm_sim/scenario/light_cone.h"
 #include "vrm_sim/scenario/metrics.h"
 #include "vrm_sim/scenario/scenario.h"
-#include "vrm_sim/scene/scene_loader.h"
 
 namespace vrm_sim {
 namespace scenario {

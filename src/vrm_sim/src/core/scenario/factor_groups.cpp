@@ -2,8 +2,8 @@
 
 #include <cstring>
 
+#include "vrm_scene/scene_description.h"
 #include "vrm_sim/scenario/runner.h"
-#include "vrm_sim/scene/scene_description.h"
 
 namespace vrm_sim {
 namespace scenario {

@@ -3,7 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
-#include "vrm_sim/hash.h"
+#include "vrm_scene/hash.h"
 
 namespace vrm_sim {
 namespace scenario {

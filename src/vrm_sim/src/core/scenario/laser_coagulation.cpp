@@ -14,8 +14,8 @@
 
 #include "common.h"
 #include "scenarios.h"
+#include "vrm_scene/scene_fundus.h"
 #include "vrm_sim/scenario/laser.h"
-#include "vrm_sim/scene/scene_fundus.h"
 
 namespace vrm_sim {
 namespace scenario {

@@ -8,7 +8,7 @@
 
 #include "common.h"
 #include "scenarios.h"
-#include "vrm_sim/scene/eye_meshes.h"
+#include "vrm_scene/meshes/eye_meshes.h"
 
 namespace vrm_sim {
 namespace scenario {

@@ -4,7 +4,7 @@
 #include <cmath>
 #include <cstdio>
 
-#include "vrm_sim/scene/scene_loader.h"
+#include "vrm_scene/scene_loader.h"
 
 namespace vrm_sim {
 namespace scenario {

@@ -8,12 +8,13 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "vrm_scene/instrument_model.h"
+#include "vrm_scene/scene_loader.h"
+#include "vrm_scene/surface_target.h"
 #include "vrm_sim/mge/membrane.h"
-#include "vrm_sim/scene/instrument_model.h"
-#include "vrm_sim/scene/scene_loader.h"
-#include "vrm_sim/scene/surface_target.h"
 #include "vrm_sim/tissue/integrator.h"
 #include "vrm_sim/tissue/tissue_simulator.h"
+#include "vrm_sim/world/instrument_shapes.h"
 #include "vrm_sim/world/session_result.h"
 
 namespace vrm_sim {
@@ -93,7 +94,7 @@ std::vector<InstrumentState> scriptedInputsAt(const scene::SceneDescription& sce
   std::vector<InstrumentState> inputs;
   for (const auto& instrument : scene.instruments) {
     if (instrument.path.empty()) continue;
-    const tissue::InstrumentInput scripted = scene::scriptedInstrument(scene, instrument, t);
+    const tissue::InstrumentInput scripted = scriptedInstrument(scene, instrument, t);
     InstrumentState state;
     state.stamp = stamp;
     state.slot = scene::toString(instrument.slot);

@@ -1,6 +1,6 @@
 #include "vrm_sim/world/session.h"
 
-#include "vrm_sim/scene/scene_loader.h"
+#include "vrm_scene/scene_loader.h"
 
 namespace vrm_sim {
 namespace world {

@@ -9,13 +9,14 @@
 #include <unordered_map>
 #include <variant>
 
-#include "vrm_sim/hash.h"
+#include "vrm_scene/hash.h"
+#include "vrm_scene/instrument_model.h"
+#include "vrm_scene/meshes/instrument_meshes.h"
+#include "vrm_scene/scene_loader.h"
 #include "vrm_sim/mge/membrane.h"
-#include "vrm_sim/scene/instrument_meshes.h"
-#include "vrm_sim/scene/instrument_model.h"
-#include "vrm_sim/scene/scene_loader.h"
-#include "vrm_sim/scene/tissue_setup.h"
 #include "vrm_sim/tissue/tissue_simulator.h"
+#include "vrm_sim/world/instrument_shapes.h"
+#include "vrm_sim/world/tissue_setup.h"
 
 namespace vrm_sim {
 namespace world {
@@ -132,6 +133,7 @@ World::World(scene::SceneDescription scene, WorldOptions options)
     };
   }
   if (!(options_.max_frame_time > 0.0)) throw std::invalid_argument("world: max_frame_time must be positive");
+  checkSimulationNames(scene_);
   started_ = options_.auto_start;
   buildInstruments();
   buildTissues();
@@ -196,7 +198,7 @@ void World::buildInstruments() {
 // alternative. The collision model is rebuilt on the next query.
 void World::setInstrumentType(Instrument& instrument, scene::InstrumentType type) {
   instrument.current = scene::instrumentOfType(*instrument.description, type);
-  instrument.shape = scene::tissueShape(instrument.current);
+  instrument.shape = tissueShape(instrument.current);
   instrument.model_version = 0;  // collide() rebuilds the collision model before the next query
   instrument.model_jaw_deg = -1000;
 }
@@ -249,8 +251,8 @@ void World::resetTissues() {
     const scene::ObjectDescription& object = *tissue->object;
     const TriangleMesh mesh = scene::buildMesh(object, scene::MeshFrame::kParent);
     tissue->simulator.reset();
-    tissue->membrane = mge::buildMembrane(mesh, scene::membraneOptionsFor(object.tissue, mesh.vertexCount()));
-    tissue::TissueConfig config = scene::tissueConfigFor(object.tissue, object.collision);
+    tissue->membrane = mge::buildMembrane(mesh, membraneOptionsFor(object.tissue, mesh.vertexCount()));
+    tissue::TissueConfig config = tissueConfigFor(object.tissue, object.collision);
     if (config.fluid_modulus > 0.0) {
       // The fluid fills the space between the sheet and the wall it rests on: the sphere through its rest nodes.
       double radius = 0.0;
@@ -917,7 +919,7 @@ collision::CollisionResult World::collide(Collider& collider, const std::string&
                                           const Eigen::Isometry3d& pose, const collision::SurfaceView& surface) {
   const int jaw_deg = scene::jawStepDeg(instrument.current.type, instrument.jaw_angle);
   if (instrument.model_version == 0 || jaw_deg != instrument.model_jaw_deg) {
-    instrument.model = scene::collisionModel(instrument.current, jaw_deg);
+    instrument.model = collisionModel(instrument.current, jaw_deg);
     instrument.model_jaw_deg = jaw_deg;
     ++instrument.model_version;
   }
