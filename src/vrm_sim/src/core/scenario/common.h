@@ -14,6 +14,8 @@
 namespace vrm_sim {
 namespace scenario {
 
+constexpr double kPi = 3.14159265358979323846;
+
 // Reads the scenario's `params`; every parameter a type does not ask for is an error on finish(), like the loader's
 // unknown keys, so a misspelt parameter never silently leaves a default in place.
 class Params {
