@@ -48,6 +48,10 @@ struct Sphere {
 };
 Sphere sphereOf(const scene::ObjectDescription& object, Params& params, const std::string& parameter);
 
+// A scene object the scenario works on as tissue: it must have a tissue model.
+const scene::ObjectDescription& deformableObject(Params& params, const std::string& parameter,
+                                                 const std::string& fallback);
+
 // Retina contacts of every instrument: the simulation core's contact events where the retina is simulated
 // (bleeding), else the instrument tips' distance to the eye sphere (enter below 50 µm, leave above 100 µm).
 class RetinaContacts {
