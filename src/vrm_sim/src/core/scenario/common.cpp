@@ -95,6 +95,13 @@ Sphere sphereOf(const scene::ObjectDescription& object, Params& params, const st
   return {object.name, object.pose.xyz, sphere->radius};
 }
 
+const scene::ObjectDescription& deformableObject(Params& params, const std::string& parameter,
+                                                 const std::string& fallback) {
+  const scene::ObjectDescription& object = params.object(parameter, fallback);
+  if (!object.isDeformable()) params.fail(parameter, "object '" + object.name + "' is not deformable (tissue model)");
+  return object;
+}
+
 void RetinaContacts::update(const FrameView& frame) {
   if (frame.retina.simulated) {
     if (!first_events_) first_events_ = frame.retina.contact_events - (frame.retina.in_contact ? 1 : 0);

@@ -14,6 +14,8 @@
 namespace vrm_sim {
 namespace scenario {
 
+constexpr double kPi = 3.14159265358979323846;
+
 // Reads the scenario's `params`; every parameter a type does not ask for is an error on finish(), like the loader's
 // unknown keys, so a misspelt parameter never silently leaves a default in place.
 class Params {
@@ -45,6 +47,10 @@ struct Sphere {
   double radius = 0.0;
 };
 Sphere sphereOf(const scene::ObjectDescription& object, Params& params, const std::string& parameter);
+
+// A scene object the scenario works on as tissue: it must have a tissue model.
+const scene::ObjectDescription& deformableObject(Params& params, const std::string& parameter,
+                                                 const std::string& fallback);
 
 // Retina contacts of every instrument: the simulation core's contact events where the retina is simulated
 // (bleeding), else the instrument tips' distance to the eye sphere (enter below 50 µm, leave above 100 µm).
