@@ -3,8 +3,8 @@
 # it. Installs the built workspace (build/, `cmake --install`, no second build) into a temporary directory, then, in a
 # clean environment that sources only <prefix>/setup.bash and with a working directory outside the checkout:
 #   1. the environment (ROS_PACKAGE_PATH, PATH, LD_LIBRARY_PATH, PYTHONPATH, CMAKE_PREFIX_PATH) names no path in the
-#      checkout, every package resolves into the prefix, every nodelet plugin library exists there, and no installed
-#      text file names the checkout;
+#      checkout, every package resolves into the prefix, every nodelet plugin library exists there, the graph tools
+#      the launch files start are in lib/vrm_graph, and no installed text file names the checkout;
 #   2. rosrun vrm_sim tissue_offline --scene membrane_peeling --seconds 0.2 gives the devel space's state hash;
 #   3. roslaunch vrm_bringup simulator.launch runs 10 s headless (simulated hardware, recording; the scripted expert), the
 #      renderer saves a stereo frame, the session writes its result, the installed session_replay replays the bag to
@@ -109,7 +109,7 @@ if grep -q "$ROOT" <<<"$env_dump"; then
 else
   pass "environment: $(grep ROS_PACKAGE_PATH <<<"$env_dump"), nothing in $ROOT"
 fi
-for package in vrm_msgs vrm_gl vrm_sim vrm_tracking vrm_render eyesi_gui vrm_bringup; do
+for package in vrm_msgs vrm_gl vrm_sim vrm_graph vrm_tracking vrm_render eyesi_gui vrm_bringup; do
   where=$(installed rospack find "$package" 2>/dev/null || true)
   [[ $where == "$PREFIX/share/$package" ]] || fail "rospack find $package -> '$where' (expected $PREFIX/share/$package)"
 done
@@ -130,10 +130,25 @@ unresolved=$(installed bash -c 'for f in $(find "$1/lib" -maxdepth 2 -type f \( 
 if [[ -z $unresolved ]]; then pass "installed executables and libraries resolve their libraries outside the checkout"
 else fail "unresolved or checkout libraries:"; echo "$unresolved" | head -n 10 | sed 's/^/    /'; fi
 plugin_list=$(installed rospack plugins --attrib=plugin nodelet 2>/dev/null || true)
-for package in vrm_sim vrm_tracking vrm_render; do
+for package in vrm_sim vrm_graph vrm_tracking vrm_render; do
   grep -q "^$package $PREFIX/share/$package/nodelet_plugins.xml" <<<"$plugin_list" \
     || fail "rospack plugins: no installed nodelet plugins of $package"
 done
+# The graph infrastructure (vrm_graph, issue 42): the launch files start its tools by package name, so each must be
+# where rosrun looks in the prefix, and its monitors' configuration in its share.
+missing_graph=""
+for tool in nodelet_keeper supervised_manager session_recorder session_control input_relay; do
+  [[ -x $PREFIX/lib/vrm_graph/$tool ]] || missing_graph+=" lib/vrm_graph/$tool"
+done
+for file in share/vrm_graph/package.xml share/vrm_graph/nodelet_plugins.xml share/vrm_graph/config/input_monitor.yaml \
+    lib/libvrm_graph_nodelets.so; do
+  [[ -f $PREFIX/$file ]] || missing_graph+=" $file"
+done
+for tool in nodelet_keeper supervised_manager session_recorder session_control input_relay; do
+  [[ ! -e $PREFIX/lib/vrm_sim/$tool ]] || missing_graph+=" (still installed: lib/vrm_sim/$tool)"
+done
+if [[ -z $missing_graph ]]; then pass "vrm_graph's tools, scripts, plugin library and config installed"
+else fail "vrm_graph install:$missing_graph"; fi
 # Installed text files (launch, config, scripts, setup files) must not name the checkout. CMake package configs may
 # name it only in the devel-space variant, which is not installed.
 named=$(grep -rIl "$ROOT" "$PREFIX" 2>/dev/null | head -n 10 || true)

@@ -87,7 +87,7 @@ echo "soak.sh: ${minutes} min$([[ $suffix == *.quick ]] && echo " (smoke mode: b
   "scene membrane_peeling, tracking, recording to $bag; run folder $out"
 # duration:=0: session_control starts the session once the recorder listens and never stops it; the monitor's
 # cycles are the session's STOP/LOAD/START (recorded inputs, like the console's).
-# A manager that crashes leaves its core and every thread's stack in the run folder (vrm_sim/supervised_manager).
+# A manager that crashes leaves its core and every thread's stack in the run folder (vrm_graph/supervised_manager).
 VRM_MANAGER_CORE_DIR="$out" setsid roslaunch -p "$port" "$tree/launch/simulator.launch" headless:=true sim:=true tracking:=true record:=true \
   duration:=0 "bag:=$bag" scene:=membrane_peeling "${extra[@]}" >"$out/launch.log" 2>&1 &
 launch_pid=$!

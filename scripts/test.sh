@@ -197,7 +197,7 @@ script_test records_export export_round_trips_and_pseudonymises /usr/bin/python3
 # Runtime faults of the product graph (issues 14, 39): crashes (crash = pause; no gap in the record), a hostile flood,
 # a consumer that never reads, the recorder's disk full.
 for fault in manager_crash recorder_crash hostile_flood slow_consumer disk_full; do
-  script_test "fault_$fault" "$fault" /usr/bin/python3 "$ROOT/src/vrm_sim/test/faults/graph_faults.py" "$fault"
+  script_test "fault_$fault" "$fault" /usr/bin/python3 "$ROOT/src/vrm_graph/test/faults/graph_faults.py" "$fault"
 done
 # The install space runs the simulator without the source tree (issue 18): a temporary prefix, strace for the checkout.
 # A new user's first hour (issue 20): a failed graph fails the scripts that wrap roslaunch.

@@ -1,7 +1,7 @@
 #pragma once
 // Zero-copy publishing for nodelets (the project's rule: allocate Msg::Ptr, fill, publish the pointer, never touch it).
 // While the process-wide ledger is enabled, every message published through publishShared() is noted in it, so a
-// graph test loaded in the same nodelet manager (vrm_sim/zero_copy_probe) can prove that a subscriber received the
+// graph test loaded in the same nodelet manager (vrm_graph/zero_copy_probe) can prove that a subscriber received the
 // very object that was published. Recording is opt-in and off by default: production publishes then cost one
 // relaxed atomic load, no mutex.
 

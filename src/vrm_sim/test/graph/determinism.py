@@ -4,7 +4,7 @@ record) under chosen perturbations and compares the live result with the bag's r
 
 Perturbations (any combination):
   busy loops     N shell busy loops (`while :; do :; done`) for the whole recording (and the live replay)
-  delay          the test relay (vrm_sim input_relay) holds one source back by 3 of its own messages, on its way to the
+  delay          the test relay (vrm_graph input_relay) holds one source back by 3 of its own messages, on its way to the
                  simulation node only (the recorder records the devices' own topics)
   eye rate       the scripted eye at 100 Hz while the instruments publish at 50 Hz
   silence        the relay drops one instrument source for 1 s of input time mid-task (1 to 2 s after START: the

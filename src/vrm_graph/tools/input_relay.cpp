@@ -12,7 +12,7 @@
 //                                     the scenario whatever the graph's start-up took)
 // A source is "eye", "instrument:<slot>" (e.g. instrument:right), "pedals" or "command"; "" = none. Input time is the
 // messages' header stamps, so the perturbation is the same whatever the load.
-//   <node pkg="vrm_sim" type="input_relay" name="input_relay"><param name="delay_source" value="eye"/></node>
+//   <node pkg="vrm_graph" type="input_relay" name="input_relay"><param name="delay_source" value="eye"/></node>
 #include <ros/ros.h>
 #include <vrm_msgs/EyeState.h>
 #include <vrm_msgs/InstrumentState.h>

@@ -4,7 +4,7 @@
 // with boost::lock_error). This loader asks the master for the manager's URI twice a second and loads the nodelet
 // again into every new manager process (a new URI), with the same name, type, remappings and arguments, and unloads it
 // when the launch stops it. Drop-in for the stock loader:
-//   <node pkg="vrm_sim" type="nodelet_keeper" name="scene_manager" args="load vrm_sim/scene_manager MANAGER"/>
+//   <node pkg="vrm_graph" type="nodelet_keeper" name="scene_manager" args="load vrm_sim/scene_manager MANAGER"/>
 // A nodelet loaded again gets the extra argument --reloaded (getMyArgv()): a simulation node resumes its session
 // from its journal then, and a device twin holds its script until it hears where the session was (issue 39).
 // Parameters: none (the nodelet's own parameters live under its name, which it keeps across reloads).
@@ -24,7 +24,7 @@
 
 namespace {
 
-using vrm_sim::tools::lookupNode;
+using vrm_graph::tools::lookupNode;
 
 class Keeper {
  public:

@@ -37,7 +37,10 @@
 #include "vrm_msgs/ScenarioCommand.h"
 #include "vrm_msgs/publish.h"
 
-namespace vrm_sim {
+namespace vrm_graph {
+
+// The monitor's ROS-free core and its unit test stay in vrm_sim (world/input_monitor.h, library vrm_monitoring).
+namespace world = vrm_sim::world;
 
 class InputMonitorNodelet : public nodelet::Nodelet {
  public:
@@ -199,6 +202,6 @@ class InputMonitorNodelet : public nodelet::Nodelet {
   ros::WallTimer first_timer_, timer_, drain_timer_;
 };
 
-}  // namespace vrm_sim
+}  // namespace vrm_graph
 
-PLUGINLIB_EXPORT_CLASS(vrm_sim::InputMonitorNodelet, nodelet::Nodelet)
+PLUGINLIB_EXPORT_CLASS(vrm_graph::InputMonitorNodelet, nodelet::Nodelet)

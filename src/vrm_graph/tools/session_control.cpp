@@ -52,7 +52,7 @@
 
 namespace {
 
-using vrm_sim::tools::lookupNode;
+using vrm_graph::tools::lookupNode;
 
 // Subscribers of each topic according to the master.
 std::map<std::string, std::vector<std::string>> subscribersByTopic() {
@@ -447,9 +447,9 @@ class SessionControl {
   int next_part_ = 2;
   double recorder_timeout_ = 30.0;
   double min_free_mb_ = 20.0;
-  ros::Time forced_end_;            // a STOP of this node's own (disk full)
-  ros::Time stop_stamp_;            // of the STOP sent
-  ros::Time ended_at_;  // stamp of the scenario_status that first reported the session ended (FINISHED/FAILED)
+  ros::Time forced_end_;  // a STOP of this node's own (disk full)
+  ros::Time stop_stamp_;  // of the STOP sent
+  ros::Time ended_at_;    // stamp of the scenario_status that first reported the session ended (FINISHED/FAILED)
   // Input time after the session's planned end (plus tail) at which a session whose STOP never took effect is closed
   // anyway (a simulation that stopped applying commands); far more than a slow simulation's lag.
   const ros::Duration kStopGrace{10.0};

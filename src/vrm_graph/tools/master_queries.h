@@ -7,7 +7,7 @@
 #include <string>
 #include <vector>
 
-namespace vrm_sim {
+namespace vrm_graph {
 namespace tools {
 
 // A node's XML-RPC URI according to the master ("" = not registered).
@@ -20,4 +20,4 @@ inline std::string lookupNode(const std::string& node) {
 }
 
 }  // namespace tools
-}  // namespace vrm_sim
+}  // namespace vrm_graph

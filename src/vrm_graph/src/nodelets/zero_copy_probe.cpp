@@ -25,7 +25,7 @@
 #include "vrm_msgs/PedalState.h"
 #include "vrm_msgs/publish.h"
 
-namespace vrm_sim {
+namespace vrm_graph {
 
 class ZeroCopyProbe : public nodelet::Nodelet {
  public:
@@ -97,6 +97,6 @@ class ZeroCopyProbe : public nodelet::Nodelet {
   std::map<std::string, Counts> counts_;
 };
 
-}  // namespace vrm_sim
+}  // namespace vrm_graph
 
-PLUGINLIB_EXPORT_CLASS(vrm_sim::ZeroCopyProbe, nodelet::Nodelet)
+PLUGINLIB_EXPORT_CLASS(vrm_graph::ZeroCopyProbe, nodelet::Nodelet)

@@ -30,7 +30,10 @@
 #include "vrm_msgs/publish.h"
 #include "vrm_sim/world/latency.h"
 
-namespace vrm_sim {
+namespace vrm_graph {
+
+// The statistics are vrm_sim's (world/latency.h): bench_latency and the display twin compute the same ones.
+namespace world = vrm_sim::world;
 
 class LatencyMonitor : public nodelet::Nodelet {
  public:
@@ -203,6 +206,6 @@ class LatencyMonitor : public nodelet::Nodelet {
   ros::WallTimer timer_;
 };
 
-}  // namespace vrm_sim
+}  // namespace vrm_graph
 
-PLUGINLIB_EXPORT_CLASS(vrm_sim::LatencyMonitor, nodelet::Nodelet)
+PLUGINLIB_EXPORT_CLASS(vrm_graph::LatencyMonitor, nodelet::Nodelet)
