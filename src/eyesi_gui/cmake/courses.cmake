@@ -41,6 +41,7 @@ if(CATKIN_ENABLE_TESTING)
   if(TARGET test_validity_bench)
     add_dependencies(test_validity_bench bench_validity)
     target_link_libraries(test_validity_bench nlohmann_json::nlohmann_json gtest_main)
+    target_include_directories(test_validity_bench PRIVATE ${vrm_scene_SOURCE_DIR}/test/support)  # run_process.h
     target_compile_definitions(test_validity_bench PRIVATE BENCH_VALIDITY="$<TARGET_FILE:bench_validity>")
   endif()
 endif()

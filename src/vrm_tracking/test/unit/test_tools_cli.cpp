@@ -6,24 +6,12 @@
 #include <cstdio>
 #include <string>
 
+#include "run_process.h"
+
 namespace {
 
-struct Process {
-  int status = -1;
-  std::string out;
-};
-
-Process run(const std::string& command) {
-  Process result;
-  FILE* pipe = popen(command.c_str(), "r");
-  if (pipe == nullptr) return result;
-  char buffer[4096];
-  std::size_t n = 0;
-  while ((n = std::fread(buffer, 1, sizeof(buffer), pipe)) > 0) result.out.append(buffer, n);
-  const int status = pclose(pipe);
-  result.status = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return result;
-}
+using vrm_sim::test::Process;
+using vrm_sim::test::run;
 
 void expectUsageError(const std::string& tool, const std::string& arguments, const std::string& named) {
   SCOPED_TRACE(tool + " " + arguments);
