@@ -5,8 +5,10 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Core>
+#include <algorithm>
 #include <random>
 #include <stdexcept>
+#include <utility>
 #include <vector>
 
 #include "vrm_sim/mge/elements.h"
@@ -101,6 +103,105 @@ TEST(MgeNeighbourSlots, RelocationAloneTriggersARebuild) {
   ASSERT_TRUE(view.refresh(graph, arrays));
   EXPECT_EQ(*view.neighbours(0).begin(), 1u);
   expectMatchesGraph(view, tissue);
+}
+
+// kSlotOrder: row i is the node in slot i, its neighbours ascending; the same topology reached through another
+// insertion order (and another list order) gives the same arrays.
+TEST(MgeNeighbourSlots, SlotOrderIsCanonicalWhateverTheInsertionOrder) {
+  std::mt19937 rng(40);
+  std::vector<std::pair<int, int>> links;
+  for (int i = 0; i < 150; ++i) links.emplace_back(std::uniform_int_distribution<int>(0, 29)(rng), (i * 7) % 30);
+  auto build = [&links](bool reversed, std::vector<std::uint32_t>* offsets, std::vector<std::uint32_t>* slots) {
+    Graph graph;
+    NodeArrays arrays;
+    Tissue& tissue = graph.create<Tissue>();
+    std::vector<Node*> nodes(30);
+    for (int i = 0; i < 30; ++i) {
+      Node& node = graph.create<Node>();
+      node.arrayConnector().connect(arrays, &node, Eigen::Vector3d(i, 0, 0), Eigen::Vector3d::Zero(), 1.0, 0);
+      nodes[i] = &node;
+    }
+    // Listed in reverse slot order in one of the two graphs.
+    for (int i = 0; i < 30; ++i) graph.insertEdge(tissue, *nodes[reversed ? 29 - i : i], labels::kNodeList);
+    for (std::size_t k = 0; k < links.size(); ++k) {
+      const auto& [a, b] = links[reversed ? links.size() - 1 - k : k];
+      graph.insertEdge(*nodes[a], *nodes[b], kLink);
+    }
+    NeighbourSlots<Node> view(tissue, labels::kNodeList, {kLink, -kLink}, NeighbourSlots<Node>::Layout::kSlotOrder);
+    ASSERT_TRUE(view.refresh(graph, arrays));
+    ASSERT_EQ(view.size(), 30u);
+    for (std::size_t i = 0; i < view.size(); ++i) {
+      ASSERT_EQ(view.slot(i), i);
+      std::vector<std::uint32_t> expected;
+      for (Node* neighbour : ListAccess<Node>(*nodes[i], kLink)) expected.push_back(neighbour->slot());
+      for (Node* neighbour : ListAccess<Node>(*nodes[i], -kLink)) expected.push_back(neighbour->slot());
+      std::sort(expected.begin(), expected.end());
+      const auto range = view.neighbours(i);
+      ASSERT_EQ(std::vector<std::uint32_t>(range.begin(), range.end()), expected) << "node " << i;
+    }
+    offsets->assign(view.offsets(), view.offsets() + view.size() + 1);
+    slots->assign(view.neighbourSlots(), view.neighbourSlots() + view.neighbourCount());
+  };
+  std::vector<std::uint32_t> offsets_a, slots_a, offsets_b, slots_b;
+  build(false, &offsets_a, &slots_a);
+  build(true, &offsets_b, &slots_b);
+  EXPECT_EQ(offsets_a, offsets_b);
+  EXPECT_EQ(slots_a, slots_b);
+  EXPECT_EQ(slots_a.size(), 2 * links.size());
+}
+
+// kSlotOrder needs the list to be exactly the manager's slots: a node of the arrays missing from the list is an error,
+// not a silently short view.
+TEST(MgeNeighbourSlots, SlotOrderRejectsAListThatIsNotTheSlots) {
+  Graph graph;
+  NodeArrays arrays;
+  Tissue& tissue = graph.create<Tissue>();
+  addNode(graph, arrays, tissue, 0);
+  Node& unlisted = graph.create<Node>();
+  unlisted.arrayConnector().connect(arrays, &unlisted, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero(), 1.0, 0);
+  addNode(graph, arrays, tissue, 2);  // slot 2 in a list of two
+  NeighbourSlots<Node> view(tissue, labels::kNodeList, {kLink}, NeighbourSlots<Node>::Layout::kSlotOrder);
+  EXPECT_THROW(view.refresh(graph, arrays), std::invalid_argument);
+  graph.insertEdge(tissue, unlisted, labels::kNodeList);
+  EXPECT_TRUE(view.refresh(graph, arrays));  // the failed refresh left no stale view behind
+  EXPECT_EQ(view.size(), 3u);
+}
+
+// Listed elements and neighbours of different types in different arrays: nodes and the springs at each node.
+TEST(MgeNeighbourSlots, NodesToSpringsAcrossTwoArrays) {
+  Graph graph;
+  NodeArrays nodes;
+  SpringArrays springs;
+  Tissue& tissue = graph.create<Tissue>();
+  Node& a = addNode(graph, nodes, tissue, 0);
+  Node& b = addNode(graph, nodes, tissue, 1);
+  Node& c = addNode(graph, nodes, tissue, 2);
+  auto addSpring = [&](Node& from, Node& to) {
+    Spring& spring = graph.create<Spring>();
+    spring.arrayConnector().connect(springs, &spring, {from.slot(), to.slot()}, 1.0, 1.0);
+    graph.insertEdge(spring, from, labels::kSpringNodes);
+    graph.insertEdge(spring, to, labels::kSpringNodes);
+    return &spring;
+  };
+  Spring* bc = addSpring(b, c);
+  addSpring(a, b);
+  NeighbourSlots<Node, Spring> view(tissue, labels::kNodeList, {referenceLabel(labels::kSpringNodes)},
+                                    NeighbourSlots<Node, Spring>::Layout::kSlotOrder);
+  ASSERT_TRUE(view.refresh(graph, nodes, springs));
+  EXPECT_EQ(std::vector<std::uint32_t>(view.neighbours(0).begin(), view.neighbours(0).end()),
+            std::vector<std::uint32_t>{1});
+  EXPECT_EQ(std::vector<std::uint32_t>(view.neighbours(1).begin(), view.neighbours(1).end()),
+            (std::vector<std::uint32_t>{0, 1}));  // ascending, though b met spring 0 first
+  EXPECT_FALSE(view.refresh(graph, nodes, springs));
+  // Destroying spring 0 moves spring 1 (a–b) into its slot.
+  graph.destroy(*bc);
+  ASSERT_TRUE(view.refresh(graph, nodes, springs));
+  EXPECT_EQ(view.neighbours(2).size(), 0u);
+  EXPECT_EQ(*view.neighbours(0).begin(), 0u);
+  EXPECT_EQ(std::vector<std::uint32_t>(view.neighbours(1).begin(), view.neighbours(1).end()),
+            std::vector<std::uint32_t>{0});
+  SpringArrays other;
+  EXPECT_THROW(view.refresh(graph, nodes, other), std::invalid_argument);  // springs of other arrays
 }
 
 TEST(MgeNeighbourSlots, ElementsOfOtherArraysAreRejected) {

@@ -184,10 +184,10 @@ TEST(TissueStrainBound, ActiveSolverConvergesOnTheViolationsRegion) {
   constrained[0] = constrained[springs] = 1;
   const SystemView system = viewOf(*chain, constrained.data());
   system.positions[10].y() += 2.5e-4;  // springs 9 and 10 at ~2.7
-  SpringSorter adjacency;
-  adjacency.rebuild(system);
+  NodeSpringAdjacency adjacency;
+  adjacency.build(system);
   ActiveBoundSolver solver;
-  solver.reset(system.node_count, system.spring_count, adjacency.adjacencyOffsets(), adjacency.adjacency());
+  solver.reset(system.spring_count, adjacency);
   BoundPassOptions options;
   options.bound = strainBound(1.1);
   options.target = strainBoundTarget(1.1);

@@ -4,6 +4,9 @@
 #include <random>
 #include <set>
 
+#include "vrm_sim/mge/labels.h"
+#include "vrm_sim/mge/membrane.h"
+#include "vrm_sim/mge/neighbour_slots.h"
 #include "vrm_sim/tissue/reference_scenes.h"
 #include "vrm_sim/tissue/strain_limit.h"
 
@@ -152,6 +155,44 @@ TEST(TissueStrainLimit, UnreachableSpringsFormTheLastSet) {
   const auto& offsets = sorter.levelOffsets();
   EXPECT_EQ(offsets[offsets.size() - 1] - offsets[offsets.size() - 2], 1u);
   EXPECT_EQ(sorter.order().back(), 3u);
+}
+
+// The simulator's node → spring adjacency comes from the MGE (NeighbourSlots in slot order); it must equal the one the
+// spring arrays give (ascending spring index per node, the order every sorter and the bound solver saw before issue
+// 40), on a membrane with bending springs and after cuts that renumber nodes and springs.
+TEST(TissueNodeSpringAdjacency, TheGraphsViewEqualsTheSpringArraysAcrossCuts) {
+  auto membrane = makeGridMembrane(20, 0.005, 2.0, 1e-5, /*bending=*/true, 0.1);
+  using NodeSprings = mge::NeighbourSlots<mge::Node, mge::Spring>;
+  NodeSprings view(membrane->tissue(), mge::labels::kNodeList, {mge::referenceLabel(mge::labels::kSpringNodes)},
+                   NodeSprings::Layout::kSlotOrder);
+  std::mt19937 random(40);
+  for (int cut = 0; cut < 12; ++cut) {
+    std::vector<std::uint8_t> constrained = fixedFlags(*membrane);
+    const SystemView system = viewOf(*membrane, constrained.data());
+    ASSERT_TRUE(view.refresh(membrane->graph(), membrane->nodeArrays(), membrane->springArrays()));
+    NodeSpringAdjacency from_graph, from_arrays;
+    from_graph.adopt(system, view.offsets(), view.neighbourSlots());
+    from_arrays.build(system);
+    ASSERT_EQ(from_graph.nodeCount(), system.node_count);
+    const std::size_t entries = from_arrays.offsets()[system.node_count];
+    ASSERT_EQ(entries, 2 * system.spring_count);
+    ASSERT_EQ(std::vector<std::uint32_t>(from_graph.offsets(), from_graph.offsets() + system.node_count + 1),
+              std::vector<std::uint32_t>(from_arrays.offsets(), from_arrays.offsets() + system.node_count + 1));
+    ASSERT_EQ(std::vector<std::uint32_t>(from_graph.springs(), from_graph.springs() + entries),
+              std::vector<std::uint32_t>(from_arrays.springs(), from_arrays.springs() + entries));
+    ASSERT_EQ(std::vector<std::uint32_t>(from_graph.others(), from_graph.others() + entries),
+              std::vector<std::uint32_t>(from_arrays.others(), from_arrays.others() + entries));
+    // A cut: a few triangles, a spring and a node, anywhere (removal moves the last slots into the holes).
+    std::vector<mge::Triangle*> triangles;
+    for (int k = 0; k < 3; ++k) {
+      triangles.push_back(&membrane->triangleAtSlot(random() % membrane->triangleCount()));
+    }
+    std::vector<mge::Spring*> springs{&membrane->springAtSlot(random() % membrane->springCount())};
+    std::vector<mge::Node*> nodes{&membrane->nodeAtSlot(random() % membrane->nodeCount())};
+    ASSERT_TRUE(membrane->removeElements(triangles, springs, nodes).any());
+  }
+  EXPECT_TRUE(view.refresh(membrane->graph(), membrane->nodeArrays(), membrane->springArrays()));
+  EXPECT_FALSE(view.refresh(membrane->graph(), membrane->nodeArrays(), membrane->springArrays()));  // unchanged
 }
 
 }  // namespace

@@ -80,6 +80,7 @@ class Membrane {
   Eigen::Vector3d* velocities() { return node_arrays_.data<kNodeVelocity>(); }
   const double* masses() const { return node_arrays_.data<kNodeMass>(); }
   const std::uint8_t* fixedFlags() const { return node_arrays_.data<kNodeFixed>(); }
+  const SpringArrays& springArrays() const { return spring_arrays_; }
   const std::array<std::uint32_t, 2>* springNodeSlots() const { return spring_arrays_.data<kSpringNodeSlots>(); }
   // Writable: plasticity lets the rest length follow the maximum length reached (§5.1).
   double* restLengths() { return spring_arrays_.data<kSpringRestLength>(); }

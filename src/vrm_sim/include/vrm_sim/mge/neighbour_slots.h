@@ -10,11 +10,21 @@
 // stays the one source of truth: elements can still be added and removed; refresh() notices it by
 // Graph::edgeVersion() and ArrayManager::slotVersion().
 //
-// T is an attributed element type with arrayConnector() (Node, Spring, Triangle); every listed element and every
-// neighbour under the given labels must be connected to the manager passed to refresh().
+// T (the listed elements) and N (their neighbours, T by default) are attributed element types with arrayConnector()
+// (Node, Spring, Triangle); every listed element must be connected to the element manager passed to refresh(), every
+// neighbour under the given labels to the neighbour manager (e.g. nodes and the springs at each node: a node → spring
+// adjacency of the tissue, issue 40).
+//
+// Layout::kListOrder keeps the graph's orders: row k is the k-th listed element, its neighbours in list order.
+// Layout::kSlotOrder is canonical: row i is the element in slot i (so the listed elements must be exactly the
+// manager's slots 0..n−1) and each row's neighbour slots ascend, so the result depends on the slots alone and not on
+// the order in which edges were inserted — what a solver needs whose results must not change when the same topology
+// was reached by another history.
 
+#include <algorithm>
 #include <cstddef>
 #include <cstdint>
+#include <numeric>
 #include <stdexcept>
 #include <utility>
 #include <vector>
@@ -26,9 +36,11 @@
 namespace vrm_sim {
 namespace mge {
 
-template <typename T>
+template <typename T, typename N = T>
 class NeighbourSlots {
  public:
+  enum class Layout { kListOrder, kSlotOrder };
+
   // Contiguous slots of one element's neighbours.
   class Range {
    public:
@@ -42,18 +54,34 @@ class NeighbourSlots {
     const std::uint32_t* last_;
   };
 
-  // The listed elements are Γ(owner, list_label) in list order; the neighbours of each are Γ(element, l) for each l in
-  // `labels`, concatenated in that order (e.g. {l, −l} for an undirected relation stored once per pair).
-  NeighbourSlots(Element& owner, Label list_label, std::vector<Label> labels)
-      : owner_(&owner), list_label_(list_label), labels_(std::move(labels)) {}
+  // The listed elements are Γ(owner, list_label); the neighbours of each are Γ(element, l) for each l in `labels`,
+  // concatenated in that order (e.g. {l, −l} for an undirected relation stored once per pair).
+  NeighbourSlots(Element& owner, Label list_label, std::vector<Label> labels, Layout layout = Layout::kListOrder)
+      : owner_(&owner), list_label_(list_label), labels_(std::move(labels)), layout_(layout) {}
 
   // Rebuilds if `graph` changed its edges or `arrays` its slots since the last rebuild (or other ones are passed).
   // Returns true if it rebuilt. Throws std::invalid_argument if an element is not connected to `arrays`.
   template <typename Manager>
   bool refresh(const Graph& graph, const Manager& arrays) {
-    const Stamp stamp{&graph, &arrays, graph.edgeVersion(), arrays.slotVersion()};
+    return refresh(graph, arrays, arrays);
+  }
+  // The same with the listed elements in `element_arrays` and their neighbours in `neighbour_arrays`. kSlotOrder
+  // also throws std::invalid_argument unless the listed elements occupy exactly the slots 0..size()−1.
+  template <typename ElementManager, typename NeighbourManager>
+  bool refresh(const Graph& graph, const ElementManager& element_arrays, const NeighbourManager& neighbour_arrays) {
+    const Stamp stamp{&graph,
+                      &element_arrays,
+                      &neighbour_arrays,
+                      graph.edgeVersion(),
+                      element_arrays.slotVersion(),
+                      neighbour_arrays.slotVersion()};
     if (built_ && stamp == stamp_) return false;
-    rebuild(arrays);
+    built_ = false;  // a throwing rebuild leaves no half-built view behind a matching stamp
+    if (layout_ == Layout::kSlotOrder) {
+      rebuildBySlot(element_arrays, neighbour_arrays);
+    } else {
+      rebuild(element_arrays, neighbour_arrays);
+    }
     stamp_ = stamp;
     built_ = true;
     return true;
@@ -61,9 +89,9 @@ class NeighbourSlots {
 
   // Number of listed elements.
   std::size_t size() const { return element_slots_.size(); }
-  // Array slot of the k-th listed element.
+  // Array slot of the k-th row's element (k itself with kSlotOrder).
   std::uint32_t slot(std::size_t k) const { return element_slots_[k]; }
-  // Array slots of the k-th listed element's neighbours.
+  // Array slots of the k-th row's neighbours.
   Range neighbours(std::size_t k) const {
     return Range(neighbour_slots_.data() + offsets_[k], neighbour_slots_.data() + offsets_[k + 1]);
   }
@@ -71,28 +99,33 @@ class NeighbourSlots {
   const std::uint32_t* elementSlots() const { return element_slots_.data(); }
   const std::uint32_t* offsets() const { return offsets_.data(); }
   const std::uint32_t* neighbourSlots() const { return neighbour_slots_.data(); }
+  std::size_t neighbourCount() const { return neighbour_slots_.size(); }
 
  private:
   struct Stamp {
     const Graph* graph = nullptr;
-    const void* arrays = nullptr;
+    const void* element_arrays = nullptr;
+    const void* neighbour_arrays = nullptr;
     std::uint64_t edge_version = 0;
-    std::uint64_t slot_version = 0;
+    std::uint64_t element_slot_version = 0;
+    std::uint64_t neighbour_slot_version = 0;
     bool operator==(const Stamp& other) const {
-      return graph == other.graph && arrays == other.arrays && edge_version == other.edge_version &&
-             slot_version == other.slot_version;
+      return graph == other.graph && element_arrays == other.element_arrays &&
+             neighbour_arrays == other.neighbour_arrays && edge_version == other.edge_version &&
+             element_slot_version == other.element_slot_version &&
+             neighbour_slot_version == other.neighbour_slot_version;
     }
   };
 
-  template <typename Manager>
-  static std::uint32_t slotIn(const Manager& arrays, const T& element) {
+  template <typename Attributed, typename Manager>
+  static std::uint32_t slotIn(const Manager& arrays, const Attributed& element) {
     const auto& connector = element.arrayConnector();
     if (connector.manager() != &arrays) throw std::invalid_argument("NeighbourSlots: element not in these arrays");
     return connector.slot();
   }
 
-  template <typename Manager>
-  void rebuild(const Manager& arrays) {
+  template <typename ElementManager, typename NeighbourManager>
+  void rebuild(const ElementManager& element_arrays, const NeighbourManager& neighbour_arrays) {
     const ListAccess<T> list(*owner_, list_label_);
     element_slots_.clear();
     offsets_.clear();
@@ -101,18 +134,55 @@ class NeighbourSlots {
     offsets_.reserve(list.size() + 1);
     offsets_.push_back(0);
     for (T* element : list) {
-      element_slots_.push_back(slotIn(arrays, *element));
+      element_slots_.push_back(slotIn(element_arrays, *element));
       for (Label label : labels_) {
-        for (T* neighbour : ListAccess<T>(*element, label)) neighbour_slots_.push_back(slotIn(arrays, *neighbour));
+        for (N* neighbour : ListAccess<N>(*element, label)) {
+          neighbour_slots_.push_back(slotIn(neighbour_arrays, *neighbour));
+        }
       }
       if (neighbour_slots_.size() > 0xffffffffu) throw std::length_error("NeighbourSlots: too many neighbours");
       offsets_.push_back(static_cast<std::uint32_t>(neighbour_slots_.size()));
     }
   }
 
+  // Two passes over the list: the row lengths by slot, then each row filled in place and sorted.
+  template <typename ElementManager, typename NeighbourManager>
+  void rebuildBySlot(const ElementManager& element_arrays, const NeighbourManager& neighbour_arrays) {
+    const ListAccess<T> list(*owner_, list_label_);
+    const std::size_t n = list.size();
+    element_slots_.resize(n);
+    std::iota(element_slots_.begin(), element_slots_.end(), 0u);
+    offsets_.assign(n + 1, 0);
+    std::size_t total = 0;
+    for (T* element : list) {
+      const std::uint32_t slot = slotIn(element_arrays, *element);
+      if (slot >= n || offsets_[slot + 1] != 0) {
+        throw std::invalid_argument("NeighbourSlots: the listed elements do not occupy the slots 0..n-1 once each");
+      }
+      std::size_t count = 0;
+      for (Label label : labels_) count += ListAccess<N>(*element, label).size();
+      // +1 marks the row as seen (an element without neighbours too); taken off again below.
+      offsets_[slot + 1] = static_cast<std::uint32_t>(count + 1);
+      total += count;
+    }
+    if (total > 0xffffffffu) throw std::length_error("NeighbourSlots: too many neighbours");
+    for (std::size_t i = 0; i < n; ++i) offsets_[i + 1] = offsets_[i] + (offsets_[i + 1] - 1);
+    neighbour_slots_.resize(total);
+    for (T* element : list) {
+      const std::uint32_t slot = element->arrayConnector().slot();
+      std::uint32_t* row = neighbour_slots_.data() + offsets_[slot];
+      std::uint32_t* fill = row;
+      for (Label label : labels_) {
+        for (N* neighbour : ListAccess<N>(*element, label)) *fill++ = slotIn(neighbour_arrays, *neighbour);
+      }
+      std::sort(row, fill);
+    }
+  }
+
   Element* owner_;
   Label list_label_;
   std::vector<Label> labels_;
+  Layout layout_;
   bool built_ = false;
   Stamp stamp_;
   std::vector<std::uint32_t> element_slots_;

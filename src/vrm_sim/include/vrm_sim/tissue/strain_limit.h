@@ -11,18 +11,47 @@
 namespace vrm_sim {
 namespace tissue {
 
+// CSR node → incident springs: springs()[offsets()[i] .. offsets()[i + 1]) touch node i, in ascending spring index,
+// and others()[k] is the other end of springs()[k]. One per membrane and topology, shared by its spring sorters and
+// its bound solver. The simulator adopts the MGE's own node → spring view (mge::NeighbourSlots in slot order, rebuilt
+// from the graph on a topology change, issue 40); build() derives the same arrays from the spring array alone (a
+// counting sort), for systems without a graph.
+class NodeSpringAdjacency {
+ public:
+  NodeSpringAdjacency() = default;
+  NodeSpringAdjacency(const NodeSpringAdjacency&) = delete;  // the borrowed pointers may point into this one
+  NodeSpringAdjacency& operator=(const NodeSpringAdjacency&) = delete;
+  NodeSpringAdjacency(NodeSpringAdjacency&&) = default;  // a moved vector keeps its buffer
+  NodeSpringAdjacency& operator=(NodeSpringAdjacency&&) = default;
+
+  void build(const SystemView& system);
+  // Borrows `offsets` (node_count + 1 entries) and `springs`, which must stay valid and unchanged until the next
+  // build() or adopt(); computes the other ends.
+  void adopt(const SystemView& system, const std::uint32_t* offsets, const std::uint32_t* springs);
+
+  std::size_t nodeCount() const { return node_count_; }
+  const std::uint32_t* offsets() const { return offsets_; }
+  const std::uint32_t* springs() const { return springs_; }
+  const std::uint32_t* others() const { return others_.data(); }
+
+ private:
+  std::size_t node_count_ = 0;
+  const std::uint32_t* offsets_ = nullptr;
+  const std::uint32_t* springs_ = nullptr;
+  std::vector<std::uint32_t> own_offsets_, own_springs_, others_;
+};
+
 // Springs grouped by graph distance from a set of seed nodes: set S_d holds the springs whose nearer end is d
 // springs away from the nearest seed. Each spring is in exactly one set; springs not connected to a seed form a
 // final set. Sorting is O(nodes + springs): one BFS over a node→spring adjacency plus a counting sort.
 class SpringSorter {
  public:
-  // Rebuilds the adjacency; call after every topology change (and before the first sort).
+  // Call after every topology change (and before the first sort): with the membrane's shared adjacency (which must
+  // outlive the sorter's use of it), or with one of the sorter's own built from the spring array.
+  void rebuild(const SystemView& system, const NodeSpringAdjacency& shared);
   void rebuild(const SystemView& system);
   void sort(const SystemView& system, const std::vector<std::uint32_t>& seeds);
-  // CSR node -> incident springs of the last rebuild(): springs adjacency()[adjacencyOffsets()[i] ..
-  // adjacencyOffsets()[i + 1]) touch node i.
-  const std::vector<std::uint32_t>& adjacencyOffsets() const { return adjacency_offsets_; }
-  const std::vector<std::uint32_t>& adjacency() const { return adjacency_; }
+  const NodeSpringAdjacency& adjacency() const { return shared_ != nullptr ? *shared_ : own_; }
 
   // Spring indices, S_0 first. levelOffsets()[d]..levelOffsets()[d+1] is S_d; the last set is the unreachable one.
   const std::vector<std::uint32_t>& order() const { return order_; }
@@ -35,8 +64,10 @@ class SpringSorter {
   const std::vector<std::array<std::uint32_t, 2>>& orderedEnds() const { return ordered_ends_; }
 
  private:
-  std::vector<std::uint32_t> adjacency_offsets_, adjacency_;  // CSR node -> incident springs
-  std::vector<std::uint32_t> neighbours_;                     // beside adjacency_: the spring's other node
+  void reserve(const SystemView& system);
+
+  const NodeSpringAdjacency* shared_ = nullptr;
+  NodeSpringAdjacency own_;
   std::vector<int> distance_;
   std::vector<std::uint32_t> queue_;
   std::vector<std::uint32_t> order_;
@@ -124,8 +155,7 @@ class ActiveBoundSolver {
  public:
   // Sized once per topology; `offsets`/`adjacency` the CSR node -> springs map (SpringSorter::adjacency*()), kept by
   // reference.
-  void reset(std::size_t node_count, std::size_t spring_count, const std::vector<std::uint32_t>& offsets,
-             const std::vector<std::uint32_t>& adjacency);
+  void reset(std::size_t spring_count, const NodeSpringAdjacency& adjacency);
   // Starts a solve: the springs beyond options.bound and their nodes' springs; false if there is none.
   bool seed(const SystemView& system, double bound);
   // One sweep over the listed springs (forward, or backward with `reverse`), growing the list as it moves nodes.
@@ -136,8 +166,7 @@ class ActiveBoundSolver {
   std::size_t activeSprings() const { return springs_.size(); }
 
  private:
-  const std::vector<std::uint32_t>* offsets_ = nullptr;
-  const std::vector<std::uint32_t>* adjacency_ = nullptr;
+  const NodeSpringAdjacency* adjacency_ = nullptr;
   std::vector<std::uint8_t> node_active_, spring_listed_;
   std::vector<std::uint32_t> nodes_, springs_;
   std::vector<std::uint32_t> beyond_;  // seed()'s springs beyond the bound

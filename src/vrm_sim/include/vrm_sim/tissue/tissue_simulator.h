@@ -336,6 +336,12 @@ class TissueSimulator {
   std::vector<std::uint32_t> interaction_points_;
   std::vector<std::uint64_t> interaction_stamp_;  // per node: step of the last interaction + 1, 0 = none
   std::vector<std::uint32_t> seeds_, sorted_seeds_;
+  // The node → spring adjacency of the membrane, from the MGE (a NeighbourSlots view of Γ(node, −kSpringNodes) in
+  // slot order, rebuilt only when the graph's edges or the slots changed); shared by every spring sorter and the bound
+  // solver of the model (issue 40).
+  struct GraphAdjacency;
+  std::unique_ptr<GraphAdjacency> graph_adjacency_;
+  NodeSpringAdjacency adjacency_;
   SpringSorter sorter_;
   bool sorted_valid_ = false;
 

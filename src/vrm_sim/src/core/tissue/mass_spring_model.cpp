@@ -133,13 +133,13 @@ std::unique_ptr<TissueModel> makeMassSpringModel(mge::Membrane& /*membrane*/, co
 void MassSpringModel::onTopologyChanged(TissueSimulator& s) {
   if (!std::isfinite(bound_)) return;
   const SystemView system = s.view();
-  driver_sorter_.rebuild(system);
+  driver_sorter_.rebuild(system, s.adjacency_);
   driver_sorted_ = false;
-  pinned_sorter_.rebuild(system);
+  pinned_sorter_.rebuild(system, s.adjacency_);
   pinned_sorted_ = false;
   pinned_seeds_.reserve(system.node_count);
   pinned_sorted_seeds_.reserve(system.node_count);
-  active_.reset(system.node_count, system.spring_count, driver_sorter_.adjacencyOffsets(), driver_sorter_.adjacency());
+  active_.reset(system.spring_count, s.adjacency_);
   driver_seeds_.reserve(system.node_count);
   driver_sorted_seeds_.reserve(system.node_count);
   // Sized once per topology: a projection allocates nothing.

@@ -9,26 +9,50 @@
 namespace vrm_sim {
 namespace tissue {
 
-void SpringSorter::rebuild(const SystemView& system) {
+void NodeSpringAdjacency::build(const SystemView& system) {
   const std::size_t n = system.node_count;
-  adjacency_offsets_.assign(n + 1, 0);
+  own_offsets_.assign(n + 1, 0);
   for (std::size_t s = 0; s < system.spring_count; ++s) {
-    ++adjacency_offsets_[system.springs[s][0] + 1];
-    ++adjacency_offsets_[system.springs[s][1] + 1];
+    ++own_offsets_[system.springs[s][0] + 1];
+    ++own_offsets_[system.springs[s][1] + 1];
   }
-  for (std::size_t i = 0; i < n; ++i) adjacency_offsets_[i + 1] += adjacency_offsets_[i];
-  adjacency_.assign(adjacency_offsets_[n], 0);
-  neighbours_.assign(adjacency_offsets_[n], 0);
-  std::vector<std::uint32_t> fill(adjacency_offsets_.begin(), adjacency_offsets_.end() - 1);
+  for (std::size_t i = 0; i < n; ++i) own_offsets_[i + 1] += own_offsets_[i];
+  own_springs_.assign(own_offsets_[n], 0);
+  std::vector<std::uint32_t> fill(own_offsets_.begin(), own_offsets_.end() - 1);
   for (std::size_t s = 0; s < system.spring_count; ++s) {
-    const std::uint32_t a = system.springs[s][0], b = system.springs[s][1];
-    neighbours_[fill[a]] = b;
-    adjacency_[fill[a]++] = static_cast<std::uint32_t>(s);
-    neighbours_[fill[b]] = a;
-    adjacency_[fill[b]++] = static_cast<std::uint32_t>(s);
+    own_springs_[fill[system.springs[s][0]]++] = static_cast<std::uint32_t>(s);
+    own_springs_[fill[system.springs[s][1]]++] = static_cast<std::uint32_t>(s);
   }
-  distance_.assign(n, -1);
-  queue_.reserve(n);
+  adopt(system, own_offsets_.data(), own_springs_.data());
+}
+
+void NodeSpringAdjacency::adopt(const SystemView& system, const std::uint32_t* offsets, const std::uint32_t* springs) {
+  node_count_ = system.node_count;
+  offsets_ = offsets;
+  springs_ = springs;
+  others_.resize(offsets[node_count_]);
+  for (std::uint32_t i = 0; i < node_count_; ++i) {
+    for (std::uint32_t k = offsets[i]; k < offsets[i + 1]; ++k) {
+      const std::array<std::uint32_t, 2>& ends = system.springs[springs[k]];
+      others_[k] = ends[0] == i ? ends[1] : ends[0];
+    }
+  }
+}
+
+void SpringSorter::rebuild(const SystemView& system, const NodeSpringAdjacency& shared) {
+  shared_ = &shared;
+  reserve(system);
+}
+
+void SpringSorter::rebuild(const SystemView& system) {
+  own_.build(system);
+  shared_ = nullptr;
+  reserve(system);
+}
+
+void SpringSorter::reserve(const SystemView& system) {
+  distance_.assign(system.node_count, -1);
+  queue_.reserve(system.node_count);
   order_.reserve(system.spring_count);
   spring_level_.assign(system.spring_count, 0);
   inner_is_second_.reserve(system.spring_count);
@@ -50,8 +74,8 @@ void SpringSorter::sort(const SystemView& system, const std::vector<std::uint32_
       queue[tail++] = seed;
     }
   }
-  const std::uint32_t* const offsets = adjacency_offsets_.data();
-  const std::uint32_t* const neighbours = neighbours_.data();
+  const std::uint32_t* const offsets = adjacency().offsets();
+  const std::uint32_t* const neighbours = adjacency().others();
   int max_distance = 0;
   for (std::size_t head = 0; head < tail; ++head) {
     const std::uint32_t node = queue[head];
@@ -285,9 +309,8 @@ BoundPassStatistics boundPass(const SystemView& system, const BoundPassOptions& 
   return stats;
 }
 
-void ActiveBoundSolver::reset(std::size_t node_count, std::size_t spring_count,
-                              const std::vector<std::uint32_t>& offsets, const std::vector<std::uint32_t>& adjacency) {
-  offsets_ = &offsets;
+void ActiveBoundSolver::reset(std::size_t spring_count, const NodeSpringAdjacency& adjacency) {
+  const std::size_t node_count = adjacency.nodeCount();
   adjacency_ = &adjacency;
   node_active_.assign(node_count, 0);
   spring_listed_.assign(spring_count, 0);
@@ -301,8 +324,10 @@ void ActiveBoundSolver::activate(std::uint32_t node) {
   if (node >= node_active_.size() || node_active_[node]) return;
   node_active_[node] = 1;
   nodes_.push_back(node);
-  for (std::uint32_t k = (*offsets_)[node]; k < (*offsets_)[node + 1]; ++k) {
-    const std::uint32_t spring = (*adjacency_)[k];
+  const std::uint32_t* const offsets = adjacency_->offsets();
+  const std::uint32_t* const springs = adjacency_->springs();
+  for (std::uint32_t k = offsets[node]; k < offsets[node + 1]; ++k) {
+    const std::uint32_t spring = springs[k];
     if (spring_listed_[spring]) continue;
     spring_listed_[spring] = 1;
     springs_.push_back(spring);
@@ -314,7 +339,7 @@ bool ActiveBoundSolver::seed(const SystemView& system, double bound) {
   for (std::uint32_t spring : springs_) spring_listed_[spring] = 0;
   nodes_.clear();
   springs_.clear();
-  if (offsets_ == nullptr || node_active_.size() != system.node_count ||
+  if (adjacency_ == nullptr || node_active_.size() != system.node_count ||
       spring_listed_.size() != system.spring_count || !std::isfinite(bound)) {
     return false;
   }

@@ -5,7 +5,9 @@
 #include <stdexcept>
 #include <string>
 
+#include "vrm_sim/mge/labels.h"
 #include "vrm_sim/mge/membrane.h"
+#include "vrm_sim/mge/neighbour_slots.h"
 
 namespace vrm_sim {
 namespace tissue {
@@ -42,6 +44,14 @@ Eigen::Isometry3d interpolatePose(const Eigen::Isometry3d& from, const Eigen::Is
   return pose;
 }
 
+struct TissueSimulator::GraphAdjacency {
+  using NodeSprings = mge::NeighbourSlots<mge::Node, mge::Spring>;
+  explicit GraphAdjacency(mge::Membrane& membrane)
+      : node_springs(membrane.tissue(), mge::labels::kNodeList, {mge::referenceLabel(mge::labels::kSpringNodes)},
+                     NodeSprings::Layout::kSlotOrder) {}
+  NodeSprings node_springs;
+};
+
 TissueSimulator::TissueSimulator(mge::Membrane& membrane, const TissueConfig& config)
     : membrane_(&membrane), config_(config) {
   if (!(config_.dt > 0.0) || !std::isfinite(config_.dt)) {
@@ -55,6 +65,7 @@ TissueSimulator::TissueSimulator(mge::Membrane& membrane, const TissueConfig& co
   forces_.params = config_.forces;
   model_ = tissueModelRegistry().at(config_.model).make(membrane, config_);
   statistics_.strain_bound = model_->strainBound();
+  graph_adjacency_ = std::make_unique<GraphAdjacency>(membrane);
   onTopologyChanged();
   if (config_.repair_massless_nodes) repairMasslessNodes();
   if (config_.refinement.levels > 0) {
@@ -133,7 +144,10 @@ void TissueSimulator::onTopologyChanged() {
   sorted_seeds_.clear();
   sorted_valid_ = false;
   rebuildConstraints();
-  sorter_.rebuild(view());
+  GraphAdjacency::NodeSprings& node_springs = graph_adjacency_->node_springs;
+  node_springs.refresh(membrane_->graph(), membrane_->nodeArrays(), membrane_->springArrays());
+  adjacency_.adopt(view(), node_springs.offsets(), node_springs.neighbourSlots());
+  sorter_.rebuild(view(), adjacency_);
   model_->onTopologyChanged(*this);
 }
 
