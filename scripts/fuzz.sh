@@ -4,6 +4,7 @@
 # from the shipped files by src/vrm_fuzz/scripts/make_seeds.py). Writes bench/results/fuzz.json (one row per
 # target: executions, exec/s, coverage = libFuzzer's edges `cov:`, features `ft:`, crashes) and the table in
 # BENCHMARKS.md's "Fuzzing" section; copies every crash input to src/vrm_fuzz/regressions/<target>/.
+# The text formats (YAML, JSON) fuzz with a dictionary, src/vrm_fuzz/dict/<target>.dict (also make_seeds.py's).
 # Executions count libFuzzer's mutated runs only (the seed corpus's first pass, `#N INITED`, is left out); each row
 # also says where coverage last grew (`last_new_coverage_at`, in mutated executions), whether it stopped growing in
 # the run's last third (`plateau`), and the previous row's coverage as the baseline it must reach.
@@ -81,6 +82,8 @@ run_target() {
   [[ -n $runs ]] && limit+=(-runs="$runs")
   local len=()
   [[ -n ${max_len[$t]:-} ]] && len=(-max_len="${max_len[$t]}")
+  # The text formats' dictionaries (written by make_seeds.py): whole keys and names to insert.
+  [[ -f $PKG/dict/$t.dict ]] && len+=(-dict="$PKG/dict/$t.dict")
   echo "== fuzz_$t (${limit[*]}${len:+ ${len[*]}})"
   local start end rc crashes=0
   start=$(date +%s.%N)
@@ -174,6 +177,8 @@ for line in open(results):
         "coverage": int(cov.group(1)) if cov else 0, "coverage_measure": "edges (libFuzzer cov:)",
         "features": int(ft.group(1)) if ft else 0, "corpus": int(corp.group(1)) if corp else 0,
         "crashes": int(crashes), "seconds": round(wall, 1), "max_len": int(max_len) if max_len else None,
+        "dictionary": ("src/vrm_fuzz/dict/%s.dict" % target
+                       if (root / "src" / "vrm_fuzz" / "dict" / ("%s.dict" % target)).exists() else None),
         "peak_rss_mb": int(stat.get("peak_rss_mb", 0)), "reached_1M": executions >= 1_000_000,
         "executions_counted": "mutated runs only (number_of_executed_units minus the #INITED seed pass)",
         "goal_executions": goal, "reached_goal": executions >= goal,

@@ -4,8 +4,13 @@ rig and layout YAML, the reference session bags (their messages, and short bags 
 marker images and marker observations projected through the default rig. Run from anywhere; needs the vrm_msgs
 Python messages of a built workspace on PYTHONPATH (scripts/fuzz.sh sets it). Deterministic: same files, same seeds.
 
-Usage: make_seeds.py [--check]   (--check: exit 1 if a seed would change, write nothing)"""
+Also writes libFuzzer dictionaries for the text formats (dict/<target>.dict, passed by scripts/fuzz.sh as -dict): the
+names the strict readers ask for (every identifier-like string literal of the reader's sources: keys, enum names),
+the keys and words of the target's seeds, and the format's own syntax, so mutations insert whole keys and names.
+
+Usage: make_seeds.py [--check]   (--check: exit 1 if a seed or dictionary would change, write nothing)"""
 import io
+import re
 import pathlib
 import shutil
 import struct
@@ -20,6 +25,7 @@ PKG = pathlib.Path(__file__).resolve().parent.parent
 SRC = PKG.parent
 SIM = SRC / "vrm_sim"
 TRK = SRC / "vrm_tracking"
+SCENE_DATA = SRC / "vrm_scene" / "test" / "data"  # the floor's test scenes and meshes (issue 42)
 CORPUS = PKG / "corpus"
 seeds = {}  # path -> bytes
 
@@ -54,10 +60,10 @@ def camera_info(width, height, K, D):
 
 
 # --- files ---
-for p in sorted((SIM / "config" / "scenes").glob("*.yaml")) + sorted((SIM / "test" / "data" / "scenes").glob("*.yaml")):
+for p in sorted((SIM / "config" / "scenes").glob("*.yaml")) + sorted((SCENE_DATA / "scenes").glob("*.yaml")):
     seed("scene_yaml", p.parent.parent.name + "_" + p.name if "test" in p.parts else p.name, p.read_bytes())
 ext = {".obj": 0, ".ply": 1, ".stl": 2}
-for p in sorted((SIM / "test" / "data" / "meshes").iterdir()):
+for p in sorted((SCENE_DATA / "meshes").iterdir()):
     if p.suffix in ext:
         seed("mesh_import", p.name, bytes([ext[p.suffix], 1]) + p.read_bytes())
 # The one scripted-motion format (issue 34): the shipped script files, and a scene's short form.
@@ -270,6 +276,60 @@ seed("mesh_upload", "membrane_retina_instrument_rendered", upload)
 seed("mesh_upload", "mesh_replaced_then_removed", frame(0, ser(grid_mesh(4, 0.003, -0.008, 1))) +
      frame(0, ser(grid_mesh(5, 0.003, -0.008, 2))) + frame(5 | 0x80, b"") + frame(7, b""))
 
+# --- dictionaries for the text formats ---
+DICT = PKG / "dict"
+SCENE_SRC = SRC / "vrm_scene" / "src" / "scene"
+READERS = {  # target -> the sources of the reader it drives
+    "camera_yaml": [TRK / "src" / "core" / "camera_rig.cpp"],
+    "rig_yaml": [TRK / "src" / "core" / "camera_rig.cpp"],
+    "marker_layout_yaml": [TRK / "src" / "core" / "marker_layout.cpp"],
+    "scene_yaml": sorted(SCENE_SRC.glob("*.cpp")),
+    "surgeon_script": [SCENE_SRC / "scene_loader.cpp"],
+    "session_result_json": [SIM / "src" / "core" / "result" / "session_result.cpp"],
+}
+YAML_SYNTAX = [": ", "- ", "\n  - ", "[", "]", "{", "}", ", ", "~", "null", "true", "false", "yes", "no", ".inf",
+               "-.inf", ".nan", "0x", "1e308", "-1e-308", "&a ", "*a", "<<: ", "!!str ", "!!int ", "!!float ", "!!map ",
+               "!!seq ", "---", "...", "|", ">", "'", "#", "? "]
+JSON_SYNTAX = ['": ', '"', "[", "]", "{", "}", ", ", "null", "true", "false", "1e308", "-0", "\\u0000", "\\ud800"]
+
+
+def words_of(value, out):
+    """Keys and string scalars of a parsed YAML/JSON document."""
+    if isinstance(value, dict):
+        for k, v in value.items():
+            out.add(str(k))
+            words_of(v, out)
+    elif isinstance(value, list):
+        for v in value:
+            words_of(v, out)
+    elif isinstance(value, str) and len(value) <= 40:
+        out.add(value)
+
+
+def dict_entry(word):
+    escaped = "".join(c if 0x20 <= ord(c) < 0x7f and c not in '"\\' else "\\x%02X" % ord(c)
+                      for c in word.encode("utf-8", "surrogateescape").decode("latin-1"))
+    return '"%s"' % escaped
+
+
+dictionaries = {}
+for target, sources in READERS.items():
+    words = set()
+    for source in sources:
+        words.update(re.findall(r'"([a-z][a-z0-9_]{1,40})"', source.read_text()))
+    for path, data in seeds.items():
+        if path.parent.name != target:
+            continue
+        try:
+            words_of(yaml.safe_load(data.decode("utf-8")), words)
+        except Exception:  # the seeds of error paths are malformed on purpose
+            pass
+    syntax = JSON_SYNTAX if target.endswith("_json") else YAML_SYNTAX
+    lines = ["# libFuzzer dictionary for fuzz_%s, written by scripts/make_seeds.py: do not edit." % target]
+    lines += [dict_entry(w) for w in sorted(words)] + [dict_entry(w) for w in syntax]
+    dictionaries[DICT / ("%s.dict" % target)] = ("\n".join(lines) + "\n").encode()
+seeds.update(dictionaries)
+
 check = "--check" in sys.argv
 changed = [p for p, d in seeds.items() if not p.exists() or p.read_bytes() != d]
 if check:
@@ -278,4 +338,5 @@ if check:
 for p, d in seeds.items():
     p.parent.mkdir(parents=True, exist_ok=True)
     p.write_bytes(d)
-print("%d seeds in %s (%d written)" % (len(seeds), CORPUS, len(changed)))
+print("%d seeds in %s and %d dictionaries in %s (%d written)" % (len(seeds) - len(dictionaries), CORPUS,
+                                                                   len(dictionaries), DICT, len(changed)))
