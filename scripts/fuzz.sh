@@ -11,22 +11,25 @@
 # --resume starts from the corpus the target's last run left in build_fuzz/fuzz_runs/<target>/corpus instead of the
 # seeds alone (libFuzzer's usual way to spread a slow target's fuzzing over sittings); the row then also gives the
 # mutated executions of all sittings of that corpus (`executions_all_sittings`, `sittings`) beside this run's.
-# Usage: scripts/fuzz.sh [--seconds N] [--runs N] [--jobs J] [--no-build] [--resume] [target ...]   (default: 300 s;
+# --build-only builds the targets and stops: no run, so no work folder (grown corpus) is replaced and no row written.
+# Usage: scripts/fuzz.sh [--seconds N] [--runs N] [--jobs J] [--no-build | --build-only] [--resume] [target ...]
+#        (default: 300 s;
 #        --runs alone runs to N executions, with --seconds too whichever comes first,
 #        all targets, one at a time; --jobs 2 runs two targets at once, one per core)
 set -euo pipefail
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 export PATH="/usr/bin:$PATH"
-seconds="" runs="" build=1 jobs=1 resume=0 targets=()
+seconds="" runs="" build=1 build_only=0 jobs=1 resume=0 targets=()
 command_line="scripts/fuzz.sh $*"
 while (($#)); do
   case $1 in
     --seconds) seconds=$2; shift 2 ;;
     --runs) runs=$2; shift 2 ;;
     --no-build) build=0; shift ;;
+    --build-only) build_only=1; shift ;;
     --resume) resume=1; shift ;;
     --jobs) jobs=$2; shift 2 ;;
-    -h | --help) sed -n '2,15p' "$0"; exit 0 ;;
+    -h | --help) awk 'NR > 1 && /^#/ { print; next } NR > 1 { exit }' "$0"; exit 0 ;;
     *) targets+=("$1"); shift ;;
   esac
 done
@@ -54,6 +57,11 @@ if ((build)); then
     -DPYTHON_EXECUTABLE=/usr/bin/python3 -DPython3_EXECUTABLE=/usr/bin/python3 >"$BUILD/configure.log" 2>&1 ||
     { tail -n 30 "$BUILD/configure.log"; exit 1; }
   nice -n 10 cmake --build "$BUILD" -j2 --target $(printf 'fuzz_%s ' "${targets[@]}")
+fi
+if ((build_only)); then
+  ((build)) || { echo "fuzz.sh: --build-only and --no-build together do nothing" >&2; exit 2; }
+  echo "fuzz.sh: built ${#targets[@]} target(s) in $BUILD/fuzz (--build-only: nothing run)"
+  exit 0
 fi
 
 # A fuzzed array length may ask for gigabytes: an allocation over 128 MB fails (std::bad_alloc, handled like a message
