@@ -206,6 +206,10 @@ script_test readme_clients readme_ros_clients_answer "$ROOT/scripts/tests/readme
 # The layers at link time (issue 42): ldd of the scene floor, tracking, rendering and the console's binaries (~1 s).
 script_test library_layers floor_tracking_render_and_console_link_no_physics_or_rosbag \
   "$ROOT/scripts/tests/library_layers.sh"
+# The fuzz targets' seeds and dictionaries are what make_seeds.py writes from the shipped files today (issue 39 §3; a
+# moved test folder once broke it unseen) (~1 s).
+script_test fuzz_seeds seeds_and_dictionaries_match_the_shipped_files \
+  /usr/bin/python3 "$ROOT/src/vrm_fuzz/scripts/make_seeds.py" --check
 # The session result's Python reader against the reference results and the malformed corpus the C++ reader reads.
 script_test session_result_py python_reader_keeps_the_schema /usr/bin/python3 "$ROOT/scripts/tests/test_session_result.py"
 script_test install_space installed_simulator_runs_without_the_source_tree "$ROOT/scripts/install-test.sh"
