@@ -153,8 +153,7 @@ BoundPassStatistics boundPass(const SystemView& system, const BoundPassOptions& 
 // that may be corrected) or a budget; unlike the BFS sweeps it converges wherever the constraints can be met.
 class ActiveBoundSolver {
  public:
-  // Sized once per topology; `offsets`/`adjacency` the CSR node -> springs map (SpringSorter::adjacency*()), kept by
-  // reference.
+  // Sized once per topology; the node -> springs adjacency is kept by reference (the membrane's shared one).
   void reset(std::size_t spring_count, const NodeSpringAdjacency& adjacency);
   // Starts a solve: the springs beyond options.bound and their nodes' springs; false if there is none.
   bool seed(const SystemView& system, double bound);
