@@ -119,17 +119,32 @@ struct Scan {
   std::string stop_reason;
 };
 
-void addConnection(const std::vector<std::uint8_t>& bytes, const Record& record, Scan& scan) {
-  const auto id = record.header.find("conn");
+// A connection record rosbag can read: `conn` and `topic` in its header and "name=value" fields as its data. rosbag
+// parses that data with ros::Header::parse, which trusts each field's length (it reads past the data's end when one
+// points beyond it; found by fuzzing: src/vrm_fuzz/regressions/session_bag/connection_field_length_past_data). False
+// for anything else.
+bool readConnection(const std::vector<std::uint8_t>& bytes, const Record& record, std::uint32_t* id,
+                    Connection* connection) {
+  const auto id_field = record.header.find("conn");
   const auto topic = record.header.find("topic");
-  if (id == record.header.end() || id->second.size() != 4 || topic == record.header.end()) return;
+  if (id_field == record.header.end() || id_field->second.size() != 4 || topic == record.header.end()) return false;
   Fields fields;
-  if (!parseFields(bytes.data() + record.data_offset, record.data_length, fields)) return;
+  if (!record.data_complete || !parseFields(bytes.data() + record.data_offset, record.data_length, fields)) {
+    return false;
+  }
+  *id = readU32(reinterpret_cast<const std::uint8_t*>(id_field->second.data()));
+  connection->topic = topic->second;
+  connection->header = boost::make_shared<ros::M_string>(fields.begin(), fields.end());
+  (*connection->header)["topic"] = topic->second;
+  return true;
+}
+
+bool addConnection(const std::vector<std::uint8_t>& bytes, const Record& record, Scan& scan) {
+  std::uint32_t id = 0;
   Connection connection;
-  connection.topic = topic->second;
-  connection.header = boost::make_shared<ros::M_string>(fields.begin(), fields.end());
-  (*connection.header)["topic"] = topic->second;
-  scan.connections[readU32(reinterpret_cast<const std::uint8_t*>(id->second.data()))] = connection;
+  if (!readConnection(bytes, record, &id, &connection)) return false;
+  scan.connections[id] = connection;
+  return true;
 }
 
 // The records inside one uncompressed chunk, [begin, end): every complete message and connection record; stops at
@@ -140,7 +155,7 @@ std::uint64_t scanChunk(const std::vector<std::uint8_t>& bytes, std::uint64_t be
     const std::optional<Record> record = readRecord(bytes, at, end);
     if (!record || !record->data_complete) break;
     if (record->op == kOpConnection) {
-      addConnection(bytes, *record, scan);
+      if (!addConnection(bytes, *record, scan)) break;
     } else if (record->op == kOpMessageData) {
       const auto id = record->header.find("conn");
       const auto time = record->header.find("time");
@@ -309,6 +324,11 @@ std::optional<Break> findBreak(const std::vector<std::uint8_t>& bytes) {
   while (at < bytes.size()) {
     const std::optional<Record> record = readRecord(bytes, at, bytes.size());
     if (!record || !record->data_complete) return Break{at, cutOffAt(bytes, at)};
+    if (record->op == kOpConnection) {
+      std::uint32_t id = 0;
+      Connection connection;
+      if (!readConnection(bytes, *record, &id, &connection)) return Break{at, false};
+    }
     if (record->op == kOpChunk) {
       const auto compression = record->header.find("compression");
       if (compression != record->header.end() && compression->second == "none") {

@@ -11,6 +11,7 @@
 #include <unistd.h>
 
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <functional>
@@ -294,6 +295,30 @@ TEST_F(WorkFolder, CorruptBytesInTheMiddleGiveAClearErrorWithThePosition) {
   ASSERT_TRUE(broken.has_value());
   EXPECT_LE(*broken, middle + 4096);
   EXPECT_FALSE(firstBrokenRecord((kBags / "vitrectomy_expert.bag").string()).has_value());
+}
+
+// rosbag parses a connection record's data with ros::Header::parse, which trusts each field's length: one that points
+// past the data made it read beyond its buffer (ASan, found by fuzzing session_bag). The length field is checked
+// before rosbag reads the bag, and such a bag is refused as corrupt with the record's position.
+TEST_F(WorkFolder, AConnectionFieldLongerThanItsRecordIsRefusedBeforeRosbagReadsIt) {
+  std::string bytes = readText(kBags / "navigation_expert.bag");
+  // The last connection record is in the index section, which rosbag reads first when it opens a bag.
+  const std::size_t field = bytes.rfind("message_definition=");
+  ASSERT_NE(field, std::string::npos);
+  ASSERT_GE(field, 4u);
+  const std::uint32_t past_the_end = 900000;  // under ros::Header's own 10^6 limit, beyond this record's data
+  std::memcpy(&bytes[field - 4], &past_the_end, 4);
+  const fs::path corrupt = work_ / "connection_field.bag";
+  std::ofstream(corrupt, std::ios::binary) << bytes;
+  try {
+    prepareSessionBag(corrupt.string());
+    ADD_FAILURE() << "a bag with a connection field past its record was accepted";
+  } catch (const BagError& error) {
+    EXPECT_NE(std::string(error.what()).find("corrupt"), std::string::npos) << error.what();
+  }
+  const auto broken = firstBrokenRecord(corrupt.string());
+  ASSERT_TRUE(broken.has_value());
+  EXPECT_LT(*broken, field);
 }
 
 TEST_F(WorkFolder, ABagOfAnotherSceneOrVersionIsReplayedWithItsOwnSceneAndAWarning) {
