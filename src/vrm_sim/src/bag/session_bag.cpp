@@ -119,31 +119,23 @@ struct Scan {
   std::string stop_reason;
 };
 
-// A connection record rosbag can read: `conn` and `topic` in its header and "name=value" fields as its data. rosbag
-// parses that data with ros::Header::parse, which trusts each field's length (it reads past the data's end when one
-// points beyond it; found by fuzzing: src/vrm_fuzz/regressions/session_bag/connection_field_length_past_data). False
-// for anything else.
-bool readConnection(const std::vector<std::uint8_t>& bytes, const Record& record, std::uint32_t* id,
-                    Connection* connection) {
-  const auto id_field = record.header.find("conn");
+// Adds a connection record rosbag can read: `conn` and `topic` in its header and "name=value" fields as its data.
+// rosbag parses that data with ros::Header::parse, which trusts each field's length (it reads past the data's end when
+// one points beyond it; found by fuzzing: src/vrm_fuzz/regressions/session_bag/connection_field_length_past_data).
+// False, adding nothing, for anything else.
+bool addConnection(const std::vector<std::uint8_t>& bytes, const Record& record, Scan& scan) {
+  const auto id = record.header.find("conn");
   const auto topic = record.header.find("topic");
-  if (id_field == record.header.end() || id_field->second.size() != 4 || topic == record.header.end()) return false;
+  if (id == record.header.end() || id->second.size() != 4 || topic == record.header.end()) return false;
   Fields fields;
   if (!record.data_complete || !parseFields(bytes.data() + record.data_offset, record.data_length, fields)) {
     return false;
   }
-  *id = readU32(reinterpret_cast<const std::uint8_t*>(id_field->second.data()));
-  connection->topic = topic->second;
-  connection->header = boost::make_shared<ros::M_string>(fields.begin(), fields.end());
-  (*connection->header)["topic"] = topic->second;
-  return true;
-}
-
-bool addConnection(const std::vector<std::uint8_t>& bytes, const Record& record, Scan& scan) {
-  std::uint32_t id = 0;
   Connection connection;
-  if (!readConnection(bytes, record, &id, &connection)) return false;
-  scan.connections[id] = connection;
+  connection.topic = topic->second;
+  connection.header = boost::make_shared<ros::M_string>(fields.begin(), fields.end());
+  (*connection.header)["topic"] = topic->second;
+  scan.connections[readU32(reinterpret_cast<const std::uint8_t*>(id->second.data()))] = connection;
   return true;
 }
 
@@ -324,15 +316,11 @@ std::optional<Break> findBreak(const std::vector<std::uint8_t>& bytes) {
   while (at < bytes.size()) {
     const std::optional<Record> record = readRecord(bytes, at, bytes.size());
     if (!record || !record->data_complete) return Break{at, cutOffAt(bytes, at)};
-    if (record->op == kOpConnection) {
-      std::uint32_t id = 0;
-      Connection connection;
-      if (!readConnection(bytes, *record, &id, &connection)) return Break{at, false};
-    }
+    Scan scan;  // what the records hold is not kept here: only whether they read
+    if (record->op == kOpConnection && !addConnection(bytes, *record, scan)) return Break{at, false};
     if (record->op == kOpChunk) {
       const auto compression = record->header.find("compression");
       if (compression != record->header.end() && compression->second == "none") {
-        Scan scan;
         const std::uint64_t end = record->data_offset + record->data_length;
         const std::uint64_t scanned = scanChunk(bytes, record->data_offset, end, scan);
         if (scanned != end) return Break{scanned, false};
