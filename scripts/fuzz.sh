@@ -88,15 +88,14 @@ run_target() {
   local limit=()
   [[ -n $seconds ]] && limit+=(-max_total_time="$seconds")
   [[ -n $runs ]] && limit+=(-runs="$runs")
-  local len=()
-  [[ -n ${max_len[$t]:-} ]] && len=(-max_len="${max_len[$t]}")
-  # The text formats' dictionaries (written by make_seeds.py): whole keys and names to insert.
-  [[ -f $PKG/dict/$t.dict ]] && len+=(-dict="$PKG/dict/$t.dict")
-  echo "== fuzz_$t (${limit[*]}${len:+ ${len[*]}})"
+  local target_options=()  # libFuzzer options of this target: its input cap, its dictionary
+  [[ -n ${max_len[$t]:-} ]] && target_options=(-max_len="${max_len[$t]}")
+  [[ -f $PKG/dict/$t.dict ]] && target_options+=(-dict="$PKG/dict/$t.dict")
+  echo "== fuzz_$t (${limit[*]}${target_options:+ ${target_options[*]}})"
   local start end rc crashes=0
   start=$(date +%s.%N)
   set +e
-  (cd "$work" && nice -n 10 "$BUILD/fuzz/fuzz_$t" "${limit[@]}" "${len[@]}" -timeout=20 -rss_limit_mb=3072 \
+  (cd "$work" && nice -n 10 "$BUILD/fuzz/fuzz_$t" "${limit[@]}" "${target_options[@]}" -timeout=20 -rss_limit_mb=3072 \
     -print_final_stats=1 -artifact_prefix="$work/artifacts/" "$work/corpus" "$PKG/corpus/$t") >"$work/log" 2>&1
   rc=$?
   set -e
