@@ -7,7 +7,7 @@ ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 PACKAGES=(
   build-essential cmake pkg-config clang-format
   ros-core-dev libnodeletlib-dev libnodeletlib-tools python3-rostest python3-geometry-msgs rosbash
-  librosbag-dev python3-rosbag ros-std-srvs libdiagnostic-msgs-dev
+  librosbag-dev python3-rosbag ros-std-srvs libdiagnostic-msgs-dev libroslz4-dev libbz2-dev
   libtf2-ros-dev libtf2-eigen-dev libtf2-geometry-msgs-dev ros-sensor-msgs libvisualization-msgs-dev
   libcv-bridge-dev libimage-transport-dev libopencv-dev libeigen3-dev
   libgtest-dev libbenchmark-dev libosmesa6-dev

@@ -1,9 +1,11 @@
 #include "vrm_sim/bag/session_bag.h"
 
+#include <bzlib.h>
 #include <ros/serialization.h>
 #include <rosbag/bag.h>
 #include <rosbag/exceptions.h>
 #include <rosbag/view.h>
+#include <roslz4/lz4s.h>
 #include <topic_tools/shape_shifter.h>
 #include <unistd.h>
 
@@ -13,6 +15,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <set>
 #include <sstream>
 
 #include "vrm_msgs/EyeState.h"
@@ -37,7 +40,10 @@ namespace fs = std::filesystem;
 constexpr char kMagic[] = "#ROSBAG V2.0\n";
 constexpr std::size_t kMagicLength = sizeof(kMagic) - 1;
 constexpr std::uint8_t kOpMessageData = 0x02;
+constexpr std::uint8_t kOpFileHeader = 0x03;
+constexpr std::uint8_t kOpIndexData = 0x04;
 constexpr std::uint8_t kOpChunk = 0x05;
+constexpr std::uint8_t kOpChunkInfo = 0x06;
 constexpr std::uint8_t kOpConnection = 0x07;
 // A record header is a handful of short fields (a connection's is the longest: topic + type + definition are in the
 // data, not the header); anything larger is a broken length.
@@ -141,11 +147,14 @@ bool addConnection(const std::vector<std::uint8_t>& bytes, const Record& record,
 
 // The records inside one uncompressed chunk, [begin, end): every complete message and connection record; stops at
 // the first one that is cut off or not well-formed (the open chunk of a killed recorder ends that way).
-std::uint64_t scanChunk(const std::vector<std::uint8_t>& bytes, std::uint64_t begin, std::uint64_t end, Scan& scan) {
+// `records`, when given, receives the offset and op of each record read.
+std::uint64_t scanChunk(const std::vector<std::uint8_t>& bytes, std::uint64_t begin, std::uint64_t end, Scan& scan,
+                        std::vector<std::pair<std::uint64_t, std::uint8_t>>* records = nullptr) {
   std::uint64_t at = begin;
   while (at < end) {
     const std::optional<Record> record = readRecord(bytes, at, end);
     if (!record || !record->data_complete) break;
+    if (records) records->emplace_back(at, record->op);
     if (record->op == kOpConnection) {
       if (!addConnection(bytes, *record, scan)) break;
     } else if (record->op == kOpMessageData) {
@@ -311,7 +320,136 @@ bool cutOffAt(const std::vector<std::uint8_t>& bytes, std::uint64_t at) {
   return record && !record->data_complete;
 }
 
+// The largest chunk whose uncompressed bytes the check below will hold. rosbag writes chunks of 768 KiB (one larger
+// message makes one larger chunk); a session's inputs are far smaller.
+constexpr std::uint32_t kMaxChunkSize = 64u << 20;
+
+struct TopLevelRecord {
+  std::uint64_t offset = 0;
+  Record record;
+};
+
+// A fixed-size little-endian field of a record header; nullopt when it is missing or has another size (rosbag's
+// readField refuses those with an exception).
+template <typename T>
+std::optional<T> headerField(const Record& record, const char* name) {
+  const auto field = record.header.find(name);
+  if (field == record.header.end() || field->second.size() != sizeof(T)) return std::nullopt;
+  T value;
+  std::memcpy(&value, field->second.data(), sizeof(T));
+  return value;
+}
+
+// A chunk's data as rosbag's View sees it (uncompressed, "size" bytes); nullopt when rosbag could not have it.
+std::optional<std::vector<std::uint8_t>> chunkContents(const std::vector<std::uint8_t>& bytes, const Record& chunk) {
+  const auto compression = chunk.header.find("compression");
+  const std::optional<std::uint32_t> size = headerField<std::uint32_t>(chunk, "size");
+  if (compression == chunk.header.end() || !size || *size > kMaxChunkSize) return std::nullopt;
+  auto* source = reinterpret_cast<char*>(const_cast<std::uint8_t*>(bytes.data() + chunk.data_offset));
+  if (compression->second == "none") {
+    // rosbag reads the record's data length and asserts it equals "size"
+    if (*size != chunk.data_length) return std::nullopt;
+    return std::vector<std::uint8_t>(bytes.begin() + chunk.data_offset,
+                                     bytes.begin() + chunk.data_offset + chunk.data_length);
+  }
+  std::vector<std::uint8_t> contents(*size);
+  unsigned int produced = *size;
+  auto* target = reinterpret_cast<char*>(contents.data());
+  bool whole = false;
+  if (compression->second == "bz2") {
+    whole = BZ2_bzBuffToBuffDecompress(target, &produced, source, chunk.data_length, 0, 0) == BZ_OK;
+  } else if (compression->second == "lz4") {
+    whole = roslz4_buffToBuffDecompress(source, chunk.data_length, target, &produced) == ROSLZ4_OK;
+  }
+  // rosbag does not check the length it got: a shorter stream would leave the rest of its buffer stale
+  if (!whole || produced != *size) return std::nullopt;
+  return contents;
+}
+
+// The offsets in a chunk's data an index entry may name: rosbag's View reads the record there, skips connection
+// records, and expects a message record, all without a bounds check (Bag::readMessageDataHeaderFromBuffer).
+std::optional<std::set<std::uint32_t>> messageOffsets(const std::vector<std::uint8_t>& contents) {
+  Scan scan;
+  std::vector<std::pair<std::uint64_t, std::uint8_t>> records;
+  if (scanChunk(contents, 0, contents.size(), scan, &records) != contents.size()) return std::nullopt;
+  std::set<std::uint32_t> offsets;
+  bool leads_to_message = false;
+  for (auto record = records.rbegin(); record != records.rend(); ++record) {
+    leads_to_message = record->second == kOpMessageData || (record->second == kOpConnection && leads_to_message);
+    if (leads_to_message) offsets.insert(static_cast<std::uint32_t>(record->first));
+  }
+  return offsets;
+}
+
+// rosbag follows a bag's index without checking where it points: open() reads the records at the file header's
+// index_pos (connections, then chunk infos), each chunk info's chunk and the index records right after it; the View
+// then reads each index entry's offset inside the uncompressed chunk. A wrong number there makes rosbag read outside
+// its buffers (found by fuzzing: src/vrm_fuzz/regressions/session_bag/index_entry_offset_outside_chunk) or throw
+// what is not a BagException. This walks the same path over the records the structure check found intact; nullopt
+// when every reference lands where rosbag expects it, or where rosbag refuses cleanly (an unindexed bag, a wrong op).
+std::optional<Break> findIndexBreak(const std::vector<std::uint8_t>& bytes, const std::vector<TopLevelRecord>& top) {
+  if (top.empty() || top.front().record.op != kOpFileHeader) return std::nullopt;
+  const Record& file_header = top.front().record;
+  const auto index_pos = headerField<std::uint64_t>(file_header, "index_pos");
+  const auto connection_count = headerField<std::uint32_t>(file_header, "conn_count");
+  const auto chunk_count = headerField<std::uint32_t>(file_header, "chunk_count");
+  if (!index_pos || *index_pos == 0 || !connection_count || !chunk_count) return std::nullopt;
+  std::map<std::uint64_t, std::size_t> at_offset;
+  for (std::size_t i = 0; i < top.size(); ++i) at_offset[top[i].offset] = i;
+  const Break broken_header{top.front().offset, false};
+  // The index is the file's tail: a file that ends where it should begin lost it (recovery reads the chunks).
+  if (*index_pos == bytes.size()) return Break{bytes.size(), true};
+  const auto index = at_offset.find(*index_pos);
+  if (index == at_offset.end()) return broken_header;
+  if (index->second + *connection_count + *chunk_count > top.size()) return Break{bytes.size(), true};
+
+  std::set<std::uint32_t> connections;
+  for (std::size_t i = index->second; i < index->second + *connection_count; ++i) {
+    if (top[i].record.op != kOpConnection) return std::nullopt;              // "Expected CONNECTION op not found"
+    connections.insert(*headerField<std::uint32_t>(top[i].record, "conn"));  // addConnection checked its size
+  }
+  for (std::size_t i = index->second + *connection_count; i < index->second + *connection_count + *chunk_count; ++i) {
+    const TopLevelRecord& info = top[i];
+    if (info.record.op != kOpChunkInfo) return std::nullopt;  // "Expected CHUNK_INFO op not found"
+    const auto chunk_pos = headerField<std::uint64_t>(info.record, "chunk_pos");
+    const auto count = headerField<std::uint32_t>(info.record, "count");
+    // rosbag reads `count` pairs straight from the file, so the data length must be exactly theirs
+    if (!chunk_pos || !count || info.record.data_length != 8ull * *count) return Break{info.offset, false};
+    std::set<std::uint32_t> chunk_connections;
+    for (std::uint32_t k = 0; k < *count; ++k) {
+      chunk_connections.insert(readU32(bytes.data() + info.record.data_offset + 8ull * k));
+    }
+    const auto chunk = at_offset.find(*chunk_pos);
+    if (chunk == at_offset.end() || top[chunk->second].record.op != kOpChunk) return Break{info.offset, false};
+    const std::optional<std::vector<std::uint8_t>> contents = chunkContents(bytes, top[chunk->second].record);
+    if (!contents) return Break{*chunk_pos, false};
+    const std::optional<std::set<std::uint32_t>> offsets = messageOffsets(*contents);
+    if (!offsets) return Break{*chunk_pos, false};
+    // One index record per connection of the chunk, right after it.
+    for (std::size_t k = 1; k <= chunk_connections.size(); ++k) {
+      if (chunk->second + k >= top.size()) return Break{bytes.size(), true};
+      const TopLevelRecord& entries = top[chunk->second + k];
+      const auto version = headerField<std::uint32_t>(entries.record, "ver");
+      const auto connection = headerField<std::uint32_t>(entries.record, "conn");
+      const auto entry_count = headerField<std::uint32_t>(entries.record, "count");
+      if (entries.record.op != kOpIndexData || version != 1u || !connection || !entry_count ||
+          entries.record.data_length != 12ull * *entry_count || connections.count(*connection) == 0) {
+        return Break{entries.offset, false};
+      }
+      for (std::uint32_t e = 0; e < *entry_count; ++e) {
+        const std::uint8_t* entry = bytes.data() + entries.record.data_offset + 12ull * e;
+        // ros::Time(sec, nsec) normalises nsec and throws std::runtime_error past 2^32 s
+        if (readU32(entry + 4) >= 1000000000u || offsets->count(readU32(entry + 8)) == 0) {
+          return Break{entries.offset, false};
+        }
+      }
+    }
+  }
+  return std::nullopt;
+}
+
 std::optional<Break> findBreak(const std::vector<std::uint8_t>& bytes) {
+  std::vector<TopLevelRecord> top;
   std::uint64_t at = kMagicLength;
   while (at < bytes.size()) {
     const std::optional<Record> record = readRecord(bytes, at, bytes.size());
@@ -326,9 +464,10 @@ std::optional<Break> findBreak(const std::vector<std::uint8_t>& bytes) {
         if (scanned != end) return Break{scanned, false};
       }
     }
+    top.push_back({at, *record});
     at = record->data_offset + record->data_length;
   }
-  return std::nullopt;
+  return findIndexBreak(bytes, top);
 }
 
 bool hasMagic(const std::vector<std::uint8_t>& bytes) {

@@ -17,6 +17,7 @@
 #include <functional>
 #include <iterator>
 #include <limits>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <regex>
 #include <string>
@@ -319,6 +320,149 @@ TEST_F(WorkFolder, AConnectionFieldLongerThanItsRecordIsRefusedBeforeRosbagReads
   const auto broken = firstBrokenRecord(corrupt.string());
   ASSERT_TRUE(broken.has_value());
   EXPECT_LT(*broken, field);
+}
+
+// A top-level record of a bag file, as the tests below need to corrupt one on purpose.
+struct BagRecord {
+  std::size_t offset = 0, data_offset = 0;
+  std::uint32_t data_length = 0;
+  std::map<std::string, std::string> header;
+  std::uint8_t op() const { return static_cast<std::uint8_t>(header.at("op").at(0)); }
+};
+std::vector<BagRecord> topLevelRecords(const std::string& bytes) {
+  std::vector<BagRecord> records;
+  std::size_t at = std::strlen("#ROSBAG V2.0\n");
+  auto u32 = [&bytes](std::size_t offset) {
+    std::uint32_t value;
+    std::memcpy(&value, bytes.data() + offset, 4);
+    return value;
+  };
+  while (at + 4 <= bytes.size()) {
+    BagRecord record;
+    record.offset = at;
+    const std::uint32_t header_length = u32(at);
+    for (std::size_t field = at + 4; field < at + 4 + header_length;) {
+      const std::string text = bytes.substr(field + 4, u32(field));
+      record.header[text.substr(0, text.find('='))] = text.substr(text.find('=') + 1);
+      field += 4 + text.size();
+    }
+    record.data_length = u32(at + 4 + header_length);
+    record.data_offset = at + 8 + header_length;
+    records.push_back(record);
+    at = record.data_offset + record.data_length;
+  }
+  return records;
+}
+
+// A copy of `source` written by rosbag with chunks compressed by `compression`.
+void writeCompressedCopy(const std::string& source, const fs::path& path, rosbag::CompressionType compression) {
+  rosbag::Bag in(source, rosbag::bagmode::Read);
+  rosbag::Bag out(path.string(), rosbag::bagmode::Write);
+  out.setCompression(compression);
+  out.setChunkThreshold(16 * 1024);  // several chunks, so the index check walks more than one
+  for (const rosbag::MessageInstance& message : rosbag::View(in))
+    out.write(message.getTopic(), message.getTime(), message);
+}
+
+void expectRefusedAsCorrupt(const fs::path& bag, std::size_t broken_at) {
+  try {
+    prepareSessionBag(bag.string());
+    ADD_FAILURE() << bag << " was accepted";
+  } catch (const BagError& error) {
+    EXPECT_NE(std::string(error.what()).find("corrupt"), std::string::npos) << error.what();
+  }
+  const auto broken = firstBrokenRecord(bag.string());
+  ASSERT_TRUE(broken.has_value());
+  EXPECT_EQ(*broken, broken_at);
+}
+
+// rosbag's View reads the record at an index entry's offset in the chunk without a bounds check (found by fuzzing:
+// src/vrm_fuzz/regressions/session_bag/index_entry_offset_outside_chunk). Every index reference is checked first.
+TEST_F(WorkFolder, AnIndexEntryThatDoesNotNameAMessageOfItsChunkIsRefusedBeforeRosbagFollowsIt) {
+  const std::string original = readText(kBags / "navigation_expert.bag");
+  const std::vector<BagRecord> records = topLevelRecords(original);
+  const auto chunk = std::find_if(records.begin(), records.end(), [](const BagRecord& r) { return r.op() == 0x05; });
+  ASSERT_NE(chunk, records.end());
+  const BagRecord& index = *(chunk + 1);
+  ASSERT_EQ(index.op(), 0x04) << "an index record follows its chunk";
+  ASSERT_GE(index.data_length, 24u);
+  const std::size_t second_offset = index.data_offset + 12 + 8;
+  std::uint32_t offset;
+  std::memcpy(&offset, original.data() + second_offset, 4);
+  struct Corruption {
+    const char* what;
+    std::size_t at;
+    std::uint32_t value;
+  };
+  for (const Corruption& corruption : {
+           Corruption{"past the chunk", second_offset, chunk->data_length + 4096},
+           Corruption{"inside a record", second_offset, offset + 1},
+           Corruption{"inside the chunk's last bytes", second_offset, chunk->data_length - 2},
+           Corruption{"nanoseconds of 10^9 or more", second_offset - 4, 1000000000u},
+       }) {
+    SCOPED_TRACE(corruption.what);
+    std::string bytes = original;
+    std::memcpy(&bytes[corruption.at], &corruption.value, 4);
+    const fs::path corrupt = work_ / "index_entry.bag";
+    std::ofstream(corrupt, std::ios::binary) << bytes;
+    expectRefusedAsCorrupt(corrupt, index.offset);
+  }
+  // The entry may name a connection record before its message (rosbag writes it so for a connection's first message):
+  // that is the first entry of the first index record here, and the original is accepted as it is.
+  EXPECT_FALSE(firstBrokenRecord((kBags / "navigation_expert.bag").string()).has_value());
+}
+
+TEST_F(WorkFolder, AChunkInfoOrFileHeaderThatPointsOffARecordIsRefused) {
+  const std::string original = readText(kBags / "navigation_expert.bag");
+  const std::vector<BagRecord> records = topLevelRecords(original);
+  const auto info = std::find_if(records.begin(), records.end(), [](const BagRecord& r) { return r.op() == 0x06; });
+  ASSERT_NE(info, records.end());
+  {
+    std::string bytes = original;
+    const std::size_t chunk_pos = bytes.find("chunk_pos=", info->offset) + std::strlen("chunk_pos=");
+    bytes[chunk_pos] = static_cast<char>(bytes[chunk_pos] + 1);  // one byte into the chunk record
+    const fs::path corrupt = work_ / "chunk_pos.bag";
+    std::ofstream(corrupt, std::ios::binary) << bytes;
+    expectRefusedAsCorrupt(corrupt, info->offset);
+  }
+  {
+    std::string bytes = original;
+    const std::size_t index_pos = bytes.find("index_pos=") + std::strlen("index_pos=");
+    bytes[index_pos] = static_cast<char>(bytes[index_pos] + 1);
+    const fs::path corrupt = work_ / "index_pos.bag";
+    std::ofstream(corrupt, std::ios::binary) << bytes;
+    expectRefusedAsCorrupt(corrupt, records.front().offset);
+  }
+}
+
+// The index check reads bz2 and lz4 chunks as rosbag does, so a compressed session bag (rosbag compress) still
+// replays, to the same final state as the original, and a wrong index entry in one is refused all the same.
+TEST_F(WorkFolder, ACompressedBagIsCheckedThroughItsChunksAndReplaysLikeTheOriginal) {
+  const std::string source = (kBags / "navigation_expert.bag").string();
+  const std::string expected = readText(kBags / "navigation_expert.expected.json");
+  for (const auto& [name, compression] :
+       {std::pair{"bz2", rosbag::compression::BZ2}, std::pair{"lz4", rosbag::compression::LZ4}}) {
+    SCOPED_TRACE(name);
+    const fs::path compressed = work_ / (std::string(name) + ".bag");
+    writeCompressedCopy(source, compressed, compression);
+    EXPECT_FALSE(firstBrokenRecord(compressed.string()).has_value());
+    const PreparedBag prepared = prepareSessionBag(compressed.string());
+    EXPECT_FALSE(prepared.recovery.has_value()) << "rosbag opens it as it is";
+    const ReplayResult result = replaySession(prepared, resolveSession(prepared));
+    EXPECT_EQ(world::hashString(result.final_state_hash), jsonField(expected, "final_state_hash"));
+
+    std::string bytes = readText(compressed);
+    const std::vector<BagRecord> records = topLevelRecords(bytes);
+    const auto chunk = std::find_if(records.begin(), records.end(), [](const BagRecord& r) { return r.op() == 0x05; });
+    ASSERT_NE(chunk, records.end());
+    ASSERT_EQ(chunk->header.at("compression"), name);
+    const BagRecord& index = *(chunk + 1);
+    const std::uint32_t past_the_chunk = 1u << 24;
+    std::memcpy(&bytes[index.data_offset + 8], &past_the_chunk, 4);
+    const fs::path corrupt = work_ / (std::string(name) + "_corrupt.bag");
+    std::ofstream(corrupt, std::ios::binary) << bytes;
+    expectRefusedAsCorrupt(corrupt, index.offset);
+  }
 }
 
 TEST_F(WorkFolder, ABagOfAnotherSceneOrVersionIsReplayedWithItsOwnSceneAndAWarning) {
