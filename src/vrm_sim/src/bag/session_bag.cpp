@@ -13,6 +13,7 @@
 #include <boost/make_shared.hpp>
 #include <cstdint>
 #include <cstring>
+#include <deque>
 #include <filesystem>
 #include <fstream>
 #include <set>
@@ -110,16 +111,58 @@ struct Connection {
   boost::shared_ptr<ros::M_string> header;  // type, md5sum, message_definition, callerid, latching
 };
 
+// The largest chunk whose uncompressed bytes the structure check and the recovery will hold. rosbag writes chunks of
+// 768 KiB (one larger message makes one larger chunk); a session's inputs are far smaller.
+constexpr std::uint32_t kMaxChunkSize = 64u << 20;
+
+// A fixed-size little-endian field of a record header; nullopt when it is missing or has another size (rosbag's
+// readField refuses those with an exception).
+template <typename T>
+std::optional<T> headerField(const Record& record, const char* name) {
+  const auto field = record.header.find(name);
+  if (field == record.header.end() || field->second.size() != sizeof(T)) return std::nullopt;
+  T value;
+  std::memcpy(&value, field->second.data(), sizeof(T));
+  return value;
+}
+
+// A chunk's data as rosbag's View sees it (uncompressed, "size" bytes); nullopt when rosbag could not have it.
+std::optional<std::vector<std::uint8_t>> chunkContents(const std::vector<std::uint8_t>& bytes, const Record& chunk) {
+  const auto compression = chunk.header.find("compression");
+  const std::optional<std::uint32_t> size = headerField<std::uint32_t>(chunk, "size");
+  if (compression == chunk.header.end() || !size || *size > kMaxChunkSize) return std::nullopt;
+  auto* source = reinterpret_cast<char*>(const_cast<std::uint8_t*>(bytes.data() + chunk.data_offset));
+  if (compression->second == "none") {
+    // rosbag reads the record's data length and asserts it equals "size"
+    if (*size != chunk.data_length) return std::nullopt;
+    return std::vector<std::uint8_t>(bytes.begin() + chunk.data_offset,
+                                     bytes.begin() + chunk.data_offset + chunk.data_length);
+  }
+  std::vector<std::uint8_t> contents(*size);
+  unsigned int produced = *size;
+  auto* target = reinterpret_cast<char*>(contents.data());
+  bool whole = false;
+  if (compression->second == "bz2") {
+    whole = BZ2_bzBuffToBuffDecompress(target, &produced, source, chunk.data_length, 0, 0) == BZ_OK;
+  } else if (compression->second == "lz4") {
+    whole = roslz4_buffToBuffDecompress(source, chunk.data_length, target, &produced) == ROSLZ4_OK;
+  }
+  // rosbag does not check the length it got: a shorter stream would leave the rest of its buffer stale
+  if (!whole || produced != *size) return std::nullopt;
+  return contents;
+}
+
 struct RawMessage {
   std::uint32_t connection = 0;
   ros::Time time;
-  std::uint64_t offset = 0;
+  const std::uint8_t* data = nullptr;  // in the file's bytes, or in a decompressed chunk of Scan::chunks
   std::uint32_t length = 0;
 };
 
 struct Scan {
   std::map<std::uint32_t, Connection> connections;
   std::vector<RawMessage> messages;
+  std::deque<std::vector<std::uint8_t>> chunks;  // decompressed chunks (a deque: the messages point into them)
   std::uint64_t end_offset = 0;
   std::uint64_t lost_compressed_chunks = 0;
   std::string stop_reason;
@@ -168,7 +211,7 @@ std::uint64_t scanChunk(const std::vector<std::uint8_t>& bytes, std::uint64_t be
       RawMessage message;
       message.connection = readU32(reinterpret_cast<const std::uint8_t*>(id->second.data()));
       message.time = ros::Time(readU32(time_bytes), readU32(time_bytes + 4));
-      message.offset = record->data_offset;
+      message.data = bytes.data() + record->data_offset;
       message.length = record->data_length;
       scan.messages.push_back(message);
     } else {
@@ -195,10 +238,19 @@ Scan scanBag(const std::vector<std::uint8_t>& bytes) {
       // An open chunk (killed recorder) still has its placeholder length 0; a cut-off one points past the end.
       const bool open = record->data_length == 0 || !record->data_complete;
       if (!plain) {
-        ++scan.lost_compressed_chunks;
-        if (open) {
-          scan.stop_reason = "a compressed chunk at byte " + std::to_string(at) + " has no end";
-          break;
+        // A closed compressed chunk is read whole, as rosbag would; an open one (the recorder's last, killed) has no
+        // complete compressed stream to read.
+        std::optional<std::vector<std::uint8_t>> contents;
+        if (!open) contents = chunkContents(bytes, *record);
+        if (!contents) {
+          ++scan.lost_compressed_chunks;
+          if (open) {
+            scan.stop_reason = "a compressed chunk at byte " + std::to_string(at) + " has no end";
+            break;
+          }
+        } else {
+          const std::vector<std::uint8_t>& chunk = scan.chunks.emplace_back(std::move(*contents));
+          scanChunk(chunk, 0, chunk.size(), scan);
         }
       } else {
         const std::uint64_t chunk_end = open ? size : record->data_offset + record->data_length;
@@ -320,51 +372,10 @@ bool cutOffAt(const std::vector<std::uint8_t>& bytes, std::uint64_t at) {
   return record && !record->data_complete;
 }
 
-// The largest chunk whose uncompressed bytes the check below will hold. rosbag writes chunks of 768 KiB (one larger
-// message makes one larger chunk); a session's inputs are far smaller.
-constexpr std::uint32_t kMaxChunkSize = 64u << 20;
-
 struct TopLevelRecord {
   std::uint64_t offset = 0;
   Record record;
 };
-
-// A fixed-size little-endian field of a record header; nullopt when it is missing or has another size (rosbag's
-// readField refuses those with an exception).
-template <typename T>
-std::optional<T> headerField(const Record& record, const char* name) {
-  const auto field = record.header.find(name);
-  if (field == record.header.end() || field->second.size() != sizeof(T)) return std::nullopt;
-  T value;
-  std::memcpy(&value, field->second.data(), sizeof(T));
-  return value;
-}
-
-// A chunk's data as rosbag's View sees it (uncompressed, "size" bytes); nullopt when rosbag could not have it.
-std::optional<std::vector<std::uint8_t>> chunkContents(const std::vector<std::uint8_t>& bytes, const Record& chunk) {
-  const auto compression = chunk.header.find("compression");
-  const std::optional<std::uint32_t> size = headerField<std::uint32_t>(chunk, "size");
-  if (compression == chunk.header.end() || !size || *size > kMaxChunkSize) return std::nullopt;
-  auto* source = reinterpret_cast<char*>(const_cast<std::uint8_t*>(bytes.data() + chunk.data_offset));
-  if (compression->second == "none") {
-    // rosbag reads the record's data length and asserts it equals "size"
-    if (*size != chunk.data_length) return std::nullopt;
-    return std::vector<std::uint8_t>(bytes.begin() + chunk.data_offset,
-                                     bytes.begin() + chunk.data_offset + chunk.data_length);
-  }
-  std::vector<std::uint8_t> contents(*size);
-  unsigned int produced = *size;
-  auto* target = reinterpret_cast<char*>(contents.data());
-  bool whole = false;
-  if (compression->second == "bz2") {
-    whole = BZ2_bzBuffToBuffDecompress(target, &produced, source, chunk.data_length, 0, 0) == BZ_OK;
-  } else if (compression->second == "lz4") {
-    whole = roslz4_buffToBuffDecompress(source, chunk.data_length, target, &produced) == ROSLZ4_OK;
-  }
-  // rosbag does not check the length it got: a shorter stream would leave the rest of its buffer stale
-  if (!whole || produced != *size) return std::nullopt;
-  return contents;
-}
 
 // The offsets in a chunk's data an index entry may name: rosbag's View reads the record there, skips connection
 // records, and expects a message record, all without a bounds check (Bag::readMessageDataHeaderFromBuffer).
@@ -517,7 +528,7 @@ RecoveryReport recoverBag(const std::string& broken, const std::string& copy) {
       }
       topic_tools::ShapeShifter message;
       message.morph(field("md5sum"), field("type"), field("message_definition"), field("latching"));
-      ros::serialization::IStream stream(const_cast<std::uint8_t*>(bytes.data() + raw.offset), raw.length);
+      ros::serialization::IStream stream(const_cast<std::uint8_t*>(raw.data), raw.length);
       message.read(stream);
       out.write(connection->second.topic, raw.time, message, connection->second.header);
       ++report.messages;

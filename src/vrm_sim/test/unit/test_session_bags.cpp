@@ -66,14 +66,20 @@ Process run(const std::string& arguments) {
 // Copies the first `limit` messages of `source` into `path` in a child process that exits without closing the bag,
 // exactly as a killed rosbag record leaves <name>.bag.active (no index, the last chunk open); `after_each(out, message,
 // n)` may write more records after the n-th message.
+// `compression`: the chunks' (rosbag record --bz2 / --lz4), in chunks of 16 KiB then.
 void writeUnfinishedBag(
     const fs::path& path, const std::string& source, std::size_t limit = std::numeric_limits<std::size_t>::max(),
-    const std::function<void(rosbag::Bag&, const rosbag::MessageInstance&, std::size_t)>& after_each = {}) {
+    const std::function<void(rosbag::Bag&, const rosbag::MessageInstance&, std::size_t)>& after_each = {},
+    rosbag::CompressionType compression = rosbag::compression::Uncompressed) {
   const pid_t child = fork();
   ASSERT_GE(child, 0);
   if (child == 0) {
     rosbag::Bag in(source, rosbag::bagmode::Read);
     rosbag::Bag out(path.string(), rosbag::bagmode::Write);
+    if (compression != rosbag::compression::Uncompressed) {
+      out.setCompression(compression);
+      out.setChunkThreshold(16 * 1024);
+    }
     rosbag::View view(in);
     std::size_t n = 0;
     for (const rosbag::MessageInstance& message : view) {
@@ -211,6 +217,29 @@ TEST_F(WorkFolder, AnUnfinishedBagIsRecoveredIntoACopyAndTheOriginalIsLeftAlone)
   EXPECT_NE(process.err.find("recovered"), std::string::npos) << process.err;
   EXPECT_EQ(jsonField(process.out, "recovered_messages"), std::to_string(prepared.recovery->messages));
   EXPECT_GT(std::stoi(jsonField(process.out, "simulated_frames")), 0);
+}
+
+// rosbag record --bz2 / --lz4 killed mid-session: the closed chunks are decompressed and recovered, only the open one
+// (its compressed stream has no end) is lost, and said so.
+TEST_F(WorkFolder, AnUnfinishedCompressedBagLosesOnlyItsOpenChunk) {
+  const PreparedBag reference = prepareSessionBag((kBags / "membrane_peeling_novice.bag").string());
+  for (const auto& [name, compression] :
+       {std::pair{"bz2", rosbag::compression::BZ2}, std::pair{"lz4", rosbag::compression::LZ4}}) {
+    SCOPED_TRACE(name);
+    const fs::path active = work_ / (std::string(name) + ".bag.active");
+    writeUnfinishedBag(active, reference.usable, std::numeric_limits<std::size_t>::max(), {}, compression);
+    const PreparedBag prepared = prepareSessionBag(active.string());
+    ASSERT_TRUE(prepared.recovery.has_value());
+    EXPECT_EQ(prepared.recovery->lost_compressed_chunks, 1u);
+    EXPECT_NE(prepared.recovery->stop_reason.find("compressed chunk"), std::string::npos)
+        << prepared.recovery->stop_reason;
+    // 16 KiB chunks of a session of some MB: one lost chunk is a small part of it.
+    EXPECT_GT(prepared.recovery->messages, reference.messages * 9 / 10);
+    EXPECT_LT(prepared.recovery->messages, reference.messages);
+    EXPECT_GT(prepared.recovery->seconds, 1.0);
+    rosbag::Bag recovered(prepared.usable, rosbag::bagmode::Read);
+    EXPECT_EQ(rosbag::View(recovered).size(), prepared.recovery->messages);
+  }
 }
 
 // A message record of zero bytes (a std_msgs/Empty, or a fuzzed length): recovery leaves it out and counts it, since

@@ -48,6 +48,8 @@ struct RecoveryReport {
   double seconds = 0.0;          // from the first to the last recovered message (bag time)
   std::uint64_t end_offset = 0;  // where the intact records end (byte offset in the original)
   std::uint64_t file_size = 0;
+  // Compressed (bz2, lz4) chunks whose messages are lost: the open one a killed recorder leaves (its compressed stream
+  // has no end), or one that does not decompress to its size. Closed ones are read whole.
   std::uint64_t lost_compressed_chunks = 0;
   std::uint64_t empty_records = 0;  // message records of zero bytes, not copied
   std::string stop_reason;  // why the scan stopped before the end of the file ("" = it reached the end)
