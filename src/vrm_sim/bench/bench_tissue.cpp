@@ -15,7 +15,7 @@
 // step reported) against Bullet's stepSimulation with the same grasp and a kinematic sphere as the probe.
 // Every timed figure: median over repetitions in one run (ms_per_step), with ms_min/ms_max beside it.
 // Plus the hard cases (stable yes/no, max strain, energy, watchdog fallbacks; their reference stays RK2 at a tiny dt).
-// Usage: bench_tissue [--quick] [--out FILE] [--only SECTION[,SECTION...]] [--drawn-cases N]
+// Usage: bench_tissue [--quick] [--out FILE] [--only SECTION[,SECTION...]] [--drawn-cases N] [--dt-divisors D,...]
 //   sections: accuracy (references, speed against error, Bullet, matched), full_step, hard, bullet_sweep (issue 40
 //   §4: Bullet with 10 iterations across the dt sweep at 100×100 against our fastest configuration as accurate).
 #include <time.h>
@@ -340,6 +340,7 @@ struct Row {
   double auto_cost_ratio_min = NAN, auto_cost_ratio_max = NAN;  // ... per repetition (same repetition's runs)
   std::uint64_t torn_springs = 0;                               // hard cases
   std::uint64_t case_seed = 0;        // drawn hard cases (randomHardCase()): the seed; 0 hand-made
+  int dt_divisor = 0;                 // hard cases with --dt-divisors: this run's dt is the case's dt / dt_divisor
   std::string case_description;       // ... the drawn parameters
   std::string choice_reason;          // auto rows of the hard cases: why it chose (IntegratorChoice::reason)
   double ratio_to_bullet = NAN;       // bullet full-step rows: our auto's ms per step / Bullet's (same mesh, dt)
@@ -412,6 +413,7 @@ struct Row {
     }
     if (std::isfinite(max_strain_frames)) out << ", \"torn_springs\": " << torn_springs;
     if (case_seed != 0) out << ", \"case_seed\": " << case_seed << ", \"case\": \"" << case_description << "\"";
+    if (dt_divisor > 0) out << ", \"dt_divisor\": " << dt_divisor;
     if (!choice_reason.empty()) out << ", \"choice_reason\": \"" << choice_reason << "\"";
     out << "}";
     return out.str();
@@ -919,7 +921,7 @@ HardRun runHard(const HardCase& hard, const std::string& integrator, double dt_o
 }
 
 void runHardCases(const std::vector<std::string>& integrators, bool quick, int repetitions, int random_cases,
-                  const std::string& name_filter, std::vector<Row>& rows) {
+                  const std::string& name_filter, const std::vector<int>& dt_divisors, std::vector<Row>& rows) {
   std::vector<HardCase> hard_cases{{"hard_stiffness_ratio_1e4", 22, 1e-3, 1e4, 1, 0.01, 0},
                                    {"hard_stiffness_ratio_1e5", 22, 1e-3, 1e5, 1, 0.01, 0},
                                    {"hard_stiff_k2000", 22, 1e-3, 1, 1, 0.01, 0, 1000.0},
@@ -950,6 +952,31 @@ void runHardCases(const std::vector<std::string>& integrators, bool quick, int r
       std::ostringstream name;
       name << "rk2 dt " << reference_dt << " s (our own integrator; hard cases only)";
       reference_name = name.str();
+    }
+    // --dt-divisors: each fixed integrator once more at the case's dt / d, against the same reference — how its error
+    // falls as dt does (an error that stays put while dt shrinks is not the integrator's truncation error).
+    for (const int divisor : dt_divisors) {
+      if (reference.empty()) break;
+      for (const std::string& integrator : integrators) {
+        if (integrator == vrm_sim::tissue::kAutoIntegrator) continue;
+        HardRun run = runHard(hard, integrator, setUpHard(hard).dt / divisor, true);
+        double sum2 = 0.0, max_error = 0.0;
+        for (std::size_t i = 0; i < reference.size(); ++i) {
+          const double e = (run.positions[i] - reference[i]).norm();
+          sum2 += std::isfinite(e) ? e * e : INFINITY;
+          max_error = std::max(max_error, std::isfinite(e) ? e : INFINITY);
+        }
+        run.row.error_rms = std::sqrt(sum2 / reference.size());
+        run.row.error_max = max_error;
+        run.row.reference = reference_name;
+        run.row.case_seed = hard.seed;
+        run.row.case_description = hard.description;
+        run.row.dt_divisor = divisor;
+        std::printf("%-24s %-19s dt/%-3d %9.3g s %6d steps %4llu fallbacks  error rms %.3e m  %.4f ms/step\n",
+                    hard.name.c_str(), integrator.c_str(), divisor, run.row.dt, run.row.steps,
+                    static_cast<unsigned long long>(run.row.fallbacks), run.row.error_rms, run.row.ms_per_step);
+        rows.push_back(run.row);
+      }
     }
     // Interleaved repetitions: every integrator once, then again, so a slow spell of the machine hits all alike. The
     // runs are deterministic: the first repetition's state stands for all.
@@ -1056,7 +1083,8 @@ int main(int argc, char** argv) {
   vrm_sim::bench::BenchArgs args;
   std::string only;
   vrm_sim::cli::CommandLine cli("bench_tissue",
-                                "[--quick] [--out FILE] [--only SECTION[,SECTION...]] [--drawn-cases N]",
+                                "[--quick] [--out FILE] [--only SECTION[,SECTION...]] [--drawn-cases N] "
+                                "[--dt-divisors D,...]",
                                 "Tissue: speed against error for every integrator, dt and mesh size.");
   vrm_sim::bench::addBenchOptions(cli, &args);
   cli.add()("only", vrm_sim::cli::po::value(&only)->value_name("SECTIONS"),
@@ -1065,8 +1093,27 @@ int main(int argc, char** argv) {
   int drawn_cases = kRandomHardCases;
   cli.add()("drawn-cases", vrm_sim::cli::po::value(&drawn_cases)->value_name("N"),
             "hard cases drawn from seeds 1..N (default 5; 1 with --quick)");
+  std::string divisors_text;
+  cli.add()("dt-divisors", vrm_sim::cli::po::value(&divisors_text)->value_name("D1,D2,..."),
+            "hard cases: also run every fixed integrator at the case's dt / D for each D (error against dt)");
   if (const auto status = cli.parse(argc, argv)) return *status;
   if (drawn_cases < 0) return cli.fail("--drawn-cases must be >= 0");
+  std::vector<int> dt_divisors;
+  {
+    std::stringstream list(divisors_text);
+    for (std::string item; std::getline(list, item, ',');) {
+      std::size_t used = 0;
+      int divisor = 0;
+      try {
+        divisor = std::stoi(item, &used);
+      } catch (const std::exception&) {
+      }
+      if (used != item.size() || divisor < 1 || divisor > 1024) {
+        return cli.fail("--dt-divisors: '" + item + "' is not an integer in 1..1024");
+      }
+      dt_divisors.push_back(divisor);
+    }
+  }
   if (args.quick && !cli.given("drawn-cases")) drawn_cases = 1;
   std::string hard_filter;  // hard:NAME
   const auto runs = [&only, &hard_filter](const std::string& section) {
@@ -1479,7 +1526,7 @@ int main(int argc, char** argv) {
     }
   }
 
-  if (runs("hard")) runHardCases(integrators, quick, repetitions, drawn_cases, hard_filter, rows);
+  if (runs("hard")) runHardCases(integrators, quick, repetitions, drawn_cases, hard_filter, dt_divisors, rows);
 
 #ifdef VRM_HAVE_BULLET
   if (runs("bullet_sweep")) bulletSweep(quick, repetitions, integrators, rows);
