@@ -183,6 +183,19 @@ for bag_name, scene_index in (("navigation_expert", 0), ("membrane_peeling_novic
         out_path.unlink()
         seed("session_bag", bag_name + "_first24", data)
         seed("session_bag", bag_name + "_first24_cut", data[: len(data) * 2 // 3])
+        if bag_name == "navigation_expert":
+            # The same messages in small compressed chunks: the structure check and recovery decompress them.
+            for compression in ("bz2", "lz4"):
+                with rosbag.Bag(str(out_path), "w", compression=compression, chunk_threshold=4096) as out:
+                    n = 0
+                    for topic, raw, t in bag.read_messages(raw=True):
+                        if n >= 24:
+                            break
+                        out.write(topic, raw, t, raw=True)
+                        n += 1
+                data = out_path.read_bytes()
+                out_path.unlink()
+                seed("session_bag", bag_name + "_first24_" + compression, data)
 
 mesh = vm.TissueMesh()
 mesh.tissue_id = "membrane"
