@@ -126,18 +126,17 @@ std::optional<T> headerField(const Record& record, const char* name) {
   return value;
 }
 
-// A chunk's data as rosbag's View sees it (uncompressed, "size" bytes); nullopt when rosbag could not have it.
-std::optional<std::vector<std::uint8_t>> chunkContents(const std::vector<std::uint8_t>& bytes, const Record& chunk) {
+bool plainChunk(const Record& chunk) {
+  const auto compression = chunk.header.find("compression");
+  return compression != chunk.header.end() && compression->second == "none";
+}
+
+// A compressed (bz2, lz4) chunk's data as rosbag's View sees it, "size" bytes; nullopt when rosbag could not have it.
+std::optional<std::vector<std::uint8_t>> decompressChunk(const std::vector<std::uint8_t>& bytes, const Record& chunk) {
   const auto compression = chunk.header.find("compression");
   const std::optional<std::uint32_t> size = headerField<std::uint32_t>(chunk, "size");
   if (compression == chunk.header.end() || !size || *size > kMaxChunkSize) return std::nullopt;
   auto* source = reinterpret_cast<char*>(const_cast<std::uint8_t*>(bytes.data() + chunk.data_offset));
-  if (compression->second == "none") {
-    // rosbag reads the record's data length and asserts it equals "size"
-    if (*size != chunk.data_length) return std::nullopt;
-    return std::vector<std::uint8_t>(bytes.begin() + chunk.data_offset,
-                                     bytes.begin() + chunk.data_offset + chunk.data_length);
-  }
   std::vector<std::uint8_t> contents(*size);
   unsigned int produced = *size;
   auto* target = reinterpret_cast<char*>(contents.data());
@@ -233,15 +232,14 @@ Scan scanBag(const std::vector<std::uint8_t>& bytes) {
       break;
     }
     if (record->op == kOpChunk) {
-      const auto compression = record->header.find("compression");
-      const bool plain = compression != record->header.end() && compression->second == "none";
+      const bool plain = plainChunk(*record);
       // An open chunk (killed recorder) still has its placeholder length 0; a cut-off one points past the end.
       const bool open = record->data_length == 0 || !record->data_complete;
       if (!plain) {
         // A closed compressed chunk is read whole, as rosbag would; an open one (the recorder's last, killed) has no
         // complete compressed stream to read.
         std::optional<std::vector<std::uint8_t>> contents;
-        if (!open) contents = chunkContents(bytes, *record);
+        if (!open) contents = decompressChunk(bytes, *record);
         if (!contents) {
           ++scan.lost_compressed_chunks;
           if (open) {
@@ -377,18 +375,18 @@ struct TopLevelRecord {
   Record record;
 };
 
-// The offsets in a chunk's data an index entry may name: rosbag's View reads the record there, skips connection
-// records, and expects a message record, all without a bounds check (Bag::readMessageDataHeaderFromBuffer).
-std::optional<std::set<std::uint32_t>> messageOffsets(const std::vector<std::uint8_t>& contents) {
-  Scan scan;
-  std::vector<std::pair<std::uint64_t, std::uint8_t>> records;
-  if (scanChunk(contents, 0, contents.size(), scan, &records) != contents.size()) return std::nullopt;
-  std::set<std::uint32_t> offsets;
+// The records of a chunk (scanChunk's) an index entry may name, as offsets from the chunk data's start `begin`,
+// ascending: rosbag's View reads the record there, skips connection records, and expects a message record, all
+// without a bounds check (Bag::readMessageDataHeaderFromBuffer).
+using ChunkRecords = std::vector<std::pair<std::uint64_t, std::uint8_t>>;
+std::vector<std::uint32_t> messageOffsets(const ChunkRecords& records, std::uint64_t begin) {
+  std::vector<std::uint32_t> offsets;
   bool leads_to_message = false;
   for (auto record = records.rbegin(); record != records.rend(); ++record) {
     leads_to_message = record->second == kOpMessageData || (record->second == kOpConnection && leads_to_message);
-    if (leads_to_message) offsets.insert(static_cast<std::uint32_t>(record->first));
+    if (leads_to_message) offsets.push_back(static_cast<std::uint32_t>(record->first - begin));
   }
+  std::reverse(offsets.begin(), offsets.end());
   return offsets;
 }
 
@@ -398,7 +396,9 @@ std::optional<std::set<std::uint32_t>> messageOffsets(const std::vector<std::uin
 // its buffers (found by fuzzing: src/vrm_fuzz/regressions/session_bag/index_entry_offset_outside_chunk) or throw
 // what is not a BagException. This walks the same path over the records the structure check found intact; nullopt
 // when every reference lands where rosbag expects it, or where rosbag refuses cleanly (an unindexed bag, a wrong op).
-std::optional<Break> findIndexBreak(const std::vector<std::uint8_t>& bytes, const std::vector<TopLevelRecord>& top) {
+// `plain_offsets`: messageOffsets() of every uncompressed chunk, by the chunk record's offset.
+std::optional<Break> findIndexBreak(const std::vector<std::uint8_t>& bytes, const std::vector<TopLevelRecord>& top,
+                                    const std::map<std::uint64_t, std::vector<std::uint32_t>>& plain_offsets) {
   if (top.empty() || top.front().record.op != kOpFileHeader) return std::nullopt;
   const Record& file_header = top.front().record;
   const auto index_pos = headerField<std::uint64_t>(file_header, "index_pos");
@@ -432,9 +432,20 @@ std::optional<Break> findIndexBreak(const std::vector<std::uint8_t>& bytes, cons
     }
     const auto chunk = at_offset.find(*chunk_pos);
     if (chunk == at_offset.end() || top[chunk->second].record.op != kOpChunk) return Break{info.offset, false};
-    const std::optional<std::vector<std::uint8_t>> contents = chunkContents(bytes, top[chunk->second].record);
-    if (!contents) return Break{*chunk_pos, false};
-    const std::optional<std::set<std::uint32_t>> offsets = messageOffsets(*contents);
+    const Record& chunk_record = top[chunk->second].record;
+    std::optional<std::vector<std::uint32_t>> offsets;
+    if (plainChunk(chunk_record)) {
+      // rosbag reads the record's data length and asserts it equals "size"
+      if (headerField<std::uint32_t>(chunk_record, "size") == chunk_record.data_length) {
+        offsets = plain_offsets.at(*chunk_pos);
+      }
+    } else if (const auto contents = decompressChunk(bytes, chunk_record)) {
+      Scan scan;
+      ChunkRecords records;
+      if (scanChunk(*contents, 0, contents->size(), scan, &records) == contents->size()) {
+        offsets = messageOffsets(records, 0);
+      }
+    }
     if (!offsets) return Break{*chunk_pos, false};
     // One index record per connection of the chunk, right after it.
     for (std::size_t k = 1; k <= chunk_connections.size(); ++k) {
@@ -450,7 +461,8 @@ std::optional<Break> findIndexBreak(const std::vector<std::uint8_t>& bytes, cons
       for (std::uint32_t e = 0; e < *entry_count; ++e) {
         const std::uint8_t* entry = bytes.data() + entries.record.data_offset + 12ull * e;
         // ros::Time(sec, nsec) normalises nsec and throws std::runtime_error past 2^32 s
-        if (readU32(entry + 4) >= 1000000000u || offsets->count(readU32(entry + 8)) == 0) {
+        if (readU32(entry + 4) >= 1000000000u ||
+            !std::binary_search(offsets->begin(), offsets->end(), readU32(entry + 8))) {
           return Break{entries.offset, false};
         }
       }
@@ -461,24 +473,24 @@ std::optional<Break> findIndexBreak(const std::vector<std::uint8_t>& bytes, cons
 
 std::optional<Break> findBreak(const std::vector<std::uint8_t>& bytes) {
   std::vector<TopLevelRecord> top;
+  std::map<std::uint64_t, std::vector<std::uint32_t>> plain_offsets;
   std::uint64_t at = kMagicLength;
   while (at < bytes.size()) {
     const std::optional<Record> record = readRecord(bytes, at, bytes.size());
     if (!record || !record->data_complete) return Break{at, cutOffAt(bytes, at)};
     Scan scan;  // what the records hold is not kept here: only whether they read
     if (record->op == kOpConnection && !addConnection(bytes, *record, scan)) return Break{at, false};
-    if (record->op == kOpChunk) {
-      const auto compression = record->header.find("compression");
-      if (compression != record->header.end() && compression->second == "none") {
-        const std::uint64_t end = record->data_offset + record->data_length;
-        const std::uint64_t scanned = scanChunk(bytes, record->data_offset, end, scan);
-        if (scanned != end) return Break{scanned, false};
-      }
+    if (record->op == kOpChunk && plainChunk(*record)) {
+      const std::uint64_t end = record->data_offset + record->data_length;
+      ChunkRecords records;
+      const std::uint64_t scanned = scanChunk(bytes, record->data_offset, end, scan, &records);
+      if (scanned != end) return Break{scanned, false};
+      plain_offsets[at] = messageOffsets(records, record->data_offset);
     }
     top.push_back({at, *record});
     at = record->data_offset + record->data_length;
   }
-  return findIndexBreak(bytes, top);
+  return findIndexBreak(bytes, top, plain_offsets);
 }
 
 bool hasMagic(const std::vector<std::uint8_t>& bytes) {
