@@ -436,6 +436,22 @@ TEST_F(WorkFolder, AnIndexEntryThatDoesNotNameAMessageOfItsChunkIsRefusedBeforeR
     std::ofstream(corrupt, std::ios::binary) << bytes;
     expectRefusedAsCorrupt(corrupt, index.offset);
   }
+  // The index record itself: a connection the index section does not declare (rosbag's open would dereference the
+  // missing connection to log an entry's invalid time), or a count its data does not hold (rosbag reads `count`
+  // entries from the file, into the records after it).
+  for (const std::string field : {"conn=", "count="}) {
+    SCOPED_TRACE(field);
+    std::string bytes = original;
+    const std::size_t at = bytes.find(field, index.offset) + field.size();
+    ASSERT_LT(at, index.data_offset) << "a field of the index record's header";
+    std::uint32_t number;
+    std::memcpy(&number, bytes.data() + at, 4);
+    number = field == "conn=" ? 999 : number + 1;
+    std::memcpy(&bytes[at], &number, 4);
+    const fs::path corrupt = work_ / "index_record.bag";
+    std::ofstream(corrupt, std::ios::binary) << bytes;
+    expectRefusedAsCorrupt(corrupt, index.offset);
+  }
   // The entry may name a connection record before its message (rosbag writes it so for a connection's first message):
   // that is the first entry of the first index record here, and the original is accepted as it is.
   EXPECT_FALSE(firstBrokenRecord((kBags / "navigation_expert.bag").string()).has_value());
@@ -451,6 +467,15 @@ TEST_F(WorkFolder, AChunkInfoOrFileHeaderThatPointsOffARecordIsRefused) {
     const std::size_t chunk_pos = bytes.find("chunk_pos=", info->offset) + std::strlen("chunk_pos=");
     bytes[chunk_pos] = static_cast<char>(bytes[chunk_pos] + 1);  // one byte into the chunk record
     const fs::path corrupt = work_ / "chunk_pos.bag";
+    std::ofstream(corrupt, std::ios::binary) << bytes;
+    expectRefusedAsCorrupt(corrupt, info->offset);
+  }
+  {
+    std::string bytes = original;  // one connection more than its data lists
+    const std::size_t count = bytes.find("count=", info->offset) + std::strlen("count=");
+    ASSERT_LT(count, info->data_offset);
+    bytes[count] = static_cast<char>(bytes[count] + 1);
+    const fs::path corrupt = work_ / "chunk_info_count.bag";
     std::ofstream(corrupt, std::ios::binary) << bytes;
     expectRefusedAsCorrupt(corrupt, info->offset);
   }
