@@ -103,6 +103,7 @@ struct RunResult {
   double max_strain = 0.0;
   double energy = 0.0;
   std::size_t nodes = 0, springs = 0;
+  vrm_sim::tissue::TissueWork work;  // the simulator's counts (issue 40 §2)
 };
 
 constexpr double kGravity = 9.81;  // m/s², static sag
@@ -183,6 +184,7 @@ RunResult runScene(const SceneSpec& spec, TissueConfig config) {
   result.bounded = simulator.stable();
   result.max_strain = simulator.maxStrain();
   result.energy = simulator.totalEnergy();
+  result.work = simulator.statistics().work;
   return result;
 }
 
@@ -341,6 +343,9 @@ struct Row {
   std::uint64_t torn_springs = 0;                               // hard cases
   std::uint64_t case_seed = 0;        // drawn hard cases (randomHardCase()): the seed; 0 hand-made
   int dt_divisor = 0;                 // hard cases with --dt-divisors: this run's dt is the case's dt / dt_divisor
+  // Full-step and hard rows: the work per step in counts (TissueWork; issue 40 §2's cost model), per step.
+  bool has_work = false;
+  vrm_sim::tissue::TissueWork work;
   std::string case_description;       // ... the drawn parameters
   std::string choice_reason;          // auto rows of the hard cases: why it chose (IntegratorChoice::reason)
   double ratio_to_bullet = NAN;       // bullet full-step rows: our auto's ms per step / Bullet's (same mesh, dt)
@@ -414,6 +419,16 @@ struct Row {
     if (std::isfinite(max_strain_frames)) out << ", \"torn_springs\": " << torn_springs;
     if (case_seed != 0) out << ", \"case_seed\": " << case_seed << ", \"case\": \"" << case_description << "\"";
     if (dt_divisor > 0) out << ", \"dt_divisor\": " << dt_divisor;
+    if (has_work && steps > 0) {
+      const auto per_step = [this](std::uint64_t count) { return number(static_cast<double>(count) / steps); };
+      out << ", \"work_per_step\": {\"integrations\": " << per_step(work.integrations)
+          << ", \"cg_iterations\": " << per_step(work.cg_iterations)
+          << ", \"provot_passes\": " << per_step(work.provot_passes)
+          << ", \"bound_scans\": " << per_step(work.bound_scans)
+          << ", \"bound_sweeps\": " << per_step(work.bound_sweeps)
+          << ", \"region_springs\": " << per_step(work.region_springs)
+          << ", \"bfs_sorts\": " << per_step(work.bfs_sorts) << "}";
+    }
     if (!choice_reason.empty()) out << ", \"choice_reason\": \"" << choice_reason << "\"";
     out << "}";
     return out.str();
@@ -428,6 +443,15 @@ void printRow(const Row& row) {
   if (!row.chosen.empty() || std::isfinite(row.ratio_to_naive) || row.impl != "ours") {
     std::printf("%-24s   %s%s%s ratio to naive_soa %.2f (CPU time %.2f)\n", "", row.impl.c_str(),
                 row.chosen.empty() ? "" : " chose ", row.chosen.c_str(), row.ratio_to_naive, row.cpu_ratio_to_naive);
+  }
+  if (row.has_work && row.steps > 0) {
+    const double steps = row.steps;
+    std::printf(
+        "%-24s   work per step: %.2f integrations, %.1f CG iterations, %.2f Provot passes, %.2f bound scans, "
+        "%.2f bound sweeps, %.0f region springs, %.2f BFS sorts\n",
+        "", row.work.integrations / steps, row.work.cg_iterations / steps, row.work.provot_passes / steps,
+        row.work.bound_scans / steps, row.work.bound_sweeps / steps, row.work.region_springs / steps,
+        row.work.bfs_sorts / steps);
   }
 }
 
@@ -914,6 +938,8 @@ HardRun runHard(const HardCase& hard, const std::string& integrator, double dt_o
   row.strain_bound = simulator.statistics().strain_bound;
   row.slipped_nodes = simulator.statistics().slipped_nodes;
   row.torn_springs = simulator.statistics().torn_springs;
+  row.has_work = true;
+  row.work = simulator.statistics().work;
   const double energy1 = simulator.totalEnergy();
   row.energy_drift = energy0 != 0.0 ? (energy1 - energy0) / std::abs(energy0) : energy1;
   run.positions.assign(membrane->positions(), membrane->positions() + membrane->nodeCount());
@@ -1448,6 +1474,8 @@ int main(int argc, char** argv) {
         row.fallbacks = run.fallbacks;
         row.max_strain = run.max_strain;
         row.contacts = run.contacts;
+        row.has_work = true;
+        row.work = run.work;
         row.reference = "none (timing)";
         row.timed =
             "TissueSimulator::advance: forces + integration + Provot + collision detection and response (probe) + "

@@ -168,6 +168,16 @@ struct FrameReport {
   bool early_stopped = false;  // the forces fell below early_stop_force: the rest of the frame was skipped
 };
 
+// Work the steps did, in counts (issue 40 §2: what `auto`'s cost model reads; unlike time it replays bit for bit):
+// integrations (every substep and every rolled-back attempt), the CG iterations of the implicit ones, Provot passes,
+// the bound check's squared-length scans over all springs, the bound projection's BFS sweeps over all springs, the
+// springs its region solver visited and the BFS orderings (Alg. 5.2's from the interaction points, the projection's
+// from the drivers or the pinned nodes) computed anew.
+struct TissueWork {
+  std::uint64_t integrations = 0, implicit_integrations = 0, cg_iterations = 0;
+  std::uint64_t provot_passes = 0, bound_scans = 0, bound_sweeps = 0, region_springs = 0, bfs_sorts = 0;
+};
+
 struct SimulatorStatistics {
   std::uint64_t steps = 0;
   std::uint64_t fallbacks = 0;           // rolled-back steps, all kinds
@@ -194,6 +204,7 @@ struct SimulatorStatistics {
   std::uint64_t released_adhesions = 0;  // adhesion springs that let go (adhesion_break_force)
   std::uint64_t adhesion_tears = 0;      // of those, the ones that tore the tissue beneath (adhesion_tear_force)
   double max_adhesion_force = 0.0;       // N: the largest pull on an adhesion spring after any step
+  TissueWork work;
 };
 
 using Clock = std::function<double()>;  // seconds, monotonic

@@ -46,6 +46,8 @@ class MassSpringModel : public TissueModel {
   void rawStep(TissueSimulator& simulator, Integrator& integrator, double dt);
   // One integration; balances its energy when measure_energy_.
   void integrate(TissueSimulator& simulator, const SystemView& system, Integrator& integrator, double dt);
+  // Counts an integration and, for an implicit one (after it ran), its CG iterations in work_.
+  void countIntegration(const Integrator& integrator);
   // Provot's strain limit (Alg. 5.1) in BFS order from the interaction points.
   void limitStrain(TissueSimulator& simulator, const SystemView& system);
   // Stable means bounded (issue 40), after the contact response: springs beyond bound_ shortened towards bound_target_
@@ -88,6 +90,7 @@ class MassSpringModel : public TissueModel {
   void saveState(TissueSimulator& simulator);
   void restoreState(TissueSimulator& simulator);
 
+  TissueWork* work_ = nullptr;                     // the simulator's statistics_.work, during step()
   std::unique_ptr<Integrator> implicit_fallback_;  // the watchdog's last resort, stable at any dt
   std::vector<Eigen::Vector3d> saved_positions_, saved_velocities_;
   std::vector<double> saved_rest_lengths_;
@@ -156,6 +159,7 @@ void MassSpringModel::onTopologyChanged(TissueSimulator& s) {
 bool MassSpringModel::step(TissueSimulator& simulator) {
   TissueSimulator& s = simulator;
   const TissueConfig& config = s.config_;
+  work_ = &s.statistics_.work;
   s.topologyBeforeStep();
   if (!config.watchdog.enabled) {
     for (int k = 0; k < s.choice_.substeps; ++k) rawStep(s, *s.integrator_, config.dt / s.choice_.substeps);
@@ -254,6 +258,16 @@ void MassSpringModel::integrate(TissueSimulator& s, const SystemView& system, In
   } else {
     integrator.step(system, s.forces_, dt);
   }
+  countIntegration(integrator);
+}
+
+void MassSpringModel::countIntegration(const Integrator& integrator) {
+  if (work_ == nullptr) return;
+  ++work_->integrations;
+  if (std::strcmp(integrator.name(), "implicit_euler") == 0) {
+    ++work_->implicit_integrations;
+    work_->cg_iterations += static_cast<std::uint64_t>(std::max(integrator.lastIterations(), 0));
+  }
 }
 
 void MassSpringModel::limitStrain(TissueSimulator& s, const SystemView& system) {
@@ -262,6 +276,7 @@ void MassSpringModel::limitStrain(TissueSimulator& s, const SystemView& system) 
   for (int pass = 0; pass < config.strain_limit_passes; ++pass) {
     // Provot's velocity adjustment (the moved nodes stop against their correction) for integrators that carry their
     // velocities into the next step; quasi-static Euler starts every step from rest.
+    if (work_ != nullptr) ++work_->provot_passes;
     if (provotPass(system, config.strain_limit, s.sorted_valid_ ? &s.sorter_ : nullptr, config.strain_limit_outer_only,
                    s.integrator_->startsFromRest() ? nullptr : system.velocities)
             .corrected == 0) {
@@ -276,6 +291,7 @@ BoundPassStatistics MassSpringModel::sweepBound(const SystemView& system, BoundP
   std::size_t previous = 0;
   for (int k = 0; k < sweeps; ++k) {
     options.reverse = (k % 2) == 1;
+    if (work_ != nullptr) ++work_->bound_sweeps;
     stats = boundPass(system, options);
     if (stats.corrected == 0) break;
     // A sweep that corrects as many as the one before makes no headway (a driver asks more than the membrane can
@@ -299,6 +315,7 @@ bool MassSpringModel::untearableBeyond(const SystemView& system) const {
 
 void MassSpringModel::enforceBound(TissueSimulator& s, const SystemView& system) {
   // The common case costs one sweep of squared lengths: nothing beyond the bound, nothing to do (seed() is that sweep).
+  if (work_ != nullptr) ++work_->bound_scans;
   if (!active_.seed(system, bound_)) return;
   ++s.statistics_.bound_projections;
   const bool tearing = s.config_.tear_strain > 0.0;
@@ -326,6 +343,7 @@ void MassSpringModel::enforceBound(TissueSimulator& s, const SystemView& system)
     // Outwards from the drivers in BFS order (Alg. 5.2), only the outer end of a spring moved: a pull or a push
     // propagates through a membrane that can follow it in one sweep (ChainMail-like).
     if (!driver_sorted_ || driver_seeds_ != driver_sorted_seeds_) {
+      if (work_ != nullptr) ++work_->bfs_sorts;
       driver_sorter_.sort(system, driver_seeds_);
       driver_sorted_seeds_ = driver_seeds_;
       driver_sorted_ = true;
@@ -338,6 +356,7 @@ void MassSpringModel::enforceBound(TissueSimulator& s, const SystemView& system)
     options.sorter = nullptr;
     // Then Gauss-Seidel to convergence on the violation's region, the instruments holding: grasped nodes (constrained)
     // and contacts fixed.
+    if (work_ != nullptr) ++work_->bound_scans;
     if (!active_.seed(system, bound_)) return;
     holding_.assign(system.node_count, 0);
     for (std::size_t i = 0; i < system.node_count; ++i) holding_[i] = system.isFree(i) ? 0 : 1;
@@ -372,6 +391,7 @@ void MassSpringModel::enforceBound(TissueSimulator& s, const SystemView& system)
     // Inwards from the pinned nodes in BFS order first: a grasp pulled beyond reach comes back to where the membrane
     // can hold it in about one sweep, where Gauss-Seidel needs many. (A dent needs no such long-range correction.)
     if (!pinned_sorted_ || pinned_seeds_ != pinned_sorted_seeds_) {
+      if (work_ != nullptr) ++work_->bfs_sorts;
       pinned_sorter_.sort(system, pinned_seeds_);
       pinned_sorted_seeds_ = pinned_seeds_;
       pinned_sorted_ = true;
@@ -379,6 +399,7 @@ void MassSpringModel::enforceBound(TissueSimulator& s, const SystemView& system)
     options.sorter = &pinned_sorter_;
     sweepBound(system, options, kInwardSweeps, /*stop_when_stalled=*/true);
     options.sorter = nullptr;
+    if (work_ != nullptr) ++work_->bound_scans;
     if (!active_.seed(system, bound_)) {
       slipMovedGrasps(s);
       return;
@@ -412,6 +433,7 @@ void MassSpringModel::markTearable(const SystemView& system, const std::uint8_t*
 
 bool MassSpringModel::solveActive(const SystemView& system, const BoundPassOptions& options, int sweeps) {
   for (int k = 0; k < sweeps; ++k) {
+    if (work_ != nullptr) work_->region_springs += active_.activeSprings();
     const BoundPassStatistics stats = active_.sweep(system, options, (k % 2) == 1);
     // A spring beyond the bound between two fixed nodes stays so whatever the sweeps do.
     if (stats.skipped_fixed > 0) return false;

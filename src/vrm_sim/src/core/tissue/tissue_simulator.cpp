@@ -307,6 +307,7 @@ void TissueSimulator::sortSprings() {
     return;
   }
   if (!sorted_valid_ || seeds_ != sorted_seeds_) {
+    ++statistics_.work.bfs_sorts;
     sorter_.sort(view(), seeds_);
     sorted_seeds_ = seeds_;
     sorted_valid_ = true;
