@@ -45,17 +45,39 @@ TEST(IntegratorChoice, FollowsStiffnessMassDampingAndDt) {
   EXPECT_EQ(choice.substeps, 1);
   EXPECT_FALSE(choice.reason.empty());
   // 100×100 (same total mass; lightest free node 3.3e-7 kg): the bound (0.51 ms × 0.8) needs three substeps of
-  // 1 ms, more than one implicit Euler step costs; two substeps of 0.8 ms are cheaper.
+  // 1 ms; an implicit step with its 10 CG iterations costs about four explicit ones (the cost model), so three
+  // substeps are cheaper.
   auto fine = makeGridMembrane(100, kSize, kStiffness, kNodeMass * std::pow(22.0 / 100.0, 2));
   choice = choiceFor(*fine, 1e-3);
-  EXPECT_EQ(choice.integrator, "implicit_euler");
+  EXPECT_EQ(choice.integrator, "symplectic_euler");
+  EXPECT_EQ(choice.substeps, 3);
+  EXPECT_FALSE(choice.probe);
+  EXPECT_NEAR(choice.implicit_cost, 1.0 + 0.53 + 0.25 * 10, 1e-12);
   EXPECT_LT(choice.bound, 1e-3);
+  // Implicit Euler that converges in 3 iterations (seen in the steps so far) costs 2.28 substeps, less than the 3 the
+  // bound asks for; it would damp the stiffest modes (ω·dt = 2.0), so 2 substeps — what the bound allows without
+  // its margin — are worth a trial.
+  ObservedWork converging;
+  converging.cg_iterations = 3.0;
+  std::vector<std::uint8_t> fine_fixed(fine->fixedFlags(), fine->fixedFlags() + fine->nodeCount());
+  choice = chooseIntegrator(viewOf(*fine, fine_fixed.data()), ForceModel{}, 1e-3, {}, nullptr, converging);
+  EXPECT_NEAR(choice.implicit_cost, 2.28, 1e-12);
+  EXPECT_EQ(choice.integrator, "symplectic_euler") << choice.reason;
+  EXPECT_TRUE(choice.probe);
+  EXPECT_EQ(choice.substeps, 2);
+  // With trials only at the margin-free count or above (probe_fraction 1), 1.5 ms (4 substeps from the bound, 3
+  // without the margin) is implicit Euler's: the 2 substeps it affords would be a trial below 3.
+  AutoIntegratorOptions no_trials;
+  no_trials.probe_fraction = 1.0;
+  choice = chooseIntegrator(viewOf(*fine, fine_fixed.data()), ForceModel{}, 1.5e-3, no_trials, nullptr, converging);
+  EXPECT_EQ(choice.integrator, "implicit_euler") << choice.reason;
   choice = choiceFor(*fine, 8e-4);
   EXPECT_EQ(choice.integrator, "symplectic_euler");
   EXPECT_EQ(choice.substeps, 2);
-  // A stiff membrane (×10⁵): hundreds of substeps; implicit Euler.
+  // A stiff membrane (×10⁵): hundreds of substeps, none worth a trial; implicit Euler.
   auto stiff = makeGridMembrane(22, kSize, kStiffness * 1e5, kNodeMass);
   EXPECT_EQ(choiceFor(*stiff, 1e-3).integrator, "implicit_euler");
+  EXPECT_FALSE(choiceFor(*stiff, 1e-3).probe);
   // Light nodes, heavy damping: symplectic Euler's velocity damping overshoots (c·dt/m ≫ 2), quasi-static Euler
   // (velocities reset) is still stable in one step.
   auto light = makeGridMembrane(22, kSize, kStiffness * 1e-2, kNodeMass * 1e-2);
@@ -64,7 +86,13 @@ TEST(IntegratorChoice, FollowsStiffnessMassDampingAndDt) {
   EXPECT_EQ(choice.substeps, 1);
   // A larger dt needs more substeps of the same integrator, until implicit Euler is cheaper.
   EXPECT_EQ(choiceFor(*thesis, 3e-3).substeps, 2);  // bound 2.4 ms × 0.8
-  EXPECT_EQ(choiceFor(*thesis, 2e-2).integrator, "implicit_euler");
+  EXPECT_EQ(choiceFor(*thesis, 8e-2).integrator, "implicit_euler");  // 42 substeps, 34 without the margin
+  // In between, fewer substeps than the a-priori bound asks are tried: 20 ms needs 11 (9 without the margin);
+  // implicit Euler would damp the stiffest modes (ω·dt ≈ 17), so up to 1.25 × 4.03 substeps are worth a trial.
+  choice = choiceFor(*thesis, 2e-2);
+  EXPECT_EQ(choice.integrator, "symplectic_euler");
+  EXPECT_TRUE(choice.probe);
+  EXPECT_EQ(choice.substeps, 5);
 }
 
 TissueConfig autoConfig(double dt) {
@@ -112,6 +140,37 @@ TEST(IntegratorChoice, SimulatorChoosesOnceAndAgainWhenTheFreeNodesChange) {
   EXPECT_EQ(simulator.integratorChoice().substeps, 1);
 }
 
+// A trial the watchdog rejects costs one rolled-back step and leaves implicit Euler; one that holds stays.
+TEST(IntegratorChoice, SubstepsOnTrialAreKeptOrGiveWayToImplicitEulerAfterOneStep) {
+  struct Case {
+    const char* name;
+    double dt;
+    bool holds;
+  };
+  // The thesis' membrane (bound 2.4 ms without the margin), implicit Euler at its 10 CG iterations: 4.03 substeps,
+  // 5 with the accuracy preference.
+  for (const Case& c : {Case{"5 substeps of 4 ms, bound 2.4 ms: unstable", 2e-2, false},
+                        Case{"5 substeps of 2 ms (the bound with its margin asks for 6): stable", 1e-2, true}}) {
+    auto membrane = makeGridMembrane(16, kSize, kStiffness, kNodeMass);
+    TissueConfig config = autoConfig(c.dt);
+    config.forces.damping = 0.0;
+    config.integrator_options.cg_max_iterations = 10;
+    TissueSimulator simulator(*membrane, config);
+    ASSERT_TRUE(simulator.integratorChoice().probe) << simulator.integratorChoice().reason;
+    Eigen::Vector3d tip(0.0, 0.0, -2e-4);
+    for (int frame = 0; frame < 5; ++frame) {
+      tip.z() += 1e-5;
+      simulator.setInstruments({forcepsAt(tip, 0.0)});
+      simulator.advance(c.dt, [] { return 0.0; });
+    }
+    EXPECT_EQ(simulator.integratorChoice().integrator, c.holds ? "symplectic_euler" : "implicit_euler") << c.name;
+    EXPECT_FALSE(simulator.integratorChoice().probe && !c.holds);
+    EXPECT_EQ(simulator.statistics().fallbacks, c.holds ? 0u : 1u) << simulator.integratorChoice().reason;
+    EXPECT_EQ(simulator.statistics().unrecovered, 0u);
+    EXPECT_TRUE(simulator.stable());
+  }
+}
+
 // The hard cases of bench_tissue that make fixed explicit integrators fall back hundreds of times: `auto` runs them
 // without a fallback.
 TEST(IntegratorChoice, HardCasesRunWithoutFallback) {
@@ -131,7 +190,10 @@ TEST(IntegratorChoice, HardCasesRunWithoutFallback) {
       simulator.setInstruments({forcepsAt(tip, 0.0)});
       simulator.advance(c.dt, [] { return 0.0; });
     }
-    EXPECT_EQ(simulator.statistics().fallbacks, 0u) << c.name << ": " << simulator.integratorChoice().reason;
+    // (A trial of fewer substeps than the a-priori bound asks may cost one rolled-back step, then implicit Euler.)
+    const bool trial_rejected = simulator.integratorChoice().reason.find("rejected") != std::string::npos;
+    EXPECT_EQ(simulator.statistics().fallbacks, trial_rejected ? 1u : 0u)
+        << c.name << ": " << simulator.integratorChoice().reason;
     EXPECT_EQ(simulator.statistics().unrecovered, 0u) << c.name;
     EXPECT_LT(simulator.maxStrain(), 3.0) << c.name;
   }

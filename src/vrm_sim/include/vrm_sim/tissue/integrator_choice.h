@@ -3,7 +3,8 @@
 // damping and Δt. Explicit candidates: symplectic Euler (the smallest error of the one-evaluation integrators at a
 // stable Δt, see BENCHMARKS.md) and the thesis' quasi-static Euler (eq. 5.5; the same cost, stable where damping
 // makes symplectic Euler overshoot), each in n equal substeps when Δt exceeds its bound; the implicit candidate is
-// implicit Euler (eqs. 5.7-5.10), stable at any Δt. The cheapest by a measured cost ratio wins.
+// implicit Euler (eqs. 5.7-5.10), stable at any Δt. The cheapest by a cost model over the work the steps count
+// (TissueWork) wins, with a preference for the explicit one where implicit Euler would damp the stiffest modes.
 
 #include <string>
 #include <vector>
@@ -17,17 +18,39 @@ struct AutoIntegratorOptions {
   // The explicit step must stay below this fraction of the bound: eq. 5.6 is empirical (Provot and the collision
   // response perturb the linear analysis), the hard cases of bench_tissue hold with 0.8.
   double margin = 0.8;
-  // Cost of one implicit Euler step (10 CG iterations, watchdog) in explicit full steps (symplectic Euler, watchdog)
-  // of the same membrane, measured on the grasp-and-pull: 2.6 at 10k nodes, 2.9 at 529 (bench_tissue full_step rows).
-  // Explicit substeps are chosen while n ≤ this.
-  double implicit_cost = 2.5;
+  // The cost model (issue 40 §2), counted in one explicit integration (force evaluation, integration, energy balance,
+  // one Provot pass and the bound check's scan: 17.3 ns per spring here). Fitted with bench_tissue's work counts
+  // (TissueWork) on its full-step rows — 22×22 and 100×100, 0.25 and 1 ms, every integrator, within ±8 % — not on
+  // the hard cases, which test it (BENCHMARKS.md, "auto's cost model"):
+  double implicit_extra = 0.53;  // implicit Euler's integration beyond an explicit one, its CG iterations aside
+  double cg_iteration = 0.25;    // one CG iteration
+  double bound_sweep = 0.22;     // one BFS sweep of the bound projection (paid per integration, by either)
+  // Where implicit Euler damps the membrane's stiffest modes away (ω·dt > 1 for its stiffest node) its error cannot
+  // come near an explicit integrator's (BENCHMARKS.md, "random_5 again"): there the explicit integrator is taken up to
+  // this factor of implicit Euler's modelled cost — the cost tolerance issue 40 §2 grants `auto`.
+  double accuracy_preference = 1.25;
+  // eq. 5.6 is empirical: where the bound asks for more substeps than implicit Euler is worth, fewer are tried (the
+  // watchdog proves them, or `auto` takes implicit Euler at once) if they are at least this fraction of the count
+  // without the margin.
+  double probe_fraction = 0.5;
+};
+
+// What the steps so far did (TissueWork, averaged): CG iterations per implicit integration (negative: none ran yet,
+// the iteration budget is assumed) and bound sweeps per integration.
+struct ObservedWork {
+  double cg_iterations = -1.0;
+  double bound_sweeps = 0.0;
 };
 
 struct IntegratorChoice {
   std::string integrator;  // "symplectic_euler", "quasi_static_euler" or "implicit_euler"
   int substeps = 1;        // explicit substeps per Δt
   double bound = 0.0;      // s: the explicit bound with the margin (infinity: no spring, no damping)
-  std::string reason;      // one line for the log: why this integrator
+  // Explicit substeps below the a-priori count, on trial: the first step the watchdog rejects at this count makes it
+  // implicit Euler (TissueSimulator::rejectIntegratorProbe()).
+  bool probe = false;
+  double implicit_cost = 0.0;  // the model's implicit Euler step, in explicit substeps
+  std::string reason;          // one line for the log: why this integrator
 };
 
 // The explicit stability bound per node, generalised from eq. 5.6 to damping: a node of mass m_i whose stiffest
@@ -40,8 +63,11 @@ double dampedExplicitBound(const SystemView& system, const ForceModel& forces, s
 // Quasi-static Euler (eq. 5.5) resets the velocities, so damping does not enter: Δt < 2/ω_i = eq. 5.6 per node.
 double quasiStaticBound(const SystemView& system, const ForceModel& forces, std::vector<double>* scratch = nullptr);
 
+// `cg_budget`: implicit Euler's iteration limit (IntegratorOptions::cg_max_iterations), the CG iterations assumed
+// before any implicit step ran.
 IntegratorChoice chooseIntegrator(const SystemView& system, const ForceModel& forces, double dt,
-                                  const AutoIntegratorOptions& options = {}, std::vector<double>* scratch = nullptr);
+                                  const AutoIntegratorOptions& options = {}, std::vector<double>* scratch = nullptr,
+                                  const ObservedWork& observed = {}, int cg_budget = 10);
 
 // The name that selects this: TissueConfig::integrator / the scene's `tissue.integrator`.
 constexpr const char* kAutoIntegrator = "auto";

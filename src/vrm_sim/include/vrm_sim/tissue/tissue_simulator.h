@@ -287,6 +287,8 @@ class TissueSimulator {
   void rebuildConstraints();
   // "auto": chooses the integrator for the current masses, springs, anchors and free nodes.
   void chooseIntegratorNow();
+  // "auto": the substeps on trial (IntegratorChoice::probe) did not hold: implicit Euler until the next choice.
+  void rejectIntegratorProbe();
   void updateInstruments(double alpha);
   void updateGrasp(std::size_t index, const InstrumentInput& instrument, const Eigen::Isometry3d& pose,
                    const Eigen::Isometry3d& previous_pose, double dt);

@@ -70,7 +70,8 @@ double quasiStaticBound(const SystemView& system, const ForceModel& forces, std:
 }
 
 IntegratorChoice chooseIntegrator(const SystemView& system, const ForceModel& forces, double dt,
-                                  const AutoIntegratorOptions& options, std::vector<double>* scratch) {
+                                  const AutoIntegratorOptions& options, std::vector<double>* scratch,
+                                  const ObservedWork& observed, int cg_budget) {
   const auto substepsFor = [dt](double bound) {
     return std::isfinite(bound) ? std::max(1.0, std::ceil(dt / bound - 1e-9)) : 1.0;
   };
@@ -85,22 +86,42 @@ IntegratorChoice chooseIntegrator(const SystemView& system, const ForceModel& fo
   // light nodes, where symplectic Euler's velocity damping overshoots).
   const bool quasi_static = quasi_static_steps < symplectic_steps;
   const double needed = quasi_static ? quasi_static_steps : symplectic_steps;
+  const double without_margin = substepsFor(quasi_static ? bounds.quasi_static : bounds.symplectic);
   choice.bound = quasi_static ? quasi_static_bound : symplectic_bound;
-  char line[240];
-  if (needed <= std::max(1.0, options.implicit_cost)) {
-    choice.integrator = quasi_static ? "quasi_static_euler" : "symplectic_euler";
+  // The cost model: an implicit step in explicit substeps. Both pay the bound projection's sweeps per integration.
+  const double iterations = observed.cg_iterations >= 0.0 ? observed.cg_iterations : std::max(cg_budget, 1);
+  const double projection = options.bound_sweep * std::max(observed.bound_sweeps, 0.0);
+  choice.implicit_cost =
+      (1.0 + options.implicit_extra + options.cg_iteration * iterations + projection) / (1.0 + projection);
+  // ω·dt of the stiffest node (2/ω is its undamped bound, eq. 5.6).
+  const double omega_dt = std::isfinite(bounds.quasi_static) ? 2.0 * dt / bounds.quasi_static : 0.0;
+  const double affordable = choice.implicit_cost * (omega_dt > 1.0 ? options.accuracy_preference : 1.0);
+  const double probe = std::floor(affordable + 1e-9);
+  const char* name = quasi_static ? "quasi_static_euler" : "symplectic_euler";
+  char line[320];
+  if (needed <= std::max(1.0, affordable)) {
+    choice.integrator = name;
     choice.substeps = static_cast<int>(needed);
-    std::snprintf(
-        line, sizeof line,
-        "explicit bound %.3g ms (symplectic %.3g, quasi-static %.3g; margin %.2f), dt %.3g ms: %s, %d substep%s",
-        1e3 * choice.bound, 1e3 * symplectic_bound, 1e3 * quasi_static_bound, options.margin, 1e3 * dt,
-        choice.integrator.c_str(), choice.substeps, choice.substeps > 1 ? "s" : "");
+    std::snprintf(line, sizeof line,
+                  "explicit bound %.3g ms (symplectic %.3g, quasi-static %.3g; margin %.2f), dt %.3g ms: %s, %d "
+                  "substep%s (an implicit step costs %.2f)",
+                  1e3 * choice.bound, 1e3 * symplectic_bound, 1e3 * quasi_static_bound, options.margin, 1e3 * dt, name,
+                  choice.substeps, choice.substeps > 1 ? "s" : "", choice.implicit_cost);
+  } else if (probe >= 1.0 && probe >= options.probe_fraction * without_margin) {
+    choice.integrator = name;
+    choice.substeps = static_cast<int>(probe);
+    choice.probe = true;
+    std::snprintf(line, sizeof line,
+                  "explicit bound %.3g ms (margin %.2f) needs %.0f substeps of dt %.3g ms (%.0f without the margin), "
+                  "an implicit step costs %.2f%s: %s x%d on trial (the watchdog decides)",
+                  1e3 * choice.bound, options.margin, needed, 1e3 * dt, without_margin, choice.implicit_cost,
+                  omega_dt > 1.0 ? " (x1.25: it would damp the stiffest modes)" : "", name, choice.substeps);
   } else {
     choice.integrator = "implicit_euler";
     std::snprintf(line, sizeof line,
                   "explicit bound %.3g ms (margin %.2f) needs %.0f substeps of dt %.3g ms, more than one implicit step "
-                  "costs (%.1f): implicit_euler",
-                  1e3 * choice.bound, options.margin, needed, 1e3 * dt, options.implicit_cost);
+                  "costs (%.2f): implicit_euler",
+                  1e3 * choice.bound, options.margin, needed, 1e3 * dt, choice.implicit_cost);
   }
   choice.reason = line;
   return choice;

@@ -177,7 +177,17 @@ bool MassSpringModel::step(TissueSimulator& simulator) {
   saveState(s);
   pending_deformations_.assign(s.external_deformations_.begin(), s.external_deformations_.end());
   bool ok = false;
-  for (int level = fallback_level_; level <= config.watchdog.max_halvings + 1 && !ok; ++level) ok = attempt(s, level);
+  for (int level = fallback_level_; level <= config.watchdog.max_halvings + 1 && !ok; ++level) {
+    ok = attempt(s, level);
+    if (!ok && level == fallback_level_ && s.choice_.probe) {
+      // `auto`'s substeps on trial did not hold: implicit Euler from here, this step redone at the same level.
+      s.rejectIntegratorProbe();
+      restoreState(s);
+      s.external_deformations_.assign(pending_deformations_.begin(), pending_deformations_.end());
+      ++s.statistics_.fallbacks;
+      ok = attempt(s, level);
+    }
+  }
   if (!ok) {
     // Nothing worked: keep the last good state (frozen) rather than letting an explosion reach the renderer.
     restoreState(s);
@@ -264,7 +274,8 @@ void MassSpringModel::integrate(TissueSimulator& s, const SystemView& system, In
 void MassSpringModel::countIntegration(const Integrator& integrator) {
   if (work_ == nullptr) return;
   ++work_->integrations;
-  if (std::strcmp(integrator.name(), "implicit_euler") == 0) {
+  // The watchdog's own implicit Euler (a larger iteration budget) is not what `auto` would run.
+  if (std::strcmp(integrator.name(), "implicit_euler") == 0 && &integrator != implicit_fallback_.get()) {
     ++work_->implicit_integrations;
     work_->cg_iterations += static_cast<std::uint64_t>(std::max(integrator.lastIterations(), 0));
   }

@@ -166,7 +166,20 @@ void TissueSimulator::rebuildConstraints() {
 }
 
 void TissueSimulator::chooseIntegratorNow() {
-  IntegratorChoice choice = chooseIntegrator(view(), forces_, config_.dt, config_.auto_integrator, &choice_scratch_);
+  // What the steps so far did: deterministic counts, so a replay decides the same.
+  const TissueWork& work = statistics_.work;
+  ObservedWork observed;
+  if (work.implicit_integrations > 0) {
+    observed.cg_iterations = static_cast<double>(work.cg_iterations) / static_cast<double>(work.implicit_integrations);
+  }
+  if (work.integrations > 0) {
+    observed.bound_sweeps = static_cast<double>(work.bound_sweeps) / static_cast<double>(work.integrations);
+  }
+  AutoIntegratorOptions options = config_.auto_integrator;
+  // Substeps on trial need the watchdog to judge them.
+  if (!config_.watchdog.enabled) options.probe_fraction = std::numeric_limits<double>::infinity();
+  IntegratorChoice choice = chooseIntegrator(view(), forces_, config_.dt, options, &choice_scratch_, observed,
+                                             config_.integrator_options.cg_max_iterations);
   const bool changed =
       choice.integrator != choice_.integrator || choice.substeps != choice_.substeps || choice_changes_ == 0;
   if (choice.integrator != integrator_->name()) {
@@ -174,6 +187,16 @@ void TissueSimulator::chooseIntegratorNow() {
   }
   choice_ = std::move(choice);
   if (changed) ++choice_changes_;
+}
+
+void TissueSimulator::rejectIntegratorProbe() {
+  const int tried = choice_.substeps;
+  choice_.integrator = "implicit_euler";
+  choice_.substeps = 1;
+  choice_.probe = false;
+  choice_.reason += "; the watchdog rejected " + std::to_string(tried) + " substeps: implicit_euler";
+  integrator_ = makeIntegrator(choice_.integrator, config_.integrator_options);
+  ++choice_changes_;
 }
 
 std::string TissueSimulator::integratorLabel() const {
