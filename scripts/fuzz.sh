@@ -100,8 +100,18 @@ run_target() {
   rc=$?
   set -e
   end=$(date +%s.%N)
+  local load_timeout=0
   for artifact in "$work"/artifacts/{crash,leak,timeout,oom}-*; do
     [[ -f $artifact ]] || continue
+    # libFuzzer's -timeout is wall time: on a loaded machine the nice-10 fuzzer can be starved past it. A timeout
+    # input is run again alone; one that then finishes in time is no finding (the run still ended there).
+    if [[ $(basename "$artifact") == timeout-* ]] &&
+      (cd "$work" && nice -n 10 "$BUILD/fuzz/fuzz_$t" -timeout=20 "$artifact") >"$artifact.rerun.log" 2>&1; then
+      load_timeout=1
+      echo "   $t: $(basename "$artifact") ended the run but runs in time alone ($(grep -o 'in [0-9]* ms' \
+        "$artifact.rerun.log" | tail -n 1)): the machine's load, not a finding; not copied to regressions/"
+      continue
+    fi
     crashes=$((crashes + 1))
     mkdir -p "$PKG/regressions/$t"
     cp "$artifact" "$PKG/regressions/$t/"
@@ -110,6 +120,8 @@ run_target() {
   # 72: libFuzzer's exit after SIGINT (kill -INT the fuzzer to end a run early; its stats and corpus are kept).
   if ((rc == 72 && crashes == 0)) && grep -q 'libFuzzer: run interrupted' "$work/log"; then
     echo "   $t: interrupted (SIGINT), not a crash"
+  elif ((load_timeout && crashes == 0)); then
+    echo "   $t: ended early by a timeout that does not reproduce (see above)"
   elif ((rc != 0 && crashes == 0)); then
     crashes=1
     echo "   $t: fuzzer exited $rc without an artifact (see $work/log)"
