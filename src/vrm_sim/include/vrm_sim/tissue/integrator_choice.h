@@ -4,7 +4,7 @@
 // stable Δt, see BENCHMARKS.md) and the thesis' quasi-static Euler (eq. 5.5; the same cost, stable where damping
 // makes symplectic Euler overshoot), each in n equal substeps when Δt exceeds its bound; the implicit candidate is
 // implicit Euler (eqs. 5.7-5.10), stable at any Δt. The cheapest by a cost model over the work the steps count
-// (TissueWork) wins, with a preference for the explicit one where implicit Euler would damp the stiffest modes.
+// (TissueWork) wins; explicit substeps below the a-priori bound are tried, the watchdog keeping or refusing them.
 
 #include <string>
 #include <vector>
@@ -25,10 +25,6 @@ struct AutoIntegratorOptions {
   double implicit_extra = 0.53;  // implicit Euler's integration beyond an explicit one, its CG iterations aside
   double cg_iteration = 0.25;    // one CG iteration
   double bound_sweep = 0.22;     // one BFS sweep of the bound projection (paid per integration, by either)
-  // Where implicit Euler damps the membrane's stiffest modes away (ω·dt > 1 for its stiffest node) its error cannot
-  // come near an explicit integrator's (BENCHMARKS.md, "random_5 again"): there the explicit integrator is taken up to
-  // this factor of implicit Euler's modelled cost — the cost tolerance issue 40 §2 grants `auto`.
-  double accuracy_preference = 1.25;
   // eq. 5.6 is empirical: where the bound asks for more substeps than implicit Euler is worth, fewer are tried (the
   // watchdog proves them, or `auto` takes implicit Euler at once) if they are at least this fraction of the count
   // without the margin.

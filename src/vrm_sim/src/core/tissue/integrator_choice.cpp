@@ -93,9 +93,7 @@ IntegratorChoice chooseIntegrator(const SystemView& system, const ForceModel& fo
   const double projection = options.bound_sweep * std::max(observed.bound_sweeps, 0.0);
   choice.implicit_cost =
       (1.0 + options.implicit_extra + options.cg_iteration * iterations + projection) / (1.0 + projection);
-  // ω·dt of the stiffest node (2/ω is its undamped bound, eq. 5.6).
-  const double omega_dt = std::isfinite(bounds.quasi_static) ? 2.0 * dt / bounds.quasi_static : 0.0;
-  const double affordable = choice.implicit_cost * (omega_dt > 1.0 ? options.accuracy_preference : 1.0);
+  const double affordable = choice.implicit_cost;
   const double probe = std::floor(affordable + 1e-9);
   const char* name = quasi_static ? "quasi_static_euler" : "symplectic_euler";
   char line[320];
@@ -113,9 +111,9 @@ IntegratorChoice chooseIntegrator(const SystemView& system, const ForceModel& fo
     choice.probe = true;
     std::snprintf(line, sizeof line,
                   "explicit bound %.3g ms (margin %.2f) needs %.0f substeps of dt %.3g ms (%.0f without the margin), "
-                  "an implicit step costs %.2f%s: %s x%d on trial (the watchdog decides)",
-                  1e3 * choice.bound, options.margin, needed, 1e3 * dt, without_margin, choice.implicit_cost,
-                  omega_dt > 1.0 ? " (x1.25: it would damp the stiffest modes)" : "", name, choice.substeps);
+                  "an implicit step costs %.2f: %s x%d on trial (the watchdog decides)",
+                  1e3 * choice.bound, options.margin, needed, 1e3 * dt, without_margin, choice.implicit_cost, name,
+                  choice.substeps);
   } else {
     choice.integrator = "implicit_euler";
     std::snprintf(line, sizeof line,
