@@ -159,6 +159,18 @@ seed("calibrator_images", "one_view_bgr8", struct.pack("<BBBHH", 0, 1, 0, BW, BH
 seed("calibrator_images", "unknown_encoding_short", struct.pack("<BBBHH", 0, 8, 0x41, 17, 9) + bytes(range(40)))
 
 # --- messages of the reference bags (vrm_sim topics) ---
+def first_messages_bag(bag, path, count, **options):
+    """The bytes of a bag holding `bag`'s first `count` messages (written through `path`, removed again)."""
+    with rosbag.Bag(str(path), "w", **options) as out:
+        for n, (topic, raw, t) in enumerate(bag.read_messages(raw=True)):
+            if n >= count:
+                break
+            out.write(topic, raw, t, raw=True)
+    data = path.read_bytes()
+    path.unlink()
+    return data
+
+
 KIND = {"/eye_state": 0, "/instrument_state": 1, "/pedals": 2, "/scenario_command": 3, "/microscope": 4,
         "/session_info": 5}
 for bag_name, scene_index in (("navigation_expert", 0), ("membrane_peeling_novice", 1), ("vitrectomy_expert", 2)):
@@ -169,33 +181,16 @@ for bag_name, scene_index in (("navigation_expert", 0), ("membrane_peeling_novic
                 frames.append(frame(KIND[topic], raw[1]))
         seed("sim_messages", bag_name, bytes([scene_index]) + b"".join(frames))
         seed("sim_conversions", bag_name, bytes([scene_index]) + b"".join(frames))
-        # A short bag of the first messages (and a cut-off copy, which only recovery can read).
-        short = io.BytesIO()
-        out_path = PKG / ("_tmp_%s.bag" % bag_name)
-        with rosbag.Bag(str(out_path), "w") as out:
-            n = 0
-            for topic, raw, t in bag.read_messages(raw=True):
-                if n >= 24:
-                    break
-                out.write(topic, raw, t, raw=True)
-                n += 1
-        data = out_path.read_bytes()
-        out_path.unlink()
-        seed("session_bag", bag_name + "_first24", data)
-        seed("session_bag", bag_name + "_first24_cut", data[: len(data) * 2 // 3])
+        # A short bag of the first messages (and a cut-off copy, which only recovery can read); of one reference bag
+        # the same messages in small compressed chunks too, which the structure check and recovery decompress.
+        first24 = first_messages_bag(bag, PKG / ("_tmp_%s.bag" % bag_name), 24)
+        seed("session_bag", bag_name + "_first24", first24)
+        seed("session_bag", bag_name + "_first24_cut", first24[: len(first24) * 2 // 3])
         if bag_name == "navigation_expert":
-            # The same messages in small compressed chunks: the structure check and recovery decompress them.
             for compression in ("bz2", "lz4"):
-                with rosbag.Bag(str(out_path), "w", compression=compression, chunk_threshold=4096) as out:
-                    n = 0
-                    for topic, raw, t in bag.read_messages(raw=True):
-                        if n >= 24:
-                            break
-                        out.write(topic, raw, t, raw=True)
-                        n += 1
-                data = out_path.read_bytes()
-                out_path.unlink()
-                seed("session_bag", bag_name + "_first24_" + compression, data)
+                seed("session_bag", bag_name + "_first24_" + compression,
+                     first_messages_bag(bag, PKG / ("_tmp_%s.bag" % bag_name), 24, compression=compression,
+                                        chunk_threshold=4096))
 
 mesh = vm.TissueMesh()
 mesh.tissue_id = "membrane"

@@ -946,6 +946,21 @@ HardRun runHard(const HardCase& hard, const std::string& integrator, double dt_o
   return run;
 }
 
+// The run's final node distance to the reference, rms and max (a non-finite node counts as infinitely far); nothing
+// without a reference of the same size.
+void setHardError(HardRun& run, const std::vector<Eigen::Vector3d>& reference, const std::string& reference_name) {
+  if (reference.empty() || run.positions.size() != reference.size()) return;
+  double sum2 = 0.0, max_error = 0.0;
+  for (std::size_t i = 0; i < reference.size(); ++i) {
+    const double e = (run.positions[i] - reference[i]).norm();
+    sum2 += std::isfinite(e) ? e * e : INFINITY;
+    max_error = std::max(max_error, std::isfinite(e) ? e : INFINITY);
+  }
+  run.row.error_rms = std::sqrt(sum2 / reference.size());
+  run.row.error_max = max_error;
+  run.row.reference = reference_name;
+}
+
 void runHardCases(const std::vector<std::string>& integrators, bool quick, int repetitions, int random_cases,
                   const std::string& name_filter, const std::vector<int>& dt_divisors, std::vector<Row>& rows) {
   std::vector<HardCase> hard_cases{{"hard_stiffness_ratio_1e4", 22, 1e-3, 1e4, 1, 0.01, 0},
@@ -986,15 +1001,7 @@ void runHardCases(const std::vector<std::string>& integrators, bool quick, int r
       for (const std::string& integrator : integrators) {
         if (integrator == vrm_sim::tissue::kAutoIntegrator) continue;
         HardRun run = runHard(hard, integrator, setUpHard(hard).dt / divisor, true);
-        double sum2 = 0.0, max_error = 0.0;
-        for (std::size_t i = 0; i < reference.size(); ++i) {
-          const double e = (run.positions[i] - reference[i]).norm();
-          sum2 += std::isfinite(e) ? e * e : INFINITY;
-          max_error = std::max(max_error, std::isfinite(e) ? e : INFINITY);
-        }
-        run.row.error_rms = std::sqrt(sum2 / reference.size());
-        run.row.error_max = max_error;
-        run.row.reference = reference_name;
+        setHardError(run, reference, reference_name);
         run.row.case_seed = hard.seed;
         run.row.case_description = hard.description;
         run.row.dt_divisor = divisor;
@@ -1019,17 +1026,7 @@ void runHardCases(const std::vector<std::string>& integrators, bool quick, int r
     for (std::size_t k = 0; k < integrators.size(); ++k) {
       HardRun& run = runs[k];
       setSpread(run.row, rep_ms[k]);
-      if (!reference.empty() && run.positions.size() == reference.size()) {
-        double sum2 = 0.0, max_error = 0.0;
-        for (std::size_t i = 0; i < reference.size(); ++i) {
-          const double e = (run.positions[i] - reference[i]).norm();
-          sum2 += std::isfinite(e) ? e * e : INFINITY;
-          max_error = std::max(max_error, std::isfinite(e) ? e : INFINITY);
-        }
-        run.row.error_rms = std::sqrt(sum2 / reference.size());
-        run.row.error_max = max_error;
-        run.row.reference = reference_name;
-      }
+      setHardError(run, reference, reference_name);
       run.row.case_seed = hard.seed;
       run.row.case_description = hard.description;
       case_rows.push_back(rows.size());
