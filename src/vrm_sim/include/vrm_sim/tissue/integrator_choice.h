@@ -21,7 +21,8 @@ struct AutoIntegratorOptions {
   // The cost model (issue 40 §2), counted in one explicit integration (force evaluation, integration, energy balance,
   // one Provot pass and the bound check's scan: 17.3 ns per spring here). Fitted with bench_tissue's work counts
   // (TissueWork) on its full-step rows — 22×22 and 100×100, 0.25 and 1 ms, every integrator, within ±8 % — not on
-  // the hard cases, which test it (BENCHMARKS.md, "auto's cost model"):
+  // the hard cases, which test it (BENCHMARKS.md, "auto with a cost model of the steps' own work"; refit with
+  // src/vrm_sim/bench/fit_auto_cost.py):
   double implicit_extra = 0.53;  // implicit Euler's integration beyond an explicit one, its CG iterations aside
   double cg_iteration = 0.25;    // one CG iteration
   double bound_sweep = 0.22;     // one BFS sweep of the bound projection (paid per integration, by either)
@@ -59,8 +60,8 @@ double dampedExplicitBound(const SystemView& system, const ForceModel& forces, s
 // Quasi-static Euler (eq. 5.5) resets the velocities, so damping does not enter: Δt < 2/ω_i = eq. 5.6 per node.
 double quasiStaticBound(const SystemView& system, const ForceModel& forces, std::vector<double>* scratch = nullptr);
 
-// `cg_budget`: implicit Euler's iteration limit (IntegratorOptions::cg_max_iterations), the CG iterations assumed
-// before any implicit step ran.
+// `cg_budget`: implicit Euler's iteration limit (IntegratorOptions::cg_max_iterations; the shipped scenes' 10), the CG
+// iterations assumed before any implicit step ran.
 IntegratorChoice chooseIntegrator(const SystemView& system, const ForceModel& forces, double dt,
                                   const AutoIntegratorOptions& options = {}, std::vector<double>* scratch = nullptr,
                                   const ObservedWork& observed = {}, int cg_budget = 10);

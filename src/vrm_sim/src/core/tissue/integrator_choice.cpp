@@ -93,11 +93,10 @@ IntegratorChoice chooseIntegrator(const SystemView& system, const ForceModel& fo
   const double projection = options.bound_sweep * std::max(observed.bound_sweeps, 0.0);
   choice.implicit_cost =
       (1.0 + options.implicit_extra + options.cg_iteration * iterations + projection) / (1.0 + projection);
-  const double affordable = choice.implicit_cost;
-  const double probe = std::floor(affordable + 1e-9);
+  const double probe = std::floor(choice.implicit_cost + 1e-9);
   const char* name = quasi_static ? "quasi_static_euler" : "symplectic_euler";
   char line[320];
-  if (needed <= std::max(1.0, affordable)) {
+  if (needed <= std::max(1.0, choice.implicit_cost)) {
     choice.integrator = name;
     choice.substeps = static_cast<int>(needed);
     std::snprintf(line, sizeof line,
