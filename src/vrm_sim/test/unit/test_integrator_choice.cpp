@@ -46,12 +46,13 @@ TEST(IntegratorChoice, FollowsStiffnessMassDampingAndDt) {
   EXPECT_FALSE(choice.reason.empty());
   // 100×100 (same total mass; lightest free node 3.3e-7 kg): the bound (0.51 ms × 0.8) needs three substeps of
   // 1 ms; an implicit step with its 10 CG iterations costs about four explicit ones (the cost model), so three
-  // substeps are cheaper.
+  // substeps are cheaper — and the bound without its margin allows two, which are tried first.
   auto fine = makeGridMembrane(100, kSize, kStiffness, kNodeMass * std::pow(22.0 / 100.0, 2));
   choice = choiceFor(*fine, 1e-3);
   EXPECT_EQ(choice.integrator, "symplectic_euler");
-  EXPECT_EQ(choice.substeps, 3);
-  EXPECT_FALSE(choice.probe);
+  EXPECT_EQ(choice.substeps, 2);
+  EXPECT_TRUE(choice.probe);
+  EXPECT_EQ(choice.safe_substeps, 3);
   EXPECT_NEAR(choice.implicit_cost, 1.0 + 0.53 + 0.25 * 10, 1e-12);
   EXPECT_LT(choice.bound, 1e-3);
   // Implicit Euler that converges in 3 iterations (seen in the steps so far) costs 2.28 substeps, less than the 3 the
@@ -164,9 +165,42 @@ TEST(IntegratorChoice, SubstepsOnTrialAreKeptOrGiveWayToImplicitEulerAfterOneSte
       simulator.advance(c.dt, [] { return 0.0; });
     }
     EXPECT_EQ(simulator.integratorChoice().integrator, c.holds ? "symplectic_euler" : "implicit_euler") << c.name;
+    EXPECT_EQ(simulator.integratorChoice().safe_substeps, 0) << "beyond what implicit Euler is worth: no safe count";
     EXPECT_FALSE(simulator.integratorChoice().probe && !c.holds);
     EXPECT_EQ(simulator.statistics().fallbacks, c.holds ? 0u : 1u) << simulator.integratorChoice().reason;
     EXPECT_EQ(simulator.statistics().unrecovered, 0u);
+    EXPECT_TRUE(simulator.stable());
+  }
+}
+
+// Where the bound's margin alone asks for another substep, the count without it is tried first; refused, the margin's
+// count follows (not implicit Euler).
+TEST(IntegratorChoice, ATrialWithoutTheMarginFallsBackToTheMarginsCount) {
+  struct Case {
+    const char* name;
+    double dt;
+    bool holds;
+  };
+  // The thesis' membrane: 2.44 ms without the margin, 1.95 ms with it.
+  for (const Case& c : {Case{"1 substep of 2.0 ms: stable", 2.0e-3, true},
+                        Case{"1 substep of 2.4 ms, at the bound: refused", 2.4e-3, false}}) {
+    auto membrane = makeGridMembrane(16, kSize, kStiffness, kNodeMass);
+    TissueConfig config = autoConfig(c.dt);
+    config.forces.damping = 0.0;
+    config.integrator_options.cg_max_iterations = 10;
+    TissueSimulator simulator(*membrane, config);
+    ASSERT_TRUE(simulator.integratorChoice().probe) << simulator.integratorChoice().reason;
+    ASSERT_EQ(simulator.integratorChoice().substeps, 1);
+    ASSERT_EQ(simulator.integratorChoice().safe_substeps, 2);
+    Eigen::Vector3d tip(0.0, 0.0, -2e-4);
+    for (int frame = 0; frame < 10; ++frame) {
+      tip.z() += 1e-5;
+      simulator.setInstruments({forcepsAt(tip, 0.0)});
+      simulator.advance(c.dt, [] { return 0.0; });
+    }
+    EXPECT_EQ(simulator.integratorChoice().integrator, "symplectic_euler") << c.name;
+    EXPECT_EQ(simulator.integratorChoice().substeps, c.holds ? 1 : 2) << simulator.integratorChoice().reason;
+    EXPECT_EQ(simulator.statistics().fallbacks, c.holds ? 0u : 1u) << simulator.integratorChoice().reason;
     EXPECT_TRUE(simulator.stable());
   }
 }

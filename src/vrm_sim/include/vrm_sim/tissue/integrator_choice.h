@@ -26,9 +26,10 @@ struct AutoIntegratorOptions {
   double implicit_extra = 0.53;  // implicit Euler's integration beyond an explicit one, its CG iterations aside
   double cg_iteration = 0.25;    // one CG iteration
   double bound_sweep = 0.22;     // one BFS sweep of the bound projection (paid per integration, by either)
-  // eq. 5.6 is empirical: where the bound asks for more substeps than implicit Euler is worth, fewer are tried (the
-  // watchdog proves them, or `auto` takes implicit Euler at once) if they are at least this fraction of the count
-  // without the margin.
+  // eq. 5.6 is empirical, and its margin is a guess: the count without the margin is tried where it is smaller (the
+  // watchdog proves it, or the margin's count follows at once); where the bound asks for more substeps than implicit
+  // Euler is worth, the count it is worth is tried if that is at least this fraction of the count without the margin
+  // (or implicit Euler follows at once).
   double probe_fraction = 0.5;
 };
 
@@ -43,9 +44,11 @@ struct IntegratorChoice {
   std::string integrator;  // "symplectic_euler", "quasi_static_euler" or "implicit_euler"
   int substeps = 1;        // explicit substeps per Δt
   double bound = 0.0;      // s: the explicit bound with the margin (infinity: no spring, no damping)
-  // Explicit substeps below the a-priori count, on trial: the first step the watchdog rejects at this count makes it
-  // implicit Euler (TissueSimulator::rejectIntegratorProbe()).
+  // Explicit substeps below the a-priori count, on trial: the first step the watchdog rejects at this count turns the
+  // choice into the safe one (TissueSimulator::rejectIntegratorProbe()): `safe_substeps` of the same integrator, or
+  // implicit Euler when that is 0.
   bool probe = false;
+  int safe_substeps = 0;
   double implicit_cost = 0.0;  // the model's implicit Euler step, in explicit substeps
   std::string reason;          // one line for the log: why this integrator
 };

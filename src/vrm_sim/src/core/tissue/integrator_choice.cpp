@@ -99,11 +99,19 @@ IntegratorChoice chooseIntegrator(const SystemView& system, const ForceModel& fo
   if (needed <= std::max(1.0, choice.implicit_cost)) {
     choice.integrator = name;
     choice.substeps = static_cast<int>(needed);
-    std::snprintf(line, sizeof line,
-                  "explicit bound %.3g ms (symplectic %.3g, quasi-static %.3g; margin %.2f), dt %.3g ms: %s, %d "
-                  "substep%s (an implicit step costs %.2f)",
-                  1e3 * choice.bound, 1e3 * symplectic_bound, 1e3 * quasi_static_bound, options.margin, 1e3 * dt, name,
-                  choice.substeps, choice.substeps > 1 ? "s" : "", choice.implicit_cost);
+    if (without_margin < needed) {
+      choice.safe_substeps = choice.substeps;
+      choice.substeps = static_cast<int>(without_margin);
+      choice.probe = true;
+    }
+    std::snprintf(
+        line, sizeof line,
+        "explicit bound %.3g ms (symplectic %.3g, quasi-static %.3g; margin %.2f), dt %.3g ms: %s, %d "
+        "substep%s%s (an implicit step costs %.2f)",
+        1e3 * choice.bound, 1e3 * symplectic_bound, 1e3 * quasi_static_bound, options.margin, 1e3 * dt, name,
+        choice.substeps, choice.substeps > 1 ? "s" : "",
+        choice.probe ? (" on trial, the margin's " + std::to_string(choice.safe_substeps) + " if refused").c_str() : "",
+        choice.implicit_cost);
   } else if (probe >= 1.0 && probe >= options.probe_fraction * without_margin) {
     choice.integrator = name;
     choice.substeps = static_cast<int>(probe);

@@ -191,11 +191,15 @@ void TissueSimulator::chooseIntegratorNow() {
 
 void TissueSimulator::rejectIntegratorProbe() {
   const int tried = choice_.substeps;
-  choice_.integrator = "implicit_euler";
-  choice_.substeps = 1;
   choice_.probe = false;
-  choice_.reason += "; the watchdog rejected " + std::to_string(tried) + " substeps: implicit_euler";
-  integrator_ = makeIntegrator(choice_.integrator, config_.integrator_options);
+  if (choice_.safe_substeps > 0) {
+    choice_.substeps = choice_.safe_substeps;
+  } else {
+    choice_.integrator = "implicit_euler";
+    choice_.substeps = 1;
+    integrator_ = makeIntegrator(choice_.integrator, config_.integrator_options);
+  }
+  choice_.reason += "; the watchdog rejected " + std::to_string(tried) + " substeps: " + integratorLabel();
   ++choice_changes_;
 }
 
