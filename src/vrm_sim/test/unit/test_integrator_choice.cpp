@@ -205,6 +205,40 @@ TEST(IntegratorChoice, ATrialWithoutTheMarginFallsBackToTheMarginsCount) {
   }
 }
 
+// The work counts `auto` decides on are counts of what ran, and the same in a second run (a replay decides alike).
+TEST(IntegratorChoice, WorkCountsAreWhatRanAndRepeatExactly) {
+  const auto run = [](const std::string& integrator) {
+    auto membrane = makeGridMembrane(16, kSize, kStiffness, kNodeMass);
+    TissueConfig config = autoConfig(1e-3);
+    config.integrator = integrator;
+    config.integrator_options.cg_max_iterations = 10;
+    TissueSimulator simulator(*membrane, config);
+    Eigen::Vector3d tip(0.0, 0.0, -2e-4);
+    for (int frame = 0; frame < 20; ++frame) {
+      tip.z() += 2e-5;
+      simulator.setInstruments({forcepsAt(tip, 0.0)});
+      simulator.advance(1e-3, [] { return 0.0; });
+    }
+    return simulator.statistics();
+  };
+  const SimulatorStatistics implicit = run("implicit_euler");
+  EXPECT_EQ(implicit.work.integrations, implicit.steps + implicit.fallbacks);
+  EXPECT_EQ(implicit.work.implicit_integrations, implicit.work.integrations);
+  EXPECT_GT(implicit.work.cg_iterations, 0u);
+  EXPECT_LE(implicit.work.cg_iterations, 10u * implicit.work.implicit_integrations);
+  EXPECT_GE(implicit.work.provot_passes, implicit.work.integrations);  // at least one pass after each
+  EXPECT_GE(implicit.work.bound_scans, implicit.work.integrations);
+  const SimulatorStatistics symplectic = run("symplectic_euler");
+  EXPECT_EQ(symplectic.work.implicit_integrations, 0u);
+  EXPECT_EQ(symplectic.work.cg_iterations, 0u);
+  const SimulatorStatistics again = run("symplectic_euler");
+  EXPECT_EQ(again.work.integrations, symplectic.work.integrations);
+  EXPECT_EQ(again.work.provot_passes, symplectic.work.provot_passes);
+  EXPECT_EQ(again.work.bound_sweeps, symplectic.work.bound_sweeps);
+  EXPECT_EQ(again.work.region_springs, symplectic.work.region_springs);
+  EXPECT_EQ(again.work.bfs_sorts, symplectic.work.bfs_sorts);
+}
+
 // The hard cases of bench_tissue that make fixed explicit integrators fall back hundreds of times: `auto` runs them
 // without a fallback.
 TEST(IntegratorChoice, HardCasesRunWithoutFallback) {
