@@ -53,6 +53,13 @@ TEST(IntegratorChoice, FollowsStiffnessMassDampingAndDt) {
   EXPECT_EQ(choice.substeps, 2);
   EXPECT_TRUE(choice.probe);
   EXPECT_EQ(choice.safe_substeps, 3);
+  // Without the watchdog nothing is tried: the bound's count with its margin.
+  AutoIntegratorOptions no_watchdog;
+  no_watchdog.trials = false;
+  std::vector<std::uint8_t> fine_flags(fine->fixedFlags(), fine->fixedFlags() + fine->nodeCount());
+  const IntegratorChoice untried = chooseIntegrator(viewOf(*fine, fine_flags.data()), ForceModel{}, 1e-3, no_watchdog);
+  EXPECT_EQ(untried.substeps, 3);
+  EXPECT_FALSE(untried.probe);
   EXPECT_NEAR(choice.implicit_cost, 1.0 + 0.53 + 0.25 * 10, 1e-12);
   EXPECT_LT(choice.bound, 1e-3);
   // Implicit Euler that converges in 3 iterations (seen in the steps so far) costs 2.28 substeps, less than the 3 the

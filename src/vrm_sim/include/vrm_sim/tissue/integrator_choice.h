@@ -31,6 +31,8 @@ struct AutoIntegratorOptions {
   // Euler is worth, the count it is worth is tried if that is at least this fraction of the count without the margin
   // (or implicit Euler follows at once).
   double probe_fraction = 0.5;
+  // Trials need the watchdog to judge them: off, every count is the bound's with its margin.
+  bool trials = true;
 };
 
 // What the steps so far did (TissueWork, averaged): CG iterations per implicit integration (negative: none ran yet,

@@ -99,7 +99,7 @@ IntegratorChoice chooseIntegrator(const SystemView& system, const ForceModel& fo
   if (needed <= std::max(1.0, choice.implicit_cost)) {
     choice.integrator = name;
     choice.substeps = static_cast<int>(needed);
-    if (without_margin < needed) {
+    if (options.trials && without_margin < needed) {
       choice.safe_substeps = choice.substeps;
       choice.substeps = static_cast<int>(without_margin);
       choice.probe = true;
@@ -112,7 +112,7 @@ IntegratorChoice chooseIntegrator(const SystemView& system, const ForceModel& fo
         choice.substeps, choice.substeps > 1 ? "s" : "",
         choice.probe ? (" on trial, the margin's " + std::to_string(choice.safe_substeps) + " if refused").c_str() : "",
         choice.implicit_cost);
-  } else if (probe >= 1.0 && probe >= options.probe_fraction * without_margin) {
+  } else if (options.trials && probe >= 1.0 && probe >= options.probe_fraction * without_margin) {
     choice.integrator = name;
     choice.substeps = static_cast<int>(probe);
     choice.probe = true;

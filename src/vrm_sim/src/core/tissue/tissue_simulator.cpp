@@ -177,7 +177,7 @@ void TissueSimulator::chooseIntegratorNow() {
   }
   AutoIntegratorOptions options = config_.auto_integrator;
   // Substeps on trial need the watchdog to judge them.
-  if (!config_.watchdog.enabled) options.probe_fraction = std::numeric_limits<double>::infinity();
+  if (!config_.watchdog.enabled) options.trials = false;
   IntegratorChoice choice = chooseIntegrator(view(), forces_, config_.dt, options, &choice_scratch_, observed,
                                              config_.integrator_options.cg_max_iterations);
   const bool changed =
