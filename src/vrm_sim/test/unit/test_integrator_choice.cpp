@@ -148,6 +148,24 @@ TEST(IntegratorChoice, SimulatorChoosesOnceAndAgainWhenTheFreeNodesChange) {
   EXPECT_EQ(simulator.integratorChoice().substeps, 1);
 }
 
+// The thesis' membrane's trials: undamped, implicit Euler at its 10 CG iterations.
+TissueConfig trialConfig(double dt) {
+  TissueConfig config = autoConfig(dt);
+  config.forces.damping = 0.0;
+  config.integrator_options.cg_max_iterations = 10;
+  return config;
+}
+
+// `frames` frames of dt with the forceps lifting at 10 µm per frame.
+void liftGrasped(TissueSimulator& simulator, double dt, int frames) {
+  Eigen::Vector3d tip(0.0, 0.0, -2e-4);
+  for (int frame = 0; frame < frames; ++frame) {
+    tip.z() += 1e-5;
+    simulator.setInstruments({forcepsAt(tip, 0.0)});
+    simulator.advance(dt, [] { return 0.0; });
+  }
+}
+
 // A trial the watchdog rejects costs one rolled-back step and leaves implicit Euler; one that holds stays.
 TEST(IntegratorChoice, SubstepsOnTrialAreKeptOrGiveWayToImplicitEulerAfterOneStep) {
   struct Case {
@@ -160,17 +178,9 @@ TEST(IntegratorChoice, SubstepsOnTrialAreKeptOrGiveWayToImplicitEulerAfterOneSte
   for (const Case& c : {Case{"4 substeps of 3 ms, bound 2.4 ms: unstable", 1.2e-2, false},
                         Case{"4 substeps of 2 ms (the bound with its margin asks for 5): stable", 8e-3, true}}) {
     auto membrane = makeGridMembrane(16, kSize, kStiffness, kNodeMass);
-    TissueConfig config = autoConfig(c.dt);
-    config.forces.damping = 0.0;
-    config.integrator_options.cg_max_iterations = 10;
-    TissueSimulator simulator(*membrane, config);
+    TissueSimulator simulator(*membrane, trialConfig(c.dt));
     ASSERT_TRUE(simulator.integratorChoice().probe) << simulator.integratorChoice().reason;
-    Eigen::Vector3d tip(0.0, 0.0, -2e-4);
-    for (int frame = 0; frame < 5; ++frame) {
-      tip.z() += 1e-5;
-      simulator.setInstruments({forcepsAt(tip, 0.0)});
-      simulator.advance(c.dt, [] { return 0.0; });
-    }
+    liftGrasped(simulator, c.dt, 5);
     EXPECT_EQ(simulator.integratorChoice().integrator, c.holds ? "symplectic_euler" : "implicit_euler") << c.name;
     EXPECT_EQ(simulator.integratorChoice().safe_substeps, 0) << "beyond what implicit Euler is worth: no safe count";
     EXPECT_FALSE(simulator.integratorChoice().probe && !c.holds);
@@ -192,19 +202,11 @@ TEST(IntegratorChoice, ATrialWithoutTheMarginFallsBackToTheMarginsCount) {
   for (const Case& c : {Case{"1 substep of 2.0 ms: stable", 2.0e-3, true},
                         Case{"1 substep of 2.4 ms, at the bound: refused", 2.4e-3, false}}) {
     auto membrane = makeGridMembrane(16, kSize, kStiffness, kNodeMass);
-    TissueConfig config = autoConfig(c.dt);
-    config.forces.damping = 0.0;
-    config.integrator_options.cg_max_iterations = 10;
-    TissueSimulator simulator(*membrane, config);
+    TissueSimulator simulator(*membrane, trialConfig(c.dt));
     ASSERT_TRUE(simulator.integratorChoice().probe) << simulator.integratorChoice().reason;
     ASSERT_EQ(simulator.integratorChoice().substeps, 1);
     ASSERT_EQ(simulator.integratorChoice().safe_substeps, 2);
-    Eigen::Vector3d tip(0.0, 0.0, -2e-4);
-    for (int frame = 0; frame < 10; ++frame) {
-      tip.z() += 1e-5;
-      simulator.setInstruments({forcepsAt(tip, 0.0)});
-      simulator.advance(c.dt, [] { return 0.0; });
-    }
+    liftGrasped(simulator, c.dt, 10);
     EXPECT_EQ(simulator.integratorChoice().integrator, "symplectic_euler") << c.name;
     EXPECT_EQ(simulator.integratorChoice().substeps, c.holds ? 1 : 2) << simulator.integratorChoice().reason;
     EXPECT_EQ(simulator.statistics().fallbacks, c.holds ? 0u : 1u) << simulator.integratorChoice().reason;
