@@ -7,6 +7,7 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <utility>
 #include <vector>
 
 namespace vrm_sim {
@@ -81,7 +82,16 @@ class ForceModel {
   // state first, so this is the start energy of the integration.
   void captureSpringEnergy(double* spring_energy) const { capture_ = spring_energy; }
 
+  // For an integrator that sums the Hooke terms in its own sweep over the springs: compute() without them, and the
+  // armed capture (null if none), which it then fills; taking it disarms it.
+  void computeExceptSprings(const SystemView& system, const Eigen::Vector3d* x, const Eigen::Vector3d* v,
+                            Eigen::Vector3d* forces) const;
+  double* takeSpringEnergyCapture() const { return std::exchange(capture_, nullptr); }
+
  private:
+  // R_i + E_i of eq. 5.1 (damping, gravity, external), and the anchors and the pressure after the Hooke terms.
+  void bodyForces(const SystemView& system, const Eigen::Vector3d* v, Eigen::Vector3d* forces) const;
+  void addAnchorAndPressureForces(const Eigen::Vector3d* x, Eigen::Vector3d* forces) const;
   // The Hooke terms without AVX2: per-spring forces into spring_forces_, then the scatter.
   void scatterInTwoPasses(const SystemView& system, const Eigen::Vector3d* x, Eigen::Vector3d* forces) const;
   // Per-spring forces of the last two-pass compute() (structure of arrays), kept between steps so a step allocates

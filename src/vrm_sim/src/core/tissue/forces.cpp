@@ -37,29 +37,17 @@ void ForceModel::scatterInTwoPasses(const SystemView& system, const Eigen::Vecto
   kernels::scatterSpringForces(m, system.springs, f, f + m, f + 2 * m, forces);
 }
 
-void ForceModel::compute(const SystemView& system, const Eigen::Vector3d* x, const Eigen::Vector3d* v,
-                         Eigen::Vector3d* forces) const {
+void ForceModel::bodyForces(const SystemView& system, const Eigen::Vector3d* v, Eigen::Vector3d* forces) const {
   const std::size_t n = system.node_count;
-  // R_i + E_i of eq. 5.1 first, then the Hooke terms H_ij (eq. 5.2) in spring order.
   for (std::size_t i = 0; i < n; ++i) {
     forces[i] = system.masses[i] * params.gravity - params.damping * v[i];
   }
   if (!external.empty()) {
     for (std::size_t i = 0; i < n; ++i) forces[i] += external[i];
   }
-  const std::size_t m = system.spring_count;
-  // One vectorised pass with the scatter fused where AVX2 is there; else two sweeps: the per-spring forces vectorise
-  // (no scatter), the scatter then only adds. The same forces either way.
-  const bool fused = params.single_precision_springs
-                         ? kernels::hookeForcesScatteredSingle(m, system.springs, x, system.stiffnesses,
-                                                               system.rest_lengths, forces, capture_)
-                         : kernels::hookeForcesScattered(m, system.springs, x, system.stiffnesses, system.rest_lengths,
-                                                         forces, capture_);
-  if (fused) {
-    capture_ = nullptr;
-  } else {
-    scatterInTwoPasses(system, x, forces);
-  }
+}
+
+void ForceModel::addAnchorAndPressureForces(const Eigen::Vector3d* x, Eigen::Vector3d* forces) const {
   for (const Anchor& anchor : anchors) {
     forces[anchor.node] += anchor.stiffness * (anchor.point - x[anchor.node]);
   }
@@ -74,6 +62,32 @@ void ForceModel::compute(const SystemView& system, const Eigen::Vector3d* x, con
       forces[c[2]] += f;
     }
   }
+}
+
+void ForceModel::compute(const SystemView& system, const Eigen::Vector3d* x, const Eigen::Vector3d* v,
+                         Eigen::Vector3d* forces) const {
+  // R_i + E_i of eq. 5.1 first, then the Hooke terms H_ij (eq. 5.2) in spring order.
+  bodyForces(system, v, forces);
+  const std::size_t m = system.spring_count;
+  // One vectorised pass with the scatter fused where AVX2 is there; else two sweeps: the per-spring forces vectorise
+  // (no scatter), the scatter then only adds. The same forces either way.
+  const bool fused = params.single_precision_springs
+                         ? kernels::hookeForcesScatteredSingle(m, system.springs, x, system.stiffnesses,
+                                                               system.rest_lengths, forces, capture_)
+                         : kernels::hookeForcesScattered(m, system.springs, x, system.stiffnesses, system.rest_lengths,
+                                                         forces, capture_);
+  if (fused) {
+    capture_ = nullptr;
+  } else {
+    scatterInTwoPasses(system, x, forces);
+  }
+  addAnchorAndPressureForces(x, forces);
+}
+
+void ForceModel::computeExceptSprings(const SystemView& system, const Eigen::Vector3d* x, const Eigen::Vector3d* v,
+                                      Eigen::Vector3d* forces) const {
+  bodyForces(system, v, forces);
+  addAnchorAndPressureForces(x, forces);
 }
 
 double ForceModel::potentialEnergy(const SystemView& system, const Eigen::Vector3d* x) const {

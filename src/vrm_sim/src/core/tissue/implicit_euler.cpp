@@ -1,12 +1,10 @@
 #include <Eigen/Core>
-#if defined(__SSE2__)
-#include <emmintrin.h>
-#endif
 #include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <new>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -25,28 +23,31 @@ namespace {
 // four numbers instead of nine. The transverse part of a compressed spring's block is clamped at zero so A stays
 // positive definite — CG needs that, and it only removes buckling stiffness.
 //
-// Layout, chosen for the product A·p that every CG iteration runs once (issue 15):
-//  - node vectors are structure of arrays [x…|y…|z…] in an internal node order (Structure), padded to kLanes;
-//  - the product gathers instead of scattering: nodes are taken kLanes at a time (one SIMD lane each) and their
-//    springs slot by slot (sliced ELLPACK: slot k holds the k-th spring of each node of the group, padded with the
-//    zero block to the group's largest degree). A sweep loads the neighbours and the blocks (one vector load per
-//    array where the lanes' indices are consecutive, else a gather) and writes each q_i once — no read-modify-write
-//    chains, no horizontal sums;
-//  - each spring's block (a, v) is stored once, in an internal spring order that makes both of its slots read
-//    consecutive ids in a regular patch.
-// Measured (bench_implicit, 10k nodes, one run, median ms per step with 10 CG iterations): the packed-record scatter
-// form this replaced 3.00 ms at dt 1 ms, this one 1.93. The step is bound by memory traffic, not arithmetic: AVX-512
-// with 8 lanes ran as fast as AVX2 with 4; a slot-record layout (each block stored twice, 2 MB at 10k nodes, which
-// with the CG vectors overflows the 2 MB L2) spent ~28 % of the step on reading the records. Profile now: product
-// 35 %, CG vector passes 20 %, springBlocks 16 %, ForceModel::compute 7 %. Tried and not kept: float blocks (5 %
-// faster, but CG then converges to the rounded matrix, ~1e-7 relative, and the dense-solve tests ask for 1e-9).
+// Layout, chosen for the product A·p that every CG iteration runs once (issues 15 and 40):
+//  - node vectors are structure of arrays [x…|y…|z…] in an internal node order (Structure), padded to kLanes and
+//    cache-line aligned;
+//  - each spring belongs to its end with the lower internal index; nodes are taken kLanes at a time (one SIMD lane
+//    each) and their own springs slot by slot (sliced ELLPACK). A slot holds one direction (the other ends are
+//    kLanes consecutive nodes: one vector load and one vector read-modify-write per component) where the group's
+//    springs allow it, else each lane's k-th spring (gathered);
+//  - the product reads each block once: B_s (p_i − p_j) goes to the owner's sum in registers and is subtracted from
+//    the other end in q, whose group comes later in the sweep;
+//  - the blocks, a node block per node (the preconditioner), the Hooke forces and Δt²·S v⁰ come from one sweep over
+//    the springs at the start of a step (assemble()).
+// Measured (bench_implicit, 10k nodes, idle machine, median ms per step with 10 CG iterations, Jacobi, dt 1 ms):
+// 1.56 ms for the gather-only form with blocks read by both ends and a scalar block pass, 1.11 ms for this one with
+// FMA contraction, 1.22 ms without (below). Where the time goes now: the 10 products 0.53 ms (their other-end
+// read-modify-writes alone 0.16: overlapping vector stores in a row), the CG vector passes 0.21, the assembly 0.21.
+// Tried and not kept: blocks in one record per slot instead of four arrays (no gain), float blocks (8 % faster
+// products; CG then converges to the rounded matrix, ~1e-7 relative, and the dense-solve tests ask for 1e-9), one
+// q array per slot direction modulo 3 (no overlapping stores, but 3× the q traffic: 28 % slower).
 // Constrained nodes (pinned or grasped) are handled by the filtered CG of Baraff & Witkin §5.3: their rows of A are
 // zero blocks and their preconditioner is zero, so p, Δv and r stay zero on them — the "infinite mass" of the thesis
 // without ill-conditioning. A step allocates nothing once the buffers have their size.
 
-// Built for AVX-512, AVX2+FMA and the baseline, picked at load time like spring_kernels.cpp. The builds round
-// differently (FMA, lane order of the dot products); the implicit solve is iterative and not part of any bit-exact
-// contract, but each build is deterministic.
+// Built for AVX-512, AVX2 and the baseline, picked at load time like spring_kernels.cpp. The file is compiled with
+// -ffp-contract=off and every lane sum runs in one fixed order, so the three builds round alike and a session's state
+// hash does not depend on the CPU (issue 40 §3; with FMA the step was 8 % faster).
 #if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
 #define VRM_IMPLICIT_KERNEL __attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
 #else
@@ -54,8 +55,26 @@ namespace {
 #endif
 
 constexpr std::size_t kLanes = 8;
+// A slot's blocks are one record: a, v_x, v_y, v_z, kLanes each.
+constexpr std::size_t kBlockDoubles = 4 * kLanes;
 // kLanes doubles (one AVX-512 register, two AVX2 ones); unaligned loads and stores through this type alias double.
 typedef double Lanes __attribute__((vector_size(8 * kLanes), aligned(8), may_alias));
+
+// Cache-line aligned storage for the arrays the sweeps read kLanes at a time: a vector at a multiple of kLanes then
+// never straddles two lines.
+template <typename T>
+struct CacheLineAllocator {
+  using value_type = T;
+  static constexpr std::align_val_t kAlignment{64};
+  CacheLineAllocator() = default;
+  template <typename U>
+  CacheLineAllocator(const CacheLineAllocator<U>&) {}
+  T* allocate(std::size_t count) { return static_cast<T*>(::operator new(count * sizeof(T), kAlignment)); }
+  void deallocate(T* pointer, std::size_t) { ::operator delete(pointer, kAlignment); }
+  bool operator==(const CacheLineAllocator&) const { return true; }
+  bool operator!=(const CacheLineAllocator&) const { return false; }
+};
+using AlignedDoubles = std::vector<double, CacheLineAllocator<double>>;
 
 inline Lanes& lanes(double* base) { return *reinterpret_cast<Lanes*>(base); }
 inline const Lanes& lanes(const double* base) { return *reinterpret_cast<const Lanes*>(base); }
@@ -72,50 +91,39 @@ inline Lanes gather(const double* base, const std::uint32_t* index) {
   return values;
 }
 
-// The blocks B_s = a·I + v vᵀ of the springs in internal spring order (plus one zero block for padding) and, per slot,
-// which springs its lanes hold: consecutive ids (one vector load per array) where the structure allows, else a gather.
+// The blocks B_s = a·I + v vᵀ, one record per slot (the zero block in padding lanes), and the filter.
 struct Springs {
   const double* a;
   const double* vx;
   const double* vy;
   const double* vz;
-  const std::int32_t* first;  // per slot: id of lane 0's spring when the lanes hold consecutive ids, else −1
-  const std::uint32_t* ids;   // kLanes per slot
-  const double* mask;         // per node: 1 free, 0 constrained (rows of A·p that are filtered out)
+  const double* mask;  // per node: 1 free, 0 constrained (rows of A·p that are filtered out)
 
   void load(std::uint32_t slot, Lanes& bx, Lanes& by, Lanes& bz, Lanes& ba) const {
-    const std::int32_t id = first[slot];
-    if (id >= 0) {
-      bx = lanes(vx + id);
-      by = lanes(vy + id);
-      bz = lanes(vz + id);
-      ba = lanes(a + id);
-    } else {
-      const std::uint32_t* lane_ids = ids + kLanes * slot;
-      bx = gather(vx, lane_ids);
-      by = gather(vy, lane_ids);
-      bz = gather(vz, lane_ids);
-      ba = gather(a, lane_ids);
-    }
+    const std::size_t at = kBlockDoubles * slot;
+    bx = lanes(vx + at);
+    by = lanes(vy + at);
+    bz = lanes(vz + at);
+    ba = lanes(a + at);
   }
 };
 
-// The node-ordered spring structure; depends on the topology only. Nodes are renumbered internally (order[k] = the
-// node in internal slot k): by degree, then by index. Same-degree nodes then share groups (little ELLPACK padding:
-// the grid membrane alternates degree 8 and 4 along its rows), and each node's springs are sorted by the index offset
-// of their other end, so in a regular patch slot k of a group points the same way for all 4 lanes and its 4
-// neighbours are 4 consecutive internal nodes — one vector load per component instead of a 4-way gather.
+// The node-ordered spring structure; depends on the topology only. order/internal map internal slots to nodes (the
+// identity now; kept so another ordering can be tried in one place). Each spring belongs to the end with the lower
+// internal index (its owner). Nodes are taken kLanes at a time (a group) and their own springs slot by slot: a slot
+// holds one offset (other end − node) where the group's springs take few enough offsets, so in a regular patch its
+// kLanes other ends are consecutive internal nodes (lanes without that spring hold the zero block); else slot k holds
+// each lane's k-th spring and the other ends are gathered.
 struct Structure {
   std::size_t nodes = 0, padded = 0, springs = 0;
   std::vector<std::array<std::uint32_t, 2>> ends;  // copy of the spring ends it was built from
   std::vector<std::uint32_t> order;                // internal → node (padded: order[k] = nodes for k ≥ nodes)
   std::vector<std::uint32_t> internal;             // node → internal
   std::vector<std::uint32_t> group_slots;          // first slot of group g; group_slots[groups] = slot count
-  std::vector<std::int32_t> first_neighbour;       // per slot: internal neighbour of lane 0 if the 4 are consecutive
-  std::vector<std::uint32_t> neighbour;            // 4 per slot: internal other end (the node itself in padding)
-  std::vector<std::uint32_t> spring;               // kLanes per slot: internal spring id (springs: the zero block)
-  std::vector<std::int32_t> first_spring;          // per slot: id of lane 0 if the lanes' ids are consecutive
-  std::vector<std::uint32_t> spring_order;         // internal spring id → spring
+  std::vector<std::int32_t> first_neighbour;       // per slot: other end of lane 0 if the lanes' are consecutive
+  std::vector<std::uint32_t> neighbour;            // kLanes per slot: internal other end (the node itself in padding)
+  std::vector<std::uint32_t> spring;               // kLanes per slot: the spring (0 in padding)
+  AlignedDoubles real;                             // kLanes per slot: 1 for a spring, 0 for padding (zero block)
 
   bool matches(const SystemView& system) const {
     return system.node_count == nodes && system.spring_count == springs &&
@@ -132,189 +140,246 @@ struct Structure {
       ++degree[e[0]];
       ++degree[e[1]];
     }
-    std::vector<std::uint32_t> start(nodes + 1, 0);
-    for (std::size_t i = 0; i < nodes; ++i) start[i + 1] = start[i] + degree[i];
-    std::vector<std::uint32_t> fill(start.begin(), start.end() - 1);
-    std::vector<std::uint32_t> adjacent_spring(2 * springs);
-    for (std::size_t s = 0; s < springs; ++s) {
-      adjacent_spring[fill[ends[s][0]]++] = static_cast<std::uint32_t>(s);
-      adjacent_spring[fill[ends[s][1]]++] = static_cast<std::uint32_t>(s);
-    }
-    auto other = [this](std::uint32_t s, std::size_t i) { return ends[s][0] == i ? ends[s][1] : ends[s][0]; };
-    for (std::size_t i = 0; i < nodes; ++i) {
-      std::sort(adjacent_spring.begin() + start[i], adjacent_spring.begin() + start[i + 1],
-                [&](std::uint32_t s, std::uint32_t t) { return other(s, i) < other(t, i); });
-    }
+    // Identity order: a mesh built row by row (the grid membranes) keeps its rows, so a group's springs point the
+    // same ways. Sorted by degree instead, the border nodes moved to the end and every group next to the border
+    // gathered (40 % of the product's time at 10k nodes).
     order.resize(padded);
     for (std::size_t k = 0; k < padded; ++k) order[k] = static_cast<std::uint32_t>(std::min(k, nodes));
-    std::stable_sort(order.begin(), order.begin() + nodes,
-                     [&](std::uint32_t i, std::uint32_t j) { return degree[i] > degree[j]; });
-    internal.assign(nodes, 0);
-    for (std::size_t k = 0; k < nodes; ++k) internal[order[k]] = static_cast<std::uint32_t>(k);
+    internal.resize(nodes);
+    for (std::size_t k = 0; k < nodes; ++k) internal[k] = static_cast<std::uint32_t>(k);
 
+    auto owner = [&](std::size_t s) { return std::min(internal[ends[s][0]], internal[ends[s][1]]); };
+    auto otherEnd = [&](std::size_t s) { return std::max(internal[ends[s][0]], internal[ends[s][1]]); };
+    std::vector<std::uint32_t> start(padded + 1, 0);
+    for (std::size_t s = 0; s < springs; ++s) ++start[owner(s) + 1];
+    for (std::size_t k = 0; k < padded; ++k) start[k + 1] += start[k];
+    std::vector<std::uint32_t> fill(start.begin(), start.end() - 1);
+    std::vector<std::uint32_t> owned(springs);
+    for (std::size_t s = 0; s < springs; ++s) owned[fill[owner(s)]++] = static_cast<std::uint32_t>(s);
+    for (std::size_t k = 0; k < nodes; ++k) {
+      std::stable_sort(owned.begin() + start[k], owned.begin() + start[k + 1],
+                       [&](std::uint32_t s, std::uint32_t t) { return otherEnd(s) < otherEnd(t); });
+    }
+
+    // A group's slots. By offset: one slot per offset (other end − node) that a lane's springs take, lanes without
+    // it padded with the zero block at the node + offset, so the slot stays consecutive. By rank (where the offsets
+    // are too many: an irregular patch): slot k holds each lane's k-th spring, gathered.
     const std::size_t groups = padded / kLanes;
-    auto degreeAt = [&](std::size_t k) { return k < nodes ? degree[order[k]] : 0u; };
     group_slots.assign(groups + 1, 0);
+    neighbour.clear();
+    spring.clear();
+    real.clear();
+    first_neighbour.clear();
+    struct Slot {
+      std::uint32_t offset;
+      std::array<std::uint32_t, kLanes> spring;
+      std::array<bool, kLanes> used;
+    };
+    std::vector<Slot> slots;
     for (std::size_t g = 0; g < groups; ++g) {
+      const std::size_t base = g * kLanes;
       std::uint32_t width = 0;
-      for (std::size_t lane = 0; lane < kLanes; ++lane) width = std::max(width, degreeAt(g * kLanes + lane));
-      group_slots[g + 1] = group_slots[g] + width;
-    }
-    const std::size_t slots = group_slots[groups];
-    neighbour.assign(kLanes * slots, 0);
-    spring.assign(kLanes * slots, static_cast<std::uint32_t>(springs));
-    first_neighbour.assign(slots, -1);
-    for (std::size_t g = 0; g < groups; ++g) {
-      for (std::uint32_t slot = group_slots[g]; slot < group_slots[g + 1]; ++slot) {
-        const std::uint32_t k = slot - group_slots[g];
-        bool consecutive = true;
-        for (std::size_t lane = 0; lane < kLanes; ++lane) {
-          const std::size_t node_internal = g * kLanes + lane;
-          const std::size_t e = kLanes * slot + lane;
-          if (k < degreeAt(node_internal)) {
-            const std::size_t i = order[node_internal];
-            const std::uint32_t s = adjacent_spring[start[i] + k];
-            spring[e] = s;
-            neighbour[e] = internal[other(s, i)];
-          } else {
-            neighbour[e] = static_cast<std::uint32_t>(node_internal);  // w = p_i − p_i = 0 with a zero block
-          }
-          consecutive = consecutive && neighbour[e] == neighbour[kLanes * slot] + lane;
-        }
-        if (consecutive) first_neighbour[slot] = static_cast<std::int32_t>(neighbour[kLanes * slot]);
-      }
-    }
-    // Internal spring ids, handed out slot index by slot index over all groups: in a regular patch the two ends of a
-    // run of springs are runs of nodes in two groups' slots with the same direction, so both ends see consecutive
-    // ids and every spring block is stored once.
-    const std::uint32_t unassigned = std::numeric_limits<std::uint32_t>::max();
-    std::vector<std::uint32_t> id_of(springs + 1, unassigned);
-    id_of[springs] = static_cast<std::uint32_t>(springs);
-    spring_order.clear();
-    std::uint32_t widest = 0;
-    for (std::size_t g = 0; g < groups; ++g) widest = std::max(widest, group_slots[g + 1] - group_slots[g]);
-    for (std::uint32_t k = 0; k < widest; ++k) {
-      for (std::size_t g = 0; g < groups; ++g) {
-        if (k >= group_slots[g + 1] - group_slots[g]) continue;
-        for (std::size_t lane = 0; lane < kLanes; ++lane) {
-          const std::uint32_t s = spring[kLanes * (group_slots[g] + k) + lane];
-          if (id_of[s] != unassigned) continue;
-          id_of[s] = static_cast<std::uint32_t>(spring_order.size());
-          spring_order.push_back(s);
-        }
-      }
-    }
-    first_spring.assign(slots, -1);
-    for (std::size_t slot = 0; slot < slots; ++slot) {
-      bool consecutive = true;
+      for (std::size_t k = base; k < base + kLanes; ++k) width = std::max(width, start[k + 1] - start[k]);
+      slots.clear();
       for (std::size_t lane = 0; lane < kLanes; ++lane) {
-        std::uint32_t& s = spring[kLanes * slot + lane];
-        s = id_of[s];
-        consecutive = consecutive && s < springs && s == spring[kLanes * slot] + lane;
+        const std::size_t k = base + lane;
+        for (std::uint32_t e = start[k]; e < start[k + 1]; ++e) {
+          const std::uint32_t offset = otherEnd(owned[e]) - static_cast<std::uint32_t>(k);
+          auto slot = std::find_if(slots.begin(), slots.end(),
+                                   [&](const Slot& s) { return s.offset == offset && !s.used[lane]; });
+          if (slot == slots.end()) slot = slots.insert(slots.end(), Slot{offset, {}, {}});
+          slot->spring[lane] = owned[e];
+          slot->used[lane] = true;
+        }
       }
-      if (consecutive) first_spring[slot] = static_cast<std::int32_t>(spring[kLanes * slot]);
+      const bool by_offset = slots.size() <= width + width / 2;
+      if (by_offset) {
+        std::stable_sort(slots.begin(), slots.end(), [](const Slot& s, const Slot& t) { return s.offset < t.offset; });
+      } else {
+        slots.assign(width, Slot{0, {}, {}});
+        for (std::size_t lane = 0; lane < kLanes; ++lane) {
+          const std::size_t k = base + lane;
+          for (std::uint32_t e = start[k]; e < start[k + 1]; ++e) {
+            slots[e - start[k]].spring[lane] = owned[e];
+            slots[e - start[k]].used[lane] = true;
+          }
+        }
+      }
+      for (const Slot& slot : slots) {
+        bool consecutive = true;
+        const std::size_t first = neighbour.size();
+        for (std::size_t lane = 0; lane < kLanes; ++lane) {
+          const std::size_t k = base + lane;
+          std::uint32_t other = static_cast<std::uint32_t>(k);  // padding: w = p_k − p_k = 0 with a zero block
+          if (slot.used[lane]) {
+            other = otherEnd(slot.spring[lane]);
+          } else if (by_offset && k + slot.offset < padded) {
+            other = static_cast<std::uint32_t>(k + slot.offset);  // zero block, other end in the slot's run
+          }
+          neighbour.push_back(other);
+          spring.push_back(slot.used[lane] ? slot.spring[lane] : 0);
+          real.push_back(slot.used[lane] ? 1.0 : 0.0);
+          consecutive = consecutive && other == neighbour[first] + lane;
+        }
+        first_neighbour.push_back(consecutive ? static_cast<std::int32_t>(neighbour[first]) : -1);
+      }
+      group_slots[g + 1] = static_cast<std::uint32_t>(first_neighbour.size());
     }
   }
 };
 
-// Element-wise square root. std::sqrt keeps an errno branch (-fmath-errno is on), which stops GCC from vectorising
-// any loop that calls it; SSE2's sqrtpd exists in every clone and rounds exactly like std::sqrt.
+// Element-wise square root: each clone's widest vsqrtpd (the file is built with -fno-math-errno, like
+// spring_kernels.cpp; with errno, std::sqrt keeps a branch that stops GCC from vectorising it). A 2-lane SSE2 form
+// through memory it replaced spent most of springBlocks on the spills.
 inline Lanes squareRoot(const Lanes& x) {
-#if defined(__SSE2__)
-  double values[kLanes];
-  std::memcpy(values, &x, sizeof(values));
-  for (std::size_t lane = 0; lane < kLanes; lane += 2) {
-    _mm_storeu_pd(values + lane, _mm_sqrt_pd(_mm_loadu_pd(values + lane)));
-  }
-  Lanes result;
-  std::memcpy(&result, values, sizeof(values));
-  return result;
-#else
   Lanes result;
   for (std::size_t lane = 0; lane < kLanes; ++lane) result[lane] = std::sqrt(x[lane]);
   return result;
-#endif
 }
 
-// Per spring, in internal order: a_s and v_s of B_s = a_s·I + v_s v_sᵀ for the current positions (id `springs`
-// stays zero: padding). stiffnesses and rest_lengths are scratch arrays for the reordered inputs.
-// Two loops, like kernels::hookeForces: the gather is scalar, the two square roots and the division per spring then
-// run kLanes springs at a time (scalar they were 10 % of the step).
-VRM_IMPLICIT_KERNEL
-void springBlocks(std::size_t m, const std::uint32_t* spring_order, const std::array<std::uint32_t, 2>* ends,
-                  const Eigen::Vector3d* x, const double* spring_stiffnesses, const double* spring_rest_lengths,
-                  double scale, double* stiffnesses, double* rest_lengths, double* a, double* vx, double* vy,
-                  double* vz) {
-  for (std::size_t s = 0; s < m; ++s) {
-    const std::uint32_t spring = spring_order[s];
-    const Eigen::Vector3d& xa = x[ends[spring][0]];
-    const Eigen::Vector3d& xb = x[ends[spring][1]];
-    vx[s] = xb.x() - xa.x();
-    vy[s] = xb.y() - xa.y();
-    vz[s] = xb.z() - xa.z();
-    stiffnesses[s] = spring_stiffnesses[spring];
-    rest_lengths[s] = spring_rest_lengths[spring];
+// The other ends' values of a slot: one vector load where they are consecutive, else a gather.
+inline Lanes otherEnds(const double* base, std::int32_t first, const std::uint32_t* neighbour) {
+  return first >= 0 ? lanes(base + first) : gather(base, neighbour);
+}
+
+// Subtracts t from the other ends of a slot: one vector read-modify-write where they are consecutive, else lane by
+// lane (two lanes of a gathered slot may share their other end).
+inline void subtractAtOtherEnds(double* base, std::int32_t first, const std::uint32_t* neighbour, const Lanes& t) {
+  if (first >= 0) {
+    lanes(base + first) -= t;
+  } else {
+    for (std::size_t lane = 0; lane < kLanes; ++lane) base[neighbour[lane]] -= t[lane];
   }
+}
+
+// What one sweep over the springs produces for a step (internal order, [x|y|z] vectors with stride n).
+struct Assembly {
+  double* blocks;                 // kBlockDoubles per slot: a, v_x, v_y, v_z of B_s = a·I + v vᵀ (scaled by Δt²)
+  std::array<double*, 6> matrix;  // xx, yy, zz, xy, xz, yz of A's node blocks; hold the node term on entry
+  double* hooke;                  // Σ of the Hooke forces H_ij (eq. 5.2) on each node; zero on entry
+  double* stiffness_velocity;     // Σ B_s (v_i − v_j) = Δt²·S_springs v⁰; zero on entry
+};
+
+// The step's one sweep over the springs at x⁰, v⁰ (internal order): per spring its block B_s (eq. 5.8's Jacobian),
+// added to both ends' node blocks; its Hooke force, as ForceModel computes it (k (|d| − l)/|d|·d, zero below the
+// minimum length); and B_s (v_i − v_j) for the right-hand side. Each spring is read once, by the end with the lower
+// internal index (see product()). Four sweeps before (the forces, the blocks, the node blocks, S v⁰) took 0.5 ms of
+// a 1.3 ms step at 10k nodes. Returns Σ ½ k (|d| − l)², the springs' potential energy (ForceModel's capture).
+template <bool kOffDiagonal>
+__attribute__((always_inline)) inline double assembleSweep(std::size_t n, const std::uint32_t* group_slots,
+                                                           const std::int32_t* first_neighbour,
+                                                           const std::uint32_t* neighbour, const std::uint32_t* spring,
+                                                           const double* real, const double* x, const double* v,
+                                                           const double* stiffnesses, const double* rest_lengths,
+                                                           double scale, const Assembly& out) {
   const Lanes zero = {};
   const Lanes minimum = zero + kMinSpringLength;
-  std::size_t s = 0;
-  for (; s + kLanes <= m; s += kLanes) {
-    const Lanes dx = lanes(vx + s), dy = lanes(vy + s), dz = lanes(vz + s);
-    const Lanes length = squareRoot(dx * dx + dy * dy + dz * dz);
-    const Lanes inverse_length = 1.0 / (length < minimum ? minimum : length);
-    const Lanes k = length < minimum ? zero : scale * lanes(stiffnesses + s);
-    const Lanes stretch = 1.0 - lanes(rest_lengths + s) * inverse_length;
-    const Lanes transverse = stretch > zero ? stretch : zero;
-    lanes(a + s) = k * transverse;
-    const Lanes along = squareRoot(k * (1.0 - transverse)) * inverse_length;
-    lanes(vx + s) = along * dx;
-    lanes(vy + s) = along * dy;
-    lanes(vz + s) = along * dz;
-  }
-  for (; s < m; ++s) {
-    const double dx = vx[s], dy = vy[s], dz = vz[s];
-    const double length = std::sqrt(dx * dx + dy * dy + dz * dz);
-    const double inverse_length = 1.0 / std::max(length, kMinSpringLength);
-    const double k = length < kMinSpringLength ? 0.0 : scale * stiffnesses[s];
-    const double transverse = std::max(0.0, 1.0 - rest_lengths[s] * inverse_length);
-    a[s] = k * transverse;
-    const double along = std::sqrt(k * (1.0 - transverse)) * inverse_length;
-    vx[s] = along * dx;
-    vy[s] = along * dy;
-    vz[s] = along * dz;
-  }
-}
-
-// Adds the spring blocks to the 3×3 node blocks of A (diagonal dxx, dyy, dzz and off-diagonal dxy, dxz, dyz; these
-// hold the node term m + Δt·c + Δt²·k_anchor on entry).
-VRM_IMPLICIT_KERNEL
-void nodeBlocks(std::size_t groups, const std::uint32_t* group_slots, const Springs& springs, double* dxx, double* dyy,
-                double* dzz, double* dxy, double* dxz, double* dyz) {
-  for (std::size_t g = 0; g < groups; ++g) {
+  Lanes energy = zero;
+  for (std::size_t g = 0; g < n / kLanes; ++g) {
     const std::size_t i = kLanes * g;
-    Lanes xx = lanes(dxx + i), yy = lanes(dyy + i), zz = lanes(dzz + i);
-    Lanes xy = lanes(dxy + i), xz = lanes(dxz + i), yz = lanes(dyz + i);
+    const Lanes xi = lanes(x + i), yi = lanes(x + n + i), zi = lanes(x + 2 * n + i);
+    const Lanes vxi = lanes(v + i), vyi = lanes(v + n + i), vzi = lanes(v + 2 * n + i);
+    Lanes fx = zero, fy = zero, fz = zero, sx = zero, sy = zero, sz = zero;
+    Lanes xx = zero, yy = zero, zz = zero, xy = zero, xz = zero, yz = zero;
     for (std::uint32_t slot = group_slots[g]; slot < group_slots[g + 1]; ++slot) {
-      Lanes bx, by, bz, ba;
-      springs.load(slot, bx, by, bz, ba);
-      xx += ba + bx * bx;
-      yy += ba + by * by;
-      zz += ba + bz * bz;
-      xy += bx * by;
-      xz += bx * bz;
-      yz += by * bz;
+      const std::size_t at = kLanes * slot;
+      const std::int32_t first = first_neighbour[slot];
+      const std::uint32_t* other = neighbour + at;
+      const Lanes dx = otherEnds(x, first, other) - xi;
+      const Lanes dy = otherEnds(x + n, first, other) - yi;
+      const Lanes dz = otherEnds(x + 2 * n, first, other) - zi;
+      const Lanes k = lanes(real + at) * gather(stiffnesses, spring + at);
+      const Lanes rest = gather(rest_lengths, spring + at);
+      const Lanes length = squareRoot(dx * dx + dy * dy + dz * dz);
+      const Lanes inverse_length = 1.0 / (length < minimum ? minimum : length);
+      const Lanes elongation = length - rest;
+      energy += 0.5 * k * elongation * elongation;
+      const Lanes hooke = length < minimum ? zero : k * elongation * inverse_length;
+      const Lanes hx = hooke * dx, hy = hooke * dy, hz = hooke * dz;
+      fx += hx;
+      fy += hy;
+      fz += hz;
+      subtractAtOtherEnds(out.hooke, first, other, hx);
+      subtractAtOtherEnds(out.hooke + n, first, other, hy);
+      subtractAtOtherEnds(out.hooke + 2 * n, first, other, hz);
+
+      const Lanes scaled = length < minimum ? zero : scale * k;
+      const Lanes stretch = 1.0 - rest * inverse_length;
+      const Lanes transverse = stretch > zero ? stretch : zero;
+      const Lanes a = scaled * transverse;
+      const Lanes along = squareRoot(scaled * (1.0 - transverse)) * inverse_length;
+      const Lanes bx = along * dx, by = along * dy, bz = along * dz;
+      double* record = out.blocks + kBlockDoubles * slot;
+      lanes(record) = a;
+      lanes(record + kLanes) = bx;
+      lanes(record + 2 * kLanes) = by;
+      lanes(record + 3 * kLanes) = bz;
+
+      const Lanes bxx = a + bx * bx, byy = a + by * by, bzz = a + bz * bz;
+      const Lanes bxy = bx * by, bxz = bx * bz, byz = by * bz;
+      xx += bxx;
+      yy += byy;
+      zz += bzz;
+      xy += bxy;
+      xz += bxz;
+      yz += byz;
+      subtractAtOtherEnds(out.matrix[0], first, other, -bxx);
+      subtractAtOtherEnds(out.matrix[1], first, other, -byy);
+      subtractAtOtherEnds(out.matrix[2], first, other, -bzz);
+      if (kOffDiagonal) {
+        subtractAtOtherEnds(out.matrix[3], first, other, -bxy);
+        subtractAtOtherEnds(out.matrix[4], first, other, -bxz);
+        subtractAtOtherEnds(out.matrix[5], first, other, -byz);
+      }
+
+      const Lanes wx = vxi - otherEnds(v, first, other);
+      const Lanes wy = vyi - otherEnds(v + n, first, other);
+      const Lanes wz = vzi - otherEnds(v + 2 * n, first, other);
+      const Lanes projection = bx * wx + by * wy + bz * wz;
+      const Lanes tx = a * wx + projection * bx, ty = a * wy + projection * by, tz = a * wz + projection * bz;
+      sx += tx;
+      sy += ty;
+      sz += tz;
+      subtractAtOtherEnds(out.stiffness_velocity, first, other, tx);
+      subtractAtOtherEnds(out.stiffness_velocity + n, first, other, ty);
+      subtractAtOtherEnds(out.stiffness_velocity + 2 * n, first, other, tz);
     }
-    lanes(dxx + i) = xx;
-    lanes(dyy + i) = yy;
-    lanes(dzz + i) = zz;
-    lanes(dxy + i) = xy;
-    lanes(dxz + i) = xz;
-    lanes(dyz + i) = yz;
+    lanes(out.hooke + i) += fx;
+    lanes(out.hooke + n + i) += fy;
+    lanes(out.hooke + 2 * n + i) += fz;
+    lanes(out.stiffness_velocity + i) += sx;
+    lanes(out.stiffness_velocity + n + i) += sy;
+    lanes(out.stiffness_velocity + 2 * n + i) += sz;
+    lanes(out.matrix[0] + i) += xx;
+    lanes(out.matrix[1] + i) += yy;
+    lanes(out.matrix[2] + i) += zz;
+    if (kOffDiagonal) {
+      lanes(out.matrix[3] + i) += xy;
+      lanes(out.matrix[4] + i) += xz;
+      lanes(out.matrix[5] + i) += yz;
+    }
   }
+  return sum(energy);
 }
 
-// q = node_term·p + Σ_s B_s (p_i − p_j) over node-ordered slots; returns p·q. Vectors are [x|y|z] with stride n
-// (padded). The rows of constrained nodes are masked to zero.
+// off_diagonal: whether the node blocks' xy, xz and yz are wanted (the block-Jacobi preconditioner); without, those
+// three sums and their read-modify-writes are skipped (6 % of the step with Jacobi).
+VRM_IMPLICIT_KERNEL
+double assemble(std::size_t n, const std::uint32_t* group_slots, const std::int32_t* first_neighbour,
+                const std::uint32_t* neighbour, const std::uint32_t* spring, const double* real, const double* x,
+                const double* v, const double* stiffnesses, const double* rest_lengths, double scale, bool off_diagonal,
+                const Assembly& out) {
+  return off_diagonal ? assembleSweep<true>(n, group_slots, first_neighbour, neighbour, spring, real, x, v, stiffnesses,
+                                            rest_lengths, scale, out)
+                      : assembleSweep<false>(n, group_slots, first_neighbour, neighbour, spring, real, x, v,
+                                             stiffnesses, rest_lengths, scale, out);
+}
+
+// q = node_term·p + Σ_s B_s (p_i − p_j); returns p·q. Vectors are [x|y|z] with stride n (padded). Each spring's block
+// is read once, by its owner: t = B_s (p_i − p_j) is added to the owner's sum in registers and subtracted from the
+// other end in q, which has a higher internal index, so a group's q is complete when the sweep reaches its end. Read
+// by both ends (a gather-only form), the blocks were streamed twice per product from beyond the 2 MB L2. The rows of
+// constrained nodes are masked to zero.
 VRM_IMPLICIT_KERNEL
 double product(std::size_t n, const std::uint32_t* group_slots, const std::int32_t* first_neighbour,
                const std::uint32_t* neighbour, const Springs& springs, const double* node_term, const double* p,
@@ -322,39 +387,40 @@ double product(std::size_t n, const std::uint32_t* group_slots, const std::int32
   const double* px = p;
   const double* py = p + n;
   const double* pz = p + 2 * n;
+  double* qx_out = q;
+  double* qy_out = q + n;
+  double* qz_out = q + 2 * n;
+  std::fill(q, q + 3 * n, 0.0);
   Lanes pq = {};
   for (std::size_t g = 0; g < n / kLanes; ++g) {
     const std::size_t i = kLanes * g;
     const Lanes pix = lanes(px + i), piy = lanes(py + i), piz = lanes(pz + i);
-    const Lanes term = lanes(node_term + i);
-    Lanes qx = term * pix, qy = term * piy, qz = term * piz;
+    Lanes qx = {}, qy = {}, qz = {};
     for (std::uint32_t slot = group_slots[g]; slot < group_slots[g + 1]; ++slot) {
-      Lanes wx, wy, wz;
       const std::int32_t first = first_neighbour[slot];
-      if (first >= 0) {
-        wx = pix - lanes(px + first);
-        wy = piy - lanes(py + first);
-        wz = piz - lanes(pz + first);
-      } else {
-        const std::uint32_t* j = neighbour + kLanes * slot;
-        wx = pix - gather(px, j);
-        wy = piy - gather(py, j);
-        wz = piz - gather(pz, j);
-      }
+      const std::uint32_t* other = neighbour + kLanes * slot;
+      const Lanes wx = pix - otherEnds(px, first, other);
+      const Lanes wy = piy - otherEnds(py, first, other);
+      const Lanes wz = piz - otherEnds(pz, first, other);
       Lanes vx, vy, vz, a;
       springs.load(slot, vx, vy, vz, a);
       const Lanes along = vx * wx + vy * wy + vz * wz;
-      qx += a * wx + along * vx;
-      qy += a * wy + along * vy;
-      qz += a * wz + along * vz;
+      const Lanes tx = a * wx + along * vx, ty = a * wy + along * vy, tz = a * wz + along * vz;
+      qx += tx;
+      qy += ty;
+      qz += tz;
+      subtractAtOtherEnds(qx_out, first, other, tx);
+      subtractAtOtherEnds(qy_out, first, other, ty);
+      subtractAtOtherEnds(qz_out, first, other, tz);
     }
+    const Lanes term = lanes(node_term + i);
     const Lanes free = lanes(springs.mask + i);
-    qx *= free;
-    qy *= free;
-    qz *= free;
-    lanes(q + i) = qx;
-    lanes(q + n + i) = qy;
-    lanes(q + 2 * n + i) = qz;
+    qx = free * (term * pix + qx + lanes(qx_out + i));
+    qy = free * (term * piy + qy + lanes(qy_out + i));
+    qz = free * (term * piz + qz + lanes(qz_out + i));
+    lanes(qx_out + i) = qx;
+    lanes(qy_out + i) = qy;
+    lanes(qz_out + i) = qz;
     pq += pix * qx + piy * qy + piz * qz;
   }
   return sum(pq);
@@ -522,18 +588,21 @@ class ImplicitEuler : public Integrator {
     const bool topology_changed = !structure_.matches(system);
     if (topology_changed) resize(system);
     const std::size_t n = structure_.padded;
-    const std::size_t m = system.spring_count;
     const std::uint32_t* order = structure_.order.data();
     const double h = dt;
     const double h2 = dt * dt;
 
-    forces.compute(system, system.positions, system.velocities, forces_.data());
+    // Everything but the Hooke terms here; those come from the assembly sweep below, which also takes over the
+    // watchdog's capture of the spring energy.
+    double* const spring_energy = forces.takeSpringEnergyCapture();
+    forces.computeExceptSprings(system, system.positions, system.velocities, forces_.data());
     // Node terms in internal order: anchor_term = Δt²·k_anchor (its part of Δt²·S), node_term = m + Δt·c +
     // anchor_term; the padding lanes beyond node_count stay constrained zeros.
     double* anchor_term = anchor_term_.data();
     double* node_term = node_term_.data();
     double* mask = mask_.data();
     double* v0 = p_.data();
+    double* x0 = positions_.data();
     std::fill(anchor_term, anchor_term + n, 0.0);
     for (const Anchor& anchor : forces.anchors) anchor_term[structure_.internal[anchor.node]] += h2 * anchor.stiffness;
     const double damping = h * forces.params.damping;
@@ -545,38 +614,43 @@ class ImplicitEuler : public Integrator {
       v0[k] = v.x();
       v0[n + k] = v.y();
       v0[2 * n + k] = v.z();
+      const Eigen::Vector3d& x = system.positions[i];
+      x0[k] = x.x();
+      x0[n + k] = x.y();
+      x0[2 * n + k] = x.z();
     }
     for (int c = 0; c < 3; ++c) std::copy(node_term, node_term + n, node_blocks_[c].data());
     for (int c = 3; c < 6; ++c) std::fill(node_blocks_[c].begin(), node_blocks_[c].end(), 0.0);
 
-    springBlocks(m, structure_.spring_order.data(), system.springs, system.positions, system.stiffnesses,
-                 system.rest_lengths, h2, spring_blocks_[4].data(), spring_blocks_[5].data(), spring_blocks_[0].data(),
-                 spring_blocks_[1].data(), spring_blocks_[2].data(), spring_blocks_[3].data());
     const std::uint32_t* group_slots = structure_.group_slots.data();
     const std::int32_t* first_neighbour = structure_.first_neighbour.data();
     const std::uint32_t* neighbour = structure_.neighbour.data();
-    const Springs springs{spring_blocks_[0].data(),
-                          spring_blocks_[1].data(),
-                          spring_blocks_[2].data(),
-                          spring_blocks_[3].data(),
-                          structure_.first_spring.data(),
-                          structure_.spring.data(),
-                          mask};
-    nodeBlocks(n / kLanes, group_slots, springs, node_blocks_[0].data(), node_blocks_[1].data(), node_blocks_[2].data(),
-               node_blocks_[3].data(), node_blocks_[4].data(), node_blocks_[5].data());
+    double* q = q_.data();
+    double* r = r_.data();
+    double* hooke = z_.data();  // z is free until the solve
+    std::fill(hooke, hooke + 3 * n, 0.0);
+    std::fill(q, q + 3 * n, 0.0);
+    const Assembly assembly{spring_blocks_.data(),
+                            {node_blocks_[0].data(), node_blocks_[1].data(), node_blocks_[2].data(),
+                             node_blocks_[3].data(), node_blocks_[4].data(), node_blocks_[5].data()},
+                            hooke,
+                            q};
+    const double energy = assemble(n, group_slots, first_neighbour, neighbour, structure_.spring.data(),
+                                   structure_.real.data(), x0, v0, system.stiffnesses, system.rest_lengths, h2,
+                                   preconditioner_ == Preconditioner::kBlockJacobi, assembly);
+    if (spring_energy != nullptr) *spring_energy = energy;
+    const Springs springs{spring_blocks_.data(), spring_blocks_.data() + kLanes, spring_blocks_.data() + 2 * kLanes,
+                          spring_blocks_.data() + 3 * kLanes, mask};
     invertNodeBlocks(n, preconditioner_, mask, node_blocks_[0].data(), node_blocks_[1].data(), node_blocks_[2].data(),
                      node_blocks_[3].data(), node_blocks_[4].data(), node_blocks_[5].data());
 
-    // b = mask·(Δt·F⁰ − Δt²·S v⁰).
-    double* q = q_.data();
-    double* r = r_.data();
-    product(n, group_slots, first_neighbour, neighbour, springs, anchor_term, v0, q);
+    // b = mask·(Δt·F⁰ − Δt²·S v⁰), S v⁰ = the springs' part (q, from the sweep) + the anchors'.
     double b_norm2 = 0.0;
     for (std::size_t k = 0; k < system.node_count; ++k) {
       const Eigen::Vector3d& f = forces_[order[k]];
       for (int c = 0; c < 3; ++c) {
         const std::size_t index = c * n + k;
-        r[index] = mask[k] * (h * f[c] - q[index]);
+        r[index] = mask[k] * (h * (f[c] + hooke[index]) - (anchor_term[k] * v0[index] + q[index]));
         b_norm2 += r[index] * r[index];
       }
     }
@@ -618,10 +692,10 @@ class ImplicitEuler : public Integrator {
     structure_.build(system);
     const std::size_t n = structure_.padded;
     forces_.assign(system.node_count, Eigen::Vector3d::Zero());
-    for (auto* vector : {&r_, &z_, &p_, &q_, &dv_}) vector->assign(3 * n, 0.0);
+    for (auto* vector : {&r_, &z_, &p_, &q_, &dv_, &positions_}) vector->assign(3 * n, 0.0);
     for (auto* vector : {&anchor_term_, &node_term_, &mask_}) vector->assign(n, 0.0);
     for (auto& block : node_blocks_) block.assign(n, 0.0);
-    for (auto& block : spring_blocks_) block.assign(system.spring_count + 1, 0.0);
+    spring_blocks_.assign(4 * structure_.spring.size(), 0.0);
     previous_dt_ = 0.0;
   }
 
@@ -632,11 +706,12 @@ class ImplicitEuler : public Integrator {
   double previous_dt_ = 0.0;  // of the last solve (warm start); 0 after a topology change
   Structure structure_;
   std::vector<Eigen::Vector3d> forces_;
-  std::vector<double> r_, z_, p_, q_, dv_;  // [x|y|z], stride structure_.padded
-  std::vector<double> anchor_term_, node_term_, mask_;
-  std::array<std::vector<double>, 6> node_blocks_;  // xx, yy, zz, xy, xz, yz of A, then of the preconditioner
-  // a, v_x, v_y, v_z per internal spring id (+ one zero block), then stiffness and rest length in that order.
-  std::array<std::vector<double>, 6> spring_blocks_;
+  AlignedDoubles r_, z_, p_, q_, dv_;  // [x|y|z], stride structure_.padded
+  AlignedDoubles positions_;           // x⁰ in internal order, [x|y|z] like the CG vectors
+  AlignedDoubles anchor_term_, node_term_, mask_;
+  std::array<AlignedDoubles, 6> node_blocks_;  // xx, yy, zz, xy, xz, yz of A, then of the preconditioner
+  // a, v_x, v_y, v_z per slot lane (Structure::spring).
+  AlignedDoubles spring_blocks_;
 };
 
 }  // namespace
