@@ -252,6 +252,19 @@ inline void subtractAtOtherEnds(double* base, std::int32_t first, const std::uin
   }
 }
 
+// A spring's share t of a node vector ([x|y|z], stride n): added to its owners' sums (registers), subtracted at the
+// other ends.
+inline void addAtOwnerSubtractAtOtherEnds(Lanes& own_x, Lanes& own_y, Lanes& own_z, double* base, std::size_t n,
+                                          std::int32_t first, const std::uint32_t* other, const Lanes& tx,
+                                          const Lanes& ty, const Lanes& tz) {
+  own_x += tx;
+  own_y += ty;
+  own_z += tz;
+  subtractAtOtherEnds(base, first, other, tx);
+  subtractAtOtherEnds(base + n, first, other, ty);
+  subtractAtOtherEnds(base + 2 * n, first, other, tz);
+}
+
 // What one sweep over the springs produces for a step (internal order, [x|y|z] vectors with stride n).
 struct Assembly {
   double* blocks;                 // kBlockDoubles per slot: a, v_x, v_y, v_z of B_s = a·I + v vᵀ (scaled by Δt²)
@@ -295,13 +308,7 @@ __attribute__((always_inline)) inline double assembleSweep(std::size_t n, const 
       const Lanes elongation = length - rest;
       energy += 0.5 * k * elongation * elongation;
       const Lanes hooke = length < minimum ? zero : k * elongation * inverse_length;
-      const Lanes hx = hooke * dx, hy = hooke * dy, hz = hooke * dz;
-      fx += hx;
-      fy += hy;
-      fz += hz;
-      subtractAtOtherEnds(out.hooke, first, other, hx);
-      subtractAtOtherEnds(out.hooke + n, first, other, hy);
-      subtractAtOtherEnds(out.hooke + 2 * n, first, other, hz);
+      addAtOwnerSubtractAtOtherEnds(fx, fy, fz, out.hooke, n, first, other, hooke * dx, hooke * dy, hooke * dz);
 
       const Lanes scaled = length < minimum ? zero : scale * k;
       const Lanes stretch = 1.0 - rest * inverse_length;
@@ -336,13 +343,8 @@ __attribute__((always_inline)) inline double assembleSweep(std::size_t n, const 
       const Lanes wy = vyi - otherEnds(v + n, first, other);
       const Lanes wz = vzi - otherEnds(v + 2 * n, first, other);
       const Lanes projection = bx * wx + by * wy + bz * wz;
-      const Lanes tx = a * wx + projection * bx, ty = a * wy + projection * by, tz = a * wz + projection * bz;
-      sx += tx;
-      sy += ty;
-      sz += tz;
-      subtractAtOtherEnds(out.stiffness_velocity, first, other, tx);
-      subtractAtOtherEnds(out.stiffness_velocity + n, first, other, ty);
-      subtractAtOtherEnds(out.stiffness_velocity + 2 * n, first, other, tz);
+      addAtOwnerSubtractAtOtherEnds(sx, sy, sz, out.stiffness_velocity, n, first, other, a * wx + projection * bx,
+                                    a * wy + projection * by, a * wz + projection * bz);
     }
     lanes(out.hooke + i) += fx;
     lanes(out.hooke + n + i) += fy;
@@ -405,13 +407,8 @@ double product(std::size_t n, const std::uint32_t* group_slots, const std::int32
       Lanes vx, vy, vz, a;
       springs.load(slot, vx, vy, vz, a);
       const Lanes along = vx * wx + vy * wy + vz * wz;
-      const Lanes tx = a * wx + along * vx, ty = a * wy + along * vy, tz = a * wz + along * vz;
-      qx += tx;
-      qy += ty;
-      qz += tz;
-      subtractAtOtherEnds(qx_out, first, other, tx);
-      subtractAtOtherEnds(qy_out, first, other, ty);
-      subtractAtOtherEnds(qz_out, first, other, tz);
+      addAtOwnerSubtractAtOtherEnds(qx, qy, qz, q, n, first, other, a * wx + along * vx, a * wy + along * vy,
+                                    a * wz + along * vz);
     }
     const Lanes term = lanes(node_term + i);
     const Lanes free = lanes(springs.mask + i);
