@@ -40,7 +40,8 @@ namespace {
 // read-modify-writes alone 0.16: overlapping vector stores in a row), the CG vector passes 0.21, the assembly 0.21.
 // Tried and not kept: blocks in one record per slot instead of four arrays (no gain), float blocks (8 % faster
 // products; CG then converges to the rounded matrix, ~1e-7 relative, and the dense-solve tests ask for 1e-9), one
-// q array per slot direction modulo 3 (no overlapping stores, but 3× the q traffic: 28 % slower).
+// q array per slot direction modulo 3 (no overlapping stores, but 3× the q traffic: 28 % slower), the offset-1
+// slot kept in registers by a lane shift, a slot order that puts overlapping writes apart (neither gained).
 // Constrained nodes (pinned or grasped) are handled by the filtered CG of Baraff & Witkin §5.3: their rows of A are
 // zero blocks and their preconditioner is zero, so p, Δv and r stay zero on them — the "infinite mass" of the thesis
 // without ill-conditioning. A step allocates nothing once the buffers have their size.
