@@ -136,11 +136,6 @@ struct Structure {
     springs = system.spring_count;
     padded = (nodes + kLanes - 1) / kLanes * kLanes;
     ends.assign(system.springs, system.springs + springs);
-    std::vector<std::uint32_t> degree(nodes, 0);
-    for (const auto& e : ends) {
-      ++degree[e[0]];
-      ++degree[e[1]];
-    }
     // Identity order: a mesh built row by row (the grid membranes) keeps its rows, so a group's springs point the
     // same ways. Sorted by degree instead, the border nodes moved to the end and every group next to the border
     // gathered (40 % of the product's time at 10k nodes).
@@ -231,7 +226,7 @@ struct Structure {
 
 // Element-wise square root: each clone's widest vsqrtpd (the file is built with -fno-math-errno, like
 // spring_kernels.cpp; with errno, std::sqrt keeps a branch that stops GCC from vectorising it). A 2-lane SSE2 form
-// through memory it replaced spent most of springBlocks on the spills.
+// through memory it replaced spent most of the block pass on the spills.
 inline Lanes squareRoot(const Lanes& x) {
   Lanes result;
   for (std::size_t lane = 0; lane < kLanes; ++lane) result[lane] = std::sqrt(x[lane]);
