@@ -35,13 +35,14 @@ namespace {
 //  - the blocks, a node block per node (the preconditioner), the Hooke forces and Δt²·S v⁰ come from one sweep over
 //    the springs at the start of a step (assemble()).
 // Measured (bench_implicit, 10k nodes, idle machine, median ms per step with 10 CG iterations, Jacobi, dt 1 ms):
-// 1.56 ms for the gather-only form with blocks read by both ends and a scalar block pass, 1.11 ms for this one with
-// FMA contraction, 1.22 ms without (below). Where the time goes now: the 10 products 0.53 ms (their other-end
+// 1.51 ms for the gather-only form with blocks read by both ends and a scalar block pass, 1.09 ms for this one
+// (without FMA contraction, below). Where the time goes now: the 10 products 0.53 ms (their other-end
 // read-modify-writes alone 0.16: overlapping vector stores in a row), the CG vector passes 0.21, the assembly 0.21.
-// Tried and not kept: blocks in one record per slot instead of four arrays (no gain), float blocks (8 % faster
-// products; CG then converges to the rounded matrix, ~1e-7 relative, and the dense-solve tests ask for 1e-9), one
-// q array per slot direction modulo 3 (no overlapping stores, but 3× the q traffic: 28 % slower), the offset-1
-// slot kept in registers by a lane shift, a slot order that puts overlapping writes apart (neither gained).
+// The blocks as one record per slot instead of four arrays made no difference (kept). Tried and not kept: float
+// blocks (8 % faster products; CG then converges to the rounded matrix, ~1e-7 relative, and the dense-solve tests
+// ask for 1e-9), one q array per slot direction modulo 3 (no overlapping stores, but 3× the q traffic: 28 % slower),
+// the offset-1 slot kept in registers by a lane shift, a slot order that puts overlapping writes apart (neither
+// gained), the direction update folded into the product (19 % slower: z and p loaded at every other end).
 // Constrained nodes (pinned or grasped) are handled by the filtered CG of Baraff & Witkin §5.3: their rows of A are
 // zero blocks and their preconditioner is zero, so p, Δv and r stay zero on them — the "infinite mass" of the thesis
 // without ill-conditioning. A step allocates nothing once the buffers have their size.
