@@ -66,8 +66,8 @@ TEST(IntegratorChoice, FollowsStiffnessMassDampingAndDt) {
   // Without the watchdog nothing is tried: the bound's count with its margin.
   AutoIntegratorOptions no_watchdog = firstFit();
   no_watchdog.trials = false;
-  std::vector<std::uint8_t> fine_flags(fine->fixedFlags(), fine->fixedFlags() + fine->nodeCount());
-  const IntegratorChoice untried = chooseIntegrator(viewOf(*fine, fine_flags.data()), ForceModel{}, 1e-3, no_watchdog);
+  std::vector<std::uint8_t> fine_fixed(fine->fixedFlags(), fine->fixedFlags() + fine->nodeCount());
+  const IntegratorChoice untried = chooseIntegrator(viewOf(*fine, fine_fixed.data()), ForceModel{}, 1e-3, no_watchdog);
   EXPECT_EQ(untried.substeps, 3);
   EXPECT_FALSE(untried.probe);
   EXPECT_NEAR(choice.implicit_cost, 1.0 + 0.53 + 0.25 * 10, 1e-12);
@@ -76,7 +76,6 @@ TEST(IntegratorChoice, FollowsStiffnessMassDampingAndDt) {
   // bound asks for: 2 substeps — what the bound allows without its margin — are worth a trial.
   ObservedWork converging;
   converging.cg_iterations = 3.0;
-  std::vector<std::uint8_t> fine_fixed(fine->fixedFlags(), fine->fixedFlags() + fine->nodeCount());
   choice = chooseIntegrator(viewOf(*fine, fine_fixed.data()), ForceModel{}, 1e-3, firstFit(), nullptr, converging);
   EXPECT_NEAR(choice.implicit_cost, 2.28, 1e-12);
   EXPECT_EQ(choice.integrator, "symplectic_euler") << choice.reason;
