@@ -24,9 +24,9 @@ namespace {
 // positive definite — CG needs that, and it only removes buckling stiffness.
 //
 // Layout, chosen for the product A·p that every CG iteration runs once (issues 15 and 40):
-//  - node vectors are structure of arrays [x…|y…|z…] in an internal node order (Structure), padded to kLanes and
+//  - node vectors are structure of arrays [x…|y…|z…] in the nodes' own order, padded to kLanes and
 //    cache-line aligned;
-//  - each spring belongs to its end with the lower internal index; nodes are taken kLanes at a time (one SIMD lane
+//  - each spring belongs to its end with the lower index; nodes are taken kLanes at a time (one SIMD lane
 //    each) and their own springs slot by slot (sliced ELLPACK). A slot holds one direction (the other ends are
 //    kLanes consecutive nodes: one vector load and one vector read-modify-write per component) where the group's
 //    springs allow it, else each lane's k-th spring (gathered);
@@ -93,37 +93,34 @@ inline Lanes gather(const double* base, const std::uint32_t* index) {
   return values;
 }
 
-// The blocks B_s = a·I + v vᵀ, one record per slot (the zero block in padding lanes), and the filter.
+// The blocks B_s = a·I + v vᵀ, one record per slot (a, v_x, v_y, v_z; the zero block in padding lanes), and the
+// filter.
 struct Springs {
-  const double* a;
-  const double* vx;
-  const double* vy;
-  const double* vz;
+  const double* blocks;
   const double* mask;  // per node: 1 free, 0 constrained (rows of A·p that are filtered out)
 
   void load(std::uint32_t slot, Lanes& bx, Lanes& by, Lanes& bz, Lanes& ba) const {
-    const std::size_t at = kBlockDoubles * slot;
-    bx = lanes(vx + at);
-    by = lanes(vy + at);
-    bz = lanes(vz + at);
-    ba = lanes(a + at);
+    const double* record = blocks + kBlockDoubles * slot;
+    ba = lanes(record);
+    bx = lanes(record + kLanes);
+    by = lanes(record + 2 * kLanes);
+    bz = lanes(record + 3 * kLanes);
   }
 };
 
-// The node-ordered spring structure; depends on the topology only. order/internal map internal slots to nodes (the
-// identity now; kept so another ordering can be tried in one place). Each spring belongs to the end with the lower
-// internal index (its owner). Nodes are taken kLanes at a time (a group) and their own springs slot by slot: a slot
-// holds one offset (other end − node) where the group's springs take few enough offsets, so in a regular patch its
-// kLanes other ends are consecutive internal nodes (lanes without that spring hold the zero block); else slot k holds
-// each lane's k-th spring and the other ends are gathered.
+// The node-ordered spring structure; depends on the topology only. Nodes keep their own indices: a mesh built row by
+// row (the grid membranes) keeps its rows, so a group's springs point the same ways (sorted by degree instead, the
+// border nodes moved to the end and every group next to the border gathered: 40 % of the product's time at 10k
+// nodes). Each spring belongs to the end with the lower index (its owner). Nodes are taken kLanes at a time (a group)
+// and their own springs slot by slot: a slot holds one offset (other end − node) where the group's springs take few
+// enough offsets, so in a regular patch its kLanes other ends are consecutive nodes (lanes without that spring hold the
+// zero block); else slot k holds each lane's k-th spring and the other ends are gathered.
 struct Structure {
   std::size_t nodes = 0, padded = 0, springs = 0;
   std::vector<std::array<std::uint32_t, 2>> ends;  // copy of the spring ends it was built from
-  std::vector<std::uint32_t> order;                // internal → node (padded: order[k] = nodes for k ≥ nodes)
-  std::vector<std::uint32_t> internal;             // node → internal
   std::vector<std::uint32_t> group_slots;          // first slot of group g; group_slots[groups] = slot count
   std::vector<std::int32_t> first_neighbour;       // per slot: other end of lane 0 if the lanes' are consecutive
-  std::vector<std::uint32_t> neighbour;            // kLanes per slot: internal other end (the node itself in padding)
+  std::vector<std::uint32_t> neighbour;            // kLanes per slot: the other end (the node itself in padding)
   std::vector<std::uint32_t> spring;               // kLanes per slot: the spring (0 in padding)
   AlignedDoubles real;                             // kLanes per slot: 1 for a spring, 0 for padding (zero block)
 
@@ -137,16 +134,8 @@ struct Structure {
     springs = system.spring_count;
     padded = (nodes + kLanes - 1) / kLanes * kLanes;
     ends.assign(system.springs, system.springs + springs);
-    // Identity order: a mesh built row by row (the grid membranes) keeps its rows, so a group's springs point the
-    // same ways. Sorted by degree instead, the border nodes moved to the end and every group next to the border
-    // gathered (40 % of the product's time at 10k nodes).
-    order.resize(padded);
-    for (std::size_t k = 0; k < padded; ++k) order[k] = static_cast<std::uint32_t>(std::min(k, nodes));
-    internal.resize(nodes);
-    for (std::size_t k = 0; k < nodes; ++k) internal[k] = static_cast<std::uint32_t>(k);
-
-    auto owner = [&](std::size_t s) { return std::min(internal[ends[s][0]], internal[ends[s][1]]); };
-    auto otherEnd = [&](std::size_t s) { return std::max(internal[ends[s][0]], internal[ends[s][1]]); };
+    auto owner = [&](std::size_t s) { return std::min(ends[s][0], ends[s][1]); };
+    auto otherEnd = [&](std::size_t s) { return std::max(ends[s][0], ends[s][1]); };
     std::vector<std::uint32_t> start(padded + 1, 0);
     for (std::size_t s = 0; s < springs; ++s) ++start[owner(s) + 1];
     for (std::size_t k = 0; k < padded; ++k) start[k + 1] += start[k];
@@ -262,7 +251,7 @@ inline void addAtOwnerSubtractAtOtherEnds(Lanes& own_x, Lanes& own_y, Lanes& own
   subtractAtOtherEnds(base + 2 * n, first, other, tz);
 }
 
-// What one sweep over the springs produces for a step (internal order, [x|y|z] vectors with stride n).
+// What one sweep over the springs produces for a step ([x|y|z] vectors with stride n).
 struct Assembly {
   double* blocks;                 // kBlockDoubles per slot: a, v_x, v_y, v_z of B_s = a·I + v vᵀ (scaled by Δt²)
   std::array<double*, 6> matrix;  // xx, yy, zz, xy, xz, yz of A's node blocks; hold the node term on entry
@@ -270,10 +259,10 @@ struct Assembly {
   double* stiffness_velocity;     // Σ B_s (v_i − v_j) = Δt²·S_springs v⁰; zero on entry
 };
 
-// The step's one sweep over the springs at x⁰, v⁰ (internal order): per spring its block B_s (eq. 5.8's Jacobian),
+// The step's one sweep over the springs at x⁰, v⁰: per spring its block B_s (eq. 5.8's Jacobian),
 // added to both ends' node blocks; its Hooke force, as ForceModel computes it (k (|d| − l)/|d|·d, zero below the
 // minimum length); and B_s (v_i − v_j) for the right-hand side. Each spring is read once, by the end with the lower
-// internal index (see product()). Four sweeps before (the forces, the blocks, the node blocks, S v⁰) took 0.5 ms of
+// index (see product()). Four sweeps before (the forces, the blocks, the node blocks, S v⁰) took 0.5 ms of
 // a 1.3 ms step at 10k nodes. Returns Σ ½ k (|d| − l)², the springs' potential energy (ForceModel's capture).
 template <bool kOffDiagonal>
 __attribute__((always_inline)) inline double assembleSweep(std::size_t n, const std::uint32_t* group_slots,
@@ -376,7 +365,7 @@ double assemble(std::size_t n, const std::uint32_t* group_slots, const std::int3
 
 // q = node_term·p + Σ_s B_s (p_i − p_j); returns p·q. Vectors are [x|y|z] with stride n (padded). Each spring's block
 // is read once, by its owner: t = B_s (p_i − p_j) is added to the owner's sum in registers and subtracted from the
-// other end in q, which has a higher internal index, so a group's q is complete when the sweep reaches its end. Read
+// other end in q, which has a higher index, so a group's q is complete when the sweep reaches its end. Read
 // by both ends (a gather-only form), the blocks were streamed twice per product from beyond the 2 MB L2. The rows of
 // constrained nodes are masked to zero.
 VRM_IMPLICIT_KERNEL
@@ -582,7 +571,6 @@ class ImplicitEuler : public Integrator {
     const bool topology_changed = !structure_.matches(system);
     if (topology_changed) resize(system);
     const std::size_t n = structure_.padded;
-    const std::uint32_t* order = structure_.order.data();
     const double h = dt;
     const double h2 = dt * dt;
 
@@ -590,7 +578,7 @@ class ImplicitEuler : public Integrator {
     // watchdog's capture of the spring energy.
     double* const spring_energy = forces.takeSpringEnergyCapture();
     forces.computeExceptSprings(system, system.positions, system.velocities, forces_.data());
-    // Node terms in internal order: anchor_term = Δt²·k_anchor (its part of Δt²·S), node_term = m + Δt·c +
+    // Node terms as structure of arrays: anchor_term = Δt²·k_anchor (its part of Δt²·S), node_term = m + Δt·c +
     // anchor_term; the padding lanes beyond node_count stay constrained zeros.
     double* anchor_term = anchor_term_.data();
     double* node_term = node_term_.data();
@@ -598,17 +586,16 @@ class ImplicitEuler : public Integrator {
     double* v0 = p_.data();
     double* x0 = positions_.data();
     std::fill(anchor_term, anchor_term + n, 0.0);
-    for (const Anchor& anchor : forces.anchors) anchor_term[structure_.internal[anchor.node]] += h2 * anchor.stiffness;
+    for (const Anchor& anchor : forces.anchors) anchor_term[anchor.node] += h2 * anchor.stiffness;
     const double damping = h * forces.params.damping;
     for (std::size_t k = 0; k < system.node_count; ++k) {
-      const std::uint32_t i = order[k];
-      node_term[k] = system.masses[i] + damping + anchor_term[k];
-      mask[k] = system.isFree(i) ? 1.0 : 0.0;
-      const Eigen::Vector3d& v = system.velocities[i];
+      node_term[k] = system.masses[k] + damping + anchor_term[k];
+      mask[k] = system.isFree(k) ? 1.0 : 0.0;
+      const Eigen::Vector3d& v = system.velocities[k];
       v0[k] = v.x();
       v0[n + k] = v.y();
       v0[2 * n + k] = v.z();
-      const Eigen::Vector3d& x = system.positions[i];
+      const Eigen::Vector3d& x = system.positions[k];
       x0[k] = x.x();
       x0[n + k] = x.y();
       x0[2 * n + k] = x.z();
@@ -633,15 +620,14 @@ class ImplicitEuler : public Integrator {
                                    structure_.real.data(), x0, v0, system.stiffnesses, system.rest_lengths, h2,
                                    preconditioner_ == Preconditioner::kBlockJacobi, assembly);
     if (spring_energy != nullptr) *spring_energy = energy;
-    const Springs springs{spring_blocks_.data(), spring_blocks_.data() + kLanes, spring_blocks_.data() + 2 * kLanes,
-                          spring_blocks_.data() + 3 * kLanes, mask};
+    const Springs springs{spring_blocks_.data(), mask};
     invertNodeBlocks(n, preconditioner_, mask, node_blocks_[0].data(), node_blocks_[1].data(), node_blocks_[2].data(),
                      node_blocks_[3].data(), node_blocks_[4].data(), node_blocks_[5].data());
 
     // b = mask·(Δt·F⁰ − Δt²·S v⁰), S v⁰ = the springs' part (q, from the sweep) + the anchors'.
     double b_norm2 = 0.0;
     for (std::size_t k = 0; k < system.node_count; ++k) {
-      const Eigen::Vector3d& f = forces_[order[k]];
+      const Eigen::Vector3d& f = forces_[k];
       for (int c = 0; c < 3; ++c) {
         const std::size_t index = c * n + k;
         r[index] = mask[k] * (h * (f[c] + hooke[index]) - (anchor_term[k] * v0[index] + q[index]));
@@ -674,10 +660,9 @@ class ImplicitEuler : public Integrator {
 
     for (std::size_t k = 0; k < system.node_count; ++k) {
       if (mask[k] == 0.0) continue;
-      const std::uint32_t i = order[k];
-      Eigen::Vector3d& v = system.velocities[i];
+      Eigen::Vector3d& v = system.velocities[k];
       v += Eigen::Vector3d(dv[k], dv[n + k], dv[2 * n + k]);
-      system.positions[i] += h * v;
+      system.positions[k] += h * v;
     }
   }
 
@@ -701,10 +686,10 @@ class ImplicitEuler : public Integrator {
   Structure structure_;
   std::vector<Eigen::Vector3d> forces_;
   AlignedDoubles r_, z_, p_, q_, dv_;  // [x|y|z], stride structure_.padded
-  AlignedDoubles positions_;           // x⁰ in internal order, [x|y|z] like the CG vectors
+  AlignedDoubles positions_;           // x⁰, [x|y|z] like the CG vectors
   AlignedDoubles anchor_term_, node_term_, mask_;
   std::array<AlignedDoubles, 6> node_blocks_;  // xx, yy, zz, xy, xz, yz of A, then of the preconditioner
-  // a, v_x, v_y, v_z per slot lane (Structure::spring).
+  // One record per slot (Springs, Assembly::blocks).
   AlignedDoubles spring_blocks_;
 };
 
