@@ -119,6 +119,7 @@ struct Structure {
   std::size_t nodes = 0, padded = 0, springs = 0;
   std::vector<std::array<std::uint32_t, 2>> ends;  // copy of the spring ends it was built from
   std::vector<std::uint32_t> group_slots;          // first slot of group g; group_slots[groups] = slot count
+  std::vector<std::uint32_t> reach;                // per group: end of the nodes groups 0..g touch (a kLanes multiple)
   std::vector<std::int32_t> first_neighbour;       // per slot: other end of lane 0 if the lanes' are consecutive
   std::vector<std::uint32_t> neighbour;            // kLanes per slot: the other end (the node itself in padding)
   std::vector<std::uint32_t> spring;               // kLanes per slot: the spring (0 in padding)
@@ -211,6 +212,15 @@ struct Structure {
       }
       group_slots[g + 1] = static_cast<std::uint32_t>(first_neighbour.size());
     }
+    reach.assign(groups, 0);
+    std::size_t furthest = 0;
+    for (std::size_t g = 0; g < groups; ++g) {
+      furthest = std::max(furthest, (g + 1) * kLanes);
+      for (std::size_t k = kLanes * group_slots[g]; k < kLanes * group_slots[g + 1]; ++k) {
+        furthest = std::max(furthest, (neighbour[k] / kLanes + 1) * kLanes);
+      }
+      reach[g] = static_cast<std::uint32_t>(furthest);
+    }
   }
 };
 
@@ -251,12 +261,20 @@ inline void addAtOwnerSubtractAtOtherEnds(Lanes& own_x, Lanes& own_y, Lanes& own
   subtractAtOtherEnds(base + 2 * n, first, other, tz);
 }
 
+// A Structure's arrays that the sweeps over the slots read.
+struct SlotSweep {
+  const std::uint32_t* group_slots;
+  const std::int32_t* first_neighbour;
+  const std::uint32_t* neighbour;
+  const std::uint32_t* reach;
+};
+
 // What one sweep over the springs produces for a step ([x|y|z] vectors with stride n).
 struct Assembly {
   double* blocks;                 // kBlockDoubles per slot: a, v_x, v_y, v_z of B_s = a·I + v vᵀ (scaled by Δt²)
-  std::array<double*, 6> matrix;  // xx, yy, zz, xy, xz, yz of A's node blocks; hold the node term on entry
-  double* hooke;                  // Σ of the Hooke forces H_ij (eq. 5.2) on each node; zero on entry
-  double* stiffness_velocity;     // Σ B_s (v_i − v_j) = Δt²·S_springs v⁰; zero on entry
+  std::array<double*, 6> matrix;  // xx, yy, zz, xy, xz, yz of A's node blocks (xy, xz, yz only with off-diagonals)
+  double* hooke;                  // Σ of the Hooke forces H_ij (eq. 5.2) on each node
+  double* stiffness_velocity;     // Σ B_s (v_i − v_j) = Δt²·S_springs v⁰
 };
 
 // The step's one sweep over the springs at x⁰, v⁰: per spring its block B_s (eq. 5.8's Jacobian),
@@ -265,25 +283,35 @@ struct Assembly {
 // index (see product()). Four sweeps before (the forces, the blocks, the node blocks, S v⁰) took 0.5 ms of
 // a 1.3 ms step at 10k nodes. Returns Σ ½ k (|d| − l)², the springs' potential energy (ForceModel's capture).
 template <bool kOffDiagonal>
-__attribute__((always_inline)) inline double assembleSweep(std::size_t n, const std::uint32_t* group_slots,
-                                                           const std::int32_t* first_neighbour,
-                                                           const std::uint32_t* neighbour, const std::uint32_t* spring,
-                                                           const double* real, const double* x, const double* v,
+__attribute__((always_inline)) inline double assembleSweep(std::size_t n, const SlotSweep& sweep,
+                                                           const std::uint32_t* spring, const double* real,
+                                                           const double* x, const double* v, const double* node_term,
                                                            const double* stiffnesses, const double* rest_lengths,
                                                            double scale, const Assembly& out) {
   const Lanes zero = {};
   const Lanes minimum = zero + kMinSpringLength;
   Lanes energy = zero;
+  std::size_t initialised = 0;
   for (std::size_t g = 0; g < n / kLanes; ++g) {
     const std::size_t i = kLanes * g;
+    // The outputs start at their initial values just ahead of the first write to them (see product()).
+    for (; initialised < sweep.reach[g]; initialised += kLanes) {
+      const std::size_t k = initialised;
+      for (std::size_t c = 0; c < 3; ++c) {
+        lanes(out.hooke + c * n + k) = zero;
+        lanes(out.stiffness_velocity + c * n + k) = zero;
+        lanes(out.matrix[c] + k) = lanes(node_term + k);
+        if (kOffDiagonal) lanes(out.matrix[3 + c] + k) = zero;
+      }
+    }
     const Lanes xi = lanes(x + i), yi = lanes(x + n + i), zi = lanes(x + 2 * n + i);
     const Lanes vxi = lanes(v + i), vyi = lanes(v + n + i), vzi = lanes(v + 2 * n + i);
     Lanes fx = zero, fy = zero, fz = zero, sx = zero, sy = zero, sz = zero;
     Lanes xx = zero, yy = zero, zz = zero, xy = zero, xz = zero, yz = zero;
-    for (std::uint32_t slot = group_slots[g]; slot < group_slots[g + 1]; ++slot) {
+    for (std::uint32_t slot = sweep.group_slots[g]; slot < sweep.group_slots[g + 1]; ++slot) {
       const std::size_t at = kLanes * slot;
-      const std::int32_t first = first_neighbour[slot];
-      const std::uint32_t* other = neighbour + at;
+      const std::int32_t first = sweep.first_neighbour[slot];
+      const std::uint32_t* other = sweep.neighbour + at;
       const Lanes dx = otherEnds(x, first, other) - xi;
       const Lanes dy = otherEnds(x + n, first, other) - yi;
       const Lanes dz = otherEnds(x + 2 * n, first, other) - zi;
@@ -353,14 +381,12 @@ __attribute__((always_inline)) inline double assembleSweep(std::size_t n, const 
 // off_diagonal: whether the node blocks' xy, xz and yz are wanted (the block-Jacobi preconditioner); without, those
 // three sums and their read-modify-writes are skipped (6 % of the step with Jacobi).
 VRM_IMPLICIT_KERNEL
-double assemble(std::size_t n, const std::uint32_t* group_slots, const std::int32_t* first_neighbour,
-                const std::uint32_t* neighbour, const std::uint32_t* spring, const double* real, const double* x,
-                const double* v, const double* stiffnesses, const double* rest_lengths, double scale, bool off_diagonal,
-                const Assembly& out) {
-  return off_diagonal ? assembleSweep<true>(n, group_slots, first_neighbour, neighbour, spring, real, x, v, stiffnesses,
-                                            rest_lengths, scale, out)
-                      : assembleSweep<false>(n, group_slots, first_neighbour, neighbour, spring, real, x, v,
-                                             stiffnesses, rest_lengths, scale, out);
+double assemble(std::size_t n, const SlotSweep& sweep, const std::uint32_t* spring, const double* real, const double* x,
+                const double* v, const double* node_term, const double* stiffnesses, const double* rest_lengths,
+                double scale, bool off_diagonal, const Assembly& out) {
+  return off_diagonal
+             ? assembleSweep<true>(n, sweep, spring, real, x, v, node_term, stiffnesses, rest_lengths, scale, out)
+             : assembleSweep<false>(n, sweep, spring, real, x, v, node_term, stiffnesses, rest_lengths, scale, out);
 }
 
 // q = node_term·p + Σ_s B_s (p_i − p_j); returns p·q. Vectors are [x|y|z] with stride n (padded). Each spring's block
@@ -369,8 +395,7 @@ double assemble(std::size_t n, const std::uint32_t* group_slots, const std::int3
 // by both ends (a gather-only form), the blocks were streamed twice per product from beyond the 2 MB L2. The rows of
 // constrained nodes are masked to zero.
 VRM_IMPLICIT_KERNEL
-double product(std::size_t n, const std::uint32_t* group_slots, const std::int32_t* first_neighbour,
-               const std::uint32_t* neighbour, const Springs& springs, const double* node_term, const double* p,
+double product(std::size_t n, const SlotSweep& sweep, const Springs& springs, const double* node_term, const double* p,
                double* q) {
   const double* px = p;
   const double* py = p + n;
@@ -378,15 +403,24 @@ double product(std::size_t n, const std::uint32_t* group_slots, const std::int32
   double* qx_out = q;
   double* qy_out = q + n;
   double* qz_out = q + 2 * n;
-  std::fill(q, q + 3 * n, 0.0);
-  Lanes pq = {};
+  const Lanes zero = {};
+  std::size_t zeroed = 0;
+  Lanes pq = zero;
   for (std::size_t g = 0; g < n / kLanes; ++g) {
     const std::size_t i = kLanes * g;
+    // q is zeroed just ahead of the first subtraction from it, not in a pass of its own: the lines are then written
+    // once while they are in L1 instead of being zeroed, evicted and fetched again (3·n doubles beyond L1 at 10k
+    // nodes).
+    for (; zeroed < sweep.reach[g]; zeroed += kLanes) {
+      lanes(qx_out + zeroed) = zero;
+      lanes(qy_out + zeroed) = zero;
+      lanes(qz_out + zeroed) = zero;
+    }
     const Lanes pix = lanes(px + i), piy = lanes(py + i), piz = lanes(pz + i);
-    Lanes qx = {}, qy = {}, qz = {};
-    for (std::uint32_t slot = group_slots[g]; slot < group_slots[g + 1]; ++slot) {
-      const std::int32_t first = first_neighbour[slot];
-      const std::uint32_t* other = neighbour + kLanes * slot;
+    Lanes qx = zero, qy = zero, qz = zero;
+    for (std::uint32_t slot = sweep.group_slots[g]; slot < sweep.group_slots[g + 1]; ++slot) {
+      const std::int32_t first = sweep.first_neighbour[slot];
+      const std::uint32_t* other = sweep.neighbour + kLanes * slot;
       const Lanes wx = pix - otherEnds(px, first, other);
       const Lanes wy = piy - otherEnds(py, first, other);
       const Lanes wz = piz - otherEnds(pz, first, other);
@@ -423,30 +457,29 @@ Preconditioner preconditionerNamed(const std::string& name) {
 VRM_IMPLICIT_KERNEL
 void invertNodeBlocks(std::size_t n, Preconditioner kind, const double* mask, double* dxx, double* dyy, double* dzz,
                       double* dxy, double* dxz, double* dyz) {
-  for (std::size_t i = 0; i < n; ++i) {
-    // The padding lanes and constrained nodes get 0 (their blocks may be singular: padding has none).
-    const double free = mask[i];
-    if (free == 0.0) {
-      dxx[i] = dyy[i] = dzz[i] = dxy[i] = dxz[i] = dyz[i] = 0.0;
-    } else if (kind == Preconditioner::kNone) {
-      dxx[i] = dyy[i] = dzz[i] = 1.0;
-      dxy[i] = dxz[i] = dyz[i] = 0.0;
+  // kLanes nodes at a time, every lane computed and the constrained ones and the padding (whose blocks may be
+  // singular: padding has none) set to 0 afterwards; the same IEEE operations per node as one at a time.
+  const Lanes zero = {};
+  for (std::size_t i = 0; i < n; i += kLanes) {
+    const Lanes free = lanes(mask + i);
+    if (kind == Preconditioner::kNone) {
+      lanes(dxx + i) = lanes(dyy + i) = lanes(dzz + i) = free;
     } else if (kind == Preconditioner::kJacobi) {
-      dxx[i] = 1.0 / dxx[i];
-      dyy[i] = 1.0 / dyy[i];
-      dzz[i] = 1.0 / dzz[i];
-      dxy[i] = dxz[i] = dyz[i] = 0.0;
+      lanes(dxx + i) = free == zero ? zero : 1.0 / lanes(dxx + i);
+      lanes(dyy + i) = free == zero ? zero : 1.0 / lanes(dyy + i);
+      lanes(dzz + i) = free == zero ? zero : 1.0 / lanes(dzz + i);
     } else {
-      const double a = dxx[i], b = dyy[i], c = dzz[i], d = dxy[i], e = dxz[i], f = dyz[i];
-      const double cxx = b * c - f * f, cyy = a * c - e * e, czz = a * b - d * d;
-      const double cxy = e * f - d * c, cxz = d * f - b * e, cyz = d * e - a * f;
-      const double scale = 1.0 / (a * cxx + d * cxy + e * cxz);
-      dxx[i] = scale * cxx;
-      dyy[i] = scale * cyy;
-      dzz[i] = scale * czz;
-      dxy[i] = scale * cxy;
-      dxz[i] = scale * cxz;
-      dyz[i] = scale * cyz;
+      const Lanes a = lanes(dxx + i), b = lanes(dyy + i), c = lanes(dzz + i);
+      const Lanes d = lanes(dxy + i), e = lanes(dxz + i), f = lanes(dyz + i);
+      const Lanes cxx = b * c - f * f, cyy = a * c - e * e, czz = a * b - d * d;
+      const Lanes cxy = e * f - d * c, cxz = d * f - b * e, cyz = d * e - a * f;
+      const Lanes scale = 1.0 / (a * cxx + d * cxy + e * cxz);
+      lanes(dxx + i) = free == zero ? zero : scale * cxx;
+      lanes(dyy + i) = free == zero ? zero : scale * cyy;
+      lanes(dzz + i) = free == zero ? zero : scale * czz;
+      lanes(dxy + i) = free == zero ? zero : scale * cxy;
+      lanes(dxz + i) = free == zero ? zero : scale * cxz;
+      lanes(dyz + i) = free == zero ? zero : scale * cyz;
     }
   }
 }
@@ -509,17 +542,18 @@ struct SolveResult {
 // Filtered preconditioned CG. On entry r = b − A·Δv₀ (filtered), dv = Δv₀, b_norm2 = |b|². Vectors [x|y|z], stride n.
 // Per iteration: the product (p → q, p·q), one pass for r and z = P·r with both dot products, one pass for Δv and p.
 template <Preconditioner kKind>
-__attribute__((always_inline)) inline SolveResult conjugateGradients(
-    std::size_t n, const std::uint32_t* group_slots, const std::int32_t* first_neighbour,
-    const std::uint32_t* neighbour, const Springs& blocks, const double* node_term, const NodeBlocks& inverse,
-    double b_norm2, double* r, double* z, double* p, double* q, double* dv, int max_iterations, double tolerance) {
+__attribute__((always_inline)) inline SolveResult conjugateGradients(std::size_t n, const SlotSweep& sweep,
+                                                                     const Springs& blocks, const double* node_term,
+                                                                     const NodeBlocks& inverse, double b_norm2,
+                                                                     double* r, double* z, double* p, double* q,
+                                                                     double* dv, int max_iterations, double tolerance) {
   auto [rz, r_norm2] = updateResidual<kKind>(n, 0.0, inverse, q, r, z);
   std::memcpy(p, z, 3 * n * sizeof(double));
   const double tolerance2 = tolerance * tolerance * b_norm2;
   SolveResult result;
   // NaN in b or A fails every comparison below, so a poisoned system ends the loop instead of spinning.
   while (result.iterations < max_iterations && r_norm2 > tolerance2 && b_norm2 > 0.0) {
-    const double pq = product(n, group_slots, first_neighbour, neighbour, blocks, node_term, p, q);
+    const double pq = product(n, sweep, blocks, node_term, p, q);
     if (!(pq > 0.0)) break;
     const double alpha = rz / pq;
     const auto [rz_new, rr_new] = updateResidual<kKind>(n, alpha, inverse, q, r, z);
@@ -539,24 +573,66 @@ __attribute__((always_inline)) inline SolveResult conjugateGradients(
 }
 
 VRM_IMPLICIT_KERNEL
-SolveResult solve(Preconditioner kind, std::size_t n, const std::uint32_t* group_slots,
-                  const std::int32_t* first_neighbour, const std::uint32_t* neighbour, const Springs& blocks,
+SolveResult solve(Preconditioner kind, std::size_t n, const SlotSweep& sweep, const Springs& blocks,
                   const double* node_term, const NodeBlocks& inverse, double b_norm2, double* r, double* z, double* p,
                   double* q, double* dv, int max_iterations, double tolerance) {
   // q = 0 so that the first updateResidual (α = 0) only computes z = P·r.
   std::fill(q, q + 3 * n, 0.0);
   switch (kind) {
     case Preconditioner::kNone:
-      return conjugateGradients<Preconditioner::kNone>(n, group_slots, first_neighbour, neighbour, blocks, node_term,
-                                                       inverse, b_norm2, r, z, p, q, dv, max_iterations, tolerance);
+      return conjugateGradients<Preconditioner::kNone>(n, sweep, blocks, node_term, inverse, b_norm2, r, z, p, q, dv,
+                                                       max_iterations, tolerance);
     case Preconditioner::kJacobi:
-      return conjugateGradients<Preconditioner::kJacobi>(n, group_slots, first_neighbour, neighbour, blocks, node_term,
-                                                         inverse, b_norm2, r, z, p, q, dv, max_iterations, tolerance);
+      return conjugateGradients<Preconditioner::kJacobi>(n, sweep, blocks, node_term, inverse, b_norm2, r, z, p, q, dv,
+                                                         max_iterations, tolerance);
     case Preconditioner::kBlockJacobi:
       break;
   }
-  return conjugateGradients<Preconditioner::kBlockJacobi>(n, group_slots, first_neighbour, neighbour, blocks, node_term,
-                                                          inverse, b_norm2, r, z, p, q, dv, max_iterations, tolerance);
+  return conjugateGradients<Preconditioner::kBlockJacobi>(n, sweep, blocks, node_term, inverse, b_norm2, r, z, p, q, dv,
+                                                          max_iterations, tolerance);
+}
+
+// The node terms as structure of arrays: node_term = m + Δt·c + anchor_term, the filter mask (1 free, 0 constrained),
+// v⁰ and x⁰ ([x|y|z], stride n). Nodes beyond `count` (padding) are left as they are: constrained zeros.
+VRM_IMPLICIT_KERNEL
+void loadNodes(const SystemView& system, std::size_t n, double damping, const double* anchor_term, double* node_term,
+               double* mask, double* v0, double* x0) {
+  const std::size_t count = system.node_count;
+  for (std::size_t k = 0; k < count; ++k) {
+    node_term[k] = system.masses[k] + damping + anchor_term[k];
+    mask[k] = system.isFree(k) ? 1.0 : 0.0;
+  }
+  for (std::size_t c = 0; c < 3; ++c) {
+    for (std::size_t k = 0; k < count; ++k) {
+      v0[c * n + k] = system.velocities[k][c];
+      x0[c * n + k] = system.positions[k][c];
+    }
+  }
+}
+
+// r = b = mask·(Δt·(F⁰ + Hooke) − (Δt²·k_anchor·v⁰ + Δt²·S_springs v⁰)); returns |b|², summed per lane (k mod kLanes)
+// and then over the lanes, like the CG's dot products. A sum in node order was one chain of 3·count dependent adds.
+VRM_IMPLICIT_KERNEL
+double rightHandSide(std::size_t count, std::size_t n, double h, const Eigen::Vector3d* forces, const double* hooke,
+                     const double* anchor_term, const double* v0, const double* stiffness_velocity, const double* mask,
+                     double* r) {
+  Lanes squares = {};
+  for (std::size_t c = 0; c < 3; ++c) {
+    for (std::size_t k = 0; k < count; ++k) {
+      const std::size_t index = c * n + k;
+      r[index] =
+          mask[k] * (h * (forces[k][c] + hooke[index]) - (anchor_term[k] * v0[index] + stiffness_velocity[index]));
+    }
+  }
+  const std::size_t full = count / kLanes * kLanes;
+  for (std::size_t k = 0; k < full; k += kLanes) {
+    const Lanes rx = lanes(r + k), ry = lanes(r + n + k), rz = lanes(r + 2 * n + k);
+    squares += rx * rx + ry * ry + rz * rz;
+  }
+  for (std::size_t k = full; k < count; ++k) {
+    squares[k - full] += r[k] * r[k] + r[n + k] * r[n + k] + r[2 * n + k] * r[2 * n + k];
+  }
+  return sum(squares);
 }
 
 class ImplicitEuler : public Integrator {
@@ -587,53 +663,28 @@ class ImplicitEuler : public Integrator {
     double* x0 = positions_.data();
     std::fill(anchor_term, anchor_term + n, 0.0);
     for (const Anchor& anchor : forces.anchors) anchor_term[anchor.node] += h2 * anchor.stiffness;
-    const double damping = h * forces.params.damping;
-    for (std::size_t k = 0; k < system.node_count; ++k) {
-      node_term[k] = system.masses[k] + damping + anchor_term[k];
-      mask[k] = system.isFree(k) ? 1.0 : 0.0;
-      const Eigen::Vector3d& v = system.velocities[k];
-      v0[k] = v.x();
-      v0[n + k] = v.y();
-      v0[2 * n + k] = v.z();
-      const Eigen::Vector3d& x = system.positions[k];
-      x0[k] = x.x();
-      x0[n + k] = x.y();
-      x0[2 * n + k] = x.z();
-    }
-    for (int c = 0; c < 3; ++c) std::copy(node_term, node_term + n, node_blocks_[c].data());
-    for (int c = 3; c < 6; ++c) std::fill(node_blocks_[c].begin(), node_blocks_[c].end(), 0.0);
+    loadNodes(system, n, h * forces.params.damping, anchor_term, node_term, mask, v0, x0);
 
-    const std::uint32_t* group_slots = structure_.group_slots.data();
-    const std::int32_t* first_neighbour = structure_.first_neighbour.data();
-    const std::uint32_t* neighbour = structure_.neighbour.data();
+    const SlotSweep sweep{structure_.group_slots.data(), structure_.first_neighbour.data(), structure_.neighbour.data(),
+                          structure_.reach.data()};
     double* q = q_.data();
     double* r = r_.data();
     double* hooke = z_.data();  // z is free until the solve
-    std::fill(hooke, hooke + 3 * n, 0.0);
-    std::fill(q, q + 3 * n, 0.0);
     const Assembly assembly{spring_blocks_.data(),
                             {node_blocks_[0].data(), node_blocks_[1].data(), node_blocks_[2].data(),
                              node_blocks_[3].data(), node_blocks_[4].data(), node_blocks_[5].data()},
                             hooke,
                             q};
-    const double energy = assemble(n, group_slots, first_neighbour, neighbour, structure_.spring.data(),
-                                   structure_.real.data(), x0, v0, system.stiffnesses, system.rest_lengths, h2,
-                                   preconditioner_ == Preconditioner::kBlockJacobi, assembly);
+    const double energy =
+        assemble(n, sweep, structure_.spring.data(), structure_.real.data(), x0, v0, node_term, system.stiffnesses,
+                 system.rest_lengths, h2, preconditioner_ == Preconditioner::kBlockJacobi, assembly);
     if (spring_energy != nullptr) *spring_energy = energy;
     const Springs springs{spring_blocks_.data(), mask};
     invertNodeBlocks(n, preconditioner_, mask, node_blocks_[0].data(), node_blocks_[1].data(), node_blocks_[2].data(),
                      node_blocks_[3].data(), node_blocks_[4].data(), node_blocks_[5].data());
 
     // b = mask·(Δt·F⁰ − Δt²·S v⁰), S v⁰ = the springs' part (q, from the sweep) + the anchors'.
-    double b_norm2 = 0.0;
-    for (std::size_t k = 0; k < system.node_count; ++k) {
-      const Eigen::Vector3d& f = forces_[k];
-      for (int c = 0; c < 3; ++c) {
-        const std::size_t index = c * n + k;
-        r[index] = mask[k] * (h * (f[c] + hooke[index]) - (anchor_term[k] * v0[index] + q[index]));
-        b_norm2 += r[index] * r[index];
-      }
-    }
+    const double b_norm2 = rightHandSide(system.node_count, n, h, forces_.data(), hooke, anchor_term, v0, q, mask, r);
 
     // Warm start: the last Δv, scaled by dt / previous dt (Δv ≈ Δt·acceleration), r = b − A·Δv₀.
     double* dv = dv_.data();
@@ -643,7 +694,7 @@ class ImplicitEuler : public Integrator {
       for (int c = 0; c < 3; ++c) {
         for (std::size_t k = 0; k < n; ++k) dv[c * n + k] *= scale * mask[k];
       }
-      product(n, group_slots, first_neighbour, neighbour, springs, node_term, dv, q);
+      product(n, sweep, springs, node_term, dv, q);
       for (std::size_t k = 0; k < 3 * n; ++k) r[k] -= q[k];
     } else {
       std::fill(dv, dv + 3 * n, 0.0);
@@ -651,9 +702,8 @@ class ImplicitEuler : public Integrator {
 
     const NodeBlocks inverse{node_blocks_[0].data(), node_blocks_[1].data(), node_blocks_[2].data(),
                              node_blocks_[3].data(), node_blocks_[4].data(), node_blocks_[5].data()};
-    const SolveResult result =
-        solve(preconditioner_, n, group_slots, first_neighbour, neighbour, springs, node_term, inverse, b_norm2, r,
-              z_.data(), p_.data(), q, dv, options_.cg_max_iterations, options_.cg_tolerance);
+    const SolveResult result = solve(preconditioner_, n, sweep, springs, node_term, inverse, b_norm2, r, z_.data(),
+                                     p_.data(), q, dv, options_.cg_max_iterations, options_.cg_tolerance);
     iterations_ = result.iterations;
     residual_ = result.residual;
     previous_dt_ = dt;
