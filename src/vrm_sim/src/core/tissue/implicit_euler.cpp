@@ -36,13 +36,18 @@ namespace {
 //    the springs at the start of a step (assemble()).
 // Measured (bench_implicit, 10k nodes, idle machine, median ms per step with 10 CG iterations, Jacobi, dt 1 ms):
 // 1.51 ms for the gather-only form with blocks read by both ends and a scalar block pass, 1.09 ms for this one
-// (without FMA contraction, below). Where the time goes now: the 10 products 0.53 ms (their other-end
-// read-modify-writes alone 0.16: overlapping vector stores in a row), the CG vector passes 0.21, the assembly 0.21.
+// (without FMA contraction, below). Each sweep then came to initialise what it writes just ahead of its first write
+// (no zero and fill passes of their own): 4–5 % less in interleaved A/B runs. Where the time goes now (perf): the 10
+// products 53 %, the assembly 19 %, the CG vector passes 18 %, the rest 10 %. The product is not bound by memory
+// (ns per node grow only 1.17× from 961 nodes, all in L2, to 10k) but by its loads and stores: the other ends'
+// unaligned read-modify-writes, four per component and group on a grid, overlap each other.
 // The blocks as one record per slot instead of four arrays made no difference (kept). Tried and not kept: float
 // blocks (8 % faster products; CG then converges to the rounded matrix, ~1e-7 relative, and the dense-solve tests
 // ask for 1e-9), one q array per slot direction modulo 3 (no overlapping stores, but 3× the q traffic: 28 % slower),
 // the offset-1 slot kept in registers by a lane shift, a slot order that puts overlapping writes apart (neither
-// gained), the direction update folded into the product (19 % slower: z and p loaded at every other end).
+// gained), the direction update folded into the product (19 % slower: z and p loaded at every other end), the other
+// ends' read-modify-writes as whole aligned vectors, t's lanes shifted into two of them (bit-identical, so that
+// every store forwards whole to the next load: 20 % slower, twice the loads and stores).
 // Constrained nodes (pinned or grasped) are handled by the filtered CG of Baraff & Witkin §5.3: their rows of A are
 // zero blocks and their preconditioner is zero, so p, Δv and r stay zero on them — the "infinite mass" of the thesis
 // without ill-conditioning. A step allocates nothing once the buffers have their size.
@@ -392,8 +397,8 @@ double assemble(std::size_t n, const SlotSweep& sweep, const std::uint32_t* spri
 // q = node_term·p + Σ_s B_s (p_i − p_j); returns p·q. Vectors are [x|y|z] with stride n (padded). Each spring's block
 // is read once, by its owner: t = B_s (p_i − p_j) is added to the owner's sum in registers and subtracted from the
 // other end in q, which has a higher index, so a group's q is complete when the sweep reaches its end. Read
-// by both ends (a gather-only form), the blocks were streamed twice per product from beyond the 2 MB L2. The rows of
-// constrained nodes are masked to zero.
+// by both ends (a gather-only form), the blocks were streamed twice per product from beyond the 1 MB L2 of a core. The
+// rows of constrained nodes are masked to zero.
 VRM_IMPLICIT_KERNEL
 double product(std::size_t n, const SlotSweep& sweep, const Springs& springs, const double* node_term, const double* p,
                double* q) {
