@@ -38,9 +38,10 @@ namespace {
 // 1.51 ms for the gather-only form with blocks read by both ends and a scalar block pass, 1.09 ms for this one
 // (without FMA contraction, below). Each sweep then came to initialise what it writes just ahead of its first write
 // (no zero and fill passes of their own): 4–5 % less in interleaved A/B runs. Where the time goes now (perf): the 10
-// products 53 %, the assembly 19 %, the CG vector passes 18 %, the rest 10 %. The product is not bound by memory
-// (ns per node grow only 1.17× from 961 nodes, all in L2, to 10k) but by its loads and stores: the other ends'
-// unaligned read-modify-writes, four per component and group on a grid, overlap each other.
+// products 53 %, the assembly 19 %, the CG vector passes 18 %, the rest 10 %. At 10k nodes a product reads 1.5 MB
+// (blocks and p, q), more than a core's 1 MB L2, yet the step's ns per node grow only 1.17× from 961 nodes (all in
+// L2) to 10k; and the other ends' overlapping unaligned read-modify-writes (three per component and group on a grid)
+// do not hold it either: the last two tries below remove every partial store forwarding and are slower.
 // The blocks as one record per slot instead of four arrays made no difference (kept). Tried and not kept: float
 // blocks (8 % faster products; CG then converges to the rounded matrix, ~1e-7 relative, and the dense-solve tests
 // ask for 1e-9), one q array per slot direction modulo 3 (no overlapping stores, but 3× the q traffic: 28 % slower),
