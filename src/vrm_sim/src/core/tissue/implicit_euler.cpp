@@ -50,7 +50,13 @@ namespace {
 // ends' read-modify-writes as whole aligned vectors, t's lanes shifted into two of them (bit-identical, so that
 // every store forwards whole to the next load: 20 % slower, twice the loads and stores), and those aligned vectors held
 // in registers while consecutive slots write the same ones (bit-identical, no partial store forwarding left, as many
-// loads and stores as now: 5–10 % slower, the lane shifts cost more than the stalls they remove).
+// loads and stores as now: 5–10 % slower, the lane shifts cost more than the stalls they remove). On an AMD EPYC
+// (Zen 5, the AVX-512 clone; 2026-12-01, thread CPU time, alternating runs): the other ends' read-modify-writes cost
+// a fifth of the step (left out, with wrong results, the step is 1.29× faster; made aligned, also wrong, 1.25×), but
+// neither alignment nor forwarding is what costs: a lane-banded node order (lane l of group g = node l·⌈n/8⌉ + g, so
+// 95 % of the slots' other ends are aligned vectors and every overlap is whole) was no faster, nor were t's lanes moved
+// into two aligned vectors by permutes, nor each write as two 4-lane halves; and Δv += α·p, p = z + β·p applied
+// just ahead of the product's first read of p, like q's zeroing, was 7 % slower than its own streaming pass.
 // Constrained nodes (pinned or grasped) are handled by the filtered CG of Baraff & Witkin §5.3: their rows of A are
 // zero blocks and their preconditioner is zero, so p, Δv and r stay zero on them — the "infinite mass" of the thesis
 // without ill-conditioning. A step allocates nothing once the buffers have their size.
