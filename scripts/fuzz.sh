@@ -12,14 +12,21 @@
 # seeds alone (libFuzzer's usual way to spread a slow target's fuzzing over sittings); the row then also gives the
 # mutated executions of all sittings of that corpus (`executions_all_sittings`, `sittings`) beside this run's.
 # --build-only builds the targets and stops: no run, so no work folder (grown corpus) is replaced and no row written.
-# Usage: scripts/fuzz.sh [--seconds N] [--runs N] [--jobs J] [--no-build | --build-only] [--resume] [target ...]
+# The grown corpus outlives the build folder: after a run without crashes its inputs that add coverage are merged
+# (libFuzzer -merge=1) into src/vrm_fuzz/grown/<target>/, which is committed, and every run reads that folder beside
+# the seeds. So a fresh checkout starts where the last committed sitting ended instead of from the seeds alone (a slow
+# target needs hours to grow back). src/vrm_fuzz/grown/<target>.json lists the sittings merged into it.
+# --save-only merges the work folders' corpora into src/vrm_fuzz/grown/ and stops (for a run that was interrupted or
+# came before this step).
+# Usage: scripts/fuzz.sh [--seconds N] [--runs N] [--jobs J] [--no-build | --build-only | --save-only] [--resume]
+#        [target ...]
 #        (default: 300 s;
 #        --runs alone runs to N executions, with --seconds too whichever comes first,
 #        all targets, one at a time; --jobs 2 runs two targets at once, one per core)
 set -euo pipefail
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 export PATH="/usr/bin:$PATH"
-seconds="" runs="" build=1 build_only=0 jobs=1 resume=0 targets=()
+seconds="" runs="" build=1 build_only=0 save_only=0 jobs=1 resume=0 targets=()
 command_line="scripts/fuzz.sh $*"
 while (($#)); do
   case $1 in
@@ -28,6 +35,7 @@ while (($#)); do
     --no-build) build=0; shift ;;
     --build-only) build_only=1; shift ;;
     --resume) resume=1; shift ;;
+    --save-only) save_only=1; build=0; shift ;;
     --jobs) jobs=$2; shift 2 ;;
     -h | --help) awk 'NR > 1 && /^#/ { print; next } NR > 1 { exit }' "$0"; exit 0 ;;
     *) targets+=("$1"); shift ;;
@@ -58,6 +66,36 @@ if ((build)); then
     { tail -n 30 "$BUILD/configure.log"; exit 1; }
   nice -n 10 cmake --build "$BUILD" -j2 --target $(printf 'fuzz_%s ' "${targets[@]}")
 fi
+# Merges the work folder's corpus into the committed one: only inputs that add coverage to what it holds already.
+save_corpus() {
+  local t=$1 work="$BUILD/fuzz_runs/$1" grown="$PKG/grown/$1"
+  [[ -d $work/corpus ]] || { echo "   $t: no work corpus in $work to save" >&2; return 1; }
+  mkdir -p "$grown"
+  local before
+  before=$(ls "$grown" | wc -l)
+  local options=()
+  [[ -n ${max_len[$t]:-} ]] && options=(-max_len="${max_len[$t]}")
+  (cd "$work" && nice -n 10 "$BUILD/fuzz/fuzz_$t" -merge=1 "${options[@]}" -timeout=20 -rss_limit_mb=3072 \
+    "$grown" "$work/corpus") >"$work/merge.log" 2>&1 || { tail -n 5 "$work/merge.log"; return 1; }
+  echo "   $t: src/vrm_fuzz/grown/$t: $before -> $(ls "$grown" | wc -l) inputs ($(du -sk "$grown" | cut -f1) KB)"
+  /usr/bin/python3 - "$work" "$grown" "$t" <<'PY'
+import datetime, json, os, pathlib, re, sys
+work, grown, target = map(pathlib.Path, sys.argv[1:4])
+log = (work / "log").read_text(errors="replace") if (work / "log").exists() else ""
+status = [l for l in log.splitlines() if re.match(r"^#\d+\s", l)]
+cov = re.search(r"cov: (\d+)", status[-1]) if status else None
+sittings = json.loads((work / "sittings.json").read_text()) if (work / "sittings.json").exists() else []
+record = grown.parent / ("%s.json" % target.name)
+doc = json.loads(record.read_text()) if record.exists() else {"target": target.name, "merged": []}
+doc["merged"].append({
+    "date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
+    "sitting": sittings[-1] if sittings else None, "coverage_at_end": int(cov.group(1)) if cov else None,
+    "inputs_after_merge": len(os.listdir(grown)),
+    "bytes_after_merge": sum(f.stat().st_size for f in grown.iterdir())})
+record.write_text(json.dumps(doc, indent=1) + "\n")
+PY
+}
+
 if ((build_only)); then
   ((build)) || { echo "fuzz.sh: --build-only and --no-build together do nothing" >&2; exit 2; }
   echo "fuzz.sh: built ${#targets[@]} target(s) in $BUILD/fuzz (--build-only: nothing run)"
@@ -70,6 +108,14 @@ export ASAN_OPTIONS="max_allocation_size_mb=128:allocator_may_return_null=1:dete
 export LSAN_OPTIONS="suppressions=$PKG/lsan.supp:${LSAN_OPTIONS:-}"
 export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1:${UBSAN_OPTIONS:-}"
 export ROS_HOSTNAME=localhost
+
+if ((save_only)); then
+  for t in "${targets[@]}"; do
+    [[ -x $BUILD/fuzz/fuzz_$t ]] || { echo "fuzz.sh: $BUILD/fuzz/fuzz_$t is not built" >&2; exit 2; }
+    save_corpus "$t" || failed=1
+  done
+  exit "${failed:-0}"
+fi
 
 mkdir -p "$BUILD/fuzz_runs" "$ROOT/bench/results"
 # One results file per invocation, and the merge into fuzz.json under a lock: two invocations may run at once.
@@ -91,12 +137,14 @@ run_target() {
   local target_options=()  # libFuzzer options of this target: its input cap, its dictionary
   [[ -n ${max_len[$t]:-} ]] && target_options=(-max_len="${max_len[$t]}")
   [[ -f $PKG/dict/$t.dict ]] && target_options+=(-dict="$PKG/dict/$t.dict")
-  echo "== fuzz_$t (${limit[*]}${target_options:+ ${target_options[*]}})"
+  local corpora=("$work/corpus" "$PKG/corpus/$t")
+  [[ -d $PKG/grown/$t ]] && corpora+=("$PKG/grown/$t")
+  echo "== fuzz_$t (${limit[*]}${target_options:+ ${target_options[*]}}; corpora: ${corpora[*]#$ROOT/})"
   local start end rc crashes=0
   start=$(date +%s.%N)
   set +e
   (cd "$work" && nice -n 10 "$BUILD/fuzz/fuzz_$t" "${limit[@]}" "${target_options[@]}" -timeout=20 -rss_limit_mb=3072 \
-    -print_final_stats=1 -artifact_prefix="$work/artifacts/" "$work/corpus" "$PKG/corpus/$t") >"$work/log" 2>&1
+    -print_final_stats=1 -artifact_prefix="$work/artifacts/" "${corpora[@]}") >"$work/log" 2>&1
   rc=$?
   set -e
   end=$(date +%s.%N)
@@ -250,4 +298,8 @@ for r in doc["rows"]:
 PY
 status=0
 awk -F'\t' '$3 != 0 { bad = 1 } END { exit bad }' "$results" || status=1
+# A run without crashes hands its grown corpus on (a crash's corpus waits until the crash is understood).
+while IFS=$'\t' read -r t _ crashes _; do
+  ((crashes == 0)) && { save_corpus "$t" || status=1; }
+done <"$results"
 exit $status
