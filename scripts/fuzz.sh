@@ -53,6 +53,8 @@ done
 # Per-target input caps: images and bags are large inputs; a cap keeps one execution short (see BENCHMARKS.md).
 declare -A max_len=([marker_detector]=8192 [calibrator_images]=32768 [mesh_upload]=16384 [session_bag]=32768 [sim_messages]=4096 [tracking_messages]=4096
                     [scene_yaml]=16384 [mesh_import]=8192 [surgeon_script]=8192)
+# Targets that read one input format (sim_conversions runs sim_messages' messages without a World).
+declare -A same_format=([sim_conversions]=sim_messages [sim_messages]=sim_conversions)
 
 if ((build)); then
   mkdir -p "$BUILD"
@@ -139,6 +141,9 @@ run_target() {
   [[ -f $PKG/dict/$t.dict ]] && target_options+=(-dict="$PKG/dict/$t.dict")
   local corpora=("$work/corpus" "$PKG/corpus/$t")
   [[ -d $PKG/grown/$t ]] && corpora+=("$PKG/grown/$t")
+  # A target that reads the same input format as another also starts from that one's grown corpus (libFuzzer keeps
+  # only the inputs that add coverage to this target, so the other's are no dead weight).
+  [[ -n ${same_format[$t]:-} && -d $PKG/grown/${same_format[$t]} ]] && corpora+=("$PKG/grown/${same_format[$t]}")
   echo "== fuzz_$t (${limit[*]}${target_options:+ ${target_options[*]}}; corpora: ${corpora[*]#$ROOT/})"
   local start end rc crashes=0
   start=$(date +%s.%N)
