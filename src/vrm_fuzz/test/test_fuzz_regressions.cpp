@@ -13,9 +13,12 @@
 #include <fstream>
 #include <iterator>
 #include <map>
+#include <opencv2/calib3d.hpp>
+#include <opencv2/imgproc.hpp>
 #include <sstream>
 
 #include "fuzz_target.h"
+#include "vrm_tracking/calibration.h"
 
 namespace fs = std::filesystem;
 
@@ -113,6 +116,24 @@ TEST(Seeds, CalibratorImagesSeedCalibrates) {
       readFile(kPackage / "corpus" / "calibrator_images" / "chessboard_three_views_and_fixture");
   ASSERT_FALSE(seed.empty());
   EXPECT_TRUE(vrm_fuzz::calibrateFromImages(seed.data(), seed.size()));
+}
+
+// The seed for detectTarget's last check: OpenCV finds the board's corners, but the squares sampled at both ends of
+// their order are white (a spot on each), so there is no dark first square and the view is refused.
+TEST(Seeds, CalibratorLightEndSquaresSeedReachesTheDarkSquareCheck) {
+  const std::vector<std::uint8_t> seed = readFile(kPackage / "corpus" / "calibrator_images" / "light_end_squares");
+  ASSERT_EQ(seed.size(), 7u + 96 * 80);  // [role][encoding mono8][flags][u16 96][u16 80], then the pixels
+  cv::Mat grey(80, 96, CV_8UC1, const_cast<std::uint8_t*>(seed.data() + 7));
+  std::vector<cv::Point2f> corners;
+  ASSERT_TRUE(cv::findChessboardCorners(grey, cv::Size(5, 4), corners,
+                                        cv::CALIB_CB_ADAPTIVE_THRESH | cv::CALIB_CB_NORMALIZE_IMAGE));
+  vrm_tracking::ChessboardTarget target;
+  target.cols = 5;
+  target.rows = 4;
+  target.square = 0.0025;
+  cv::Mat bgr;
+  cv::cvtColor(grey, bgr, cv::COLOR_GRAY2BGR);
+  EXPECT_FALSE(vrm_tracking::detectTarget(bgr, target, &corners));
 }
 
 int main(int argc, char** argv) {
