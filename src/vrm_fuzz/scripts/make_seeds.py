@@ -151,21 +151,24 @@ BW, BH = 96, 80
 board_views = [board_pose(10.0, 0.05, -1.6, -1.4, 0.0008, 0.0), board_pose(9.0, -0.12, -1.4, -0.8, -0.0006, 0.0009),
                board_pose(9.0, 0.3, -2.4, -1.0, 0.0, -0.0012)]
 board_fixture = board_pose(10.0, 0.0, -1.8, -1.5, 0.0, 0.0)
+
+
+def calibrator_image(role, pixels, w=BW, h=BH, encoding=0, flags=0):  # encoding 0: mono8 (calibrator_images.cpp)
+    return struct.pack("<BBBHH", role, encoding, flags, w, h) + pixels
+
+
+views = [board_image(BW, BH, v) for v in board_views]
 seed("calibrator_images", "chessboard_three_views_and_fixture",
-     b"".join(struct.pack("<BBBHH", 0, 0, 0, BW, BH) + board_image(BW, BH, v) for v in board_views) +
-     struct.pack("<BBBHH", 1, 0, 0, BW, BH) + board_image(BW, BH, board_fixture))
-seed("calibrator_images", "one_view_bgr8", struct.pack("<BBBHH", 0, 1, 0, BW, BH) +
-     bytes(b for p in board_image(BW, BH, board_views[0]) for b in (p, p, p)))
-seed("calibrator_images", "unknown_encoding_short", struct.pack("<BBBHH", 0, 8, 0x41, 17, 9) + bytes(range(40)))
+     b"".join(calibrator_image(0, v) for v in views) + calibrator_image(1, board_image(BW, BH, board_fixture)))
+seed("calibrator_images", "one_view_bgr8",
+     calibrator_image(0, bytes(b for p in views[0] for b in (p, p, p)), encoding=1))
+seed("calibrator_images", "unknown_encoding_short",
+     calibrator_image(0, bytes(range(40)), 17, 9, encoding=8, flags=0x41))
 
 
 # The collector's and the detector's other paths, which the fuzzer did not find from the seeds above in 220,000
 # executions (coverage 784 vs 789: a calibration needs three distinct boards and a fixture in one input). Each seed
 # stays under the target's 32 KB max_len, so at most four 96 x 80 images.
-def image(role, pixels, w=BW, h=BH):
-    return struct.pack("<BBBHH", role, 0, 0, w, h) + pixels
-
-
 def invert3(m):
     a, b, c, d, e, f, g, hh, i = m
     det = a * (e * i - f * hh) - b * (d * i - f * g) + c * (d * hh - e * g)
@@ -189,20 +192,20 @@ def light_end_squares(pixels, hom, w=BW, h=BH):
     return bytes(out)
 
 
-views = [board_image(BW, BH, v) for v in board_views]
 fourth_view = board_image(BW, BH, board_pose(9.5, -0.35, -1.2, -1.9, 0.0007, 0.0007))
 blank = bytes([110]) * (16 * 16)
-seed("calibrator_images", "light_end_squares", image(0, light_end_squares(views[0], board_views[0])))
+seed("calibrator_images", "light_end_squares", calibrator_image(0, light_end_squares(views[0], board_views[0])))
 # The same pose twice, then a view of another size.
 seed("calibrator_images", "same_pose_and_other_size",
-     image(0, views[0]) + image(0, views[0]) + image(0, board_image(80, 64, board_views[1]), 80, 64))
+     b"".join(calibrator_image(0, v) for v in (views[0], views[0])) +
+     calibrator_image(0, board_image(80, 64, board_views[1]), 80, 64))
 # A fourth view once three are in, an empty fixture.
 seed("calibrator_images", "fourth_view_and_empty_fixture",
-     b"".join(image(0, v) for v in views[1:]) + image(0, views[0]) + image(0, fourth_view) + image(1, b"", 0, 0))
+     b"".join(calibrator_image(0, v) for v in views[1:] + [views[0], fourth_view]) + calibrator_image(1, b"", 0, 0))
 # A fixture without a board (the extrinsic step fails), then a view and a fixture after the one attempt.
 seed("calibrator_images", "blank_fixture_then_more",
-     b"".join(image(0, v) for v in views) + image(1, blank, 16, 16) + image(0, blank, 16, 16) +
-     image(1, blank, 16, 16))
+     b"".join(calibrator_image(0, v) for v in views) +
+     b"".join(calibrator_image(role, blank, 16, 16) for role in (1, 0, 1)))
 
 # --- messages of the reference bags (vrm_sim topics) ---
 def first_messages_bag(bag, path, count, **options):
