@@ -15,16 +15,23 @@
 
 namespace vrm_fuzz {
 
+// The board the target calibrates with and make_seeds.py draws: 5 x 4 inner corners, small enough to be found in a
+// 96 x 80 image, 2.5 mm squares. test_fuzz_regressions checks its seeds against this same board.
+vrm_tracking::ChessboardTarget seedBoard() {
+  vrm_tracking::ChessboardTarget target;
+  target.cols = 5;
+  target.rows = 4;
+  target.square = 0.0025;
+  return target;
+}
+
 // The target's body; true if the images completed a calibration that succeeded (test_fuzz_regressions checks that the
 // seed gets there, so the fuzzer starts from the calibration path).
 bool calibrateFromImages(const std::uint8_t* data, std::size_t size) {
   using namespace vrm_tracking;
   namespace enc = sensor_msgs::image_encodings;
   vrm_fuzz::Bytes in(data, size);
-  ChessboardTarget target;
-  target.cols = 5;  // the seeds' board: small enough to be found in a 160 x 120 image
-  target.rows = 4;
-  target.square = 0.0025;
+  const ChessboardTarget target = seedBoard();
   CalibrationCollector collector({"camera_0"}, target, fixturePose(target, Eigen::Vector3d::Zero()), 3);
   static const char* const kEncodings[] = {"mono8", "bgr8",  "rgb8", "bgra8",  "rgba8",       "mono16",
                                            "16UC1", "32FC1", "",     "yuv422", "bayer_rggb8", "8UC3"};

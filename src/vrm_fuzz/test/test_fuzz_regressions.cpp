@@ -105,9 +105,10 @@ std::string testName(std::string name) {
 
 }  // namespace
 
-namespace vrm_fuzz {
-bool calibrateFromImages(const std::uint8_t* data, std::size_t size);  // fuzz/calibrator_images.cpp
-}
+namespace vrm_fuzz {  // fuzz/calibrator_images.cpp
+vrm_tracking::ChessboardTarget seedBoard();
+bool calibrateFromImages(const std::uint8_t* data, std::size_t size);
+}  // namespace vrm_fuzz
 
 // A seed that stops short of its path leaves the fuzzer to find it: the calibrator's seed once lost its third view to
 // the same-pose test, and the fuzzer's coverage fell by 30 % (557 edges against 789).
@@ -125,12 +126,9 @@ TEST(Seeds, CalibratorLightEndSquaresSeedReachesTheDarkSquareCheck) {
   ASSERT_EQ(seed.size(), 7u + 96 * 80);  // [role][encoding mono8][flags][u16 96][u16 80], then the pixels
   cv::Mat grey(80, 96, CV_8UC1, const_cast<std::uint8_t*>(seed.data() + 7));
   std::vector<cv::Point2f> corners;
-  ASSERT_TRUE(cv::findChessboardCorners(grey, cv::Size(5, 4), corners,
+  const vrm_tracking::ChessboardTarget target = vrm_fuzz::seedBoard();
+  ASSERT_TRUE(cv::findChessboardCorners(grey, cv::Size(target.cols, target.rows), corners,
                                         cv::CALIB_CB_ADAPTIVE_THRESH | cv::CALIB_CB_NORMALIZE_IMAGE));
-  vrm_tracking::ChessboardTarget target;
-  target.cols = 5;
-  target.rows = 4;
-  target.square = 0.0025;
   cv::Mat bgr;
   cv::cvtColor(grey, bgr, cv::COLOR_GRAY2BGR);
   EXPECT_FALSE(vrm_tracking::detectTarget(bgr, target, &corners));
