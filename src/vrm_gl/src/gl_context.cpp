@@ -4,6 +4,9 @@
 #include <GL/gl.h>
 #include <GL/osmesa.h>
 
+#include <cstdio>
+#include <string>
+
 namespace vrm_gl {
 
 struct GlContext::Impl {
@@ -36,8 +39,23 @@ GlContext::GlContext(const GlContextOptions& options) : impl_(std::make_unique<I
                          std::to_string(options.gl_minor) + " core profile context");
   }
   resize(options.width, options.height);
-  version_ = reinterpret_cast<const char*>(glGetString(GL_VERSION));
-  renderer_ = reinterpret_cast<const char*>(glGetString(GL_RENDERER));
+  // glGetString answers null when no context is current on this thread (or on a GL error): assigning that to a
+  // std::string is undefined behaviour (UBSan caught it once in the stereo renderer's onInit under ASan, 2026-12-02).
+  // A context that cannot answer is no context: say so instead of crashing the manager.
+  const GLubyte* version = glGetString(GL_VERSION);
+  const GLubyte* renderer = glGetString(GL_RENDERER);
+  if (!version || !renderer) {
+    const GLenum error = glGetError();
+    OSMesaDestroyContext(impl_->context);
+    impl_->context = nullptr;
+    char code[16];
+    std::snprintf(code, sizeof code, "0x%04x", error);
+    throw GlContextError(std::string("OSMesa context made current, but glGetString answered null (glGetError ") + code +
+                         "): no usable OpenGL " + std::to_string(options.gl_major) + "." +
+                         std::to_string(options.gl_minor) + " context on this thread");
+  }
+  version_ = reinterpret_cast<const char*>(version);
+  renderer_ = reinterpret_cast<const char*>(renderer);
 }
 
 GlContext::~GlContext() {
