@@ -39,9 +39,10 @@ GlContext::GlContext(const GlContextOptions& options) : impl_(std::make_unique<I
                          std::to_string(options.gl_minor) + " core profile context");
   }
   resize(options.width, options.height);
-  // glGetString answers null when no context is current on this thread (or on a GL error): assigning that to a
-  // std::string is undefined behaviour (UBSan caught it once in the stereo renderer's onInit under ASan, 2026-12-02).
-  // A context that cannot answer is no context: say so instead of crashing the manager.
+  // glGetString answers null (and glGetError 0: the dispatch has no context) now and then in the stereo renderer's
+  // onInit in a nodelet manager under ASan although OSMesaMakeCurrent succeeded (2026-12-02, AMD EPYC: 4 of 7 runs of
+  // stereo_renderer.test; binding again did not help, every retry of that manager failed alike; cause not found).
+  // Assigning that null to a std::string is undefined behaviour: a context that cannot answer is a clear error.
   const GLubyte* version = glGetString(GL_VERSION);
   const GLubyte* renderer = glGetString(GL_RENDERER);
   if (!version || !renderer) {
