@@ -390,8 +390,8 @@ TEST(CameraDropout, AllCamerasStoppedHoldTheLastPoseInvalidAndMoveNoTissue) {
   // The lift to compare with is the one after the last valid tick (camera_0's last frame before the hold). A
   // simulation slower than its inputs closes fuller frames: it may have no frame at that stamp, and its first frame
   // after `previous` then applies the last valid ticks too, the grasp still lifting, before the held ones release it
-  // (under ASan). That frame is the baseline; the frames after it apply held
-  // ticks only. With a frame per tick (Release) it is `previous` itself.
+  // (under ASan). That frame is the baseline; the frames after it apply held ticks only. With a frame per tick
+  // (Release) it is `previous` itself.
   const auto baseline = l.simulation.lower_bound(before->stamp);
   ASSERT_TRUE(baseline != l.simulation.end()) << "no simulation frame applied the last valid tick";
   int frames = 0;
