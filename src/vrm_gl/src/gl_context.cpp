@@ -41,8 +41,8 @@ GlContext::GlContext(const GlContextOptions& options) : impl_(std::make_unique<I
   resize(options.width, options.height);
   // glGetString answers null (and glGetError 0: the dispatch has no context) now and then in the stereo renderer's
   // onInit in a nodelet manager under ASan although OSMesaMakeCurrent succeeded (2026-12-02, AMD EPYC: 4 of 9
-  // managers that loaded the renderer; binding again did not help, every retry of that manager failed alike; cause not found).
-  // Assigning that null to a std::string is undefined behaviour: a context that cannot answer is a clear error.
+  // managers that loaded the renderer; binding again did not help, every retry of that manager failed alike; cause not
+  // found). Assigning that null to a std::string is undefined behaviour: a context that cannot answer is a clear error.
   const GLubyte* version = glGetString(GL_VERSION);
   const GLubyte* renderer = glGetString(GL_RENDERER);
   if (!version || !renderer) {
