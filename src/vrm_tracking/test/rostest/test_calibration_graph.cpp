@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <string>
 
+#include "vrm_sim/testing/sanitizer.h"
 #include "vrm_tracking/calibration.h"
 #include "vrm_tracking/camera_rig.h"
 
@@ -22,11 +23,7 @@ std::string g_true_rig;
 // 36 views (12 per camera) at the fixture's 10 Hz, then the calibration. Under ASan (scripts/test.sh --sanitize) the
 // instrumented detector takes ~4 s per view (2026-12-02, AMD EPYC: 10 of 12 views of camera_1 in 150 s), so the wait
 // is longer there; calibration.test's time-limit (420 s) covers both.
-#ifdef __SANITIZE_ADDRESS__
-constexpr double kResultTimeout = 390.0;
-#else
-constexpr double kResultTimeout = 150.0;
-#endif
+constexpr double kResultTimeout = vrm_sim::testing::kUnderSanitizer ? 390.0 : 150.0;
 
 TEST(CalibrationGraph, RecoversTheRigWithinTolerances) {
   const std_msgs::String::ConstPtr result =

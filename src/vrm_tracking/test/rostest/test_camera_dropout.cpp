@@ -32,6 +32,7 @@
 #include <vector>
 
 #include "vrm_sim/testing/graph_test.h"
+#include "vrm_sim/testing/sanitizer.h"
 
 namespace vrm_tracking {
 namespace {
@@ -40,14 +41,10 @@ using vrm_sim::testing::waitForSubscribers;
 
 constexpr double kTimeout = 60.0;  // s; three cameras rendered on a shared 2-core machine can be slow
 constexpr double kPeriod = 0.02;   // the rig's nominal frame period (50 Hz)
-#ifdef __SANITIZE_ADDRESS__
 // Under ASan (scripts/test.sh --sanitize) the instrumented rig twin, tracker and simulation run below the rig's 50 Hz
 // and the tracker holds (invalid) the frames whose camera images come late: valid poses arrive at a fraction of the
 // rate, so the counts the tests wait for are smaller and the waits longer. The checks on each frame are the same.
-constexpr bool kSanitized = true;
-#else
-constexpr bool kSanitized = false;
-#endif
+constexpr bool kSanitized = vrm_sim::testing::kUnderSanitizer;
 constexpr int kSettleValidPoses = kSanitized ? 2 * 50 : 2 * 150;  // both instruments; 3 s at 50 Hz in Release
 constexpr double kSettleTimeout = kSanitized ? 3 * kTimeout : kTimeout;
 

@@ -28,6 +28,7 @@
 #include "vrm_scene/package_data.h"
 #include "vrm_scene/scene_loader.h"
 #include "vrm_sim/testing/graph_test.h"
+#include "vrm_sim/testing/sanitizer.h"
 #include "vrm_tracking/conversions.h"
 #include "vrm_tracking/scene_trocars.h"
 
@@ -45,11 +46,7 @@ constexpr double kTimeout = 60.0;  // s; rendering three cameras on a shared 2-c
 // images, is off the truth by a tick's motion in some frames (2026-12-02, AMD EPYC: median 53.8 um, p95 2,955 um;
 // 61.0 / 2,534 um with two cameras). There the percentiles are reported, not judged; stamps, validity and frames are
 // checked as in Release, where the bounds hold.
-#ifdef __SANITIZE_ADDRESS__
-constexpr bool kJudgeAccuracy = false;
-#else
-constexpr bool kJudgeAccuracy = true;
-#endif
+constexpr bool kJudgeAccuracy = !vrm_sim::testing::kUnderSanitizer;
 
 class Listener : public vrm_sim::testing::AwaitedState {
  public:
