@@ -3,6 +3,7 @@
 #define GL_GLEXT_PROTOTYPES
 #include <GL/gl.h>
 #include <GL/osmesa.h>
+#include <dlfcn.h>
 
 #include <cstdio>
 #include <string>
@@ -39,10 +40,11 @@ GlContext::GlContext(const GlContextOptions& options) : impl_(std::make_unique<I
                          std::to_string(options.gl_minor) + " core profile context");
   }
   resize(options.width, options.height);
-  // glGetString answers null (and glGetError 0: the dispatch has no context) now and then in the stereo renderer's
-  // onInit in a nodelet manager under ASan although OSMesaMakeCurrent succeeded (2026-12-02, AMD EPYC: 4 of 9
-  // managers that loaded the renderer; binding again did not help, every retry of that manager failed alike; cause not
-  // found). Assigning that null to a std::string is undefined behaviour: a context that cannot answer is a clear error.
+  // glGetString answers null (and glGetError 0) when the GL symbols of this process bound to another GL library than
+  // OSMesa: glvnd's libOpenGL/libGL stubs do nothing without a glvnd context. It happened in nodelet managers whose
+  // nodelet libraries (loaded RTLD_GLOBAL) brought libOpenGL into the global scope before libOSMesa (2026-12-02;
+  // supervised_manager now preloads OSMesa). Assigning that null to a std::string is undefined behaviour: a context
+  // that cannot answer is a clear error, naming the library glGetString resolved to.
   const GLubyte* version = glGetString(GL_VERSION);
   const GLubyte* renderer = glGetString(GL_RENDERER);
   if (!version || !renderer) {
@@ -51,9 +53,17 @@ GlContext::GlContext(const GlContextOptions& options) : impl_(std::make_unique<I
     impl_->context = nullptr;
     char code[16];
     std::snprintf(code, sizeof code, "0x%04x", error);
+    Dl_info symbol{};
+    const std::string provider = dladdr(reinterpret_cast<void*>(&glGetString), &symbol) && symbol.dli_fname
+                                     ? symbol.dli_fname
+                                     : "an unknown library";
     throw GlContextError(std::string("OSMesa context made current, but glGetString answered null (glGetError ") + code +
                          "): no usable OpenGL " + std::to_string(options.gl_major) + "." +
-                         std::to_string(options.gl_minor) + " context on this thread");
+                         std::to_string(options.gl_minor) + " context on this thread; glGetString resolves to " +
+                         provider +
+                         (provider.find("OSMesa") == std::string::npos
+                              ? " (a GL library ahead of libOSMesa in this process's symbol scope)"
+                              : ""));
   }
   version_ = reinterpret_cast<const char*>(version);
   renderer_ = reinterpret_cast<const char*>(renderer);
