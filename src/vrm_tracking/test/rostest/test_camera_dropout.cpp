@@ -37,6 +37,7 @@
 namespace vrm_tracking {
 namespace {
 
+using vrm_sim::testing::kUnderSanitizer;
 using vrm_sim::testing::waitForSubscribers;
 
 constexpr double kTimeout = 60.0;  // s; three cameras rendered on a shared 2-core machine can be slow
@@ -44,9 +45,8 @@ constexpr double kPeriod = 0.02;   // the rig's nominal frame period (50 Hz)
 // Under ASan (scripts/test.sh --sanitize) the instrumented rig twin, tracker and simulation run below the rig's 50 Hz
 // and the tracker holds (invalid) the frames whose camera images come late: valid poses arrive at a fraction of the
 // rate, so the counts the tests wait for are smaller and the waits longer. The checks on each frame are the same.
-constexpr bool kSanitized = vrm_sim::testing::kUnderSanitizer;
-constexpr int kSettleValidPoses = kSanitized ? 2 * 50 : 2 * 150;  // both instruments; 3 s at 50 Hz in Release
-constexpr double kSettleTimeout = kSanitized ? 3 * kTimeout : kTimeout;
+constexpr int kSettleValidPoses = kUnderSanitizer ? 2 * 50 : 2 * 150;  // both instruments; 3 s at 50 Hz in Release
+constexpr double kSettleTimeout = kUnderSanitizer ? 3 * kTimeout : kTimeout;
 
 bool finite(const geometry_msgs::Pose& p) {
   return std::isfinite(p.position.x) && std::isfinite(p.position.y) && std::isfinite(p.position.z) &&
@@ -259,8 +259,8 @@ TEST(CameraDropout, AllCamerasStoppedHoldTheLastPoseInvalidAndMoveNoTissue) {
         poses_seen = l.instruments.size();
         return grasped();
       },
-      kSanitized ? 3 * kTimeout : 2 * kTimeout);
-  if (kSanitized && !grasp_seen) {
+      kUnderSanitizer ? 3 * kTimeout : 2 * kTimeout);
+  if (kUnderSanitizer && !grasp_seen) {
     // Measured under ASan: the simulation ran at ~10 Hz behind its inputs and the mediator closed frames with the
     // tracked tip late against the pedal's jaw command, so the demo's jaws shut above the membrane in all six loops
     // (5559 frames, grasped 0). The grasp, and so this test's premise, is a real-time property the sanitizer build
@@ -410,7 +410,7 @@ TEST(CameraDropout, AllCamerasStoppedHoldTheLastPoseInvalidAndMoveNoTissue) {
   }
   // A rate, not checked under ASan, where the instrumented simulation is slower than its inputs and closes fewer,
   // fuller frames (27 for 71 held tracker frames, measured); the checks above still ran on every frame it simulated.
-  if (!kSanitized) EXPECT_GE(frames, static_cast<int>(0.8 * held.size())) << "the VR part skipped held frames";
+  if (!kUnderSanitizer) EXPECT_GE(frames, static_cast<int>(0.8 * held.size())) << "the VR part skipped held frames";
   // Released, the membrane only falls back towards the retina: nothing lifts it further.
   EXPECT_LE(lift_max, lift_before + 1e-5)
       << "tissue lifted under a stale pose (last valid tick " << before->stamp << ", frame before the hold "
