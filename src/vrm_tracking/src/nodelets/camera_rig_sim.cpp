@@ -56,19 +56,31 @@ namespace vrm_tracking {
 
 class CameraRigSim : public nodelet::Nodelet {
  private:
+  // A set-up that throws closes every handle it opened before the exception leaves onInit: Debian's nodelet::Loader
+  // frees this nodelet's callback queues when init throws and destroys the nodelet only afterwards, so a subscriber
+  // still open then unregisters from a freed queue and takes the manager down with it.
   void onInit() override {
+    try {
+      init();
+    } catch (const std::exception& e) {
+      closeRosHandles();
+      NODELET_FATAL("camera_rig_sim cannot start: %s", e.what());
+      throw;
+    } catch (...) {
+      closeRosHandles();
+      NODELET_FATAL("camera_rig_sim cannot start: an exception that is not a std::exception");
+      throw;
+    }
+  }
+
+  void init() {
     ros::NodeHandle& nh = getNodeHandle();
     ros::NodeHandle& pnh = getPrivateNodeHandle();
     std::string rig_file, layout_file;
     pnh.param<std::string>("rig_file", rig_file, "");
     pnh.param<std::string>("layout_file", layout_file, "");
-    try {
-      rig_ = rig_file.empty() ? makeDefaultRig() : loadRigYaml(rig_file);
-      layout_ = layout_file.empty() ? makeDefaultLayout() : loadLayoutYaml(layout_file);
-    } catch (const std::exception& e) {
-      NODELET_FATAL("camera_rig_sim: %s", e.what());
-      throw;
-    }
+    rig_ = rig_file.empty() ? makeDefaultRig() : loadRigYaml(rig_file);
+    layout_ = layout_file.empty() ? makeDefaultLayout() : loadLayoutYaml(layout_file);
     RenderConfig config;
     pnh.param("blur_px", config.blur_px, config.blur_px);
     pnh.param("read_noise", config.read_noise, config.read_noise);
@@ -87,7 +99,6 @@ class CameraRigSim : public nodelet::Nodelet {
     pnh.param("stop_camera", stop_camera_, -1);
     pnh.param("stop_after", stop_after_, 0);
     stopped_until_.assign(rig_.size(), ros::WallTime());
-    fault_sub_ = pnh.subscribe("fault", 10, &CameraRigSim::onFault, this);
     renderer_ = std::make_unique<RigRenderer>(rig_, layout_, config);
 
     std::vector<std::string> slots;
@@ -99,10 +110,9 @@ class CameraRigSim : public nodelet::Nodelet {
 
     int calibration_views = 0;
     if (pnh.getParam("calibration_views", calibration_views) && calibration_views > 0) {
-      NODELET_FATAL(
-          "camera_rig_sim: calibration_views is no longer a mode of the rig twin: load "
-          "vrm_tracking/calibration_fixture (views, rate, target_*) instead");
-      throw std::invalid_argument("camera_rig_sim: calibration_views moved to vrm_tracking/calibration_fixture");
+      throw std::invalid_argument(
+          "calibration_views is no longer a mode of the rig twin: load vrm_tracking/calibration_fixture (views, "
+          "rate, target_*) instead");
     }
     timing_pub_ = nh.advertise<vrm_msgs::StageTiming>("tracking_timing", 10);
     image_transport::ImageTransport it(nh);
@@ -117,15 +127,29 @@ class CameraRigSim : public nodelet::Nodelet {
         exact_pubs_.push_back(nh.advertise<vrm_msgs::MarkerObservations>(cam.name + "/markers_exact", 5, cb, cb));
       }
     }
+    fault_sub_ = pnh.subscribe("fault", 10, &CameraRigSim::onFault, this);
     NODELET_INFO("camera_rig_sim: %zu cameras, %zu instrument slots, seed %d", rig_.size(), expected_slots_.size(),
                  seed);
+  }
+
+  void closeRosHandles() {
+    std::lock_guard<std::mutex> lock(connect_mutex_);
+    fault_sub_.shutdown();
+    eye_sub_.shutdown();
+    instrument_sub_.shutdown();
+    for (image_transport::CameraPublisher& pub : camera_pubs_) pub.shutdown();
+    for (ros::Publisher& pub : exact_pubs_) pub.shutdown();
+    camera_pubs_.clear();
+    exact_pubs_.clear();
+    timing_pub_.shutdown();
   }
 
   // Subscribes the ground truth when the first camera output gains a subscriber, drops it when the last one goes.
   void connectCb() {
     std::lock_guard<std::mutex> lock(connect_mutex_);
     bool wanted = false;
-    for (std::size_t c = 0; c < rig_.size(); ++c) {
+    // Over the publishers there are (none once closeRosHandles ran), each camera's image and exact pair.
+    for (std::size_t c = 0; c < camera_pubs_.size(); ++c) {
       wanted |= camera_pubs_[c].getNumSubscribers() > 0 || exact_pubs_[c].getNumSubscribers() > 0;
     }
     if (!wanted && eye_sub_) {

@@ -67,7 +67,24 @@ class MarkerDetectorNodelet : public nodelet::Nodelet {
     cam->last_image = ros::WallTime::now();
   }
 
+  // A set-up that throws after it opened handles (a camera name that is no ROS name) closes them first: the manager
+  // frees this nodelet's callback queues before it destroys the nodelet (camera_rig_sim.cpp).
   void onInit() override {
+    try {
+      init();
+    } catch (...) {
+      diagnostic_timer_.stop();
+      {
+        std::lock_guard<std::mutex> lock(connect_mutex_);
+        cameras_.clear();  // their publishers and the subscriptions connectCb opened
+      }
+      timing_pub_.shutdown();
+      diagnostics_pub_.shutdown();
+      throw;
+    }
+  }
+
+  void init() {
     ros::NodeHandle& nh = getNodeHandle();
     ros::NodeHandle& pnh = getPrivateNodeHandle();
     std::string layout_file;
@@ -100,7 +117,12 @@ class MarkerDetectorNodelet : public nodelet::Nodelet {
         cam->name = name;
         cam->roi = std::make_unique<RoiTracker>(detector_.get(), roi);
         cam->idle_since = ros::WallTime::now();
-        cam->markers_pub = nh.advertise<vrm_msgs::MarkerObservations>(name + "/markers", 5, connect_cb, connect_cb);
+        try {
+          cam->markers_pub = nh.advertise<vrm_msgs::MarkerObservations>(name + "/markers", 5, connect_cb, connect_cb);
+        } catch (const ros::InvalidNameException& e) {
+          NODELET_FATAL("marker_detector: camera '%s': %s", name.c_str(), e.what());
+          throw;
+        }
         cameras_.push_back(std::move(cam));
       }
     }

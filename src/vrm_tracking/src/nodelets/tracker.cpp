@@ -62,7 +62,29 @@ namespace vrm_tracking {
 
 class Tracker : public nodelet::Nodelet {
  private:
+  // A set-up that throws after it opened handles (a camera name that is no ROS name makes a topic name throw) closes
+  // them first: the manager frees this nodelet's callback queues before it destroys the nodelet (camera_rig_sim.cpp).
   void onInit() override {
+    try {
+      init();
+    } catch (...) {
+      closeRosHandles();
+      throw;
+    }
+  }
+
+  // Timers too: a node handle's shutdown() leaves them running, and a timer unregisters from its queue as it goes.
+  void closeRosHandles() {
+    watchdog_timer_.stop();
+    diagnostic_timer_.stop();
+    for (ros::Subscriber& sub : marker_subs_) sub.shutdown();
+    marker_subs_.clear();
+    sensor_sub_.shutdown();
+    running_scene_sub_.shutdown();
+    for (ros::Publisher* pub : {&eye_pub_, &instrument_pub_, &timing_pub_, &diagnostics_pub_}) pub->shutdown();
+  }
+
+  void init() {
     ros::NodeHandle& nh = getNodeHandle();
     ros::NodeHandle& pnh = getPrivateNodeHandle();
     std::string markers_topic;
@@ -131,8 +153,13 @@ class Tracker : public nodelet::Nodelet {
     watchdog_timer_ = nh.createWallTimer(ros::WallDuration(1.0 / camera_rate), &Tracker::onWatchdogTick, this);
     for (std::size_t c = 0; c < rig.size(); ++c) {
       const std::string topic = rig.cameras[c].name + "/" + markers_topic;
-      marker_subs_.push_back(nh.subscribe<vrm_msgs::MarkerObservations>(
-          topic, 10, [this, c](const vrm_msgs::MarkerObservations::ConstPtr& msg) { onMarkers(c, msg); }));
+      try {
+        marker_subs_.push_back(nh.subscribe<vrm_msgs::MarkerObservations>(
+            topic, 10, [this, c](const vrm_msgs::MarkerObservations::ConstPtr& msg) { onMarkers(c, msg); }));
+      } catch (const ros::InvalidNameException& e) {
+        NODELET_FATAL("tracker: camera %zu of the rig: %s", c, e.what());
+        throw;
+      }
     }
     if (publish_tf_) static_broadcaster_.sendTransform(trocarTransforms(tracker_->layout(), eye_frame_));
     NODELET_INFO("tracker: %zu cameras (%s), %zu instruments, tf %s, filter %s, dropout after %.0f ms", rig.size(),

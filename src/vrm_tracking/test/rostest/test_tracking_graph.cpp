@@ -6,11 +6,14 @@
 
 #include <diagnostic_msgs/DiagnosticArray.h>
 #include <gtest/gtest.h>
+#include <nodelet/NodeletList.h>
+#include <nodelet/NodeletLoad.h>
 #include <ros/ros.h>
 #include <sensor_msgs/Image.h>
 #include <sensor_msgs/image_encodings.h>
 #include <tf2_ros/buffer.h>
 #include <tf2_ros/transform_listener.h>
+#include <unistd.h>
 #include <vrm_msgs/EyeState.h>
 #include <vrm_msgs/InstrumentState.h>
 #include <vrm_msgs/MarkerObservations.h>
@@ -19,9 +22,12 @@
 #include <boost/make_shared.hpp>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
+#include <fstream>
 #include <map>
 #include <memory>
 #include <mutex>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -175,6 +181,14 @@ TEST(TrackingGraph, TrackedTipFollowsGroundTruthWithPreservedStamps) {
   for (const auto& m : l.instrument) EXPECT_EQ(m->header.frame_id, "eye");
 }
 
+std::string truthNeighbours(const std::map<ros::Time, vrm_msgs::EyeState::ConstPtr>& truth, const ros::Time& stamp) {
+  std::ostringstream out;
+  const auto after = truth.upper_bound(stamp);
+  if (after != truth.begin()) out << "before " << std::prev(after)->first << " ";
+  if (after != truth.end()) out << "after " << after->first;
+  return out.str();
+}
+
 TEST(TrackingGraph, EyeRotationFollowsGroundTruth) {
   auto& l = *g_listener;
   // 100 eye states stamped since the ground truth reached the test (a loaded machine connects it later: counting
@@ -193,7 +207,11 @@ TEST(TrackingGraph, EyeRotationFollowsGroundTruth) {
   for (const auto& m : l.eye) {
     if (m->header.stamp < first) continue;  // published before this test connected to the ground truth
     const auto it = l.truth_eye.find(m->header.stamp);
-    ASSERT_TRUE(it != l.truth_eye.end()) << "eye_state stamp not a ground-truth stamp";
+    // The neighbours say which side lost it: ground truth that reached this test on both sides one tick apart means
+    // the tracker made the stamp up; a wider hole means this test's subscription lost truth messages.
+    ASSERT_TRUE(it != l.truth_eye.end()) << "eye_state stamp " << m->header.stamp
+                                         << " not a ground-truth stamp; truth received around it: "
+                                         << truthNeighbours(l.truth_eye, m->header.stamp);
     EXPECT_EQ(m->header.frame_id, "world");
     if (!m->valid) continue;
     ++matched;
@@ -451,6 +469,68 @@ TEST(TrackingGraph, DiagnosticsReportTheStoppedCameraAndBadInput) {
   EXPECT_GE(tracker_reports, 1);
 }
 
+std::string g_rig_file;  // the product's rig, from which RefusedNodeletsLeaveTheManagerRunning derives a broken one
+
+// Asks the product's manager to load `type` as `name` (its private parameters set beforehand); true if it loaded.
+bool loadIntoManager(const std::string& name, const std::string& type) {
+  nodelet::NodeletLoad load;
+  load.request.name = name;
+  load.request.type = type;
+  // The manager's load service fails the call when the nodelet is refused (it returns the load's success).
+  return ros::service::call("/vrm_manager/load_nodelet", load) && load.response.success;
+}
+
+// A rig twin and a tracker whose rig has a second camera named "camera 1" (no ROS name), and a detector whose second
+// camera is: each opens handles on topics the running graph uses (tracking_timing, camera_0's, eye_state), then a
+// topic name throws. The manager must refuse them and go on. It frees a refused nodelet's callback queues before it
+// destroys the nodelet, so a handle left open would unregister from freed memory: before the fix this manager died
+// of a SEGV in Release (2026-12-02). Runs last.
+TEST(TrackingGraph, RefusedNodeletsLeaveTheManagerRunning) {
+  ASSERT_FALSE(g_rig_file.empty()) << "no ~rig_file given";
+  std::ifstream in(g_rig_file);
+  ASSERT_TRUE(in) << g_rig_file;
+  std::stringstream rig;
+  rig << in.rdbuf();
+  std::string text = rig.str();
+  const std::string good = "camera_name: camera_1";
+  const auto at = text.find(good);
+  ASSERT_NE(at, std::string::npos) << g_rig_file << " has no camera_1";
+  text.replace(at, good.size(), "camera_name: camera 1");
+  char path[] = "/tmp/refused_rig_XXXXXX";
+  const int fd = mkstemp(path);
+  ASSERT_GE(fd, 0);
+  close(fd);
+  std::ofstream(path) << text;
+
+  ros::NodeHandle nh;
+  nh.setParam("/refused_rig/rig_file", std::string(path));
+  nh.setParam("/refused_tracker/rig_file", std::string(path));
+  nh.setParam("/refused_detector/cameras", std::vector<std::string>{"camera_0", "camera 1"});
+  auto& l = *g_listener;
+  std::size_t eye_states_before = 0;
+  {
+    std::lock_guard<std::mutex> lock(l.mutex_);
+    eye_states_before = l.eye.size();
+  }
+  ASSERT_TRUE(ros::service::waitForService("/vrm_manager/load_nodelet", ros::Duration(kTimeout)));
+  EXPECT_FALSE(loadIntoManager("/refused_rig", "vrm_tracking/camera_rig_sim")) << "rig twin: 'camera 1' accepted";
+  EXPECT_FALSE(loadIntoManager("/refused_tracker", "vrm_tracking/tracker")) << "tracker: 'camera 1' accepted";
+  EXPECT_FALSE(loadIntoManager("/refused_detector", "vrm_tracking/marker_detector")) << "detector: 'camera 1' accepted";
+  std::remove(path);
+
+  nodelet::NodeletList list;
+  ASSERT_TRUE(ros::service::call("/vrm_manager/list", list)) << "the manager is gone after refusing nodelets";
+  const auto loaded = [&](const std::string& name) {
+    return std::count(list.response.nodelets.begin(), list.response.nodelets.end(), name);
+  };
+  EXPECT_EQ(loaded("/refused_rig") + loaded("/refused_tracker") + loaded("/refused_detector"), 0);
+  EXPECT_EQ(loaded("/camera_rig_sim"), 1);
+  EXPECT_EQ(loaded("/tracker"), 1);
+  // The graph still tracks: the running nodelets' topics, which the refused ones shared for a moment, still flow.
+  EXPECT_TRUE(l.waitFor([&] { return l.eye.size() >= eye_states_before + 20; }, kTimeout))
+      << "no eye states after the refused loads";
+}
+
 }  // namespace
 }  // namespace vrm_tracking
 
@@ -463,6 +543,7 @@ int main(int argc, char** argv) {
   pnh.param("stop_after", vrm_tracking::g_stop_after, 150);
   pnh.param<std::string>("scene", vrm_tracking::g_scene, "");
   pnh.param<std::string>("layout_file", vrm_tracking::g_layout_file, "");
+  pnh.param<std::string>("rig_file", vrm_tracking::g_rig_file, "");
   vrm_tracking::g_listener = std::make_unique<vrm_tracking::Listener>(nh);
   vrm_tracking::g_tf = std::make_unique<tf2_ros::Buffer>(ros::Duration(30.0));
   // The listener's own thread writes into the buffer: it must go before the buffer does.
