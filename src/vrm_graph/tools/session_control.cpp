@@ -134,13 +134,15 @@ class SessionControl {
     // closes after the STOP arrives; on a simulation slower than its inputs (a loaded or sanitizer-built machine)
     // that frame is later than the STOP's stamp, and a recording closed `tail` after the stamp would end before it.
     const bool ended = !ended_at_.isZero();
-    const bool over = ended ? newest_ >= std::max(end, ended_at_) + tail_ : newest_ >= end + tail_ + kStopGrace;
+    // A simulation that lags its inputs applies the STOP that much later (stop_lag_), so the grace grows by it.
+    const ros::Duration grace = tail_ + kStopGrace + stop_lag_;
+    const bool over = ended ? newest_ >= std::max(end, ended_at_) + tail_ : newest_ >= end + grace;
     if (over) {
       if (!ended) {
         ROS_WARN(
-            "session_control: the session did not end within %.0f s of input time after its STOP at %.3f; ending the "
-            "recording anyway",
-            (tail_ + kStopGrace).toSec(), end.toSec());
+            "session_control: the session did not end within %.1f s of input time after its STOP at %.3f (the "
+            "simulation lagged its inputs by %.1f s when it was sent); ending the recording anyway",
+            grace.toSec(), end.toSec(), stop_lag_.toSec());
       }
       ROS_INFO("session_control: session over (%.1f s from START); ending the recording", (end - start_).toSec());
       closeRecording();
@@ -288,6 +290,9 @@ class SessionControl {
     if (command == vrm_msgs::ScenarioCommand::STOP) {
       stop_stamp_ = stamp;
       stop_reason_ = argument;
+      // The devices stamp their inputs with the present; whatever they published up to now waits in the simulation's
+      // queue ahead of this STOP, so it takes effect about this much input time after the newest simulated frame.
+      stop_lag_ = std::max(ros::Duration(0.0), ros::Time::now() - newest_);
     }
     auto message = boost::make_shared<vrm_msgs::ScenarioCommand>();
     message->header.stamp = stamp;
@@ -450,9 +455,10 @@ class SessionControl {
   ros::Time forced_end_;  // a STOP of this node's own (disk full)
   ros::Time stop_stamp_;  // of the STOP sent
   ros::Time ended_at_;    // stamp of the scenario_status that first reported the session ended (FINISHED/FAILED)
-  // Input time after the session's planned end (plus tail) at which a session whose STOP never took effect is closed
-  // anyway (a simulation that stopped applying commands); far more than a slow simulation's lag.
+  // Input time after the session's planned end (plus tail, plus the simulation's lag when the STOP went out) at which
+  // a session whose STOP never took effect is closed anyway (a simulation that stopped applying commands).
   const ros::Duration kStopGrace{10.0};
+  ros::Duration stop_lag_;  // input time by which the simulation's newest frame trailed the present at the STOP
   std::string stop_reason_;
   ros::WallTime first_frame_wall_;  // the recorder's ~part: the part its next start records into
   ros::WallTime last_note_;
