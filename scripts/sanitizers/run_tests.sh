@@ -41,17 +41,21 @@ export PATH="/usr/bin:$PATH"
 # RelWithDebInfo with -O1: fast enough for the graph tests, still precise stacks; -fno-omit-frame-pointer for ASan's
 # fast unwinder. NDEBUG as in the Release build, so the tests check the code that ships.
 SAN="-fsanitize=address,undefined -fno-omit-frame-pointer"
-if [[ ! -f "$BUILD/CMakeCache.txt" ]]; then
-  cmake -S "$ROOT" -B "$BUILD" -DCMAKE_BUILD_TYPE=RelWithDebInfo \
-    -DCMAKE_C_FLAGS="$SAN" -DCMAKE_CXX_FLAGS="$SAN" \
-    -DCMAKE_C_FLAGS_RELWITHDEBINFO="-O1 -g -DNDEBUG" -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g -DNDEBUG" \
-    -DCMAKE_EXE_LINKER_FLAGS="-fsanitize=address,undefined" \
-    -DCMAKE_SHARED_LINKER_FLAGS="-fsanitize=address,undefined" \
-    -DCMAKE_MODULE_LINKER_FLAGS="-fsanitize=address,undefined" \
-    -DPYTHON_EXECUTABLE=/usr/bin/python3 -DPython3_EXECUTABLE=/usr/bin/python3 >"$ROOT/build_asan.configure.log" 2>&1 \
-    || { cat "$ROOT/build_asan.configure.log"; echo "test.sh --sanitize: cmake configure failed" >&2; exit 1; }
-  mv "$ROOT/build_asan.configure.log" "$BUILD/configure.log"
-fi
+# --as-needed as Debian's gcc adds it to every link but a -fsanitize one (gcc -dumpspecs: %{!fsanitize=*:--as-needed}).
+# Without it a nodelet library pulls every library its dependencies export into the manager's global scope (the
+# tracking nodelets: cv_bridge's OpenCV, highgui, glvnd's libOpenGL/libGL), and GL calls bound to glvnd's stubs instead
+# of OSMesa. With it the ASan managers load what the Release ones load. (Preloading OSMesa into every manager, the first
+# fix, cost the Release view about a fifth of its frame rate: bench_latency A/B, 2026-12-02.)
+LINK_SAN="-fsanitize=address,undefined -Wl,--as-needed"
+# Configured every run with the same values (a no-op then): a build directory configured before a flag changed here
+# takes the change (new linker flags relink, they recompile nothing).
+cmake -S "$ROOT" -B "$BUILD" -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+  -DCMAKE_C_FLAGS="$SAN" -DCMAKE_CXX_FLAGS="$SAN" \
+  -DCMAKE_C_FLAGS_RELWITHDEBINFO="-O1 -g -DNDEBUG" -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g -DNDEBUG" \
+  -DCMAKE_EXE_LINKER_FLAGS="$LINK_SAN" -DCMAKE_SHARED_LINKER_FLAGS="$LINK_SAN" -DCMAKE_MODULE_LINKER_FLAGS="$LINK_SAN" \
+  -DPYTHON_EXECUTABLE=/usr/bin/python3 -DPython3_EXECUTABLE=/usr/bin/python3 >"$ROOT/build_asan.configure.log" 2>&1 \
+  || { cat "$ROOT/build_asan.configure.log"; echo "test.sh --sanitize: cmake configure failed" >&2; exit 1; }
+mv "$ROOT/build_asan.configure.log" "$BUILD/configure.log"
 start=$(date +%s)
 cmake --build "$BUILD" -j"$JOBS"
 cmake --build "$BUILD" --target tests -j"$JOBS"

@@ -42,8 +42,8 @@ GlContext::GlContext(const GlContextOptions& options) : impl_(std::make_unique<I
   resize(options.width, options.height);
   // glGetString answers null (and glGetError 0) when the GL symbols of this process bound to another GL library than
   // OSMesa: glvnd's libOpenGL/libGL stubs do nothing without a glvnd context. It happened in nodelet managers whose
-  // nodelet libraries (loaded RTLD_GLOBAL) brought libOpenGL into the global scope before libOSMesa (2026-12-02;
-  // supervised_manager now preloads OSMesa). Assigning that null to a std::string is undefined behaviour: a context
+  // nodelet libraries (loaded RTLD_GLOBAL) brought libOpenGL into the global scope before libOSMesa (2026-12-02: the
+  // ASan build, linked without --as-needed until scripts/sanitizers/run_tests.sh added it). Assigning that null to a std::string is undefined behaviour: a context
   // that cannot answer is a clear error, naming the library glGetString resolved to.
   const GLubyte* version = glGetString(GL_VERSION);
   const GLubyte* renderer = glGetString(GL_RENDERER);
