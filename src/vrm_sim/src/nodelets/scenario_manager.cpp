@@ -186,7 +186,13 @@ class ScenarioManager : public nodelet::Nodelet {
       eye_subscriber_ = nh.subscribe("eye_state", 100, &ScenarioManager::onEyeState, this);
       instrument_subscriber_ = nh.subscribe("instrument_state", 200, &ScenarioManager::onInstrumentState, this);
       pedal_subscriber_ = nh.subscribe("pedals", 100, &ScenarioManager::onPedals, this);
-      command_subscriber_ = nh.subscribe("scenario_command", 50, &ScenarioManager::onScenarioCommand, this);
+      // Commands take the nodelet's multi-threaded queue, so they never wait behind the device inputs. Those share
+      // the single-threaded queue, one callback per queued message, up to the deep queues above: a command queued
+      // behind them on a simulation slower than its inputs waited for all of them, ~400 callbacks, each a frame
+      // (12 s under ASan, while the inputs' own lag stayed at 2 s: full device queues drop their oldest). The
+      // mediator orders a command by its stamp, not by its arrival, so only its delay changes.
+      command_subscriber_ =
+          getMTNodeHandle().subscribe("scenario_command", 50, &ScenarioManager::onScenarioCommand, this);
     }
     diagnostics_publisher_ = nh.advertise<diagnostic_msgs::DiagnosticArray>("/diagnostics", 5);
     diagnostics_timer_ = nh.createWallTimer(ros::WallDuration(1.0), &ScenarioManager::publishDiagnostics, this);

@@ -4,14 +4,17 @@
 #include <gtest/gtest.h>
 #include <ros/ros.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <fstream>
 #include <map>
 #include <mutex>
 #include <sstream>
 #include <string>
+#include <vector>
 
 #include "graph_test_util.h"
+#include "vrm_msgs/InputFrame.h"
 #include "vrm_msgs/InstrumentState.h"
 #include "vrm_msgs/ScenarioCommand.h"
 #include "vrm_msgs/ScenarioStatus.h"
@@ -25,6 +28,10 @@ namespace vrm_sim {
 namespace {
 
 using testing::waitFor;
+
+// The stamp after the last input LoadStartPlayFinishScore published (the next test goes on from there, in the same
+// graph).
+double g_next_stamp = 100.0;
 
 struct Observed {
   std::mutex mutex;
@@ -103,6 +110,7 @@ TEST(ScenarioGraph, LoadStartPlayFinishScore) {
     return observed.last_frame;
   };
   ASSERT_TRUE(playTicks(instruments, inputs, last_frame, [&](world::Stamp stamp, std::size_t tick) {
+    g_next_stamp = world::toSeconds(stamp) + 0.02;
     // The two refusals ten ticks apart: commands of one frame leave only the last one's message in the status.
     if (tick == 50) {
       EXPECT_EQ(status().state, vrm_msgs::ScenarioStatus::RUNNING) << status().message;
@@ -159,11 +167,123 @@ TEST(ScenarioGraph, LoadStartPlayFinishScore) {
   }
 }
 
+// A command must not wait behind the device inputs queued ahead of it. On a simulation slower than its inputs (a
+// loaded or sanitizer-built machine) those queues hold seconds of input; a STOP that waited for them all took effect
+// 12 s after its stamp under ASan and the recording ended before it. Here 90 ticks of input arrive at once, faster than
+// the simulation closes their frames, then a STOP stamped between ticks 70 and 71: it takes effect in frame 71, the
+// frame its stamp belongs to, not in one of the frames after the queued inputs (frame 90).
+TEST(ScenarioGraph, ACommandTakesEffectAtItsStampThoughInputsQueueAheadOfIt) {
+  ros::NodeHandle nh;
+  std::mutex mutex;
+  std::string scenario;
+  std::uint8_t state = 255;
+  std::vector<std::pair<double, std::uint8_t>> commands_applied;  // (frame stamp, command)
+  world::Stamp last_frame = -1;
+  ros::Subscriber status_subscriber = nh.subscribe<vrm_msgs::ScenarioStatus>(
+      "scenario_status", 50, [&](const vrm_msgs::ScenarioStatus::ConstPtr& status) {
+        std::lock_guard<std::mutex> lock(mutex);
+        scenario = status->scenario;
+        state = status->state;
+      });
+  ros::Subscriber frame_subscriber =
+      nh.subscribe<vrm_msgs::InputFrame>("input_frame", 500, [&](const vrm_msgs::InputFrame::ConstPtr& frame) {
+        std::lock_guard<std::mutex> lock(mutex);
+        for (const auto& command : frame->commands) {
+          commands_applied.emplace_back(frame->header.stamp.toSec(), command.command);
+        }
+        last_frame = std::max(last_frame, toStamp(frame->header.stamp));
+      });
+  ros::Publisher commands = nh.advertise<vrm_msgs::ScenarioCommand>("scenario_command", 10);
+  ros::Publisher instruments = nh.advertise<vrm_msgs::InstrumentState>("instrument_state", 1000);
+  ros::AsyncSpinner spinner(2);
+  spinner.start();
+  ASSERT_TRUE(waitFor(
+      [&] {
+        return commands.getNumSubscribers() > 0 && instruments.getNumSubscribers() > 0 &&
+               frame_subscriber.getNumPublishers() > 0;
+      },
+      30.0));
+  auto command = [&](std::uint8_t type, const std::string& scene_name, double stamp) {
+    auto message = boost::make_shared<vrm_msgs::ScenarioCommand>();
+    message->header.stamp = ros::Time(stamp);
+    message->command = type;
+    message->scenario = scene_name;
+    commands.publish(message);
+  };
+  const double base = g_next_stamp;
+  command(vrm_msgs::ScenarioCommand::LOAD, "membrane_peeling", base);
+  ASSERT_TRUE(waitFor(
+      [&] {
+        std::lock_guard<std::mutex> lock(mutex);
+        return scenario == "membrane_peeling";
+      },
+      20.0));
+  command(vrm_msgs::ScenarioCommand::START, "", base + 0.01);
+
+  const scene::SceneDescription scene =
+      scene::withScript(scene::loadScene(scene::shippedScenePath("membrane_peeling")), "expert");
+  const std::vector<world::InstrumentState> inputs =
+      world::scriptedInputs(scene, 50.0, 1.8, world::fromSeconds(base + 0.02));
+  std::map<world::Stamp, std::vector<world::InstrumentState>> ticks;
+  for (const auto& input : inputs) ticks[input.stamp].push_back(input);
+  ASSERT_GE(ticks.size(), 90u);
+  ASSERT_LE(inputs.size(), 200u) << "more than scenario_manager's instrument queue holds";
+  std::vector<world::Stamp> tick_stamps;
+  for (const auto& tick : ticks) tick_stamps.push_back(tick.first);
+  // The first ticks alone, so that the START is applied and the scenario runs before the burst (a slot the script
+  // does not move holds a frame back for two later ones, then it is not waited for).
+  constexpr std::size_t kLead = 5;
+  for (std::size_t tick = 0; tick < kLead; ++tick) {
+    for (const auto& input : ticks.at(tick_stamps[tick])) {
+      instruments.publish(boost::make_shared<vrm_msgs::InstrumentState>(toMsg(input)));
+    }
+  }
+  ASSERT_TRUE(waitFor(
+      [&] {
+        std::lock_guard<std::mutex> lock(mutex);
+        return state == vrm_msgs::ScenarioStatus::RUNNING;
+      },
+      20.0))
+      << "START not applied";
+  for (std::size_t tick = kLead; tick < 90; ++tick) {
+    for (const auto& input : ticks.at(tick_stamps[tick])) {
+      instruments.publish(boost::make_shared<vrm_msgs::InstrumentState>(toMsg(input)));
+    }
+  }
+  // Sent once the burst's first frame closed, so the burst is in the manager's queues (from another connection the
+  // STOP could otherwise arrive among its first messages) while most of its frames are still to come.
+  ASSERT_TRUE(waitFor(
+      [&] {
+        std::lock_guard<std::mutex> lock(mutex);
+        return last_frame >= tick_stamps[kLead];
+      },
+      30.0));
+  const double stop_stamp = world::toSeconds(tick_stamps[69]) + 0.01;  // between ticks 70 and 71
+  command(vrm_msgs::ScenarioCommand::STOP, "", stop_stamp);
+  ASSERT_TRUE(waitFor(
+      [&] {
+        std::lock_guard<std::mutex> lock(mutex);
+        return last_frame >= tick_stamps[89];
+      },
+      30.0))
+      << "the burst's frames did not close";
+  std::lock_guard<std::mutex> lock(mutex);
+  const auto stop = std::find_if(commands_applied.begin(), commands_applied.end(), [&](const auto& applied) {
+    return applied.second == vrm_msgs::ScenarioCommand::STOP;
+  });
+  ASSERT_NE(stop, commands_applied.end()) << "the STOP was never applied";
+  EXPECT_NEAR(stop->first, world::toSeconds(tick_stamps[70]), 1e-6)
+      << "the STOP (stamped " << std::fixed << stop_stamp - base << " s after the LOAD) took effect in the frame at "
+      << stop->first - base << " s, not in the frame of its stamp (" << world::toSeconds(tick_stamps[70]) - base
+      << " s); the last queued tick is at " << world::toSeconds(tick_stamps[89]) - base << " s";
+}
+
 }  // namespace
 }  // namespace vrm_sim
 
 int main(int argc, char** argv) {
   testing::InitGoogleTest(&argc, argv);
   ros::init(argc, argv, "test_scenario");
+  ros::NodeHandle nh;  // keeps the node's connections up between the tests
   return RUN_ALL_TESTS();
 }
