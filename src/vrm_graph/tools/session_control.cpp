@@ -130,9 +130,10 @@ class SessionControl {
         send(vrm_msgs::ScenarioCommand::STOP, end, reason);
       }
     }
-    // The tail counts from where the session ended. A STOP takes effect in the first frame the simulation's mediator
-    // closes after the STOP arrives; on a simulation slower than its inputs (a loaded or sanitizer-built machine)
-    // that frame is later than the STOP's stamp, and a recording closed `tail` after the stamp would end before it.
+    // The tail counts from where the session ended. A STOP takes effect in the frame of its stamp, or in the first
+    // frame the simulation's mediator closes after the STOP arrives if that is later (a STOP sent late: a console's,
+    // or one delayed on a loaded or sanitizer-built machine), and a recording closed `tail` after the stamp would end
+    // before it.
     const bool ended = !ended_at_.isZero();
     // A simulation that lags its inputs applies the STOP that much later (stop_lag_), so the grace grows by it.
     const ros::Duration grace = tail_ + kStopGrace + stop_lag_;
@@ -290,8 +291,9 @@ class SessionControl {
     if (command == vrm_msgs::ScenarioCommand::STOP) {
       stop_stamp_ = stamp;
       stop_reason_ = argument;
-      // The devices stamp their inputs with the present; whatever they published up to now waits in the simulation's
-      // queue ahead of this STOP, so it takes effect about this much input time after the newest simulated frame.
+      // The devices stamp their inputs with the present. The STOP does not queue behind their inputs (scenario_manager
+      // takes commands on a queue of their own), but its frame closes only once the simulation has applied the inputs
+      // up to its stamp: a simulation this far behind the present applies it about this much later.
       stop_lag_ = std::max(ros::Duration(0.0), ros::Time::now() - newest_);
     }
     auto message = boost::make_shared<vrm_msgs::ScenarioCommand>();
