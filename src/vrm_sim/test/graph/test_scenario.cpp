@@ -9,6 +9,7 @@
 #include <fstream>
 #include <map>
 #include <mutex>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -169,15 +170,15 @@ TEST(ScenarioGraph, LoadStartPlayFinishScore) {
 
 // A command must not wait behind the device inputs queued ahead of it. On a simulation slower than its inputs (a
 // loaded or sanitizer-built machine) those queues hold seconds of input; a STOP that waited for them all took effect
-// 12 s after its stamp under ASan and the recording ended before it. Here 90 ticks of input arrive at once, faster than
-// the simulation closes their frames, then a STOP stamped between ticks 70 and 71: it takes effect in frame 71, the
-// frame its stamp belongs to, not in one of the frames after the queued inputs (frame 90).
+// 12 s after its stamp under ASan and the recording ended before it. Here ticks 6..90 of input arrive at once, faster
+// than the simulation closes their frames, then a STOP stamped between ticks 70 and 71: it takes effect in frame 71,
+// the frame its stamp belongs to, not in one of the frames after the queued inputs (frame 90).
 TEST(ScenarioGraph, ACommandTakesEffectAtItsStampThoughInputsQueueAheadOfIt) {
   ros::NodeHandle nh;
   std::mutex mutex;
   std::string scenario;
   std::uint8_t state = 255;
-  std::vector<std::pair<double, std::uint8_t>> commands_applied;  // (frame stamp, command)
+  std::optional<double> stop_frame;  // stamp of the input frame that applied the STOP
   world::Stamp last_frame = -1;
   ros::Subscriber status_subscriber = nh.subscribe<vrm_msgs::ScenarioStatus>(
       "scenario_status", 50, [&](const vrm_msgs::ScenarioStatus::ConstPtr& status) {
@@ -189,7 +190,8 @@ TEST(ScenarioGraph, ACommandTakesEffectAtItsStampThoughInputsQueueAheadOfIt) {
       nh.subscribe<vrm_msgs::InputFrame>("input_frame", 500, [&](const vrm_msgs::InputFrame::ConstPtr& frame) {
         std::lock_guard<std::mutex> lock(mutex);
         for (const auto& command : frame->commands) {
-          commands_applied.emplace_back(frame->header.stamp.toSec(), command.command);
+          if (command.command == vrm_msgs::ScenarioCommand::STOP && !stop_frame)
+            stop_frame = frame->header.stamp.toSec();
         }
         last_frame = std::max(last_frame, toStamp(frame->header.stamp));
       });
@@ -226,18 +228,19 @@ TEST(ScenarioGraph, ACommandTakesEffectAtItsStampThoughInputsQueueAheadOfIt) {
       world::scriptedInputs(scene, 50.0, 1.8, world::fromSeconds(base + 0.02));
   std::map<world::Stamp, std::vector<world::InstrumentState>> ticks;
   for (const auto& input : inputs) ticks[input.stamp].push_back(input);
-  ASSERT_GE(ticks.size(), 90u);
+  constexpr std::size_t kLead = 5, kTicks = 90, kStopAfter = 70;
+  ASSERT_GE(ticks.size(), kTicks);
   ASSERT_LE(inputs.size(), 200u) << "more than scenario_manager's instrument queue holds";
   std::vector<world::Stamp> tick_stamps;
   for (const auto& tick : ticks) tick_stamps.push_back(tick.first);
-  // The first ticks alone, so that the START is applied and the scenario runs before the burst (a slot the script
-  // does not move holds a frame back for two later ones, then it is not waited for).
-  constexpr std::size_t kLead = 5;
-  for (std::size_t tick = 0; tick < kLead; ++tick) {
+  auto publish_tick = [&](std::size_t tick) {
     for (const auto& input : ticks.at(tick_stamps[tick])) {
       instruments.publish(boost::make_shared<vrm_msgs::InstrumentState>(toMsg(input)));
     }
-  }
+  };
+  // The first ticks alone, so that the START is applied and the scenario runs before the burst (a slot the script
+  // does not move holds a frame back for two later ones, then it is not waited for).
+  for (std::size_t tick = 0; tick < kLead; ++tick) publish_tick(tick);
   ASSERT_TRUE(waitFor(
       [&] {
         std::lock_guard<std::mutex> lock(mutex);
@@ -245,11 +248,7 @@ TEST(ScenarioGraph, ACommandTakesEffectAtItsStampThoughInputsQueueAheadOfIt) {
       },
       20.0))
       << "START not applied";
-  for (std::size_t tick = kLead; tick < 90; ++tick) {
-    for (const auto& input : ticks.at(tick_stamps[tick])) {
-      instruments.publish(boost::make_shared<vrm_msgs::InstrumentState>(toMsg(input)));
-    }
-  }
+  for (std::size_t tick = kLead; tick < kTicks; ++tick) publish_tick(tick);
   // Sent once the burst's first frame closed, so the burst is in the manager's queues (from another connection the
   // STOP could otherwise arrive among its first messages) while most of its frames are still to come.
   ASSERT_TRUE(waitFor(
@@ -258,24 +257,22 @@ TEST(ScenarioGraph, ACommandTakesEffectAtItsStampThoughInputsQueueAheadOfIt) {
         return last_frame >= tick_stamps[kLead];
       },
       30.0));
-  const double stop_stamp = world::toSeconds(tick_stamps[69]) + 0.01;  // between ticks 70 and 71
+  const double stop_stamp = world::toSeconds(tick_stamps[kStopAfter - 1]) + 0.01;  // between ticks 70 and 71
   command(vrm_msgs::ScenarioCommand::STOP, "", stop_stamp);
   ASSERT_TRUE(waitFor(
       [&] {
         std::lock_guard<std::mutex> lock(mutex);
-        return last_frame >= tick_stamps[89];
+        return last_frame >= tick_stamps[kTicks - 1];
       },
       30.0))
       << "the burst's frames did not close";
   std::lock_guard<std::mutex> lock(mutex);
-  const auto stop = std::find_if(commands_applied.begin(), commands_applied.end(), [&](const auto& applied) {
-    return applied.second == vrm_msgs::ScenarioCommand::STOP;
-  });
-  ASSERT_NE(stop, commands_applied.end()) << "the STOP was never applied";
-  EXPECT_NEAR(stop->first, world::toSeconds(tick_stamps[70]), 1e-6)
+  ASSERT_TRUE(stop_frame) << "the STOP was never applied";
+  const double own_frame = world::toSeconds(tick_stamps[kStopAfter]);
+  EXPECT_NEAR(*stop_frame, own_frame, 1e-6)
       << "the STOP (stamped " << std::fixed << stop_stamp - base << " s after the LOAD) took effect in the frame at "
-      << stop->first - base << " s, not in the frame of its stamp (" << world::toSeconds(tick_stamps[70]) - base
-      << " s); the last queued tick is at " << world::toSeconds(tick_stamps[89]) - base << " s";
+      << *stop_frame - base << " s, not in the frame of its stamp (" << own_frame - base
+      << " s); the last queued tick is at " << world::toSeconds(tick_stamps[kTicks - 1]) - base << " s";
 }
 
 }  // namespace
