@@ -54,6 +54,7 @@
 // membrane: its integrator and tissue_stable_<name> (finite and bounded, issue 40).
 #include <diagnostic_msgs/DiagnosticArray.h>
 #include <nodelet/nodelet.h>
+#include <ros/callback_queue.h>
 #include <ros/master.h>
 #include <ros/ros.h>
 #include <unistd.h>
@@ -186,13 +187,20 @@ class ScenarioManager : public nodelet::Nodelet {
       eye_subscriber_ = nh.subscribe("eye_state", 100, &ScenarioManager::onEyeState, this);
       instrument_subscriber_ = nh.subscribe("instrument_state", 200, &ScenarioManager::onInstrumentState, this);
       pedal_subscriber_ = nh.subscribe("pedals", 100, &ScenarioManager::onPedals, this);
-      // Commands take the nodelet's multi-threaded queue, so they never wait behind the device inputs. Those share
+      // Commands take a queue and thread of their own, so they never wait behind the device inputs. Those share
       // the single-threaded queue, one callback per queued message, up to the deep queues above: a command queued
       // behind them on a simulation slower than its inputs waited for all of them, ~400 callbacks, each a frame
       // (12 s under ASan, while the inputs' own lag stayed at 2 s: full device queues drop their oldest). The
       // mediator orders a command by its stamp, not by its arrival, so only its delay changes.
-      command_subscriber_ =
-          getMTNodeHandle().subscribe("scenario_command", 50, &ScenarioManager::onScenarioCommand, this);
+      // Not the nodelet's multi-threaded queue: nodelet 1.10 frees both of a nodelet's queues at unload, and when a
+      // frame is still running on a worker then, this nodelet is destroyed on that worker afterwards, and a
+      // subscriber on the other queue unsubscribes from freed memory (ASan: SEGV in Subscription::removeCallback
+      // under ~ScenarioManager at a graph's shutdown). This queue lives as long as the nodelet.
+      ros::NodeHandle command_nh(nh);
+      command_nh.setCallbackQueue(&command_queue_);
+      command_subscriber_ = command_nh.subscribe("scenario_command", 50, &ScenarioManager::onScenarioCommand, this);
+      command_spinner_ = std::make_unique<ros::AsyncSpinner>(1, &command_queue_);
+      command_spinner_->start();
     }
     diagnostics_publisher_ = nh.advertise<diagnostic_msgs::DiagnosticArray>("/diagnostics", 5);
     diagnostics_timer_ = nh.createWallTimer(ros::WallDuration(1.0), &ScenarioManager::publishDiagnostics, this);
@@ -204,6 +212,9 @@ class ScenarioManager : public nodelet::Nodelet {
 
   // A session that never ended (Ctrl-C, a crash of another node) still leaves its result.
   ~ScenarioManager() override {
+    // The command thread first (it takes mutex_), then its subscription, while its queue still exists.
+    if (command_spinner_) command_spinner_->stop();
+    command_subscriber_.shutdown();
     std::lock_guard<std::mutex> lock(mutex_);
     if (session_) writeResult();
   }
@@ -887,7 +898,9 @@ class ScenarioManager : public nodelet::Nodelet {
   ros::Publisher state_publisher_, timing_publisher_, report_publisher_, marker_publisher_, status_publisher_,
       score_publisher_, result_publisher_;
   std::string user_, station_;
+  ros::CallbackQueue command_queue_;  // before the subscribers: destroyed after them
   ros::Subscriber eye_subscriber_, instrument_subscriber_, pedal_subscriber_, command_subscriber_, frame_subscriber_;
+  std::unique_ptr<ros::AsyncSpinner> command_spinner_;
   std::string input_mode_;
   std::uint64_t last_recorded_sequence_ = 0, sequence_gaps_ = 0;
   // This node's start (wall clock, ns): tells the frames of a restarted node from the crashed one's in a bag.

@@ -1,8 +1,14 @@
 // scenario_manager in a manager: LOAD -> START -> the scripted expert's instrument states -> FINISHED, the Score
 // message and the result file checked; refused commands (START while running, LOAD of a broken YAML) say why in the
-// status and leave the running scenario alone.
+// status and leave the running scenario alone. A scenario_manager unloaded while its frames run leaves the manager
+// running.
 #include <gtest/gtest.h>
+#include <nodelet/NodeletList.h>
+#include <nodelet/NodeletLoad.h>
+#include <nodelet/NodeletUnload.h>
+#include <ros/master.h>
 #include <ros/ros.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cstdio>
@@ -273,6 +279,83 @@ TEST(ScenarioGraph, ACommandTakesEffectAtItsStampThoughInputsQueueAheadOfIt) {
       << "the STOP (stamped " << std::fixed << stop_stamp - base << " s after the LOAD) took effect in the frame at "
       << *stop_frame - base << " s, not in the frame of its stamp (" << own_frame - base
       << " s); the last queued tick is at " << world::toSeconds(tick_stamps[kTicks - 1]) - base << " s";
+}
+
+// The manager's XML-RPC URI: a manager that died and was started again by supervised_manager has another one.
+std::string managerUri() {
+  XmlRpc::XmlRpcValue args, result, payload;
+  args[0] = ros::this_node::getName();
+  args[1] = "/vrm_manager";
+  if (!ros::master::execute("lookupNode", args, result, payload, false)) return "";
+  return static_cast<std::string>(payload);
+}
+
+// A second scenario_manager, in a namespace of its own, is flooded with inputs and unloaded while its frames run on a
+// worker thread. nodelet 1.10 frees a nodelet's two callback queues at unload; the nodelet itself dies on the worker
+// after that frame, so a handle on the queue the worker is not running unregisters from freed memory. With the
+// commands on the nodelet's multi-threaded queue this killed the manager at a graph's shutdown under ASan (a SEGV
+// in Subscription::removeCallback, 2026-12-03). The same manager must answer after each round.
+TEST(ScenarioGraph, UnloadedWhileItsFramesRunLeavesTheManagerRunning) {
+  ros::NodeHandle nh;
+  const std::string name = "/unload_probe/scenario_manager";
+  char result_path[] = "/tmp/unload_probe_result_XXXXXX";
+  const int fd = mkstemp(result_path);
+  ASSERT_GE(fd, 0);
+  close(fd);
+  nh.setParam(name + "/scene", std::string("membrane_peeling"));
+  nh.setParam(name + "/auto_start", true);
+  nh.setParam(name + "/result_file", std::string(result_path));
+  std::mutex mutex;
+  std::size_t frames = 0;
+  ros::Subscriber frame_subscriber =
+      nh.subscribe<vrm_msgs::InputFrame>("/unload_probe/input_frame", 500, [&](const vrm_msgs::InputFrame::ConstPtr&) {
+        std::lock_guard<std::mutex> lock(mutex);
+        ++frames;
+      });
+  ros::Publisher instruments = nh.advertise<vrm_msgs::InstrumentState>("/unload_probe/instrument_state", 1000);
+  ros::AsyncSpinner spinner(1);
+  spinner.start();
+  ASSERT_TRUE(ros::service::waitForService("/vrm_manager/load_nodelet", ros::Duration(30.0)));
+  const std::string uri = managerUri();
+  ASSERT_FALSE(uri.empty());
+
+  const scene::SceneDescription scene =
+      scene::withScript(scene::loadScene(scene::shippedScenePath("membrane_peeling")), "expert");
+  const std::vector<world::InstrumentState> inputs =
+      world::scriptedInputs(scene, 50.0, 1.5, world::fromSeconds(1000.0));
+  ASSERT_LE(inputs.size(), 200u) << "more than scenario_manager's instrument queue holds";
+  constexpr int kRounds = 3;
+  for (int round = 0; round < kRounds; ++round) {
+    SCOPED_TRACE("round " + std::to_string(round));
+    nodelet::NodeletLoad load;
+    load.request.name = name;
+    load.request.type = "vrm_sim/scenario_manager";
+    ASSERT_TRUE(ros::service::call("/vrm_manager/load_nodelet", load) && load.response.success);
+    ASSERT_TRUE(
+        waitFor([&] { return instruments.getNumSubscribers() > 0 && frame_subscriber.getNumPublishers() > 0; }, 30.0));
+    {
+      std::lock_guard<std::mutex> lock(mutex);
+      frames = 0;
+    }
+    for (const auto& input : inputs) instruments.publish(boost::make_shared<vrm_msgs::InstrumentState>(toMsg(input)));
+    ASSERT_TRUE(waitFor(
+        [&] {
+          std::lock_guard<std::mutex> lock(mutex);
+          return frames >= 3;
+        },
+        30.0))
+        << "the probe ran no frames";
+    nodelet::NodeletUnload unload;
+    unload.request.name = name;
+    ASSERT_TRUE(ros::service::call("/vrm_manager/unload_nodelet", unload) && unload.response.success);
+    // Gone once its frame in progress ended and it was destroyed (or the manager died with it).
+    ASSERT_TRUE(waitFor([&] { return frame_subscriber.getNumPublishers() == 0; }, 30.0));
+    nodelet::NodeletList list;
+    ASSERT_TRUE(ros::service::call("/vrm_manager/list", list)) << "the manager is gone";
+    EXPECT_EQ(managerUri(), uri) << "the manager died and was started again";
+    EXPECT_EQ(std::count(list.response.nodelets.begin(), list.response.nodelets.end(), name), 0);
+  }
+  std::remove(result_path);
 }
 
 }  // namespace
