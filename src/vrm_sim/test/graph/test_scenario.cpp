@@ -35,6 +35,8 @@ namespace vrm_sim {
 namespace {
 
 using testing::waitFor;
+using testing::waitForPublishers;
+using testing::waitForSubscribers;
 
 // The stamp after the last input LoadStartPlayFinishScore published (the next test goes on from there, in the same
 // graph).
@@ -331,8 +333,7 @@ TEST(ScenarioGraph, UnloadedWhileItsFramesRunLeavesTheManagerRunning) {
     load.request.name = name;
     load.request.type = "vrm_sim/scenario_manager";
     ASSERT_TRUE(ros::service::call("/vrm_manager/load_nodelet", load) && load.response.success);
-    ASSERT_TRUE(
-        waitFor([&] { return instruments.getNumSubscribers() > 0 && frame_subscriber.getNumPublishers() > 0; }, 30.0));
+    ASSERT_TRUE(waitForSubscribers(instruments, 30.0) && waitForPublishers(frame_subscriber, 30.0));
     {
       std::lock_guard<std::mutex> lock(mutex);
       frames = 0;
