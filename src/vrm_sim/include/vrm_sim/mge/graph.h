@@ -10,6 +10,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <memory>
+#include <stdexcept>
 #include <string>
 #include <type_traits>
 #include <typeindex>
@@ -114,6 +115,23 @@ class Graph {
     return *element;
   }
 
+  // As create(), but with a given id instead of the next one: restoring a snapshot (a checkpoint) needs the elements'
+  // ids back, since removal orders and id-keyed bookkeeping follow them. The caller guarantees that no live element
+  // has that id; setNextId() then keeps later ids above it.
+  template <typename T, typename... Args>
+  T& createWithId(std::uint64_t id, Args&&... args) {
+    static_assert(std::is_base_of<Element, T>::value, "MGE elements derive from vrm_sim::mge::Element");
+    if (id == 0) throw std::invalid_argument("MGE element id 0 is not an id");
+    Pool<T>& pool = poolFor<T>();
+    T* element = pool.create(std::forward<Args>(args)...);
+    registerElement(*element, pool, id);
+    return *element;
+  }
+  // The id the next create() gives.
+  std::uint64_t nextId() const { return next_id_; }
+  // Throws std::invalid_argument unless `next_id` is above the id of every live element.
+  void setNextId(std::uint64_t next_id);
+
   // Removes every edge of `element` (and the matching reference edges in its neighbours), then destroys it.
   // Cost O(Σ over its neighbours of their list length for the reference label) — small, except for hub elements.
   void destroy(Element& element);
@@ -157,7 +175,8 @@ class Graph {
     return static_cast<Pool<T>&>(*pool);
   }
 
-  void registerElement(Element& element, PoolBase& pool);
+  // id 0: the next id.
+  void registerElement(Element& element, PoolBase& pool, std::uint64_t id = 0);
   void requireMember(const Element& element) const;
   PoolBase& poolOf(const Element& element) const;
 

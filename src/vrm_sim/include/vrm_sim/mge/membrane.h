@@ -47,6 +47,40 @@ struct CutOptions {
   bool remove_orphan_nodes = false;
 };
 
+// The membrane's whole state in slot order (issue 39 §1, a checkpoint's tissue part): every node, spring and triangle
+// with its id, its array values and its links, and the graph's next id. Restore() rebuilds a membrane whose slots,
+// ids, arrays and every neighbour list equal the snapshot's, so later cuts, tears and refinement (which pick and
+// remove elements by slot and by id) go on exactly as in the membrane it was taken from. What it leaves out is not
+// semantic: the order of the label ranges inside an element's adjacency block, spare capacity, the arena.
+// Why this is enough: every list the simulation builds is in creation (= id) order — the tissue's element lists, a
+// node's springs and triangles, a spring's triangles — or positional (a spring's two ends, a triangle's corners, its
+// edge and bending springs), and removal keeps the order of the rest (doc/checkpoint_state_inventory.md §3).
+struct MembraneSnapshot {
+  std::uint64_t transform_id = 0, tissue_id = 0;
+  std::uint64_t next_id = 0;  // Graph::nextId() of the membrane's graph
+  // Per node slot.
+  std::vector<std::uint64_t> node_ids;
+  std::vector<Eigen::Vector3d> positions, velocities;
+  std::vector<double> masses;
+  std::vector<std::uint8_t> fixed;
+  // Per spring slot.
+  std::vector<std::uint64_t> spring_ids;
+  std::vector<std::array<std::uint32_t, 2>> spring_ends;  // node slots, in the spring's order
+  std::vector<double> rest_lengths, stiffnesses;
+  std::vector<std::uint8_t> bending;
+  // Per triangle slot; its links are triangle_links[triangle_link_offsets[t] .. triangle_link_offsets[t + 1]): the
+  // spring slots of its edge springs (the first triangle_edge_springs[t]), then of its bending springs, in list order.
+  std::vector<std::uint64_t> triangle_ids;
+  std::vector<std::array<std::uint32_t, 3>> triangle_corners;  // node slots
+  std::vector<std::uint8_t> triangle_edge_springs;
+  std::vector<std::uint32_t> triangle_link_offsets;  // triangle count + 1 entries
+  std::vector<std::uint32_t> triangle_links;
+
+  std::size_t nodeCount() const { return node_ids.size(); }
+  std::size_t springCount() const { return spring_ids.size(); }
+  std::size_t triangleCount() const { return triangle_ids.size(); }
+};
+
 class Membrane {
  public:
   // An empty membrane in its own graph.
@@ -115,6 +149,16 @@ class Membrane {
   // entries are allowed.
   RemovalSummary removeElements(const std::vector<Triangle*>& triangles, const std::vector<Spring*>& springs,
                                 const std::vector<Node*>& nodes, bool remove_isolated_nodes = true);
+
+  // Fills `snapshot` with this membrane's state (its vectors keep their capacity, so a periodic checkpoint allocates
+  // nothing once they have their size). O(elements), no graph change. Reads the arrays: in kDual mode, sync() first.
+  void takeSnapshot(MembraneSnapshot& snapshot) const;
+  // Replaces every node, spring and triangle by the snapshot's, with their ids and slots, and sets the graph's next
+  // id. The membrane's transform and tissue element must be the snapshot's (same ids): a snapshot is restored into
+  // a membrane built like the one it was taken from (the World rebuilds its scene first). Throws
+  // std::invalid_argument naming the first inconsistency (sizes, slots out of range, repeated or colliding ids, a
+  // next id not above them, non-finite or negative values) before anything is changed.
+  void restore(const MembraneSnapshot& snapshot);
 
   // Graph invariants plus: tissue lists and arrays describe the same elements; every array entry belongs to the
   // element whose connector holds that slot; spring/triangle node-slot entries equal the slots of their nodes.

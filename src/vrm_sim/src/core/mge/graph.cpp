@@ -215,8 +215,8 @@ PoolBase& Graph::poolOf(const Element& element) const {
   return *found->second;
 }
 
-void Graph::registerElement(Element& element, PoolBase& pool) {
-  element.id_ = next_id_++;
+void Graph::registerElement(Element& element, PoolBase& pool, std::uint64_t id) {
+  element.id_ = id != 0 ? id : next_id_++;
   element.graph_index_ = static_cast<std::uint32_t>(elements_.size());
   try {
     elements_.push_back(&element);
@@ -224,6 +224,16 @@ void Graph::registerElement(Element& element, PoolBase& pool) {
     pool.destroy(&element);
     throw;
   }
+}
+
+void Graph::setNextId(std::uint64_t next_id) {
+  for (const Element* element : elements_) {
+    if (element->id_ >= next_id) {
+      throw std::invalid_argument("MGE next id " + std::to_string(next_id) + " is not above the live element id " +
+                                  std::to_string(element->id_));
+    }
+  }
+  next_id_ = next_id;
 }
 
 void Graph::requireMember(const Element& element) const {
