@@ -18,6 +18,7 @@
 #include "vrm_sim/mge/elements.h"
 #include "vrm_sim/mge/graph.h"
 #include "vrm_sim/mge/list_access.h"
+#include "vrm_sim/state/state_archive.h"
 
 namespace vrm_sim {
 namespace mge {
@@ -79,6 +80,13 @@ struct MembraneSnapshot {
   std::size_t nodeCount() const { return node_ids.size(); }
   std::size_t springCount() const { return spring_ids.size(); }
   std::size_t triangleCount() const { return triangle_ids.size(); }
+
+  void transferState(StateArchive& archive) {
+    archive.section("membrane");
+    archive(transform_id)(tissue_id)(next_id)(node_ids)(positions)(velocities)(masses)(fixed)(spring_ids)(spring_ends);
+    archive(rest_lengths)(stiffnesses)(bending)(triangle_ids)(triangle_corners)(triangle_edge_springs);
+    archive(triangle_link_offsets)(triangle_links);
+  }
 };
 
 class Membrane {
@@ -157,7 +165,9 @@ class Membrane {
   // id. The membrane's transform and tissue element must be the snapshot's (same ids): a snapshot is restored into
   // a membrane built like the one it was taken from (the World rebuilds its scene first). Throws
   // std::invalid_argument naming the first inconsistency (sizes, slots out of range, repeated or colliding ids, a
-  // next id not above them, non-finite or negative values) before anything is changed.
+  // next id not above them, non-finite or negative values) before anything is changed. The tissue element is made
+  // anew (same id; detaching 10^5 nodes from the old hub one by one would cost O(n^2)): views bound to tissue() —
+  // a ListAccess, NeighbourSlots — must be bound again.
   void restore(const MembraneSnapshot& snapshot);
 
   // Graph invariants plus: tissue lists and arrays describe the same elements; every array entry belongs to the

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "vrm_sim/tissue/system.h"
+#include "vrm_sim/state/state_archive.h"
 
 namespace vrm_sim {
 namespace tissue {
@@ -19,6 +20,7 @@ struct NodeDeformation {
   Eigen::Vector3d deformation = Eigen::Vector3d::Zero();          // m; zero for a node inside the shell only
   Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();              // n_i of eq. 5.12: from P inside the tip to the node
   Eigen::Vector3d instrument_velocity = Eigen::Vector3d::Zero();  // v_P, m/s
+  void transferState(StateArchive& archive) { archive(node)(deformation)(normal)(instrument_velocity); }
 };
 
 // Segment a–b swept by a sphere of `radius` (a == b: a sphere).

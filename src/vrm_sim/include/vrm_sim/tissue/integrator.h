@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "vrm_scene/registry.h"
+#include "vrm_sim/state/state_archive.h"
 #include "vrm_sim/tissue/system.h"
 
 namespace vrm_sim {
@@ -41,6 +42,10 @@ class Integrator {
   // response and rendering, not carried into the next step (so the strain limit need not make them agree with its
   // corrections).
   virtual bool startsFromRest() const { return false; }
+  // Checkpoints (issue 39 §1): what the integrator carries from one step into the next, for the membrane `system`
+  // it will step next. Most carry nothing (their buffers are rewritten every step); implicit Euler keeps its warm
+  // start.
+  virtual void transferState(StateArchive& /*archive*/, const SystemView& /*system*/) {}
 };
 
 using IntegratorFactory = std::unique_ptr<Integrator> (*)(const IntegratorOptions& options);

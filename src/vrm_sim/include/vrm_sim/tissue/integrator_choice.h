@@ -55,6 +55,9 @@ struct IntegratorChoice {
   int safe_substeps = 0;
   double implicit_cost = 0.0;  // the model's implicit Euler step, in explicit substeps
   std::string reason;          // one line for the log: why this integrator
+  void transferState(StateArchive& archive) {
+    archive(integrator)(substeps)(bound)(probe)(safe_substeps)(implicit_cost)(reason);
+  }
 };
 
 // The explicit stability bound per node, generalised from eq. 5.6 to damping: a node of mass m_i whose stiffest

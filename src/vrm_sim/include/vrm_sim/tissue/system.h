@@ -10,6 +10,8 @@
 #include <utility>
 #include <vector>
 
+#include "vrm_sim/state/state_archive.h"
+
 namespace vrm_sim {
 namespace mge {
 class Membrane;
@@ -43,6 +45,7 @@ struct Anchor {
   Eigen::Vector3d point = Eigen::Vector3d::Zero();
   double stiffness = 0.0;  // N/m
   double overloaded_for = 0.0;  // s it has carried more than the break force (TissueConfig::adhesion_release_time)
+  void transferState(StateArchive& archive) { archive(node)(point)(stiffness)(overloaded_for); }
 };
 
 struct ForceParameters {

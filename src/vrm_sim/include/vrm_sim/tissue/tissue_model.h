@@ -13,6 +13,7 @@
 #include <string>
 
 #include "vrm_scene/registry.h"
+#include "vrm_sim/state/state_archive.h"
 
 namespace vrm_sim {
 namespace mge {
@@ -46,6 +47,10 @@ class TissueModel {
   virtual bool step(TissueSimulator& simulator) = 0;
   // Watchdog: how many times the step is currently halved (0 for a model without a watchdog).
   virtual int fallbackLevel() const { return 0; }
+  // Checkpoints (issue 39 §1): the model's state between steps, after the simulator's own (the membrane and the
+  // adjacency are restored). A model that cannot be restored exactly refuses (StateArchive::fail), so its sessions
+  // restore from their journal instead.
+  virtual void transferState(StateArchive& archive, TissueSimulator& simulator);
 };
 
 // Builds a model for `membrane` (taken as its rest state where the model has one). Throws std::invalid_argument for

@@ -155,6 +155,10 @@ struct InstrumentInput {
   bool holds = false;
   Eigen::Vector3d hold_point = Eigen::Vector3d::Zero();
   double hold_radius = 0.0;
+  void transferState(StateArchive& archive) {
+    archive(pose)(radius)(length)(collides)(can_grasp)(jaw_angle)(jaw_length)(jaws)(jaw_radius)(cuts)(cut_radius);
+    archive(cut_offset)(cut_length)(holds)(hold_point)(hold_radius);
+  }
 };
 
 struct FrameReport {
@@ -176,6 +180,10 @@ struct FrameReport {
 struct TissueWork {
   std::uint64_t integrations = 0, implicit_integrations = 0, cg_iterations = 0;
   std::uint64_t provot_passes = 0, bound_scans = 0, bound_sweeps = 0, region_springs = 0, bfs_sorts = 0;
+  void transferState(StateArchive& archive) {
+    archive(integrations)(implicit_integrations)(cg_iterations)(provot_passes)(bound_scans)(bound_sweeps);
+    archive(region_springs)(bfs_sorts);
+  }
 };
 
 struct SimulatorStatistics {
@@ -205,6 +213,12 @@ struct SimulatorStatistics {
   std::uint64_t adhesion_tears = 0;      // of those, the ones that tore the tissue beneath (adhesion_tear_force)
   double max_adhesion_force = 0.0;       // N: the largest pull on an adhesion spring after any step
   TissueWork work;
+  void transferState(StateArchive& archive) {
+    archive(steps)(fallbacks)(implicit_fallbacks)(unrecovered)(max_strain)(strain_bound)(bound_violations);
+    archive(bound_projections)(slipped_nodes)(non_finite)(too_fast)(energy_growth)(over_bound)(max_energy_excess);
+    archive(topology_changes)(cut_nodes)(removed_nodes)(torn_springs)(released_adhesions)(adhesion_tears);
+    archive(max_adhesion_force)(work);
+  }
 };
 
 using Clock = std::function<double()>;  // seconds, monotonic
@@ -230,6 +244,12 @@ class TissueSimulator {
 
   // Must be called after a topology change of the membrane (cut, tear, refinement); releases all grasps.
   void onTopologyChanged();
+  // Checkpoints (issue 39 §1): saves or loads the membrane (every slot and id, MembraneSnapshot) and everything the
+  // simulator, its model and its integrator carry from one frame into the next, at a frame boundary. Loading into a
+  // simulator built from the same scene makes the following frames equal the original's bit for bit; what is derived
+  // (constraint flags, adjacency, BFS orders) is rebuilt without the side effects of onTopologyChanged(). Throws
+  // StateError for local refinement (not restorable yet) and for bytes that do not fit this membrane.
+  void transferState(StateArchive& archive);
   void addInteractionPoint(std::uint32_t node);
   void releaseAll();
   // Stable = finite and bounded (issue 40): no step the watchdog could not recover (the state was rolled back) and no
@@ -310,6 +330,10 @@ class TissueSimulator {
   // change at once, rebuildConstraints() follows after the step.
   void slipGraspedNode(std::uint32_t node);
   void finishRemoval(const std::vector<std::uint64_t>& grasped_ids);
+  // The constraint flags, the grasped-node list and the free mass from fixed, anchored_ and grasped_.
+  void updateConstraintFlags();
+  // After a checkpoint was loaded: everything derived from the loaded state, nothing else.
+  void restoreDerived(StateArchive& archive);
   std::vector<std::uint64_t> graspedNodeIds() const;
 
   mge::Membrane* membrane_;
@@ -335,6 +359,7 @@ class TissueSimulator {
     std::vector<std::uint32_t> nodes;
     std::vector<Eigen::Vector3d> local;  // in the instrument frame at grasp time
     bool active = false;
+    void transferState(StateArchive& archive) { archive(nodes)(local)(active); }
   };
   std::vector<Grasp> grasps_;
   std::vector<Eigen::Vector3d> adhesion_tear_points_;

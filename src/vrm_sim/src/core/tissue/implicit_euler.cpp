@@ -657,6 +657,21 @@ class ImplicitEuler : public Integrator {
   int lastIterations() const override { return iterations_; }
   double lastResidual() const override { return residual_; }
 
+  // The warm start: the last solve's Δv and dt, if the next step will find the structure it was built for (no
+  // topology change since); else nothing, and both the original and the restored solver start cold.
+  void transferState(StateArchive& archive, const SystemView& system) override {
+    bool warm = archive.saving() && previous_dt_ > 0.0 && structure_.matches(system);
+    archive(warm);
+    if (!warm) {
+      if (archive.loading()) previous_dt_ = 0.0;
+      return;
+    }
+    if (archive.loading()) resize(system);
+    const std::size_t expected = dv_.size();
+    archive(previous_dt_)(dv_);
+    if (archive.loading() && dv_.size() != expected) archive.fail("the implicit warm start is for another membrane size");
+  }
+
   void step(const SystemView& system, const ForceModel& forces, double dt) override {
     const bool topology_changed = !structure_.matches(system);
     if (topology_changed) resize(system);

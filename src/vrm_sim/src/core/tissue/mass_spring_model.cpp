@@ -33,6 +33,7 @@ class MassSpringModel : public TissueModel {
   void onTopologyChanged(TissueSimulator& simulator) override;
   bool step(TissueSimulator& simulator) override;
   int fallbackLevel() const override { return fallback_level_; }
+  void transferState(StateArchive& archive, TissueSimulator& simulator) override;
 
  private:
   struct Energy {
@@ -131,6 +132,28 @@ class MassSpringModel : public TissueModel {
 
 std::unique_ptr<TissueModel> makeMassSpringModel(mge::Membrane& /*membrane*/, const TissueConfig& config) {
   return std::make_unique<MassSpringModel>(config);
+}
+
+// The watchdog's level and hold, the BFS orders' keys (sorted again: a sort is a function of its seeds, so the next
+// step reuses the order as the original did) and the fallback integrator's warm start.
+void MassSpringModel::transferState(StateArchive& archive, TissueSimulator& s) {
+  archive(fallback_level_)(hold_remaining_)(pinned_sorted_seeds_)(pinned_sorted_)(driver_sorted_seeds_)(driver_sorted_);
+  if (archive.loading()) {
+    const SystemView system = s.view();
+    for (const auto* seeds : {&pinned_sorted_seeds_, &driver_sorted_seeds_}) {
+      for (std::uint32_t node : *seeds) {
+        if (node >= system.node_count) archive.fail("a bound projection seed beyond the nodes");
+      }
+    }
+    if (!std::isfinite(bound_)) {
+      pinned_sorted_ = driver_sorted_ = false;
+    } else {
+      if (pinned_sorted_) pinned_sorter_.sort(system, pinned_sorted_seeds_);
+      if (driver_sorted_) driver_sorter_.sort(system, driver_sorted_seeds_);
+    }
+  }
+  archive.section("implicit_fallback");
+  implicit_fallback_->transferState(archive, s.view());
 }
 
 void MassSpringModel::onTopologyChanged(TissueSimulator& s) {

@@ -1,6 +1,7 @@
 #include "vrm_sim/tissue/tissue_model.h"
 
 #include <limits>
+#include <string>
 
 #include "tissue_models_impl.h"
 
@@ -8,6 +9,10 @@ namespace vrm_sim {
 namespace tissue {
 
 double TissueModel::strainBound() const { return std::numeric_limits<double>::infinity(); }
+
+void TissueModel::transferState(StateArchive& archive, TissueSimulator& /*simulator*/) {
+  archive.fail(std::string("the ") + name() + " tissue model cannot be checkpointed (its session restores from the journal)");
+}
 
 const Registry<TissueModelFactory>& tissueModelRegistry() {
   static const Registry<TissueModelFactory> registry(

@@ -152,6 +152,11 @@ void TissueSimulator::onTopologyChanged() {
 }
 
 void TissueSimulator::rebuildConstraints() {
+  updateConstraintFlags();
+  if (auto_integrator_) chooseIntegratorNow();
+}
+
+void TissueSimulator::updateConstraintFlags() {
   const std::size_t n = membrane_->nodeCount();
   constrained_.resize(n);
   const std::uint8_t* fixed = membrane_->fixedFlags();
@@ -162,7 +167,6 @@ void TissueSimulator::rebuildConstraints() {
     if (grasped_[i]) grasped_nodes_.push_back(static_cast<std::uint32_t>(i));
     if (constrained_[i] == 0) free_mass_ += membrane_->masses()[i];
   }
-  if (auto_integrator_) chooseIntegratorNow();
 }
 
 void TissueSimulator::chooseIntegratorNow() {
@@ -490,6 +494,63 @@ double TissueSimulator::kineticEnergy() { return tissue::kineticEnergy(view()); 
 double TissueSimulator::totalEnergy() {
   const SystemView system = view();
   return tissue::kineticEnergy(system) + forces_.potentialEnergy(system, system.positions);
+}
+
+void TissueSimulator::restoreDerived(StateArchive& archive) {
+  const std::size_t n = membrane_->nodeCount();
+  const std::size_t springs = membrane_->springCount();
+  auto per_node = [&](const auto& column, const char* what, bool may_be_empty) {
+    if (column.size() != n && !(may_be_empty && column.empty())) {
+      archive.fail(std::string(what) + " has " + std::to_string(column.size()) + " entries for " + std::to_string(n) +
+                   " nodes");
+    }
+  };
+  per_node(interaction_stamp_, "interaction_stamp", false);
+  per_node(wet_, "wet", true);
+  per_node(pressed_, "pressed", true);
+  per_node(frame_pressed_, "frame_pressed", true);
+  if (over_tear_.size() != springs) archive.fail("over_tear does not have one entry per spring");
+  for (std::uint32_t node : interaction_points_) {
+    if (node >= n) archive.fail("an interaction point beyond the nodes");
+  }
+  for (const NodeDeformation& deformation : external_deformations_) {
+    if (deformation.node >= n) archive.fail("a deformation of a node beyond the nodes");
+  }
+  grasped_.assign(n, 0);
+  for (const Grasp& grasp : grasps_) {
+    if (grasp.local.size() != grasp.nodes.size()) archive.fail("a grasp with offsets for other nodes");
+    for (std::uint32_t node : grasp.nodes) {
+      if (node >= n) archive.fail("a grasped node beyond the nodes");
+      grasped_[node] = 1;
+    }
+  }
+  anchored_.assign(n, 0);
+  for (const Anchor& anchor : forces_.anchors) {
+    if (anchor.node >= n) archive.fail("an adhesion anchor beyond the nodes");
+    anchored_[anchor.node] = 1;
+  }
+  updateConstraintFlags();
+  forces_.triangles = membrane_->triangleNodeSlots();
+  forces_.triangle_count = membrane_->triangleCount();
+  if (!forces_.external.empty()) forces_.external.assign(n, Eigen::Vector3d::Zero());
+  forces_.pressure_mask = nullptr;  // spreadFluid() rebuilds it from wet_ before the next step
+  touched_.assign(n, 0);
+  touched_epoch_ = 0;
+  // The membrane's restore made a new tissue element (same id): the view bound to the old one is made anew.
+  graph_adjacency_ = std::make_unique<GraphAdjacency>(*membrane_);
+  GraphAdjacency::NodeSprings& node_springs = graph_adjacency_->node_springs;
+  node_springs.refresh(membrane_->graph(), membrane_->nodeArrays(), membrane_->springArrays());
+  adjacency_.adopt(view(), node_springs.offsets(), node_springs.neighbourSlots());
+  sorter_.rebuild(view(), adjacency_);
+  // A BFS order is a function of its seeds: sorted again from the saved key, so the next step reuses it as the
+  // original did (and counts no sort the original did not).
+  if (sorted_valid_) {
+    for (std::uint32_t node : sorted_seeds_) {
+      if (node >= n) archive.fail("a BFS seed beyond the nodes");
+    }
+    sorter_.sort(view(), sorted_seeds_);
+  }
+  model_->onTopologyChanged(*this);
 }
 
 }  // namespace tissue
