@@ -5,7 +5,9 @@
 #include <unistd.h>
 
 #include <boost/make_shared.hpp>
+#include <algorithm>
 #include <cerrno>
+#include <cstdio>
 #include <cstring>
 #include <fstream>
 #include <iterator>
@@ -32,7 +34,8 @@ void putString(std::vector<std::uint8_t>& out, const std::string& text) {
 
 class Reader {
  public:
-  Reader(const std::string& path, const std::vector<std::uint8_t>& data) : path_(path), data_(data) {}
+  Reader(const std::string& path, const std::vector<std::uint8_t>& data, const char* kind = "session journal")
+      : path_(path), data_(data), kind_(kind) {}
   bool has(std::size_t bytes) const { return data_.size() - offset_ >= bytes; }
   std::uint32_t u32() {
     need(4, "a number");
@@ -57,7 +60,7 @@ class Reader {
     return text;
   }
   [[noreturn]] void fail(const std::string& what) const {
-    throw JournalError(path_ + ": not a readable session journal: " + what + " at byte " + std::to_string(offset_));
+    throw JournalError(path_ + ": not a readable " + kind_ + ": " + what + " at byte " + std::to_string(offset_));
   }
   void need(std::size_t bytes, const char* what) const {
     if (!has(bytes)) fail(std::string("the file ends inside ") + what);
@@ -67,6 +70,7 @@ class Reader {
  private:
   const std::string& path_;
   const std::vector<std::uint8_t>& data_;
+  std::string kind_;
 };
 
 std::string reason() { return std::strerror(errno); }
@@ -183,6 +187,96 @@ JournalContents readJournal(const std::string& path) {
   }
   contents.torn_bytes = data.size() - contents.valid_bytes;
   return contents;
+}
+
+}  // namespace bag
+}  // namespace vrm_sim
+
+// ---- checkpoints ----
+
+namespace vrm_sim {
+namespace bag {
+namespace {
+
+constexpr char kCheckpointMagic[4] = {'V', 'R', 'M', 'C'};
+constexpr std::uint32_t kCheckpointVersion = 1;
+
+std::uint64_t fnv1a(const std::string& bytes) {
+  std::uint64_t hash = 1469598103934665603ull;
+  for (unsigned char c : bytes) hash = (hash ^ c) * 1099511628211ull;
+  return hash;
+}
+
+}  // namespace
+
+std::string checkpointPath(const std::string& bag_path) {
+  const std::string journal = journalPath(bag_path);
+  return journal.substr(0, journal.size() - std::strlen(".journal")) + ".checkpoint";
+}
+
+void writeCheckpoint(const std::string& path, const Checkpoint& checkpoint) {
+  std::vector<std::uint8_t> head(kCheckpointMagic, kCheckpointMagic + 4);
+  putU32(head, kCheckpointVersion);
+  putString(head, checkpoint.header.scene);
+  putString(head, checkpoint.header.difficulty);
+  putU32(head, checkpoint.header.seed);
+  putU64(head, checkpoint.header.run);
+  putU64(head, checkpoint.sequence);
+  putU64(head, static_cast<std::uint64_t>(checkpoint.stamp));
+  putU64(head, checkpoint.state.size());
+  std::vector<std::uint8_t> tail;
+  putU64(tail, fnv1a(checkpoint.state));
+  const std::string temporary = path + ".tmp";
+  const int fd = ::open(temporary.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd < 0) throw JournalError("cannot write the checkpoint " + temporary + ": " + reason());
+  auto write_all = [&](const void* data, std::size_t size) {
+    const char* p = static_cast<const char*>(data);
+    while (size > 0) {
+      const ssize_t written = ::write(fd, p, size);
+      if (written < 0 && errno == EINTR) continue;
+      if (written <= 0) return false;
+      p += written;
+      size -= static_cast<std::size_t>(written);
+    }
+    return true;
+  };
+  const bool ok = write_all(head.data(), head.size()) && write_all(checkpoint.state.data(), checkpoint.state.size()) &&
+                  write_all(tail.data(), tail.size()) && ::fsync(fd) == 0;
+  const std::string why = ok ? "" : reason();
+  ::close(fd);
+  if (!ok || std::rename(temporary.c_str(), path.c_str()) != 0) {
+    const std::string message = "cannot write the checkpoint " + path + ": " + (ok ? reason() : why);
+    ::unlink(temporary.c_str());
+    throw JournalError(message);
+  }
+}
+
+Checkpoint readCheckpoint(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw JournalError("cannot read the checkpoint " + path + ": " + reason());
+  const std::vector<std::uint8_t> data((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  Reader reader(path, data, "session checkpoint");
+  reader.need(4, "the magic");
+  if (!std::equal(kCheckpointMagic, kCheckpointMagic + 4, data.begin())) {
+    throw JournalError(path + ": not a session checkpoint (no VRMC magic)");
+  }
+  reader.offset_ = 4;
+  if (const std::uint32_t version = reader.u32(); version != kCheckpointVersion) {
+    reader.fail("version " + std::to_string(version) + " (this build reads " + std::to_string(kCheckpointVersion) + ")");
+  }
+  Checkpoint checkpoint;
+  checkpoint.header.scene = reader.string();
+  checkpoint.header.difficulty = reader.string();
+  checkpoint.header.seed = reader.u32();
+  checkpoint.header.run = reader.u64();
+  checkpoint.sequence = reader.u64();
+  checkpoint.stamp = static_cast<std::int64_t>(reader.u64());
+  const std::uint64_t size = reader.u64();
+  if (!reader.has(size) || data.size() - reader.offset_ - size != 8) reader.fail("a state length that is not the file's");
+  checkpoint.state.assign(reinterpret_cast<const char*>(data.data() + reader.offset_), size);
+  reader.offset_ += size;
+  if (reader.u64() != fnv1a(checkpoint.state)) reader.fail("a state whose checksum does not match");
+  return checkpoint;
 }
 
 }  // namespace bag

@@ -729,6 +729,56 @@ TEST_F(WorkFolder, ASessionRestoredFromTheJournalMidwayGoesOnInTheStateOfTheUnin
   EXPECT_EQ(restored.world().statistics().frames, live.world().statistics().frames);
 }
 
+// ---- checkpoints beside the journal (issue 39 §1) ----
+
+TEST_F(WorkFolder, ACheckpointFileReadsBackWholeAndRefusesDamage) {
+  Checkpoint checkpoint;
+  checkpoint.header = JournalHeader{"membrane_peeling", "hard", 7, 3};
+  checkpoint.sequence = 1234;
+  checkpoint.stamp = 1800000000123456789;
+  checkpoint.state = std::string("state\0with zero bytes", 21) + std::string(5000, 'x');
+  const std::string path = checkpointPath((work_ / "session.bag").string());
+  EXPECT_EQ(path, (work_ / "session.checkpoint").string());
+  writeCheckpoint(path, checkpoint);
+  EXPECT_FALSE(fs::exists(path + ".tmp"));
+  const Checkpoint back = readCheckpoint(path);
+  EXPECT_EQ(back.header.scene, "membrane_peeling");
+  EXPECT_EQ(back.header.difficulty, "hard");
+  EXPECT_EQ(back.header.seed, 7u);
+  EXPECT_EQ(back.header.run, 3u);
+  EXPECT_EQ(back.sequence, 1234u);
+  EXPECT_EQ(back.stamp, 1800000000123456789);
+  EXPECT_EQ(back.state, checkpoint.state);
+
+  std::string bytes;
+  {
+    std::ifstream in(path, std::ios::binary);
+    bytes.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  }
+  auto write = [&path](const std::string& content) {
+    std::ofstream out(path, std::ios::binary | std::ios::trunc);
+    out << content;
+  };
+  write(bytes.substr(0, bytes.size() - 3));  // cut short
+  EXPECT_THROW(readCheckpoint(path), JournalError);
+  std::string flipped = bytes;
+  flipped[flipped.size() - 100] ^= 0x20;  // a bit of the state: the checksum says so
+  write(flipped);
+  try {
+    readCheckpoint(path);
+    ADD_FAILURE() << "accepted";
+  } catch (const JournalError& error) {
+    EXPECT_NE(std::string(error.what()).find("checksum"), std::string::npos) << error.what();
+  }
+  write("VRMJ" + bytes.substr(4));
+  EXPECT_THROW(readCheckpoint(path), JournalError);
+
+  // A write that fails (no such folder) leaves the previous checkpoint as it was.
+  write(bytes);
+  EXPECT_THROW(writeCheckpoint((work_ / "missing" / "session.checkpoint").string(), checkpoint), JournalError);
+  EXPECT_EQ(readCheckpoint(path).state, checkpoint.state);
+}
+
 }  // namespace
 }  // namespace bag
 }  // namespace vrm_sim

@@ -74,5 +74,24 @@ struct JournalContents {
 // a record that does not deserialise); a torn last record is not an error.
 JournalContents readJournal(const std::string& path);
 
+// A checkpoint beside the journal (issue 39 §1): the Session's state (world::Session::checkpoint) after the frame
+// `sequence`, so a restore replays only the journal's frames after it. Written whole to a temporary file and renamed
+// over the last one, so a crash while writing leaves the previous checkpoint; fsync'd like nothing else here (a
+// checkpoint that names a frame the journal lost in a machine crash is refused by the restore, which then replays the
+// whole journal).
+struct Checkpoint {
+  JournalHeader header;       // the journal's: a checkpoint of another session is not restored
+  std::uint64_t sequence = 0;  // the last input frame it includes
+  std::int64_t stamp = 0;      // that frame's stamp (ns): with the sequence, which frame of which journal
+  std::string state;           // world::Session::checkpoint()
+};
+
+// <bag without .bag>.checkpoint
+std::string checkpointPath(const std::string& bag_path);
+// Throws JournalError naming the path and the reason (the previous checkpoint then stays).
+void writeCheckpoint(const std::string& path, const Checkpoint& checkpoint);
+// Throws JournalError for a file that is not a whole checkpoint.
+Checkpoint readCheckpoint(const std::string& path);
+
 }  // namespace bag
 }  // namespace vrm_sim
