@@ -14,6 +14,8 @@
 #include <string>
 #include <vector>
 
+#include "vrm_sim/state/state_archive.h"
+
 namespace vrm_sim {
 namespace scenario {
 
@@ -41,6 +43,8 @@ struct GroupScore {
   std::string name;
   double points = 0.0;  // 0..100: weighted mean of the group's scored items
   double weight = 0.0;  // the sum of their weights
+
+  void transferState(StateArchive& archive) { archive(name)(points)(weight); }
 };
 
 // The groups with at least one scored item (weight > 0), in kFactorGroups order; a group none of whose items is
@@ -56,6 +60,8 @@ struct PenaltyEvent {
   std::string instrument;  // its type (scene instrument type name)
   Eigen::Vector3d position = Eigen::Vector3d::Constant(std::nan(""));  // m, eye frame: its tip (NaN: no instrument)
   double points = 0.0;  // drop of the total it caused (>= 0; 0 when the item was already at its worst)
+
+  void transferState(StateArchive& archive) { archive(time)(kind)(item)(slot)(instrument)(position)(points); }
 };
 
 // Turns the rises of penalty items between two score tables into events: a rise of a scored penalty item that leaves
@@ -75,11 +81,17 @@ class PenaltyLog {
   void record(const std::vector<ScoreItem>& before, const std::vector<ScoreItem>& after, double time,
               const InstrumentOf& instrument_of, std::vector<PenaltyEvent>& events, std::size_t& dropped);
   void reset() { open_.clear(); }
+  // The open episodes: a continuous item rising within kEpisodeGap after a checkpoint adds to the event before it.
+  void transferState(StateArchive& archive) {
+    archive.section("penalty_log");
+    archive(open_);
+  }
 
  private:
   struct Episode {
     std::size_t index;  // into the events (kMaxEvents: the event was dropped)
     double last_rise;   // s
+    void transferState(StateArchive& archive) { archive(index)(last_rise); }
   };
   // The latest event of each continuous item.
   std::map<std::string, Episode> open_;

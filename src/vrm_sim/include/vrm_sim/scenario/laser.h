@@ -29,6 +29,7 @@
 
 #include "vrm_scene/anatomy/fundus_anatomy.h"
 #include "vrm_sim/scenario/scenario.h"
+#include "vrm_sim/state/state_archive.h"
 
 namespace vrm_sim {
 namespace scenario {
@@ -54,6 +55,8 @@ struct LaserSetting {
   double interval = 0.0;             // s, 0 = single shots
   double fibre_diameter = 2e-4;      // m
   double numerical_aperture = 0.12;  // of the fibre
+
+  void transferState(StateArchive& archive) { archive(power)(duration)(interval)(fibre_diameter)(numerical_aperture); }
 };
 LaserSetting laserSetting(const scene::LaserProbeParams& params);
 
@@ -70,6 +73,8 @@ class LaserTrigger {
   bool update(double pedal_travel, double time, const LaserSetting& setting);
   void reset() { *this = LaserTrigger(); }
   void hash(std::uint64_t& state) const;
+  // A pedal held through a checkpoint must not fire again on its first frame after it.
+  void transferState(StateArchive& archive) { archive(pressed_)(next_shot_); }
 
  private:
   bool pressed_ = false;

@@ -6,6 +6,8 @@
 #include <cstddef>
 #include <vector>
 
+#include "vrm_sim/state/state_archive.h"
+
 namespace vrm_sim {
 namespace scenario {
 
@@ -36,6 +38,7 @@ class RunningStats {
   double max() const { return count_ ? max_ : 0.0; }
   double variance() const { return count_ > 1 ? m2_ / static_cast<double>(count_ - 1) : 0.0; }
   double coefficientOfVariation() const;
+  void transferState(StateArchive& archive) { archive(count_)(mean_)(m2_)(max_); }
 
  private:
   std::size_t count_ = 0;
@@ -52,6 +55,8 @@ class ContactCounter {
   }
   std::size_t count() const { return count_; }
   bool inContact() const { return in_contact_; }
+  // in_contact_ too: the hysteresis decides whether the next frame is a new entry.
+  void transferState(StateArchive& archive) { archive(count_)(in_contact_); }
 
  private:
   std::size_t count_ = 0;

@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "vrm_sim/scenario/scenario.h"
+#include "vrm_sim/state/state_archive.h"
 
 namespace vrm_sim {
 namespace scenario {
@@ -64,11 +65,15 @@ class RigidBody {
   const RigidBodyOptions& options() const { return options_; }
   ObjectPlacement placement() const { return {name_, pose_}; }
   void hash(std::uint64_t& state) const;
+  // The grasp offsets and the jaws' last opening are not hashed but decide the next frames (where a held body goes,
+  // whether closing jaws grasp). The name and options are the scene's.
+  void transferState(StateArchive& archive);
 
  private:
   struct Holder {
     std::string slot;
     Eigen::Isometry3d instrument_from_body;  // fixed at the grasp
+    void transferState(StateArchive& archive) { archive(slot)(instrument_from_body); }
   };
   static Eigen::Isometry3d instrumentPose(const InstrumentView& tool);
 

@@ -28,6 +28,8 @@ struct ScoreItem {
   std::string unit;
   double weight = 0.0;  // 0: reported, not scored
   double points = 0.0;  // 0..100 for this item
+
+  void transferState(StateArchive& archive) { archive(name)(value)(unit)(weight)(points); }
 };
 
 struct Score {
@@ -35,6 +37,8 @@ struct Score {
   std::vector<ScoreItem> items;
   std::vector<GroupScore> groups;  // factor groups (factor_groups.h): their weighted mean is `total`
   const ScoreItem* item(const std::string& name) const;
+  // Saved although refreshScore() could recompute it: the next frame's penalty record compares against these items.
+  void transferState(StateArchive& archive) { archive(total)(items)(groups); }
 };
 
 // Points of one value under one rule: 100 at best, 0 at worst, linear and clamped in between.
@@ -56,6 +60,14 @@ struct Status {
   std::size_t events_dropped = 0;    // penalty events beyond those
   std::vector<ObjectPlacement> placements;  // the objects the scenario moves, after the last frame (Scenario::placements)
   std::vector<LaserBurn> burns;             // the laser burns so far (Scenario::burns)
+
+  // The names come from the scene: a checkpoint of another scene, scenario type or difficulty level is refused.
+  void transferState(StateArchive& archive) {
+    archive.section("status");
+    archive.expect(scenario, "the scene name").expect(type, "the scenario type").expect(difficulty, "the difficulty");
+    archive(state)(elapsed)(timed_out)(message)(progress)(start_time)(end_time)(score)(events)(events_dropped);
+    archive(placements)(burns);
+  }
 };
 
 class ScenarioRunner {

@@ -18,6 +18,7 @@
 #include "vrm_scene/hash.h"
 #include "vrm_scene/registry.h"
 #include "vrm_scene/scene_description.h"
+#include "vrm_sim/state/state_archive.h"
 
 namespace vrm_sim {
 namespace scenario {
@@ -93,6 +94,8 @@ struct ObjectPlacement {
   std::string name;
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
   std::string frame_id = "eye";  // the object's frame
+
+  void transferState(StateArchive& archive) { archive(name)(pose)(frame_id); }
 };
 
 // A burn the laser left on the retina (issue 37; the model: scenario/laser.h). The renderer paints it into the fundus
@@ -107,6 +110,10 @@ struct LaserBurn {
   double duration = 0.0;                               // s
   double distance = 0.0;                               // m, probe tip to retina along the beam
   double time = 0.0;                                   // s of running time
+
+  void transferState(StateArchive& archive) {
+    archive(position)(spot)(diameter)(grade)(whiteness)(power)(duration)(distance)(time);
+  }
 };
 
 struct Measurement {

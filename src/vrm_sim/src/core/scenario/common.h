@@ -60,6 +60,8 @@ class RetinaContacts {
   void update(const FrameView& frame);
   std::size_t count() const;
   void hash(std::uint64_t& state) const;
+  // The baseline of the core's event count too: rebuilt from the next frame, it would forget the contacts so far.
+  void transferState(StateArchive& archive) { archive(first_events_)(events_)(tips_); }
 
  private:
   double eye_radius_;
@@ -84,6 +86,8 @@ class UnlitWork {
   bool lit() const { return lit_; }
   const std::string& tool() const { return tool_; }
   void hash(std::uint64_t& state) const;
+  // working_ and lit_ are redone by the next update, but saved so the accessors agree right after a load.
+  void transferState(StateArchive& archive) { archive(seconds_)(working_)(lit_); }
 
  private:
   double eye_radius_;

@@ -111,6 +111,11 @@ void RigidBody::place(const Eigen::Isometry3d& pose) {
   resting_ = true;
 }
 
+void RigidBody::transferState(StateArchive& archive) {
+  archive.section("rigid_body").expect(name_, "the body's name");
+  archive(pose_)(velocity_)(resting_)(holders_)(jaws_were_open_);
+}
+
 void RigidBody::hash(std::uint64_t& state) const {
   hashBytes(state, pose_.matrix().data(), sizeof(double) * 16);
   hashBytes(state, velocity_.data(), sizeof(double) * 3);
