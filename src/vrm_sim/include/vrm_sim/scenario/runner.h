@@ -102,6 +102,9 @@ class ScenarioRunner {
   bool running() const { return status_.state == State::kRunning; }
   bool ended() const { return status_.state == State::kFinished || status_.state == State::kFailed; }
   void hash(std::uint64_t& state) const;
+  // Saves or loads the session (status, running time, penalty episodes) and the scenario's state (issue 39 §1). Load
+  // into a runner built from the same scene; a failed load leaves it half loaded, so load into a fresh one.
+  void transferState(StateArchive& archive);
   const scene::ScenarioDescription& description() const { return description_; }
 
  private:

@@ -152,6 +152,10 @@ class Scenario {
   virtual std::string progress() const = 0;
   // Mixes the scenario's state into a state hash (FNV-1a, see hashBytes()).
   virtual void hash(std::uint64_t& state) const = 0;
+  // Saves or loads every member that changes after construction (a checkpoint, issue 39 §1): loaded into a scenario
+  // built from the same scene, it continues bit for bit like the saved one. Pure, so a new type cannot forget it;
+  // what the constructor derives from the scene is not saved — the same scene rebuilds it.
+  virtual void transferState(StateArchive& archive) = 0;
 };
 
 // Builds the scene's scenario (scene.scenario must be set). Throws scene::SceneError with the location of the

@@ -39,6 +39,7 @@ class InstrumentCollisions {
     const std::size_t count = counter_.count();
     hashValue(state, count);
   }
+  void transferState(StateArchive& archive) { archive(closest_)(counter_); }
 
  private:
   std::string first_, second_;
@@ -125,6 +126,12 @@ class Bimanual : public Scenario {
     hashValue(state, impacts_);
     collisions_.hash(state);
     contacts_.hash(state);
+  }
+
+  // last_holder_ and release_radius_ are not hashed: they charge the next drop and judge the next landing.
+  void transferState(StateArchive& archive) override {
+    archive.section("bimanual");
+    archive(contacts_)(collisions_)(body_)(last_holder_)(handovers_)(drops_)(impacts_)(release_radius_);
   }
 
  private:

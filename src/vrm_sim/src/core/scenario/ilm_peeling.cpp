@@ -46,6 +46,17 @@ class IlmPeeling : public Peel {
     hashValue(state, radius_);
   }
 
+  // centre_ is fixed by the rest positions of the first frame with a shape (they change as the ILM tears), so it is
+  // saved rather than rebuilt; its frame only once it exists (uninitialised before).
+  void transferState(StateArchive& archive) override {
+    Peel::transferState(archive);
+    archive.section("ilm_peeling");
+    archive(centre_);
+    if (centre_) archive(normal_)(u_)(v_);
+    for (bool& visited : visited_) archive(visited);
+    archive(continuity_)(radius_);
+  }
+
  private:
   static constexpr int kSectors = 16;
 

@@ -144,6 +144,14 @@ class LaserCoagulation : public Scenario {
     }
   }
 
+  // In place (the class cannot be copied: row_ points into fundus_). Every burn whole: checkBurn reads the earlier
+  // burns' diameters, which the hash does not cover.
+  void transferState(StateArchive& archive) override {
+    archive.section("laser_coagulation").expect(sector_burnt_.size(), "the number of sectors of the row");
+    archive(sector_burnt_)(trigger_)(setting_)(burns_)(row_burns_)(last_position_);
+    archive(shots_)(off_row_)(weak_)(strong_)(overlaps_)(vessel_)(macula_)(contacts_);
+  }
+
  private:
   double coverage() const {
     std::size_t burnt = 0;

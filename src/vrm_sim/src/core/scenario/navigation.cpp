@@ -83,6 +83,12 @@ class Navigation : public Scenario {
     contacts_.hash(state);
   }
 
+  // last_tip_ is the start of the next path increment; touching_ holds each target's hysteresis.
+  void transferState(StateArchive& archive) override {
+    archive.section("navigation").expect(targets_.size(), "the number of targets");
+    archive(touching_)(next_)(wrong_touches_)(unlit_touches_)(path_length_)(last_tip_)(contacts_);
+  }
+
  private:
   bool lit(const InstrumentView* light, const Sphere& target) const {
     if (light_ == "none") return true;

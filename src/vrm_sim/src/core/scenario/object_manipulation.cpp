@@ -177,6 +177,14 @@ class ObjectManipulation : public Scenario {
     contacts_.hash(state);
   }
 
+  // The bodies in place: they are built from the scene (their names and options), only their motion is state.
+  void transferState(StateArchive& archive) override {
+    archive.section("object_manipulation").expect(bodies_.size(), "the number of objects");
+    for (RigidBody& body : bodies_) archive(body);
+    archive(done_)(release_height_above_retina_)(yaw_error_)(post_collisions_)(key_force_)(max_key_force_);
+    archive(drops_)(impacts_)(contacts_);
+  }
+
  private:
   static constexpr std::size_t kNone = static_cast<std::size_t>(-1);
 

@@ -54,6 +54,13 @@ std::string Peel::progress() const {
                 torn_ > 0 ? " (torn)" : "");
 }
 
+// initial_adhesions_ is not hashed, and cannot be rebuilt after a checkpoint: the first frame fixed it.
+void Peel::transferState(StateArchive& archive) {
+  archive.section("peel");
+  archive(initial_adhesions_)(remaining_)(released_)(torn_)(max_force_)(lifted_fraction_)(bleeding_area_);
+  archive(contacts_)(unlit_);
+}
+
 void Peel::hash(std::uint64_t& state) const {
   hashValue(state, remaining_);
   hashValue(state, torn_);

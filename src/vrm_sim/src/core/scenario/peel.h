@@ -24,6 +24,8 @@ class Peel : public Scenario {
   std::vector<Measurement> measurements(double) const override;
   std::string progress() const override;
   void hash(std::uint64_t& state) const override;
+  // A subclass with state of its own overrides this and calls it first.
+  void transferState(StateArchive& archive) override;
 
  protected:
   virtual void updateShape(const TissueView&) {}

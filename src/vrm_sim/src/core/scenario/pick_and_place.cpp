@@ -85,6 +85,11 @@ class PickAndPlace : public Scenario {
     contacts_.hash(state);
   }
 
+  void transferState(StateArchive& archive) override {
+    archive.section("pick_and_place");
+    archive(ball_)(placed_)(drops_)(impacts_)(contacts_);
+  }
+
  private:
   bool inRing(const Eigen::Vector3d& p) const {
     const Eigen::Vector3d d = p - ring_centre_;

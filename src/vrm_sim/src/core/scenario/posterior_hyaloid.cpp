@@ -83,6 +83,11 @@ class PosteriorHyaloid : public Scenario {
     contacts_.hash(state);
   }
 
+  void transferState(StateArchive& archive) override {
+    archive.section("posterior_hyaloid");
+    archive(detached_)(max_force_)(damage_)(injuries_)(released_)(last_injury_)(engaged_)(contacts_);
+  }
+
  private:
   std::string object_, tool_;
   double required_ = 0.7, lift_threshold_ = 1e-4;

@@ -110,6 +110,12 @@ class RetinaRelocation : public Scenario {
     contacts_.hash(state);
   }
 
+  void transferState(StateArchive& archive) override {
+    archive.section("retina_relocation");
+    archive(diameter_)(peak_diameter_)(site_error_)(bleb_offset_)(max_lift_)(fluid_)(outside_)(torn_);
+    archive(needle_inside_)(entered_)(contacts_);
+  }
+
  private:
   std::string object_, tool_;
   double target_diameter_ = 2.5e-3, size_tolerance_ = 0.15, lift_threshold_ = 5e-5, sheet_area_ = 0.0;

@@ -261,6 +261,13 @@ const InstrumentView* ScenarioRunner::penaltyInstrument(const FrameView& frame, 
   return nearest;
 }
 
+// scene_ and description_ are the configuration the runner was built from, not state.
+void ScenarioRunner::transferState(StateArchive& archive) {
+  archive.section("scenario_runner");
+  archive(status_)(last_time_)(elapsed_ns_)(penalties_);
+  scenario_->transferState(archive);
+}
+
 void ScenarioRunner::hash(std::uint64_t& state) const {
   hashValue(state, static_cast<int>(status_.state));
   hashValue(state, elapsed_ns_);

@@ -80,6 +80,13 @@ class SteadyHold : public Scenario {
     contacts_.hash(state);
   }
 
+  // The current hold's samples and times whole: the next band power is a DFT over all of them.
+  void transferState(StateArchive& archive) override {
+    archive.section("steady_hold");
+    archive(inside_)(held_)(current_is_longest_)(hold_start_)(longest_hold_)(rms_)(band_power_)(exits_);
+    archive(samples_)(times_)(contacts_);
+  }
+
  private:
   void analyse() {
     rms_ = rmsDistance(samples_, centre_);

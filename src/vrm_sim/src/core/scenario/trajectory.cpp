@@ -72,6 +72,11 @@ class Trajectory : public Scenario {
     contacts_.hash(state);
   }
 
+  void transferState(StateArchive& archive) override {
+    archive.section("trajectory");
+    archive(started_)(finished_)(progress_)(last_tip_)(deviation_)(speed_)(contacts_);
+  }
+
  private:
   std::vector<Eigen::Vector3d> path_;
   double length_ = 0.0, tolerance_ = 3e-4, finish_fraction_ = 0.95;

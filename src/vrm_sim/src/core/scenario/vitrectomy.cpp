@@ -76,6 +76,11 @@ class Vitrectomy : public Scenario {
     unlit_.hash(state);
   }
 
+  void transferState(StateArchive& archive) override {
+    archive.section("vitrectomy");
+    archive(removed_)(damage_)(damaged_area_)(warnings_)(contacts_)(unlit_);
+  }
+
  private:
   std::string object_, tool_;
   double eye_radius_, warning_distance_ = 5e-4, facing_cos_ = 0.5, required_removed_ = 0.8;
