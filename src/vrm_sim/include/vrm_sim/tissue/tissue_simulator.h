@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "vrm_scene/instrument_limits.h"
+#include "vrm_sim/mge/membrane.h"
 #include "vrm_sim/tissue/chainmail.h"
 #include "vrm_sim/tissue/contact.h"
 #include "vrm_sim/tissue/integrator.h"
@@ -390,6 +391,7 @@ class TissueSimulator {
   double pending_time_ = 0.0;
   SimulatorStatistics statistics_;
   std::unique_ptr<LocalRefinement> refinement_;
+  mge::MembraneSnapshot snapshot_;  // transferState's, kept: a periodic checkpoint reuses its memory
 };
 
 // The capsules an instrument pushes tissue with, in the membrane's frame (see InstrumentInput); a fixed-size set, so

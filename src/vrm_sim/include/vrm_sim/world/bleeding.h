@@ -11,6 +11,8 @@
 #include <string>
 #include <vector>
 
+#include "vrm_sim/state/state_archive.h"
+
 namespace vrm_sim {
 namespace world {
 
@@ -33,6 +35,9 @@ struct ContactEvent {
   bool aspiration = false;                          // vitrector suction rather than pressure
   bool ongoing = true;
   double duration() const { return end - start; }
+  void transferState(StateArchive& archive) {
+    archive(instrument)(object)(start)(end)(max_depth)(point)(aspiration)(ongoing);
+  }
 };
 
 class BleedingField {
@@ -55,6 +60,17 @@ class BleedingField {
   std::size_t vertexCount() const { return vertices_.size(); }
   // Distance from `point` to the nearest vertex (for the aspiration test).
   double distanceToSurface(const Eigen::Vector3d& point) const;
+  // Checkpoints (issue 39 §1): the field, its spots (its future), the ongoing contacts and the events.
+  void transferState(StateArchive& archive) {
+    archive.section("bleeding").expect(vertices_.size(), "the bleeding surface's vertex count");
+    archive(field_)(spots_)(active_)(events_)(dirty_)(max_injury_);
+    if (archive.loading() && field_.size() != vertices_.size()) archive.fail("a bleeding field of another size");
+    for (const Active& active : active_) {
+      if (archive.loading() && (active.event >= events_.size() || active.spot >= spots_.size())) {
+        archive.fail("an ongoing contact without its event or spot");
+      }
+    }
+  }
 
  private:
   struct Spot {
@@ -63,12 +79,14 @@ class BleedingField {
     double intensity = 0.0;
     double initial_radius = 0.0;
     bool spreading = true;
+    void transferState(StateArchive& archive) { archive(centre)(onset)(intensity)(initial_radius)(spreading); }
   };
   struct Active {
     std::string instrument;
     std::size_t event = 0;  // index into events_
     std::size_t spot = 0;   // the spot it feeds
     bool renewed = false;
+    void transferState(StateArchive& archive) { archive(instrument)(event)(spot)(renewed); }
   };
   double radiusAt(const Spot& spot, double time) const;
 

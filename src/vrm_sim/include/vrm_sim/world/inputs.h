@@ -9,6 +9,7 @@
 #include <string>
 
 #include "vrm_scene/scene_description.h"
+#include "vrm_sim/state/state_archive.h"
 
 namespace vrm_sim {
 namespace world {
@@ -51,6 +52,9 @@ struct PedalState {
   bool reflux = false;
   bool instrument_switch = false;
   bool zoom_in = false, zoom_out = false, focus_near = false, focus_far = false;
+  void transferState(StateArchive& archive) {
+    archive(stamp)(travel)(reflux)(instrument_switch)(zoom_in)(zoom_out)(focus_near)(focus_far);
+  }
 };
 
 struct ScenarioCommand {

@@ -45,6 +45,17 @@ class Session {
   std::uint64_t nextSequence() const { return mediator_.nextSequence(); }
   void continueSequence(std::uint64_t next) { mediator_.setNextSequence(next); }
 
+  // Checkpoints (issue 39 §1): the World's state (World::checkpoint) with the scene it runs (the start scene or the
+  // last LOAD's), the LOAD count and seed, and the next frame number. restoreCheckpoint() on a Session built like the
+  // checkpointed one (same start scene, options and loader) rebuilds a LOADed scene first, then the World's state; the
+  // frames after the checkpoint then continue it bit for bit (the mediator starts afresh, as after a journal restore:
+  // inputs it held at the crash were not applied yet). Throws StateError (see World::restoreCheckpoint), after which
+  // the Session must be discarded; scene::SceneError if the LOADed scene no longer loads.
+  std::string checkpoint() const;
+  // Into `buffer`'s memory (a periodic checkpoint hands back the last one's: see StateArchive::saverInto).
+  void checkpoint(std::string& buffer) const;
+  void restoreCheckpoint(const std::string& bytes);
+
   World& world() { return *world_; }
   const World& world() const { return *world_; }
   void setFrameObserver(FrameObserver observer);
@@ -65,6 +76,7 @@ class Session {
   LoadObserver load_observer_;
   std::uint32_t seed_ = 0;
   std::uint64_t loads_ = 0;
+  std::string loaded_scene_, loaded_difficulty_;  // the last LOAD's loader arguments (loads_ > 0)
 };
 
 }  // namespace world

@@ -236,6 +236,18 @@ class World {
   void note(const std::string& message) {
     if (runner_) runner_->setMessage(message);
   }
+  // Checkpoints (issue 39 §1): the World's whole state at a frame boundary, as bytes for this build, and its restore
+  // into a World built from the same scene and options (a fresh one: a session's World after a crash). After a
+  // restore, the frames that followed the checkpoint give the states the original reached, bit for bit. Throws
+  // StateError where a state cannot be checkpointed yet (local refinement, the chainmail model, frames pending in the
+  // World's own mediator) and, on restore, for bytes of another scene or build or cut short; the World is then
+  // half restored and must be discarded (the caller restores from the journal instead).
+  std::string checkpoint() const;
+  void restoreCheckpoint(const std::string& bytes);
+  // The same, into / from a caller's archive (a Session's checkpoint around it; a reused buffer).
+  void saveState(StateArchive& archive) const { const_cast<World&>(*this).transferState(archive); }
+  void loadState(StateArchive& archive) { transferState(archive); }
+
   // Whether the world advances (tissue, bleeding) in the next frame: not while paused or before the scenario starts.
   bool simulating() const;
   // The session is over: its scenario finished or failed (a STOP included), or a scene without a scenario was
@@ -256,6 +268,7 @@ class World {
   std::optional<Collider> makeCollider(const scene::ObjectDescription& object) const;
   // Repeated warnings (same key) at most every kLogEveryFrames frames; an empty key is never throttled.
   void log(Severity severity, const std::string& key, const std::string& message);
+  void transferState(StateArchive& archive);
 
   void apply(InputFrame& frame);
   void applyEye(const EyeState& eye);
@@ -299,6 +312,7 @@ class World {
   InputObserver input_observer_;
   WorldStatistics statistics_;
   std::vector<InjuryReport> last_injuries_;
+  mutable std::size_t checkpoint_bytes_ = 0;  // the last checkpoint's size, reserved for the next
 };
 
 }  // namespace world

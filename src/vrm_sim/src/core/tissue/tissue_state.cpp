@@ -20,7 +20,7 @@ void TissueSimulator::transferState(StateArchive& archive) {
   // Local refinement keeps id-keyed regions and lattices whose restore is not built yet: refused, so such a session
   // restores from its journal.
   if (refinement_) archive.fail("local refinement cannot be checkpointed yet");
-  mge::MembraneSnapshot snapshot;
+  mge::MembraneSnapshot& snapshot = snapshot_;
   if (archive.saving()) membrane_->takeSnapshot(snapshot);
   archive(snapshot);
   if (archive.loading()) {

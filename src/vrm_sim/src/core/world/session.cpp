@@ -61,6 +61,8 @@ void Session::load(InputFrame& frame) {
     return;
   }
   world_ = std::move(next);
+  loaded_scene_ = name;
+  loaded_difficulty_ = command.argument;
   world_->setFrameObserver(frame_observer_);
   world_->setInputObserver(input_observer_);
   mediator_.setSlots(mediatorOptionsFor(world_->scene(), options_).slots);
@@ -75,6 +77,47 @@ void Session::load(InputFrame& frame) {
   world_->fillApplied(frame);
   if (input_observer_) input_observer_(frame);
   if (load_observer_) load_observer_(*world_);
+}
+
+std::string Session::checkpoint() const {
+  std::string bytes;
+  checkpoint(bytes);
+  return bytes;
+}
+
+void Session::checkpoint(std::string& buffer) const {
+  StateArchive archive = StateArchive::saverInto(std::move(buffer));
+  archive.section("vrm_session");
+  std::uint64_t loads = loads_;
+  std::uint32_t seed = seed_;
+  std::string scene = loaded_scene_, difficulty = loaded_difficulty_;
+  std::uint64_t next_sequence = mediator_.nextSequence();
+  archive(loads)(seed)(scene)(difficulty)(next_sequence);
+  world_->saveState(archive);
+  buffer = archive.takeBytes();
+}
+
+void Session::restoreCheckpoint(const std::string& bytes) {
+  StateArchive archive = StateArchive::loader(bytes);
+  archive.section("vrm_session");
+  std::uint64_t loads = 0, next_sequence = 0;
+  std::uint32_t seed = 0;
+  std::string scene, difficulty;
+  archive(loads)(seed)(scene)(difficulty)(next_sequence);
+  if (loads > 0) {
+    world_ = std::make_unique<World>(loader_(scene, difficulty), options_);
+    world_->setFrameObserver(frame_observer_);
+    world_->setInputObserver(input_observer_);
+    mediator_.setSlots(mediatorOptionsFor(world_->scene(), options_).slots);
+  }
+  world_->loadState(archive);
+  if (!archive.atEnd()) archive.fail(std::to_string(archive.remaining()) + " bytes left over");
+  loads_ = loads;
+  seed_ = seed;
+  loaded_scene_ = scene;
+  loaded_difficulty_ = difficulty;
+  mediator_.setNextSequence(next_sequence);
+  if (loads > 0 && load_observer_) load_observer_(*world_);
 }
 
 }  // namespace world

@@ -1075,5 +1075,115 @@ std::vector<ContactEvent> World::contactEvents() const {
   return events;
 }
 
+
+// ---- checkpoints (issue 39 §1) ----
+//
+// Everything that carries from one frame into the next (doc/checkpoint_state_inventory.md §2.2-2.9): the session
+// flags and clocks, the pedals, each instrument's type, console settings and last input, the collision response's
+// last tips, each tissue (TissueSimulator::transferState: membrane, grasps, anchors, fluid, model, integrator) with
+// what the World keeps beside it (reports, fluid, the needle's puncture), each bleeding surface, and the scenario.
+// Derived data (collision models and detectors, reports' pointers, the injury list) is rebuilt by the next frame as
+// after a type switch. Measurements (wall times) are not state.
+
+namespace {
+constexpr std::uint32_t kCheckpointVersion = 1;
+}  // namespace
+
+std::string World::checkpoint() const {
+  StateArchive archive = StateArchive::saver(checkpoint_bytes_ + checkpoint_bytes_ / 8);
+  const_cast<World&>(*this).transferState(archive);  // saving reads only
+  checkpoint_bytes_ = archive.bytes().size();
+  return archive.takeBytes();
+}
+
+void World::restoreCheckpoint(const std::string& bytes) {
+  StateArchive archive = StateArchive::loader(bytes);
+  transferState(archive);
+  if (!archive.atEnd()) archive.fail(std::to_string(archive.remaining()) + " bytes left over");
+}
+
+void World::transferState(StateArchive& archive) {
+  archive.section("vrm_world").expect(kCheckpointVersion, "the checkpoint format version");
+  archive.expect(scene_.name, "the scene").expect(instruments_.size(), "the instrument count");
+  archive.expect(tissues_.size(), "the tissue count").expect(rigid_.size(), "the rigid object count");
+  if (mediator_.pendingFrames() != 0) archive.fail("the World's own mediator holds frames not yet closed");
+  archive(world_from_eye_)(eye_valid_)(last_frame_stamp_)(simulation_origin_)(logged_at_frame_)(pedals_);
+  archive(paused_)(running_)(started_)(auto_started_);
+  archive(statistics_.frames)(statistics_.inputs)(statistics_.simulated_frames)(statistics_.late_inputs);
+  archive(statistics_.rejected_inputs)(statistics_.frames_without_source)(statistics_.input_sequence);
+  archive(statistics_.tissue_steps)(statistics_.max_strain)(statistics_.max_grasped_nodes);
+
+  archive.section("instruments");
+  for (auto& [slot, instrument] : instruments_) {
+    archive.expect(slot, "an instrument slot");
+    scene::InstrumentType type = instrument->current.type;
+    archive(type);
+    if (archive.loading() && type != instrument->current.type) setInstrumentType(*instrument, type);
+    // The laser probe's console settings (SELECT_INSTRUMENT ...:power_mw=…): the only parameters a session changes.
+    if (auto* laser = std::get_if<scene::LaserProbeParams>(&instrument->current.params)) {
+      archive(laser->power_mw)(laser->duration_ms)(laser->interval_ms);
+    }
+    archive(instrument->pose)(instrument->frame_id)(instrument->active)(instrument->jaw_angle)(instrument->suction);
+    archive(instrument->cut_rate)(instrument->injection_flow)(instrument->cutting);
+  }
+
+  auto last_tips = [&archive](Collider& collider) {
+    std::map<std::string, std::optional<Eigen::Vector3d>> tips;
+    if (archive.saving()) {
+      for (const auto& [slot, entry] : collider.instruments) tips[slot] = entry.last_tip;
+    }
+    archive(tips);
+    if (archive.loading()) {
+      for (auto& [slot, tip] : tips) collider.instruments[slot].last_tip = tip;
+    }
+  };
+
+  archive.section("tissues");
+  for (auto& [name, tissue] : tissues_) {
+    archive.expect(name, "a tissue");
+    tissue->simulator->transferState(archive);
+    archive.section("world_tissue");
+    archive(tissue->last_positions)(tissue->rest_by_slot)(tissue->rest_topology)(tissue->ever_grasped);
+    archive(tissue->peak_lift)(tissue->reset_pending)(tissue->logged_integrator_choice)(tissue->fluid_volume);
+    archive(tissue->injected_outside)(tissue->needle_inside)(tissue->puncture);
+    TissueReport& report = tissue->report;
+    archive(report.steps)(report.fallbacks)(report.integrator)(report.max_strain)(report.grasped_nodes);
+    archive(report.changed)(report.version)(report.topology_version)(report.torn_springs)(report.cut_nodes);
+    archive(report.released_adhesions)(report.max_lift)(report.lifted_fraction)(report.adhesion_points);
+    archive(report.max_adhesion_force)(report.adhesion_tears)(report.fluid_volume)(report.enclosed_volume);
+    archive(report.fluid_pressure)(report.injected_outside)(report.needle_inside)(report.outcome);
+    bool collider = tissue->collider.has_value();
+    archive.expect(collider, "a tissue's collider");
+    if (tissue->collider) last_tips(*tissue->collider);
+    if (archive.loading()) {
+      report.membrane = tissue->membrane.get();
+      report.adhesion_tear_points = &tissue->simulator->adhesionTearPoints();
+      const std::size_t n = tissue->membrane->nodeCount();
+      if (tissue->last_positions.size() != n || tissue->rest_by_slot.size() != n) {
+        archive.fail("tissue '" + name + "' positions of another node count");
+      }
+    }
+  }
+
+  archive.section("rigid");
+  for (auto& rigid : rigid_) {
+    archive.expect(rigid->object->name, "a rigid object");
+    archive(rigid->moved);
+    bool bleeding = rigid->bleeding != nullptr;
+    archive.expect(bleeding, "a bleeding surface");
+    if (rigid->bleeding) rigid->bleeding->transferState(archive);
+    InjuryReport& report = rigid->report;
+    archive(report.changed)(report.version)(report.max_injury)(report.injured_area)(report.contacts);
+    archive(report.in_contact);
+    last_tips(rigid->collider);
+  }
+
+  archive.section("scenario");
+  bool scenario = runner_ != nullptr;
+  archive.expect(scenario, "a scenario");
+  if (runner_) runner_->transferState(archive);
+  archive.section("end");
+}
+
 }  // namespace world
 }  // namespace vrm_sim
