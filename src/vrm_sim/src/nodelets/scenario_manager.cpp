@@ -61,6 +61,8 @@
 #include <visualization_msgs/MarkerArray.h>
 
 #include <algorithm>
+#include <atomic>
+#include <condition_variable>
 #include <boost/make_shared.hpp>
 #include <cmath>
 #include <cstdio>
@@ -69,6 +71,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <thread>
 #include <pluginlib/class_list_macros.hpp>
 
 #include "vrm_msgs/CollisionReport.h"
@@ -140,13 +143,16 @@ class ScenarioManager : public nodelet::Nodelet {
     resume_margin_ = std::max(0.0, private_nh.param("resume_margin", 0.3));
     resend_frames_ = static_cast<std::size_t>(std::max(0, private_nh.param("resend_frames", 150)));
     journal_header_ = bag::JournalHeader{scene_parameter, difficulty, seed_, run_};
+    checkpoint_interval_ = std::max(0.0, private_nh.param("checkpoint_interval", 10.0));
     std::optional<bag::JournalContents> journal = resumableJournal(journal_header_);
     if (!journal) keepInterruptedResults();
     user_ = private_nh.param<std::string>("user", "");
     char host[256] = {0};
     station_ = private_nh.param<std::string>("station", gethostname(host, sizeof(host) - 1) == 0 ? host : "");
+    world_options_ = options;
     try {
-      session_ = std::make_unique<world::Session>(world::Session::loadByName(scene_parameter, difficulty), options);
+      start_scene_ = world::Session::loadByName(scene_parameter, difficulty);
+      session_ = std::make_unique<world::Session>(*start_scene_, options);
     } catch (const std::exception& error) {
       NODELET_FATAL("scenario_manager: cannot set up scene '%s': %s", scene_parameter.c_str(), error.what());
       failGraph("scenario_manager: cannot set up scene '" + scene_parameter + "': " + error.what());
@@ -175,6 +181,19 @@ class ScenarioManager : public nodelet::Nodelet {
     } else {
       if (journal_enabled_) startJournal(journal_header_);
       if (reloaded_) announceFreshStart();
+    }
+    if (journal_enabled_ && checkpoint_interval_ > 0.0) {
+      // One checkpoint now, not written: it finds out whether this scene can be checkpointed at all and touches the
+      // memory the periodic ones reuse (the first touch of a fresh page costs several µs in a VM: 4 ms for the
+      // first checkpoint of the default scene, 0.1 ms for the next).
+      try {
+        session_->checkpoint(spare_checkpoint_);
+      } catch (const StateError& error) {
+        checkpoints_refused_ = true;
+        NODELET_WARN("scenario_manager: no checkpoints in this session (%s); a restore replays the whole journal",
+                     error.what());
+      }
+      checkpoint_writer_ = std::thread(&ScenarioManager::writeCheckpoints, this);
     }
     // Deep queues (pointers only, zero copy): on a loaded machine an input dropped here would be missing from the
     // live session but present in its bag, and the replay would differ. Two seconds of every input at 50 Hz.
@@ -215,6 +234,7 @@ class ScenarioManager : public nodelet::Nodelet {
     // The command thread first (it takes mutex_), then its subscription, while its queue still exists.
     if (command_spinner_) command_spinner_->stop();
     command_subscriber_.shutdown();
+    stopCheckpointWriter();
     std::lock_guard<std::mutex> lock(mutex_);
     if (session_) writeResult();
   }
@@ -270,20 +290,23 @@ class ScenarioManager : public nodelet::Nodelet {
     }
   }
 
-  // Every frame of the crashed process, applied as a replay applies it; nothing is published meanwhile.
+  // The crashed process's session: its last checkpoint (issue 39 §1), if one fits the journal, and the journal's
+  // frames after it — else every frame of the journal — applied as a replay applies them; nothing is published
+  // meanwhile.
   void restore(bag::JournalContents journal) {
     const ros::WallTime wall_start = ros::WallTime::now();
     restoring_ = true;
     // The frames' run, continued: the resumed session's frames form one sequence with the crashed process's.
     run_ = journal.frames.back()->run;
     journal_header_.run = run_;
+    const std::uint64_t from_checkpoint = restoreCheckpoint(journal);
     for (const vrm_msgs::InputFrame::Ptr& message : journal.frames) {
       for (const vrm_msgs::ScenarioCommand& command : message->commands) {
         if (command.command == vrm_msgs::ScenarioCommand::START) session_start_ = command.header.stamp;
         if (command.command == vrm_msgs::ScenarioCommand::LOAD) session_start_ = ros::Time();
       }
       paused_at_ = std::max(paused_at_, message->header.stamp);
-      session_->handle(toWorld(*message));
+      if (message->sequence > from_checkpoint || from_checkpoint == 0) session_->handle(toWorld(*message));
     }
     restoring_ = false;
     restored_sequence_ = journal.frames.back()->sequence;
@@ -299,16 +322,123 @@ class ScenarioManager : public nodelet::Nodelet {
     }
     // Until the resume stamp is chosen every device input is held off (stamps before it are never applied).
     resume_stamp_ = ros::TIME_MAX;
+    const std::string source =
+        checkpoint_restored_ > 0
+            ? "its checkpoint at frame " + std::to_string(checkpoint_restored_) + " and the journal's frames after it"
+            : std::string("its journal");
     NODELET_WARN(
-        "scenario_manager: resumed the session of %s from its journal: %u frames (to sequence %lu, input time "
+        "scenario_manager: resumed the session of %s from %s: %u frames (to sequence %lu, input time "
         "%.3f s) restored in %.2f s%s; state %s",
-        bag_path_.c_str(), frames_restored_, static_cast<unsigned long>(restored_sequence_), paused_at_.toSec(),
-        restore_seconds_,
+        bag_path_.c_str(), source.c_str(), frames_restored_, static_cast<unsigned long>(restored_sequence_),
+        paused_at_.toSec(), restore_seconds_,
         journal.torn_bytes
             ? (", a torn last record of " + std::to_string(journal.torn_bytes) + " bytes dropped").c_str()
             : "",
         world::hashString(session_->world().stateHash()).c_str());
     resume_timer_ = getNodeHandle().createWallTimer(ros::WallDuration(0.05), &ScenarioManager::finishResume, this);
+  }
+
+  // The last checkpoint, restored into session_ if it belongs to this journal: the sequence of the last frame it
+  // includes, or 0 (then session_ is as built and the whole journal is replayed). A checkpoint that does not fit —
+  // another session's, a frame the journal does not hold, bytes this build cannot read — is logged and not used.
+  std::uint64_t restoreCheckpoint(const bag::JournalContents& journal) {
+    const std::string path = bag::checkpointPath(bag_path_);
+    if (!std::filesystem::exists(path)) return 0;
+    std::string why;
+    try {
+      const bag::Checkpoint checkpoint = bag::readCheckpoint(path);
+      const bool ours = checkpoint.header.scene == journal.header.scene &&
+                        checkpoint.header.difficulty == journal.header.difficulty &&
+                        checkpoint.header.seed == journal.header.seed && checkpoint.header.run == journal.header.run;
+      const bool in_journal = std::any_of(journal.frames.begin(), journal.frames.end(), [&](const auto& frame) {
+        return frame->sequence == checkpoint.sequence && toStamp(frame->header.stamp) == checkpoint.stamp;
+      });
+      if (!ours) {
+        why = "it belongs to another session";
+      } else if (!in_journal) {
+        why = "the journal does not hold its frame " + std::to_string(checkpoint.sequence);
+      } else {
+        session_->restoreCheckpoint(checkpoint.state);
+        checkpoint_restored_ = checkpoint.sequence;
+        return checkpoint.sequence;
+      }
+    } catch (const std::exception& error) {  // JournalError, StateError, SceneError
+      why = error.what();
+      // A half-restored session is discarded: the journal alone restores it.
+      session_ = std::make_unique<world::Session>(*start_scene_, world_options_);
+      session_->setFrameObserver([this](const world::FrameResult& frame) { publish(frame); });
+      session_->setInputObserver([this](const world::InputFrame& frame) { publishInputFrame(frame); });
+      session_->setLoadObserver([this](world::World& world) { onLoaded(world); });
+      onLoaded(session_->world());
+    }
+    NODELET_WARN("scenario_manager: the checkpoint %s is not used (%s); the whole journal is replayed", path.c_str(),
+                 why.c_str());
+    return 0;
+  }
+
+  // Checkpoints (issue 39 §1): every checkpoint_interval of input time, after a frame closed, the session's state is
+  // copied on the frame thread (Session::checkpoint) and written beside the journal by a thread of its own, so a
+  // restore replays only the frames since. A state that cannot be checkpointed (a scene with local refinement or the
+  // chainmail model) is said once; its session restores from the whole journal.
+  void maybeCheckpoint(world::Stamp stamp) {
+    if (!(checkpoint_interval_ > 0.0) || checkpoints_refused_ || !journal_.isOpen() || restoring_) return;
+    if (last_checkpoint_stamp_ && world::toSeconds(stamp - *last_checkpoint_stamp_) < checkpoint_interval_) return;
+    last_checkpoint_stamp_ = stamp;
+    bag::Checkpoint checkpoint;
+    {
+      std::lock_guard<std::mutex> lock(checkpoint_mutex_);
+      checkpoint.state = std::move(spare_checkpoint_);  // the last one's memory, handed back by the writer
+    }
+    const ros::WallTime start = ros::WallTime::now();
+    try {
+      session_->checkpoint(checkpoint.state);
+    } catch (const StateError& error) {
+      checkpoints_refused_ = true;
+      NODELET_WARN("scenario_manager: no checkpoints in this session (%s); a restore replays the whole journal",
+                   error.what());
+      return;
+    }
+    checkpoint_ms_ = (ros::WallTime::now() - start).toSec() * 1e3;
+    checkpoint.header = journal_header_;
+    checkpoint.sequence = session_->nextSequence() - 1;
+    checkpoint.stamp = stamp;
+    {
+      std::lock_guard<std::mutex> lock(checkpoint_mutex_);
+      pending_checkpoint_ = std::move(checkpoint);  // a slow disk keeps only the newest
+    }
+    checkpoint_ready_.notify_all();
+  }
+
+  void writeCheckpoints() {
+    std::unique_lock<std::mutex> lock(checkpoint_mutex_);
+    while (true) {
+      checkpoint_ready_.wait(lock, [this] { return pending_checkpoint_ || stop_checkpoints_; });
+      if (!pending_checkpoint_) return;
+      bag::Checkpoint checkpoint = std::move(*pending_checkpoint_);
+      pending_checkpoint_.reset();
+      checkpoint_writing_ = true;
+      lock.unlock();
+      try {
+        bag::writeCheckpoint(bag::checkpointPath(bag_path_), checkpoint);
+        ++checkpoints_written_;
+      } catch (const bag::JournalError& error) {
+        NODELET_WARN_THROTTLE(30.0, "scenario_manager: %s; a restore falls back to an older checkpoint or the journal",
+                              error.what());
+      }
+      lock.lock();
+      spare_checkpoint_ = std::move(checkpoint.state);
+      checkpoint_writing_ = false;
+      checkpoint_ready_.notify_all();
+    }
+  }
+
+  void stopCheckpointWriter() {
+    {
+      std::lock_guard<std::mutex> lock(checkpoint_mutex_);
+      stop_checkpoints_ = true;
+    }
+    checkpoint_ready_.notify_all();
+    if (checkpoint_writer_.joinable()) checkpoint_writer_.join();
   }
 
   // Whether every subscriber the master knows of `publisher`'s topic is connected to it (the recorder, a process of
@@ -402,6 +532,15 @@ class ScenarioManager : public nodelet::Nodelet {
     journal_.close();
     std::error_code ignored;
     std::filesystem::remove(path, ignored);
+    // With the journal goes its checkpoint: one not written yet is dropped, one being written is waited for (else it
+    // would land after the removal and could be taken for a later session's).
+    {
+      std::unique_lock<std::mutex> lock(checkpoint_mutex_);
+      pending_checkpoint_.reset();
+      checkpoint_ready_.wait(lock, [this] { return !checkpoint_writing_; });
+    }
+    std::filesystem::remove(bag::checkpointPath(bag_path_), ignored);
+    last_checkpoint_stamp_.reset();
   }
 
  private:
@@ -688,6 +827,7 @@ class ScenarioManager : public nodelet::Nodelet {
     // A scene without a scenario ends with STOP (a scenario's end is handled with its status).
     if (!session_->world().scenarioStatus() && session_->world().sessionEnded()) writeResult();
     logProgress(frame);
+    maybeCheckpoint(frame.stamp);  // after the frame's messages: its cost does not delay them
   }
 
   // Latched status on a state change or a command, else every 0.1 s of input time while running (>= 5 Hz); the
@@ -918,6 +1058,21 @@ class ScenarioManager : public nodelet::Nodelet {
   double resume_margin_ = 0.3;
   std::size_t resend_frames_ = 150;
   bag::JournalWriter journal_;
+  // Checkpoints (issue 39 §1).
+  std::optional<scene::SceneDescription> start_scene_;  // the session's scene as built (a failed restore rebuilds it)
+  world::WorldOptions world_options_;
+  double checkpoint_interval_ = 10.0;  // s of input time; 0: none
+  std::optional<world::Stamp> last_checkpoint_stamp_;
+  bool checkpoints_refused_ = false;
+  double checkpoint_ms_ = 0.0;           // the last checkpoint's copy on the frame thread
+  std::uint64_t checkpoint_restored_ = 0;  // the frame the restore's checkpoint ended at (0: the whole journal)
+  std::mutex checkpoint_mutex_;
+  std::condition_variable checkpoint_ready_;
+  std::optional<bag::Checkpoint> pending_checkpoint_;
+  std::string spare_checkpoint_;  // memory of the last checkpoint, for the next
+  bool checkpoint_writing_ = false, stop_checkpoints_ = false;
+  std::atomic<std::uint64_t> checkpoints_written_{0};
+  std::thread checkpoint_writer_;  // last member: joined (stopCheckpointWriter) before the others go
   bag::JournalHeader journal_header_;  // this node's scene, difficulty, seed and run
   std::string resume_reason_;
   ros::Time resume_stamp_;  // device inputs stamped before it are not applied
