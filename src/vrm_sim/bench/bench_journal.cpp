@@ -5,10 +5,11 @@
 // is filled for publishing anyway); then reads the journal back and restores a fresh Session from it, timed. Cases:
 // the default session (membrane peeling), vitrectomy, navigation (rigid only), retina relocation, and the hard ones:
 // a long session (the restore grows with it) and the appends with busy loops on both cores.
-// Checkpoints (issue 39 §1): every 10 s of session (from 0.02 s on) the live Session is also checkpointed (Session::checkpoint on the
-// frame thread, timed: what the simulation node pays), and the restore is done a second way, from the last
-// checkpoint and the journal's frames after it, timed against the same hash. That restore's time is bounded by the
-// checkpoint interval, not the session's length.
+// Checkpoints (issue 39 §1): every 10 s of session (from 0.02 s on) the live Session is also checkpointed
+// (Session::checkpoint on the frame thread, timed: what the simulation node pays), and the restore is done a second
+// way, from the last checkpoint and the journal's frames after it, timed against the same hash. That restore's time is
+// bounded by the checkpoint interval, not the session's length.
+//
 // Usage: bench_journal [--quick] [--out FILE]
 #include <unistd.h>
 
@@ -218,14 +219,15 @@ int main(int argc, char** argv) {
     all_equal = all_equal && row.hash_equal && (row.checkpoints == 0 || row.checkpoint_hash_equal);
     worst_checkpoint_ms = std::max(worst_checkpoint_ms, row.checkpoint_ms_max);
     worst_checkpoint_restore_s = std::max(worst_checkpoint_restore_s, row.checkpoint_restore_s);
-    std::printf("%-24s %7.0f %8lu %7.0f %8.1f %8.1f %8.1f %9.3f %8.1f %9.2f %10.4f %6s | %5zu %8.1f %8.3f %8.3f %7lu %9.3f %6s\n",
-                c.name.c_str(), c.seconds, static_cast<unsigned long>(row.frames),
-                static_cast<double>(row.bytes) / static_cast<double>(std::max<std::uint64_t>(row.frames, 1)),
-                row.append_us_mean, row.append_us_p99, row.append_us_max, row.frame_ms_mean, row.read_ms, row.restore_s,
-                per_second, row.hash_equal ? "yes" : "NO", row.checkpoints,
-                static_cast<double>(row.checkpoint_bytes) / 1024.0, row.checkpoint_ms_mean, row.checkpoint_ms_max,
-                static_cast<unsigned long>(row.tail_frames), row.checkpoint_restore_s,
-                row.checkpoints == 0 ? "-" : (row.checkpoint_hash_equal ? "yes" : "NO"));
+    std::printf(
+        "%-24s %7.0f %8lu %7.0f %8.1f %8.1f %8.1f %9.3f %8.1f %9.2f %10.4f %6s | %5zu %8.1f %8.3f %8.3f %7lu %9.3f "
+        "%6s\n",
+        c.name.c_str(), c.seconds, static_cast<unsigned long>(row.frames),
+        static_cast<double>(row.bytes) / static_cast<double>(std::max<std::uint64_t>(row.frames, 1)),
+        row.append_us_mean, row.append_us_p99, row.append_us_max, row.frame_ms_mean, row.read_ms, row.restore_s,
+        per_second, row.hash_equal ? "yes" : "NO", row.checkpoints, static_cast<double>(row.checkpoint_bytes) / 1024.0,
+        row.checkpoint_ms_mean, row.checkpoint_ms_max, static_cast<unsigned long>(row.tail_frames),
+        row.checkpoint_restore_s, row.checkpoints == 0 ? "-" : (row.checkpoint_hash_equal ? "yes" : "NO"));
     char line[2000];
     std::snprintf(line, sizeof(line),
                   "{\"suite\":\"journal\",\"case\":\"%s\",\"scene\":\"%s\",\"script\":\"%s\",\"kind\":\"%s\","
@@ -241,8 +243,8 @@ int main(int argc, char** argv) {
                   static_cast<double>(row.bytes) / static_cast<double>(std::max<std::uint64_t>(row.frames, 1)),
                   row.append_us_mean, row.append_us_p50, row.append_us_p99, row.append_us_max, row.frame_ms_mean,
                   row.read_ms, row.restore_s, per_second, row.hash_equal ? "true" : "false", kCheckpointInterval,
-                  row.checkpoints, row.checkpoint_bytes, row.checkpoint_ms_mean, row.checkpoint_ms_max, row.checkpoint_ms_cold,
-                  static_cast<unsigned long>(row.tail_frames), row.checkpoint_restore_s,
+                  row.checkpoints, row.checkpoint_bytes, row.checkpoint_ms_mean, row.checkpoint_ms_max,
+                  row.checkpoint_ms_cold, static_cast<unsigned long>(row.tail_frames), row.checkpoint_restore_s,
                   row.checkpoints == 0 ? "null" : (row.checkpoint_hash_equal ? "true" : "false"));
     rows += (rows.empty() ? "\n  " : ",\n  ") + std::string(line);
   }
@@ -256,7 +258,8 @@ int main(int argc, char** argv) {
   out << "{\"suite\":\"journal\",\"command\":\"rosrun vrm_sim bench_journal" << (args.quick ? " --quick" : "")
       << "\",\"quick\":" << (args.quick ? "true" : "false") << ",\"worst_append_us\":" << worst_append_us
       << ",\"worst_restore_s_per_session_s\":" << worst_restore_per_second
-      << ",\"worst_checkpoint_ms\":" << worst_checkpoint_ms << ",\"worst_checkpoint_restore_s\":" << worst_checkpoint_restore_s
+      << ",\"worst_checkpoint_ms\":" << worst_checkpoint_ms
+      << ",\"worst_checkpoint_restore_s\":" << worst_checkpoint_restore_s
       << ",\"all_restores_equal\":" << (all_equal ? "true" : "false") << ",\"rows\":[" << rows << "\n]}\n";
   if (!out) {
     std::fprintf(stderr, "bench_journal: cannot write %s\n", args.out_path.c_str());

@@ -4,8 +4,8 @@
 #include <ros/serialization.h>
 #include <unistd.h>
 
-#include <boost/make_shared.hpp>
 #include <algorithm>
+#include <boost/make_shared.hpp>
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
@@ -262,7 +262,8 @@ Checkpoint readCheckpoint(const std::string& path) {
   }
   reader.offset_ = 4;
   if (const std::uint32_t version = reader.u32(); version != kCheckpointVersion) {
-    reader.fail("version " + std::to_string(version) + " (this build reads " + std::to_string(kCheckpointVersion) + ")");
+    reader.fail("version " + std::to_string(version) + " (this build reads " + std::to_string(kCheckpointVersion) +
+                ")");
   }
   Checkpoint checkpoint;
   checkpoint.header.scene = reader.string();
@@ -272,7 +273,8 @@ Checkpoint readCheckpoint(const std::string& path) {
   checkpoint.sequence = reader.u64();
   checkpoint.stamp = static_cast<std::int64_t>(reader.u64());
   const std::uint64_t size = reader.u64();
-  if (!reader.has(size) || data.size() - reader.offset_ - size != 8) reader.fail("a state length that is not the file's");
+  if (!reader.has(size) || data.size() - reader.offset_ - size != 8)
+    reader.fail("a state length that is not the file's");
   checkpoint.state.assign(reinterpret_cast<const char*>(data.data() + reader.offset_), size);
   reader.offset_ += size;
   if (reader.u64() != fnv1a(checkpoint.state)) reader.fail("a state whose checksum does not match");

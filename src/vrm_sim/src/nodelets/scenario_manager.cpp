@@ -62,17 +62,17 @@
 
 #include <algorithm>
 #include <atomic>
-#include <condition_variable>
 #include <boost/make_shared.hpp>
 #include <cmath>
+#include <condition_variable>
 #include <cstdio>
 #include <deque>
 #include <filesystem>
 #include <map>
 #include <memory>
 #include <mutex>
-#include <thread>
 #include <pluginlib/class_list_macros.hpp>
+#include <thread>
 
 #include "vrm_msgs/CollisionReport.h"
 #include "vrm_msgs/InputFrames.h"
@@ -241,7 +241,6 @@ class ScenarioManager : public nodelet::Nodelet {
 
   // ---- crash = pause (issue 39) ----
  private:
-
   // The journal of this session's crashed process, if there is one to resume; otherwise why not (logged) and nullopt.
   std::optional<bag::JournalContents> resumableJournal(const bag::JournalHeader& expected) {
     if (!journal_enabled_) return std::nullopt;
@@ -1064,7 +1063,7 @@ class ScenarioManager : public nodelet::Nodelet {
   double checkpoint_interval_ = 10.0;  // s of input time; 0: none
   std::optional<world::Stamp> last_checkpoint_stamp_;
   bool checkpoints_refused_ = false;
-  double checkpoint_ms_ = 0.0;           // the last checkpoint's copy on the frame thread
+  double checkpoint_ms_ = 0.0;             // the last checkpoint's copy on the frame thread
   std::uint64_t checkpoint_restored_ = 0;  // the frame the restore's checkpoint ended at (0: the whole journal)
   std::mutex checkpoint_mutex_;
   std::condition_variable checkpoint_ready_;
@@ -1072,7 +1071,7 @@ class ScenarioManager : public nodelet::Nodelet {
   std::string spare_checkpoint_;  // memory of the last checkpoint, for the next
   bool checkpoint_writing_ = false, stop_checkpoints_ = false;
   std::atomic<std::uint64_t> checkpoints_written_{0};
-  std::thread checkpoint_writer_;  // last member: joined (stopCheckpointWriter) before the others go
+  std::thread checkpoint_writer_;      // last member: joined (stopCheckpointWriter) before the others go
   bag::JournalHeader journal_header_;  // this node's scene, difficulty, seed and run
   std::string resume_reason_;
   ros::Time resume_stamp_;  // device inputs stamped before it are not applied

@@ -80,7 +80,7 @@ JournalContents readJournal(const std::string& path);
 // checkpoint that names a frame the journal lost in a machine crash is refused by the restore, which then replays the
 // whole journal).
 struct Checkpoint {
-  JournalHeader header;       // the journal's: a checkpoint of another session is not restored
+  JournalHeader header;        // the journal's: a checkpoint of another session is not restored
   std::uint64_t sequence = 0;  // the last input frame it includes
   std::int64_t stamp = 0;      // that frame's stamp (ns): with the sequence, which frame of which journal
   std::string state;           // world::Session::checkpoint()

@@ -58,8 +58,9 @@ struct Status {
   Score score;
   std::vector<PenaltyEvent> events;  // why points were lost (factor_groups.h: PenaltyLog), at most kMaxEvents
   std::size_t events_dropped = 0;    // penalty events beyond those
-  std::vector<ObjectPlacement> placements;  // the objects the scenario moves, after the last frame (Scenario::placements)
-  std::vector<LaserBurn> burns;             // the laser burns so far (Scenario::burns)
+  std::vector<ObjectPlacement>
+      placements;                // the objects the scenario moves, after the last frame (Scenario::placements)
+  std::vector<LaserBurn> burns;  // the laser burns so far (Scenario::burns)
 
   // The names come from the scene: a checkpoint of another scene, scenario type or difficulty level is refused.
   void transferState(StateArchive& archive) {

@@ -52,15 +52,15 @@ struct TissueView {
   std::uint64_t torn_springs = 0;
   std::uint64_t cut_nodes = 0;
   std::uint64_t released_adhesions = 0;
-  std::size_t adhesion_points = 0;             // holding now
-  double max_adhesion_force = 0.0;             // N, largest pull on an adhesion point so far
-  std::uint64_t adhesion_tears = 0;            // adhesions that tore the tissue beneath (retina injuries)
+  std::size_t adhesion_points = 0;   // holding now
+  double max_adhesion_force = 0.0;   // N, largest pull on an adhesion point so far
+  std::uint64_t adhesion_tears = 0;  // adhesions that tore the tissue beneath (retina injuries)
   const std::vector<Eigen::Vector3d>* adhesion_tear_points = nullptr;      // eye frame, oldest first
   double fluid_volume = 0.0, enclosed_volume = 0.0, fluid_pressure = 0.0;  // m^3, m^3, Pa (subretinal fluid)
   double injected_outside = 0.0;                                           // m^3 not under the sheet
   bool needle_inside = false;                                              // a needle's tip is behind the sheet
-  std::size_t initial_node_count = 0;          // at the start (rest)
-  const Eigen::Vector3d* positions = nullptr;  // by node slot, valid during the frame
+  std::size_t initial_node_count = 0;                                      // at the start (rest)
+  const Eigen::Vector3d* positions = nullptr;                              // by node slot, valid during the frame
   std::size_t node_count = 0;
   const std::vector<Eigen::Vector3d>* rest_positions = nullptr;  // by node slot at the start (NaN: born later)
 };

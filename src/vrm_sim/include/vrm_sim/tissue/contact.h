@@ -9,8 +9,8 @@
 #include <cstdint>
 #include <vector>
 
-#include "vrm_sim/tissue/system.h"
 #include "vrm_sim/state/state_archive.h"
+#include "vrm_sim/tissue/system.h"
 
 namespace vrm_sim {
 namespace tissue {

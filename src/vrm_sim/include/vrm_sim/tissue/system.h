@@ -43,7 +43,7 @@ SystemView viewOf(mge::Membrane& membrane, const std::uint8_t* constrained);
 struct Anchor {
   std::uint32_t node = 0;
   Eigen::Vector3d point = Eigen::Vector3d::Zero();
-  double stiffness = 0.0;  // N/m
+  double stiffness = 0.0;       // N/m
   double overloaded_for = 0.0;  // s it has carried more than the break force (TissueConfig::adhesion_release_time)
   void transferState(StateArchive& archive) { archive(node)(point)(stiffness)(overloaded_for); }
 };

@@ -669,7 +669,8 @@ class ImplicitEuler : public Integrator {
     if (archive.loading()) resize(system);
     const std::size_t expected = dv_.size();
     archive(previous_dt_)(dv_);
-    if (archive.loading() && dv_.size() != expected) archive.fail("the implicit warm start is for another membrane size");
+    if (archive.loading() && dv_.size() != expected)
+      archive.fail("the implicit warm start is for another membrane size");
   }
 
   void step(const SystemView& system, const ForceModel& forces, double dt) override {

@@ -11,7 +11,8 @@ namespace tissue {
 double TissueModel::strainBound() const { return std::numeric_limits<double>::infinity(); }
 
 void TissueModel::transferState(StateArchive& archive, TissueSimulator& /*simulator*/) {
-  archive.fail(std::string("the ") + name() + " tissue model cannot be checkpointed (its session restores from the journal)");
+  archive.fail(std::string("the ") + name() +
+               " tissue model cannot be checkpointed (its session restores from the journal)");
 }
 
 const Registry<TissueModelFactory>& tissueModelRegistry() {

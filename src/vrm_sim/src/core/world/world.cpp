@@ -65,7 +65,7 @@ struct World::Instrument {
   double suction = 0.0;
   double cut_rate = 0.0;
   double injection_flow = 0.0;  // m^3/s
-  bool cutting = false;  // vitrector with suction and cutter running
+  bool cutting = false;         // vitrector with suction and cutter running
   collision::InstrumentModel model;
   int model_jaw_deg = -1000;  // whole degrees, so tracking noise does not invalidate cached depth images
   std::uint64_t model_version = 0;
@@ -1074,7 +1074,6 @@ std::vector<ContactEvent> World::contactEvents() const {
   }
   return events;
 }
-
 
 // ---- checkpoints (issue 39 §1) ----
 //
