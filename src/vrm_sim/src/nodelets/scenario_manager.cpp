@@ -357,6 +357,13 @@ class ScenarioManager : public nodelet::Nodelet {
       } else if (!in_journal) {
         why = "the journal does not hold its frame " + std::to_string(checkpoint.sequence);
       } else {
+        // A LOAD among the frames the checkpoint replaces is announced with its own stamp, as a replay of it would.
+        for (const vrm_msgs::InputFrame::Ptr& frame : journal.frames) {
+          if (frame->sequence > checkpoint.sequence) break;
+          for (const vrm_msgs::ScenarioCommand& command : frame->commands) {
+            if (command.command == vrm_msgs::ScenarioCommand::LOAD) last_load_stamp_ = toStamp(frame->header.stamp);
+          }
+        }
         session_->restoreCheckpoint(checkpoint.state);
         checkpoint_restored_ = checkpoint.sequence;
         return checkpoint.sequence;

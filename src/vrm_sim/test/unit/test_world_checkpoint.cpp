@@ -7,11 +7,13 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
 #include "vrm_scene/scene_loader.h"
 #include "vrm_sim/world/offline.h"
+#include "vrm_sim/world/session.h"
 #include "vrm_sim/world/world.h"
 
 namespace vrm_sim {
@@ -106,6 +108,58 @@ TEST_P(WorldCheckpoint, RestoredWorldContinuesBitForBit) {
 
 INSTANTIATE_TEST_SUITE_P(ShippedScenarios, WorldCheckpoint, ::testing::ValuesIn(scenarioScenes()),
                          [](const ::testing::TestParamInfo<std::string>& info) { return info.param; });
+
+// A Session that LOADed another scene (and difficulty) mid-session: its checkpoint names that scene, and a Session
+// built from the start scene, as a restarted node builds it, restores into the LOADed one and goes on bit for bit.
+TEST(SessionCheckpoint, ALoadedSceneIsRebuiltAndContinues) {
+  const scene::SceneDescription start = scene::loadScene(scene::shippedScenePath("membrane_peeling"));
+  const scene::SceneDescription next =
+      scene::withScript(scene::loadScene(scene::shippedScenePath("navigation"), "hard"), "expert");
+  // The LOADed scene's script drives the instruments: the loader gives the scripted scene for this LOAD.
+  const Session::Loader loader = [&next](const std::string& name, const std::string& difficulty) {
+    if (name != "navigation" || difficulty != "hard") throw std::invalid_argument("unexpected LOAD " + name);
+    return next;
+  };
+  std::vector<InputFrame> frames;
+  {
+    Session live(start, quietOptions(), loader);
+    live.setInputObserver([&frames](const InputFrame& frame) { frames.push_back(frame); });
+    ScenarioCommand load;
+    load.stamp = fromSeconds(1000.0);
+    load.command = ScenarioCommand::Type::kLoad;
+    load.scenario = "navigation";
+    load.argument = "hard";
+    load.seed = 7;
+    live.handle(load);
+    for (long tick = 1; tick <= 400; ++tick) {
+      const double t = static_cast<double>(tick) / 50.0;
+      for (const InstrumentState& input : scriptedInputsAt(next, t, fromSeconds(1000.0 + t))) live.handle(input);
+      live.flush();
+    }
+    ASSERT_EQ(live.loads(), 1u);
+  }
+  ASSERT_GT(frames.size(), 300u);
+  const std::size_t at = frames.size() / 2;
+  Session reference(start, quietOptions(), loader);
+  std::string checkpoint;
+  std::vector<std::uint64_t> hashes;
+  for (std::size_t k = 0; k < frames.size(); ++k) {
+    reference.handle(frames[k]);
+    hashes.push_back(reference.world().stateHash());
+    if (k + 1 == at) checkpoint = reference.checkpoint();
+  }
+  Session restored(start, quietOptions(), loader);
+  restored.restoreCheckpoint(checkpoint);
+  EXPECT_EQ(restored.world().scene().name, next.name);
+  EXPECT_EQ(restored.loads(), 1u);
+  EXPECT_EQ(restored.seed(), 7u);
+  EXPECT_EQ(restored.nextSequence(), reference.nextSequence());
+  for (std::size_t k = at; k < frames.size(); ++k) {
+    restored.handle(frames[k]);
+    ASSERT_EQ(restored.world().stateHash(), hashes[k]) << "frame " << k + 1;
+  }
+  EXPECT_EQ(restored.checkpoint(), reference.checkpoint());
+}
 
 TEST(WorldCheckpointErrors, BadCheckpointsAreRefused) {
   const Recording recording = record("membrane_peeling", 6.0);
