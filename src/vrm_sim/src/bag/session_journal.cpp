@@ -223,6 +223,7 @@ void writeCheckpoint(const std::string& path, const Checkpoint& checkpoint) {
   putU64(head, checkpoint.header.run);
   putU64(head, checkpoint.sequence);
   putU64(head, static_cast<std::uint64_t>(checkpoint.stamp));
+  putU64(head, checkpoint.state_hash);
   putU64(head, checkpoint.state.size());
   std::vector<std::uint8_t> tail;
   putU64(tail, fnv1a(checkpoint.state));
@@ -272,6 +273,7 @@ Checkpoint readCheckpoint(const std::string& path) {
   checkpoint.header.run = reader.u64();
   checkpoint.sequence = reader.u64();
   checkpoint.stamp = static_cast<std::int64_t>(reader.u64());
+  checkpoint.state_hash = reader.u64();
   const std::uint64_t size = reader.u64();
   if (!reader.has(size) || data.size() - reader.offset_ - size != 8)
     reader.fail("a state length that is not the file's");

@@ -365,6 +365,10 @@ class ScenarioManager : public nodelet::Nodelet {
           }
         }
         session_->restoreCheckpoint(checkpoint.state);
+        if (session_->world().stateHash() != checkpoint.state_hash) {
+          throw StateError("the restored state hash " + world::hashString(session_->world().stateHash()) +
+                           " is not the checkpoint's " + world::hashString(checkpoint.state_hash));
+        }
         checkpoint_restored_ = checkpoint.sequence;
         return checkpoint.sequence;
       }
@@ -408,6 +412,7 @@ class ScenarioManager : public nodelet::Nodelet {
     checkpoint.header = journal_header_;
     checkpoint.sequence = session_->nextSequence() - 1;
     checkpoint.stamp = stamp;
+    checkpoint.state_hash = session_->world().stateHash();
     {
       std::lock_guard<std::mutex> lock(checkpoint_mutex_);
       pending_checkpoint_ = std::move(checkpoint);  // a slow disk keeps only the newest

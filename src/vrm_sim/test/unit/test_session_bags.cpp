@@ -736,6 +736,7 @@ TEST_F(WorkFolder, ACheckpointFileReadsBackWholeAndRefusesDamage) {
   checkpoint.header = JournalHeader{"membrane_peeling", "hard", 7, 3};
   checkpoint.sequence = 1234;
   checkpoint.stamp = 1800000000123456789;
+  checkpoint.state_hash = 0xc1d1327e963450a8;
   checkpoint.state = std::string("state\0with zero bytes", 21) + std::string(5000, 'x');
   const std::string path = checkpointPath((work_ / "session.bag").string());
   EXPECT_EQ(path, (work_ / "session.checkpoint").string());
@@ -748,6 +749,7 @@ TEST_F(WorkFolder, ACheckpointFileReadsBackWholeAndRefusesDamage) {
   EXPECT_EQ(back.header.run, 3u);
   EXPECT_EQ(back.sequence, 1234u);
   EXPECT_EQ(back.stamp, 1800000000123456789);
+  EXPECT_EQ(back.state_hash, 0xc1d1327e963450a8u);
   EXPECT_EQ(back.state, checkpoint.state);
 
   std::string bytes;

@@ -83,7 +83,10 @@ struct Checkpoint {
   JournalHeader header;        // the journal's: a checkpoint of another session is not restored
   std::uint64_t sequence = 0;  // the last input frame it includes
   std::int64_t stamp = 0;      // that frame's stamp (ns): with the sequence, which frame of which journal
-  std::string state;           // world::Session::checkpoint()
+  // The World's state hash when it was taken: a restore checks it, so bytes of a build whose state layout differs in
+  // a way the archive's section tags and lengths do not catch are refused rather than run.
+  std::uint64_t state_hash = 0;
+  std::string state;  // world::Session::checkpoint()
 };
 
 // <bag without .bag>.checkpoint
