@@ -170,10 +170,7 @@ class ScenarioManager : public nodelet::Nodelet {
     score_publisher_ = nh.advertise<vrm_msgs::Score>("score", 2, true);
     result_publisher_ = nh.advertise<vrm_msgs::SessionResult>("session_result", 1, true);
     running_scene_publisher_ = nh.advertise<vrm_msgs::RunningScene>("running_scene", 1, /*latch=*/true);
-    session_->setFrameObserver([this](const world::FrameResult& frame) { publish(frame); });
-    session_->setInputObserver([this](const world::InputFrame& frame) { publishInputFrame(frame); });
-    session_->setLoadObserver([this](world::World& world) { onLoaded(world); });
-    onLoaded(session_->world());
+    attachSession();
     resume_publisher_ = nh.advertise<vrm_msgs::SessionResume>("simulation_resume", 1, /*latch=*/true);
     resent_publisher_ = nh.advertise<vrm_msgs::InputFrames>("input_frame_resent", 1, /*latch=*/true);
     if (journal) {
@@ -305,7 +302,7 @@ class ScenarioManager : public nodelet::Nodelet {
         if (command.command == vrm_msgs::ScenarioCommand::LOAD) session_start_ = ros::Time();
       }
       paused_at_ = std::max(paused_at_, message->header.stamp);
-      if (message->sequence > from_checkpoint || from_checkpoint == 0) session_->handle(toWorld(*message));
+      if (message->sequence > from_checkpoint) session_->handle(toWorld(*message));
     }
     restoring_ = false;
     restored_sequence_ = journal.frames.back()->sequence;
@@ -335,6 +332,14 @@ class ScenarioManager : public nodelet::Nodelet {
             : "",
         world::hashString(session_->world().stateHash()).c_str());
     resume_timer_ = getNodeHandle().createWallTimer(ros::WallDuration(0.05), &ScenarioManager::finishResume, this);
+  }
+
+  // The session's frames, inputs and scene switches reach this node's publishers.
+  void attachSession() {
+    session_->setFrameObserver([this](const world::FrameResult& frame) { publish(frame); });
+    session_->setInputObserver([this](const world::InputFrame& frame) { publishInputFrame(frame); });
+    session_->setLoadObserver([this](world::World& world) { onLoaded(world); });
+    onLoaded(session_->world());
   }
 
   // The last checkpoint, restored into session_ if it belongs to this journal: the sequence of the last frame it
@@ -376,10 +381,7 @@ class ScenarioManager : public nodelet::Nodelet {
       why = error.what();
       // A half-restored session is discarded: the journal alone restores it.
       session_ = std::make_unique<world::Session>(*start_scene_, world_options_);
-      session_->setFrameObserver([this](const world::FrameResult& frame) { publish(frame); });
-      session_->setInputObserver([this](const world::InputFrame& frame) { publishInputFrame(frame); });
-      session_->setLoadObserver([this](world::World& world) { onLoaded(world); });
-      onLoaded(session_->world());
+      attachSession();
     }
     NODELET_WARN("scenario_manager: the checkpoint %s is not used (%s); the whole journal is replayed", path.c_str(),
                  why.c_str());
